@@ -1,0 +1,13 @@
+.PHONY: demo test bench setup
+
+setup:
+	bash scripts/setup.sh
+
+demo: setup
+	.venv/bin/relight demo
+
+test: setup
+	.venv/bin/python -m pytest -q tests
+
+bench: setup
+	.venv/bin/relight bench engine

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# One-time set-up on a fresh Debian machine: system OpenGL (Mesa EGL/llvmpipe, Xvfb for windows),
+# a virtual environment in .venv and the Python packages (torch pinned by constraints.txt).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [ "$(id -u)" = 0 ] && ! ldconfig -p | grep -q libEGL.so.1; then
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libegl1 libgl1 xvfb xauth >/dev/null
+fi
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+    "$PY" -m venv .venv
+fi
+stamp=.venv/.installed-$(cat pyproject.toml constraints.txt | sha1sum | cut -c1-12)
+if [ ! -f "$stamp" ]; then
+    .venv/bin/pip install -q -c constraints.txt torch==2.13.0
+    .venv/bin/pip install -q -c constraints.txt -e ".[test]"
+    rm -f .venv/.installed-*
+    touch "$stamp"
+fi

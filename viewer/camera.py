@@ -1,0 +1,71 @@
+"""The camera model shared by the scene bundle, the GL engine and the torch twin.
+
+Camera space is OpenGL's: x right, y up, z towards the viewer; the camera sits at the origin and
+looks along -z. Image row 0 is the top row; pixel (row i, column j) has its centre at
+(u, v) = (j + 0.5, i + 0.5). A perspective camera with a ``focal_mm`` lens on a ``sensor_mm``
+sensor spanning the larger image side (the paper: 50 mm on 36 mm, camera 4 m from the subject).
+Depth is the distance along -z in metres, so the point seen at pixel (u, v) with depth d is
+``((u - cx) d / f, -(v - cy) d / f, -d)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Camera:
+    width: int
+    height: int
+    focal_mm: float = 50.0
+    sensor_mm: float = 36.0
+    distance: float = 4.0  # metres from the camera to the subject's centre (depth-network median)
+
+    @property
+    def focal_px(self) -> float:
+        return self.focal_mm / self.sensor_mm * max(self.width, self.height)
+
+    @property
+    def center(self) -> tuple[float, float]:
+        return self.width / 2.0, self.height / 2.0
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["model"] = "perspective"
+        return d
+
+    @staticmethod
+    def from_json(d: dict) -> "Camera":
+        return Camera(
+            width=int(d["width"]),
+            height=int(d["height"]),
+            focal_mm=float(d.get("focal_mm", 50.0)),
+            sensor_mm=float(d.get("sensor_mm", 36.0)),
+            distance=float(d.get("distance", 4.0)),
+        )
+
+    def unproject(self, depth: np.ndarray) -> np.ndarray:
+        """Camera-space points (H, W, 3) float32 from a depth map (H, W) in metres."""
+        h, w = depth.shape
+        f = self.focal_px
+        cx, cy = self.center
+        u = np.arange(w, dtype=np.float64) + 0.5
+        v = np.arange(h, dtype=np.float64) + 0.5
+        uu, vv = np.meshgrid(u, v)
+        d = depth.astype(np.float64)
+        pts = np.stack([(uu - cx) * d / f, -(vv - cy) * d / f, -d], axis=-1)
+        return pts.astype(np.float32)
+
+    def projection_matrix(self, near: float, far: float) -> np.ndarray:
+        """OpenGL clip-from-camera matrix (4x4, row-major numpy) matching :meth:`unproject`."""
+        f = self.focal_px
+        w, h = self.width, self.height
+        m = np.zeros((4, 4), dtype=np.float64)
+        m[0, 0] = 2.0 * f / w
+        m[1, 1] = 2.0 * f / h
+        m[2, 2] = -(far + near) / (far - near)
+        m[2, 3] = -2.0 * far * near / (far - near)
+        m[3, 2] = -1.0
+        return m

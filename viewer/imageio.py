@@ -1,0 +1,104 @@
+"""Reading and writing images in standard formats: EXR (linear float), PNG (8/16-bit), HDR.
+
+Every failure is an :class:`InputError` naming the file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+def read_exr(path) -> np.ndarray:
+    """Float32 array, HxW for one channel (Y) or HxWxC for RGB / RGBA."""
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    try:
+        with OpenEXR.File(str(path)) as f:
+            channels = f.channels()
+            if "RGB" in channels:
+                arr = channels["RGB"].pixels
+            elif "RGBA" in channels:
+                arr = channels["RGBA"].pixels
+            elif "Y" in channels:
+                arr = channels["Y"].pixels
+            elif len(channels) == 1:
+                arr = next(iter(channels.values())).pixels
+            else:
+                raise InputError(path, f"unsupported EXR channels {sorted(channels)}")
+            return np.ascontiguousarray(arr, dtype=np.float32)
+    except InputError:
+        raise
+    except Exception as exc:  # OpenEXR raises plain exceptions for corrupt files
+        raise InputError(path, f"cannot read EXR ({exc})") from None
+
+
+def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
+    """Write HxW (channel Y), HxWx3 (RGB) or HxWx4 (RGBA), ZIP-compressed."""
+    import OpenEXR
+
+    path = Path(path)
+    arr = np.asarray(arr)
+    dtype = np.float16 if half else np.float32
+    arr = np.ascontiguousarray(arr, dtype=dtype)
+    name = {2: "Y", 3: {1: "Y", 3: "RGB", 4: "RGBA"}.get(arr.shape[-1])}[arr.ndim]
+    if name is None:
+        raise ValueError(f"cannot write an array of shape {arr.shape} as EXR")
+    if arr.ndim == 3 and arr.shape[-1] == 1:
+        arr = np.ascontiguousarray(arr[..., 0])
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    OpenEXR.File(header, {name: arr}).write(str(path))
+    return path
+
+
+def read_png(path) -> np.ndarray:
+    """Image as float32 in [0, 1] (8- or 16-bit PNG/JPEG), HxW or HxWxC; values as stored (no
+    colour-space conversion)."""
+    from PIL import Image
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    try:
+        with Image.open(path) as im:
+            im.load()
+            if im.mode in ("I;16", "I;16B", "I"):
+                arr = np.asarray(im, dtype=np.float32) / 65535.0
+            else:
+                if im.mode not in ("L", "RGB", "RGBA"):
+                    im = im.convert("RGBA" if "A" in im.mode else "RGB")
+                arr = np.asarray(im, dtype=np.float32) / 255.0
+    except Exception as exc:
+        raise InputError(path, f"cannot read image ({exc})") from None
+    return arr
+
+
+def write_png(path, arr: np.ndarray) -> Path:
+    """Write values in [0, 1] (clipped) as an 8-bit PNG."""
+    from PIL import Image
+
+    path = Path(path)
+    arr = np.asarray(arr, dtype=np.float32)
+    u8 = (np.clip(np.nan_to_num(arr), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    if u8.ndim == 3 and u8.shape[-1] == 1:
+        u8 = u8[..., 0]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(u8).save(path)
+    return path
+
+
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float32)
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    x = np.clip(np.asarray(x, dtype=np.float32), 0.0, None)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * np.power(x, 1 / 2.4) - 0.055).astype(np.float32)

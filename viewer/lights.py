@@ -1,0 +1,134 @@
+"""Area lights: the discrete approximation of an environment map (the paper's N_L x 7 tensor).
+
+Each light has a unit ``direction`` (camera space, pointing from the scene towards the light),
+a Gaussian ``sigma`` (the convolutional shadow map's blur, in pixels of a 256-pixel shadow map,
+as in the paper; 0 gives a hard shadow) and an RGB ``intensity``: a light of intensity I facing a
+white Lambertian surface gives it the radiance I / pi.
+
+JSON form: ``{"format": "relight-lights", "version": 1, "lights": [{"direction": [x, y, z],
+"sigma": s, "intensity": [r, g, b]}, ...]}``. :meth:`AreaLights.to_array` gives the paper's N x 7
+layout (direction, sigma, RGB).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+FORMAT = "relight-lights"
+VERSION = 1
+UNIT_TOLERANCE = 1e-3
+
+
+@dataclass(frozen=True)
+class AreaLights:
+    direction: np.ndarray  # (N, 3) float32 unit vectors
+    sigma: np.ndarray  # (N,) float32 >= 0
+    intensity: np.ndarray  # (N, 3) float32 >= 0
+
+    def __post_init__(self):
+        object.__setattr__(self, "direction", np.ascontiguousarray(np.asarray(self.direction, dtype=np.float32).reshape(-1, 3)))
+        object.__setattr__(self, "sigma", np.ascontiguousarray(np.asarray(self.sigma, dtype=np.float32).reshape(-1)))
+        object.__setattr__(self, "intensity", np.ascontiguousarray(np.asarray(self.intensity, dtype=np.float32).reshape(-1, 3)))
+
+    def __len__(self) -> int:
+        return int(self.direction.shape[0])
+
+    def validate(self, where=None) -> "AreaLights":
+        n = len(self)
+        if self.sigma.shape != (n,) or self.intensity.shape != (n, 3):
+            raise InputError(where, f"inconsistent light counts: {n} directions, {self.sigma.shape[0]} sigmas, {self.intensity.shape[0]} intensities")
+        for name in ("direction", "sigma", "intensity"):
+            arr = getattr(self, name)
+            if not np.isfinite(arr).all():
+                raise InputError(where, f"light {int(np.argwhere(~np.isfinite(arr.reshape(n, -1)))[0, 0])}: {name} is NaN or Inf")
+        lengths = np.linalg.norm(self.direction, axis=1)
+        bad = np.abs(lengths - 1.0) > UNIT_TOLERANCE
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(where, f"light {i}: direction {self.direction[i].tolist()} is not a unit vector (length {lengths[i]:.4g})")
+        if (self.sigma < 0).any():
+            i = int(np.argmax(self.sigma < 0))
+            raise InputError(where, f"light {i}: sigma must be >= 0, got {self.sigma[i]:.4g}")
+        if (self.intensity < 0).any():
+            i = int(np.argmax((self.intensity < 0).any(axis=1)))
+            raise InputError(where, f"light {i}: intensity must be non-negative, got {self.intensity[i].tolist()}")
+        return self
+
+    # ----------------------------------------------------------------- transforms
+    def rotated(self, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> "AreaLights":
+        """Rotate the whole set: ``yaw`` about the vertical (+y) axis, then ``tilt`` about +x."""
+        return AreaLights(self.direction @ rotation_matrix(yaw_deg, tilt_deg).T, self.sigma, self.intensity)
+
+    def with_sigma(self, index: int, sigma: float) -> "AreaLights":
+        s = self.sigma.copy()
+        s[index] = sigma
+        return AreaLights(self.direction, s, self.intensity)
+
+    def scaled(self, factor) -> "AreaLights":
+        return AreaLights(self.direction, self.sigma, self.intensity * np.asarray(factor, dtype=np.float32))
+
+    def to_array(self) -> np.ndarray:
+        """(N, 7) float32: direction xyz, sigma, RGB intensity (the paper's layout)."""
+        return np.concatenate([self.direction, self.sigma[:, None], self.intensity], axis=1).astype(np.float32)
+
+    @staticmethod
+    def from_array(arr) -> "AreaLights":
+        arr = np.asarray(arr, dtype=np.float32)
+        if arr.ndim != 2 or arr.shape[1] != 7:
+            raise InputError(None, f"area lights must be an N x 7 array, got shape {arr.shape}")
+        return AreaLights(arr[:, :3], arr[:, 3], arr[:, 4:7])
+
+    # ----------------------------------------------------------------- files
+    def to_json(self) -> dict:
+        return {
+            "format": FORMAT,
+            "version": VERSION,
+            "convention": "camera space: x right, y up, z towards the camera; direction points to the light",
+            "lights": [
+                {"direction": [float(v) for v in d], "sigma": float(s), "intensity": [float(v) for v in i]}
+                for d, s, i in zip(self.direction, self.sigma, self.intensity)
+            ],
+        }
+
+    def save(self, path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        return path
+
+
+def rotation_matrix(yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> np.ndarray:
+    """3x3 rotation: yaw about +y (right-handed), then tilt about +x."""
+    a, b = np.radians(yaw_deg), np.radians(tilt_deg)
+    ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    rx = np.array([[1, 0, 0], [0, np.cos(b), -np.sin(b)], [0, np.sin(b), np.cos(b)]])
+    return (rx @ ry).astype(np.float64)
+
+
+def load_lights(path) -> AreaLights:
+    """Load a light file (.json) and validate it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "light file not found")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"invalid JSON ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise InputError(path, f"not a light file (format should be {FORMAT!r})")
+    try:
+        items = data["lights"]
+        d = np.array([it["direction"] for it in items], dtype=np.float32).reshape(-1, 3)
+        s = np.array([it["sigma"] for it in items], dtype=np.float32)
+        i = np.array([it["intensity"] for it in items], dtype=np.float32).reshape(-1, 3)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(path, f"malformed light entry ({exc})") from None
+    if len(d) == 0:
+        raise InputError(path, "contains no lights")
+    return AreaLights(d, s, i).validate(path)

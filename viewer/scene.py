@@ -1,0 +1,219 @@
+"""The scene bundle: the per-pixel maps that inference produces and the engine renders.
+
+A scene bundle is a directory (format described in docs/scene-bundle.md):
+
+=================  ===========================================================================
+scene.json         {"format": "relight-scene", "version": 1, "width", "height", "camera": {...},
+                   "depth_units": "metres", "maps": {name: file}}
+albedo.exr         diffuse albedo, linear RGB in [0, 1]
+specular.exr       specular reflectance in [0, 1] (Disney ``specular``; F0 = 0.08 * specular)
+roughness.exr      perceptual roughness in [0, 1] (alpha = roughness^2)
+normal.exr         unit normals in camera space (x right, y up, z towards the camera)
+depth.exr          distance along the view axis in metres (> 0), float32
+mask.png           8-bit, person where > 127
+photo.png          optional: the input photo, sRGB
+background.png     optional: the photo's background (person removed), sRGB
+=================  ===========================================================================
+
+Only pixels inside the mask carry data; loading zeroes everything outside it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .camera import Camera
+from .errors import InputError
+from .imageio import read_exr, read_png, srgb_to_linear, write_exr, write_png, linear_to_srgb
+
+FORMAT = "relight-scene"
+VERSION = 1
+MAP_FILES = {
+    "albedo": "albedo.exr",
+    "specular": "specular.exr",
+    "roughness": "roughness.exr",
+    "normal": "normal.exr",
+    "depth": "depth.exr",
+    "mask": "mask.png",
+}
+OPTIONAL_FILES = {"photo": "photo.png", "background": "background.png"}
+NORMAL_TOLERANCE = 1e-2  # | |n| - 1 | allowed inside the mask before loading refuses the map
+
+
+@dataclass
+class Scene:
+    """Per-pixel maps of one photo. Arrays are float32, (H, W[, C]), row 0 at the top."""
+
+    albedo: np.ndarray  # (H, W, 3) linear RGB
+    specular: np.ndarray  # (H, W)
+    roughness: np.ndarray  # (H, W)
+    normal: np.ndarray  # (H, W, 3) camera space, unit length inside the mask
+    depth: np.ndarray  # (H, W) metres, > 0 inside the mask
+    mask: np.ndarray  # (H, W) bool
+    camera: Camera
+    photo: np.ndarray | None = None  # (H, W, 3) linear RGB
+    background: np.ndarray | None = None  # (H, W, 3) linear RGB
+    source: Path | None = field(default=None, compare=False)
+
+    @property
+    def height(self) -> int:
+        return int(self.mask.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.mask.shape[1])
+
+    @property
+    def has_specular(self) -> bool:
+        """False for a matte scene: the engine then skips all specular work."""
+        return bool(np.any(self.specular[self.mask] > 0.0))
+
+    def points(self) -> np.ndarray:
+        """Camera-space positions (H, W, 3) of every pixel's depth."""
+        return self.camera.unproject(self.depth)
+
+    def validate(self, where: Path | None = None) -> "Scene":
+        """Check shapes, ranges, unit normals, finiteness and a non-empty mask.
+
+        Raises :class:`InputError` naming the offending file. Values outside the mask are
+        ignored and set to zero.
+        """
+        base = Path(where) if where is not None else None
+
+        def file(name):
+            fname = MAP_FILES.get(name) or OPTIONAL_FILES.get(name) or name
+            return base / fname if base is not None else fname
+
+        h, w = self.mask.shape if self.mask.ndim == 2 else (None, None)
+        if self.mask.ndim != 2:
+            raise InputError(file("mask"), f"mask must be a single-channel image, got shape {self.mask.shape}")
+        if h < 1 or w < 1:
+            raise InputError(file("mask"), "image has no pixels")
+        m = self.mask.astype(bool)
+        if not m.any():
+            raise InputError(file("mask"), "mask is empty: no pixel belongs to the person")
+        self.mask = m
+        shapes = {"albedo": (h, w, 3), "specular": (h, w), "roughness": (h, w), "normal": (h, w, 3), "depth": (h, w)}
+        for name, shape in shapes.items():
+            arr = np.asarray(getattr(self, name), dtype=np.float32)
+            if arr.ndim == 3 and len(shape) == 2 and arr.shape[-1] >= 1:
+                arr = arr[..., 0]  # a one-channel map saved as RGB
+            if arr.shape != shape:
+                raise InputError(file(name), f"shape {arr.shape} does not match the mask's {shape[:2]} (expected {shape})")
+            inside = arr[m]
+            bad = ~np.isfinite(inside)
+            if bad.any():
+                raise InputError(file(name), f"{int(bad.any(axis=-1).sum() if bad.ndim > 1 else bad.sum())} pixel(s) inside the mask are NaN or Inf")
+            arr = np.where(m[..., None] if arr.ndim == 3 else m, arr, 0.0).astype(np.float32)
+            setattr(self, name, np.ascontiguousarray(arr))
+        for name in ("albedo", "specular", "roughness"):
+            arr = getattr(self, name)[m]
+            lo, hi = float(arr.min()), float(arr.max())
+            if lo < -1e-4 or hi > 1.0 + 1e-4:
+                raise InputError(file(name), f"values must lie in [0, 1], found [{lo:.4g}, {hi:.4g}]")
+            setattr(self, name, np.clip(getattr(self, name), 0.0, 1.0))
+        lengths = np.linalg.norm(self.normal[m], axis=-1)
+        worst = float(np.abs(lengths - 1.0).max())
+        if worst > NORMAL_TOLERANCE:
+            n_bad = int((np.abs(lengths - 1.0) > NORMAL_TOLERANCE).sum())
+            raise InputError(file("normal"), f"{n_bad} normal(s) inside the mask are not unit length (worst | |n|-1 | = {worst:.3g})")
+        self.normal = np.where(m[..., None], self.normal / np.maximum(np.linalg.norm(self.normal, axis=-1, keepdims=True), 1e-12), 0.0).astype(np.float32)
+        dmin = float(self.depth[m].min())
+        if dmin <= 0.0:
+            raise InputError(file("depth"), f"depth must be > 0 inside the mask, found {dmin:.4g}")
+        for name in ("photo", "background"):
+            arr = getattr(self, name)
+            if arr is None:
+                continue
+            arr = np.asarray(arr, dtype=np.float32)
+            if arr.ndim == 3 and arr.shape[-1] == 4:
+                arr = arr[..., :3]
+            if arr.shape != (h, w, 3):
+                raise InputError(file(name), f"shape {arr.shape} does not match the mask's {(h, w)}")
+            if not np.isfinite(arr).all():
+                raise InputError(file(name), "contains NaN or Inf")
+            setattr(self, name, np.ascontiguousarray(arr))
+        if (self.camera.width, self.camera.height) != (w, h):
+            raise InputError(file("scene.json"), f"camera resolution {self.camera.width}x{self.camera.height} does not match the maps' {w}x{h}")
+        return self
+
+
+def load_scene(path) -> Scene:
+    """Load and validate a scene bundle directory."""
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError(path, "scene bundle directory not found")
+    meta_path = path / "scene.json"
+    if not meta_path.is_file():
+        raise InputError(meta_path, "missing: a scene bundle needs scene.json")
+    try:
+        meta = json.loads(meta_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(meta_path, f"invalid JSON ({exc})") from None
+    if meta.get("format") != FORMAT:
+        raise InputError(meta_path, f"not a scene bundle (format is {meta.get('format')!r}, expected {FORMAT!r})")
+    if int(meta.get("version", 0)) > VERSION:
+        raise InputError(meta_path, f"version {meta.get('version')} is newer than this program reads ({VERSION})")
+    if meta.get("depth_units", "metres") != "metres":
+        raise InputError(meta_path, f"depth_units must be 'metres', got {meta.get('depth_units')!r}")
+    files = {**MAP_FILES, **OPTIONAL_FILES, **meta.get("maps", {})}
+    try:
+        cam_meta = dict(meta["camera"])
+        cam_meta.setdefault("width", meta["width"])
+        cam_meta.setdefault("height", meta["height"])
+        camera = Camera.from_json(cam_meta)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(meta_path, f"bad camera or resolution entry ({exc})") from None
+
+    maps = {}
+    for name in MAP_FILES:
+        f = path / files[name]
+        maps[name] = read_png(f) if f.suffix.lower() in (".png", ".jpg", ".jpeg") else read_exr(f)
+    mask = maps.pop("mask")
+    if mask.ndim == 3:
+        mask = mask[..., 0]
+    extra = {}
+    for name in OPTIONAL_FILES:
+        f = path / files[name]
+        if f.is_file():
+            img = read_png(f)
+            if img.ndim == 2:
+                img = np.repeat(img[..., None], 3, axis=-1)
+            extra[name] = srgb_to_linear(img[..., :3])
+    scene = Scene(mask=mask > 0.5, camera=camera, source=path, **maps, **extra)
+    return scene.validate(path)
+
+
+def save_scene(scene: Scene, path) -> Path:
+    """Write a scene bundle directory (EXR for float maps, PNG for mask and photos)."""
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    write_exr(path / MAP_FILES["albedo"], scene.albedo, half=True)
+    write_exr(path / MAP_FILES["specular"], scene.specular, half=True)
+    write_exr(path / MAP_FILES["roughness"], scene.roughness, half=True)
+    write_exr(path / MAP_FILES["normal"], scene.normal)
+    write_exr(path / MAP_FILES["depth"], scene.depth)
+    write_png(path / MAP_FILES["mask"], scene.mask.astype(np.float32))
+    maps = dict(MAP_FILES)
+    for name in OPTIONAL_FILES:
+        img = getattr(scene, name)
+        if img is not None:
+            write_png(path / OPTIONAL_FILES[name], linear_to_srgb(img))
+            maps[name] = OPTIONAL_FILES[name]
+    meta = {
+        "format": FORMAT,
+        "version": VERSION,
+        "width": scene.width,
+        "height": scene.height,
+        "camera": scene.camera.to_json(),
+        "depth_units": "metres",
+        "color_space": {"albedo": "linear", "photo": "sRGB", "background": "sRGB"},
+        "normal_space": "camera (x right, y up, z towards the camera)",
+        "maps": maps,
+    }
+    (path / "scene.json").write_text(json.dumps(meta, indent=2) + "\n")
+    return path

@@ -1,0 +1,127 @@
+"""Geometry of the per-light shadow maps and the convolutional shadow map (CSM) constants.
+
+Shared by the GL engine and the torch twin so both compute the same numbers.
+
+Shadow map of a light with unit direction ``l`` (pointing to the light): an orthographic view
+along -l. Its square window is centred on the mesh's bounding sphere (centre ``c``, radius ``r``)
+and spans 2r in both directions, the same for every light, so that a blur of sigma pixels means the
+same world-space width for every light. With an orthonormal frame (right, up, l):
+
+    u = 0.5 + dot(p - c, right) / (2 r)         (shadow-map x in [0, 1])
+    v = 0.5 + dot(p - c, up) / (2 r)            (shadow-map y in [0, 1])
+    z = (hi - dot(p, l)) / (hi - lo)            (normalised depth, 0 nearest to the light)
+
+where [lo, hi] is the range of dot(p, l) over the mesh, padded by ``DEPTH_PAD`` of its size.
+Sigma is measured in pixels of a 256-pixel shadow map (the paper's convention), so a shadow map of
+R pixels blurs by sigma * R / 256 of its own pixels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+SIGMA_REFERENCE_RESOLUTION = 256
+DEPTH_PAD = 0.02
+HARD_SHADOW_THRESHOLD = 0.005  # normalised depth, the paper's hard-test threshold
+
+
+@dataclass(frozen=True)
+class LightFrame:
+    """Maps camera-space points to shadow-map coordinates (u, v, z) for one light."""
+
+    right: np.ndarray
+    up: np.ndarray
+    direction: np.ndarray
+    center: np.ndarray
+    radius: float
+    lo: float
+    hi: float
+
+    def matrix(self) -> np.ndarray:
+        """4x4 (row-major) taking homogeneous camera-space points to (u, v, z, 1)."""
+        m = np.zeros((4, 4), dtype=np.float64)
+        s = 1.0 / (2.0 * self.radius)
+        m[0, :3] = self.right * s
+        m[0, 3] = 0.5 - float(np.dot(self.center, self.right)) * s
+        m[1, :3] = self.up * s
+        m[1, 3] = 0.5 - float(np.dot(self.center, self.up)) * s
+        k = 1.0 / (self.hi - self.lo)
+        m[2, :3] = -self.direction * k
+        m[2, 3] = self.hi * k
+        m[3, 3] = 1.0
+        return m
+
+    def texel_world(self, resolution: int) -> float:
+        """World-space width of one shadow-map texel."""
+        return 2.0 * self.radius / resolution
+
+    def depth_scale(self) -> float:
+        """Metres per unit of normalised depth."""
+        return self.hi - self.lo
+
+
+def bounding_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of a sphere around (K, 3) points (box centre; not minimal, but stable)."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    c = 0.5 * (lo + hi)
+    r = float(np.sqrt(((points - c) ** 2).sum(axis=1).max()))
+    return c.astype(np.float64), max(r, 1e-6)
+
+
+def light_frames(points: np.ndarray, directions: np.ndarray) -> list[LightFrame]:
+    """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3)."""
+    pts = np.asarray(points, dtype=np.float64)
+    c, r = bounding_sphere(pts)
+    dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    proj = pts @ dirs.T  # (K, N)
+    frames = []
+    for i, l in enumerate(dirs):
+        l = l / np.linalg.norm(l)
+        ref = np.array([0.0, 1.0, 0.0]) if abs(l[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        right = np.cross(ref, l)
+        right /= np.linalg.norm(right)
+        up = np.cross(l, right)
+        lo, hi = float(proj[:, i].min()), float(proj[:, i].max())
+        pad = DEPTH_PAD * max(hi - lo, 1e-3 * r)
+        frames.append(LightFrame(right, up, l, c, r, lo - pad, hi + pad))
+    return frames
+
+
+def sigma_in_pixels(sigma: float, resolution: int) -> float:
+    """A light's sigma (256-px units) in pixels of a shadow map of the given resolution."""
+    return float(sigma) * resolution / SIGMA_REFERENCE_RESOLUTION
+
+
+@lru_cache(maxsize=None)
+def csm_constants(terms: int) -> tuple[float, float]:
+    """(offset, clamp) for CSM reconstruction with ``terms`` Fourier terms.
+
+    The truncated series S_M(x) = 2 sum_k sin(c_k x) / c_k, c_k = pi (2k - 1), approximates the step
+    H(x) - 1/2 with Gibbs ringing. ``clamp`` is S_M at its first trough after the overshoot (x = 1/M)
+    and ``offset`` the first x > 0 where S_M reaches it, so that after clamping to +-clamp and
+    rescaling to [0, 1] a receiver at the occluder's own depth is fully lit. For M = 4 this gives the
+    reference code's constants (0.0642233, 0.4458709).
+    """
+    if terms < 1:
+        raise ValueError("CSM needs at least one Fourier term")
+    c = math.pi * (2 * np.arange(1, terms + 1) - 1)
+
+    def s(x):
+        return float((2.0 * np.sin(c * x) / c).sum())
+
+    if terms == 1:
+        return 0.5, s(0.5)
+    clamp = s(1.0 / terms)
+    lo, hi = 0.0, 0.5 / terms  # S_M rises monotonically to its overshoot peak at 1/(2M)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if s(mid) < clamp else (lo, mid)
+    return 0.5 * (lo + hi), clamp
+
+
+def csm_frequencies(terms: int) -> np.ndarray:
+    return (math.pi * (2 * np.arange(1, terms + 1) - 1)).astype(np.float32)
