@@ -27,6 +27,9 @@ import numpy as np
 SIGMA_REFERENCE_RESOLUTION = 256
 DEPTH_PAD = 0.02
 HARD_SHADOW_THRESHOLD = 0.005  # normalised depth, the paper's hard-test threshold
+NORMAL_OFFSET_TEXELS = 1.5  # receivers are pushed along their normal by this many texels
+SLOPE_BIAS_TEXELS = 1.0  # extra depth bias: texels times tan(angle between normal and light)
+MAX_SLOPE = 20.0  # tan of the angle is clamped here (grazing light)
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,27 @@ class LightFrame:
     def depth_scale(self) -> float:
         """Metres per unit of normalised depth."""
         return self.hi - self.lo
+
+
+def receiver_coordinates(points, normals, frame: LightFrame, resolution: int):
+    """Shadow-map coordinates (u, v, d) and the hard-test bias of camera-pixel receivers.
+
+    The receiver is pushed along its normal by NORMAL_OFFSET_TEXELS texels, and the bias grows with
+    the slope: HARD_SHADOW_THRESHOLD + SLOPE_BIAS_TEXELS * texel * min(tan(theta), MAX_SLOPE) / depth
+    range, theta the angle between the normal and the light. Lit (hard) when d - bias <= z_sm(u, v),
+    z_sm read from the texel containing (u, v). This function is the numpy statement of the rule that
+    ``shaders/shadow_test.glsl`` and ``viewer/twin`` implement.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    texel = frame.texel_world(resolution)
+    q = p + n * (NORMAL_OFFSET_TEXELS * texel)
+    m = frame.matrix()
+    uvd = q @ m[:3, :3].T + m[:3, 3]
+    c = np.abs(n @ frame.direction)
+    tan = np.minimum(np.sqrt(np.maximum(1.0 - c * c, 0.0)) / np.maximum(c, 1e-6), MAX_SLOPE)
+    bias = HARD_SHADOW_THRESHOLD + SLOPE_BIAS_TEXELS * texel * tan / frame.depth_scale()
+    return uvd[:, 0], uvd[:, 1], uvd[:, 2], bias
 
 
 def bounding_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
