@@ -11,7 +11,10 @@ same world-space width for every light. With an orthonormal frame (right, up, l)
     v = 0.5 + dot(p - c, up) / (2 r)            (shadow-map y in [0, 1])
     z = (hi - dot(p, l)) / (hi - lo)            (normalised depth, 0 nearest to the light)
 
-where [lo, hi] is the range of dot(p, l) over the mesh, padded by ``DEPTH_PAD`` of its size.
+where [lo, hi] is the range of dot(p, l) over the mesh, widened so that the mesh occupies
+[pad, 1 - pad] with pad = CSM offset + ``DEPTH_MARGIN``. Texels that no triangle covers hold
+``empty_depth`` = 1 - pad. This keeps z - d + offset inside the lit plateau of the truncated Fourier
+series for every lit receiver, so empty texels never wrap around into shadow.
 Sigma is measured in pixels of a 256-pixel shadow map (the paper's convention), so a shadow map of
 R pixels blurs by sigma * R / 256 of its own pixels.
 """
@@ -25,7 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 SIGMA_REFERENCE_RESOLUTION = 256
-DEPTH_PAD = 0.02
+DEPTH_MARGIN = 0.02
 HARD_SHADOW_THRESHOLD = 0.005  # normalised depth, the paper's hard-test threshold
 NORMAL_OFFSET_TEXELS = 1.5  # receivers are pushed along their normal by this many texels
 SLOPE_BIAS_TEXELS = 1.0  # extra depth bias: texels times tan(angle between normal and light)
@@ -43,6 +46,7 @@ class LightFrame:
     radius: float
     lo: float
     hi: float
+    empty_depth: float  # normalised depth stored where no triangle covers a texel
 
     def matrix(self) -> np.ndarray:
         """4x4 (row-major) taking homogeneous camera-space points to (u, v, z, 1)."""
@@ -96,8 +100,14 @@ def bounding_sphere(points: np.ndarray) -> tuple[np.ndarray, float]:
     return c.astype(np.float64), max(r, 1e-6)
 
 
-def light_frames(points: np.ndarray, directions: np.ndarray) -> list[LightFrame]:
+def depth_pad(terms: int) -> float:
+    """Normalised depth left free at both ends of a shadow map's range (see module docstring)."""
+    return csm_constants(terms)[0] + DEPTH_MARGIN
+
+
+def light_frames(points: np.ndarray, directions: np.ndarray, terms: int = 4) -> list[LightFrame]:
     """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3)."""
+    pad = depth_pad(terms)
     pts = np.asarray(points, dtype=np.float64)
     c, r = bounding_sphere(pts)
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
@@ -110,8 +120,9 @@ def light_frames(points: np.ndarray, directions: np.ndarray) -> list[LightFrame]
         right /= np.linalg.norm(right)
         up = np.cross(l, right)
         lo, hi = float(proj[:, i].min()), float(proj[:, i].max())
-        pad = DEPTH_PAD * max(hi - lo, 1e-3 * r)
-        frames.append(LightFrame(right, up, l, c, r, lo - pad, hi + pad))
+        extent = max(hi - lo, 1e-3 * r) / (1.0 - 2.0 * pad)
+        hi = hi + pad * extent
+        frames.append(LightFrame(right, up, l, c, r, hi - extent, hi, 1.0 - pad))
     return frames
 
 
@@ -130,15 +141,13 @@ def csm_constants(terms: int) -> tuple[float, float]:
     rescaling to [0, 1] a receiver at the occluder's own depth is fully lit. For M = 4 this gives the
     reference code's constants (0.0642233, 0.4458709).
     """
-    if terms < 1:
-        raise ValueError("CSM needs at least one Fourier term")
+    if terms < 2:
+        raise ValueError("CSM needs at least two Fourier terms")
     c = math.pi * (2 * np.arange(1, terms + 1) - 1)
 
     def s(x):
         return float((2.0 * np.sin(c * x) / c).sum())
 
-    if terms == 1:
-        return 0.5, s(0.5)
     clamp = s(1.0 / terms)
     lo, hi = 0.0, 0.5 / terms  # S_M rises monotonically to its overshoot peak at 1/(2M)
     for _ in range(60):

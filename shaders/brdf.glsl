@@ -1,0 +1,34 @@
+// Shared BRDF: Lambert diffuse and the Disney principled specular lobe (GGX), per unit light
+// intensity, the light treated as directional (the paper, Stage 1). Included by every pass that
+// shades; mirrored by viewer/twin/brdf.py. View vector (0, 0, 1) as in the paper.
+
+const float PI = 3.14159265358979;
+const float MIN_ALPHA = 1e-3;
+
+float lambert_shading(vec3 n, vec3 l) {
+    return max(dot(n, l), 0.0) / PI;
+}
+
+// Smith G1 in the form that already contains 1 / (2 n.x): 1 / (x + sqrt(a2 + x^2 - a2 x^2)).
+float smith_g1(float x, float a2) {
+    return 1.0 / (x + sqrt(a2 + x * x - a2 * x * x));
+}
+
+// n.l * F * D * G for the Disney specular lobe with F0 = 0.08 * specular, alpha = roughness^2.
+float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness) {
+    const vec3 v = vec3(0.0, 0.0, 1.0);
+    float nl = dot(n, l);
+    float nv = dot(n, v);
+    if (nl <= 0.0 || nv <= 0.0 || specular <= 0.0) return 0.0;
+    vec3 h = normalize(l + v);
+    float nh = max(dot(n, h), 0.0);
+    float lh = max(dot(l, h), 0.0);
+    float alpha = max(roughness * roughness, MIN_ALPHA);
+    float a2 = alpha * alpha;
+    float f0 = 0.08 * specular;
+    float fresnel = f0 + (1.0 - f0) * pow(1.0 - lh, 5.0);
+    float t = nh * nh * (a2 - 1.0) + 1.0;
+    float d = a2 / (PI * t * t);
+    float g = smith_g1(nl, a2) * smith_g1(nv, a2);
+    return nl * fresnel * d * g;
+}

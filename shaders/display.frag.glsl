@@ -1,0 +1,34 @@
+// Display image: exposure, tone map and sRGB of the HDR composite over a background
+// (the rotated environment map seen through the camera, the photo's own background, or a colour).
+#include "tonemap.glsl"
+#include "envmap.glsl"
+uniform sampler2D hdr;
+uniform sampler2D background_image;   // linear RGB, image rows top first
+uniform sampler2D environment;        // equirectangular, linear RGB
+uniform int background_mode;          // 0 colour, 1 photo background, 2 environment map
+uniform vec3 background_color;        // linear
+uniform mat3 environment_rotation;    // camera-space view direction -> map direction
+uniform vec2 focal_center_px;         // principal point (pixels)
+uniform float focal_px;
+uniform float exposure;               // stops
+uniform int tonemap_op;
+uniform bool flip_y;                  // window output: GL rows bottom first
+layout(location = 0) out vec4 color;
+void main() {
+    ivec2 size = textureSize(hdr, 0);
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    if (flip_y) px.y = size.y - 1 - px.y;
+    vec4 c = texelFetch(hdr, px, 0);
+    float scale = exp2(exposure);
+    vec3 bg = background_color;
+    if (background_mode == 1) {
+        bg = texelFetch(background_image, px, 0).rgb;
+    } else if (background_mode == 2) {
+        vec2 q = vec2(px) + 0.5;
+        vec3 view = normalize(vec3((q.x - focal_center_px.x) / focal_px, -(q.y - focal_center_px.y) / focal_px, -1.0));
+        bg = textureLod(environment, direction_to_equirect(environment_rotation * view), 0.0).rgb;
+    }
+    vec3 fg = tonemap(c.rgb * scale, tonemap_op);
+    vec3 back = tonemap(bg * scale, tonemap_op);
+    color = vec4(linear_to_srgb(mix(back, fg, c.a)), 1.0);
+}

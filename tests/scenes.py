@@ -1,0 +1,32 @@
+"""Small synthetic scene bundles for tests: exact geometry, known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer.camera import Camera
+from viewer.scene import Scene
+
+
+def plane_and_box(size: int = 96, box: bool = True, albedo: float = 0.5, specular: float = 0.5,
+                  roughness: float = 0.5, plane_depth: float = 4.0, box_depth: float = 3.6,
+                  box_half: float = 0.18) -> Scene:
+    """A plane facing the camera at ``plane_depth`` with an optional box face (a square at
+    ``box_depth``, half-width ``box_half`` metres) in front of it; the whole image is masked."""
+    cam = Camera(size, size)
+    depth = np.full((size, size), plane_depth, np.float32)
+    if box:
+        pts = cam.unproject(np.full((size, size), box_depth, np.float32))
+        inside = (np.abs(pts[..., 0]) < box_half) & (np.abs(pts[..., 1]) < box_half)
+        depth[inside] = box_depth
+    normal = np.zeros((size, size, 3), np.float32)
+    normal[..., 2] = 1.0
+    return Scene(
+        albedo=np.full((size, size, 3), albedo, np.float32),
+        specular=np.full((size, size), specular, np.float32),
+        roughness=np.full((size, size), roughness, np.float32),
+        normal=normal,
+        depth=depth,
+        mask=np.ones((size, size), bool),
+        camera=cam,
+    ).validate()

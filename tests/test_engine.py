@@ -1,0 +1,219 @@
+"""The GL engine on a real EGL context (Mesa llvmpipe here): shading, shadows, caching, skipping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from scenes import plane_and_box
+from viewer.gl import Engine, EngineOptions
+from viewer.gl.prefilter import blur_plan
+from viewer.lights import AreaLights
+
+
+def unit(v):
+    v = np.asarray(v, dtype=np.float64)
+    return (v / np.linalg.norm(v, axis=-1, keepdims=True)).astype(np.float32)
+
+
+def numpy_shading(n, l, specular, roughness):
+    """Direct evaluation of docs/conventions.md's BRDF (per unit intensity)."""
+    v = np.array([0.0, 0.0, 1.0])
+    nl, nv = float(n @ l), float(n @ v)
+    diff = max(nl, 0.0) / np.pi
+    if nl <= 0 or nv <= 0 or specular <= 0:
+        return diff, 0.0
+    h = (l + v) / np.linalg.norm(l + v)
+    nh, lh = float(n @ h), float(l @ h)
+    a = max(roughness**2, 1e-3)
+    a2 = a * a
+    f0 = 0.08 * specular
+    f = f0 + (1 - f0) * (1 - lh) ** 5
+    d = a2 / (np.pi * (nh * nh * (a2 - 1) + 1) ** 2)
+    g = 1 / (nl + np.sqrt(a2 + nl * nl - a2 * nl * nl)) / (nv + np.sqrt(a2 + nv * nv - a2 * nv * nv))
+    return diff, nl * f * d * g
+
+
+@pytest.fixture
+def scene():
+    return plane_and_box(96)
+
+
+def make_engine(ctx, scene, **kw):
+    kw.setdefault("shadow_resolution", 256)
+    kw.setdefault("shadow_step", 1)
+    return Engine(ctx, scene, EngineOptions(**kw))
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.3, 1.0])
+def test_shading_matches_brdf_formula(ctx, roughness):
+    sc = plane_and_box(32, box=False, specular=0.8, roughness=roughness)
+    l = unit([0.2, 0.3, 1.0])
+    eng = make_engine(ctx, sc)
+    eng.set_lights(AreaLights(l[None], [0.0], [[1, 1, 1]]))
+    eng.render()
+    out = eng.read_light(0)
+    diff, spec = numpy_shading(np.array([0, 0, 1.0]), l.astype(np.float64), 0.8, roughness)
+    np.testing.assert_allclose(out["diffuse"], diff, rtol=1e-5)
+    np.testing.assert_allclose(out["specular"], spec, rtol=1e-4)
+    hdr = eng.read_hdr()
+    np.testing.assert_allclose(hdr, 0.5 * diff + spec, rtol=1e-4)
+    eng.release()
+
+
+def test_box_casts_shadow_in_the_right_place(ctx, scene):
+    l = unit([0.3, 0.4, 1.0])
+    eng = make_engine(ctx, scene)
+    eng.set_lights(AreaLights(l[None], [0.0], [[1, 1, 1]]))
+    eng.render()
+    hard = eng.read_light(0)["visibility_hard"]
+    # Expected shadow: plane points whose ray towards the light passes the box square at z = -3.6.
+    pts = scene.points()
+    t = (-3.6 - pts[..., 2]) / l[2]
+    hit = pts[..., :2] + t[..., None] * l[:2]
+    on_plane = scene.depth > 3.9
+    expected = on_plane & (np.abs(hit[..., 0]) < 0.18) & (np.abs(hit[..., 1]) < 0.18)
+    assert expected.sum() > 30
+    shadow = hard < 0.5
+    disagree = (shadow != expected).sum()
+    boundary = expected.sum() ** 0.5 * 4  # a one-pixel band around the shadow's outline
+    assert disagree <= boundary, (disagree, boundary)
+    # no self-shadowing acne on the lit plane or the box face
+    assert hard[~expected].mean() > 0.995
+    eng.release()
+
+
+def test_grazing_light_has_no_acne(ctx):
+    sc = plane_and_box(64, box=False)
+    for elevation in (2.0, 5.0, 10.0):
+        e = np.radians(elevation)
+        l = unit([np.cos(e), 0.0, np.sin(e)])
+        eng = make_engine(ctx, sc)
+        eng.set_lights(AreaLights(l[None], [0.0], [[1, 1, 1]]))
+        eng.render()
+        out = eng.read_light(0)
+        assert out["visibility_hard"].mean() > 0.99, elevation
+        assert out["visibility_soft"].mean() > 0.99, elevation
+        eng.release()
+
+
+def test_sigma_zero_converges_to_hard(ctx, scene):
+    l = unit([0.3, 0.4, 1.0])
+    diffs = []
+    for sigma in (2.0, 1.0, 0.5, 0.25, 0.06):
+        eng = make_engine(ctx, scene, hard_sigma=0.0)
+        eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
+        eng.render()
+        out = eng.read_light(0)
+        diffs.append(float(np.abs(out["visibility_soft"] - out["visibility_hard"]).mean()))
+        eng.release()
+    assert all(a >= b - 1e-4 for a, b in zip(diffs, diffs[1:])), diffs
+    assert diffs[-1] < 2e-3, diffs
+
+
+def test_soft_filter_skip_matches_full_computation(ctx, scene):
+    """Below hard_sigma the engine uses the hard test for soft visibility; computing the CSM at that
+    sigma instead differs by less than the stated tolerance."""
+    l = unit([0.3, 0.4, 1.0])
+    sigma = EngineOptions().hard_sigma * 0.99
+    out = {}
+    for hs in (EngineOptions().hard_sigma, 0.0):
+        eng = make_engine(ctx, scene, hard_sigma=hs)
+        eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
+        eng.render()
+        out[hs] = (eng.read_hdr(), eng.counters["prefilter"])
+        eng.release()
+    skipped, full = out[EngineOptions().hard_sigma], out[0.0]
+    assert skipped[1] == 0 and full[1] == 1
+    assert np.abs(skipped[0] - full[0]).mean() < 2e-3 * full[0].mean()
+
+
+def test_larger_sigma_gives_smoother_shadows(ctx, scene):
+    l = unit([0.3, 0.4, 1.0])
+    tv = []
+    for sigma in (0.5, 2.0, 6.0, 15.0):
+        eng = make_engine(ctx, scene)
+        eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
+        eng.render()
+        v = eng.read_light(0)["visibility_soft"]
+        tv.append(float((np.diff(v, axis=0) ** 2).sum() + (np.diff(v, axis=1) ** 2).sum()))  # gradient energy
+        assert 0.0 <= v.min() and v.max() <= 1.0
+        eng.release()
+    assert all(a > b for a, b in zip(tv, tv[1:])), tv
+
+
+def test_pyramid_prefilter_close_to_exact(ctx, scene):
+    l = unit([0.3, 0.4, 1.0])
+    for sigma in (1.0, 4.0, 12.0, 30.0):
+        vis = {}
+        for method in ("pyramid", "exact"):
+            eng = make_engine(ctx, scene, prefilter=method)
+            eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
+            eng.render()
+            vis[method] = eng.read_light(0)["visibility_soft"]
+            eng.release()
+        err = np.abs(vis["pyramid"] - vis["exact"])
+        assert err.mean() < 0.01 and err.max() < 0.15, (sigma, err.mean(), err.max())
+
+
+def test_pyramid_kernel_bounded():
+    radii = [blur_plan(s, 512, "pyramid").radius for s in np.linspace(0, 400, 200)]
+    assert max(radii) <= 6
+    assert blur_plan(100, 512, "exact").radius == 300
+
+
+def test_cache_rules(ctx, scene):
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0], [0.1, 0.9, 0.5]]), [3.0, 6.0, 0.0],
+                        [[1, 1, 1], [0.5, 0.4, 0.3], [0.2, 0.2, 0.2]])
+    eng = make_engine(ctx, scene)
+    eng.set_lights(lights)
+    eng.render()
+    c = dict(eng.counters)
+    assert c["shadow_map"] == 3 and c["prefilter"] == 2 and c["light_pass"] == 3  # light 3 is hard
+    before = eng.read_hdr()
+
+    def delta(action):
+        start = dict(eng.counters)
+        action()
+        eng.render()
+        return {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)}
+
+    assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1, "display": 1}
+    assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0).scaled(2.0))) == {"composite": 1, "display": 1}
+    assert delta(lambda: eng.set_display(exposure=1.0)) == {"display": 1}
+    assert delta(lambda: eng.render()) == {}
+    rotated = lights.with_sigma(1, 9.0).scaled(2.0).rotated(20.0)
+    assert delta(lambda: eng.set_lights(rotated)) == {"shadow_map": 3, "csm_basis": 2, "prefilter": 2, "light_pass": 3, "composite": 1, "display": 1}
+    # going back reproduces the first frame exactly (nothing stale survives in the cache)
+    eng.set_lights(lights)
+    eng.render()
+    np.testing.assert_array_equal(eng.read_hdr(), before)
+    eng.release()
+
+
+def test_lights_that_contribute_nothing_are_skipped(ctx, scene):
+    base = AreaLights(unit([[0.3, 0.4, 1.0], [0.0, 0.0, -1.0], [0.5, 0.5, 1.0], [-0.3, 0.2, 1.0]]), [2.0, 2.0, 2.0, 2.0],
+                      [[1, 1, 1], [5, 5, 5], [0, 0, 0], [1e-9, 1e-9, 1e-9]])
+    eng = make_engine(ctx, scene)
+    eng.set_lights(base)
+    eng.render()
+    assert [eng.light_active(i) for i in range(4)] == [True, False, False, False]
+    assert eng.counters["shadow_map"] == 1
+    skipped = eng.read_hdr()
+    eng.release()
+    full = make_engine(ctx, scene, skip_threshold=0.0)
+    full.set_lights(AreaLights(base.direction, base.sigma, base.intensity))
+    full.render()
+    assert full.counters["shadow_map"] == 2  # the 1e-9 light is computed, the back and black ones never can be
+    np.testing.assert_allclose(skipped, full.read_hdr(), rtol=1e-5, atol=1e-7)
+    full.release()
+
+
+def test_matte_scene_skips_specular(ctx):
+    sc = plane_and_box(48, specular=0.0)
+    eng = make_engine(ctx, sc)
+    eng.set_lights(AreaLights(unit([[0.1, 0.2, 1.0]]), [1.0], [[1, 1, 1]]))
+    eng.render()
+    assert not eng._specular
+    assert np.all(eng.read_light(0)["specular"] == 0.0)
+    eng.release()

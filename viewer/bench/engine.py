@@ -1,0 +1,120 @@
+"""``relight bench engine``: per-pass GL engine times for full recompute (rotation), sigma change
+and intensity change, at several output sizes and light counts, and the torch twin on the same frame.
+
+Times are wall-clock medians over repeats with ``ctx.finish()`` around each pass (GL timer queries
+are meaningless on llvmpipe). Results go to stdout and a JSON file.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..lights import AreaLights
+from ..resources import asset_dir, sample_scene_dir
+
+ENVMAP = "envmaps/immenstadter_horn_256.hdr"
+
+
+def bench_lights(n: int) -> AreaLights:
+    """N lights from the bundled environment map (median cut), so sigma and intensity spreads are
+    those of a real map."""
+    from ..envmap import load_envmap
+    from ..median_cut import median_cut_lights
+
+    return median_cut_lights(load_envmap(asset_dir() / ENVMAP), n)
+
+
+def _median_ms(values) -> float:
+    return float(np.median(values) * 1000.0) if len(values) else 0.0
+
+
+def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
+    engine.set_lights(lights)
+    engine.render()
+    ctx.finish()
+    results = {}
+    changes = {
+        "full": lambda i: lights.rotated(7.0 * (i + 1)),
+        "sigma": lambda i: lights.rotated(7.0 * repeats).with_sigma(int(np.argmax(lights.intensity.max(axis=1))),
+                                                                     float(lights.sigma.max() * (1.5 if i % 2 == 0 else 1.0) + 1.0)),
+        "intensity": lambda i: lights.rotated(7.0 * repeats).with_sigma(int(np.argmax(lights.intensity.max(axis=1))),
+                                                                         float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
+    }
+    for kind, make in changes.items():
+        per_pass: dict[str, list[float]] = {}
+        totals = []
+        for i in range(repeats):
+            new = make(i)
+            for v in engine.timings.values():
+                v.clear()
+            ctx.finish()
+            t0 = time.perf_counter()
+            engine.set_lights(new)
+            engine.render()
+            ctx.finish()
+            totals.append(time.perf_counter() - t0)
+            for name, ts in engine.timings.items():
+                per_pass.setdefault(name, []).append(sum(ts))
+        results[kind] = {"total_ms": _median_ms(totals), "passes_ms": {k: _median_ms(v) for k, v in per_pass.items()}}
+    return results
+
+
+def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: int = 5, output="docs/bench_engine.json",
+                         twin: bool = True) -> dict:
+    from ..gl import Engine, EngineOptions, create_headless_context
+    from ..gl.context import describe
+    from ..scene import load_scene
+    from ..scene_ops import resample_scene
+
+    ctx = create_headless_context()
+    base = load_scene(sample_scene_dir())
+    report = {"machine": {"renderer": describe(ctx), "cpu": platform.processor() or platform.machine(),
+                          "python": platform.python_version()},
+              "options": {}, "repeats": repeats, "runs": []}
+    print(f"GL engine benchmark on {describe(ctx)}; medians of {repeats} runs")
+    print(f"{'size':>5} {'lights':>6} {'full ms':>8} {'sigma ms':>9} {'intens ms':>9} {'twin ms':>8}  passes (full)")
+    for size in sizes:
+        scene = resample_scene(base, size)
+        options = EngineOptions(shadow_step=max(1, size // 256), profile=True)
+        report["options"][str(size)] = {"shadow_resolution": options.shadow_resolution, "shadow_step": options.shadow_step,
+                                        "terms": options.terms, "prefilter": options.prefilter}
+        for n in light_counts:
+            lights = bench_lights(n)
+            engine = Engine(ctx, scene, options)
+            res = _time_engine(engine, ctx, lights, repeats)
+            engine.release()
+            run = {"size": size, "lights": n, **res}
+            if twin:
+                run["twin_full_ms"] = _time_twin(scene, lights, options, repeats=2)
+                run["twin_over_gl"] = run["twin_full_ms"] / max(res["full"]["total_ms"], 1e-9)
+            report["runs"].append(run)
+            passes = " ".join(f"{k}={v:.1f}" for k, v in res["full"]["passes_ms"].items())
+            twin_ms = f"{run['twin_full_ms']:8.0f}" if twin else f"{'-':>8}"
+            print(f"{size:>5} {n:>6} {res['full']['total_ms']:8.1f} {res['sigma']['total_ms']:9.1f} "
+                  f"{res['intensity']['total_ms']:9.1f} {twin_ms}  {passes}")
+    if output:
+        path = Path(output)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(report, indent=2) + "\n")
+        print(f"wrote {path}")
+    return report
+
+
+def _time_twin(scene, lights: AreaLights, options, repeats: int = 2) -> float:
+    import torch
+
+    from ..twin import render as twin_render
+
+    times = []
+    with torch.no_grad():
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            twin_render(scene, lights, shadow_resolution=options.shadow_resolution, shadow_step=options.shadow_step,
+                        terms=options.terms)
+            times.append(time.perf_counter() - t0)
+    return _median_ms(times)

@@ -1,0 +1,210 @@
+"""Environment maps: equirectangular (latitude-longitude) HDR images of the light reaching the subject.
+
+Direction convention (also in docs/conventions.md, "Environment maps"). A map is W x H with W = 2 H;
+pixel (row i, column j) has its centre at (u, v) = (j + 0.5, i + 0.5) in pixel units. Its direction
+is, in camera space (x right, y up, z towards the camera)::
+
+    longitude  phi = 2 pi u / W - pi        (-pi at the left edge, +pi at the right edge)
+    latitude   lam = pi / 2 - pi v / H      (+pi/2 at the top edge: row 0 looks up, +y)
+    direction  d   = (cos(lam) sin(phi), sin(lam), -cos(lam) cos(phi))
+
+so the centre of the image looks along -z (what the camera sees behind the subject), the point
+u = 3W/4 on the equator looks along +x, u = W/4 along -x, and the left/right edges along +z (behind
+the camera). :func:`direction_to_uv` is the inverse and returns *normalized* coordinates
+(u / W, v / H) in [0, 1); multiply by (W, H) for pixel units.
+
+A texel spans the longitude interval 2 pi / W and the latitudes between its top and bottom edges;
+its exact solid angle is ``(2 pi / W) (cos(pi i / H) - cos(pi (i + 1) / H))`` (:func:`solid_angles`;
+the sum over the map is 4 pi). The *energy* of a map is ``sum(L * solid angle)`` per RGB channel:
+the irradiance its light gives a small white Lambertian patch facing all of it, the same unit as an
+area light's intensity (:mod:`viewer.lights`).
+
+Rotating a map by the rotation R of :func:`viewer.lights.rotation_matrix` (yaw about +y, then tilt
+about +x) gives the map L' with L'(R d) = L(d): its lights are the original lights rotated by R
+(:meth:`viewer.lights.AreaLights.rotated`).
+
+Pixels are linear RGB, float32, finite and non-negative. ``.hdr`` (Radiance RGBE) files are read and
+written with OpenCV, ``.exr`` with :mod:`viewer.imageio`. Every failure is an
+:class:`~viewer.errors.InputError` naming the file.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .imageio import read_exr, write_exr
+from .lights import rotation_matrix
+
+SUFFIXES = (".hdr", ".exr")
+
+
+def pixel_directions(h: int, w: int) -> np.ndarray:
+    """(h, w, 3) float64 unit direction of every texel centre of a w x h map (module convention)."""
+    phi = 2.0 * np.pi * (np.arange(w) + 0.5) / w - np.pi
+    lam = 0.5 * np.pi - np.pi * (np.arange(h) + 0.5) / h
+    cl, sl = np.cos(lam)[:, None], np.sin(lam)[:, None]
+    return np.stack(np.broadcast_arrays(cl * np.sin(phi), sl, -cl * np.cos(phi)), axis=-1)
+
+
+def direction_to_uv(dirs) -> np.ndarray:
+    """Inverse of :func:`pixel_directions`: (..., 3) directions (any length > 0) to (..., 2) float64
+    normalized coordinates (u / W, v / H), u in [0, 1) wrapping around, v in [0, 1] from the top."""
+    d = np.asarray(dirs, dtype=np.float64)
+    phi = np.arctan2(d[..., 0], -d[..., 2])
+    lam = np.arctan2(d[..., 1], np.hypot(d[..., 0], d[..., 2]))
+    u = np.mod((phi + np.pi) / (2.0 * np.pi), 1.0)
+    v = 0.5 - lam / np.pi
+    return np.stack([u, v], axis=-1)
+
+
+def solid_angles(h: int, w: int) -> np.ndarray:
+    """(h,) float64 solid angle of one texel of each row (the same along a row); the map sums to 4 pi.
+    Broadcast with ``[:, None]`` for an (h, w) array."""
+    edges = np.cos(np.pi * np.arange(h + 1) / h)  # sin(latitude) of the row edges, top to bottom
+    return (2.0 * np.pi / w) * (edges[:-1] - edges[1:])
+
+
+@dataclass(frozen=True)
+class EnvMap:
+    """An equirectangular environment map. ``pixels``: (H, 2H, 3) float32 linear RGB, finite and
+    non-negative (checked on construction); ``source``: the file it came from (named in errors)."""
+
+    pixels: np.ndarray
+    source: str | None = None
+
+    def __post_init__(self):
+        px = np.ascontiguousarray(np.asarray(self.pixels, dtype=np.float32))
+        object.__setattr__(self, "pixels", px)
+        if px.ndim != 3 or px.shape[2] != 3:
+            raise InputError(self.source, f"an environment map must be H x W x 3 (RGB), got shape {px.shape}")
+        h, w = px.shape[:2]
+        if h < 1 or w != 2 * h:
+            raise InputError(self.source, f"an equirectangular map must have a 2:1 aspect (W = 2 H), got {w}x{h}")
+        bad = int((~np.isfinite(px)).any(axis=2).sum())
+        if bad:
+            raise InputError(self.source, f"{bad} pixel(s) are NaN or Inf (load with repair=True to replace them with 0)")
+        if (px < 0).any():
+            raise InputError(self.source, f"{int((px < 0).any(axis=2).sum())} pixel(s) have negative values")
+
+    @property
+    def height(self) -> int:
+        return int(self.pixels.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.pixels.shape[1])
+
+    def energy(self) -> np.ndarray:
+        """(3,) float64: sum of L * solid angle over the map, per RGB channel."""
+        omega = solid_angles(self.height, self.width)
+        return np.einsum("ijc,i->c", self.pixels.astype(np.float64), omega)
+
+    def rotated(self, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> "EnvMap":
+        """The map rotated by R = ``rotation_matrix(yaw_deg, tilt_deg)``: the radiance arriving from
+        R d is the original's from d. Resampled with bilinear lookups (wrapping in longitude, clamped
+        at the poles); a pure yaw by a whole number of texels is an exact column shift."""
+        h, w = self.height, self.width
+        shift = yaw_deg / 360.0 * w
+        if tilt_deg == 0.0 and abs(shift - round(shift)) < 1e-9:
+            # yaw by a maps longitude phi to phi - a, so L'(phi) = L(phi + a): column j takes column j + shift
+            return EnvMap(np.roll(self.pixels, -int(round(shift)), axis=1), self.source)
+        r = rotation_matrix(yaw_deg, tilt_deg)
+        src = pixel_directions(h, w) @ r  # row-vector form of R^T d
+        return EnvMap(_bilinear(self.pixels, direction_to_uv(src)), self.source)
+
+    def downsampled(self, max_width: int) -> "EnvMap":
+        """The map area-averaged to width ``2 * (max_width // 2)`` (unchanged if already no wider).
+
+        Each new texel is the solid-angle weighted mean of the old texels it overlaps (exact
+        fractional overlaps, any size ratio), so ``energy()`` is preserved to float rounding."""
+        if max_width < 2:
+            raise InputError(self.source, f"cannot downsample an environment map to width {max_width} (< 2)")
+        h2 = max_width // 2
+        if self.width <= 2 * h2:
+            return self
+        h, w = self.height, self.width
+        w2 = 2 * h2
+        # overlap measures: rows in sin(latitude), columns in longitude; their product is solid angle
+        rows = _overlaps(np.cos(np.pi * np.arange(h2 + 1) / h2), np.cos(np.pi * np.arange(h + 1) / h))
+        cols = _overlaps(-2.0 * np.pi * np.arange(w2 + 1) / w2, -2.0 * np.pi * np.arange(w + 1) / w)
+        summed = np.einsum("ki,ijc,lj->klc", rows, self.pixels.astype(np.float64), cols, optimize=True)
+        omega = rows.sum(axis=1)[:, None] * cols.sum(axis=1)[None, :]
+        return EnvMap((summed / omega[..., None]).astype(np.float32), self.source)
+
+
+def _overlaps(out_edges: np.ndarray, in_edges: np.ndarray) -> np.ndarray:
+    """(len(out) - 1, len(in) - 1) lengths of the overlaps of two partitions of one interval, each
+    given by its decreasing edges."""
+    top = np.minimum(out_edges[:-1, None], in_edges[None, :-1])
+    bottom = np.maximum(out_edges[1:, None], in_edges[None, 1:])
+    return np.clip(top - bottom, 0.0, None)
+
+
+def _bilinear(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of (H, W, C) ``pixels`` at normalized (..., 2) ``uv`` (wrap in u, clamp in v)."""
+    h, w = pixels.shape[:2]
+    x = uv[..., 0] * w - 0.5
+    y = np.clip(uv[..., 1] * h - 0.5, 0.0, h - 1.0)
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    j0 = np.mod(x0.astype(np.int64), w)
+    j1 = np.mod(j0 + 1, w)
+    i0 = y0.astype(np.int64)
+    i1 = np.minimum(i0 + 1, h - 1)
+    top = pixels[i0, j0] * (1 - fx) + pixels[i0, j1] * fx
+    bottom = pixels[i1, j0] * (1 - fx) + pixels[i1, j1] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+
+
+def load_envmap(path, repair: bool = False) -> EnvMap:
+    """Read a ``.hdr`` or ``.exr`` equirectangular map and validate it (see :class:`EnvMap`).
+
+    NaN/Inf pixels are an error unless ``repair`` is set: then they become 0 and a warning names the
+    file and the number of pixels replaced. A one-channel EXR is taken as grey; alpha is dropped."""
+    path = Path(path)
+    if path.suffix.lower() not in SUFFIXES:
+        raise InputError(path, f"unsupported environment map format {path.suffix!r} (use .hdr or .exr)")
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    if path.suffix.lower() == ".exr":
+        px = read_exr(path)
+        if px.ndim == 2:
+            px = np.repeat(px[..., None], 3, axis=2)
+        elif px.shape[2] == 4:
+            px = px[..., :3]
+    else:
+        import cv2
+
+        bgr = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if bgr is None or bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.float32:
+            raise InputError(path, "cannot read as a Radiance HDR image")
+        px = bgr[..., ::-1]
+    px = np.array(px, dtype=np.float32)
+    if repair:
+        bad = ~np.isfinite(px)
+        count = int(bad.any(axis=2).sum())
+        if count:
+            px[bad] = 0.0
+            warnings.warn(f"{path}: replaced {count} NaN/Inf pixel(s) with 0", stacklevel=2)
+    return EnvMap(px, str(path))
+
+
+def save_envmap(path, env: EnvMap) -> Path:
+    """Write ``env`` as ``.hdr`` (Radiance RGBE, about 1 % precision) or ``.exr`` (float32)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise InputError(path, f"unsupported environment map format {path.suffix!r} (use .hdr or .exr)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".exr":
+        return write_exr(path, env.pixels)
+    import cv2
+
+    if not cv2.imwrite(str(path), np.ascontiguousarray(env.pixels[..., ::-1])):
+        raise InputError(path, "cannot write the Radiance HDR image")
+    return path

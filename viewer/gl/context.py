@@ -1,0 +1,26 @@
+"""OpenGL contexts: headless EGL (software Mesa here, a GPU elsewhere) or a window's context.
+
+The engine takes any moderngl context, so the same engine draws into a GLFW window later.
+"""
+
+from __future__ import annotations
+
+import moderngl
+
+REQUIRED_VERSION = 410
+
+
+def create_headless_context() -> moderngl.Context:
+    """A standalone EGL context (OpenGL >= 4.1 core)."""
+    try:
+        return moderngl.create_standalone_context(backend="egl", require=REQUIRED_VERSION)
+    except Exception as exc:
+        raise RuntimeError(
+            "cannot create a headless OpenGL context through EGL "
+            f"({exc}); install Mesa's EGL (Debian: apt-get install libegl1 libgl1)"
+        ) from None
+
+
+def describe(ctx: moderngl.Context) -> str:
+    info = ctx.info
+    return f"{info.get('GL_RENDERER', '?')} (OpenGL {ctx.version_code})"

@@ -1,0 +1,88 @@
+"""Headless rendering to files: one scene, one light set, PNG + EXR (+ an optional passes sheet)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .imageio import linear_to_srgb, write_exr, write_png
+from .lights import AreaLights, rotation_matrix
+from .scene import Scene
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    yaw: float = 0.0  # degrees, rotation of the lighting about the vertical axis
+    tilt: float = 0.0
+    exposure: float = 0.0  # stops
+    tonemap: str = "aces"
+    background: str = "environment"  # environment | photo | color
+    visibility: str = "soft"
+
+
+def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: RenderSettings,
+                    environment: np.ndarray | None = None, passes: bool = True) -> list[Path]:
+    """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``."""
+    out_dir = Path(out_dir)
+    background = settings.background
+    if background == "environment" and environment is None:
+        background = "photo" if scene.background is not None else "color"
+    if background == "photo" and scene.background is None:
+        background = "color"
+    if environment is not None:
+        engine.set_environment(environment)
+    rot = rotation_matrix(settings.yaw, settings.tilt)
+    engine.set_lights(lights.rotated(settings.yaw, settings.tilt))
+    engine.set_visibility(settings.visibility)
+    engine.set_display(exposure=settings.exposure, tonemap=settings.tonemap, background=background,
+                       color=(0.18, 0.18, 0.18), environment_rotation=rot.T)
+    engine.render()
+    written = [
+        write_png(out_dir / f"{name}.png", engine.read_display().astype(np.float32) / 255.0),
+        write_exr(out_dir / f"{name}.exr", engine.read_hdr()),
+    ]
+    if passes:
+        written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene)))
+    return written
+
+
+def passes_sheet(engine, scene: Scene) -> np.ndarray:
+    """A 2 x 4 picture of the inputs and intermediate passes, for looking rather than reading:
+    albedo, normal, depth, specular | summed soft visibility, summed hard visibility, shading
+    without shadows, final display."""
+    m = scene.mask
+    n = len(engine.lights)
+    weights = engine.lights.intensity.mean(axis=1)
+    soft = np.zeros(m.shape, np.float32)
+    hard = np.zeros(m.shape, np.float32)
+    shade = np.zeros(m.shape, np.float32)
+    for i in range(n):
+        out = engine.read_light(i)
+        s = weights[i] * (out["diffuse"] + out["specular"])
+        soft += s * out["visibility_soft"]
+        hard += s * out["visibility_hard"]
+        shade += s
+    scale = max(float(np.percentile(shade[m], 99)), 1e-12) if m.any() else 1.0
+    depth = scene.depth.copy()
+    if m.any():
+        lo, hi = depth[m].min(), depth[m].max()
+        depth = np.where(m, 1.0 - (depth - lo) / max(hi - lo, 1e-9), 0.0)
+
+    def grey(x):
+        return np.repeat(np.clip(x, 0, 1)[..., None], 3, axis=-1)
+
+    tiles = [
+        linear_to_srgb(scene.albedo),
+        np.where(m[..., None], scene.normal * 0.5 + 0.5, 0.0),
+        grey(depth),
+        grey(scene.specular),
+        linear_to_srgb(grey(soft / scale)),
+        linear_to_srgb(grey(hard / scale)),
+        linear_to_srgb(grey(shade / scale)),
+        engine.read_display().astype(np.float32) / 255.0,
+    ]
+    top = np.concatenate(tiles[:4], axis=1)
+    bottom = np.concatenate(tiles[4:], axis=1)
+    return np.concatenate([top, bottom], axis=0)
