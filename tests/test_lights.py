@@ -1,0 +1,57 @@
+"""Area lights: JSON round trip, rotation, validation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from viewer.errors import InputError
+from viewer.lights import AreaLights, load_lights, rotation_matrix
+
+
+def sample_lights():
+    d = np.array([[0, 1, 0], [1, 0, 0], [0, 0, 1.0]], np.float32)
+    return AreaLights(d, [0.0, 2.5, 20.0], [[1, 2, 3], [0, 0, 0], [1e5, 1e5, 1e5]])
+
+
+def test_json_round_trip(tmp_path):
+    lights = sample_lights()
+    back = load_lights(lights.save(tmp_path / "l.json"))
+    np.testing.assert_array_equal(back.to_array(), lights.to_array())
+
+
+def test_rotation_about_vertical_axis():
+    lights = sample_lights().rotated(90.0)
+    np.testing.assert_allclose(lights.direction[0], [0, 1, 0], atol=1e-6)  # the zenith stays
+    np.testing.assert_allclose(lights.direction[2], [1, 0, 0], atol=1e-6)  # +z goes to +x
+    np.testing.assert_allclose(lights.direction[1], [0, 0, -1], atol=1e-6)
+    back = lights.rotated(-90.0)
+    np.testing.assert_allclose(back.direction, sample_lights().direction, atol=1e-6)
+    tilted = sample_lights().rotated(0.0, 90.0)
+    np.testing.assert_allclose(tilted.direction[0], [0, 0, 1], atol=1e-6)
+    r = rotation_matrix(33, -12)
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda d: d["lights"][0].update(direction=[0, 2, 0]), "not a unit vector"),
+        (lambda d: d["lights"][1].update(sigma=-1), "sigma must be >= 0"),
+        (lambda d: d["lights"][2].update(intensity=[1, -1, 0]), "non-negative"),
+        (lambda d: d["lights"][2].update(intensity=[1, float("nan"), 0]), "NaN or Inf"),
+        (lambda d: d.update(lights=[]), "contains no lights"),
+        (lambda d: d["lights"][0].pop("sigma"), "malformed"),
+        (lambda d: d.update(format="x"), "not a light file"),
+    ],
+)
+def test_bad_light_files_are_named(tmp_path, edit, message):
+    data = sample_lights().to_json()
+    edit(data)
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError) as err:
+        load_lights(path)
+    assert "bad.json" in str(err.value) and message in str(err.value)

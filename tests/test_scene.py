@@ -1,0 +1,117 @@
+"""Scene bundles: round trip, and every validation error names the file and the problem."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from scenes import plane_and_box
+from viewer.errors import InputError
+from viewer.imageio import read_exr, write_exr, write_png
+from viewer.mesh import depth_mesh
+from viewer.resources import sample_scene_dir
+from viewer.scene import load_scene, save_scene
+
+
+@pytest.fixture
+def bundle(tmp_path):
+    sc = plane_and_box(24)
+    sc.mask[:3] = False
+    sc.validate()
+    return save_scene(sc, tmp_path / "scene"), sc
+
+
+def test_round_trip(bundle):
+    path, sc = bundle
+    back = load_scene(path)
+    np.testing.assert_allclose(back.depth, sc.depth)
+    np.testing.assert_allclose(back.normal, sc.normal, atol=1e-6)
+    np.testing.assert_allclose(back.albedo, sc.albedo, atol=1e-3)
+    assert (back.mask == sc.mask).all()
+    assert back.camera == sc.camera
+
+
+def test_sample_scene_loads():
+    sc = load_scene(sample_scene_dir())
+    assert sc.mask.mean() > 0.05 and sc.width == sc.height == 512
+    assert sc.has_specular
+
+
+def corrupt(path, name, fn):
+    arr = read_exr(path / name)
+    write_exr(path / name, fn(arr))
+
+
+@pytest.mark.parametrize(
+    "name, fn, message",
+    [
+        ("normal.exr", lambda a: a * 2.0, "not unit length"),
+        ("albedo.exr", lambda a: a + 1.5, "[0, 1]"),
+        ("roughness.exr", lambda a: a - 2.0, "[0, 1]"),
+        ("depth.exr", lambda a: np.where(np.arange(a.size).reshape(a.shape) == 400, np.nan, a), "NaN or Inf"),
+        ("depth.exr", lambda a: -a, "> 0"),
+        ("specular.exr", lambda a: a[:10], "does not match"),
+    ],
+)
+def test_bad_maps_are_named(bundle, name, fn, message):
+    path, _ = bundle
+    corrupt(path, name, fn)
+    with pytest.raises(InputError) as err:
+        load_scene(path)
+    assert name in str(err.value) and message in str(err.value)
+
+
+def test_empty_mask_and_missing_files(bundle):
+    path, _ = bundle
+    write_png(path / "mask.png", np.zeros((24, 24), np.float32))
+    with pytest.raises(InputError, match="mask.png.*empty"):
+        load_scene(path)
+    (path / "depth.exr").unlink()
+    with pytest.raises(InputError, match="depth.exr: file not found"):
+        load_scene(path)
+    (path / "scene.json").write_text("{nope")
+    with pytest.raises(InputError, match="scene.json: invalid JSON"):
+        load_scene(path)
+    with pytest.raises(InputError, match="not found"):
+        load_scene(path / "nowhere")
+
+
+def test_wrong_format_and_resolution(bundle):
+    path, _ = bundle
+    meta = json.loads((path / "scene.json").read_text())
+    meta["camera"]["width"] = 99
+    (path / "scene.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="camera resolution"):
+        load_scene(path)
+    meta["format"] = "other"
+    (path / "scene.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="not a scene bundle"):
+        load_scene(path)
+
+
+def test_nan_outside_mask_is_ignored(bundle):
+    path, sc = bundle
+    corrupt(path, "normal.exr", lambda a: np.where(sc.mask[..., None], a, np.nan))
+    back = load_scene(path)
+    assert np.isfinite(back.normal).all()
+
+
+def test_depth_mesh_drops_gaps():
+    sc = plane_and_box(200)  # pixel footprint 1.4 cm: the 0.4 m cliff is far steeper than GAP_SLOPE
+    mesh = depth_mesh(sc)
+    z = -mesh.vertices[mesh.triangles][..., 2]
+    assert (z.max(axis=1) - z.min(axis=1)).max() < 0.05  # no triangle bridges the 0.4 m cliff
+    full = 2 * 199 * 199
+    assert full * 0.9 < mesh.n_triangles < full  # only the triangles along the box's outline go
+    coarse = depth_mesh(sc, step=4)
+    assert coarse.n_triangles < mesh.n_triangles / 10
+
+
+def test_one_pixel_mask_scene():
+    sc = plane_and_box(16)
+    sc.mask[:] = False
+    sc.mask[8, 8] = True
+    sc.validate()
+    assert depth_mesh(sc).n_triangles == 0
