@@ -1,39 +1,54 @@
 // Convolutional shadow map (Annen et al. 2007; the paper's DCSM): Fourier basis of the
 // shadow-map depth z and reconstruction of soft visibility from the (pre-filtered) basis.
-// TERMS Fourier terms, packed two per RGBA texture: (cos c_k z, sin c_k z, cos c_k+1 z, sin c_k+1 z),
-// c_k = pi (2k - 1). The harmonics come from one sin/cos pair by rotation (two trig calls per
-// texel instead of 2 TERMS). Mirrored by viewer/twin/csm.py.
+// TERMS Fourier terms, packed two per RGBA tile, (cos c_k z, sin c_k z, cos c_k+1 z, sin c_k+1 z),
+// c_k = pi (2k - 1); the BASIS_TILES tiles of n x n texels sit side by side in one texture (the
+// basis atlas), so every pass binds one texture. Mirrored by viewer/twin/csm.py.
 
 #ifndef TERMS
 #define TERMS 4
 #endif
-#define BASIS_TEXTURES ((TERMS + 1) / 2)
+#define BASIS_TILES ((TERMS + 1) / 2)
 
 float csm_frequency(int k) {  // k = 0 .. TERMS-1
     return 3.14159265358979 * float(2 * k + 1);
 }
 
-// (cos c_k x, sin c_k x) for k = 0 .. TERMS-1, written into out_cs.
-void csm_harmonics(float x, out vec2 out_cs[TERMS]) {
-    float t = 3.14159265358979 * x;
-    vec2 cs = vec2(cos(t), sin(t));
-    vec2 rot = vec2(cs.x * cs.x - cs.y * cs.y, 2.0 * cs.x * cs.y);  // angle 2 pi x
-    for (int k = 0; k < TERMS; ++k) {
-        out_cs[k] = cs;
-        cs = vec2(cs.x * rot.x - cs.y * rot.y, cs.y * rot.x + cs.x * rot.y);
+// The four basis values of tile t at depth z.
+vec4 csm_basis(int t, float z) {
+    float c0 = csm_frequency(2 * t);
+    vec4 b = vec4(cos(c0 * z), sin(c0 * z), 0.0, 0.0);
+    if (2 * t + 1 < TERMS) {
+        float c1 = csm_frequency(2 * t + 1);
+        b.zw = vec2(cos(c1 * z), sin(c1 * z));
     }
+    return b;
 }
 
-// Soft visibility of a receiver at normalised depth d from the filtered basis values (one vec4 per
-// texture). offset and clamp_value come from viewer.shadow_space.csm_constants(TERMS).
-float csm_visibility(vec4 basis[BASIS_TEXTURES], float d, float offset, float clamp_value) {
-    vec2 h[TERMS];
-    csm_harmonics(d - offset, h);
+// Bilinear lookup of tile t of a basis atlas at shadow-map coordinates uv, clamped to the tile's
+// edge texels (so tiles never bleed into each other).
+vec4 csm_fetch(sampler2D atlas, int t, vec2 uv) {
+    float n = float(textureSize(atlas, 0).y);
+    vec2 p = clamp(uv * n, vec2(0.5), vec2(n - 0.5));
+    return texture(atlas, vec2((p.x + float(t) * n) / (n * float(BASIS_TILES)), p.y / n));
+}
+
+// Soft visibility of a receiver at normalised depth d from the filtered basis atlas.
+// offset and clamp_value come from viewer.shadow_space.csm_constants(TERMS).
+float csm_visibility(sampler2D atlas, vec2 uv, float d, float offset, float clamp_value) {
+    float dd = d - offset;
+    float t0 = 3.14159265358979 * dd;
+    vec2 cs = vec2(cos(t0), sin(t0));                                   // (cos c_k dd, sin c_k dd)
+    vec2 rot = vec2(cs.x * cs.x - cs.y * cs.y, 2.0 * cs.x * cs.y);      // rotation by 2 pi dd
     float s = 0.0;
-    for (int k = 0; k < TERMS; ++k) {
-        vec4 b = basis[k / 2];
-        vec2 f = (k % 2 == 0) ? b.xy : b.zw;  // (F[cos c z], F[sin c z])
-        s += (2.0 / csm_frequency(k)) * (h[k].x * f.y - h[k].y * f.x);
+    for (int t = 0; t < BASIS_TILES; ++t) {
+        vec4 b = csm_fetch(atlas, t, uv);                               // filtered (cos, sin) pairs
+        for (int j = 0; j < 2; ++j) {
+            int k = 2 * t + j;
+            if (k >= TERMS) break;
+            vec2 f = (j == 0) ? b.xy : b.zw;
+            s += (2.0 / csm_frequency(k)) * (cs.x * f.y - cs.y * f.x);
+            cs = vec2(cs.x * rot.x - cs.y * rot.y, cs.y * rot.x + cs.x * rot.y);
+        }
     }
     return clamp((clamp(s, -clamp_value, clamp_value) + clamp_value) / (2.0 * clamp_value), 0.0, 1.0);
 }

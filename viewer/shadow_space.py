@@ -105,13 +105,14 @@ def depth_pad(terms: int) -> float:
     return csm_constants(terms)[0] + DEPTH_MARGIN
 
 
-def light_frames(points: np.ndarray, directions: np.ndarray, terms: int = 4) -> list[LightFrame]:
-    """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3)."""
+def light_frames(points: np.ndarray, directions: np.ndarray, terms: int = 4, sphere=None) -> list[LightFrame]:
+    """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3); ``sphere`` is
+    their :func:`bounding_sphere` when the caller already has it."""
     pad = depth_pad(terms)
-    pts = np.asarray(points, dtype=np.float64)
-    c, r = bounding_sphere(pts)
+    pts = np.asarray(points)
+    c, r = sphere if sphere is not None else bounding_sphere(pts.astype(np.float64))
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    proj = pts @ dirs.T  # (K, N)
+    proj = (pts.astype(np.float32) @ dirs.T.astype(np.float32)).astype(np.float64)  # (K, N)
     frames = []
     for i, l in enumerate(dirs):
         l = l / np.linalg.norm(l)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import time
 from collections import Counter, defaultdict
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
@@ -37,7 +37,7 @@ from .programs import ProgramCache
 VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
 BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2}
-COMPOSITE_CHUNK = 8
+MAX_LIGHTS_PER_COMPOSITE = 64
 
 
 @dataclass(frozen=True)
@@ -57,13 +57,15 @@ class _Light:
     sigma: float
     intensity: np.ndarray
     frame: ss.LightFrame | None = None
-    bound: float = 0.0  # max intensity x max n.l over the mask
+    facing: float = 0.0  # max n.l over the mask's normals
+    bound: float = 0.0  # max intensity x facing: an upper bound of the light's contribution
     active: bool = True
     shadow_map: moderngl.Texture | None = None
-    filtered: list = field(default_factory=list)
+    shadow_fbo: moderngl.Framebuffer | None = None
+    filtered: moderngl.Texture | None = None  # pre-filtered basis atlas
+    filtered_fbo: moderngl.Framebuffer | None = None
     plan: BlurPlan | None = None
-    buffer: moderngl.Texture | None = None
-    buffer_fbo: moderngl.Framebuffer | None = None
+    tile: tuple = (0, 0)  # origin of this light's tile in the light atlas
     dirty_shadow: bool = True
     dirty_filter: bool = True
     dirty_shading: bool = True
@@ -79,7 +81,7 @@ class Engine:
         o = self.options
         if o.terms < 2 or o.terms > 16:
             raise ValueError(f"CSM terms must be in [2, 16], got {o.terms}")
-        max_size = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+        max_size = self._max_texture = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
         if max(scene.width, scene.height, o.shadow_resolution) > max_size:
             raise ValueError(f"image {scene.width}x{scene.height} or shadow map {o.shadow_resolution} exceeds the GL limit {max_size}")
         self.programs = ProgramCache(ctx)
@@ -93,15 +95,14 @@ class Engine:
         self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": (0.0, 0.0, 0.0), "rotation": np.eye(3)}
         self._dirty_composite = True
         self._dirty_display = True
+        self._dirty_background = True  # display pixels outside the mask's box need redrawing
         self._upload_scene()
 
     # ------------------------------------------------------------------ resources
-    def _texture(self, size, components, data=None, dtype="f4", linear=False, repeat=False, levels=False):
+    def _texture(self, size, components, data=None, dtype="f4", linear=False, repeat=False):
         tex = self.ctx.texture(size, components, data=data, dtype=dtype)
-        if levels:
-            tex.build_mipmaps()
         flt = moderngl.LINEAR if linear else moderngl.NEAREST
-        tex.filter = (moderngl.LINEAR_MIPMAP_NEAREST if (linear and levels) else (moderngl.NEAREST_MIPMAP_NEAREST if levels else flt), flt)
+        tex.filter = (flt, flt)
         tex.repeat_x = repeat
         tex.repeat_y = False
         return tex
@@ -120,16 +121,18 @@ class Engine:
         self.tex_environment = self._texture((1, 1), 4, np.zeros(4, "f4").tobytes(), linear=True, repeat=True)
         self.hdr = self._texture((w, h), 4)
         self.hdr_fbo = ctx.framebuffer(color_attachments=[self.hdr])
+        self.hdr_fbo.clear(0.0, 0.0, 0.0, 0.0)
         self.display = self._texture((w, h), 4, dtype="f1")
         self.display_fbo = ctx.framebuffer(color_attachments=[self.display])
 
         mesh = depth_mesh(s, step=o.shadow_step)
         self.mesh = mesh
-        self._frame_points = masked_points(s).astype(np.float64)
+        self._frame_points = masked_points(s).astype(np.float32)
+        self._sphere = ss.bounding_sphere(self._frame_points.astype(np.float64))
         rows, cols = np.nonzero(s.mask)
         # camera-pixel passes only touch the mask's bounding box (the rest stays cleared to zero)
         self._mask_box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
-        self._normals_masked = s.normal[s.mask].astype(np.float64)
+        self._normals_masked = np.ascontiguousarray(s.normal[s.mask], dtype=np.float32)
         prog = self.programs.get("shadow_map.vert.glsl", "shadow_map.frag.glsl")
         self._mesh_vbo = ctx.buffer(mesh.vertices.astype("f4").tobytes())
         self._mesh_ibo = ctx.buffer(mesh.triangles.astype("i4").tobytes()) if mesh.n_triangles else None
@@ -140,8 +143,6 @@ class Engine:
         )
         r = o.shadow_resolution
         self._shadow_depth = ctx.depth_renderbuffer((r, r))
-        self._basis = [self._texture((r, r), 4, levels=True) for _ in range(self._n_tex)]
-        self._basis_fbo = ctx.framebuffer(color_attachments=self._basis)
         self._scratch: dict = {}
         self._fullscreen_vaos: dict = {}
 
@@ -179,27 +180,34 @@ class Engine:
             for l in self._lights:
                 self._release_light(l)
             self._lights = [_Light(d.copy(), float(s), i.copy()) for d, s, i in zip(lights.direction, lights.sigma, lights.intensity)]
-            for l in self._lights:
-                l.frame = ss.light_frames(self._frame_points, l.direction[None], self.options.terms)[0]
+            self._allocate_light_atlas()
+            moved = list(range(len(self._lights)))
             self._dirty_composite = True
         else:
-            for l, d, s, i in zip(self._lights, lights.direction, lights.sigma, lights.intensity):
+            moved = []
+            for k, (l, d, s, i) in enumerate(zip(self._lights, lights.direction, lights.sigma, lights.intensity)):
                 if not np.array_equal(l.direction, d):
                     l.direction = d.copy()
-                    l.frame = ss.light_frames(self._frame_points, d[None], self.options.terms)[0]
                     l.dirty_shadow = True
+                    moved.append(k)
                 if l.sigma != float(s):
                     l.sigma = float(s)
                     l.dirty_filter = True
                 if not np.array_equal(l.intensity, i):
                     l.intensity = i.copy()
                     self._dirty_composite = True
+        if moved:
+            dirs = np.array([self._lights[k].direction for k in moved])
+            frames = ss.light_frames(self._frame_points, dirs, self.options.terms, sphere=self._sphere)
+            facing = (self._normals_masked @ dirs.T.astype(np.float32)).max(axis=0, initial=0.0)
+            for k, frame, f in zip(moved, frames, facing):
+                self._lights[k].frame = frame
+                self._lights[k].facing = max(float(f), 0.0)
         self._update_activity()
 
     def _update_activity(self):
         for l in self._lights:
-            facing = float(np.max(self._normals_masked @ l.direction.astype(np.float64), initial=0.0))
-            l.bound = float(np.max(l.intensity)) * max(facing, 0.0)
+            l.bound = float(np.max(l.intensity)) * l.facing
         total = sum(l.bound for l in self._lights)
         for l in self._lights:
             active = l.bound > 0.0 and l.bound >= self.options.skip_threshold * total
@@ -232,6 +240,7 @@ class Engine:
                     raise ValueError("exposure must be finite")
                 st[key] = value
         self._dirty_display = True
+        self._dirty_background = True
 
     def set_environment(self, pixels: np.ndarray):
         """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background."""
@@ -241,24 +250,43 @@ class Engine:
         data = np.dstack([pixels, np.ones((h, w), np.float32)]).astype("f4")
         self.tex_environment = self._texture((w, h), 4, data.tobytes(), linear=True, repeat=True)
         self._dirty_display = True
+        self._dirty_background = True
 
     # ------------------------------------------------------------------ passes
     def _release_light(self, l: _Light):
-        for res in [l.shadow_map, l.buffer, l.buffer_fbo, *l.filtered]:
+        for res in [l.shadow_fbo, l.shadow_map, l.filtered_fbo, l.filtered]:
             if res is not None:
                 res.release()
+
+    def _allocate_light_atlas(self):
+        """One RGBA32F texture holding every light's (V_soft, V_hard, S_diff, S_spec) over the
+        mask's bounding box, one tile per light (one texture to bind in the composite)."""
+        _, _, bw, bh = self._mask_box
+        n = max(len(self._lights), 1)
+        cols = int(np.ceil(np.sqrt(n * bh / bw)))
+        cols = min(max(cols, 1), n)
+        rows = int(np.ceil(n / cols))
+        size = (cols * bw, rows * bh)
+        if max(size) > self._max_texture:
+            raise ValueError(f"{n} lights over a {bw}x{bh} mask box need a {size[0]}x{size[1]} light atlas, above the GL limit {self._max_texture}")
+        for res in (getattr(self, "light_atlas_fbo", None), getattr(self, "light_atlas", None)):
+            if res is not None:
+                res.release()
+        self.light_atlas = self._texture(size, 4)
+        self.light_atlas_fbo = self.ctx.framebuffer(color_attachments=[self.light_atlas])
+        self.light_atlas_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        for i, l in enumerate(self._lights):
+            l.tile = ((i % cols) * bw, (i // cols) * bh)
 
     def _ensure_light_resources(self, l: _Light):
         if l.shadow_map is None:
             r = self.options.shadow_resolution
             l.shadow_map = self._texture((r, r), 1)
-            l.buffer = self._texture((self.scene.width, self.scene.height), 4)
-            l.buffer_fbo = self.ctx.framebuffer(color_attachments=[l.buffer])
-            l.buffer_fbo.clear(0.0, 0.0, 0.0, 0.0)
+            l.shadow_fbo = self.ctx.framebuffer(color_attachments=[l.shadow_map], depth_attachment=self._shadow_depth)
 
     def _render_shadow_map(self, l: _Light):
         with self._timed("shadow_map"):
-            fbo = self.ctx.framebuffer(color_attachments=[l.shadow_map], depth_attachment=self._shadow_depth)
+            fbo = l.shadow_fbo
             fbo.use()
             fbo.clear(l.frame.empty_depth, 0.0, 0.0, 0.0, depth=1.0)
             if self._shadow_vao is not None:
@@ -268,54 +296,52 @@ class Engine:
                 self.ctx.disable(moderngl.CULL_FACE)
                 self._shadow_vao.render(moderngl.TRIANGLES)
                 self.ctx.disable(moderngl.DEPTH_TEST)
-            fbo.release()
 
-    def _scratch_textures(self, size):
-        key = tuple(size)
+    def _scratch_atlas(self, size, slot: int):
+        key = (tuple(size), slot)
         if key not in self._scratch:
-            texs = [self._texture(size, 4) for _ in range(self._n_tex)]
-            self._scratch[key] = (texs, self.ctx.framebuffer(color_attachments=texs))
+            tex = self._texture(size, 4)
+            self._scratch[key] = (tex, self.ctx.framebuffer(color_attachments=[tex]))
         return self._scratch[key]
 
     def _prefilter(self, l: _Light):
+        """Basis atlas of the light's shadow map, box-averaged over 2^L x 2^L texel blocks (the mip
+        level L the blur plan runs on, computed directly), then the separable Gaussian."""
         o = self.options
         r = o.shadow_resolution
         plan = blur_plan(ss.sigma_in_pixels(l.sigma, r), r, o.prefilter)
         l.plan = plan
+        n = max(r >> plan.level, 1)
+        size = (n * self._n_tex, n)
+        basis, basis_fbo = self._scratch_atlas(size, 0)
+        temp, temp_fbo = self._scratch_atlas(size, 1)
+        if l.filtered is None or l.filtered.size != size:
+            for res in (l.filtered_fbo, l.filtered):
+                if res is not None:
+                    res.release()
+            l.filtered = self._texture(size, 4, linear=True)
+            l.filtered_fbo = self.ctx.framebuffer(color_attachments=[l.filtered])
         with self._timed("csm_basis"):
             prog = self.programs.get("fullscreen.vert.glsl", "csm_basis.frag.glsl", TERMS=o.terms)
             l.shadow_map.use(0)
             prog["shadow_map"] = 0
-            self._basis_fbo.use()
+            prog["block"] = 1 << plan.level
+            prog["tile_size"] = n
+            prog["empty_depth"] = l.frame.empty_depth
+            basis_fbo.use()
             self._fullscreen(prog)
-            if plan.level > 0:
-                for tex in self._basis:
-                    tex.build_mipmaps(0, plan.level)
-        size = (max(r >> plan.level, 1), max(r >> plan.level, 1))
-        if not l.filtered or l.filtered[0].size != size:
-            for tex in l.filtered:
-                tex.release()
-            l.filtered = [self._texture(size, 4, linear=True) for _ in range(self._n_tex)]
-        temp, temp_fbo = self._scratch_textures(size)
-        prog = self.programs.get("fullscreen.vert.glsl", "gaussian_blur.frag.glsl", TERMS=o.terms)
+        prog = self.programs.get("fullscreen.vert.glsl", "gaussian_blur.frag.glsl")
         prog["radius"] = plan.radius
         prog["sigma"] = plan.sigma
         prog["norm"] = plan.norm
+        prog["tile_size"] = n
+        prog["source"] = 0
         with self._timed("prefilter"):
-            for axis, sources, level, target in (((1, 0), self._basis, plan.level, temp_fbo), ((0, 1), temp, 0, None)):
-                for t, tex in enumerate(sources):
-                    tex.use(1 + t)
-                prog["source"] = list(range(1, 1 + self._n_tex)) if self._n_tex > 1 else 1
-                prog["level"] = level
+            for axis, source, target in (((1, 0), basis, temp_fbo), ((0, 1), temp, l.filtered_fbo)):
+                source.use(0)
                 prog["axis"] = axis
-                if target is None:
-                    target = self.ctx.framebuffer(color_attachments=l.filtered)
-                    target.use()
-                    self._fullscreen(prog)
-                    target.release()
-                else:
-                    target.use()
-                    self._fullscreen(prog)
+                target.use()
+                self._fullscreen(prog)
 
     def _light_pass(self, l: _Light, soft_from_hard: bool):
         o = self.options
@@ -326,15 +352,12 @@ class Engine:
         with self._timed("light_pass"):
             r = o.shadow_resolution
             f = l.frame
-            units = {"positions": self.tex_positions, "normals": self.tex_normals, "materials": self.tex_materials, "shadow_map": l.shadow_map}
+            units = {"positions": self.tex_positions, "normals": self.tex_normals, "materials": self.tex_materials,
+                     "shadow_map": l.shadow_map, "filtered_basis": l.filtered if not soft_from_hard else l.shadow_map}
             for unit, (name, tex) in enumerate(units.items()):
                 tex.use(unit)
                 if prog.get(name, None) is not None:
                     prog[name] = unit
-            if not soft_from_hard:
-                for t, tex in enumerate(l.filtered):
-                    tex.use(len(units) + t)
-                prog["filtered_basis"] = list(range(len(units), len(units) + self._n_tex)) if self._n_tex > 1 else len(units)
             prog["soft_from_hard"] = soft_from_hard
             prog["light_frame"].write(f.matrix().T.astype("f4").tobytes())
             prog["light_dir"] = tuple(float(v) for v in f.direction)
@@ -346,31 +369,36 @@ class Engine:
             prog["max_slope"] = ss.MAX_SLOPE
             prog["csm_offset"] = self.csm_offset
             prog["csm_clamp"] = self.csm_clamp
-            l.buffer_fbo.use()
-            l.buffer_fbo.scissor = self._mask_box
+            x, y, bw, bh = self._mask_box
+            prog["tile_origin"] = l.tile
+            prog["box_origin"] = (x, y)
+            fbo = self.light_atlas_fbo
+            fbo.viewport = fbo.scissor = (l.tile[0], l.tile[1], bw, bh)
+            fbo.use()
             self._fullscreen(prog)
 
     def _composite(self):
         active = [l for l in self._lights if l.active]
-        prog = self.programs.get("fullscreen.vert.glsl", "composite.frag.glsl", CHUNK=COMPOSITE_CHUNK)
+        prog = self.programs.get("fullscreen.vert.glsl", "composite.frag.glsl", MAX_LIGHTS=MAX_LIGHTS_PER_COMPOSITE)
         with self._timed("composite"):
+            x, y, _, _ = self._mask_box
+            self.hdr_fbo.scissor = self._mask_box  # outside the box the HDR stays cleared to zero
             self.hdr_fbo.use()
-            self.hdr_fbo.scissor = None
-            self.hdr_fbo.clear(0.0, 0.0, 0.0, 0.0)
-            self.hdr_fbo.scissor = self._mask_box
             self.tex_albedo.use(0)
+            self.light_atlas.use(1)
             prog["albedo_mask"] = 0
-            prog["light_buffers"] = list(range(1, 1 + COMPOSITE_CHUNK))
+            prog["light_atlas"] = 1
+            prog["box_origin"] = (x, y)
             prog["visibility_channel"] = VISIBILITY_MODES[self._visibility]
-            chunks = [active[i:i + COMPOSITE_CHUNK] for i in range(0, len(active), COMPOSITE_CHUNK)] or [[]]
+            k = MAX_LIGHTS_PER_COMPOSITE
+            chunks = [active[i:i + k] for i in range(0, len(active), k)] or [[]]
             for c, chunk in enumerate(chunks):
+                tiles = np.zeros((k, 2), "i4")
+                inten = np.zeros((k, 3), "f4")
                 for i, l in enumerate(chunk):
-                    l.buffer.use(1 + i)
-                for i in range(len(chunk), COMPOSITE_CHUNK):
-                    self.tex_albedo.use(1 + i)  # unused slots still need a bound texture
-                inten = np.zeros((COMPOSITE_CHUNK, 3), "f4")
-                for i, l in enumerate(chunk):
+                    tiles[i] = l.tile
                     inten[i] = l.intensity
+                prog["tile_origin"].write(tiles.tobytes())
                 prog["intensity"].write(inten.tobytes())
                 prog["count"] = len(chunk)
                 prog["write_alpha"] = c == 0
@@ -387,6 +415,8 @@ class Engine:
         prog = self.programs.get("fullscreen.vert.glsl", "display.frag.glsl")
         cam = self.scene.camera
         with self._timed("display"):
+            # only the foreground changed: redraw just the mask's bounding box
+            self.display_fbo.scissor = None if self._dirty_background else self._mask_box
             self.display_fbo.use()
             self.hdr.use(0)
             self.tex_background.use(1)
@@ -433,6 +463,7 @@ class Engine:
         if self._dirty_display:
             self._display()
             self._dirty_display = False
+            self._dirty_background = False
         return self
 
     # ------------------------------------------------------------------ outputs
@@ -451,13 +482,15 @@ class Engine:
 
     def read_light(self, index: int) -> dict:
         """Per-light intermediate outputs (H, W) each: soft and hard visibility, diffuse and
-        specular shading per unit intensity. All zero for a skipped light."""
+        specular shading per unit intensity. All zero for a skipped light and outside the mask."""
         l = self._lights[index]
-        if not l.active or l.buffer is None:
-            z = np.zeros((self.scene.height, self.scene.width), np.float32)
-            return {"visibility_soft": z, "visibility_hard": z, "diffuse": z, "specular": z}
-        b = self._read(l.buffer, 4)
-        return {"visibility_soft": b[..., 0], "visibility_hard": b[..., 1], "diffuse": b[..., 2], "specular": b[..., 3]}
+        h, w = self.scene.height, self.scene.width
+        full = np.zeros((h, w, 4), np.float32)
+        if l.active and l.shadow_map is not None:
+            x, y, bw, bh = self._mask_box
+            data = self.light_atlas_fbo.read(viewport=(l.tile[0], l.tile[1], bw, bh), components=4, dtype="f4")
+            full[y:y + bh, x:x + bw] = np.frombuffer(data, np.float32).reshape(bh, bw, 4)
+        return {"visibility_soft": full[..., 0], "visibility_hard": full[..., 1], "diffuse": full[..., 2], "specular": full[..., 3]}
 
     def read_shadow_map(self, index: int) -> np.ndarray:
         """(R, R) normalised depth of a light's shadow map, row 0 at v = 0."""
@@ -473,10 +506,12 @@ class Engine:
         for l in self._lights:
             self._release_light(l)
         self._lights = []
+        for res in (getattr(self, "light_atlas_fbo", None), getattr(self, "light_atlas", None)):
+            if res is not None:
+                res.release()
         for vao in self._fullscreen_vaos.values():
             vao.release()
-        for texs, fbo in self._scratch.values():
+        for tex, fbo in self._scratch.values():
             fbo.release()
-            for t in texs:
-                t.release()
+            tex.release()
         self.programs.release()
