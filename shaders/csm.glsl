@@ -35,7 +35,7 @@ vec4 csm_fetch(sampler2D atlas, int t, vec2 uv) {
 // Soft visibility of a receiver at normalised depth d from the filtered basis atlas.
 // offset and clamp_value come from viewer.shadow_space.csm_constants(TERMS).
 float csm_visibility(sampler2D atlas, vec2 uv, float d, float offset, float clamp_value) {
-    float dd = d - offset;
+    float dd = clamp(d, 0.0, 1.0) - offset;  // receivers pushed past the range must not wrap
     float t0 = 3.14159265358979 * dd;
     vec2 cs = vec2(cos(t0), sin(t0));                                   // (cos c_k dd, sin c_k dd)
     vec2 rot = vec2(cs.x * cs.x - cs.y * cs.y, 2.0 * cs.x * cs.y);      // rotation by 2 pi dd

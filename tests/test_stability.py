@@ -87,7 +87,8 @@ def test_white_lambertian_plane_never_exceeds_analytic_value(ctx):
             hdr = eng.read_hdr()
             analytic = max(float(d[2]), 0.0) / np.pi
             assert hdr.max() <= analytic * (1 + 1e-6) + 1e-9, (d, sigma)
-    eng.set_lights(AreaLights(dirs[:1], [0.0], [[1, 1, 1]]))
-    eng.render()
-    np.testing.assert_allclose(eng.read_hdr(), 1 / np.pi, rtol=1e-6)
+    for sigma in (0.0, 20.0):  # a lone flat plane facing the light is fully lit, hard or soft
+        eng.set_lights(AreaLights(dirs[:1], [sigma], [[1, 1, 1]]))
+        eng.render()
+        np.testing.assert_allclose(eng.read_hdr(), 1 / np.pi, rtol=1e-6)
     eng.release()

@@ -29,6 +29,7 @@ import numpy as np
 
 SIGMA_REFERENCE_RESOLUTION = 256
 DEPTH_MARGIN = 0.02
+MIN_DEPTH_EXTENT = 0.05  # fraction of the bounding radius: the depth range of a flat mesh
 HARD_SHADOW_THRESHOLD = 0.005  # normalised depth, the paper's hard-test threshold
 NORMAL_OFFSET_TEXELS = 1.5  # receivers are pushed along their normal by this many texels
 SLOPE_BIAS_TEXELS = 1.0  # extra depth bias: texels times tan(angle between normal and light)
@@ -105,23 +106,25 @@ def depth_pad(terms: int) -> float:
     return csm_constants(terms)[0] + DEPTH_MARGIN
 
 
-def light_frames(points: np.ndarray, directions: np.ndarray, terms: int = 4, sphere=None) -> list[LightFrame]:
-    """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3); ``sphere`` is
-    their :func:`bounding_sphere` when the caller already has it."""
+def light_frames(points: np.ndarray, directions: np.ndarray, resolution: int, terms: int = 4, sphere=None) -> list[LightFrame]:
+    """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3) and shadow maps of
+    ``resolution`` texels; ``sphere`` is their :func:`bounding_sphere` when the caller has it.
+    The depth range also covers receivers pushed along their normals (NORMAL_OFFSET_TEXELS)."""
     pad = depth_pad(terms)
     pts = np.asarray(points)
     c, r = sphere if sphere is not None else bounding_sphere(pts.astype(np.float64))
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
     proj = (pts.astype(np.float32) @ dirs.T.astype(np.float32)).astype(np.float64)  # (K, N)
     frames = []
     for i, l in enumerate(dirs):
-        l = l / np.linalg.norm(l)
         ref = np.array([0.0, 1.0, 0.0]) if abs(l[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
         right = np.cross(ref, l)
         right /= np.linalg.norm(right)
         up = np.cross(l, right)
-        lo, hi = float(proj[:, i].min()), float(proj[:, i].max())
-        extent = max(hi - lo, 1e-3 * r) / (1.0 - 2.0 * pad)
+        reach = NORMAL_OFFSET_TEXELS * 2.0 * r / resolution
+        lo, hi = float(proj[:, i].min()) - reach, float(proj[:, i].max()) + reach
+        extent = max(hi - lo, MIN_DEPTH_EXTENT * r) / (1.0 - 2.0 * pad)
         hi = hi + pad * extent
         frames.append(LightFrame(right, up, l, c, r, hi - extent, hi, 1.0 - pad))
     return frames

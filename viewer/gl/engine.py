@@ -198,7 +198,7 @@ class Engine:
                     self._dirty_composite = True
         if moved:
             dirs = np.array([self._lights[k].direction for k in moved])
-            frames = ss.light_frames(self._frame_points, dirs, self.options.terms, sphere=self._sphere)
+            frames = ss.light_frames(self._frame_points, dirs, self.options.shadow_resolution, self.options.terms, sphere=self._sphere)
             facing = (self._normals_masked @ dirs.T.astype(np.float32)).max(axis=0, initial=0.0)
             for k, frame, f in zip(moved, frames, facing):
                 self._lights[k].frame = frame
