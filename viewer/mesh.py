@@ -1,4 +1,4 @@
-"""Mesh from a depth map: one vertex per pixel centre, two triangles per pixel quad.
+"""Mesh from a depth map: one vertex per masked pixel centre, two triangles per pixel quad.
 
 A triangle is kept when its three vertices are inside the mask and none of its edges spans a depth
 gap. A gap is a depth jump larger than ``max(gap_min, gap_slope * step * d / f)`` metres, i.e. a
@@ -53,8 +53,12 @@ def depth_mesh(scene: Scene, step: int = 1, gap_min: float = GAP_MIN, gap_slope:
         t0, t1, t2 = t0.ravel(), t1.ravel(), t2.ravel()
         keep = m[t0] & m[t1] & m[t2] & ok(t0, t1) & ok(t1, t2) & ok(t0, t2)
         tris.append(np.stack([t0[keep], t1[keep], t2[keep]], axis=1))
-    triangles = np.concatenate(tris, axis=0).astype(np.int32)
-    return DepthMesh(np.ascontiguousarray(pts.reshape(-1, 3), dtype=np.float32), triangles, step)
+    triangles = np.concatenate(tris, axis=0)
+    used = np.unique(triangles)  # keep only referenced vertices (rasterizers shade whole ranges)
+    remap = np.zeros(h * w, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    vertices = pts.reshape(-1, 3)[used]
+    return DepthMesh(np.ascontiguousarray(vertices, dtype=np.float32), remap[triangles].astype(np.int32), step)
 
 
 def masked_points(scene: Scene) -> np.ndarray:

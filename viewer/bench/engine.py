@@ -47,8 +47,9 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
     }
     for kind, make in changes.items():
         per_pass: dict[str, list[float]] = {}
-        totals = []
-        for i in range(repeats):
+        totals, profiled = [], []
+        for i in range(2 * repeats):  # alternate: plain frames (total) and profiled frames (per pass)
+            engine.profile = i % 2 == 1
             new = make(i)
             for v in engine.timings.values():
                 v.clear()
@@ -57,10 +58,12 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
             engine.set_lights(new)
             engine.render()
             ctx.finish()
-            totals.append(time.perf_counter() - t0)
-            for name, ts in engine.timings.items():
-                per_pass.setdefault(name, []).append(sum(ts))
-        results[kind] = {"total_ms": _median_ms(totals), "passes_ms": {k: _median_ms(v) for k, v in per_pass.items()}}
+            (profiled if engine.profile else totals).append(time.perf_counter() - t0)
+            if engine.profile:
+                for name, ts in engine.timings.items():
+                    per_pass.setdefault(name, []).append(sum(ts))
+        results[kind] = {"total_ms": _median_ms(totals), "profiled_total_ms": _median_ms(profiled),
+                         "passes_ms": {k: _median_ms(v) for k, v in per_pass.items()}}
     return results
 
 

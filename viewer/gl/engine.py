@@ -38,6 +38,7 @@ VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
 BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2}
 MAX_LIGHTS_PER_COMPOSITE = 64
+BASIS_MAX_BLOCK_LEVEL = 3  # deeper pyramid levels come from a box_reduce pass (keeps the basis pass parallel)
 
 
 @dataclass(frozen=True)
@@ -86,6 +87,7 @@ class Engine:
             raise ValueError(f"image {scene.width}x{scene.height} or shadow map {o.shadow_resolution} exceeds the GL limit {max_size}")
         self.programs = ProgramCache(ctx)
         self.counters: Counter = Counter()
+        self.profile = self.options.profile  # may be toggled: profiling syncs after every pass
         self.timings: dict[str, list[float]] = defaultdict(list)
         self.csm_offset, self.csm_clamp = ss.csm_constants(o.terms)
         self._n_tex = (o.terms + 1) // 2
@@ -134,13 +136,12 @@ class Engine:
         self._mask_box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
         self._normals_masked = np.ascontiguousarray(s.normal[s.mask], dtype=np.float32)
         prog = self.programs.get("shadow_map.vert.glsl", "shadow_map.frag.glsl")
-        self._mesh_vbo = ctx.buffer(mesh.vertices.astype("f4").tobytes())
-        self._mesh_ibo = ctx.buffer(mesh.triangles.astype("i4").tobytes()) if mesh.n_triangles else None
-        self._shadow_vao = (
-            ctx.vertex_array(prog, [(self._mesh_vbo, "3f", "position")], index_buffer=self._mesh_ibo, index_element_size=4)
-            if self._mesh_ibo is not None
-            else None
-        )
+        self._shadow_vao = None  # a mesh without triangles casts no shadow
+        if mesh.n_triangles:
+            self._mesh_vbo = ctx.buffer(mesh.vertices.astype("f4").tobytes())
+            self._mesh_ibo = ctx.buffer(mesh.triangles.astype("i4").tobytes())
+            self._shadow_vao = ctx.vertex_array(prog, [(self._mesh_vbo, "3f", "position")], index_buffer=self._mesh_ibo,
+                                                index_element_size=4)
         r = o.shadow_resolution
         self._shadow_depth = ctx.depth_renderbuffer((r, r))
         self._scratch: dict = {}
@@ -155,7 +156,7 @@ class Engine:
     @contextmanager
     def _timed(self, name: str):
         self.counters[name] += 1
-        if not self.options.profile:
+        if not self.profile:
             yield
             return
         self.ctx.finish()
@@ -305,15 +306,18 @@ class Engine:
         return self._scratch[key]
 
     def _prefilter(self, l: _Light):
-        """Basis atlas of the light's shadow map, box-averaged over 2^L x 2^L texel blocks (the mip
-        level L the blur plan runs on, computed directly), then the separable Gaussian."""
+        """Basis atlas of the light's shadow map at the blur plan's mip level L (box averages of
+        2^L x 2^L texel blocks: computed directly up to level 3, further levels by a box_reduce
+        pass), then the separable Gaussian at that level."""
         o = self.options
         r = o.shadow_resolution
         plan = blur_plan(ss.sigma_in_pixels(l.sigma, r), r, o.prefilter)
         l.plan = plan
         n = max(r >> plan.level, 1)
         size = (n * self._n_tex, n)
-        basis, basis_fbo = self._scratch_atlas(size, 0)
+        staged = min(plan.level, BASIS_MAX_BLOCK_LEVEL)  # the basis pass runs at this level
+        n_staged = max(r >> staged, 1)
+        staged_tex, staged_fbo = self._scratch_atlas((n_staged * self._n_tex, n_staged), 0)
         temp, temp_fbo = self._scratch_atlas(size, 1)
         if l.filtered is None or l.filtered.size != size:
             for res in (l.filtered_fbo, l.filtered):
@@ -325,11 +329,20 @@ class Engine:
             prog = self.programs.get("fullscreen.vert.glsl", "csm_basis.frag.glsl", TERMS=o.terms)
             l.shadow_map.use(0)
             prog["shadow_map"] = 0
-            prog["block"] = 1 << plan.level
-            prog["tile_size"] = n
+            prog["block"] = 1 << staged
+            prog["tile_size"] = n_staged
             prog["empty_depth"] = l.frame.empty_depth
-            basis_fbo.use()
+            staged_fbo.use()
             self._fullscreen(prog)
+            basis = staged_tex
+            if staged < plan.level:
+                basis, reduced_fbo = self._scratch_atlas(size, 2)
+                reduce = self.programs.get("fullscreen.vert.glsl", "box_reduce.frag.glsl")
+                staged_tex.use(0)
+                reduce["source"] = 0
+                reduce["factor"] = 1 << (plan.level - staged)
+                reduced_fbo.use()
+                self._fullscreen(reduce)
         prog = self.programs.get("fullscreen.vert.glsl", "gaussian_blur.frag.glsl")
         prog["radius"] = plan.radius
         prog["sigma"] = plan.sigma
