@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # One-time set-up on a fresh Debian machine: system OpenGL (Mesa EGL/llvmpipe, Xvfb for windows),
+# LLVM 19 for the Mitsuba ground truth,
 # a virtual environment in .venv and the Python packages (torch pinned by constraints.txt).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-if [ "$(id -u)" = 0 ] && ! ldconfig -p | grep -q libEGL.so.1; then
+# libLLVM 19 is for Mitsuba's vectorised variant (ground truth); Debian 12's default LLVM 15 aborts it.
+if [ "$(id -u)" = 0 ] && { ! ldconfig -p | grep -q libEGL.so.1 || [ ! -e /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 ]; }; then
     apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libegl1 libgl1 xvfb xauth >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libegl1 libgl1 xvfb xauth libllvm19 >/dev/null
 fi
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then

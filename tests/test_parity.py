@@ -28,9 +28,10 @@ def both(ctx):
     eng.set_lights(lights)
     eng.render()
     gl = {"hdr": eng.read_hdr(), "lights": [eng.read_light(i) for i in range(len(lights))]}
+    step = eng.shadow_step
     eng.release()
     with torch.no_grad():
-        tw = twin_render(scene, lights, shadow_resolution=opts.shadow_resolution, shadow_step=opts.shadow_step, terms=opts.terms)
+        tw = twin_render(scene, lights, shadow_resolution=opts.shadow_resolution, shadow_step=step, terms=opts.terms)
     return scene, lights, gl, tw
 
 

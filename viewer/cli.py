@@ -11,6 +11,7 @@ from .resources import asset_dir, sample_scene_dir
 
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 DEMO_LIGHTS = "envmaps/immenstadter_horn_256.lights.json"
+DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it lights the front
 
 
 def _engine_options(args):
@@ -22,13 +23,13 @@ def _engine_options(args):
 
 def _add_engine_args(p):
     p.add_argument("--shadow-resolution", type=int, default=512, help="texels of each shadow map (default 512)")
-    p.add_argument("--shadow-step", type=int, default=2, help="depth-mesh decimation for shadow maps (default 2)")
+    p.add_argument("--shadow-step", type=int, default=0, help="depth-mesh decimation for shadow maps (default 0 = auto)")
     p.add_argument("--terms", type=int, default=4, help="CSM Fourier terms (default 4 = 8 basis maps)")
     p.add_argument("--prefilter", choices=("pyramid", "exact"), default="pyramid", help="CSM pre-filtering (default pyramid)")
 
 
-def _add_view_args(p):
-    p.add_argument("--yaw", type=float, default=0.0, help="rotate the lighting about the vertical axis (degrees)")
+def _add_view_args(p, yaw_default=0.0):
+    p.add_argument("--yaw", type=float, default=yaw_default, help=f"rotate the lighting about the vertical axis (degrees, default {yaw_default})")
     p.add_argument("--tilt", type=float, default=0.0, help="tilt the lighting (degrees)")
     p.add_argument("--exposure", type=float, default=0.0, help="exposure in stops (default 0)")
     p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), default="aces")
@@ -78,8 +79,12 @@ def cmd_bench(args) -> int:
     from .bench.engine import run_engine_benchmark
 
     if args.what == "engine":
-        run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats, output=args.output,
-                             twin=not args.no_twin)
+        run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
+                             output=args.output or "docs/bench_engine.json", twin=not args.no_twin)
+    else:
+        from .bench.shadows import run_shadow_benchmark
+
+        run_shadow_benchmark(repeats=args.repeats, output=args.output or "docs/bench_shadows.json")
     return 0
 
 
@@ -90,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="render the bundled sample scene under the bundled environment's lights")
     p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
     _add_engine_args(p)
-    _add_view_args(p)
+    _add_view_args(p, yaw_default=DEMO_YAW)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("render", help="render a scene bundle under a light file to PNG + EXR")
@@ -103,12 +108,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("engine",))
+    p.add_argument("what", choices=("engine", "shadows"),
+                   help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
-    p.add_argument("-o", "--output", default="docs/bench_engine.json")
+    p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json)")
     p.set_defaults(func=cmd_bench)
     return parser
 

@@ -71,6 +71,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
                          twin: bool = True) -> dict:
     from ..gl import Engine, EngineOptions, create_headless_context
     from ..gl.context import describe
+    from ..gl.engine import resolve_shadow_step
     from ..scene import load_scene
     from ..scene_ops import resample_scene
 
@@ -83,7 +84,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
     print(f"{'size':>5} {'lights':>6} {'full ms':>8} {'sigma ms':>9} {'intens ms':>9} {'twin ms':>8}  passes (full)")
     for size in sizes:
         scene = resample_scene(base, size)
-        options = EngineOptions(shadow_step=max(1, size // 256), profile=True)
+        options = EngineOptions(shadow_step=resolve_shadow_step(0, scene), profile=True)
         report["options"][str(size)] = {"shadow_resolution": options.shadow_resolution, "shadow_step": options.shadow_step,
                                         "terms": options.terms, "prefilter": options.prefilter}
         for n in light_counts:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import time
 from collections import Counter, defaultdict
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import moderngl
 import numpy as np
@@ -44,12 +44,20 @@ BASIS_MAX_BLOCK_LEVEL = 3  # deeper pyramid levels come from a box_reduce pass (
 @dataclass(frozen=True)
 class EngineOptions:
     shadow_resolution: int = 512  # texels of each light's shadow map
-    shadow_step: int = 2  # depth-mesh decimation for shadow passes (1 = every pixel)
+    shadow_step: int = 0  # depth-mesh decimation for shadow passes (1 = every pixel; 0 = auto,
+    # 3 per 512 image pixels: ~1.5 cm triangles on the sample, 1.8 % error, see docs/bench_shadows.md)
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
     skip_threshold: float = 1e-5  # lights whose bound is below this fraction of the total are skipped
     profile: bool = False  # finish GL work after every pass and record its wall time
+
+
+def resolve_shadow_step(step: int, scene: Scene) -> int:
+    """The depth-mesh decimation actually used: ``step``, or for 0 (auto) 3 pixels per 512."""
+    if step < 0:
+        raise ValueError(f"shadow_step must be >= 0, got {step}")
+    return step if step > 0 else max(1, round(3 * max(scene.width, scene.height) / 512))
 
 
 @dataclass
@@ -63,8 +71,8 @@ class _Light:
     active: bool = True
     shadow_map: moderngl.Texture | None = None
     shadow_fbo: moderngl.Framebuffer | None = None
-    filtered: moderngl.Texture | None = None  # pre-filtered basis atlas
-    filtered_fbo: moderngl.Framebuffer | None = None
+    filtered: moderngl.Texture | None = None  # pre-filtered basis atlas (one of ``work``)
+    work: dict = field(default_factory=dict)  # intermediate atlases: slot -> (texture, framebuffer)
     plan: BlurPlan | None = None
     tile: tuple = (0, 0)  # origin of this light's tile in the light atlas
     dirty_shadow: bool = True
@@ -127,7 +135,8 @@ class Engine:
         self.display = self._texture((w, h), 4, dtype="f1")
         self.display_fbo = ctx.framebuffer(color_attachments=[self.display])
 
-        mesh = depth_mesh(s, step=o.shadow_step)
+        self.shadow_step = resolve_shadow_step(o.shadow_step, s)
+        mesh = depth_mesh(s, step=self.shadow_step)
         self.mesh = mesh
         self._frame_points = masked_points(s).astype(np.float32)
         self._sphere = ss.bounding_sphere(self._frame_points.astype(np.float64))
@@ -144,7 +153,6 @@ class Engine:
                                                 index_element_size=4)
         r = o.shadow_resolution
         self._shadow_depth = ctx.depth_renderbuffer((r, r))
-        self._scratch: dict = {}
         self._fullscreen_vaos: dict = {}
 
     def _fullscreen(self, program: moderngl.Program):
@@ -154,8 +162,9 @@ class Engine:
         vao.render(moderngl.TRIANGLES, vertices=3)
 
     @contextmanager
-    def _timed(self, name: str):
-        self.counters[name] += 1
+    def _timed(self, name: str, count: bool = True):
+        if count:
+            self.counters[name] += 1
         if not self.profile:
             yield
             return
@@ -255,9 +264,10 @@ class Engine:
 
     # ------------------------------------------------------------------ passes
     def _release_light(self, l: _Light):
-        for res in [l.shadow_fbo, l.shadow_map, l.filtered_fbo, l.filtered]:
+        for res in [l.shadow_fbo, l.shadow_map] + [r for entry in l.work.values() for r in reversed(entry)]:
             if res is not None:
                 res.release()
+        l.work.clear()
 
     def _allocate_light_atlas(self):
         """One RGBA32F texture holding every light's (V_soft, V_hard, S_diff, S_spec) over the
@@ -298,33 +308,28 @@ class Engine:
                 self._shadow_vao.render(moderngl.TRIANGLES)
                 self.ctx.disable(moderngl.DEPTH_TEST)
 
-    def _scratch_atlas(self, size, slot: int):
-        key = (tuple(size), slot)
-        if key not in self._scratch:
-            tex = self._texture(size, 4)
-            self._scratch[key] = (tex, self.ctx.framebuffer(color_attachments=[tex]))
-        return self._scratch[key]
+    def _work_atlas(self, l: _Light, size, slot: str):
+        """A light's own intermediate atlas (kept per light so that every stage can run for all
+        lights before the next stage starts: llvmpipe then waits once per stage, not per pass)."""
+        entry = l.work.get(slot)
+        if entry is None or entry[0].size != tuple(size):
+            if entry is not None:
+                entry[1].release()
+                entry[0].release()
+            tex = self._texture(size, 4, linear=(slot == "filtered"))
+            entry = l.work[slot] = (tex, self.ctx.framebuffer(color_attachments=[tex]))
+        return entry
 
-    def _prefilter(self, l: _Light):
-        """Basis atlas of the light's shadow map at the blur plan's mip level L (box averages of
-        2^L x 2^L texel blocks: computed directly up to level 3, further levels by a box_reduce
-        pass), then the separable Gaussian at that level."""
+    def _csm_basis(self, l: _Light):
+        """Basis atlas of the light's shadow map at its blur plan's mip level L (box averages of
+        2^L x 2^L texel blocks: computed directly up to level 3, deeper levels by a box_reduce pass)."""
         o = self.options
         r = o.shadow_resolution
-        plan = blur_plan(ss.sigma_in_pixels(l.sigma, r), r, o.prefilter)
-        l.plan = plan
+        plan = l.plan = blur_plan(ss.sigma_in_pixels(l.sigma, r), r, o.prefilter)
         n = max(r >> plan.level, 1)
-        size = (n * self._n_tex, n)
-        staged = min(plan.level, BASIS_MAX_BLOCK_LEVEL)  # the basis pass runs at this level
+        staged = min(plan.level, BASIS_MAX_BLOCK_LEVEL)
         n_staged = max(r >> staged, 1)
-        staged_tex, staged_fbo = self._scratch_atlas((n_staged * self._n_tex, n_staged), 0)
-        temp, temp_fbo = self._scratch_atlas(size, 1)
-        if l.filtered is None or l.filtered.size != size:
-            for res in (l.filtered_fbo, l.filtered):
-                if res is not None:
-                    res.release()
-            l.filtered = self._texture(size, 4, linear=True)
-            l.filtered_fbo = self.ctx.framebuffer(color_attachments=[l.filtered])
+        tex, fbo = self._work_atlas(l, (n_staged * self._n_tex, n_staged), "basis")
         with self._timed("csm_basis"):
             prog = self.programs.get("fullscreen.vert.glsl", "csm_basis.frag.glsl", TERMS=o.terms)
             l.shadow_map.use(0)
@@ -332,29 +337,39 @@ class Engine:
             prog["block"] = 1 << staged
             prog["tile_size"] = n_staged
             prog["empty_depth"] = l.frame.empty_depth
-            staged_fbo.use()
+            fbo.use()
             self._fullscreen(prog)
-            basis = staged_tex
             if staged < plan.level:
-                basis, reduced_fbo = self._scratch_atlas(size, 2)
+                _, reduced_fbo = self._work_atlas(l, (n * self._n_tex, n), "reduced")
                 reduce = self.programs.get("fullscreen.vert.glsl", "box_reduce.frag.glsl")
-                staged_tex.use(0)
+                tex.use(0)
                 reduce["source"] = 0
                 reduce["factor"] = 1 << (plan.level - staged)
                 reduced_fbo.use()
                 self._fullscreen(reduce)
+
+    def _blur(self, l: _Light, axis):
+        """One separable Gaussian pass: basis -> "temp" (horizontal) or "temp" -> "filtered"."""
+        plan = l.plan
+        n = max(self.options.shadow_resolution >> plan.level, 1)
+        size = (n * self._n_tex, n)
+        if axis == (1, 0):
+            source = l.work["reduced" if plan.level > BASIS_MAX_BLOCK_LEVEL else "basis"][0]
+            _, target = self._work_atlas(l, size, "temp")
+        else:
+            source = l.work["temp"][0]
+            l.filtered, target = self._work_atlas(l, size, "filtered")
         prog = self.programs.get("fullscreen.vert.glsl", "gaussian_blur.frag.glsl")
-        prog["radius"] = plan.radius
-        prog["sigma"] = plan.sigma
-        prog["norm"] = plan.norm
-        prog["tile_size"] = n
-        prog["source"] = 0
-        with self._timed("prefilter"):
-            for axis, source, target in (((1, 0), basis, temp_fbo), ((0, 1), temp, l.filtered_fbo)):
-                source.use(0)
-                prog["axis"] = axis
-                target.use()
-                self._fullscreen(prog)
+        with self._timed("prefilter", count=axis == (1, 0)):  # counted once per light
+            prog["radius"] = plan.radius
+            prog["sigma"] = plan.sigma
+            prog["norm"] = plan.norm
+            prog["tile_size"] = n
+            prog["source"] = 0
+            prog["axis"] = axis
+            source.use(0)
+            target.use()
+            self._fullscreen(prog)
 
     def _light_pass(self, l: _Light, soft_from_hard: bool):
         o = self.options
@@ -453,20 +468,25 @@ class Engine:
             raise ValueError("no lights: call set_lights first")
         o = self.options
         hard_px = ss.sigma_in_pixels(o.hard_sigma, o.shadow_resolution)
-        for l in self._lights:
-            if not l.active:
-                continue  # stays dirty, so it is computed once it contributes
+        active = [l for l in self._lights if l.active]  # inactive lights stay dirty until they count
+        # Stage by stage over all lights: each stage only waits for the previous one once.
+        for l in active:
             self._ensure_light_resources(l)
             if l.dirty_shadow:
                 self._render_shadow_map(l)
                 l.dirty_shadow, l.dirty_filter = False, True
-            soft_from_hard = ss.sigma_in_pixels(l.sigma, o.shadow_resolution) < hard_px
+        soft_from_hard = {id(l): ss.sigma_in_pixels(l.sigma, o.shadow_resolution) < hard_px for l in active}
+        to_filter = [l for l in active if l.dirty_filter and not soft_from_hard[id(l)]]
+        for l in to_filter:
+            self._csm_basis(l)
+        for axis in ((1, 0), (0, 1)):
+            for l in to_filter:
+                self._blur(l, axis)
+        for l in active:
             if l.dirty_filter:
-                if not soft_from_hard:
-                    self._prefilter(l)
                 l.dirty_filter, l.dirty_shading = False, True
             if l.dirty_shading:
-                self._light_pass(l, soft_from_hard)
+                self._light_pass(l, soft_from_hard[id(l)])
                 l.dirty_shading = False
                 self._dirty_composite = True
         if self._dirty_composite:
@@ -524,7 +544,4 @@ class Engine:
                 res.release()
         for vao in self._fullscreen_vaos.values():
             vao.release()
-        for tex, fbo in self._scratch.values():
-            fbo.release()
-            tex.release()
         self.programs.release()
