@@ -2,8 +2,8 @@
 
 Stated tolerances (sample scene, 16 lights of the bundled environment, GL with the exact prefilter):
 shading to float precision (relative 1e-4); visibility compared where the light is above the
-surface's horizon (elsewhere the shading is zero): mean absolute difference < 0.01 hard and soft;
-final HDR: mean relative difference < 1 %.
+surface's horizon (elsewhere the shading is zero): mean absolute difference < 1e-3 per light, hard and
+soft (measured: 0 and 1e-5); final HDR: relative L1 difference < 1e-4 (measured 8e-6).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def test_visibility_parity(both):
         for name, ref in (("visibility_hard", tw.hard_visibility[i]), ("visibility_soft", tw.soft_visibility[i])):
             errs[name].append(float(np.abs(gl["lights"][i][name][m][facing] - ref.numpy()[m][facing]).mean()))
     for name, e in errs.items():
-        assert max(e) < 0.01, (name, e)
+        assert max(e) < 1e-3, (name, e)
 
 
 def test_image_parity(both):
@@ -62,4 +62,4 @@ def test_image_parity(both):
     m = scene.mask
     a, b = gl["hdr"][m], tw.image.numpy()[m]
     rel = np.abs(a - b).sum() / np.abs(b).sum()
-    assert rel < 0.01, rel
+    assert rel < 1e-4, rel

@@ -92,3 +92,13 @@ def test_white_lambertian_plane_never_exceeds_analytic_value(ctx):
         eng.render()
         np.testing.assert_allclose(eng.read_hdr(), 1 / np.pi, rtol=1e-6)
     eng.release()
+
+
+def test_huge_image(ctx):
+    sc = plane_and_box(2048)
+    eng = Engine(ctx, sc, EngineOptions(shadow_resolution=256))
+    eng.set_lights(EXTREME_LIGHTS)
+    eng.render()
+    hdr = eng.read_hdr()
+    assert np.isfinite(hdr).all() and hdr.max() > 0
+    eng.release()

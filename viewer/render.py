@@ -64,7 +64,7 @@ def passes_sheet(engine, scene: Scene) -> np.ndarray:
         soft += s * out["visibility_soft"]
         hard += s * out["visibility_hard"]
         shade += s
-    scale = max(float(np.percentile(shade[m], 99)), 1e-12) if m.any() else 1.0
+    scale = max(float(np.percentile(shade[m], 99.5)), 1e-12) * 1.5 if m.any() else 1.0
     depth = scene.depth.copy()
     if m.any():
         lo, hi = depth[m].min(), depth[m].max()
@@ -83,6 +83,21 @@ def passes_sheet(engine, scene: Scene) -> np.ndarray:
         linear_to_srgb(grey(shade / scale)),
         engine.read_display().astype(np.float32) / 255.0,
     ]
+    names = ["albedo", "normal", "depth", "specular", "soft shadows (CSM)", "hard shadows (shadow map)",
+             "shading, no shadows", "final"]
+    tiles = [_label(t, name) for t, name in zip(tiles, names)]
     top = np.concatenate(tiles[:4], axis=1)
     bottom = np.concatenate(tiles[4:], axis=1)
     return np.concatenate([top, bottom], axis=0)
+
+
+def _label(tile: np.ndarray, text: str) -> np.ndarray:
+    """The tile with its name written in its top-left corner."""
+    from PIL import Image, ImageDraw
+
+    im = Image.fromarray((np.clip(tile, 0, 1) * 255 + 0.5).astype(np.uint8))
+    draw = ImageDraw.Draw(im)
+    box = draw.textbbox((4, 4), text)
+    draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(0, 0, 0))
+    draw.text((4, 4), text, fill=(255, 255, 255))
+    return np.asarray(im, dtype=np.float32) / 255.0
