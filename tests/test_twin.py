@@ -9,6 +9,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
+from scenes import plane_and_box
 from viewer import shadow_space
 from viewer.camera import Camera
 from viewer.lights import AreaLights
@@ -27,22 +28,7 @@ def make_scene(size: int = 64, box: bool = True, albedo: float = 0.5, specular: 
                roughness: float = 0.5) -> Scene:
     """A plane facing the camera at PLANE_DEPTH, optionally with the front face of a box (a square of
     half-width BOX_HALF at BOX_DEPTH) in front of it; the whole image is masked."""
-    cam = Camera(size, size)
-    depth = np.full((size, size), PLANE_DEPTH, np.float32)
-    if box:
-        pts = cam.unproject(np.full((size, size), BOX_DEPTH, np.float32))
-        depth[(np.abs(pts[..., 0]) < BOX_HALF) & (np.abs(pts[..., 1]) < BOX_HALF)] = BOX_DEPTH
-    normal = np.zeros((size, size, 3), np.float32)
-    normal[..., 2] = 1.0
-    return Scene(
-        albedo=np.full((size, size, 3), albedo, np.float32),
-        specular=np.full((size, size), specular, np.float32),
-        roughness=np.full((size, size), roughness, np.float32),
-        normal=normal,
-        depth=depth,
-        mask=np.ones((size, size), bool),
-        camera=cam,
-    ).validate()
+    return plane_and_box(size, box, albedo, specular, roughness, PLANE_DEPTH, BOX_DEPTH, BOX_HALF)
 
 
 def unit(v) -> np.ndarray:
