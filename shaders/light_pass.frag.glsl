@@ -7,9 +7,8 @@
 #include "csm.glsl"
 #include "shadow_test.glsl"
 
-uniform sampler2D positions;   // camera-space points (xyz) and mask (w)
-uniform sampler2D normals;
-uniform sampler2D materials;   // (specular, roughness)
+uniform sampler2D positions;   // camera-space points (xyz) and roughness (w)
+uniform sampler2D normals;     // unit normals (xyz; zero outside the mask) and specular (w)
 uniform sampler2D shadow_map;
 uniform sampler2D filtered_basis;
 uniform bool soft_from_hard;   // sigma ~ 0: soft visibility = hard visibility (filtering skipped)
@@ -21,17 +20,16 @@ layout(location = 0) out vec4 result;
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy) - tile_origin + box_origin;
+    vec4 ns = texelFetch(normals, px, 0);
+    vec3 n = ns.xyz;
+    if (dot(n, light_dir) <= 0.0) { result = vec4(0.0); return; }  // also every pixel outside the mask
     vec4 pm = texelFetch(positions, px, 0);
-    if (pm.w < 0.5) { result = vec4(0.0); return; }
-    vec3 n = texelFetch(normals, px, 0).xyz;
-    if (dot(n, light_dir) <= 0.0) { result = vec4(0.0); return; }
     vec3 uvd = receiver_uvd(pm.xyz, n);
     float v_hard = hard_visibility(shadow_map, uvd, receiver_bias(n));
     float v_soft = soft_from_hard ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
     float s_diff = lambert_shading(n, light_dir);
 #ifdef SPECULAR
-    vec2 mat = texelFetch(materials, px, 0).xy;
-    float s_spec = disney_specular_shading(n, light_dir, mat.x, mat.y);
+    float s_spec = disney_specular_shading(n, light_dir, ns.w, pm.w);
 #else
     float s_spec = 0.0;
 #endif

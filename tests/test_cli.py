@@ -41,3 +41,10 @@ def test_bad_inputs_give_one_line_errors(tmp_path):
         assert res.returncode == 2, res.stderr
         assert "Traceback" not in res.stderr
         assert message in res.stderr and res.stderr.startswith("relight: error: ")
+
+
+def test_viewing_precomputed_maps_never_imports_torch(tmp_path):
+    code = ("import sys; from viewer.cli import main; main(['demo', '-o', sys.argv[1]]);"
+            "assert 'torch' not in sys.modules, 'torch was imported'")
+    res = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr

@@ -48,6 +48,7 @@ class LightFrame:
     lo: float
     hi: float
     empty_depth: float  # normalised depth stored where no triangle covers a texel
+    footprint: tuple = (0.0, 0.0, 1.0, 1.0)  # (u0, v0, u1, v1): the mesh's extent in the shadow map
 
     def matrix(self) -> np.ndarray:
         """4x4 (row-major) taking homogeneous camera-space points to (u, v, z, 1)."""
@@ -115,18 +116,25 @@ def light_frames(points: np.ndarray, directions: np.ndarray, resolution: int, te
     c, r = sphere if sphere is not None else bounding_sphere(pts.astype(np.float64))
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
-    proj = (pts.astype(np.float32) @ dirs.T.astype(np.float32)).astype(np.float64)  # (K, N)
-    frames = []
-    for i, l in enumerate(dirs):
+    axes = []
+    for l in dirs:
         ref = np.array([0.0, 1.0, 0.0]) if abs(l[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
         right = np.cross(ref, l)
         right /= np.linalg.norm(right)
-        up = np.cross(l, right)
-        reach = NORMAL_OFFSET_TEXELS * 2.0 * r / resolution
-        lo, hi = float(proj[:, i].min()) - reach, float(proj[:, i].max()) + reach
+        axes.append((right, np.cross(l, right), l))
+    basis = np.concatenate([np.stack(a, axis=1) for a in axes], axis=1)  # (3, 3N): right, up, l per light
+    proj = (pts.astype(np.float32) @ basis.astype(np.float32)).astype(np.float64)  # one product for all
+    lo_all, hi_all = proj.min(axis=0), proj.max(axis=0)
+    reach = NORMAL_OFFSET_TEXELS * 2.0 * r / resolution
+    frames = []
+    for i, (right, up, l) in enumerate(axes):
+        (u0, v0, lo), (u1, v1, hi) = lo_all[3 * i:3 * i + 3], hi_all[3 * i:3 * i + 3]
+        lo, hi = lo - reach, hi + reach
         extent = max(hi - lo, MIN_DEPTH_EXTENT * r) / (1.0 - 2.0 * pad)
         hi = hi + pad * extent
-        frames.append(LightFrame(right, up, l, c, r, hi - extent, hi, 1.0 - pad))
+        cu, cv = float(c @ right), float(c @ up)
+        footprint = tuple(float(0.5 + (x - cx) / (2.0 * r)) for x, cx in ((u0, cu), (v0, cv), (u1, cu), (v1, cv)))
+        frames.append(LightFrame(right, up, l, c, r, float(hi - extent), float(hi), 1.0 - pad, footprint))
     return frames
 
 
@@ -162,3 +170,13 @@ def csm_constants(terms: int) -> tuple[float, float]:
 
 def csm_frequencies(terms: int) -> np.ndarray:
     return (math.pi * (2 * np.arange(1, terms + 1) - 1)).astype(np.float32)
+
+
+def csm_empty_basis(empty_depth: float, terms: int) -> np.ndarray:
+    """Basis atlas values (tiles, 4) of an empty texel: (cos c_2t z, sin c_2t z, cos c_2t+1 z,
+    sin c_2t+1 z) at z = empty_depth, zero for a missing last term (as shaders/csm.glsl packs them)."""
+    c = csm_frequencies(terms).astype(np.float64)
+    out = np.zeros(((terms + 1) // 2, 4))
+    for k, ck in enumerate(c):
+        out[k // 2, 2 * (k % 2):2 * (k % 2) + 2] = (np.cos(ck * empty_depth), np.sin(ck * empty_depth))
+    return out

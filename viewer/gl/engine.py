@@ -122,9 +122,10 @@ class Engine:
         w, h = s.width, s.height
         mask = s.mask.astype(np.float32)
         pts = s.points()
-        self.tex_positions = self._texture((w, h), 4, np.dstack([pts, mask]).astype("f4").tobytes())
-        self.tex_normals = self._texture((w, h), 4, np.dstack([s.normal, mask]).astype("f4").tobytes())
-        self.tex_materials = self._texture((w, h), 2, np.dstack([s.specular, s.roughness]).astype("f4").tobytes())
+        # two fetches per pixel and light: (position, roughness) and (normal, specular); normals are
+        # zero outside the mask, so n.l <= 0 there
+        self.tex_positions = self._texture((w, h), 4, np.dstack([pts, s.roughness]).astype("f4").tobytes())
+        self.tex_normals = self._texture((w, h), 4, np.dstack([s.normal, s.specular]).astype("f4").tobytes())
         self.tex_albedo = self._texture((w, h), 4, np.dstack([s.albedo, mask]).astype("f4").tobytes())
         bg = s.background if s.background is not None else np.zeros((h, w, 3), np.float32)
         self.tex_background = self._texture((w, h), 4, np.dstack([bg, np.ones((h, w), np.float32)]).astype("f4").tobytes())
@@ -337,16 +338,14 @@ class Engine:
             prog["block"] = 1 << staged
             prog["tile_size"] = n_staged
             prog["empty_depth"] = l.frame.empty_depth
-            fbo.use()
-            self._fullscreen(prog)
+            self._footprint_pass(l, fbo, n_staged, 1, prog)
             if staged < plan.level:
                 _, reduced_fbo = self._work_atlas(l, (n * self._n_tex, n), "reduced")
                 reduce = self.programs.get("fullscreen.vert.glsl", "box_reduce.frag.glsl")
                 tex.use(0)
                 reduce["source"] = 0
                 reduce["factor"] = 1 << (plan.level - staged)
-                reduced_fbo.use()
-                self._fullscreen(reduce)
+                self._footprint_pass(l, reduced_fbo, n, 1, reduce)
 
     def _blur(self, l: _Light, axis):
         """One separable Gaussian pass: basis -> "temp" (horizontal) or "temp" -> "filtered"."""
@@ -368,8 +367,26 @@ class Engine:
             prog["source"] = 0
             prog["axis"] = axis
             source.use(0)
-            target.use()
-            self._fullscreen(prog)
+            self._footprint_pass(l, target, n, plan.radius + 1, prog)
+
+    def _footprint_pass(self, l: _Light, fbo: moderngl.Framebuffer, n: int, margin: int, prog: moderngl.Program):
+        """Run a basis-atlas pass only over the mesh's footprint in the shadow map (plus ``margin``
+        texels) in each tile; the rest of the tile holds the basis of an empty texel, a constant,
+        which every later pass (box average, Gaussian) leaves unchanged."""
+        u0, v0, u1, v1 = l.frame.footprint
+        x0, y0 = max(int(np.floor(u0 * n)) - margin, 0), max(int(np.floor(v0 * n)) - margin, 0)
+        x1, y1 = min(int(np.ceil(u1 * n)) + margin, n), min(int(np.ceil(v1 * n)) + margin, n)
+        empty = ss.csm_empty_basis(l.frame.empty_depth, self.options.terms)
+        fbo.scissor = None
+        fbo.use()
+        for t in range(self._n_tex):
+            fbo.clear(*empty[t], viewport=(t * n, 0, n, n))
+        if x1 > x0 and y1 > y0:
+            for t in range(self._n_tex):
+                fbo.scissor = (t * n + x0, y0, x1 - x0, y1 - y0)
+                fbo.use()
+                self._fullscreen(prog)
+        fbo.scissor = None
 
     def _light_pass(self, l: _Light, soft_from_hard: bool):
         o = self.options
@@ -380,8 +397,7 @@ class Engine:
         with self._timed("light_pass"):
             r = o.shadow_resolution
             f = l.frame
-            units = {"positions": self.tex_positions, "normals": self.tex_normals, "materials": self.tex_materials,
-                     "shadow_map": l.shadow_map, "filtered_basis": l.filtered if not soft_from_hard else l.shadow_map}
+            units = {"positions": self.tex_positions, "normals": self.tex_normals, "shadow_map": l.shadow_map, "filtered_basis": l.filtered if not soft_from_hard else l.shadow_map}
             for unit, (name, tex) in enumerate(units.items()):
                 tex.use(unit)
                 if prog.get(name, None) is not None:
