@@ -26,7 +26,9 @@ float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness) {
     float alpha = max(roughness * roughness, MIN_ALPHA);
     float a2 = alpha * alpha;
     float f0 = 0.08 * specular;
-    float fresnel = f0 + (1.0 - f0) * pow(1.0 - lh, 5.0);
+    float m = 1.0 - lh;
+    float m2 = m * m;
+    float fresnel = f0 + (1.0 - f0) * (m2 * m2 * m);  // Schlick; cheaper than pow() on llvmpipe
     float t = nh * nh * (a2 - 1.0) + 1.0;
     float d = a2 / (PI * t * t);
     float g = smith_g1(nl, a2) * smith_g1(nv, a2);
