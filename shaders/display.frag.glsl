@@ -12,12 +12,9 @@ uniform vec2 focal_center_px;         // principal point (pixels)
 uniform float focal_px;
 uniform float exposure;               // stops
 uniform int tonemap_op;
-uniform bool flip_y;                  // window output: GL rows bottom first
 layout(location = 0) out vec4 color;
 void main() {
-    ivec2 size = textureSize(hdr, 0);
     ivec2 px = ivec2(gl_FragCoord.xy);
-    if (flip_y) px.y = size.y - 1 - px.y;
     vec4 c = texelFetch(hdr, px, 0);
     float scale = exp2(exposure);
     vec3 bg = background_color;

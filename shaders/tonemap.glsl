@@ -1,10 +1,10 @@
 // Exposure, tone mapping and the sRGB transfer function for display images.
 vec3 tonemap_aces(vec3 x) {  // Narkowicz 2015 fit of the ACES filmic curve
-    x = max(x, vec3(0.0));
+    x = clamp(x, vec3(0.0), vec3(1e6));  // the curve is 1 long before; beyond, x^2 would overflow
     return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
 }
 vec3 tonemap_reinhard(vec3 x) {
-    x = max(x, vec3(0.0));
+    x = clamp(x, vec3(0.0), vec3(1e30));
     return x / (1.0 + x);
 }
 vec3 tonemap(vec3 x, int op) {

@@ -214,6 +214,84 @@ def test_matte_scene_skips_specular(ctx):
     eng = make_engine(ctx, sc)
     eng.set_lights(AreaLights(unit([[0.1, 0.2, 1.0]]), [1.0], [[1, 1, 1]]))
     eng.render()
-    assert not eng._specular
-    assert np.all(eng.read_light(0)["specular"] == 0.0)
+    light_programs = [k for k in eng.programs._programs if k[1] == "light_pass.frag.glsl"]
+    assert light_programs and all("SPECULAR" not in dict(k[2]) for k in light_programs)
+    out = eng.read_light(0)
+    expected = np.broadcast_to((0.5 * out["diffuse"] * out["visibility_soft"])[..., None], (48, 48, 3))
+    np.testing.assert_allclose(eng.read_hdr(), expected, rtol=1e-6)
+    eng.release()
+
+
+def test_weak_light_on_a_mirror_highlight_is_not_skipped(ctx):
+    """A light far weaker than another can still dominate where it is mirrored (roughness 0): the
+    skip bound accounts for the specular peak."""
+    sc = plane_and_box(48, box=False, specular=1.0, roughness=0.0)
+    lights = AreaLights(unit([[0.8, 0.0, 0.6], [0.0, 0.0, 1.0]]), [0.0, 0.0], [[1, 1, 1], [5e-6, 5e-6, 5e-6]])
+    eng = make_engine(ctx, sc)
+    eng.set_lights(lights)
+    eng.render()
+    full = make_engine(ctx, sc, skip_threshold=0.0)
+    full.set_lights(lights)
+    full.render()
+    assert eng.light_active(1)
+    np.testing.assert_allclose(eng.read_hdr(), full.read_hdr(), rtol=1e-5, atol=1e-9)
+    eng.release()
+    full.release()
+
+
+def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene):
+    """Cache rules under light-count changes, skip/unskip, sigma crossing hard_sigma and pyramid
+    levels, and visibility modes: every frame equals a fresh engine's."""
+    d = unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0], [0.1, 0.9, 0.5], [0.6, -0.1, 0.8]])
+    base = AreaLights(d, [3.0, 6.0, 0.0, 12.0], [[1, 1, 1], [0.5, 0.4, 0.3], [0.2, 0.2, 0.2], [0.3, 0.3, 0.3]])
+    steps = [
+        ("set", base),
+        ("set", base.with_sigma(2, 40.0).with_sigma(0, 0.0)),  # crosses hard_sigma both ways, new level
+        ("set", AreaLights(base.direction[:2], base.sigma[:2], base.intensity[:2])),  # fewer lights
+        ("set", AreaLights(base.direction, base.sigma, [[1, 1, 1], [0, 0, 0], [0.2, 0.2, 0.2], [0.3, 0.3, 0.3]])),
+        ("set", base.rotated(30.0)),  # light 1 comes back, rotated while it was skipped
+        ("vis", "hard"),
+        ("set", base.rotated(30.0).with_sigma(3, 1.5)),
+        ("vis", "soft"),
+    ]
+    eng = make_engine(ctx, scene)
+    vis = "soft"
+    for kind, value in steps:
+        if kind == "set":
+            lights = value
+            eng.set_lights(value)
+        else:
+            vis = value
+            eng.set_visibility(value)
+        eng.render()
+        fresh = make_engine(ctx, scene)
+        fresh.set_lights(lights)
+        fresh.set_visibility(vis)
+        fresh.render()
+        np.testing.assert_array_equal(eng.read_hdr(), fresh.read_hdr(), err_msg=f"after {kind} {value}")
+        fresh.release()
+    eng.release()
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"shadow_resolution": 500}, "power of two"),
+    ({"shadow_resolution": 0}, "power of two"),
+    ({"terms": 1}, "terms"),
+    ({"shadow_step": -1}, "shadow step"),
+    ({"prefilter": "box"}, "prefilter"),
+])
+def test_bad_options_are_clear_errors(options, message):
+    from viewer.errors import InputError
+
+    with pytest.raises(InputError, match=message):
+        EngineOptions(**options)
+
+
+def test_extreme_exposure_saturates_instead_of_going_black(ctx, scene):
+    eng = make_engine(ctx, scene)
+    eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0]]), [2.0], [[1e5, 1e5, 1e5]]))
+    eng.set_display(exposure=40.0)
+    eng.render()
+    lit = eng.read_hdr().max(axis=-1) > 0
+    assert lit.mean() > 0.9 and (eng.read_display()[lit] == 255).all()
     eng.release()

@@ -115,3 +115,27 @@ def test_one_pixel_mask_scene():
     sc.mask[8, 8] = True
     sc.validate()
     assert depth_mesh(sc).n_triangles == 0
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda m: [1, 2], "JSON object"),
+    (lambda m: {**m, "maps": ["albedo.exr"]}, "maps must be"),
+    (lambda m: {**m, "version": "abc"}, "version must be an integer"),
+    (lambda m: {**m, "camera": {**m["camera"], "focal_mm": 0}}, "focal_mm must be a positive"),
+    (lambda m: {**m, "camera": {**m["camera"], "focal_mm": float("nan")}}, "focal_mm must be a positive"),
+    (lambda m: {**m, "camera": {**m["camera"], "model": "orthographic"}}, "perspective"),
+])
+def test_malformed_scene_json_is_named(bundle, edit, message):
+    path, _ = bundle
+    meta = json.loads((path / "scene.json").read_text())
+    (path / "scene.json").write_text(json.dumps(edit(meta)))
+    with pytest.raises(InputError) as err:
+        load_scene(path)
+    assert "scene.json" in str(err.value) and message in str(err.value)
+
+
+def test_implausible_depth_is_refused(bundle):
+    path, _ = bundle
+    corrupt(path, "depth.exr", lambda a: np.where(np.arange(a.size).reshape(a.shape) == 300, 1e20, a))
+    with pytest.raises(InputError, match="depth.exr.*implausible"):
+        load_scene(path)

@@ -13,7 +13,7 @@ from scenes import plane_and_box
 from viewer import shadow_space
 from viewer.camera import Camera
 from viewer.lights import AreaLights
-from viewer.mesh import depth_mesh, masked_points
+from viewer.mesh import caster_points, depth_mesh
 from viewer.scene import Scene
 from viewer.twin import (LightTensors, SceneTensors, diffuse_shading, gaussian_filter, light_frames,
                          project_vertices, rasterize_depth, receiver_coordinates, render, sample_bilinear,
@@ -105,7 +105,7 @@ DIRECTIONS = unit([[0.3, 0.2, 1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.05], [0.05, 0.
 
 def test_receiver_coordinates_match_numpy_rule():
     scene = make_scene(32)
-    pts = masked_points(scene)
+    pts = caster_points(scene, depth_mesh(scene))
     rng = np.random.default_rng(1)
     normals = unit(rng.normal(size=(len(pts), 3)))
     res = 128
@@ -176,7 +176,7 @@ def test_rasterizer_matches_brute_force():
     vertices = np.concatenate([mesh.vertices, extra_v]).astype(np.float32)
     triangles = np.concatenate([mesh.triangles, len(mesh.vertices) + np.arange(60).reshape(20, 3)]).astype(np.int32)
     res = 40
-    frames = light_frames(torch.tensor(masked_points(scene)), torch.tensor(DIRECTIONS[:4], dtype=torch.float32), 256)
+    frames = light_frames(torch.tensor(caster_points(scene, depth_mesh(scene))), torch.tensor(DIRECTIONS[:4], dtype=torch.float32), 256)
     uvz = project_vertices(torch.tensor(vertices), frames)
     got = rasterize_depth(uvz, torch.tensor(triangles), res, frames.empty_depth).numpy()
     for i in range(len(frames)):

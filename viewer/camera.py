@@ -38,13 +38,23 @@ class Camera:
 
     @staticmethod
     def from_json(d: dict) -> "Camera":
-        return Camera(
+        """Raises ValueError for anything but a perspective camera with positive finite values."""
+        if d.get("model", "perspective") != "perspective":
+            raise ValueError(f"camera model must be 'perspective', got {d.get('model')!r}")
+        cam = Camera(
             width=int(d["width"]),
             height=int(d["height"]),
             focal_mm=float(d.get("focal_mm", 50.0)),
             sensor_mm=float(d.get("sensor_mm", 36.0)),
             distance=float(d.get("distance", 4.0)),
         )
+        for name in ("focal_mm", "sensor_mm", "distance"):
+            value = getattr(cam, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value}")
+        if cam.width < 1 or cam.height < 1:
+            raise ValueError(f"resolution must be positive, got {cam.width}x{cam.height}")
+        return cam
 
     def unproject(self, depth: np.ndarray) -> np.ndarray:
         """Camera-space points (H, W, 3) float32 from a depth map (H, W) in metres."""

@@ -69,6 +69,8 @@ def cmd_demo(args) -> int:
 
 def cmd_render(args) -> int:
     out = Path(args.output)
+    if out.suffix.lower() != ".png":
+        raise InputError(out, "the display image is written as PNG: give a .png path (the EXR goes beside it)")
     written = _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args)
     for path in written:
         print(f"wrote {path}")

@@ -23,6 +23,7 @@ from .errors import InputError
 FORMAT = "relight-lights"
 VERSION = 1
 UNIT_TOLERANCE = 1e-3
+MAX_INTENSITY = 1e20  # far above any real light (a sun is ~1e5 in these units), far below float overflow
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,9 @@ class AreaLights:
         if (self.sigma < 0).any():
             i = int(np.argmax(self.sigma < 0))
             raise InputError(where, f"light {i}: sigma must be >= 0, got {self.sigma[i]:.4g}")
+        if (self.intensity > MAX_INTENSITY).any():
+            i = int(np.argmax((self.intensity > MAX_INTENSITY).any(axis=1)))
+            raise InputError(where, f"light {i}: intensity {self.intensity[i].tolist()} is implausibly large (> {MAX_INTENSITY:g})")
         if (self.intensity < 0).any():
             i = int(np.argmax((self.intensity < 0).any(axis=1)))
             raise InputError(where, f"light {i}: intensity must be non-negative, got {self.intensity[i].tolist()}")

@@ -61,6 +61,16 @@ def depth_mesh(scene: Scene, step: int = 1, gap_min: float = GAP_MIN, gap_slope:
     return DepthMesh(np.ascontiguousarray(vertices, dtype=np.float32), remap[triangles].astype(np.int32), step)
 
 
-def masked_points(scene: Scene) -> np.ndarray:
-    """Camera-space points of the masked pixels (K, 3): what the shadow-map frames enclose."""
-    return scene.points()[scene.mask]
+def resolve_step(step: int, scene: Scene) -> int:
+    """The decimation actually used: ``step``, or for 0 (auto) 3 pixels per 512 image pixels
+    (about 1.5 cm triangles on the sample scene; error vs time in docs/engine.md)."""
+    if step < 0:
+        raise ValueError(f"shadow_step must be >= 0, got {step}")
+    return step if step > 0 else max(1, round(3 * max(scene.width, scene.height) / 512))
+
+
+def caster_points(scene: Scene, mesh: DepthMesh) -> np.ndarray:
+    """The points the shadow-map frames enclose (K, 3): the shadow mesh's vertices (every one belongs
+    to a kept triangle, so a lone outlier pixel cannot stretch the frames), or the masked pixels'
+    points when the mesh has no triangle."""
+    return mesh.vertices if mesh.n_triangles else scene.points()[scene.mask]

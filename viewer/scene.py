@@ -42,6 +42,7 @@ MAP_FILES = {
 }
 OPTIONAL_FILES = {"photo": "photo.png", "background": "background.png"}
 NORMAL_TOLERANCE = 1e-2  # | |n| - 1 | allowed inside the mask before loading refuses the map
+MAX_DEPTH = 1e4  # metres; a larger depth is a corrupt pixel, not a photographed person
 
 
 @dataclass
@@ -122,9 +123,11 @@ class Scene:
             n_bad = int((np.abs(lengths - 1.0) > NORMAL_TOLERANCE).sum())
             raise InputError(file("normal"), f"{n_bad} normal(s) inside the mask are not unit length (worst | |n|-1 | = {worst:.3g})")
         self.normal = np.where(m[..., None], self.normal / np.maximum(np.linalg.norm(self.normal, axis=-1, keepdims=True), 1e-12), 0.0).astype(np.float32)
-        dmin = float(self.depth[m].min())
+        dmin, dmax = float(self.depth[m].min()), float(self.depth[m].max())
         if dmin <= 0.0:
             raise InputError(file("depth"), f"depth must be > 0 inside the mask, found {dmin:.4g}")
+        if dmax > MAX_DEPTH:
+            raise InputError(file("depth"), f"depth {dmax:.4g} m inside the mask is implausible (> {MAX_DEPTH:g} m)")
         for name in ("photo", "background"):
             arr = getattr(self, name)
             if arr is None:
@@ -154,13 +157,21 @@ def load_scene(path) -> Scene:
         meta = json.loads(meta_path.read_text())
     except json.JSONDecodeError as exc:
         raise InputError(meta_path, f"invalid JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(meta_path, "must hold a JSON object")
     if meta.get("format") != FORMAT:
         raise InputError(meta_path, f"not a scene bundle (format is {meta.get('format')!r}, expected {FORMAT!r})")
-    if int(meta.get("version", 0)) > VERSION:
-        raise InputError(meta_path, f"version {meta.get('version')} is newer than this program reads ({VERSION})")
+    version = meta.get("version", 0)
+    if not isinstance(version, int):
+        raise InputError(meta_path, f"version must be an integer, got {version!r}")
+    if version > VERSION:
+        raise InputError(meta_path, f"version {version} is newer than this program reads ({VERSION})")
     if meta.get("depth_units", "metres") != "metres":
         raise InputError(meta_path, f"depth_units must be 'metres', got {meta.get('depth_units')!r}")
-    files = {**MAP_FILES, **OPTIONAL_FILES, **meta.get("maps", {})}
+    maps = meta.get("maps", {})
+    if not isinstance(maps, dict) or not all(isinstance(v, str) for v in maps.values()):
+        raise InputError(meta_path, "maps must be an object of map name -> file name")
+    files = {**MAP_FILES, **OPTIONAL_FILES, **maps}
     try:
         cam_meta = dict(meta["camera"])
         cam_meta.setdefault("width", meta["width"])

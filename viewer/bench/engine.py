@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..lights import AreaLights
+from ..mesh import resolve_step
 from ..resources import asset_dir, sample_scene_dir
 
 ENVMAP = "envmaps/immenstadter_horn_256.hdr"
@@ -46,6 +47,8 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
                                                                          float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
     }
     for kind, make in changes.items():
+        engine.set_lights(make(-1))  # settle on this series' base state before timing it
+        engine.render()
         per_pass: dict[str, list[float]] = {}
         totals, profiled = [], []
         for i in range(2 * repeats):  # alternate: plain frames (total) and profiled frames (per pass)
@@ -71,7 +74,6 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
                          twin: bool = True) -> dict:
     from ..gl import Engine, EngineOptions, create_headless_context
     from ..gl.context import describe
-    from ..gl.engine import resolve_shadow_step
     from ..scene import load_scene
     from ..scene_ops import resample_scene
 
@@ -84,7 +86,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
     print(f"{'size':>5} {'lights':>6} {'full ms':>8} {'sigma ms':>9} {'intens ms':>9} {'twin ms':>8}  passes (full)")
     for size in sizes:
         scene = resample_scene(base, size)
-        options = EngineOptions(shadow_step=resolve_shadow_step(0, scene), profile=True)
+        options = EngineOptions(shadow_step=resolve_step(0, scene), profile=True)
         report["options"][str(size)] = {"shadow_resolution": options.shadow_resolution, "shadow_step": options.shadow_step,
                                         "terms": options.terms, "prefilter": options.prefilter}
         for n in light_counts:

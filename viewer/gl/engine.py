@@ -27,11 +27,12 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
+from ..errors import InputError
 from ..lights import AreaLights
-from ..mesh import depth_mesh, masked_points
+from ..mesh import caster_points, depth_mesh, resolve_step
 from ..scene import Scene
 from .. import shadow_space as ss
-from .prefilter import BlurPlan, blur_plan
+from .prefilter import METHODS, BlurPlan, blur_plan
 from .programs import ProgramCache
 
 VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
@@ -45,19 +46,25 @@ BASIS_MAX_BLOCK_LEVEL = 3  # deeper pyramid levels come from a box_reduce pass (
 class EngineOptions:
     shadow_resolution: int = 512  # texels of each light's shadow map
     shadow_step: int = 0  # depth-mesh decimation for shadow passes (1 = every pixel; 0 = auto,
-    # 3 per 512 image pixels: ~1.5 cm triangles on the sample, 1.8 % error, see docs/bench_shadows.md)
+    # 3 per 512 image pixels: ~1.5 cm triangles on the sample, 1.8 % error, see docs/engine.md)
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
     skip_threshold: float = 1e-5  # lights whose bound is below this fraction of the total are skipped
     profile: bool = False  # finish GL work after every pass and record its wall time
 
-
-def resolve_shadow_step(step: int, scene: Scene) -> int:
-    """The depth-mesh decimation actually used: ``step``, or for 0 (auto) 3 pixels per 512."""
-    if step < 0:
-        raise ValueError(f"shadow_step must be >= 0, got {step}")
-    return step if step > 0 else max(1, round(3 * max(scene.width, scene.height) / 512))
+    def __post_init__(self):
+        r = self.shadow_resolution
+        if not (isinstance(r, int) and 16 <= r <= 8192 and r & (r - 1) == 0):
+            raise InputError(None, f"shadow resolution must be a power of two in [16, 8192], got {r}")
+        if not 2 <= self.terms <= 16:
+            raise InputError(None, f"CSM terms must be in [2, 16], got {self.terms}")
+        if self.shadow_step < 0:
+            raise InputError(None, f"shadow step must be >= 0 (0 = auto), got {self.shadow_step}")
+        if self.prefilter not in METHODS:
+            raise InputError(None, f"prefilter must be one of {', '.join(METHODS)}, got {self.prefilter!r}")
+        if not (self.hard_sigma >= 0 and 0 <= self.skip_threshold < 1):
+            raise InputError(None, "hard_sigma must be >= 0 and skip_threshold in [0, 1)")
 
 
 @dataclass
@@ -67,7 +74,7 @@ class _Light:
     intensity: np.ndarray
     frame: ss.LightFrame | None = None
     facing: float = 0.0  # max n.l over the mask's normals
-    bound: float = 0.0  # max intensity x facing: an upper bound of the light's contribution
+    bound: float = 0.0  # max intensity x facing x the scene's response bound: >= any pixel's value
     active: bool = True
     shadow_map: moderngl.Texture | None = None
     shadow_fbo: moderngl.Framebuffer | None = None
@@ -88,8 +95,6 @@ class Engine:
         self.scene = scene
         self.options = options or EngineOptions()
         o = self.options
-        if o.terms < 2 or o.terms > 16:
-            raise ValueError(f"CSM terms must be in [2, 16], got {o.terms}")
         max_size = self._max_texture = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
         if max(scene.width, scene.height, o.shadow_resolution) > max_size:
             raise ValueError(f"image {scene.width}x{scene.height} or shadow map {o.shadow_resolution} exceeds the GL limit {max_size}")
@@ -136,15 +141,22 @@ class Engine:
         self.display = self._texture((w, h), 4, dtype="f1")
         self.display_fbo = ctx.framebuffer(color_attachments=[self.display])
 
-        self.shadow_step = resolve_shadow_step(o.shadow_step, s)
+        self.shadow_step = resolve_step(o.shadow_step, s)
         mesh = depth_mesh(s, step=self.shadow_step)
         self.mesh = mesh
-        self._frame_points = masked_points(s).astype(np.float32)
+        self._frame_points = caster_points(s, mesh).astype(np.float32)
         self._sphere = ss.bounding_sphere(self._frame_points.astype(np.float64))
         rows, cols = np.nonzero(s.mask)
         # camera-pixel passes only touch the mask's bounding box (the rest stays cleared to zero)
         self._mask_box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
         self._normals_masked = np.ascontiguousarray(s.normal[s.mask], dtype=np.float32)
+        # Upper bound of (A S_diff + S_spec) per unit intensity and unit n.l over the scene:
+        # S_spec = n.l F D G <= n.l * 1 * 1 / (pi alpha^2) * 1 / (n.l alpha) (G1(n.l) n.l <= 1,
+        # G1(n.v) <= 1 / alpha), i.e. <= 1 / (pi alpha^3) with the smallest alpha of a specular pixel.
+        glossy = s.mask & (s.specular > 0)
+        alpha = max(float(s.roughness[glossy].min()) ** 2, 1e-3) if glossy.any() else None
+        self._diffuse_bound = float(s.albedo[s.mask].max()) / np.pi
+        self._response_bound = self._diffuse_bound + (1.0 / (np.pi * alpha**3) if alpha else 0.0)
         prog = self.programs.get("shadow_map.vert.glsl", "shadow_map.frag.glsl")
         self._shadow_vao = None  # a mesh without triangles casts no shadow
         if mesh.n_triangles:
@@ -217,11 +229,14 @@ class Engine:
         self._update_activity()
 
     def _update_activity(self):
+        """A light is skipped when even its upper bound (diffuse + specular peak) stays below
+        ``skip_threshold`` of the scene's diffuse level (the sum of the lights' diffuse bounds)."""
         for l in self._lights:
-            l.bound = float(np.max(l.intensity)) * l.facing
-        total = sum(l.bound for l in self._lights)
+            l.bound = float(np.max(l.intensity)) * l.facing * self._response_bound
+        level = sum(float(np.max(l.intensity)) * l.facing for l in self._lights) * self._diffuse_bound
+        level = level if level > 0 else sum(l.bound for l in self._lights)
         for l in self._lights:
-            active = l.bound > 0.0 and l.bound >= self.options.skip_threshold * total
+            active = l.bound > 0.0 and l.bound >= self.options.skip_threshold * level
             if active != l.active:
                 l.active = active
                 self._dirty_composite = True
@@ -247,8 +262,8 @@ class Engine:
         for key, value in (("exposure", exposure), ("tonemap", tonemap), ("background", background), ("color", color),
                            ("rotation", environment_rotation)):
             if value is not None:
-                if key == "exposure" and not np.isfinite(value):
-                    raise ValueError("exposure must be finite")
+                if key == "exposure" and not (np.isfinite(value) and abs(value) <= 40):
+                    raise InputError(None, f"exposure must be within [-40, 40] stops, got {value}")
                 st[key] = value
         self._dirty_display = True
         self._dirty_background = True
@@ -475,7 +490,6 @@ class Engine:
             prog["focal_px"] = cam.focal_px
             prog["exposure"] = float(st["exposure"])
             prog["tonemap_op"] = TONEMAPS[st["tonemap"]]
-            prog["flip_y"] = False
             self._fullscreen(prog)
 
     def render(self) -> "Engine":
@@ -544,20 +558,25 @@ class Engine:
     def read_shadow_map(self, index: int) -> np.ndarray:
         """(R, R) normalised depth of a light's shadow map, row 0 at v = 0."""
         l = self._lights[index]
-        if l.shadow_map is None:
-            raise ValueError(f"light {index} has no shadow map (it contributes nothing)")
+        if not l.active or l.shadow_map is None or l.dirty_shadow:
+            raise ValueError(f"light {index} contributes nothing, so it has no current shadow map")
         return self._read(l.shadow_map, 1)[..., 0]
 
     def light_active(self, index: int) -> bool:
         return self._lights[index].active
 
     def release(self):
+        """Free every GL object the engine created (the context stays)."""
         for l in self._lights:
             self._release_light(l)
         self._lights = []
-        for res in (getattr(self, "light_atlas_fbo", None), getattr(self, "light_atlas", None)):
-            if res is not None:
-                res.release()
-        for vao in self._fullscreen_vaos.values():
-            vao.release()
+        objects = [getattr(self, name, None) for name in (
+            "light_atlas_fbo", "light_atlas", "hdr_fbo", "hdr", "display_fbo", "display", "tex_positions",
+            "tex_normals", "tex_albedo", "tex_background", "tex_environment", "_shadow_vao", "_mesh_vbo",
+            "_mesh_ibo", "_shadow_depth")]
+        objects += list(self._fullscreen_vaos.values())
+        self._fullscreen_vaos.clear()
+        for obj in objects:
+            if obj is not None:
+                obj.release()
         self.programs.release()

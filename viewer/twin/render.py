@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from ..lights import AreaLights
-from ..mesh import DepthMesh, depth_mesh
+from ..mesh import DepthMesh, caster_points, depth_mesh, resolve_step
 from ..scene import Scene
 from . import csm
 from .brdf import diffuse_shading, specular_shading
@@ -61,7 +61,7 @@ class SceneTensors:
     """A scene's masked pixels on a device and its decimated depth mesh, ready for repeated renders.
 
     Per masked pixel (P of them, row-major order): camera-space point, normal, albedo, specular,
-    roughness. The points are also what the shadow-map frames enclose (:func:`viewer.mesh.masked_points`).
+    roughness; ``casters`` are what the shadow-map frames enclose (:func:`viewer.mesh.caster_points`).
     """
 
     height: int
@@ -73,15 +73,19 @@ class SceneTensors:
     specular: torch.Tensor  # (P,)
     roughness: torch.Tensor  # (P,)
     mesh: DepthMesh
+    casters: torch.Tensor  # (K, 3)
 
     @property
     def device(self) -> torch.device:
         return self.points.device
 
     @staticmethod
-    def from_scene(scene: Scene, shadow_step: int = 2, device=None, dtype=torch.float32) -> "SceneTensors":
+    def from_scene(scene: Scene, shadow_step: int = 0, device=None, dtype=torch.float32) -> "SceneTensors":
+        """``shadow_step`` 0 picks the GL engine's automatic decimation (:func:`viewer.mesh.resolve_step`)."""
         device = torch.device(device) if device is not None else torch.get_default_device()
         mask = scene.mask
+
+        mesh = depth_mesh(scene, step=resolve_step(shadow_step, scene))
 
         def masked(arr):
             return torch.as_tensor(np.ascontiguousarray(arr[mask]), dtype=dtype, device=device)
@@ -95,7 +99,8 @@ class SceneTensors:
             albedo=masked(scene.albedo),
             specular=masked(scene.specular),
             roughness=masked(scene.roughness),
-            mesh=depth_mesh(scene, step=shadow_step),
+            mesh=mesh,
+            casters=torch.as_tensor(caster_points(scene, mesh), dtype=dtype, device=device),
         )
 
     def to_image(self, values: torch.Tensor) -> torch.Tensor:
@@ -124,7 +129,7 @@ def _default_device(scene, lights) -> torch.device:
     return first.device if isinstance(first, torch.Tensor) else torch.get_default_device()
 
 
-def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, shadow_step: int = 2,
+def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, shadow_step: int = 0,
            terms: int = 4, device=None) -> Rendering:
     """Relight ``scene`` under area ``lights`` (see :func:`as_light_tensors` for the accepted forms).
 
@@ -140,7 +145,7 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
     lt = as_light_tensors(lights, st.device, st.points.dtype)
     direction = lt.direction / lt.direction.norm(dim=1, keepdim=True)
 
-    frames = light_frames(st.points, direction.detach(), shadow_resolution, terms)
+    frames = light_frames(st.casters, direction.detach(), shadow_resolution, terms)
     depth = shadow_maps(st.mesh, frames, shadow_resolution)
     u, v, d, bias = receiver_coordinates(st.points, st.normal, frames, shadow_resolution)
     hard = csm.hard_visibility(depth, u, v, d, bias)
