@@ -295,3 +295,15 @@ def test_extreme_exposure_saturates_instead_of_going_black(ctx, scene):
     lit = eng.read_hdr().max(axis=-1) > 0
     assert lit.mean() > 0.9 and (eng.read_display()[lit] == 255).all()
     eng.release()
+
+
+def test_filtered_basis_is_readable_and_bounded(ctx, scene):
+    eng = make_engine(ctx, scene)
+    eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0], [0.1, 0.2, 1.0]]), [6.0, 0.0], [[1, 1, 1], [1, 1, 1]]))
+    eng.render()
+    basis = eng.read_filtered_basis(0)
+    assert basis.shape[0] == 8 and basis.shape[1] == basis.shape[2] == 256 >> eng._lights[0].plan.level
+    assert np.abs(basis).max() <= 1.0 + 1e-6  # averages of cosines and sines
+    with pytest.raises(ValueError, match="sigma ~ 0"):
+        eng.read_filtered_basis(1)
+    eng.release()

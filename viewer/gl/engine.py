@@ -562,6 +562,20 @@ class Engine:
             raise ValueError(f"light {index} contributes nothing, so it has no current shadow map")
         return self._read(l.shadow_map, 1)[..., 0]
 
+    def read_filtered_basis(self, index: int) -> np.ndarray:
+        """A light's pre-filtered CSM basis, (2 M, n, n): cos and sin of c_k z for k = 0 .. M-1, at
+        the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft
+        visibility is its hard one (sigma ~ 0) or that contributes nothing."""
+        l = self._lights[index]
+        if not l.active or l.filtered is None or l.dirty_filter or l.dirty_shadow or l.plan is None or \
+                ss.sigma_in_pixels(l.sigma, self.options.shadow_resolution) < ss.sigma_in_pixels(self.options.hard_sigma, self.options.shadow_resolution):
+            raise ValueError(f"light {index} has no current filtered basis (skipped, or sigma ~ 0)")
+        atlas = self._read(l.filtered, 4)  # (n, tiles * n, 4)
+        n = atlas.shape[0]
+        tiles = [atlas[:, t * n:(t + 1) * n] for t in range(self._n_tex)]
+        maps = [tile[..., c] for tile in tiles for c in range(4)]
+        return np.stack(maps[:2 * self.options.terms])
+
     def light_active(self, index: int) -> bool:
         return self._lights[index].active
 
