@@ -39,6 +39,7 @@ VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
 BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2}
 MAX_LIGHTS_PER_COMPOSITE = 64
+SMALL_ATLAS_TILE = 64  # tiles up to this size are drawn whole, in one draw
 BASIS_MAX_BLOCK_LEVEL = 3  # deeper pyramid levels come from a box_reduce pass (keeps the basis pass parallel)
 
 
@@ -353,7 +354,7 @@ class Engine:
             prog["block"] = 1 << staged
             prog["tile_size"] = n_staged
             prog["empty_depth"] = l.frame.empty_depth
-            self._footprint_pass(l, fbo, n_staged, 1, prog)
+            self._footprint_pass(l, fbo, n_staged, 1, prog, cheap_texels=False)  # block x block reads each
             if staged < plan.level:
                 _, reduced_fbo = self._work_atlas(l, (n * self._n_tex, n), "reduced")
                 reduce = self.programs.get("fullscreen.vert.glsl", "box_reduce.frag.glsl")
@@ -384,10 +385,17 @@ class Engine:
             source.use(0)
             self._footprint_pass(l, target, n, plan.radius + 1, prog)
 
-    def _footprint_pass(self, l: _Light, fbo: moderngl.Framebuffer, n: int, margin: int, prog: moderngl.Program):
+    def _footprint_pass(self, l: _Light, fbo: moderngl.Framebuffer, n: int, margin: int, prog: moderngl.Program,
+                        cheap_texels: bool = True):
         """Run a basis-atlas pass only over the mesh's footprint in the shadow map (plus ``margin``
         texels) in each tile; the rest of the tile holds the basis of an empty texel, a constant,
-        which every later pass (box average, Gaussian) leaves unchanged."""
+        which every later pass (box average, Gaussian) leaves unchanged. Small atlases of cheap
+        texels are drawn whole in one draw instead (per-draw overhead dominates there)."""
+        if cheap_texels and n <= SMALL_ATLAS_TILE:
+            fbo.scissor = None
+            fbo.use()
+            self._fullscreen(prog)
+            return
         u0, v0, u1, v1 = l.frame.footprint
         x0, y0 = max(int(np.floor(u0 * n)) - margin, 0), max(int(np.floor(v0 * n)) - margin, 0)
         x1, y1 = min(int(np.ceil(u1 * n)) + margin, n), min(int(np.ceil(v1 * n)) + margin, n)
