@@ -12,7 +12,8 @@ then for all lights:
 
 Cache rules: a new direction redoes 1-6 for that light; a new sigma redoes 2-6 for that light; a
 new intensity redoes 5-6; exposure, tone map or background redo 6 only. Lights that cannot
-contribute (zero intensity, facing no pixel, or below ``skip_threshold`` of the total) are skipped,
+contribute (zero intensity, facing no pixel, or an upper bound below ``skip_threshold`` of the
+scene's diffuse level) are skipped,
 soft filtering is skipped where sigma ~ 0 (soft = hard visibility), and specular work is compiled
 out for a scene without specular reflectance.
 """
@@ -51,7 +52,7 @@ class EngineOptions:
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
-    skip_threshold: float = 1e-5  # lights whose bound is below this fraction of the total are skipped
+    skip_threshold: float = 1e-5  # lights whose upper bound is below this fraction of the diffuse level are skipped
     profile: bool = False  # finish GL work after every pass and record its wall time
 
     def __post_init__(self):
@@ -98,7 +99,7 @@ class Engine:
         o = self.options
         max_size = self._max_texture = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
         if max(scene.width, scene.height, o.shadow_resolution) > max_size:
-            raise ValueError(f"image {scene.width}x{scene.height} or shadow map {o.shadow_resolution} exceeds the GL limit {max_size}")
+            raise InputError(scene.source, f"image {scene.width}x{scene.height} or shadow map {o.shadow_resolution} exceeds this GL's texture limit {max_size}")
         self.programs = ProgramCache(ctx)
         self.counters: Counter = Counter()
         self.profile = self.options.profile  # may be toggled: profiling syncs after every pass
