@@ -78,7 +78,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
     from ..scene_ops import resample_scene
 
     ctx = create_headless_context()
-    base = load_scene(sample_scene_dir())
+    base = load_scene(sample_scene_dir())  # 512^2
     report = {"machine": {"renderer": describe(ctx), "cpu": platform.processor() or platform.machine(),
                           "python": platform.python_version()},
               "options": {}, "repeats": repeats, "runs": []}
@@ -103,12 +103,47 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
             twin_ms = f"{run['twin_full_ms']:8.0f}" if twin else f"{'-':>8}"
             print(f"{size:>5} {n:>6} {res['full']['total_ms']:8.1f} {res['sigma']['total_ms']:9.1f} "
                   f"{res['intensity']['total_ms']:9.1f} {twin_ms}  {passes}")
+    report["sigma_sweep"] = _sigma_sweep(ctx, base, repeats)
     if output:
         path = Path(output)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return report
+
+
+SWEEP_SIGMAS = (0.5, 2.0, 8.0, 20.0, 50.0)
+
+
+def _sigma_sweep(ctx, scene, repeats: int) -> dict:
+    """Time of one light's sigma change (pre-filter + light pass + composite) against sigma, for the
+    pyramid and the exact Gaussian: the pyramid's cost must not grow with sigma."""
+    from ..gl import Engine, EngineOptions
+
+    lights = bench_lights(16).rotated(180.0)
+    target = int(np.argmax(lights.intensity.max(axis=1)))
+    sweep = {}
+    print("sigma change of one light (ms), 512^2, 16 lights:")
+    print(f"{'sigma':>7} " + " ".join(f"{s:>8}" for s in SWEEP_SIGMAS))
+    for method in ("pyramid", "exact"):
+        engine = Engine(ctx, scene, EngineOptions(prefilter=method))
+        engine.set_lights(lights)
+        engine.render()
+        row = []
+        for sigma in SWEEP_SIGMAS:
+            times = []
+            for i in range(repeats):
+                ctx.finish()
+                t0 = time.perf_counter()
+                engine.set_lights(lights.with_sigma(target, sigma * (1.0 + 0.01 * (i % 2))))
+                engine.render()
+                ctx.finish()
+                times.append(time.perf_counter() - t0)
+            row.append(_median_ms(times))
+        engine.release()
+        sweep[method] = dict(zip(map(str, SWEEP_SIGMAS), row))
+        print(f"{method:>7} " + " ".join(f"{t:8.1f}" for t in row))
+    return sweep
 
 
 def _time_twin(scene, lights: AreaLights, options, repeats: int = 2) -> float:
