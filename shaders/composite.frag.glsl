@@ -1,27 +1,36 @@
 // Composite over the mask's bounding box of up to MAX_LIGHTS lights (additively blended when
 // there are more): HDR += sum_l V_l * I_l * (A * S_diff_l + S_spec_l). Alpha carries the mask.
+// Light 4g + j of a chunk sits in plane j of the light atlas, in the tile of group g.
 #ifndef MAX_LIGHTS
 #define MAX_LIGHTS 64
 #endif
 uniform sampler2D albedo_mask;           // linear albedo (rgb) and mask (a)
-uniform sampler2D light_atlas;           // per light tile: (V_soft, V_hard, S_diff, S_spec)
-uniform ivec2 tile_origin[MAX_LIGHTS];
-uniform vec3 intensity[MAX_LIGHTS];
-uniform int count;
+uniform sampler2D light_plane0, light_plane1, light_plane2, light_plane3;  // (V_soft, V_hard, S_diff, S_spec)
+uniform ivec2 group_origin[MAX_LIGHTS / 4];
+uniform vec3 intensity[MAX_LIGHTS];      // zero for lights that are skipped
+uniform int groups;
 uniform ivec2 box_origin;
 uniform int visibility_channel;          // 0: soft (CSM), 1: hard (shadow map), 2: none
 uniform bool write_alpha;
 layout(location = 0) out vec4 hdr;
+
+vec3 contribution(vec4 b, vec3 albedo, vec3 i) {
+    float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : 1.0);
+    return v * i * (albedo * b.z + b.w);
+}
+
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 am = texelFetch(albedo_mask, px, 0);
     if (am.a < 0.5) { hdr = vec4(0.0); return; }
     ivec2 local = px - box_origin;
     vec3 sum = vec3(0.0);
-    for (int i = 0; i < count; ++i) {
-        vec4 b = texelFetch(light_atlas, tile_origin[i] + local, 0);
-        float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : 1.0);
-        sum += v * intensity[i] * (am.rgb * b.z + b.w);
+    for (int g = 0; g < groups; ++g) {
+        ivec2 q = group_origin[g] + local;
+        sum += contribution(texelFetch(light_plane0, q, 0), am.rgb, intensity[4 * g]);
+        sum += contribution(texelFetch(light_plane1, q, 0), am.rgb, intensity[4 * g + 1]);
+        sum += contribution(texelFetch(light_plane2, q, 0), am.rgb, intensity[4 * g + 2]);
+        sum += contribution(texelFetch(light_plane3, q, 0), am.rgb, intensity[4 * g + 3]);
     }
     hdr = vec4(sum, write_alpha ? am.a : 0.0);
 }

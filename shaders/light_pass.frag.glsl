@@ -1,37 +1,55 @@
-// Per area light, at every camera pixel of the mask's bounding box: soft visibility (CSM), hard
-// visibility (shadow map) and Lambert / Disney shading per unit intensity, written to the light's
-// tile of the light atlas as (V_soft, V_hard, S_diff, S_spec). The composite multiplies by the
-// light's RGB intensity and the albedo. Where the light is below the surface's horizon (n.l <= 0)
-// both shading terms vanish, so the shadow tests are skipped and the visibility is 0 there.
+// Four area lights per pass, at every camera pixel of the mask's bounding box: soft visibility
+// (CSM), hard visibility (shadow map) and Lambert / Disney shading per unit intensity, written as
+// (V_soft, V_hard, S_diff, S_spec) to the four planes of the light atlas (light i: plane i % 4, in
+// the tile of group i / 4). The composite multiplies by the light's RGB intensity and the albedo.
+// Where a light is below the surface's horizon (n.l <= 0) both shading terms vanish, so the shadow
+// tests are skipped and the visibility is 0 there. Sharing the pixel's fetches between four lights
+// and drawing a quarter as often is what the batching buys.
 #include "brdf.glsl"
 #include "csm.glsl"
 #include "shadow_test.glsl"
 
 uniform sampler2D positions;   // camera-space points (xyz) and roughness (w)
 uniform sampler2D normals;     // unit normals (xyz; zero outside the mask) and specular (w)
-uniform sampler2D shadow_map;
-uniform sampler2D filtered_basis;
-uniform bool soft_from_hard;   // sigma ~ 0: soft visibility = hard visibility (filtering skipped)
+uniform sampler2D shadow_map0, shadow_map1, shadow_map2, shadow_map3;
+uniform sampler2D filtered_basis0, filtered_basis1, filtered_basis2, filtered_basis3;
+uniform mat4 light_frame[4];
+uniform vec3 light_dir[4];
+uniform float depth_scale[4];
+uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma ~ 0); 2: hard and CSM
 uniform float csm_offset;
 uniform float csm_clamp;
-uniform ivec2 tile_origin;     // this light's tile in the light atlas
+uniform ivec2 tile_origin;     // this group's tile in the light atlas
 uniform ivec2 box_origin;      // the mask's bounding box in the image
-layout(location = 0) out vec4 result;
+layout(location = 0) out vec4 result0;
+layout(location = 1) out vec4 result1;
+layout(location = 2) out vec4 result2;
+layout(location = 3) out vec4 result3;
+
+vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p, vec3 n, float specular, float roughness) {
+    vec3 l = light_dir[j];
+    if (light_mode[j] == 0 || dot(n, l) <= 0.0) return vec4(0.0);  // also every pixel outside the mask
+    vec3 uvd = receiver_uvd(light_frame[j], p, n);
+    float v_hard = hard_visibility(shadow_map, uvd, receiver_bias(n, l, depth_scale[j]));
+    float v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
+#ifdef SPECULAR
+    float s_spec = disney_specular_shading(n, l, specular, roughness);
+#else
+    float s_spec = 0.0;
+#endif
+    return vec4(v_soft, v_hard, lambert_shading(n, l), s_spec);
+}
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy) - tile_origin + box_origin;
     vec4 ns = texelFetch(normals, px, 0);
-    vec3 n = ns.xyz;
-    if (dot(n, light_dir) <= 0.0) { result = vec4(0.0); return; }  // also every pixel outside the mask
+    if (dot(ns.xyz, ns.xyz) < 0.5) {  // outside the mask
+        result0 = result1 = result2 = result3 = vec4(0.0);
+        return;
+    }
     vec4 pm = texelFetch(positions, px, 0);
-    vec3 uvd = receiver_uvd(pm.xyz, n);
-    float v_hard = hard_visibility(shadow_map, uvd, receiver_bias(n));
-    float v_soft = soft_from_hard ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
-    float s_diff = lambert_shading(n, light_dir);
-#ifdef SPECULAR
-    float s_spec = disney_specular_shading(n, light_dir, ns.w, pm.w);
-#else
-    float s_spec = 0.0;
-#endif
-    result = vec4(v_soft, v_hard, s_diff, s_spec);
+    result0 = light_result(0, shadow_map0, filtered_basis0, pm.xyz, ns.xyz, ns.w, pm.w);
+    result1 = light_result(1, shadow_map1, filtered_basis1, pm.xyz, ns.xyz, ns.w, pm.w);
+    result2 = light_result(2, shadow_map2, filtered_basis2, pm.xyz, ns.xyz, ns.w, pm.w);
+    result3 = light_result(3, shadow_map3, filtered_basis3, pm.xyz, ns.xyz, ns.w, pm.w);
 }

@@ -2,22 +2,21 @@
 // the receiver is pushed along its normal and the depth bias grows with the slope.
 // The numpy statement of this rule is viewer.shadow_space.receiver_coordinates.
 
-uniform mat4 light_frame;     // camera space -> (u, v, z, 1), z = normalised depth (0 at the light)
-uniform vec3 light_dir;       // unit, towards the light
-uniform float texel_world;    // world size of one shadow-map texel
-uniform float depth_scale;    // metres per unit of normalised depth
+uniform float texel_world;    // world size of one shadow-map texel (the same for every light)
 uniform float hard_threshold;
 uniform float normal_offset_texels;
 uniform float slope_bias_texels;
 uniform float max_slope;
 
-vec3 receiver_uvd(vec3 p, vec3 n) {
+// frame: camera space -> (u, v, z, 1), z = normalised depth (0 at the light)
+vec3 receiver_uvd(mat4 frame, vec3 p, vec3 n) {
     vec3 q = p + n * (normal_offset_texels * texel_world);
-    return (light_frame * vec4(q, 1.0)).xyz;
+    return (frame * vec4(q, 1.0)).xyz;
 }
 
-float receiver_bias(vec3 n) {
-    float c = abs(dot(n, light_dir));
+// l: unit direction to the light; depth_scale: metres per unit of normalised depth
+float receiver_bias(vec3 n, vec3 l, float depth_scale) {
+    float c = abs(dot(n, l));
     float t = min(sqrt(max(1.0 - c * c, 0.0)) / max(c, 1e-6), max_slope);
     return hard_threshold + slope_bias_texels * texel_world * t / depth_scale;
 }

@@ -40,6 +40,7 @@ VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
 BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2}
 MAX_LIGHTS_PER_COMPOSITE = 64
+LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each, shaders/light_pass.frag.glsl)
 SMALL_ATLAS_TILE = 64  # tiles up to this size are drawn whole, in one draw
 BASIS_MAX_BLOCK_LEVEL = 3  # deeper pyramid levels come from a box_reduce pass (keeps the basis pass parallel)
 
@@ -83,7 +84,8 @@ class _Light:
     filtered: moderngl.Texture | None = None  # pre-filtered basis atlas (one of ``work``)
     work: dict = field(default_factory=dict)  # intermediate atlases: slot -> (texture, framebuffer)
     plan: BlurPlan | None = None
-    tile: tuple = (0, 0)  # origin of this light's tile in the light atlas
+    tile: tuple = (0, 0)  # origin of this light's group tile in the light atlas
+    slot: int = 0  # plane of the light atlas (light index % LIGHTS_PER_PASS)
     dirty_shadow: bool = True
     dirty_filter: bool = True
     dirty_shading: bool = True
@@ -288,24 +290,32 @@ class Engine:
         l.work.clear()
 
     def _allocate_light_atlas(self):
-        """One RGBA32F texture holding every light's (V_soft, V_hard, S_diff, S_spec) over the
-        mask's bounding box, one tile per light (one texture to bind in the composite)."""
+        """The light atlas: LIGHTS_PER_PASS RGBA32F planes holding every light's (V_soft, V_hard,
+        S_diff, S_spec) over the mask's bounding box; light i is in plane i % 4, in the tile of its
+        group i // 4 (a few textures to bind in the composite, four lights per light pass)."""
         _, _, bw, bh = self._mask_box
-        n = max(len(self._lights), 1)
-        cols = int(np.ceil(np.sqrt(n * bh / bw)))
-        cols = min(max(cols, 1), n)
+        n = max((len(self._lights) + LIGHTS_PER_PASS - 1) // LIGHTS_PER_PASS, 1)  # groups
+        cols = min(max(int(np.ceil(np.sqrt(n * bh / bw))), 1), n)
         rows = int(np.ceil(n / cols))
         size = (cols * bw, rows * bh)
         if max(size) > self._max_texture:
-            raise ValueError(f"{n} lights over a {bw}x{bh} mask box need a {size[0]}x{size[1]} light atlas, above the GL limit {self._max_texture}")
-        for res in (getattr(self, "light_atlas_fbo", None), getattr(self, "light_atlas", None)):
-            if res is not None:
-                res.release()
-        self.light_atlas = self._texture(size, 4)
-        self.light_atlas_fbo = self.ctx.framebuffer(color_attachments=[self.light_atlas])
+            raise InputError(self.scene.source, f"{len(self._lights)} lights over a {bw}x{bh} mask box need {size[0]}x{size[1]} "
+                             f"light-atlas planes, above this GL's texture limit {self._max_texture}")
+        self._release_light_atlas()
+        self.light_planes = [self._texture(size, 4) for _ in range(LIGHTS_PER_PASS)]
+        self.light_atlas_fbo = self.ctx.framebuffer(color_attachments=self.light_planes)
         self.light_atlas_fbo.clear(0.0, 0.0, 0.0, 0.0)
         for i, l in enumerate(self._lights):
-            l.tile = ((i % cols) * bw, (i // cols) * bh)
+            g = i // LIGHTS_PER_PASS
+            l.tile = ((g % cols) * bw, (g // cols) * bh)
+            l.slot = i % LIGHTS_PER_PASS
+
+    def _release_light_atlas(self):
+        for res in [getattr(self, "light_atlas_fbo", None), *getattr(self, "light_planes", [])]:
+            if res is not None:
+                res.release()
+        self.light_planes = []
+        self.light_atlas_fbo = None
 
     def _ensure_light_resources(self, l: _Light):
         if l.shadow_map is None:
@@ -412,25 +422,39 @@ class Engine:
                 self._fullscreen(prog)
         fbo.scissor = None
 
-    def _light_pass(self, l: _Light, soft_from_hard: bool):
+    def _light_pass(self, group: list, modes: list):
+        """One light pass for up to four lights of a group; ``modes`` per slot: 0 no light (or a
+        skipped one), 1 hard visibility only (sigma ~ 0), 2 hard and CSM."""
         o = self.options
         defines = {"TERMS": o.terms}
         if self._specular:
             defines["SPECULAR"] = None
         prog = self.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", **defines)
         with self._timed("light_pass"):
-            r = o.shadow_resolution
-            f = l.frame
-            units = {"positions": self.tex_positions, "normals": self.tex_normals, "shadow_map": l.shadow_map, "filtered_basis": l.filtered if not soft_from_hard else l.shadow_map}
-            for unit, (name, tex) in enumerate(units.items()):
-                tex.use(unit)
-                if prog.get(name, None) is not None:
-                    prog[name] = unit
-            prog["soft_from_hard"] = soft_from_hard
-            prog["light_frame"].write(f.matrix().T.astype("f4").tobytes())
-            prog["light_dir"] = tuple(float(v) for v in f.direction)
-            prog["texel_world"] = f.texel_world(r)
-            prog["depth_scale"] = f.depth_scale()
+            self.tex_positions.use(0)
+            self.tex_normals.use(1)
+            prog["positions"] = 0
+            prog["normals"] = 1
+            frames = np.zeros((LIGHTS_PER_PASS, 4, 4), "f4")
+            dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
+            scales = np.ones(LIGHTS_PER_PASS, "f4")
+            fallback = self.tex_positions  # any texture: slots without a light never read it
+            for j in range(LIGHTS_PER_PASS):
+                l = group[j] if j < len(group) else None
+                used = l is not None and modes[j] > 0
+                (l.shadow_map if used else fallback).use(2 + j)
+                (l.filtered if used and modes[j] == 2 else fallback).use(6 + j)
+                prog[f"shadow_map{j}"] = 2 + j
+                prog[f"filtered_basis{j}"] = 6 + j
+                if used:
+                    frames[j] = l.frame.matrix().T
+                    dirs[j] = l.frame.direction
+                    scales[j] = l.frame.depth_scale()
+            prog["light_frame"].write(frames.tobytes())
+            prog["light_dir"].write(dirs.tobytes())
+            prog["depth_scale"].write(scales.tobytes())
+            prog["light_mode"].write(np.array(list(modes) + [0] * (LIGHTS_PER_PASS - len(modes)), "i4").tobytes())
+            prog["texel_world"] = group[0].frame.texel_world(o.shadow_resolution)
             prog["hard_threshold"] = ss.HARD_SHADOW_THRESHOLD
             prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS
             prog["slope_bias_texels"] = ss.SLOPE_BIAS_TEXELS
@@ -438,37 +462,39 @@ class Engine:
             prog["csm_offset"] = self.csm_offset
             prog["csm_clamp"] = self.csm_clamp
             x, y, bw, bh = self._mask_box
-            prog["tile_origin"] = l.tile
+            prog["tile_origin"] = group[0].tile
             prog["box_origin"] = (x, y)
             fbo = self.light_atlas_fbo
-            fbo.viewport = fbo.scissor = (l.tile[0], l.tile[1], bw, bh)
+            fbo.viewport = fbo.scissor = (group[0].tile[0], group[0].tile[1], bw, bh)
             fbo.use()
             self._fullscreen(prog)
 
     def _composite(self):
-        active = [l for l in self._lights if l.active]
         prog = self.programs.get("fullscreen.vert.glsl", "composite.frag.glsl", MAX_LIGHTS=MAX_LIGHTS_PER_COMPOSITE)
         with self._timed("composite"):
             x, y, _, _ = self._mask_box
             self.hdr_fbo.scissor = self._mask_box  # outside the box the HDR stays cleared to zero
             self.hdr_fbo.use()
             self.tex_albedo.use(0)
-            self.light_atlas.use(1)
             prog["albedo_mask"] = 0
-            prog["light_atlas"] = 1
+            for j, plane in enumerate(self.light_planes):
+                plane.use(1 + j)
+                prog[f"light_plane{j}"] = 1 + j
             prog["box_origin"] = (x, y)
             prog["visibility_channel"] = VISIBILITY_MODES[self._visibility]
             k = MAX_LIGHTS_PER_COMPOSITE
-            chunks = [active[i:i + k] for i in range(0, len(active), k)] or [[]]
+            chunks = [self._lights[i:i + k] for i in range(0, len(self._lights), k)]
             for c, chunk in enumerate(chunks):
-                tiles = np.zeros((k, 2), "i4")
+                groups = (len(chunk) + LIGHTS_PER_PASS - 1) // LIGHTS_PER_PASS
+                origins = np.zeros((k // LIGHTS_PER_PASS, 2), "i4")
                 inten = np.zeros((k, 3), "f4")
                 for i, l in enumerate(chunk):
-                    tiles[i] = l.tile
-                    inten[i] = l.intensity
-                prog["tile_origin"].write(tiles.tobytes())
+                    origins[i // LIGHTS_PER_PASS] = l.tile
+                    if l.active:
+                        inten[i] = l.intensity
+                prog["group_origin"].write(origins.tobytes())
                 prog["intensity"].write(inten.tobytes())
-                prog["count"] = len(chunk)
+                prog["groups"] = groups
                 prog["write_alpha"] = c == 0
                 if c == 0:
                     self.ctx.disable(moderngl.BLEND)
@@ -524,10 +550,15 @@ class Engine:
         for l in active:
             if l.dirty_filter:
                 l.dirty_filter, l.dirty_shading = False, True
-            if l.dirty_shading:
-                self._light_pass(l, soft_from_hard[id(l)])
-                l.dirty_shading = False
-                self._dirty_composite = True
+        for g in range(0, len(self._lights), LIGHTS_PER_PASS):
+            group = self._lights[g:g + LIGHTS_PER_PASS]
+            if not any(l.active and l.dirty_shading for l in group):
+                continue
+            # the whole group is redone; a skipped light's slot is zeroed, so it is redone when it counts again
+            self._light_pass(group, [0 if not l.active else (1 if soft_from_hard[id(l)] else 2) for l in group])
+            for l in group:
+                l.dirty_shading = not l.active
+            self._dirty_composite = True
         if self._dirty_composite:
             self._composite()
             self._dirty_composite = False
@@ -560,7 +591,8 @@ class Engine:
         full = np.zeros((h, w, 4), np.float32)
         if l.active and l.shadow_map is not None:
             x, y, bw, bh = self._mask_box
-            data = self.light_atlas_fbo.read(viewport=(l.tile[0], l.tile[1], bw, bh), components=4, dtype="f4")
+            data = self.light_atlas_fbo.read(viewport=(l.tile[0], l.tile[1], bw, bh), components=4, dtype="f4",
+                                             attachment=l.slot)
             full[y:y + bh, x:x + bw] = np.frombuffer(data, np.float32).reshape(bh, bw, 4)
         return {"visibility_soft": full[..., 0], "visibility_hard": full[..., 1], "diffuse": full[..., 2], "specular": full[..., 3]}
 
@@ -593,8 +625,9 @@ class Engine:
         for l in self._lights:
             self._release_light(l)
         self._lights = []
+        self._release_light_atlas()
         objects = [getattr(self, name, None) for name in (
-            "light_atlas_fbo", "light_atlas", "hdr_fbo", "hdr", "display_fbo", "display", "tex_positions",
+            "hdr_fbo", "hdr", "display_fbo", "display", "tex_positions",
             "tex_normals", "tex_albedo", "tex_background", "tex_environment", "_shadow_vao", "_mesh_vbo",
             "_mesh_ibo", "_shadow_depth")]
         objects += list(self._fullscreen_vaos.values())
