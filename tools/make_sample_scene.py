@@ -33,7 +33,7 @@ What it does
 
 The bundled asset was produced from the project root with::
 
-    ANNY_CACHE_DIR=/root/.cache/anny .venv/bin/python tools/make_sample_scene.py -o assets/sample_scene --size 512
+    .venv/bin/python tools/make_sample_scene.py -o assets/sample_scene --size 512
 
 The first construction of the anny model takes one to two minutes and builds a ~1.7 GB cache in
 ``ANNY_CACHE_DIR`` (default ``~/.cache/anny``; keep it out of the repository); later runs take
@@ -637,7 +637,7 @@ def main(argv=None) -> int:
     ap.add_argument("--distance", type=float, default=4.0, help="depth of the body's centre in metres (default 4)")
     ap.add_argument("--turn", type=float, default=15.0, help="turn of the body about the vertical, degrees (default 15)")
     ap.add_argument("--fill", type=float, default=0.9, help="fraction of the image height the body spans (default 0.9)")
-    ap.add_argument("--sheet", default="/tmp/sample_sheet.png", help="contact sheet PNG of the maps ('' for none)")
+    ap.add_argument("--sheet", default="out/sample_scene_sheet.png", help="contact sheet PNG of the maps ('' for none)")
     args = ap.parse_args(argv)
 
     cam = Camera(args.size, args.size, distance=args.distance)

@@ -155,7 +155,7 @@ def csm_constants(terms: int) -> tuple[float, float]:
     """
     if terms < 2:
         raise ValueError("CSM needs at least two Fourier terms")
-    c = math.pi * (2 * np.arange(1, terms + 1) - 1)
+    c = csm_frequencies(terms)
 
     def s(x):
         return float((2.0 * np.sin(c * x) / c).sum())
@@ -169,13 +169,14 @@ def csm_constants(terms: int) -> tuple[float, float]:
 
 
 def csm_frequencies(terms: int) -> np.ndarray:
-    return (math.pi * (2 * np.arange(1, terms + 1) - 1)).astype(np.float32)
+    """c_k = pi (2k - 1), k = 1 .. terms (float64; callers cast to their precision)."""
+    return math.pi * (2 * np.arange(1, terms + 1) - 1)
 
 
 def csm_empty_basis(empty_depth: float, terms: int) -> np.ndarray:
     """Basis atlas values (tiles, 4) of an empty texel: (cos c_2t z, sin c_2t z, cos c_2t+1 z,
     sin c_2t+1 z) at z = empty_depth, zero for a missing last term (as shaders/csm.glsl packs them)."""
-    c = csm_frequencies(terms).astype(np.float64)
+    c = csm_frequencies(terms)
     out = np.zeros(((terms + 1) // 2, 4))
     for k, ck in enumerate(c):
         out[k // 2, 2 * (k % 2):2 * (k % 2) + 2] = (np.cos(ck * empty_depth), np.sin(ck * empty_depth))

@@ -34,17 +34,26 @@ def _median_ms(values) -> float:
     return float(np.median(values) * 1000.0) if len(values) else 0.0
 
 
+def frame_seconds(engine, ctx, lights: AreaLights) -> float:
+    """Wall time of one frame: set the lights, render, and wait for the GL work to finish."""
+    ctx.finish()
+    t0 = time.perf_counter()
+    engine.set_lights(lights)
+    engine.render()
+    ctx.finish()
+    return time.perf_counter() - t0
+
+
 def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
     engine.set_lights(lights)
     engine.render()
     ctx.finish()
     results = {}
+    brightest = int(np.argmax(lights.intensity.max(axis=1)))
     changes = {
         "full": lambda i: lights.rotated(7.0 * (i + 1)),
-        "sigma": lambda i: lights.rotated(7.0 * repeats).with_sigma(int(np.argmax(lights.intensity.max(axis=1))),
-                                                                     float(lights.sigma.max() * (1.5 if i % 2 == 0 else 1.0) + 1.0)),
-        "intensity": lambda i: lights.rotated(7.0 * repeats).with_sigma(int(np.argmax(lights.intensity.max(axis=1))),
-                                                                         float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
+        "sigma": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest, float(lights.sigma.max() * (1.5 if i % 2 == 0 else 1.0) + 1.0)),
+        "intensity": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest, float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
     }
     for kind, make in changes.items():
         engine.set_lights(make(-1))  # settle on this series' base state before timing it
@@ -53,15 +62,9 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
         totals, profiled = [], []
         for i in range(2 * repeats):  # alternate: plain frames (total) and profiled frames (per pass)
             engine.profile = i % 2 == 1
-            new = make(i)
             for v in engine.timings.values():
                 v.clear()
-            ctx.finish()
-            t0 = time.perf_counter()
-            engine.set_lights(new)
-            engine.render()
-            ctx.finish()
-            (profiled if engine.profile else totals).append(time.perf_counter() - t0)
+            (profiled if engine.profile else totals).append(frame_seconds(engine, ctx, make(i)))
             if engine.profile:
                 for name, ts in engine.timings.items():
                     per_pass.setdefault(name, []).append(sum(ts))
@@ -131,14 +134,8 @@ def _sigma_sweep(ctx, scene, repeats: int) -> dict:
         engine.render()
         row = []
         for sigma in SWEEP_SIGMAS:
-            times = []
-            for i in range(repeats):
-                ctx.finish()
-                t0 = time.perf_counter()
-                engine.set_lights(lights.with_sigma(target, sigma * (1.0 + 0.01 * (i % 2))))
-                engine.render()
-                ctx.finish()
-                times.append(time.perf_counter() - t0)
+            times = [frame_seconds(engine, ctx, lights.with_sigma(target, sigma * (1.0 + 0.01 * (i % 2))))
+                     for i in range(repeats)]
             row.append(_median_ms(times))
         engine.release()
         sweep[method] = dict(zip(map(str, SWEEP_SIGMAS), row))

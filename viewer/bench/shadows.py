@@ -13,7 +13,6 @@ recomputes (a rotation of the lighting) on this machine's OpenGL.
 from __future__ import annotations
 
 import json
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -21,23 +20,16 @@ import numpy as np
 
 from ..lights import AreaLights
 from ..resources import sample_scene_dir
-from .engine import bench_lights
+from .engine import _median_ms, bench_lights, frame_seconds
 
 YAWS = (0.0, 120.0, 240.0)  # the lighting is measured at these rotations and averaged
 
 
 def _frame_ms(engine, ctx, lights: AreaLights, repeats: int) -> float:
-    times = []
+    """Median full recompute: the lighting rotated a little further each frame."""
     engine.set_lights(lights)
     engine.render()
-    for i in range(repeats):
-        ctx.finish()
-        t0 = time.perf_counter()
-        engine.set_lights(lights.rotated(3.0 * (i + 1)))
-        engine.render()
-        ctx.finish()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) * 1000.0)
+    return _median_ms([frame_seconds(engine, ctx, lights.rotated(3.0 * (i + 1))) for i in range(repeats)])
 
 
 def _visibilities(engine, lights: AreaLights, channel: str) -> list[np.ndarray]:

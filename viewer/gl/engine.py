@@ -235,9 +235,10 @@ class Engine:
     def _update_activity(self):
         """A light is skipped when even its upper bound (diffuse + specular peak) stays below
         ``skip_threshold`` of the scene's diffuse level (the sum of the lights' diffuse bounds)."""
-        for l in self._lights:
-            l.bound = float(np.max(l.intensity)) * l.facing * self._response_bound
-        level = sum(float(np.max(l.intensity)) * l.facing for l in self._lights) * self._diffuse_bound
+        peaks = [float(np.max(l.intensity)) * l.facing for l in self._lights]  # max I x max n.l
+        for l, peak in zip(self._lights, peaks):
+            l.bound = peak * self._response_bound
+        level = sum(peaks) * self._diffuse_bound
         level = level if level > 0 else sum(l.bound for l in self._lights)
         for l in self._lights:
             active = l.bound > 0.0 and l.bound >= self.options.skip_threshold * level
@@ -316,6 +317,10 @@ class Engine:
                 res.release()
         self.light_planes = []
         self.light_atlas_fbo = None
+
+    def _soft_is_hard(self, l: _Light) -> bool:
+        """sigma ~ 0: the light's soft visibility is its hard one and its filtering is skipped."""
+        return l.sigma < self.options.hard_sigma
 
     def _ensure_light_resources(self, l: _Light):
         if l.shadow_map is None:
@@ -531,8 +536,6 @@ class Engine:
         """Bring every output up to date, redoing only the passes whose inputs changed."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
-        o = self.options
-        hard_px = ss.sigma_in_pixels(o.hard_sigma, o.shadow_resolution)
         active = [l for l in self._lights if l.active]  # inactive lights stay dirty until they count
         # Stage by stage over all lights: each stage only waits for the previous one once.
         for l in active:
@@ -540,8 +543,7 @@ class Engine:
             if l.dirty_shadow:
                 self._render_shadow_map(l)
                 l.dirty_shadow, l.dirty_filter = False, True
-        soft_from_hard = {id(l): ss.sigma_in_pixels(l.sigma, o.shadow_resolution) < hard_px for l in active}
-        to_filter = [l for l in active if l.dirty_filter and not soft_from_hard[id(l)]]
+        to_filter = [l for l in active if l.dirty_filter and not self._soft_is_hard(l)]
         for l in to_filter:
             self._csm_basis(l)
         for axis in ((1, 0), (0, 1)):
@@ -555,7 +557,7 @@ class Engine:
             if not any(l.active and l.dirty_shading for l in group):
                 continue
             # the whole group is redone; a skipped light's slot is zeroed, so it is redone when it counts again
-            self._light_pass(group, [0 if not l.active else (1 if soft_from_hard[id(l)] else 2) for l in group])
+            self._light_pass(group, [0 if not l.active else (1 if self._soft_is_hard(l) else 2) for l in group])
             for l in group:
                 l.dirty_shading = not l.active
             self._dirty_composite = True
@@ -608,8 +610,7 @@ class Engine:
         the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft
         visibility is its hard one (sigma ~ 0) or that contributes nothing."""
         l = self._lights[index]
-        if not l.active or l.filtered is None or l.dirty_filter or l.dirty_shadow or l.plan is None or \
-                ss.sigma_in_pixels(l.sigma, self.options.shadow_resolution) < ss.sigma_in_pixels(self.options.hard_sigma, self.options.shadow_resolution):
+        if not l.active or l.filtered is None or l.dirty_filter or l.dirty_shadow or l.plan is None or self._soft_is_hard(l):
             raise ValueError(f"light {index} has no current filtered basis (skipped, or sigma ~ 0)")
         atlas = self._read(l.filtered, 4)  # (n, tiles * n, 4)
         n = atlas.shape[0]
