@@ -48,3 +48,51 @@ def test_viewing_precomputed_maps_never_imports_torch(tmp_path):
             "assert 'torch' not in sys.modules, 'torch was imported'")
     res = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
+
+
+def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
+    import json
+    import os
+
+    from viewer.resources import asset_dir
+
+    env = asset_dir() / "envmaps" / "immenstadter_horn_256.hdr"
+    out, plot = tmp_path / "lights.json", tmp_path / "lights.png"
+    environ = dict(os.environ, RELIGHT_CACHE=str(tmp_path / "cache"))
+    args = [sys.executable, "-m", "viewer.cli", "fit-lights", str(env), "-n", "4", "-o", str(out), "--plot", str(plot)]
+    first = subprocess.run(args, capture_output=True, text=True, env=environ)
+    assert first.returncode == 0, first.stderr
+    assert "fitted in" in first.stdout
+    data = json.loads(out.read_text())
+    assert len(data["lights"]) == 4 and set(data["lights"][0]) == {"direction", "sigma", "intensity"}
+    assert read_png(plot).std() > 0.05
+    again = subprocess.run(args, capture_output=True, text=True, env=environ)
+    assert again.returncode == 0 and "from the cache" in again.stdout
+    # the render command fits (here: finds in the cache) the lights of a map given without a light file
+    from viewer.resources import sample_scene_dir
+
+    res = subprocess.run([sys.executable, "-m", "viewer.cli", "render", str(sample_scene_dir()), "--envmap", str(env),
+                          "-n", "4", "-o", str(tmp_path / "r.png"), "--yaw", "90"], capture_output=True, text=True,
+                         env=environ)
+    assert res.returncode == 0, res.stderr
+    assert "cached 4 lights" in res.stdout
+    assert read_exr(tmp_path / "r.exr").max() > 0.05
+
+
+def test_fit_lights_bad_maps_give_one_line_errors(tmp_path):
+    import cv2
+
+    from viewer.imageio import write_exr
+
+    nan_map = np.ones((8, 16, 3), np.float32)
+    nan_map[2, 3] = np.nan
+    write_exr(tmp_path / "nan.exr", nan_map)
+    cv2.imwrite(str(tmp_path / "square.hdr"), np.ones((8, 8, 3), np.float32))
+    for name, message in (("nan.exr", "NaN or Inf"), ("square.hdr", "2:1 aspect"), ("missing.hdr", "file not found")):
+        res = run_cli("fit-lights", str(tmp_path / name), "-o", str(tmp_path / "l.json"))
+        assert res.returncode == 2 and "Traceback" not in res.stderr
+        assert message in res.stderr and str(tmp_path / name) in res.stderr
+    black = tmp_path / "black.hdr"
+    cv2.imwrite(str(black), np.zeros((8, 16, 3), np.float32))
+    res = run_cli("fit-lights", str(black), "-n", "2", "-o", str(tmp_path / "b.json"), "--method", "median-cut")
+    assert res.returncode == 0 and "black" in res.stderr

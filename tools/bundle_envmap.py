@@ -1,11 +1,11 @@
-"""Make a bundled demo environment: a small copy of an HDR map and its median-cut lights.
+"""Make a bundled demo environment: a small copy of an HDR map and its fitted area lights.
 
 ``bundle_envmap(source, out_dir, width, n_lights)`` loads ``source`` (.hdr or .exr), area-averages it
 to ``width`` x ``width / 2`` with the energy-preserving :meth:`viewer.envmap.EnvMap.downsampled`,
 writes it as ``<name>_<width>.hdr`` (``<name>`` is the source's stem without a resolution suffix such
-as ``_1k``), reads that file back and writes its ``n_lights`` median-cut lights
-(:func:`viewer.median_cut.median_cut_lights`) as ``<name>_<width>.lights.json``. The lights are made
-from the written file, so ``median_cut_lights(load_envmap(hdr), n_lights)`` reproduces them.
+as ``_1k``), reads that file back and writes its ``n_lights`` lights fitted by the default method
+(:func:`viewer.lightfit.fit.fit_lights`) as ``<name>_<width>.lights.json``, so the demo shows
+fitted lights without fitting (and without importing torch).
 
 Run from the project root (positional arguments, no options)::
 
@@ -19,7 +19,9 @@ import sys
 from pathlib import Path
 
 from viewer.envmap import load_envmap, save_envmap
-from viewer.median_cut import median_cut_lights
+from viewer.lightfit import DEFAULT_METHOD
+from viewer.lightfit.cache import write_atomic
+from viewer.lightfit.fit import fit_lights
 
 
 def bundle_envmap(source, out_dir, width: int, n_lights: int) -> tuple[Path, Path]:
@@ -27,7 +29,9 @@ def bundle_envmap(source, out_dir, width: int, n_lights: int) -> tuple[Path, Pat
     source, out_dir = Path(source), Path(out_dir)
     name = re.sub(r"_\d+k$", "", source.stem) + f"_{width}"
     hdr = save_envmap(out_dir / f"{name}.hdr", load_envmap(source).downsampled(width))
-    lights = median_cut_lights(load_envmap(hdr), n_lights).save(out_dir / f"{name}.lights.json")
+    fitted = fit_lights(load_envmap(hdr), n_lights, DEFAULT_METHOD)
+    lights = write_atomic(out_dir / f"{name}.lights.json", fitted,
+                          {"source": hdr.name, "method": DEFAULT_METHOD, "n": n_lights})
     return hdr, lights
 
 

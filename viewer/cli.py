@@ -6,7 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from .errors import InputError
+from .lightfit import DEFAULT_METHOD, METHODS
 from .resources import asset_dir, sample_scene_dir
 
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
@@ -38,6 +41,17 @@ def _add_view_args(p, yaw_default=0.0):
                    help="shadows from the convolutional shadow map (soft), the shadow map (hard) or none")
 
 
+def _fitted_lights(env, n, method, refit=False):
+    """Lights of ``env`` from the cache, or fitted now with a progress bar."""
+    from .lightfit import lights_for_map
+    from .progress import StageBars
+
+    name = Path(env.source).name if env.source else "the map"
+    with StageBars(prefix=f"fitting {n} lights to {name}: ") as bars:
+        lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit)
+    return lights, cached
+
+
 def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[Path]:
     from .envmap import load_envmap
     from .gl import Engine, create_headless_context
@@ -46,8 +60,15 @@ def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[P
     from .scene import load_scene
 
     scene = load_scene(scene_path)
-    lights = load_lights(lights_path)
-    env = load_envmap(envmap_path).pixels if envmap_path else None
+    env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
+    if lights_path is not None:
+        lights = load_lights(lights_path)
+    elif env is not None:
+        lights, cached = _fitted_lights(env, args.lights_count, args.method)
+        print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {envmap_path}")
+    else:
+        raise InputError(None, "give a light file or an environment map (--envmap) to fit lights to")
+    env = env.pixels if env is not None else None
     ctx = create_headless_context()
     engine = Engine(ctx, scene, _engine_options(args))
     settings = RenderSettings(yaw=args.yaw, tilt=args.tilt, exposure=args.exposure, tonemap=args.tonemap,
@@ -77,16 +98,46 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_fit_lights(args) -> int:
+    import time
+
+    from .envmap import load_envmap
+    from .lightfit.cache import write_atomic
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".json":
+        raise InputError(out, "the light file is JSON: give a .json output path")
+    env = load_envmap(args.map, repair=args.repair)
+    start = time.perf_counter()
+    lights, cached = _fitted_lights(env, args.n, args.method, refit=args.refit)
+    seconds = time.perf_counter() - start
+    write_atomic(out, lights, {"source": Path(args.map).name, "method": args.method, "n": args.n})
+    how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
+    print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
+    if not np.any(lights.intensity > 0):
+        print(f"relight: warning: {args.map} is black: every light has zero intensity", file=sys.stderr)
+    if args.plot:
+        from .lightfit.plot import plot_lights
+
+        print(f"wrote {plot_lights(env, lights, args.plot)}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench.engine import run_engine_benchmark
 
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
                              output=args.output or "docs/bench_engine.json", twin=not args.no_twin)
-    else:
+    elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
         run_shadow_benchmark(repeats=args.repeats, output=args.output or "docs/bench_shadows.json")
+    else:
+        from .bench.lights import COUNTS, DEFAULT_MAPS, run_lights_benchmark
+
+        run_lights_benchmark(maps_dir=args.maps or DEFAULT_MAPS, counts=args.counts or COUNTS,
+                             output=args.output or "docs/bench_lights.json")
     return 0
 
 
@@ -100,22 +151,41 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view_args(p, yaw_default=DEMO_YAW)
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("render", help="render a scene bundle under a light file to PNG + EXR")
+    p = sub.add_parser("render", help="render a scene bundle under a light file or an environment map to PNG + EXR")
     p.add_argument("scene", help="scene bundle directory")
-    p.add_argument("lights", help="area-light file (.json)")
-    p.add_argument("--envmap", help="environment map (.hdr/.exr) drawn as the background")
+    p.add_argument("lights", nargs="?", help="area-light file (.json, or the paper's .npy); "
+                   "default: lights fitted to --envmap (cached)")
+    p.add_argument("--envmap", help="environment map (.hdr/.exr): the background, and the lights when no light file is given")
+    p.add_argument("-n", "--lights-count", type=int, default=16, help="lights to fit to --envmap (default 16)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.add_argument("-o", "--output", default="out/render.png", help="display PNG path; the EXR goes beside it")
     _add_engine_args(p)
     _add_view_args(p)
     p.set_defaults(func=cmd_render)
 
+    p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")
+    p.add_argument("map", help="equirectangular environment map (.hdr or .exr)")
+    p.add_argument("-n", type=int, default=16, help="number of area lights (default 16)")
+    p.add_argument("-o", "--output", default="lights.json", help="light file to write (default lights.json)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
+                   help="fast (the default): median cut + short refinement; paper: the paper's optimization; "
+                        "median-cut: initialization only")
+    p.add_argument("--plot", help="also draw the lights on the map into this PNG")
+    p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")
+    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.set_defaults(func=cmd_fit_lights)
+
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("engine", "shadows"),
-                   help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob")
+    p.add_argument("what", choices=("engine", "shadows", "lights"),
+                   help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
+                        "lights: light fitting error vs time on the shared maps")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
+    p.add_argument("--maps", help="lights: folder of .hdr/.exr maps (default ../shared/data/hdri)")
+    p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
     p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json)")
     p.set_defaults(func=cmd_bench)
     return parser

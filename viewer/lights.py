@@ -5,6 +5,15 @@ a Gaussian ``sigma`` (the convolutional shadow map's blur, in pixels of a 256-pi
 as in the paper; 0 gives a hard shadow) and an RGB ``intensity``: a light of intensity I facing a
 white Lambertian surface gives it the radiance I / pi.
 
+Lights published with the paper (``als.npy``: float32 N x 7, direction, sigma, RGB) use the
+reference code's environment-map frame, in which the map's top row is y = -1 and the pixel at
+normalized (u, v) has direction (cos p cos t, sin p, cos p sin t) with t = pi (2u - 1),
+p = pi (v - 1/2). The same pixel in this project's frame (:mod:`viewer.envmap`) is
+``PAPER_TO_CAMERA @ d``: x = z_paper, y = -y_paper, z = -x_paper (a reflection: the two frames
+differ in handedness, and mapping through the pixel is what keeps a light on the part of the map
+it came from). :func:`load_lights` converts ``.npy`` files this way; intensities and sigma need no
+conversion (same shading formula, same 256-pixel sigma unit).
+
 JSON form: ``{"format": "relight-lights", "version": 1, "lights": [{"direction": [x, y, z],
 "sigma": s, "intensity": [r, g, b]}, ...]}``. :meth:`AreaLights.to_array` gives the paper's N x 7
 layout (direction, sigma, RGB).
@@ -23,6 +32,7 @@ from .errors import InputError
 FORMAT = "relight-lights"
 VERSION = 1
 UNIT_TOLERANCE = 1e-3
+PAPER_TO_CAMERA = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
 MAX_INTENSITY = 1e20  # far above any real light (a sun is ~1e5 in these units), far below float overflow
 
 
@@ -100,10 +110,14 @@ class AreaLights:
             ],
         }
 
-    def save(self, path) -> Path:
+    def save(self, path, fit: dict | None = None) -> Path:
+        """Write the JSON light file; ``fit`` (optional) records how the lights were made."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        data = self.to_json()
+        if fit is not None:
+            data["fit"] = fit
+        path.write_text(json.dumps(data, indent=2) + "\n")
         return path
 
 
@@ -115,11 +129,26 @@ def rotation_matrix(yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> np.ndarray:
     return (rx @ ry).astype(np.float64)
 
 
+def from_paper_array(arr) -> AreaLights:
+    """Lights from the paper's N x 7 array in its environment-map frame (see the module docstring)."""
+    lights = AreaLights.from_array(arr)
+    direction = lights.direction.astype(np.float64) @ PAPER_TO_CAMERA.T
+    return AreaLights(direction, lights.sigma, lights.intensity)
+
+
 def load_lights(path) -> AreaLights:
-    """Load a light file (.json) and validate it."""
+    """Load a light file (.json, or the paper's .npy) and validate it."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "light file not found")
+    if path.suffix.lower() == ".npy":
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise InputError(path, f"cannot read as a numpy array ({exc})") from None
+        if arr.ndim != 2 or arr.shape[1] != 7 or len(arr) == 0:
+            raise InputError(path, f"the paper's light files are N x 7 arrays, got shape {arr.shape}")
+        return from_paper_array(arr).validate(path)
     try:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
