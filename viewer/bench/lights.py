@@ -52,17 +52,20 @@ def run_lights_benchmark(maps_dir=DEFAULT_MAPS, counts=COUNTS, methods=METHODS, 
                              **{k: round(v, 5) for k, v in errors.items()}})
                 print(f"{path.stem:28s} N={n:2d} {method:10s} {seconds:7.2f} s  " +
                       "  ".join(f"{k} {100 * errors[k]:5.2f}%" for k in VIEWS), flush=True)
+        write_results(rows, counts, methods, settings, output)  # after every map: a long run keeps what it measured
+    print(markdown_tables(rows, counts, methods))
+    print(f"wrote {output} and the .md / .png beside it")
+    return rows
+
+
+def write_results(rows, counts, methods, settings, output):
     output = Path(output)
     output.parent.mkdir(parents=True, exist_ok=True)
     meta = {"machine": f"{platform.machine()}, {torch.get_num_threads()} torch threads, CPU", "settings": vars(settings),
             "error": "relative L1 of linear shading over 7 rotations of the map"}
     output.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
-    table = markdown_tables(rows, counts, methods)
-    output.with_suffix(".md").write_text(table)
+    output.with_suffix(".md").write_text(markdown_tables(rows, counts, methods))
     plot(rows, methods, output.with_suffix(".png"))
-    print(table)
-    print(f"wrote {output}, {output.with_suffix('.md')}, {output.with_suffix('.png')}")
-    return rows
 
 
 def _median(rows, key):
