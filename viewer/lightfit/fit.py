@@ -47,7 +47,7 @@ from ..errors import InputError
 from ..lights import AreaLights
 from ..median_cut import SIGMA_MAX, median_cut_lights
 from . import DEFAULT_METHOD, METHODS
-from .problem import FitSettings, Problem, VisibilityTable, build_problem, shadowed_views
+from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
 
 FAST_STEPS = 300
 FAST_LR = 0.15
@@ -182,14 +182,14 @@ def _refine_fast(problem: Problem, start: AreaLights, progress):
         loss.backward()
         opt.step()
         sched.step()
-        _report(progress, "directions", step + 1, FAST_STEPS)
+        report(progress, "directions", step + 1, FAST_STEPS)
     with torch.no_grad():
         return _unit(direction).numpy().astype(np.float64), torch.exp(log_int).numpy().astype(np.float64)
 
 
 def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray, progress) -> np.ndarray:
     """Coordinate descent of each light's sigma over SIGMA_TABLE on the Step 3 loss."""
-    table = _visibility_table(problem, direction, SIGMA_TABLE, progress)
+    table = _visibility_table(problem, direction, progress)
     n, k, g_count = len(direction), len(problem.rotations), len(SIGMA_TABLE)
     inten = torch.as_tensor(intensity, dtype=torch.float32)
     target = Step3Target.of(problem)
@@ -211,17 +211,18 @@ def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray
                     if loss < best:
                         best, choice[l] = loss, g
                 total = without + contrib[choice[l], l]
-                _report(progress, "sigma", sweep * n + l + 1, SIGMA_SWEEPS * n)
+                report(progress, "sigma", sweep * n + l + 1, SIGMA_SWEEPS * n)
     return np.array([SIGMA_TABLE[g] for g in choice])
 
 
-def _visibility_table(problem: Problem, direction: np.ndarray, grid, progress) -> VisibilityTable:
+def _visibility_table(problem: Problem, direction: np.ndarray, progress) -> VisibilityTable:
+    """Soft shadows of fixed-direction lights on the sphere-on-plane views at every sigma of SIGMA_TABLE."""
     s = problem.settings
-    _report(progress, "shadows", 0, 2)
+    report(progress, "shadows", 0, 2)
     views = shadowed_views(problem.plane, direction, problem.rotations, s.shadow_resolution, s.terms)
-    _report(progress, "shadows", 1, 2)
-    table = VisibilityTable.of(views, grid)
-    _report(progress, "shadows", 2, 2)
+    report(progress, "shadows", 1, 2)
+    table = VisibilityTable.of(views, SIGMA_TABLE)
+    report(progress, "shadows", 2, 2)
     return table
 
 
@@ -251,13 +252,13 @@ def _paper_step2(problem: Problem, n: int, progress):
         loss.backward()
         opt.step()
         sched.step()
-        _report(progress, "directions", step + 1, PAPER_STEP2)
+        report(progress, "directions", step + 1, PAPER_STEP2)
     unit, intensity = best[1]
     return unit.numpy().astype(np.float64), intensity.numpy().astype(np.float64)
 
 
 def _paper_step3(problem: Problem, direction: np.ndarray, intensity: np.ndarray, progress) -> np.ndarray:
-    table = _visibility_table(problem, direction, SIGMA_TABLE, progress)
+    table = _visibility_table(problem, direction, progress)
     inten = torch.as_tensor(intensity, dtype=torch.float32)
     target = Step3Target.of(problem)
     n = len(direction)
@@ -274,14 +275,9 @@ def _paper_step3(problem: Problem, direction: np.ndarray, intensity: np.ndarray,
         loss.backward()
         opt.step()
         sched.step()
-        _report(progress, "sigma", step + 1, PAPER_STEP3)
+        report(progress, "sigma", step + 1, PAPER_STEP3)
     return best[1].numpy().astype(np.float64)
 
 
 def _unit(v: torch.Tensor) -> torch.Tensor:
     return v / v.norm(dim=1, keepdim=True).clamp(min=1e-12)
-
-
-def _report(progress, stage, done, total):
-    if progress is not None:
-        progress(stage, done, total)

@@ -55,19 +55,11 @@ class Problem:
     plane_shadowed: torch.Tensor  # (K, P, 3) normalized
     rotations: tuple = ROTATIONS
 
-    @property
-    def matrices(self) -> torch.Tensor:
-        return torch.as_tensor(np.stack(rotation_matrices(self.rotations)), dtype=torch.float32)
-
-    def rotated_directions(self, direction: torch.Tensor) -> torch.Tensor:
-        """(K, N, 3) the light directions under each of the K rotations of the map."""
-        return torch.einsum("kij,nj->kni", self.matrices, direction)
-
     def sphere_shading(self, direction: torch.Tensor, intensity: torch.Tensor):
         """Normalized (diffuse, specular) (K, P, 3) of the sphere view under the lights (unit directions)."""
         normal = torch.as_tensor(self.sphere.normal, dtype=torch.float32)
         k, n = len(self.rotations), direction.shape[0]
-        dirs = self.rotated_directions(direction).reshape(k * n, 3)
+        dirs = rotated_directions(direction, self.rotations).reshape(k * n, 3)
         material = torch.full((normal.shape[0],), STEP2_MATERIAL)
         diff = diffuse_shading(normal, dirs).reshape(k, n, -1)
         spec = specular_shading(normal, dirs, material, material).reshape(k, n, -1)
@@ -80,15 +72,22 @@ def build_problem(env: EnvMap, settings: FitSettings = FitSettings(), progress=N
     sphere = sphere_view(settings.sphere_resolution)
     plane = plane_view("sphere", settings.plane_resolution)
     diff, spec = sphere_reference(samples, sphere)
-    _tick(progress, "reference", 1, 2)
+    report(progress, "reference", 1, 2)
     shadowed = plane_reference(samples, plane)
-    _tick(progress, "reference", 2, 2)
+    report(progress, "reference", 2, 2)
     scale = float((diff.double() @ torch.as_tensor(LUMINANCE)).mean())
     inv = 1.0 / scale if scale > 0 else 0.0
     return Problem(settings, samples, scale, sphere, diff * inv, spec * inv, plane, shadowed * inv)
 
 
-def _tick(progress, stage, done, total):
+def rotated_directions(direction: torch.Tensor, rotations=ROTATIONS) -> torch.Tensor:
+    """(K, N, 3) light directions (N, 3) under each of the K rotations of the map."""
+    mats = torch.as_tensor(np.stack(rotation_matrices(rotations)), dtype=direction.dtype)
+    return torch.einsum("kij,nj->kni", mats, direction)
+
+
+def report(progress, stage, done, total):
+    """Tell an optional ``progress(stage, done, total)`` callback how far a stage is."""
     if progress is not None:
         progress(stage, done, total)
 
@@ -98,7 +97,7 @@ class ShadowedViews:
     """A plane view's shadow data for N lights of fixed directions under the K rotations (flattened K*N).
 
     ``basis`` (K*N, 2M, R, R) unfiltered CSM basis; ``u, v, d`` (K*N, P) receivers; ``diffuse``
-    (K*N, P) Lambert shading per unit intensity; ``lit`` whether each (light, pixel) has n.l > 0.
+    (K*N, P) Lambert shading per unit intensity.
     """
 
     view: PlaneView
@@ -129,8 +128,7 @@ def shadowed_views(view: PlaneView, direction: np.ndarray, rotations=ROTATIONS, 
                    terms: int = 4) -> ShadowedViews:
     """Precompute :class:`ShadowedViews` of ``view`` for unit light directions (N, 3)."""
     st = SceneTensors.from_scene(view.scene)
-    mats = torch.as_tensor(np.stack(rotation_matrices(rotations)), dtype=torch.float32)
-    dirs = torch.einsum("kij,nj->kni", mats, torch.as_tensor(direction, dtype=torch.float32)).reshape(-1, 3)
+    dirs = rotated_directions(torch.as_tensor(direction, dtype=torch.float32), rotations).reshape(-1, 3)
     frames = light_frames(st.casters, dirs, resolution, terms)
     depth = shadow_maps(st.mesh, frames, resolution)
     u, v, d, _ = receiver_coordinates(st.points, st.normal, frames, resolution)
@@ -156,11 +154,6 @@ class VisibilityTable:
         with torch.no_grad():
             values = torch.stack([views.soft_visibility(torch.full((views.lights,), float(g))) for g in grid])
         return VisibilityTable(views, grid, values)
-
-    def node(self, choice) -> torch.Tensor:
-        """(K*N, P) visibility with light l at grid node ``choice[l]``."""
-        rows = torch.arange(self.values.shape[1])
-        return self.values[torch.as_tensor(choice)[rows % self.lights], rows]
 
     def __call__(self, sigma: torch.Tensor) -> torch.Tensor:
         """(K*N, P) visibility at per-light ``sigma`` (N,), linear between grid nodes, clamped to the grid."""
