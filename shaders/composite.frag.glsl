@@ -1,5 +1,7 @@
 // Composite over the mask's bounding box of up to MAX_LIGHTS lights (additively blended when
-// there are more): HDR += sum_l V_l * I_l * (A * S_diff_l + S_spec_l). Alpha carries the mask.
+// there are more): HDR += sum_l V_l * I_l * (w_d A' * S_diff_l + w_s S_spec_l). Alpha carries the
+// mask. (w_d, w_s) switch the diffuse and specular terms; A' is the albedo, or 1 to show the
+// diffuse shading itself.
 // Light 4g + j of a chunk sits in plane j of the light atlas, in the tile of group g.
 #ifndef MAX_LIGHTS
 #define MAX_LIGHTS 64
@@ -12,25 +14,28 @@ uniform int groups;
 uniform ivec2 box_origin;
 uniform int visibility_channel;          // 0: soft (CSM), 1: hard (shadow map), 2: none
 uniform bool write_alpha;
+uniform vec2 term_weights;            // (diffuse, specular): 1 shown, 0 left out
+uniform bool unit_albedo;             // show shading: albedo replaced by 1
 layout(location = 0) out vec4 hdr;
 
 vec3 contribution(vec4 b, vec3 albedo, vec3 i) {
     float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : 1.0);
-    return v * i * (albedo * b.z + b.w);
+    return v * i * (term_weights.x * albedo * b.z + term_weights.y * b.w);
 }
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 am = texelFetch(albedo_mask, px, 0);
     if (am.a < 0.5) { hdr = vec4(0.0); return; }
+    vec3 albedo = unit_albedo ? vec3(1.0) : am.rgb;
     ivec2 local = px - box_origin;
     vec3 sum = vec3(0.0);
     for (int g = 0; g < groups; ++g) {
         ivec2 q = group_origin[g] + local;
-        sum += contribution(texelFetch(light_plane0, q, 0), am.rgb, intensity[4 * g]);
-        sum += contribution(texelFetch(light_plane1, q, 0), am.rgb, intensity[4 * g + 1]);
-        sum += contribution(texelFetch(light_plane2, q, 0), am.rgb, intensity[4 * g + 2]);
-        sum += contribution(texelFetch(light_plane3, q, 0), am.rgb, intensity[4 * g + 3]);
+        sum += contribution(texelFetch(light_plane0, q, 0), albedo, intensity[4 * g]);
+        sum += contribution(texelFetch(light_plane1, q, 0), albedo, intensity[4 * g + 1]);
+        sum += contribution(texelFetch(light_plane2, q, 0), albedo, intensity[4 * g + 2]);
+        sum += contribution(texelFetch(light_plane3, q, 0), albedo, intensity[4 * g + 3]);
     }
     hdr = vec4(sum, write_alpha ? am.a : 0.0);
 }

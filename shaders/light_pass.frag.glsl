@@ -3,7 +3,8 @@
 // (V_soft, V_hard, S_diff, S_spec) to the four planes of the light atlas (light i: plane i % 4, in
 // the tile of group i / 4). The composite multiplies by the light's RGB intensity and the albedo.
 // Where a light is below the surface's horizon (n.l <= 0) both shading terms vanish, so the shadow
-// tests are skipped and the visibility is 0 there. Sharing the pixel's fetches between four lights
+// tests are skipped and the visibility is 0 there. Mode 3 (no shadows shown) skips the shadow
+// tests altogether (visibility 1, no shadow map needed). Sharing the pixel's fetches between four lights
 // and drawing a quarter as often is what the batching buys.
 #include "brdf.glsl"
 #include "csm.glsl"
@@ -16,7 +17,8 @@ uniform sampler2D filtered_basis0, filtered_basis1, filtered_basis2, filtered_ba
 uniform mat4 light_frame[4];
 uniform vec3 light_dir[4];
 uniform float depth_scale[4];
-uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma ~ 0); 2: hard and CSM
+uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma ~ 0, or soft not shown);
+                               // 2: hard and CSM; 3: shading only (visibility 1)
 uniform float csm_offset;
 uniform float csm_clamp;
 uniform ivec2 tile_origin;     // this group's tile in the light atlas
@@ -29,9 +31,13 @@ layout(location = 3) out vec4 result3;
 vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p, vec3 n, float specular, float roughness) {
     vec3 l = light_dir[j];
     if (light_mode[j] == 0 || dot(n, l) <= 0.0) return vec4(0.0);  // also every pixel outside the mask
-    vec3 uvd = receiver_uvd(light_frame[j], p, n);
-    float v_hard = hard_visibility(shadow_map, uvd, receiver_bias(n, l, depth_scale[j]));
-    float v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
+    float v_hard = 1.0;
+    float v_soft = 1.0;
+    if (light_mode[j] != 3) {
+        vec3 uvd = receiver_uvd(light_frame[j], p, n);
+        v_hard = hard_visibility(shadow_map, uvd, receiver_bias(n, l, depth_scale[j]));
+        v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
+    }
 #ifdef SPECULAR
     float s_spec = disney_specular_shading(n, l, specular, roughness);
 #else

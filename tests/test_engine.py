@@ -324,3 +324,85 @@ def test_many_lights_compose_linearly(ctx):
         parts.append(eng.read_hdr())
         eng.release()
     np.testing.assert_allclose(parts[0], parts[1] + parts[2], rtol=1e-5, atol=1e-7)
+
+
+def test_shadow_modes_do_only_the_work_they_show(ctx, scene):
+    """Hard shadows skip the CSM filtering, no shadows skip the shadow maps too; switching back to
+    soft shadows computes what was skipped and gives exactly the soft-only engine's image."""
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 6.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
+    eng = make_engine(ctx, scene)
+    eng.set_visibility("none")
+    eng.set_lights(lights)
+    eng.render()
+    assert eng.counters["shadow_map"] == 0 and eng.counters["csm_basis"] == 0
+    unshadowed = eng.read_hdr()
+    eng.set_visibility("hard")
+    eng.set_lights(lights.rotated(15.0))
+    eng.render()
+    assert eng.counters["shadow_map"] == 2 and eng.counters["csm_basis"] == 0
+    hard = eng.read_hdr()
+    eng.set_visibility("soft")
+    eng.render()
+    assert eng.counters["shadow_map"] == 2 and eng.counters["csm_basis"] == 2
+    soft = eng.read_hdr()
+    ref = make_engine(ctx, scene)
+    ref.set_lights(lights.rotated(15.0))
+    ref.render()
+    np.testing.assert_array_equal(soft, ref.read_hdr())
+    ref.set_visibility("hard")
+    ref.render()
+    np.testing.assert_array_equal(hard, ref.read_hdr())
+    ref.set_lights(lights)
+    ref.set_visibility("none")
+    ref.render()
+    np.testing.assert_allclose(unshadowed, ref.read_hdr(), rtol=1e-6, atol=1e-7)
+    assert unshadowed.sum() > hard.sum()  # (at different rotations, but the box shadows either)
+    eng.release()
+    ref.release()
+
+
+def test_components_and_views(ctx):
+    sc = plane_and_box(48, specular=0.8, roughness=0.4)
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.2, 0.5, 1.0]]), [2.0, 0.0], [[1, 0.8, 0.6], [0.3, 0.3, 0.3]])
+    eng = make_engine(ctx, sc)
+    eng.set_lights(lights)
+    eng.render()
+    full = eng.read_hdr()
+    outs = [eng.read_light(i) for i in range(2)]
+    diff = sum(o["visibility_soft"][..., None] * o["diffuse"][..., None] * lights.intensity[i] for i, o in enumerate(outs))
+    spec = sum(o["visibility_soft"][..., None] * o["specular"][..., None] * lights.intensity[i] for i, o in enumerate(outs))
+    albedo = sc.albedo * sc.mask[..., None]
+    np.testing.assert_allclose(full, albedo * diff + spec, rtol=1e-5, atol=1e-7)
+    passes = dict(eng.counters)
+    eng.set_components(diffuse=False, specular=True)
+    eng.render()
+    np.testing.assert_allclose(eng.read_hdr(), spec, rtol=1e-5, atol=1e-7)
+    eng.set_components(diffuse=True, specular=False)
+    eng.render()
+    np.testing.assert_allclose(eng.read_hdr(), albedo * diff, rtol=1e-5, atol=1e-7)
+    eng.set_components()
+    eng.set_view("diffuse_shading")
+    eng.render()
+    np.testing.assert_allclose(eng.read_hdr(), diff, rtol=1e-5, atol=1e-7)
+    eng.set_view("specular_shading")
+    eng.render()
+    np.testing.assert_allclose(eng.read_hdr(), spec, rtol=1e-5, atol=1e-7)
+    # none of this redid a light pass
+    assert eng.counters["light_pass"] == passes["light_pass"] and eng.counters["shadow_map"] == passes["shadow_map"]
+    m = sc.mask
+    eng.set_view("normal")
+    eng.render()
+    shown = eng.read_display().astype(np.float32) / 255
+    np.testing.assert_allclose(shown[m], sc.normal[m] * 0.5 + 0.5, atol=1 / 255 + 1e-6)
+    eng.set_view("roughness")
+    eng.render()
+    np.testing.assert_allclose(eng.read_display()[m][:, 0] / 255, sc.roughness[m], atol=1 / 255 + 1e-6)
+    eng.set_view("shadow", light=0)
+    eng.render()
+    np.testing.assert_allclose(eng.read_display()[m][:, 0] / 255, np.clip(outs[0]["visibility_soft"][m], 0, 1), atol=1 / 255 + 1e-6)
+    eng.set_view("final")
+    eng.render()
+    np.testing.assert_array_equal(eng.read_hdr(), full)
+    with pytest.raises(ValueError):
+        eng.set_view("shadow", light=5)
+    eng.release()

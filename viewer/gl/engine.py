@@ -11,11 +11,12 @@ then for all lights:
   6. display          exposure, tone map, sRGB over a background
 
 Cache rules: a new direction redoes 1-6 for that light; a new sigma redoes 2-6 for that light; a
-new intensity redoes 5-6; exposure, tone map or background redo 6 only. Lights that cannot
-contribute (zero intensity, facing no pixel, or an upper bound below ``skip_threshold`` of the
-scene's diffuse level) are skipped,
-soft filtering is skipped where sigma ~ 0 (soft = hard visibility), and specular work is compiled
-out for a scene without specular reflectance.
+new intensity, the diffuse / specular switches or a shading view redo 5-6; exposure, tone map,
+background or an inspection view redo 6 only. Lights that cannot contribute (zero intensity,
+facing no pixel, or an upper bound below ``skip_threshold`` of the scene's diffuse level) are
+skipped, soft filtering is skipped where sigma ~ 0 (soft = hard visibility) and whenever the soft
+visibility is not shown (hard or no shadows), shadow maps are skipped when no shadows are shown,
+and specular work is compiled out for a scene without specular reflectance.
 """
 
 from __future__ import annotations
@@ -37,6 +38,12 @@ from .prefilter import METHODS, BlurPlan, blur_plan
 from .programs import ProgramCache
 
 VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
+# What the display image shows: the relit frame, the diffuse or specular shading alone (composited
+# from the same light atlas), or an inspection view of the bundle's maps or of one light's shadow.
+VIEWS = ("final", "diffuse_shading", "specular_shading", "albedo", "normal", "depth", "specular", "roughness", "shadow")
+_INSPECT_VIEWS = {"albedo": 1, "normal": 2, "depth": 3, "specular": 4, "roughness": 5, "shadow": 6}
+# light-pass modes per light (shaders/light_pass.frag.glsl)
+_PASS_OFF, _PASS_HARD, _PASS_SOFT, _PASS_UNSHADOWED = 0, 1, 2, 3
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
 BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2}
 MAX_LIGHTS_PER_COMPOSITE = 64
@@ -89,6 +96,7 @@ class _Light:
     dirty_shadow: bool = True
     dirty_filter: bool = True
     dirty_shading: bool = True
+    pass_mode: int = _PASS_OFF  # light-pass mode the light atlas currently holds for this light
 
 
 class Engine:
@@ -111,6 +119,8 @@ class Engine:
         self._specular = scene.has_specular
         self._lights: list[_Light] = []
         self._visibility = "soft"
+        self._components = (True, True)  # diffuse, specular shown in the final image
+        self._view = ("final", 0)  # (view, inspected light)
         self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": (0.0, 0.0, 0.0), "rotation": np.eye(3)}
         self._dirty_composite = True
         self._dirty_display = True
@@ -151,6 +161,7 @@ class Engine:
         self._frame_points = caster_points(s, mesh).astype(np.float32)
         self._sphere = ss.bounding_sphere(self._frame_points.astype(np.float64))
         rows, cols = np.nonzero(s.mask)
+        self._depth_range = (float(s.depth[s.mask].min()), float(s.depth[s.mask].max()))
         # camera-pixel passes only touch the mask's bounding box (the rest stays cleared to zero)
         self._mask_box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
         self._normals_masked = np.ascontiguousarray(s.normal[s.mask], dtype=np.float32)
@@ -215,7 +226,7 @@ class Engine:
             for k, (l, d, s, i) in enumerate(zip(self._lights, lights.direction, lights.sigma, lights.intensity)):
                 if not np.array_equal(l.direction, d):
                     l.direction = d.copy()
-                    l.dirty_shadow = True
+                    l.dirty_shadow = l.dirty_shading = True
                     moved.append(k)
                 if l.sigma != float(s):
                     l.sigma = float(s)
@@ -252,7 +263,30 @@ class Engine:
             raise ValueError(f"visibility must be one of {', '.join(VISIBILITY_MODES)}, got {mode!r}")
         if mode != self._visibility:
             self._visibility = mode
+            self._dirty_composite = True  # lights whose light pass lacks what the mode needs redo it in render()
+
+    def set_components(self, diffuse: bool = True, specular: bool = True):
+        """Show or leave out the diffuse and specular terms of the final image (composite only)."""
+        components = (bool(diffuse), bool(specular))
+        if components != self._components:
+            self._components = components
             self._dirty_composite = True
+
+    def set_view(self, view: str = "final", light: int = 0):
+        """What the display image shows (``VIEWS``): the relit frame; the diffuse or specular shading
+        alone; the albedo, normal, depth, specular or roughness map; or light ``light``'s shadow
+        (its visibility under the current shadow mode, soft when no shadows are shown)."""
+        if view not in VIEWS:
+            raise ValueError(f"view must be one of {', '.join(VIEWS)}, got {view!r}")
+        if view == "shadow" and not 0 <= light < len(self._lights):
+            raise ValueError(f"no light {light}: there are {len(self._lights)}")
+        new = (view, int(light) if view == "shadow" else 0)
+        if new != self._view:
+            shading = {"final", "diffuse_shading", "specular_shading"}
+            if view in shading or self._view[0] in shading:
+                self._dirty_composite = True
+            self._view = new
+            self._dirty_display = self._dirty_background = True
 
     def set_display(self, exposure: float | None = None, tonemap: str | None = None, background: str | None = None,
                     color=None, environment_rotation=None):
@@ -317,6 +351,20 @@ class Engine:
                 res.release()
         self.light_planes = []
         self.light_atlas_fbo = None
+
+    def _needed_pass(self, l: _Light) -> int:
+        """The light-pass mode the current visibility and view need for this light: no shadow map
+        when no shadows are shown, no filtering unless the soft visibility is shown."""
+        if not l.active:
+            return _PASS_OFF
+        visibility = self._visibility
+        if visibility == "none" and self._view[0] == "shadow":
+            visibility = "soft"  # the shadow view shows the soft visibility then
+        if visibility == "none":
+            return _PASS_UNSHADOWED
+        if visibility == "hard" or self._soft_is_hard(l):
+            return _PASS_HARD
+        return _PASS_SOFT
 
     def _soft_is_hard(self, l: _Light) -> bool:
         """sigma ~ 0: the light's soft visibility is its hard one and its filtering is skipped."""
@@ -446,15 +494,16 @@ class Engine:
             fallback = self.tex_positions  # any texture: slots without a light never read it
             for j in range(LIGHTS_PER_PASS):
                 l = group[j] if j < len(group) else None
-                used = l is not None and modes[j] > 0
+                used = l is not None and modes[j] in (_PASS_HARD, _PASS_SOFT)
                 (l.shadow_map if used else fallback).use(2 + j)
-                (l.filtered if used and modes[j] == 2 else fallback).use(6 + j)
+                (l.filtered if used and modes[j] == _PASS_SOFT else fallback).use(6 + j)
                 prog[f"shadow_map{j}"] = 2 + j
                 prog[f"filtered_basis{j}"] = 6 + j
                 if used:
                     frames[j] = l.frame.matrix().T
-                    dirs[j] = l.frame.direction
                     scales[j] = l.frame.depth_scale()
+                if l is not None:
+                    dirs[j] = l.frame.direction
             prog["light_frame"].write(frames.tobytes())
             prog["light_dir"].write(dirs.tobytes())
             prog["depth_scale"].write(scales.tobytes())
@@ -487,6 +536,10 @@ class Engine:
                 prog[f"light_plane{j}"] = 1 + j
             prog["box_origin"] = (x, y)
             prog["visibility_channel"] = VISIBILITY_MODES[self._visibility]
+            view = self._view[0]
+            diffuse, specular = self._components if view == "final" else (view == "diffuse_shading", view == "specular_shading")
+            prog["term_weights"] = (float(diffuse), float(specular))
+            prog["unit_albedo"] = view == "diffuse_shading"
             k = MAX_LIGHTS_PER_COMPOSITE
             chunks = [self._lights[i:i + k] for i in range(0, len(self._lights), k)]
             for c, chunk in enumerate(chunks):
@@ -510,6 +563,9 @@ class Engine:
             self.ctx.disable(moderngl.BLEND)
 
     def _display(self):
+        if self._view[0] in _INSPECT_VIEWS:
+            self._inspect()
+            return
         st = self._display_state
         prog = self.programs.get("fullscreen.vert.glsl", "display.frag.glsl")
         cam = self.scene.camera
@@ -532,34 +588,57 @@ class Engine:
             prog["tonemap_op"] = TONEMAPS[st["tonemap"]]
             self._fullscreen(prog)
 
+    def _inspect(self):
+        view, index = self._view
+        prog = self.programs.get("fullscreen.vert.glsl", "inspect.frag.glsl")
+        with self._timed("display"):
+            self.display_fbo.scissor = None
+            self.display_fbo.use()
+            for unit, (name, tex) in enumerate((("positions", self.tex_positions), ("normals", self.tex_normals),
+                                                ("albedo_mask", self.tex_albedo))):
+                tex.use(unit)
+                prog[name] = unit
+            light = self._lights[index] if view == "shadow" else None
+            (self.light_planes[light.slot] if light is not None else self.tex_albedo).use(3)
+            prog["light_plane"] = 3
+            prog["tile_origin"] = light.tile if light is not None else (0, 0)
+            prog["box_origin"] = self._mask_box[:2]
+            prog["visibility_channel"] = 1 if self._visibility == "hard" else 0
+            prog["view"] = _INSPECT_VIEWS[view]
+            prog["depth_range"] = self._depth_range
+            prog["background_color"] = (0.1, 0.1, 0.1)
+            self._fullscreen(prog)
+
     def render(self) -> "Engine":
         """Bring every output up to date, redoing only the passes whose inputs changed."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
         active = [l for l in self._lights if l.active]  # inactive lights stay dirty until they count
+        need = {id(l): self._needed_pass(l) for l in self._lights}
         # Stage by stage over all lights: each stage only waits for the previous one once.
         for l in active:
-            self._ensure_light_resources(l)
-            if l.dirty_shadow:
+            if l.dirty_shadow and need[id(l)] in (_PASS_HARD, _PASS_SOFT):
+                self._ensure_light_resources(l)
                 self._render_shadow_map(l)
-                l.dirty_shadow, l.dirty_filter = False, True
-        to_filter = [l for l in active if l.dirty_filter and not self._soft_is_hard(l)]
+                l.dirty_shadow = False
+                l.dirty_filter = l.dirty_shading = True
+        to_filter = [l for l in active if l.dirty_filter and need[id(l)] == _PASS_SOFT]
         for l in to_filter:
             self._csm_basis(l)
         for axis in ((1, 0), (0, 1)):
             for l in to_filter:
                 self._blur(l, axis)
-        for l in active:
-            if l.dirty_filter:
-                l.dirty_filter, l.dirty_shading = False, True
+        for l in to_filter:
+            l.dirty_filter, l.dirty_shading = False, True
         for g in range(0, len(self._lights), LIGHTS_PER_PASS):
             group = self._lights[g:g + LIGHTS_PER_PASS]
-            if not any(l.active and l.dirty_shading for l in group):
+            if not any(l.active and (l.dirty_shading or l.pass_mode != need[id(l)]) for l in group):
                 continue
             # the whole group is redone; a skipped light's slot is zeroed, so it is redone when it counts again
-            self._light_pass(group, [0 if not l.active else (1 if self._soft_is_hard(l) else 2) for l in group])
+            self._light_pass(group, [need[id(l)] for l in group])
             for l in group:
                 l.dirty_shading = not l.active
+                l.pass_mode = need[id(l)]
             self._dirty_composite = True
         if self._dirty_composite:
             self._composite()

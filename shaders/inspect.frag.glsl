@@ -1,0 +1,40 @@
+// Inspection views of the scene bundle and of one light's visibility, drawn into the display
+// image instead of the relit frame: albedo (sRGB), normal (n * 0.5 + 0.5), depth (near = white),
+// specular, roughness, and a light's shadow (its soft or hard visibility, white = lit).
+#include "tonemap.glsl"
+uniform sampler2D positions;    // camera-space points (xyz) and roughness (w)
+uniform sampler2D normals;      // unit normals (xyz) and specular (w)
+uniform sampler2D albedo_mask;  // linear albedo (rgb) and mask (a)
+uniform sampler2D light_plane;  // the light atlas plane holding the inspected light
+uniform int view;               // 1 albedo, 2 normal, 3 depth, 4 specular, 5 roughness, 6 shadow
+uniform vec2 depth_range;       // nearest and farthest depth inside the mask (metres)
+uniform ivec2 tile_origin;      // the inspected light's tile in the light atlas
+uniform ivec2 box_origin;       // the mask's bounding box in the image
+uniform int visibility_channel; // 0 soft, 1 hard
+uniform vec3 background_color;  // display (sRGB) colour outside the mask
+layout(location = 0) out vec4 color;
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec4 am = texelFetch(albedo_mask, px, 0);
+    if (am.a < 0.5) { color = vec4(background_color, 1.0); return; }
+    vec4 pr = texelFetch(positions, px, 0);
+    vec4 ns = texelFetch(normals, px, 0);
+    vec3 c;
+    if (view == 1) {
+        c = linear_to_srgb(am.rgb);
+    } else if (view == 2) {
+        c = ns.xyz * 0.5 + 0.5;
+    } else if (view == 3) {
+        float span = max(depth_range.y - depth_range.x, 1e-9);
+        c = vec3(clamp(1.0 - (-pr.z - depth_range.x) / span, 0.0, 1.0));
+    } else if (view == 4) {
+        c = vec3(clamp(ns.w, 0.0, 1.0));
+    } else if (view == 5) {
+        c = vec3(clamp(pr.w, 0.0, 1.0));
+    } else {
+        vec4 b = texelFetch(light_plane, px - box_origin + tile_origin, 0);
+        // where the surface faces away from the light (no shading) the light's visibility is 0
+        c = vec3(clamp(visibility_channel == 0 ? b.x : b.y, 0.0, 1.0));
+    }
+    color = vec4(c, 1.0);
+}
