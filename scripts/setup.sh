@@ -5,9 +5,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # libLLVM 19 is for Mitsuba's vectorised variant (ground truth); Debian 12's default LLVM 15 aborts it.
-if [ "$(id -u)" = 0 ] && { ! ldconfig -p | grep -q libEGL.so.1 || [ ! -e /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 ]; }; then
+if [ "$(id -u)" = 0 ] && { ! ldconfig -p | grep -q libEGL.so.1 || [ ! -e /usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 ] || ! command -v xdotool >/dev/null; }; then
     apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libegl1 libgl1 xvfb xauth libllvm19 >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends libegl1 libgl1 xvfb xauth xdotool libllvm19 >/dev/null
 fi
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then

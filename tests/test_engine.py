@@ -181,6 +181,7 @@ def test_cache_rules(ctx, scene):
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1, "display": 1}
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0).scaled(2.0))) == {"composite": 1, "display": 1}
     assert delta(lambda: eng.set_display(exposure=1.0)) == {"display": 1}
+    assert delta(lambda: eng.set_display(exposure=1.0, environment_rotation=np.eye(3))) == {}  # unchanged: nothing redone
     assert delta(lambda: eng.render()) == {}
     rotated = lights.with_sigma(1, 9.0).scaled(2.0).rotated(20.0)
     assert delta(lambda: eng.set_lights(rotated)) == {"shadow_map": 3, "csm_basis": 2, "prefilter": 2, "light_pass": 1, "composite": 1, "display": 1}

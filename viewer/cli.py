@@ -32,7 +32,9 @@ def _add_engine_args(p):
 
 
 def _add_view_args(p, yaw_default=0.0):
-    p.add_argument("--yaw", type=float, default=yaw_default, help=f"rotate the lighting about the vertical axis (degrees, default {yaw_default})")
+    p.add_argument("--yaw", "--rotate", dest="yaw", type=float, default=yaw_default,
+                   help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
+                        "a video starts there")
     p.add_argument("--tilt", type=float, default=0.0, help="tilt the lighting (degrees)")
     p.add_argument("--exposure", type=float, default=0.0, help="exposure in stops (default 0)")
     p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), default="aces")
@@ -52,14 +54,19 @@ def _fitted_lights(env, n, method, refit=False):
     return lights, cached
 
 
-def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[Path]:
+def _prepare(scene_path, lights_path, envmap_path, args):
+    """Scene (resampled to ``--size``), lights (a file, or fitted to the map) and map pixels."""
     from .envmap import load_envmap
-    from .gl import Engine, create_headless_context
     from .lights import load_lights
-    from .render import RenderSettings, render_to_files
     from .scene import load_scene
+    from .scene_ops import resample_scene
 
     scene = load_scene(scene_path)
+    size = getattr(args, "size", None)
+    if size is not None:
+        if not 16 <= size <= 8192:
+            raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
+        scene = resample_scene(scene, size)
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
     if lights_path is not None:
         lights = load_lights(lights_path)
@@ -67,14 +74,25 @@ def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[P
         lights, cached = _fitted_lights(env, args.lights_count, args.method)
         print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {envmap_path}")
     else:
-        raise InputError(None, "give a light file or an environment map (--envmap) to fit lights to")
-    env = env.pixels if env is not None else None
-    ctx = create_headless_context()
-    engine = Engine(ctx, scene, _engine_options(args))
-    settings = RenderSettings(yaw=args.yaw, tilt=args.tilt, exposure=args.exposure, tonemap=args.tonemap,
-                              background=args.background, visibility=args.visibility)
+        raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
+    return scene, lights, (env.pixels if env is not None else None)
+
+
+def _settings(args):
+    from .render import RenderSettings
+
+    return RenderSettings(yaw=args.yaw, tilt=args.tilt, exposure=args.exposure, tonemap=args.tonemap,
+                          background=args.background, visibility=args.visibility)
+
+
+def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[Path]:
+    from .gl import Engine, create_headless_context
+    from .render import render_to_files
+
+    scene, lights, env = _prepare(scene_path, lights_path, envmap_path, args)
+    engine = Engine(create_headless_context(), scene, _engine_options(args))
     try:
-        return render_to_files(engine, scene, lights, out_dir, name, settings, environment=env)
+        return render_to_files(engine, scene, lights, out_dir, name, _settings(args), environment=env)
     finally:
         engine.release()
 
@@ -90,12 +108,76 @@ def cmd_demo(args) -> int:
 
 def cmd_render(args) -> int:
     out = Path(args.output)
-    if out.suffix.lower() != ".png":
-        raise InputError(out, "the display image is written as PNG: give a .png path (the EXR goes beside it)")
-    written = _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args)
-    for path in written:
-        print(f"wrote {path}")
+    suffix = out.suffix.lower()
+    if suffix not in (".png", ".mp4"):
+        raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
+    if suffix == ".png":
+        if args.frames is not None:
+            raise InputError(out, "--frames makes a video: give a .mp4 output path")
+        for path in _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args):
+            print(f"wrote {path}")
+        return 0
+    import time
+
+    from tqdm import tqdm
+
+    from .gl import Engine, create_headless_context
+    from .render import render_turntable
+
+    frames = 120 if args.frames is None else args.frames
+    if frames < 1:
+        raise InputError(None, f"--frames must be at least 1, got {frames}")
+    scene, lights, env = _prepare(args.scene, args.lights, args.envmap, args)
+    engine = Engine(create_headless_context(), scene, _engine_options(args))
+    start = time.perf_counter()
+    try:
+        with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
+            render_turntable(engine, scene, lights, out, _settings(args), frames, fps=args.fps, turn=args.turn,
+                             environment=env, progress=lambda done, total: bar.update(1))
+    finally:
+        engine.release()
+    seconds = time.perf_counter() - start
+    print(f"wrote {out} ({frames} frames, {scene.width}x{scene.height}, {args.fps:g} fps, "
+          f"{args.turn:g} degrees; {seconds:.1f} s, {1000 * seconds / frames:.0f} ms per frame)")
     return 0
+
+
+def cmd_view(args) -> int:
+    from .app.jobs import sidecar_lights
+    from .app.session import Look
+    from .envmap import load_envmap
+    from .lights import load_lights
+    from .scene import load_scene
+
+    assets = asset_dir()
+    scene_path = args.scene or sample_scene_dir()
+    env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
+    yaw = args.yaw if args.yaw is not None else (DEMO_YAW if args.scene is None and args.envmap is None else 0.0)
+    scene = load_scene(scene_path)
+    if args.size is not None:
+        from .scene_ops import resample_scene
+
+        if not 16 <= args.size <= 8192:
+            raise InputError(None, f"--size must be within [16, 8192] pixels, got {args.size}")
+        scene = resample_scene(scene, args.size)
+    env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
+    if args.lights:
+        lights = load_lights(args.lights)
+    else:
+        lights = sidecar_lights(env_path, args.lights_count, args.method)
+        if lights is None:
+            lights, cached = _fitted_lights(env, args.lights_count, args.method)
+            print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {env_path}")
+    from .app import ViewerConfig, run_viewer
+
+    look = Look(yaw=yaw, tilt=args.tilt, exposure=args.exposure, shadows=args.visibility)
+    config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
+                          env_path=Path(env_path) if env_path is not None else None, n_lights=args.lights_count,
+                          method=args.method, options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
+                          record_frames=args.record_frames, fps=args.fps,
+                          state_file=Path(args.state_file) if args.state_file else None,
+                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))))
+    return run_viewer(config)
 
 
 def cmd_fit_lights(args) -> int:
@@ -151,18 +233,45 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view_args(p, yaw_default=DEMO_YAW)
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("render", help="render a scene bundle under a light file or an environment map to PNG + EXR")
+    p = sub.add_parser("render", help="headless: a scene bundle under an environment map (or a light file) to "
+                       "PNG + EXR, or a turntable video to MP4")
     p.add_argument("scene", help="scene bundle directory")
     p.add_argument("lights", nargs="?", help="area-light file (.json, or the paper's .npy); "
-                   "default: lights fitted to --envmap (cached)")
-    p.add_argument("--envmap", help="environment map (.hdr/.exr): the background, and the lights when no light file is given")
-    p.add_argument("-n", "--lights-count", type=int, default=16, help="lights to fit to --envmap (default 16)")
+                   "default: lights fitted to --env (cached)")
+    p.add_argument("--env", "--envmap", dest="envmap",
+                   help="environment map (.hdr/.exr): the background, and the lights when no light file is given")
+    p.add_argument("-n", "--lights-count", type=int, default=16, help="lights to fit to --env (default 16)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
-    p.add_argument("-o", "--output", default="out/render.png", help="display PNG path; the EXR goes beside it")
+    p.add_argument("-o", "--out", "--output", dest="output", default="out/render.png",
+                   help="a .png (one frame; the HDR EXR goes beside it) or a .mp4 (turntable video); default out/render.png")
+    p.add_argument("--frames", type=int, help="video frames (default 120 for a .mp4)")
+    p.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
+    p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
+    p.add_argument("--size", type=int, help="render at this many pixels on the longer side (default: the bundle's size)")
     _add_engine_args(p)
     _add_view_args(p)
     p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("view", help="the interactive viewer: drag to turn the lighting, tune each light, record video")
+    p.add_argument("scene", nargs="?", help="scene bundle directory (default: the bundled sample)")
+    p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
+    p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
+    p.add_argument("-n", "--lights-count", type=int, default=16, help="lights fitted to the map (default 16; cached)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.add_argument("--yaw", "--rotate", dest="yaw", type=float, help="initial rotation of the lighting, degrees")
+    p.add_argument("--tilt", type=float, default=0.0, help="initial tilt of the lighting, degrees")
+    p.add_argument("--exposure", type=float, default=0.0, help="initial exposure, stops")
+    p.add_argument("--visibility", choices=("soft", "hard", "none"), default="soft", help="initial shadow mode")
+    p.add_argument("--size", type=int, help="render at this many pixels on the longer side (default: the bundle's size)")
+    p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
+    p.add_argument("--record-frames", type=int, default=120, help="frames of a 360 degree recording (default 120)")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate of recordings (default 30)")
+    p.add_argument("--state-file", help="write the viewer's state, widget positions and frame times to this JSON "
+                   "after every change (for scripts and tests)")
+    _add_engine_args(p)
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")
     p.add_argument("map", help="equirectangular environment map (.hdr or .exr)")

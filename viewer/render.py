@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from .errors import InputError
 from .imageio import linear_to_srgb, write_exr, write_png
 from .lights import AreaLights, rotation_matrix
 from .scene import Scene
@@ -22,22 +23,34 @@ class RenderSettings:
     visibility: str = "soft"
 
 
+def effective_background(settings: RenderSettings, scene: Scene, has_environment: bool) -> str:
+    """The requested background, falling back to the photo's, then to a plain colour."""
+    background = settings.background
+    if background == "environment" and not has_environment:
+        background = "photo" if scene.background is not None else "color"
+    if background == "photo" and scene.background is None:
+        background = "color"
+    return background
+
+
+def apply_settings(engine, scene: Scene, lights: AreaLights, settings: RenderSettings, has_environment: bool):
+    """Set the engine's lights (rotated by yaw / tilt, the environment background with them),
+    shadow mode and display; the caller renders."""
+    rot = rotation_matrix(settings.yaw, settings.tilt)
+    engine.set_lights(lights.rotated(settings.yaw, settings.tilt))
+    engine.set_visibility(settings.visibility)
+    engine.set_display(exposure=settings.exposure, tonemap=settings.tonemap,
+                       background=effective_background(settings, scene, has_environment),
+                       color=(0.18, 0.18, 0.18), environment_rotation=rot.T)
+
+
 def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: RenderSettings,
                     environment: np.ndarray | None = None, passes: bool = True) -> list[Path]:
     """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``."""
     out_dir = Path(out_dir)
-    background = settings.background
-    if background == "environment" and environment is None:
-        background = "photo" if scene.background is not None else "color"
-    if background == "photo" and scene.background is None:
-        background = "color"
     if environment is not None:
         engine.set_environment(environment)
-    rot = rotation_matrix(settings.yaw, settings.tilt)
-    engine.set_lights(lights.rotated(settings.yaw, settings.tilt))
-    engine.set_visibility(settings.visibility)
-    engine.set_display(exposure=settings.exposure, tonemap=settings.tonemap, background=background,
-                       color=(0.18, 0.18, 0.18), environment_rotation=rot.T)
+    apply_settings(engine, scene, lights, settings, environment is not None)
     engine.render()
     written = [
         write_png(out_dir / f"{name}.png", engine.read_display().astype(np.float32) / 255.0),
@@ -46,6 +59,34 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     if passes:
         written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene)))
     return written
+
+
+def turntable_yaws(start: float, turn: float, frames: int) -> np.ndarray:
+    """Yaw of each frame: ``frames`` equal steps over ``turn`` degrees from ``start``; a full turn
+    leaves out the end, which is the first frame again, so the video loops seamlessly."""
+    return start + turn * np.arange(frames) / frames if abs(turn) >= 360 else start + turn * np.arange(frames) / max(frames - 1, 1)
+
+
+def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: RenderSettings, frames: int,
+                     fps: float = 30.0, turn: float = 360.0, environment: np.ndarray | None = None,
+                     progress=None) -> Path:
+    """A relit video of the lighting turning about the vertical axis (``frames`` frames over
+    ``turn`` degrees, starting at ``settings.yaw``) written to ``path`` (H.264 MP4).
+    ``progress(done, total)`` is called after every frame."""
+    from .video import VideoWriter
+
+    if frames < 1:
+        raise InputError(path, f"a video needs at least one frame, got {frames}")
+    if environment is not None:
+        engine.set_environment(environment)
+    with VideoWriter(path, scene.width, scene.height, fps=fps) as video:
+        for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
+            apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None)
+            engine.render()
+            video.write(engine.read_display())
+            if progress is not None:
+                progress(i + 1, frames)
+    return Path(path)
 
 
 def passes_sheet(engine, scene: Scene) -> np.ndarray:

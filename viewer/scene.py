@@ -41,6 +41,7 @@ MAP_FILES = {
     "mask": "mask.png",
 }
 OPTIONAL_FILES = {"photo": "photo.png", "background": "background.png"}
+PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp")
 NORMAL_TOLERANCE = 1e-2  # | |n| - 1 | allowed inside the mask before loading refuses the map
 MAX_DEPTH = 1e4  # metres; a larger depth is a corrupt pixel, not a photographed person
 
@@ -148,6 +149,9 @@ class Scene:
 def load_scene(path) -> Scene:
     """Load and validate a scene bundle directory."""
     path = Path(path)
+    if path.is_file() and path.suffix.lower() in PHOTO_SUFFIXES:
+        raise InputError(path, "is a photo: relighting needs its scene bundle (a directory of maps); turning a photo into "
+                         "one takes the inference networks, which this version does not include yet")
     if not path.is_dir():
         raise InputError(path, "scene bundle directory not found")
     meta_path = path / "scene.json"

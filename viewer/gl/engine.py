@@ -121,7 +121,7 @@ class Engine:
         self._visibility = "soft"
         self._components = (True, True)  # diffuse, specular shown in the final image
         self._view = ("final", 0)  # (view, inspected light)
-        self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": (0.0, 0.0, 0.0), "rotation": np.eye(3)}
+        self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": np.zeros(3), "rotation": np.eye(3)}
         self._dirty_composite = True
         self._dirty_display = True
         self._dirty_background = True  # display pixels outside the mask's box need redrawing
@@ -303,9 +303,15 @@ class Engine:
             if value is not None:
                 if key == "exposure" and not (np.isfinite(value) and abs(value) <= 40):
                     raise InputError(None, f"exposure must be within [-40, 40] stops, got {value}")
+                if key in ("color", "rotation"):
+                    value = np.array(value, dtype=np.float64)
+                    if np.array_equal(value, st[key]):
+                        continue
+                elif value == st[key]:
+                    continue
                 st[key] = value
-        self._dirty_display = True
-        self._dirty_background = True
+                self._dirty_display = True
+                self._dirty_background = True
 
     def set_environment(self, pixels: np.ndarray):
         """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background."""

@@ -49,7 +49,6 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
                    refit: bool = False) -> tuple[AreaLights, bool]:
     """The fitted lights of ``env`` and whether they came from the cache (else they are fitted now)."""
     from . import DEFAULT_METHOD
-    from .fit import fit_lights
 
     method = method or DEFAULT_METHOD
     path = cache_path(env, n, method, directory)
@@ -58,6 +57,8 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
             return load_lights(path), True
         except InputError as exc:
             warnings.warn(f"ignoring a corrupt cache entry ({exc}); fitting again", stacklevel=2)
+    from .fit import fit_lights  # torch: imported only when fitting
+
     start = time.perf_counter()
     lights = fit_lights(env, n, method, progress=progress)
     record = {"source": Path(env.source).name if env.source else None, "method": method, "n": n,

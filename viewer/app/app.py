@@ -1,0 +1,296 @@
+"""``relight view``: the interactive viewer. One loop on the window's thread: events, input, panel,
+one engine render of the current state, draw, swap. Light fitting and video encoding run on their
+own threads; GL stays on this one.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..imageio import write_exr, write_png
+from ..lights import AreaLights
+from ..scene import Scene
+from . import interaction as ix
+from .jobs import LightJob
+from .recording import LiveRecording, TurntableRecording
+from .session import Look, Session
+
+PANEL_WIDTH = 400
+STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
+IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
+FRAME_HISTORY = 600
+
+KEYS_HELP = """\
+drag on the image   turn the lighting (left-right: longitude, up-down: tilt)
+wheel               exposure;  Ctrl+wheel: zoom;  right-drag: pan
+F                   fit the image (reset zoom and pan)
+0                   reset the lighting rotation
+S                   save the frame: PNG, HDR EXR and the lights as JSON
+R                   record a 360 degree turn of the lighting (R again stops)
+L                   record what you do, live (L again stops)
+Q / Esc             quit"""
+
+
+@dataclass
+class ViewerConfig:
+    scene: Scene
+    lights: AreaLights
+    environment: np.ndarray | None
+    env_path: Path | None
+    n_lights: int = 16
+    method: str = "fast"
+    options: object = None  # EngineOptions
+    look: Look = field(default_factory=Look)
+    out_dir: Path = Path("relight-captures")
+    record_frames: int = 120
+    fps: float = 30.0
+    state_file: Path | None = None  # the viewer's state and widget positions as JSON (scripting, tests)
+    bundled_maps: tuple = ()
+
+
+class ViewerApp:
+    def __init__(self, config: ViewerConfig):
+        from .files import FileBrowser
+        from .window import Window
+
+        self.config = config
+        sc = config.scene
+        area_w = min(max(sc.width, 480), 1000)
+        area_h = min(max(sc.height, 480), 1000)
+        self.window = Window(area_w + PANEL_WIDTH, max(area_h, 860), "relight")
+        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, config.look)
+        self.env_path = config.env_path
+        self.n_lights = len(config.lights)
+        self.view = ix.ViewState(yaw=config.look.yaw, tilt=config.look.tilt, exposure=config.look.exposure)
+        self.dragging = False
+        self.panning = False
+        self.last_motion = 0.0
+        self.job: LightJob | None = None
+        self.recording = None
+        self.message = ""
+        self.error = ""
+        self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
+        self.frame_count = 0
+        self.widgets: dict = {}
+        self.captures: list[str] = []
+        self.videos: list[str] = []
+        self._state_text = ""
+        self._capture_index = 0
+        self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd())
+        self.show_browser = False
+
+    # ------------------------------------------------------------------ geometry
+    def image_area(self) -> tuple[float, float, float, float]:
+        w, h = self.window.size
+        return 0.0, 0.0, float(max(w - PANEL_WIDTH, 1)), float(max(h, 1))
+
+    def image_rect(self) -> tuple[float, float, float, float]:
+        _, _, aw, ah = self.image_area()
+        sc = self.session.scene
+        return ix.image_rect((sc.width, sc.height), (aw, ah), self.view.zoom, self.view.pan)
+
+    # ------------------------------------------------------------------ input
+    def _input(self):
+        from imgui_bundle import imgui
+
+        io = imgui.get_io()
+        mx, my = io.mouse_pos.x, io.mouse_pos.y
+        ax, ay, aw, ah = self.image_area()
+        over_image = ax <= mx < ax + aw and ay <= my < ay + ah and not io.want_capture_mouse
+        recording_turn = isinstance(self.recording, TurntableRecording)
+        now = time.perf_counter()
+        if imgui.is_mouse_clicked(0) and over_image and not recording_turn:
+            self.dragging = True
+        elif self.dragging:
+            if imgui.is_mouse_down(0):
+                dx, dy = io.mouse_delta.x, io.mouse_delta.y
+                if dx or dy:
+                    self.view = ix.dragged(self.view, dx, dy)
+                    self.last_motion = now
+            else:
+                self.dragging = False
+        if imgui.is_mouse_clicked(1) and over_image:
+            self.panning = True
+        elif self.panning:
+            if imgui.is_mouse_down(1):
+                self.view = ix.panned(self.view, io.mouse_delta.x, io.mouse_delta.y)
+            else:
+                self.panning = False
+        if over_image and io.mouse_wheel:
+            self.view = ix.wheeled(self.view, io.mouse_wheel, zoom=io.key_ctrl, cursor=(mx - ax, my - ay), area=(aw, ah))
+        if io.want_capture_keyboard:
+            return
+        if imgui.is_key_pressed(imgui.Key.s, False):
+            self.save_frame()
+        if imgui.is_key_pressed(imgui.Key.r, False):
+            self.toggle_recording("turntable")
+        if imgui.is_key_pressed(imgui.Key.l, False):
+            self.toggle_recording("live")
+        if imgui.is_key_pressed(imgui.Key.f, False):
+            self.view = replace(self.view, zoom=1.0, pan=(0.0, 0.0))
+        if imgui.is_key_pressed(imgui.Key._0, False):
+            self.view = replace(self.view, yaw=0.0, tilt=0.0)
+        if imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
+            self.window.close()
+
+    # ------------------------------------------------------------------ actions
+    def _capture_stem(self) -> Path:
+        self._capture_index += 1
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        return self.config.out_dir / f"relight-{stamp}-{self._capture_index:03d}"
+
+    def save_frame(self):
+        """The current state at full quality: display PNG, HDR EXR and a JSON of lights and look."""
+        eng = self.session.render(preview=False)
+        stem = self._capture_stem()
+        png = write_png(stem.with_suffix(".png"), eng.read_display().astype(np.float32) / 255.0)
+        write_exr(stem.with_suffix(".exr"), eng.read_hdr())
+        state = {"look": self._look_json(), "map": str(self.env_path) if self.env_path else None}
+        state["lights"] = self.session.rotated_lights().to_json()
+        stem.with_suffix(".json").write_text(json.dumps(state, indent=2) + "\n")
+        self.captures.append(str(png))
+        self.message = f"saved {png.name} (+ .exr, .json)"
+        print(f"saved {png} {stem.with_suffix('.exr')} {stem.with_suffix('.json')}", flush=True)
+
+    def toggle_recording(self, kind: str):
+        if self.recording is not None:
+            self._finish_recording(stopped=True)
+            return
+        sc = self.session.scene
+        path = self._capture_stem().with_suffix(".mp4")
+        if kind == "turntable":
+            self.recording = TurntableRecording(path, (sc.width, sc.height), self.view.yaw, self.config.record_frames, self.config.fps)
+        else:
+            self.recording = LiveRecording(path, (sc.width, sc.height), self.config.fps)
+        self.message = f"recording {path.name}"
+
+    def _finish_recording(self, stopped: bool = False):
+        rec, self.recording = self.recording, None
+        path = rec.close()
+        if isinstance(rec, TurntableRecording):
+            self.view = replace(self.view, yaw=rec.start_yaw)
+        how = "stopped after" if stopped and not rec.finished else "recorded"
+        self.videos.append(str(path))
+        self.message = f"{how} {rec.done} frames: {path.name}"
+        print(f"{how} {rec.done} frames to {path}", flush=True)
+
+    def open_map(self, path: Path, n: int | None = None):
+        if self.job is not None and not self.job.done:
+            self.message = "still fitting the previous map"
+            return
+        self.error = ""
+        self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
+
+    def _poll_job(self):
+        job = self.job
+        if job is None or not job.done:
+            return
+        self.job = None
+        if job.error:
+            self.error = job.error
+            print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
+            return
+        res = job.result
+        self.session.set_lights(res.lights, environment=res.env.pixels)
+        self.env_path = job.path
+        self.n_lights = len(res.lights)
+        self.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
+        print(self.message, flush=True)
+
+    # ------------------------------------------------------------------ frame
+    def _render(self) -> tuple[object, str]:
+        """Render the current state; returns the engine to show and what kind of frame it was."""
+        s = self.session
+        rec = self.recording
+        yaw = rec.next_yaw() if isinstance(rec, TurntableRecording) else self.view.yaw
+        s.update(yaw=yaw, tilt=self.view.tilt, exposure=self.view.exposure)
+        moving = self.dragging and time.perf_counter() - self.last_motion < STILL_SECONDS
+        preview = moving and rec is None
+        eng = s.preview if preview else s.final
+        before = sum(eng.counters.values())
+        s.render(preview=preview)
+        worked = sum(eng.counters.values()) != before
+        if rec is not None:
+            rec.add(eng.read_display())
+            if rec.finished:
+                self._finish_recording()
+            return eng, "record"
+        return eng, ("idle" if not worked else ("drag" if preview else "update"))
+
+    def run(self) -> int:
+        from .panel import draw_panel
+
+        w = self.window
+        previous = signal.signal(signal.SIGTERM, lambda *_: w.close()) if os.name == "posix" else None
+        try:
+            while not w.should_close:
+                busy = self.dragging or self.panning or self.recording is not None or self.job is not None
+                w.wait(None if busy else IDLE_WAIT)
+                start = time.perf_counter()
+                w.begin_frame()
+                self._input()
+                draw_panel(self)
+                self._poll_job()
+                eng, kind = self._render()
+                w.draw_image(eng.display, self.image_rect(), self.image_area())
+                w.end_frame()
+                self.frames.append(((time.perf_counter() - start) * 1000.0, kind))
+                self.frame_count += 1
+                self._write_state()
+        finally:
+            if self.recording is not None:
+                self._finish_recording(stopped=True)
+            self._write_state(force=True)
+            self.session.release()
+            w.release()
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
+        return 0
+
+    # ------------------------------------------------------------------ state file
+    def _look_json(self) -> dict:
+        lk = self.session.look
+        return {"yaw": lk.yaw, "tilt": lk.tilt, "exposure": lk.exposure, "intensity": lk.intensity, "shadows": lk.shadows,
+                "diffuse": lk.diffuse, "specular": lk.specular, "view": lk.view, "light": lk.light}
+
+    def _write_state(self, force: bool = False):
+        path = self.config.state_file
+        if path is None:
+            return
+        rec = self.recording
+        state = {
+            "look": self._look_json(),
+            "sigma": [float(v) for v in self.session.sigma],
+            "n_lights": len(self.session.sigma),
+            "map": str(self.env_path) if self.env_path else None,
+            "image_rect": list(self.image_rect()),
+            "widgets": self.widgets,
+            "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "path": str(rec.path)},
+            "fitting": self.job is not None,
+            "captures": self.captures,
+            "videos": self.videos,
+            "message": self.message,
+            "error": self.error,
+        }
+        text = json.dumps(state)
+        if text == self._state_text and not force:
+            return
+        self._state_text = text
+        state["frame_count"] = self.frame_count
+        state["frames"] = [[round(ms, 3), kind] for ms, kind in self.frames]
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_text(json.dumps(state))
+        os.replace(tmp, path)
+
+
+def run_viewer(config: ViewerConfig) -> int:
+    return ViewerApp(config).run()

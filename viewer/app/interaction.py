@@ -1,0 +1,63 @@
+"""What the mouse and wheel do, as plain functions of a small state (no window, no GL): testable.
+
+Dragging on the image turns the lighting as if grabbing the environment map: the map behind the
+person follows the cursor (horizontal drag = longitude, vertical drag = tilt, clamped to +-90
+degrees). The wheel changes the exposure; with Ctrl it zooms about the cursor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+DEGREES_PER_PIXEL = 0.5  # of mouse motion, in window pixels
+EXPOSURE_PER_NOTCH = 0.25  # stops per wheel notch
+ZOOM_PER_NOTCH = 1.15
+ZOOM_RANGE = (0.25, 16.0)
+TILT_RANGE = (-90.0, 90.0)
+EXPOSURE_RANGE = (-20.0, 20.0)
+
+
+@dataclass(frozen=True)
+class ViewState:
+    yaw: float = 0.0  # degrees, rotation of the lighting (and the map behind) about the vertical axis
+    tilt: float = 0.0  # degrees, about the camera's horizontal axis
+    exposure: float = 0.0  # stops
+    zoom: float = 1.0  # 1 = the image fitted into the image area
+    pan: tuple[float, float] = (0.0, 0.0)  # image-area pixels the image centre is moved by
+
+
+def dragged(state: ViewState, dx: float, dy: float) -> ViewState:
+    """Turn the lighting by a mouse motion of (dx, dy) window pixels (y down). Positive yaw turns a
+    point in front of the camera to the left, so a drag to the right decreases it."""
+    yaw = (state.yaw - dx * DEGREES_PER_PIXEL + 180.0) % 360.0 - 180.0
+    tilt = min(max(state.tilt - dy * DEGREES_PER_PIXEL, TILT_RANGE[0]), TILT_RANGE[1])
+    return replace(state, yaw=yaw, tilt=tilt)
+
+
+def wheeled(state: ViewState, notches: float, zoom: bool = False, cursor=(0.0, 0.0), area=(1, 1)) -> ViewState:
+    """Exposure up / down, or (``zoom``) zoom about ``cursor`` (area pixels, origin top left)."""
+    if not zoom:
+        e = min(max(state.exposure + notches * EXPOSURE_PER_NOTCH, EXPOSURE_RANGE[0]), EXPOSURE_RANGE[1])
+        return replace(state, exposure=e)
+    z = min(max(state.zoom * ZOOM_PER_NOTCH ** notches, ZOOM_RANGE[0]), ZOOM_RANGE[1])
+    k = z / state.zoom
+    # keep the image point under the cursor fixed: c + pan' - cursor = k (c + pan - cursor)
+    cx, cy = area[0] / 2.0, area[1] / 2.0
+    px, py = state.pan
+    pan = ((cursor[0] - cx) + k * (cx + px - cursor[0]), (cursor[1] - cy) + k * (cy + py - cursor[1]))
+    return replace(state, zoom=z, pan=pan)
+
+
+def panned(state: ViewState, dx: float, dy: float) -> ViewState:
+    return replace(state, pan=(state.pan[0] + dx, state.pan[1] + dy))
+
+
+def image_rect(image_size, area_size, zoom: float = 1.0, pan=(0.0, 0.0)) -> tuple[float, float, float, float]:
+    """(x, y, width, height) of the image in the image area (origin top left): fitted into the
+    area with its aspect kept, then zoomed and panned."""
+    iw, ih = image_size
+    aw, ah = area_size
+    fit = min(aw / iw, ah / ih) if iw and ih else 1.0
+    s = fit * zoom
+    w, h = iw * s, ih * s
+    return (aw - w) / 2.0 + pan[0], (ah - h) / 2.0 + pan[1], w, h

@@ -1,0 +1,82 @@
+"""Light fitting off the window's thread: the window keeps drawing (with a progress bar) while a
+map's lights are fitted, then swaps in the new map and its lights together."""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..envmap import EnvMap, load_envmap
+from ..errors import InputError
+from ..lights import AreaLights, load_lights
+
+
+def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
+    """Lights shipped beside a map (``<map>.lights.json``, as the bundled maps have) when they were
+    fitted for the same count and method."""
+    side = Path(env_path).with_suffix(".lights.json")
+    if not side.is_file():
+        return None
+    try:
+        fit = json.loads(side.read_text()).get("fit") or {}
+    except (OSError, json.JSONDecodeError):
+        return None
+    if fit.get("n") != n or fit.get("method") != method:
+        return None
+    try:
+        return load_lights(side)
+    except InputError:
+        return None
+
+
+@dataclass
+class LightsResult:
+    env: EnvMap
+    lights: AreaLights
+    how: str  # "bundled", "cached" or "fitted"
+
+
+class LightJob:
+    """Load ``path`` and get its ``n`` lights (beside the map, from the cache, or fitted) on a thread.
+    ``wake()`` is called when it finishes (to wake the window's event wait)."""
+
+    def __init__(self, path, n: int, method: str, wake=lambda: None):
+        self.path = Path(path)
+        self.n = n
+        self.method = method
+        self.stage = "loading the map"
+        self.fraction = 0.0
+        self.result: LightsResult | None = None
+        self.error: str | None = None
+        self._wake = wake
+        self._thread = threading.Thread(target=self._run, name="light-fit", daemon=True)
+        self._thread.start()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def _progress(self, stage: str, done: int, total: int):
+        self.stage = stage
+        self.fraction = done / max(total, 1)
+
+    def _run(self):
+        from ..lightfit import lights_for_map
+
+        try:
+            env = load_envmap(self.path)
+            lights = sidecar_lights(self.path, self.n, self.method)
+            how = "bundled"
+            if lights is None:
+                self.stage = "fitting"
+                lights, cached = lights_for_map(env, self.n, self.method, progress=self._progress)
+                how = "cached" if cached else "fitted"
+            self.result = LightsResult(env, lights, how)
+        except InputError as exc:
+            self.error = str(exc)
+        except Exception as exc:  # shown in the panel; the window keeps the previous map
+            self.error = f"{self.path}: {type(exc).__name__}: {exc}"
+        finally:
+            self._wake()

@@ -1,0 +1,218 @@
+"""The side panel (imgui): lighting, per-light sigma sliders, shading, views, map, recording,
+frame time, keys. Draws and applies the user's changes to the app's state."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from imgui_bundle import imgui, implot
+
+from ..gl.engine import VIEWS
+from .app import KEYS_HELP, PANEL_WIDTH
+from .session import PREVIEW_SIZE, SHADOW_MODES, VIEW_NAMES
+
+MAX_LIGHTS = 64
+SIGMA_MAX = 30.0  # slider range (256-px units; the fitted lights use 0 to 20)
+
+
+def _remember(app, name: str):
+    lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+    app.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
+
+
+def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
+    c = np.clip(intensity / max(peak, 1e-30), 0, 1) ** (1 / 2.2)
+    return imgui.ImVec4(float(c[0]), float(c[1]), float(c[2]), 1.0)
+
+
+def draw_panel(app):
+    s = app.session
+    w, h = app.window.size
+    imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0))
+    imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, h))
+    flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+    imgui.begin("relight", None, flags)
+    _status(app)
+    _lighting(app)
+    _shading(app)
+    _lights(app)
+    _map(app)
+    _record(app)
+    _frame_time(app)
+    if imgui.collapsing_header("Keys and mouse"):
+        imgui.text_unformatted(KEYS_HELP)
+    imgui.end()
+
+
+def _status(app):
+    if app.error:
+        imgui.text_colored(imgui.ImVec4(1, 0.4, 0.3, 1), app.error)
+    elif app.message:
+        imgui.text_wrapped(app.message)
+    job = app.job
+    if job is not None:
+        imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), f"{job.path.name}: {job.stage}")
+
+
+def _lighting(app):
+    s = app.session
+    if not imgui.collapsing_header("Lighting", imgui.TreeNodeFlags_.default_open):
+        return
+    v = app.view
+    changed, yaw = imgui.slider_float("longitude", v.yaw, -180.0, 180.0, "%.1f deg")
+    _remember(app, "longitude")
+    if changed:
+        app.view = replace(app.view, yaw=yaw)
+    changed, tilt = imgui.slider_float("tilt", v.tilt, -90.0, 90.0, "%.1f deg")
+    _remember(app, "tilt")
+    if changed:
+        app.view = replace(app.view, tilt=tilt)
+    changed, exposure = imgui.slider_float("exposure", v.exposure, -10.0, 10.0, "%+.2f stops")
+    _remember(app, "exposure")
+    if changed:
+        app.view = replace(app.view, exposure=exposure)
+    changed, intensity = imgui.slider_float("intensity", s.look.intensity, 0.0, 8.0, "x %.2f", imgui.SliderFlags_.logarithmic)
+    _remember(app, "intensity")
+    if changed:
+        s.update(intensity=intensity)
+
+
+def _shading(app):
+    s = app.session
+    if not imgui.collapsing_header("Shading", imgui.TreeNodeFlags_.default_open):
+        return
+    lk = s.look
+    names = list(SHADOW_MODES)
+    current = list(SHADOW_MODES.values()).index(lk.shadows)
+    changed, i = imgui.combo("shadows", current, names)
+    _remember(app, "shadows")
+    if changed:
+        s.update(shadows=SHADOW_MODES[names[i]])
+    changed, diffuse = imgui.checkbox("diffuse", lk.diffuse)
+    if changed:
+        s.update(diffuse=diffuse)
+    imgui.same_line()
+    changed, specular = imgui.checkbox("specular", lk.specular)
+    if changed:
+        s.update(specular=specular)
+    labels = [VIEW_NAMES[v] for v in VIEWS]
+    changed, i = imgui.combo("view", VIEWS.index(lk.view), labels)
+    _remember(app, "view")
+    if changed:
+        s.update(view=VIEWS[i])
+
+
+def _lights(app):
+    s = app.session
+    n = len(s.sigma)
+    if not imgui.collapsing_header(f"Area lights ({n})", imgui.TreeNodeFlags_.default_open):
+        return
+    imgui.set_next_item_width(140)
+    changed, count = imgui.slider_int("number of lights", app.n_lights, 1, MAX_LIGHTS)
+    if changed:
+        app.n_lights = count
+    if imgui.is_item_deactivated_after_edit() and app.n_lights != n and app.env_path is not None:
+        app.open_map(app.env_path, app.n_lights)
+    if app.env_path is None:
+        imgui.text_disabled("(no map to refit: lights came from a file)")
+    lights = s.rotated_lights()
+    lum = lights.intensity @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    peak = float(lights.intensity.max()) if n else 1.0
+    total = float(lum.sum()) or 1.0
+    imgui.begin_child("lights", imgui.ImVec2(0, 210), imgui.ChildFlags_.borders)
+    for i in np.argsort(-lum, kind="stable"):
+        i = int(i)
+        imgui.push_id(str(i))
+        d = lights.direction[i]
+        az, el = np.degrees(np.arctan2(d[0], d[2])), np.degrees(np.arcsin(np.clip(d[1], -1, 1)))
+        imgui.color_button("##c", _swatch(lights.intensity[i], peak), 0, imgui.ImVec2(18, 18))
+        if imgui.is_item_hovered():
+            imgui.set_tooltip(f"light {i}: intensity {lights.intensity[i].round(3).tolist()}, "
+                              f"{100 * lum[i] / total:.1f} % of the total; azimuth {az:+.0f}, elevation {el:+.0f} deg")
+        imgui.same_line()
+        selected = s.look.view == "shadow" and s.look.light == i
+        if imgui.selectable(f"{i:2d} {az:+4.0f} {el:+3.0f}", selected, 0, imgui.ImVec2(92, 0))[0]:
+            s.update(view="shadow", light=i) if not selected else s.update(view="final")
+        imgui.same_line()
+        imgui.set_next_item_width(-1)
+        changed, sigma = imgui.slider_float("##sigma", float(s.sigma[i]), 0.0, SIGMA_MAX, "sigma %.2f")
+        _remember(app, f"sigma {i}")
+        if changed:
+            s.set_sigma(i, sigma)
+        imgui.pop_id()
+    imgui.end_child()
+    imgui.text_disabled("click a light to see its shadow; sorted by brightness")
+
+
+def _map(app):
+    if not imgui.collapsing_header("Environment map", imgui.TreeNodeFlags_.default_open):
+        return
+    maps = list(app.config.bundled_maps)
+    names = [p.stem for p in maps]
+    current = maps.index(app.env_path) if app.env_path in maps else -1
+    label = app.env_path.name if app.env_path else "(none)"
+    if imgui.begin_combo("map", label):
+        for i, name in enumerate(names):
+            if imgui.selectable(name, i == current)[0] and i != current:
+                app.open_map(maps[i])
+        imgui.end_combo()
+    _remember(app, "map")
+    changed, app.show_browser = imgui.checkbox("open a file...", app.show_browser)
+    if app.show_browser:
+        chosen = app.browser.draw()
+        if chosen is not None:
+            app.open_map(chosen)
+
+
+def _record(app):
+    if not imgui.collapsing_header("Record", imgui.TreeNodeFlags_.default_open):
+        return
+    rec = app.recording
+    if rec is None:
+        if imgui.button("Record 360 turn (R)"):
+            app.toggle_recording("turntable")
+        _remember(app, "record")
+        imgui.same_line()
+        if imgui.button("Record live (L)"):
+            app.toggle_recording("live")
+        imgui.same_line()
+        if imgui.button("Save frame (S)"):
+            app.save_frame()
+        imgui.set_next_item_width(120)
+        changed, frames = imgui.slider_int("turn frames", app.config.record_frames, 12, 720)
+        if changed:
+            app.config.record_frames = frames
+    else:
+        if rec.fraction is not None:
+            imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{rec.done} / {rec.total} frames")
+        else:
+            imgui.text(f"recording live: {rec.done} frames")
+        if imgui.button("Stop"):
+            app.toggle_recording(rec.kind)
+    imgui.text_disabled(f"to {app.config.out_dir}/")
+
+
+def _frame_time(app):
+    if not imgui.collapsing_header("Frame time", imgui.TreeNodeFlags_.default_open):
+        return
+    frames = list(app.frames)[-240:]
+    if not frames:
+        return
+    ms = np.array([f[0] for f in frames], np.float64)
+    kinds = [f[1] for f in frames]
+    last = frames[-1]
+    working = [m for m, k in frames if k != "idle"]
+    med = float(np.median(working)) if working else float(np.median(ms))
+    imgui.text(f"last {last[0]:.0f} ms ({last[1]}), median of updates {med:.0f} ms")
+    if "drag" in kinds:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled(f"while dragging: {PREVIEW_SIZE} px, hard shadows; full quality when the mouse stops")
+        imgui.pop_text_wrap_pos()
+    if implot.begin_plot("##frame time", imgui.ImVec2(-1, 120), implot.Flags_.no_legend | implot.Flags_.no_menus):
+        implot.setup_axes("", "ms", implot.AxisFlags_.no_tick_labels, 0)
+        implot.setup_axis_limits(implot.ImAxis_.x1, 0, 240, implot.Cond_.always)
+        implot.setup_axis_limits(implot.ImAxis_.y1, 0, max(150.0, float(ms.max()) * 1.1), implot.Cond_.always)
+        implot.plot_line("frame", np.ascontiguousarray(ms))
+        implot.plot_inf_lines("100 ms", np.array([100.0]), implot.Spec(flags=implot.InfLinesFlags_.horizontal))
+        implot.end_plot()

@@ -1,0 +1,126 @@
+"""The relighting session behind the window: one scene, its lights, two engines, one context.
+
+The *final* engine renders at the bundle's resolution with the chosen options; the *preview*
+engine renders the same scene resampled to ``PREVIEW_SIZE`` pixels (shadow maps of
+``PREVIEW_SHADOW_RESOLUTION``, hard shadows in place of soft ones: filtering 16 convolutional
+shadow maps costs more than everything else at that size) and is used only while the lighting is
+being dragged, so a drag stays interactive; when the drag stops the final engine renders the same state, so what stays on screen is
+always the full-quality frame of the current state. Each frame shown is one complete engine render
+of one state: never a mix of old and new lights.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..gl import Engine, EngineOptions
+from ..lights import AreaLights, rotation_matrix
+from ..scene import Scene
+from ..scene_ops import resample_scene
+
+PREVIEW_SIZE = 256
+PREVIEW_SHADOW_RESOLUTION = 256
+SHADOW_MODES = {"convolutional (soft)": "soft", "shadow map (hard)": "hard", "none": "none"}
+VIEW_NAMES = {
+    "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
+    "albedo": "albedo", "normal": "normal", "depth": "depth", "specular": "specular", "roughness": "roughness",
+    "shadow": "shadow of the selected light",
+}
+
+
+@dataclass(frozen=True)
+class Look:
+    """Everything that decides the picture besides the lights' base values."""
+    yaw: float = 0.0
+    tilt: float = 0.0
+    exposure: float = 0.0
+    intensity: float = 1.0  # scales every light
+    shadows: str = "soft"  # soft | hard | none
+    diffuse: bool = True
+    specular: bool = True
+    view: str = "final"
+    light: int = 0  # the selected light (its shadow in the "shadow" view)
+    tonemap: str = "aces"
+
+
+class Session:
+    def __init__(self, ctx, scene: Scene, lights: AreaLights, environment: np.ndarray | None,
+                 options: EngineOptions | None = None, look: Look | None = None):
+        self.ctx = ctx
+        self.scene = scene
+        self.options = options or EngineOptions()
+        self.final = Engine(ctx, scene, self.options)
+        self._preview: Engine | None = None
+        self.environment = environment
+        self.base_lights = lights
+        self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
+        self.look = look or Look()
+        self.last_engine: Engine | None = None
+        for eng in (self.final,):
+            self._set_environment(eng)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def lights(self) -> AreaLights:
+        """The lights as rendered: the user's sigmas and intensity, before the rotation."""
+        return AreaLights(self.base_lights.direction, self.sigma, self.base_lights.intensity * np.float32(self.look.intensity))
+
+    def rotated_lights(self) -> AreaLights:
+        return self.lights.rotated(self.look.yaw, self.look.tilt)
+
+    def set_lights(self, lights: AreaLights, environment: np.ndarray | None = None):
+        """New lights (a refit, or another map with its pixels): the sliders start from their sigmas."""
+        self.base_lights = lights
+        self.sigma = lights.sigma.copy()
+        if environment is not None:
+            self.environment = environment
+            for eng in self._engines():
+                self._set_environment(eng)
+        if self.look.light >= len(lights):
+            self.look = replace(self.look, light=0, view="final" if self.look.view == "shadow" else self.look.view)
+
+    def set_sigma(self, index: int, sigma: float):
+        self.sigma[index] = max(float(sigma), 0.0)
+
+    def update(self, **changes):
+        self.look = replace(self.look, **changes)
+
+    # ------------------------------------------------------------------ engines
+    def _engines(self):
+        return [e for e in (self.final, self._preview) if e is not None]
+
+    @property
+    def preview(self) -> Engine:
+        if self._preview is None:
+            small = resample_scene(self.scene, PREVIEW_SIZE) if max(self.scene.width, self.scene.height) > PREVIEW_SIZE else self.scene
+            res = min(PREVIEW_SHADOW_RESOLUTION, self.options.shadow_resolution)
+            self._preview = Engine(self.ctx, small, replace(self.options, shadow_resolution=res, shadow_step=0))
+            self._set_environment(self._preview)
+        return self._preview
+
+    def _set_environment(self, eng: Engine):
+        if self.environment is not None:
+            eng.set_environment(self.environment)
+
+    def render(self, preview: bool = False) -> Engine:
+        """Bring the chosen engine up to the current state and render it; returns it (its
+        ``display`` texture is the frame to show)."""
+        eng = self.preview if preview else self.final
+        lk = self.look
+        eng.set_lights(self.rotated_lights())
+        eng.set_visibility("hard" if preview and lk.shadows == "soft" else lk.shadows)
+        eng.set_components(diffuse=lk.diffuse, specular=lk.specular)
+        eng.set_view(lk.view, lk.light)
+        background = "environment" if self.environment is not None else ("photo" if self.scene.background is not None else "color")
+        eng.set_display(exposure=lk.exposure, tonemap=lk.tonemap, background=background, color=(0.18, 0.18, 0.18),
+                        environment_rotation=rotation_matrix(lk.yaw, lk.tilt).T)
+        eng.render()
+        self.last_engine = eng
+        return eng
+
+    def release(self):
+        for eng in self._engines():
+            eng.release()
+        self._preview = None

@@ -1,0 +1,125 @@
+"""The desktop window: GLFW, an OpenGL 4.1 core context wrapped by moderngl, imgui-bundle's GLFW
+backend (with implot), and drawing the engine's display image into the image area.
+
+Import order matters: importing ``imgui_bundle`` first points pyGLFW at imgui-bundle's own GLFW
+library (../shared/docs/STACK.md).
+"""
+
+from __future__ import annotations
+
+import os
+
+from imgui_bundle import imgui, implot  # noqa: I001  (before glfw, see above)
+import glfw
+import moderngl
+
+from ..errors import InputError
+from ..gl.programs import ProgramCache
+
+
+class Window:
+    def __init__(self, width: int, height: int, title: str = "relight"):
+        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            raise InputError(None, "cannot open a window: no display (set DISPLAY, or run under xvfb-run; "
+                             "`relight render` works without one)")
+        if not glfw.init():
+            raise InputError(None, f"cannot open a window: GLFW failed to start on display {os.environ.get('DISPLAY')!r}")
+        glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 4)
+        glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 1)
+        glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
+        glfw.window_hint(glfw.OPENGL_FORWARD_COMPAT, True)
+        self.handle = glfw.create_window(width, height, title, None, None)
+        if not self.handle:
+            glfw.terminate()
+            raise InputError(None, "cannot open a window with an OpenGL 4.1 core context on this display")
+        glfw.make_context_current(self.handle)
+        glfw.swap_interval(0)  # no vsync wait: frame times are the work's (llvmpipe has no vsync anyway)
+        self.ctx = moderngl.create_context(require=410)
+        imgui.create_context()
+        implot.create_context()
+        imgui.get_io().set_ini_filename("")  # no imgui.ini written into the user's folder
+        from imgui_bundle.python_backends.glfw_backend import GlfwRenderer
+
+        self.imgui = GlfwRenderer(self.handle)
+        # The backend drops cursor positions while the window lacks keyboard focus (which, without
+        # a window manager, it may never get); hovering and dragging should not depend on focus.
+        io = imgui.get_io()
+        glfw.set_cursor_pos_callback(self.handle, lambda _w, x, y: io.add_mouse_pos_event(float(x), float(y)))
+        glfw.focus_window(self.handle)
+        self._programs = ProgramCache(self.ctx)
+        self._sampler = self.ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
+        self._vao = None
+
+    # ------------------------------------------------------------------ loop
+    @property
+    def should_close(self) -> bool:
+        return bool(glfw.window_should_close(self.handle))
+
+    def close(self):
+        glfw.set_window_should_close(self.handle, True)
+
+    def wait(self, timeout: float | None):
+        """Process events; wait up to ``timeout`` seconds for one (None: do not wait)."""
+        if timeout:
+            glfw.wait_events_timeout(timeout)
+        else:
+            glfw.poll_events()
+
+    @staticmethod
+    def wake():
+        """Wake :meth:`wait` from another thread."""
+        glfw.post_empty_event()
+
+    def begin_frame(self):
+        self.imgui.process_inputs()
+        imgui.new_frame()
+
+    @property
+    def framebuffer_size(self) -> tuple[int, int]:
+        return tuple(glfw.get_framebuffer_size(self.handle))
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return tuple(glfw.get_window_size(self.handle))
+
+    def draw_image(self, texture: moderngl.Texture, rect, area):
+        """Clear, then draw ``texture`` into ``rect`` = (x, y, w, h) window pixels from the top left,
+        clipped to ``area`` = (x, y, w, h)."""
+        fw, fh = self.framebuffer_size
+        ww, wh = self.size
+        sx, sy = fw / max(ww, 1), fh / max(wh, 1)
+        screen = self.ctx.screen
+        screen.use()
+        self.ctx.scissor = None
+        self.ctx.viewport = (0, 0, fw, fh)
+        self.ctx.clear(0.08, 0.08, 0.09)
+        x, y, w, h = rect
+        ax, ay, aw, ah = area
+        self.ctx.scissor = (int(ax * sx), int(fh - (ay + ah) * sy), int(aw * sx), int(ah * sy))
+        self.ctx.viewport = (int(round(x * sx)), int(round(fh - (y + h) * sy)), max(int(round(w * sx)), 1), max(int(round(h * sy)), 1))
+        prog = self._programs.get("fullscreen.vert.glsl", "window_image.frag.glsl")
+        if self._vao is None:
+            self._vao = self.ctx.vertex_array(prog, [])
+        texture.use(0)
+        self._sampler.use(0)
+        prog["image"] = 0
+        self._vao.render(moderngl.TRIANGLES, vertices=3)
+        self._sampler.clear(0)
+        self.ctx.scissor = None
+        self.ctx.viewport = (0, 0, fw, fh)
+
+    def end_frame(self):
+        imgui.render()
+        self.imgui.render(imgui.get_draw_data())
+        glfw.swap_buffers(self.handle)
+
+    def release(self):
+        if self._vao is not None:
+            self._vao.release()
+        self._sampler.release()
+        self._programs.release()
+        self.imgui.shutdown()
+        implot.destroy_context()
+        imgui.destroy_context()
+        glfw.destroy_window(self.handle)
+        glfw.terminate()

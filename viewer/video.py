@@ -1,0 +1,121 @@
+"""Relit video files: H.264 in MP4 through PyAV (FFmpeg's libx264), encoded on a background thread.
+
+The MP4 is fragmented (a self-contained fragment per keyframe interval, the index up front), so a
+recording cut short, even by a crash, is a playable file holding every finished fragment; a
+normal :meth:`VideoWriter.close` flushes the encoder and keeps every frame.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+TIME_BASE = Fraction(1, 1000)  # frame times in milliseconds (turntables: i / fps; live: wall clock)
+FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
+
+
+class VideoWriter:
+    """``write(rgb)`` frames (H, W, 3) uint8 or float in [0, 1]; ``close()`` when done (also as a
+    context manager). Frames are queued to an encoding thread, so a caller rendering frames is not
+    held up by the encoder unless it runs ahead by more than ``queue_frames``."""
+
+    def __init__(self, path, width: int, height: int, fps: float = 30.0, crf: int = 18, keyframe_seconds: float = 1.0,
+                 queue_frames: int = 8):
+        import av
+
+        self.path = Path(path)
+        if self.path.suffix.lower() != ".mp4":
+            raise InputError(self.path, "videos are written as H.264 MP4: give a .mp4 path")
+        if not (fps > 0 and np.isfinite(fps)):
+            raise InputError(self.path, f"frame rate must be positive, got {fps}")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.size = (int(width), int(height))
+        self.fps = float(fps)
+        self.frames = 0
+        self._last_pts = -1
+        self._container = av.open(str(self.path), "w", options={"movflags": FRAGMENT_FLAGS})
+        stream = self._container.add_stream("libx264", rate=Fraction(self.fps).limit_denominator(1001))
+        stream.width, stream.height = (v + v % 2 for v in self.size)  # 4:2:0 needs even sides
+        stream.pix_fmt = "yuv420p"
+        stream.codec_context.time_base = TIME_BASE
+        stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
+        stream.options = {"crf": str(crf), "preset": "veryfast"}
+        self._stream = stream
+        self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._encode_loop, name="video-encoder", daemon=True)
+        self._thread.start()
+
+    def write(self, rgb: np.ndarray, seconds: float | None = None):
+        """Append a frame shown at ``seconds`` from the start (default: the next frame at ``fps``)."""
+        self._raise_pending()
+        if rgb.dtype != np.uint8:
+            rgb = (np.clip(np.nan_to_num(rgb, nan=0.0), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        h, w = rgb.shape[:2]
+        if (w, h) != self.size or rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise ValueError(f"frame of shape {rgb.shape} does not match the video's {self.size[0]}x{self.size[1]} RGB")
+        pts = int(round((self.frames / self.fps if seconds is None else seconds) * 1000))
+        pts = max(pts, self._last_pts + 1)  # strictly increasing, even for two frames in the same millisecond
+        self._last_pts = pts
+        pad_w, pad_h = self._stream.width - w, self._stream.height - h
+        if pad_w or pad_h:
+            rgb = np.pad(rgb, ((0, pad_h), (0, pad_w), (0, 0)), mode="edge")
+        self._queue.put((np.ascontiguousarray(rgb), pts))
+        self.frames += 1
+
+    def _encode_loop(self):
+        import av
+
+        try:
+            while True:
+                item = self._queue.get()
+                if item is None:
+                    break
+                rgb, pts = item
+                frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
+                frame.pts, frame.time_base = pts, TIME_BASE
+                for packet in self._stream.encode(frame):
+                    self._container.mux(packet)
+            for packet in self._stream.encode():
+                self._container.mux(packet)
+        except BaseException as exc:  # reported to the writer's thread by write() / close()
+            self._error = exc
+            while self._queue.get() is not None:  # let a blocked write() and close() go on
+                pass
+        finally:
+            self._container.close()
+
+    def _raise_pending(self):
+        if self._error is not None:
+            raise RuntimeError(f"encoding {self.path} failed: {self._error}") from self._error
+
+    def close(self) -> Path:
+        """Flush the encoder and finish the file; returns its path."""
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+        self._raise_pending()
+        return self.path
+
+    def __enter__(self) -> "VideoWriter":
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def read_video(path) -> tuple[np.ndarray, float]:
+    """All frames of a video as (T, H, W, 3) uint8, and its frame rate."""
+    import av
+
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(stream)]
+        rate = float(stream.average_rate or stream.guessed_rate or 0.0)
+    return np.stack(frames) if frames else np.zeros((0, 0, 0, 3), np.uint8), rate
