@@ -16,7 +16,7 @@ import numpy as np
 
 from .errors import InputError
 
-TIME_BASE = Fraction(1, 1000)  # frame times in milliseconds (turntables: i / fps; live: wall clock)
+TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
 FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
 
 
@@ -39,11 +39,14 @@ class VideoWriter:
         self.fps = float(fps)
         self.frames = 0
         self._last_pts = -1
-        self._container = av.open(str(self.path), "w", options={"movflags": FRAGMENT_FLAGS})
-        stream = self._container.add_stream("libx264", rate=Fraction(self.fps).limit_denominator(1001))
+        # flush_packets: each finished fragment reaches the file at once, not when an I/O buffer fills
+        self._container = av.open(str(self.path), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
+        rate = Fraction(self.fps).limit_denominator(1001)
+        self._time_base = 1 / (rate * TICKS_PER_FRAME)
+        stream = self._container.add_stream("libx264", rate=rate)
         stream.width, stream.height = (v + v % 2 for v in self.size)  # 4:2:0 needs even sides
         stream.pix_fmt = "yuv420p"
-        stream.codec_context.time_base = TIME_BASE
+        stream.codec_context.time_base = self._time_base
         stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
         stream.options = {"crf": str(crf), "preset": "veryfast"}
         self._stream = stream
@@ -60,8 +63,8 @@ class VideoWriter:
         h, w = rgb.shape[:2]
         if (w, h) != self.size or rgb.ndim != 3 or rgb.shape[2] != 3:
             raise ValueError(f"frame of shape {rgb.shape} does not match the video's {self.size[0]}x{self.size[1]} RGB")
-        pts = int(round((self.frames / self.fps if seconds is None else seconds) * 1000))
-        pts = max(pts, self._last_pts + 1)  # strictly increasing, even for two frames in the same millisecond
+        pts = self.frames * TICKS_PER_FRAME if seconds is None else int(round(seconds / self._time_base))
+        pts = max(pts, self._last_pts + 1)  # strictly increasing, even for two frames at the same time
         self._last_pts = pts
         pad_w, pad_h = self._stream.width - w, self._stream.height - h
         if pad_w or pad_h:
@@ -79,7 +82,7 @@ class VideoWriter:
                     break
                 rgb, pts = item
                 frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
-                frame.pts, frame.time_base = pts, TIME_BASE
+                frame.pts, frame.time_base = pts, self._time_base
                 for packet in self._stream.encode(frame):
                     self._container.mux(packet)
             for packet in self._stream.encode():

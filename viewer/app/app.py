@@ -178,6 +178,7 @@ class ViewerApp:
         path = rec.close()
         if isinstance(rec, TurntableRecording):
             self.view = replace(self.view, yaw=rec.start_yaw)
+            self.session.update(yaw=rec.start_yaw)
         how = "stopped after" if stopped and not rec.finished else "recorded"
         self.videos.append(str(path))
         self.message = f"{how} {rec.done} frames: {path.name}"

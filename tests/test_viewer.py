@@ -1,0 +1,240 @@
+"""The viewer as a person uses it: a real window on Xvfb, driven with xdotool (mouse drags, clicks,
+keys), checked through the files it saves (S: PNG + EXR + JSON; R: MP4) against headless renders."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from viewer.cli import DEMO_LIGHTS, DEMO_YAW
+from viewer.gl import Engine, EngineOptions
+from viewer.imageio import read_exr
+from viewer.lights import load_lights
+from viewer.render import RenderSettings, apply_settings
+from viewer.resources import asset_dir, sample_scene_dir
+from viewer.scene import load_scene
+from viewer.scene_ops import resample_scene
+from viewer.video import read_video
+
+SIZE = 256
+RELIGHT = [sys.executable, "-m", "viewer.cli"]
+
+
+@pytest.fixture(scope="module")
+def display():
+    """A private X server (Xvfb) for this module's windows."""
+    for number in range(90, 140):
+        if not Path(f"/tmp/.X{number}-lock").exists():
+            break
+    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1400x1100x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    name = f":{number}"
+    for _ in range(100):
+        if subprocess.run(["xdotool", "getmouselocation"], env={**os.environ, "DISPLAY": name},
+                          capture_output=True).returncode == 0:
+            break
+        time.sleep(0.1)
+    yield name
+    proc.terminate()
+    proc.wait(10)
+
+
+class Viewer:
+    """``relight view`` in a subprocess, with its state file to wait on."""
+
+    def __init__(self, display: str, tmp: Path, *args: str):
+        self.display = display
+        self.state_path = tmp / "state.json"
+        self.out = tmp / "captures"
+        self.env = {**os.environ, "DISPLAY": display}
+        self.proc = subprocess.Popen([*RELIGHT, "view", "--size", str(SIZE), "--state-file", str(self.state_path),
+                                      "--out-dir", str(self.out), *args], env=self.env, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True)
+        self.wait_for(lambda s: s["frame_count"] >= 2 and not s["fitting"], 120)
+
+    def state(self) -> dict | None:
+        try:
+            return json.loads(self.state_path.read_text())
+        except (OSError, json.JSONDecodeError):
+            return None
+
+    def wait_for(self, predicate, timeout: float = 60) -> dict:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if self.proc.poll() is not None:
+                raise AssertionError(f"viewer exited ({self.proc.returncode}): {self.proc.stderr.read()[-2000:]}")
+            s = self.state()
+            if s is not None and predicate(s):
+                return s
+            time.sleep(0.1)
+        raise AssertionError(f"timed out; last state: { {k: v for k, v in (self.state() or {}).items() if k != 'frames'} }")
+
+    def xdotool(self, *args):
+        subprocess.run(["xdotool", *map(str, args)], env=self.env, check=True)
+
+    def drag(self, x, y, dx, dy, steps=10):
+        self.xdotool("mousemove", x, y)
+        time.sleep(0.2)
+        self.xdotool("mousedown", 1)
+        time.sleep(0.2)
+        for _ in range(steps):
+            self.xdotool("mousemove_relative", "--", dx // steps, dy // steps)
+            time.sleep(0.05)
+        time.sleep(0.2)
+        self.xdotool("mouseup", 1)
+
+    def save(self) -> Path:
+        count = len(self.state()["captures"])
+        self.xdotool("key", "s")
+        return Path(self.wait_for(lambda s: len(s["captures"]) > count)["captures"][-1])
+
+    def quit(self) -> int:
+        self.xdotool("key", "q")
+        return self.proc.wait(30)
+
+    def close(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@pytest.fixture
+def viewer_factory(display, tmp_path):
+    started = []
+
+    def start(*args):
+        v = Viewer(display, tmp_path, *args)
+        started.append(v)
+        return v
+
+    yield start
+    for v in started:
+        v.close()
+
+
+@pytest.fixture(scope="module")
+def headless(ctx):
+    scene = resample_scene(load_scene(sample_scene_dir()), SIZE)
+    lights = load_lights(asset_dir() / DEMO_LIGHTS)
+    from viewer.envmap import load_envmap
+
+    env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr").pixels
+    engine = Engine(ctx, scene, EngineOptions())
+    engine.set_environment(env)
+    yield scene, lights, engine
+    engine.release()
+
+
+def render_hdr(headless, yaw, lights=None):
+    scene, base, engine = headless
+    apply_settings(engine, scene, lights or base, RenderSettings(yaw=yaw), True)
+    engine.render()
+    return engine.read_hdr()
+
+
+def rel_l1(a, b):
+    return float(np.abs(a - b).sum() / max(np.abs(b).sum(), 1e-12))
+
+
+def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
+    v = viewer_factory()
+    first = v.save()
+    s = v.state()
+    x, y, w, h = s["image_rect"]
+    v.drag(int(x + w * 0.4), int(y + h * 0.5), 60, 0)
+    # 0.5 degrees per pixel; dragging right turns the map (and its lights) to the right
+    s = v.wait_for(lambda s: abs(s["look"]["yaw"] - (DEMO_YAW - 30.0)) < 1e-6, 30)
+    second = v.save()
+    a, b = read_exr(first.with_suffix(".exr")), read_exr(second.with_suffix(".exr"))
+    assert rel_l1(a, render_hdr(headless, DEMO_YAW)) < 1e-3
+    assert rel_l1(b, render_hdr(headless, DEMO_YAW - 30.0)) < 1e-3
+    assert rel_l1(b, a) > 0.05  # the picture changed: highlights and shadows moved with the lights
+    # the saved lights are the rotated ones the frame was rendered with
+    saved = json.loads(second.with_suffix(".json").read_text())
+    assert saved["look"]["yaw"] == pytest.approx(DEMO_YAW - 30.0)
+    lights = headless[1].rotated(DEMO_YAW - 30.0)
+    np.testing.assert_allclose([l["direction"] for l in saved["lights"]["lights"]], lights.direction, atol=1e-5)
+    # the panel's frame-time record saw preview frames during the drag and a full frame after it
+    kinds = [k for _, k in v.state()["frames"]]
+    assert "drag" in kinds and "update" in kinds[kinds.index("drag"):]
+    # the window can be resized (the image is fitted into the new area), and closing it exits cleanly
+    wid = subprocess.run(["xdotool", "search", "--name", "^relight$"], env=v.env, capture_output=True, text=True,
+                         check=True).stdout.split()[0]
+    v.xdotool("windowsize", wid, 700, 600)
+    s = v.wait_for(lambda s: s["image_rect"][2] == pytest.approx(300.0), 30)  # 700 - the 400-pixel panel
+    assert s["image_rect"][3] == pytest.approx(300.0)
+    assert v.quit() == 0
+
+
+def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
+    scene, base, engine = headless
+    v = viewer_factory()
+    k = int(np.argmax(base.intensity.sum(axis=1)))  # the brightest light: its shadow shows most
+    s = v.state()
+    x0, y0, x1, y1 = s["widgets"][f"sigma {k}"]
+    old = s["sigma"][k]
+    v.xdotool("mousemove", int(x0 + 0.9 * (x1 - x0)), int((y0 + y1) / 2))
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    s = v.wait_for(lambda s: s["sigma"][k] > old + 10, 30)
+    new = s["sigma"][k]
+    shot = v.save()
+    shown = read_exr(shot.with_suffix(".exr"))
+    softer = base.with_sigma(k, new)
+    assert rel_l1(shown, render_hdr(headless, DEMO_YAW, softer)) < 1e-3
+    assert rel_l1(shown, render_hdr(headless, DEMO_YAW)) > 1e-3
+
+    def penumbra(lights):
+        """Pixels facing the light (away from its terminator) that are partly shadowed."""
+        render_hdr(headless, DEMO_YAW, lights)
+        out = engine.read_light(k)
+        facing = out["diffuse"] > 0.05
+        vis = out["visibility_soft"][facing]
+        return int(((vis > 0.05) & (vis < 0.95)).sum())
+
+    assert penumbra(softer) > 1.5 * penumbra(base)  # the shadow's edges are wider: softer
+    assert v.quit() == 0
+
+
+def test_record_a_turn(viewer_factory, headless):
+    v = viewer_factory("--record-frames", "12")
+    v.xdotool("key", "r")
+    s = v.wait_for(lambda s: len(s["videos"]) == 1, 120)
+    frames, fps = read_video(s["videos"][0])
+    assert frames.shape == (12, SIZE, SIZE, 3) and fps == pytest.approx(30.0)
+    # the first frame is the current view (H.264 is lossy: compare loosely)
+    scene, base, engine = headless
+    render_hdr(headless, DEMO_YAW)
+    first = engine.read_display().astype(np.float32)
+    assert np.abs(frames[0].astype(np.float32) - first).mean() < 3.0
+    # and the turn is a turn: the last frame is 330 degrees on
+    render_hdr(headless, DEMO_YAW + 330.0)
+    assert np.abs(frames[-1].astype(np.float32) - engine.read_display()).mean() < 3.0
+    assert v.state()["look"]["yaw"] == pytest.approx(DEMO_YAW)  # back where the user was
+    assert v.quit() == 0
+
+
+def test_a_killed_recording_is_still_playable(viewer_factory):
+    v = viewer_factory("--record-frames", "600")
+    v.xdotool("key", "r")
+    v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 75, 240)
+    path = Path(v.state()["recording"]["path"])
+    v.proc.send_signal(signal.SIGKILL)
+    v.proc.wait()
+    frames, _ = read_video(path)
+    assert len(frames) >= 30 and frames.shape[1:] == (SIZE, SIZE, 3)
+
+
+def test_view_without_a_display_says_so(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    res = subprocess.run([*RELIGHT, "view", "--out-dir", str(tmp_path)], env=env, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2
+    assert "no display" in res.stderr and "Traceback" not in res.stderr
