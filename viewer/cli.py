@@ -211,6 +211,14 @@ def cmd_bench(args) -> int:
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
                              output=args.output or "docs/bench_engine.json", twin=not args.no_twin)
+    elif args.what == "viewer":
+        from .bench.viewer import run_viewer_benchmark
+
+        run_viewer_benchmark(sizes=args.sizes, output=args.output or "docs/bench_viewer.json")
+    elif args.what == "temporal":
+        from .bench.temporal import run_temporal_benchmark
+
+        run_temporal_benchmark(output=args.output or "docs/bench_temporal.json")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
@@ -286,9 +294,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_fit_lights)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("engine", "shadows", "lights"),
+    p.add_argument("what", choices=("engine", "shadows", "lights", "viewer", "temporal"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
-                        "lights: light fitting error vs time on the shared maps")
+                        "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
+                        "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)

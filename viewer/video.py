@@ -48,7 +48,8 @@ class VideoWriter:
         stream.pix_fmt = "yuv420p"
         stream.codec_context.time_base = self._time_base
         stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
-        stream.options = {"crf": str(crf), "preset": "veryfast"}
+        # no B-frames: frame times start at 0 and every encoded frame can be muxed at once
+        stream.options = {"crf": str(crf), "preset": "veryfast", "bf": "0"}
         self._stream = stream
         self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
         self._error: BaseException | None = None
