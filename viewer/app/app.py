@@ -53,7 +53,7 @@ class ViewerConfig:
     out_dir: Path = Path("relight-captures")
     record_frames: int = 120
     fps: float = 30.0
-    state_file: Path | None = None  # the viewer's state and widget positions as JSON (scripting, tests)
+    state_file: Path | None = None  # state, widget positions and frame times as JSON (scripts, tests, benchmarks)
     bundled_maps: tuple = ()
 
 
@@ -84,6 +84,7 @@ class ViewerApp:
         self.captures: list[str] = []
         self.videos: list[str] = []
         self._state_text = ""
+        self._state_time = 0.0
         self._capture_index = 0
         self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd())
         self.show_browser = False
@@ -283,9 +284,10 @@ class ViewerApp:
             "error": self.error,
         }
         text = json.dumps(state)
-        if text == self._state_text and not force:
+        now = time.monotonic()
+        if text == self._state_text and not force and now - self._state_time < 1.0:  # frame times: once a second
             return
-        self._state_text = text
+        self._state_text, self._state_time = text, now
         state["frame_count"] = self.frame_count
         state["frames"] = [[round(ms, 3), kind] for ms, kind in self.frames]
         tmp = path.with_name(f".{path.name}.tmp")

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..gl import Engine, EngineOptions, create_headless_context, describe
+from ..gl import Engine, EngineOptions, create_headless_context
+from ..gl.context import describe
 from ..lights import load_lights
 from ..render import RenderSettings, apply_settings, turntable_yaws
 from ..resources import asset_dir, sample_scene_dir
