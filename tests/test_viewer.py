@@ -219,7 +219,30 @@ def test_record_a_turn(viewer_factory, headless):
     render_hdr(headless, DEMO_YAW + 330.0)
     assert np.abs(frames[-1].astype(np.float32) - engine.read_display()).mean() < 3.0
     assert v.state()["look"]["yaw"] == pytest.approx(DEMO_YAW)  # back where the user was
+    # L records what the user does until L again: frames timed by the wall clock
+    v.xdotool("key", "l")
+    s = v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 3, 60)
+    x, y, w, h = s["image_rect"]
+    v.drag(int(x + w * 0.4), int(y + h * 0.5), 40, 0, steps=4)
+    v.xdotool("key", "l")
+    s = v.wait_for(lambda s: len(s["videos"]) == 2, 60)
+    live, _ = read_video(s["videos"][1])
+    assert len(live) >= 4 and np.abs(np.diff(live.astype(np.float32), axis=0)).mean(axis=(1, 2, 3)).max() > 1.0
     assert v.quit() == 0
+
+
+def test_sigterm_while_recording_finishes_the_video(viewer_factory):
+    v = viewer_factory("--record-frames", "600")
+    v.xdotool("key", "r")
+    s = v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 5, 120)
+    path = Path(s["recording"]["path"])
+    v.proc.send_signal(signal.SIGTERM)
+    assert v.proc.wait(60) == 0
+    recorded = json.loads(v.state_path.read_text())["videos"]
+    assert recorded == [str(path)]
+    frames, _ = read_video(path)
+    assert 5 <= len(frames) < 600
+    assert "stopped after" in v.proc.stdout.read()
 
 
 def test_a_killed_recording_is_still_playable(viewer_factory):

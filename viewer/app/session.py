@@ -57,9 +57,7 @@ class Session:
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
         self.look = look or Look()
-        self.last_engine: Engine | None = None
-        for eng in (self.final,):
-            self._set_environment(eng)
+        self._set_environment(self.final)
 
     # ------------------------------------------------------------------ state
     @property
@@ -117,7 +115,6 @@ class Session:
         eng.set_display(exposure=lk.exposure, tonemap=lk.tonemap, background=background, color=(0.18, 0.18, 0.18),
                         environment_rotation=rotation_matrix(lk.yaw, lk.tilt).T)
         eng.render()
-        self.last_engine = eng
         return eng
 
     def release(self):

@@ -1,0 +1,69 @@
+"""The viewer's session (engines, preview, lights) and light jobs, without a window."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from viewer.app.jobs import LightJob, sidecar_lights
+from viewer.app.session import PREVIEW_SIZE, Session
+from viewer.envmap import load_envmap
+from viewer.gl import Engine, EngineOptions
+from viewer.lights import load_lights
+from viewer.render import RenderSettings, apply_settings
+from viewer.resources import asset_dir, sample_scene_dir
+from viewer.scene import load_scene
+
+MAPS = asset_dir() / "envmaps"
+
+
+def test_session_final_and_preview(ctx):
+    scene = load_scene(sample_scene_dir())
+    lights = load_lights(MAPS / "immenstadter_horn_256.lights.json")
+    env = load_envmap(MAPS / "immenstadter_horn_256.hdr").pixels
+    s = Session(ctx, scene, lights, env)
+    s.update(yaw=150.0, exposure=0.5)
+    s.set_sigma(0, 12.0)
+    final = s.render(preview=False)
+    ref = Engine(ctx, scene, EngineOptions())
+    ref.set_environment(env)
+    apply_settings(ref, scene, lights.with_sigma(0, 12.0), RenderSettings(yaw=150.0, exposure=0.5), True)
+    ref.render()
+    np.testing.assert_array_equal(final.read_display(), ref.read_display())
+    ref.release()
+    preview = s.render(preview=True)
+    assert preview is not final and preview.scene.width == PREVIEW_SIZE
+    assert preview.counters["csm_basis"] == 0 and preview.counters["shadow_map"] > 0  # hard shadows while dragging
+    # shading and inspection views and switches go to the same engines
+    s.update(view="albedo")
+    shown = s.render().read_display()
+    m = scene.mask
+    assert np.abs(shown[m].astype(np.float32) / 255 - np.clip(scene.albedo[m], 0, 1) ** (1 / 2.2)).mean() < 0.02
+    # new lights (another map): the sliders restart from their sigmas, a shadow view of a light
+    # that no longer exists falls back to the relit image
+    s.update(view="shadow", light=15)
+    few = load_lights(MAPS / "studio_small_03_256.lights.json")
+    few = type(few)(few.direction[:4], few.sigma[:4], few.intensity[:4])
+    s.set_lights(few, environment=load_envmap(MAPS / "studio_small_03_256.hdr").pixels)
+    assert s.look.view == "final" and len(s.sigma) == 4
+    np.testing.assert_array_equal(s.sigma, few.sigma)
+    s.render()
+    s.release()
+
+
+def test_light_jobs(tmp_path, monkeypatch):
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
+    studio = MAPS / "studio_small_03_256.hdr"
+    assert sidecar_lights(studio, 16, "fast") is not None
+    assert sidecar_lights(studio, 8, "fast") is None and sidecar_lights(studio, 16, "paper") is None
+    job = LightJob(studio, 16, "fast")
+    job._thread.join(60)
+    assert job.done and job.error is None and job.result.how == "bundled" and len(job.result.lights) == 16
+    missing = LightJob(tmp_path / "nope.hdr", 16, "fast")
+    missing._thread.join(60)
+    assert missing.result is None and "nope.hdr" in missing.error
+    bad = tmp_path / "bad.hdr"
+    bad.write_bytes(b"not an hdr")
+    broken = LightJob(bad, 16, "fast")
+    broken._thread.join(60)
+    assert broken.result is None and "bad.hdr" in broken.error
