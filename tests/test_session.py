@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from viewer.app.jobs import LightJob, sidecar_lights
 from viewer.app.session import PREVIEW_SIZE, Session

@@ -27,7 +27,6 @@ def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
 
 
 def draw_panel(app):
-    s = app.session
     w, h = app.window.size
     imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0))
     imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, h))

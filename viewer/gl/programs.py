@@ -31,7 +31,7 @@ def shader_source(name: str, defines: dict | None = None, directory: Path | None
     lines = [GLSL_VERSION]
     for key, value in (defines or {}).items():
         lines.append(f"#define {key} {value}" if value is not None else f"#define {key}")
-    lines.append(f"#line 1")
+    lines.append("#line 1")
     return "\n".join(lines) + "\n" + expand(name)
 
 
