@@ -11,6 +11,7 @@ uniform vec2 depth_range;       // nearest and farthest depth inside the mask (m
 uniform ivec2 tile_origin;      // the inspected light's tile in the light atlas
 uniform ivec2 box_origin;       // the mask's bounding box in the image
 uniform int visibility_channel; // 0 soft, 1 hard
+uniform bool light_valid;       // false for a light that contributes nothing (skipped): shown black
 uniform vec3 background_color;  // display (sRGB) colour outside the mask
 layout(location = 0) out vec4 color;
 void main() {
@@ -32,7 +33,7 @@ void main() {
     } else if (view == 5) {
         c = vec3(clamp(pr.w, 0.0, 1.0));
     } else {
-        vec4 b = texelFetch(light_plane, px - box_origin + tile_origin, 0);
+        vec4 b = light_valid ? texelFetch(light_plane, px - box_origin + tile_origin, 0) : vec4(0.0);
         // where the surface faces away from the light (no shading) the light's visibility is 0
         c = vec3(clamp(visibility_channel == 0 ? b.x : b.y, 0.0, 1.0));
     }

@@ -357,6 +357,8 @@ def test_shadow_modes_do_only_the_work_they_show(ctx, scene):
     ref.set_visibility("none")
     ref.render()
     np.testing.assert_allclose(unshadowed, ref.read_hdr(), rtol=1e-6, atol=1e-7)
+    out = ref.read_light(0)  # no shadows computed: unit visibility wherever the light shades
+    assert out["diffuse"].sum() > 0 and (out["visibility_soft"][out["diffuse"] > 0] == 1.0).all()
     assert unshadowed.sum() > hard.sum()  # (at different rotations, but the box shadows either)
     eng.release()
     ref.release()
@@ -391,8 +393,13 @@ def test_components_and_views(ctx):
     # none of this redid a light pass
     assert eng.counters["light_pass"] == passes["light_pass"] and eng.counters["shadow_map"] == passes["shadow_map"]
     m = sc.mask
+    eng.set_view("final")
+    eng.render()
+    composites = eng.counters["composite"]
     eng.set_view("normal")
     eng.render()
+    assert eng.counters["composite"] == composites  # an inspection view redoes the display only
+    np.testing.assert_array_equal(eng.read_hdr(), full)  # and the HDR output stays the relit image
     shown = eng.read_display().astype(np.float32) / 255
     np.testing.assert_allclose(shown[m], sc.normal[m] * 0.5 + 0.5, atol=1 / 255 + 1e-6)
     eng.set_view("roughness")

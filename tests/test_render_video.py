@@ -123,3 +123,44 @@ def test_drag_and_wheel_mapping():
     u = ((cursor[0] - before[0]) / before[2], (cursor[1] - before[1]) / before[3])
     assert after[0] + u[0] * after[2] == pytest.approx(cursor[0]) and after[1] + u[1] * after[3] == pytest.approx(cursor[1])
     assert ix.image_rect((512, 256), (400, 400)) == (0.0, 100.0, 400.0, 200.0)
+
+
+def test_video_writer_reports_an_encoder_failure(tmp_path):
+    """A failing encoder makes close() raise (it neither hangs nor reports success)."""
+    import threading
+
+    v = VideoWriter(tmp_path / "fail.mp4", 16, 16)
+    v.write(np.zeros((16, 16, 3), np.uint8))
+
+    class Failing:
+        def __init__(self, stream):
+            self.stream = stream
+
+        def encode(self, frame=None):
+            raise OSError("disk full")
+
+    v._stream = Failing(v._stream)
+    errors = []
+
+    def close():
+        try:
+            v.close()
+        except RuntimeError as exc:
+            errors.append(str(exc))
+
+    t = threading.Thread(target=close, daemon=True)
+    t.start()
+    t.join(20)
+    assert not t.is_alive() and errors and "disk full" in errors[0]
+
+
+def test_passes_sheet_without_shadows(tmp_path):
+    """--visibility none renders no shadows, but the passes sheet still shows both visibilities."""
+    out = tmp_path / "flat.png"
+    assert main(["render", str(sample_scene_dir()), str(LIGHTS), "--visibility", "none", "--size", "128",
+                 "--out", str(out)]) == 0
+    sheet = read_png(tmp_path / "flat_passes.png")
+    h = sheet.shape[0] // 2
+    w = sheet.shape[1] // 4
+    for i in range(3):  # soft shadows, hard shadows, shading: none of them black
+        assert sheet[h + 20:, i * w:(i + 1) * w].mean() > 0.02

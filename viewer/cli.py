@@ -125,8 +125,6 @@ def cmd_render(args) -> int:
     from .render import render_turntable
 
     frames = 120 if args.frames is None else args.frames
-    if frames < 1:
-        raise InputError(None, f"--frames must be at least 1, got {frames}")
     scene, lights, env = _prepare(args.scene, args.lights, args.envmap, args)
     engine = Engine(create_headless_context(), scene, _engine_options(args))
     start = time.perf_counter()
@@ -152,7 +150,12 @@ def cmd_view(args) -> int:
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
     env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
-    yaw = args.yaw if args.yaw is not None else (DEMO_YAW if args.scene is None and args.envmap is None else 0.0)
+    demo = args.scene is None and args.envmap is None and args.lights is None
+    yaw = args.yaw if args.yaw is not None else (DEMO_YAW if demo else 0.0)
+    if args.record_frames < 1:
+        raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
+    if not (np.isfinite(args.fps) and args.fps > 0):
+        raise InputError(None, f"--fps must be a positive number, got {args.fps}")
     scene = load_scene(scene_path)
     if args.size is not None:
         from .scene_ops import resample_scene
@@ -172,8 +175,7 @@ def cmd_view(args) -> int:
 
     look = Look(yaw=yaw, tilt=args.tilt, exposure=args.exposure, shadows=args.visibility)
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
-                          env_path=Path(env_path) if env_path is not None else None, n_lights=args.lights_count,
-                          method=args.method, options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
+                          env_path=Path(env_path) if env_path is not None else None, method=args.method, options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))))

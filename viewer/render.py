@@ -52,12 +52,14 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
         engine.set_environment(environment)
     apply_settings(engine, scene, lights, settings, environment is not None)
     engine.render()
-    written = [
-        write_png(out_dir / f"{name}.png", engine.read_display().astype(np.float32) / 255.0),
-        write_exr(out_dir / f"{name}.exr", engine.read_hdr()),
-    ]
+    display = engine.read_display().astype(np.float32) / 255.0
+    written = [write_png(out_dir / f"{name}.png", display), write_exr(out_dir / f"{name}.exr", engine.read_hdr())]
     if passes:
-        written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene)))
+        if settings.visibility != "soft":  # the sheet shows both visibilities: compute the soft one too
+            engine.set_visibility("soft")
+            engine.render()
+        written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene, display)))
+        engine.set_visibility(settings.visibility)
     return written
 
 
@@ -89,10 +91,10 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: R
     return Path(path)
 
 
-def passes_sheet(engine, scene: Scene) -> np.ndarray:
+def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
     """A 2 x 4 picture of the inputs and intermediate passes, for looking rather than reading:
     albedo, normal, depth, specular | summed soft visibility, summed hard visibility, shading
-    without shadows, final display."""
+    without shadows, ``final`` (the display image, float RGB in [0, 1])."""
     m = scene.mask
     n = len(engine.lights)
     weights = engine.lights.intensity.mean(axis=1)
@@ -122,7 +124,7 @@ def passes_sheet(engine, scene: Scene) -> np.ndarray:
         linear_to_srgb(grey(soft / scale)),
         linear_to_srgb(grey(hard / scale)),
         linear_to_srgb(grey(shade / scale)),
-        engine.read_display().astype(np.float32) / 255.0,
+        final,
     ]
     names = ["albedo", "normal", "depth", "specular", "soft shadows (CSM)", "hard shadows (shadow map)",
              "shading, no shadows", "final"]

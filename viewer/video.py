@@ -40,16 +40,23 @@ class VideoWriter:
         self.frames = 0
         self._last_pts = -1
         # flush_packets: each finished fragment reaches the file at once, not when an I/O buffer fills
-        self._container = av.open(str(self.path), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
-        rate = Fraction(self.fps).limit_denominator(1001)
-        self._time_base = 1 / (rate * TICKS_PER_FRAME)
-        stream = self._container.add_stream("libx264", rate=rate)
-        stream.width, stream.height = (v + v % 2 for v in self.size)  # 4:2:0 needs even sides
-        stream.pix_fmt = "yuv420p"
-        stream.codec_context.time_base = self._time_base
-        stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
-        # no B-frames: frame times start at 0 and every encoded frame can be muxed at once
-        stream.options = {"crf": str(crf), "preset": "veryfast", "bf": "0"}
+        try:
+            self._container = av.open(str(self.path), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
+        except (OSError, av.FFmpegError) as exc:
+            raise InputError(self.path, f"cannot write the video ({exc})") from None
+        try:
+            rate = Fraction(self.fps).limit_denominator(1001)
+            self._time_base = 1 / (rate * TICKS_PER_FRAME)
+            stream = self._container.add_stream("libx264", rate=rate)
+            stream.width, stream.height = (v + v % 2 for v in self.size)  # 4:2:0 needs even sides
+            stream.pix_fmt = "yuv420p"
+            stream.codec_context.time_base = self._time_base
+            stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
+            # no B-frames: frame times start at 0 and every encoded frame can be muxed at once
+            stream.options = {"crf": str(crf), "preset": "veryfast", "bf": "0"}
+        except Exception:
+            self._container.close()
+            raise
         self._stream = stream
         self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
         self._error: BaseException | None = None
@@ -76,10 +83,12 @@ class VideoWriter:
     def _encode_loop(self):
         import av
 
+        finished = False  # the end-of-stream marker was taken from the queue
         try:
             while True:
                 item = self._queue.get()
                 if item is None:
+                    finished = True
                     break
                 rgb, pts = item
                 frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
@@ -90,10 +99,13 @@ class VideoWriter:
                 self._container.mux(packet)
         except BaseException as exc:  # reported to the writer's thread by write() / close()
             self._error = exc
-            while self._queue.get() is not None:  # let a blocked write() and close() go on
+            while not finished and self._queue.get() is not None:  # let a blocked write() and close() go on
                 pass
         finally:
-            self._container.close()
+            try:
+                self._container.close()
+            except BaseException as exc:
+                self._error = self._error or exc
 
     def _raise_pending(self):
         if self._error is not None:

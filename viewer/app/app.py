@@ -27,6 +27,7 @@ from .session import Look, Session
 PANEL_WIDTH = 400
 STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
+JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
 FRAME_HISTORY = 600
 
 KEYS_HELP = """\
@@ -46,7 +47,6 @@ class ViewerConfig:
     lights: AreaLights
     environment: np.ndarray | None
     env_path: Path | None
-    n_lights: int = 16
     method: str = "fast"
     options: object = None  # EngineOptions
     look: Look = field(default_factory=Look)
@@ -149,7 +149,18 @@ class ViewerApp:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         return self.config.out_dir / f"relight-{stamp}-{self._capture_index:03d}"
 
+    def _report(self, what: str, exc: Exception):
+        """An error in an action: shown in the panel and printed; the viewer goes on."""
+        self.error = f"{what}: {exc}"
+        print(f"relight: error: {self.error}", file=sys.stderr, flush=True)
+
     def save_frame(self):
+        try:
+            self._save_frame()
+        except Exception as exc:  # an unwritable folder, a full disk: reported, the viewer goes on
+            self._report("saving the frame failed", exc)
+
+    def _save_frame(self):
         """The current state at full quality: display PNG, HDR EXR and a JSON of lights and look."""
         eng = self.session.render(preview=False)
         stem = self._capture_stem()
@@ -168,25 +179,34 @@ class ViewerApp:
             return
         sc = self.session.scene
         path = self._capture_stem().with_suffix(".mp4")
-        if kind == "turntable":
-            self.recording = TurntableRecording(path, (sc.width, sc.height), self.view.yaw, self.config.record_frames, self.config.fps)
-        else:
-            self.recording = LiveRecording(path, (sc.width, sc.height), self.config.fps)
+        try:
+            if kind == "turntable":
+                self.recording = TurntableRecording(path, (sc.width, sc.height), self.view.yaw, self.config.record_frames,
+                                                    self.config.fps)
+            else:
+                self.recording = LiveRecording(path, (sc.width, sc.height), self.config.fps)
+        except Exception as exc:
+            self._report(f"cannot record to {path}", exc)
+            return
         self.message = f"recording {path.name}"
 
     def _finish_recording(self, stopped: bool = False):
         rec, self.recording = self.recording, None
-        path = rec.close()
         if isinstance(rec, TurntableRecording):
             self.view = replace(self.view, yaw=rec.start_yaw)
             self.session.update(yaw=rec.start_yaw)
+        try:
+            path = rec.close()
+        except Exception as exc:
+            self._report(f"recording {rec.path} failed", exc)
+            return
         how = "stopped after" if stopped and not rec.finished else "recorded"
         self.videos.append(str(path))
         self.message = f"{how} {rec.done} frames: {path.name}"
         print(f"{how} {rec.done} frames to {path}", flush=True)
 
     def open_map(self, path: Path, n: int | None = None):
-        if self.job is not None and not self.job.done:
+        if self.job is not None:
             self.message = "still fitting the previous map"
             return
         self.error = ""
@@ -222,7 +242,16 @@ class ViewerApp:
         s.render(preview=preview)
         worked = sum(eng.counters.values()) != before
         if rec is not None:
-            rec.add(eng.read_display())
+            try:
+                rec.add(eng.read_display())
+            except Exception as exc:
+                self._report(f"recording {rec.path} failed", exc)
+                self.recording = None
+                try:
+                    rec.close()  # releases the file; its error is the one just reported
+                except Exception:
+                    pass
+                return eng, "record"
             if rec.finished:
                 self._finish_recording()
             return eng, "record"
@@ -235,8 +264,8 @@ class ViewerApp:
         previous = signal.signal(signal.SIGTERM, lambda *_: w.close()) if os.name == "posix" else None
         try:
             while not w.should_close:
-                busy = self.dragging or self.panning or self.recording is not None or self.job is not None
-                w.wait(None if busy else IDLE_WAIT)
+                busy = self.dragging or self.panning or self.recording is not None
+                w.wait(None if busy else (JOB_WAIT if self.job is not None else IDLE_WAIT))
                 start = time.perf_counter()
                 w.begin_frame()
                 self._input()
@@ -249,11 +278,13 @@ class ViewerApp:
                 self.frame_count += 1
                 self._write_state()
         finally:
-            if self.recording is not None:
-                self._finish_recording(stopped=True)
-            self._write_state(force=True)
-            self.session.release()
-            w.release()
+            try:
+                if self.recording is not None:
+                    self._finish_recording(stopped=True)
+                self._write_state(force=True)
+            finally:
+                self.session.release()
+                w.release()
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
         return 0

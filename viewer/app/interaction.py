@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 DEGREES_PER_PIXEL = 0.5  # of mouse motion, in window pixels
 EXPOSURE_PER_NOTCH = 0.25  # stops per wheel notch
 ZOOM_PER_NOTCH = 1.15
-ZOOM_RANGE = (0.25, 16.0)
+ZOOM_RANGE = (0.25, 8.0)  # at 8x a fitted 1000-pixel image spans 8000 pixels: within GL viewport limits
 TILT_RANGE = (-90.0, 90.0)
 EXPOSURE_RANGE = (-20.0, 20.0)
 

@@ -221,6 +221,9 @@ class Engine:
             self._allocate_light_atlas()
             moved = list(range(len(self._lights)))
             self._dirty_composite = True
+            if self._view[0] == "shadow" and self._view[1] >= len(self._lights):
+                self._view = ("final", 0)  # the inspected light is gone
+                self._dirty_display = self._dirty_background = True
         else:
             moved = []
             for k, (l, d, s, i) in enumerate(zip(self._lights, lights.direction, lights.sigma, lights.intensity)):
@@ -282,11 +285,21 @@ class Engine:
             raise ValueError(f"no light {light}: there are {len(self._lights)}")
         new = (view, int(light) if view == "shadow" else 0)
         if new != self._view:
-            shading = {"final", "diffuse_shading", "specular_shading"}
-            if view in shading or self._view[0] in shading:
-                self._dirty_composite = True
+            terms = self._composite_terms()
             self._view = new
+            if self._composite_terms() != terms:
+                self._dirty_composite = True
             self._dirty_display = self._dirty_background = True
+
+    def _composite_terms(self) -> tuple[float, float, bool]:
+        """(diffuse weight, specular weight, unit albedo) of the composite: the shading views show
+        one term; every other view keeps the relit image (the HDR output) as the switches say."""
+        view = self._view[0]
+        if view == "diffuse_shading":
+            return 1.0, 0.0, True
+        if view == "specular_shading":
+            return 0.0, 1.0, False
+        return float(self._components[0]), float(self._components[1]), False
 
     def set_display(self, exposure: float | None = None, tonemap: str | None = None, background: str | None = None,
                     color=None, environment_rotation=None):
@@ -364,8 +377,8 @@ class Engine:
         if not l.active:
             return _PASS_OFF
         visibility = self._visibility
-        if visibility == "none" and self._view[0] == "shadow":
-            visibility = "soft"  # the shadow view shows the soft visibility then
+        if visibility == "none" and self._view[0] == "shadow" and self._lights[self._view[1]] is l:
+            visibility = "soft"  # the shadow view shows the inspected light's soft visibility then
         if visibility == "none":
             return _PASS_UNSHADOWED
         if visibility == "hard" or self._soft_is_hard(l):
@@ -542,10 +555,9 @@ class Engine:
                 prog[f"light_plane{j}"] = 1 + j
             prog["box_origin"] = (x, y)
             prog["visibility_channel"] = VISIBILITY_MODES[self._visibility]
-            view = self._view[0]
-            diffuse, specular = self._components if view == "final" else (view == "diffuse_shading", view == "specular_shading")
-            prog["term_weights"] = (float(diffuse), float(specular))
-            prog["unit_albedo"] = view == "diffuse_shading"
+            diffuse, specular, unit_albedo = self._composite_terms()
+            prog["term_weights"] = (diffuse, specular)
+            prog["unit_albedo"] = unit_albedo
             k = MAX_LIGHTS_PER_COMPOSITE
             chunks = [self._lights[i:i + k] for i in range(0, len(self._lights), k)]
             for c, chunk in enumerate(chunks):
@@ -607,6 +619,7 @@ class Engine:
             light = self._lights[index] if view == "shadow" else None
             (self.light_planes[light.slot] if light is not None else self.tex_albedo).use(3)
             prog["light_plane"] = 3
+            prog["light_valid"] = light is not None and light.active and light.pass_mode != _PASS_OFF
             prog["tile_origin"] = light.tile if light is not None else (0, 0)
             prog["box_origin"] = self._mask_box[:2]
             prog["visibility_channel"] = 1 if self._visibility == "hard" else 0
@@ -621,6 +634,10 @@ class Engine:
             raise ValueError("no lights: call set_lights first")
         active = [l for l in self._lights if l.active]  # inactive lights stay dirty until they count
         need = {id(l): self._needed_pass(l) for l in self._lights}
+        if self._visibility == "none":  # the composite ignores visibility: any computed pass will do
+            for l in self._lights:
+                if need[id(l)] == _PASS_UNSHADOWED and l.pass_mode != _PASS_OFF and not l.dirty_shading:
+                    need[id(l)] = l.pass_mode
         # Stage by stage over all lights: each stage only waits for the previous one once.
         for l in active:
             if l.dirty_shadow and need[id(l)] in (_PASS_HARD, _PASS_SOFT):
@@ -676,7 +693,7 @@ class Engine:
         l = self._lights[index]
         h, w = self.scene.height, self.scene.width
         full = np.zeros((h, w, 4), np.float32)
-        if l.active and l.shadow_map is not None:
+        if l.active and l.pass_mode != _PASS_OFF:
             x, y, bw, bh = self._mask_box
             data = self.light_atlas_fbo.read(viewport=(l.tile[0], l.tile[1], bw, bh), components=4, dtype="f4",
                                              attachment=l.slot)
