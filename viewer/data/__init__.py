@@ -1,0 +1,1 @@
+"""Synthetic data and ray-traced ground truth (Mitsuba 3)."""
