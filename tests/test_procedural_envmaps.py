@@ -1,0 +1,57 @@
+"""Procedural environment maps for training (viewer/data/envmaps.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from viewer.data.envmaps import KINDS, random_map, sky, studio, overcast
+from viewer.envmap import pixel_directions, solid_angles
+from viewer.median_cut import median_cut_lights
+
+
+def test_same_seed_same_map_bit_for_bit():
+    for seed in (0, 1, 7):
+        a, b = random_map(seed, 64), random_map(seed, 64)
+        assert a.kind == b.kind and np.array_equal(a.env.pixels, b.env.pixels)
+    assert not np.array_equal(random_map(0, 64).env.pixels, random_map(1, 64).env.pixels)
+    assert {random_map(s, 32).kind for s in range(30)} == set(KINDS)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sun_keeps_its_energy_and_place(seed):
+    m = sky(np.random.default_rng(seed), 128)
+    sun = m.emitters[0]
+    px = m.env.pixels.astype(np.float64)
+    assert np.isfinite(px).all() and (px >= 0).all()
+    # the sun's energy is all there: the map's energy = sky + sun
+    h, w = px.shape[:2]
+    omega = solid_angles(h, w)
+    d = pixel_directions(h, w)
+    near = d @ sun.direction >= np.cos(sun.radius + 2 * np.pi / w * 2)
+    sun_energy = (px * near[..., None] * omega[:, None, None]).sum(axis=(0, 1))
+    assert sun_energy == pytest.approx(sun.energy, rel=0.05)  # (plus the sky around it: small next to a sun)
+    # and its brightest texel is within the sun's radius (plus a texel) of its direction
+    i, j = np.unravel_index(np.argmax(px.sum(-1)), px.shape[:2])
+    angle = np.degrees(np.arccos(np.clip(d[i, j] @ sun.direction, -1, 1)))
+    assert angle <= np.degrees(sun.radius) + 360.0 / w
+
+
+def test_tiny_sun_is_not_lost():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        m = sky(rng, 32)  # 11-degree texels: suns of 0.25-8 degrees are often below a sub-texel
+        sun = m.emitters[0]
+        assert m.env.energy().max() >= 0.99 * sun.energy.max()
+
+
+def test_studio_and_overcast():
+    st = studio(np.random.default_rng(5), 128)
+    assert 2 <= len(st.emitters) <= 4
+    lights = median_cut_lights(st.env, 8)
+    strongest = lights.direction[np.argmax(lights.intensity.sum(1))]
+    assert max(float(strongest @ e.direction) for e in st.emitters) > np.cos(np.radians(25))
+    oc = overcast(np.random.default_rng(2), 128).env.pixels
+    zenith, horizon = oc[0].mean(axis=0), oc[31].mean(axis=0)  # row 0: at the zenith; row 31: just above the horizon
+    assert zenith / horizon == pytest.approx(np.full(3, 3.0), rel=0.06)  # CIE overcast: 3x brighter at the zenith
+    assert oc[32:].max() < oc[31].min()  # the ground is dimmer than the sky
