@@ -1,0 +1,152 @@
+"""Procedural materials of the synthetic people: regions (skin, hair, eyes, garments, shoes) from
+rest-pose fields, colours and patterns (stripes, noise) and Disney specular / roughness per region.
+Patterns are functions of the rest-pose position, so they follow the body through any pose."""
+
+from __future__ import annotations
+
+import numpy as np
+
+def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:
+    """Smooth 3D value noise in [-1, 1] at points p (..., 3), lattice spacing ``scale`` metres."""
+    rng = np.random.default_rng(seed)
+    table = rng.uniform(-1.0, 1.0, size=(64, 64, 64))
+    q = p / scale + 32.0
+    i = np.floor(q).astype(np.int64)
+    fr = q - i
+    fr = fr * fr * (3.0 - 2.0 * fr)
+    out = np.zeros(p.shape[:-1])
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                wgt = (fr[..., 0] if dx else 1 - fr[..., 0]) * (fr[..., 1] if dy else 1 - fr[..., 1]) * (fr[..., 2] if dz else 1 - fr[..., 2])
+                out += wgt * table[(i[..., 0] + dx) % 64, (i[..., 1] + dy) % 64, (i[..., 2] + dz) % 64]
+    return out
+
+
+def fbm(p: np.ndarray, scale: float, seed: int, octaves: int = 3) -> np.ndarray:
+    total, amp, norm = np.zeros(p.shape[:-1]), 1.0, 0.0
+    for o in range(octaves):
+        total += amp * value_noise(p, scale / 2**o, seed + o)
+        norm += amp
+        amp *= 0.5
+    return total / norm
+
+
+def smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+# (albedo linear RGB, specular, roughness)
+MATERIALS = {
+    "skin": ((0.52, 0.33, 0.25), 0.5, 0.45),
+    "hair": ((0.08, 0.05, 0.035), 0.4, 0.35),
+    "eye": ((0.50, 0.46, 0.42), 0.6, 0.15),  # sclera ...
+    "iris": ((0.12, 0.07, 0.04), 0.6, 0.15),  # ... brown iris ...
+    "pupil": ((0.02, 0.02, 0.02), 0.6, 0.15),  # ... and pupil
+    "shirt": ((0.40, 0.11, 0.07), 0.3, 0.7),  # brick red ...
+    "stripe": ((0.50, 0.45, 0.36), 0.3, 0.7),  # ... with cream stripes
+    "trousers": ((0.075, 0.10, 0.17), 0.2, 0.85),  # denim-like blue
+    "belt": ((0.07, 0.04, 0.025), 0.45, 0.4),
+    "shoe": ((0.04, 0.04, 0.045), 0.5, 0.3),
+    "sole": ((0.45, 0.44, 0.42), 0.3, 0.6),
+}
+
+
+def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray) -> dict:
+    """Material regions (boolean arrays) from rest-pose fields (..., 8) as made by build_body."""
+    p = fields[..., 0:3].astype(np.float64)  # rest position, anny axes (x left, -y front, z up)
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    w_arm, t_arm, w_head, w_eye, w_foot = (fields[..., k] for k in range(3, 8))
+
+    z_sole = rest_verts[:, 2].min()
+    z_ankle = 0.5 * (heads["foot.L"][2] + heads["foot.R"][2])
+    z_hip = 0.5 * (heads["upperleg01.L"][2] + heads["upperleg01.R"][2])
+    z_spine = heads["spine01"][2]
+    z_waist = z_hip + 0.22 * (z_spine - z_hip)
+    head_c = heads["head"]
+    eye_z = 0.5 * (heads["eye.L"][2] + heads["eye.R"][2])
+    head_top = rest_verts[rest_verts[:, 2] > eye_z, 2].max()
+
+    # hair: above a hairline that is high over the forehead and low at the nape, ears left bare
+    ry = y - head_c[1]  # > 0 towards the back of the head
+    hairline = (eye_z + 0.47 * (head_top - eye_z)) - 0.9 * np.clip(ry + 0.04, 0.0, None)
+    hairline = np.maximum(hairline, eye_z - 0.55 * (head_top - eye_z))
+    ear = (np.abs(x) > 0.062) & (ry > -0.045) & (ry < 0.025) & (z < eye_z + 0.035)
+    hair_noise = value_noise(p * np.array([1.0, 1.0, 0.25]), 0.004, 11)
+    is_head = w_head > 0.5
+    is_eye = w_eye > 0.5
+    is_hair = is_head & ~is_eye & (z > hairline + 0.005 * value_noise(p, 0.012, 13)) & ~ear
+
+    is_arm = (w_arm > 0.5) & ~is_head
+    sleeve_end = 0.40 + 0.01 * np.sin(40.0 * np.arctan2(y, x))  # a slightly wavy hem
+    is_arm_skin = is_arm & (t_arm > sleeve_end)
+    body = ~is_head & ~is_arm
+    is_sole = body & (z < z_sole + 0.022)
+    is_shoe = body & ~is_sole & ((z < z_ankle + 0.035) | (w_foot > 0.5))
+    legs = body & ~is_sole & ~is_shoe & (z < z_waist)
+    is_belt = legs & (z > z_waist - 0.035)
+    is_trousers = legs & ~is_belt
+    is_shirt = ~(is_head | is_arm_skin | is_sole | is_shoe | is_belt | is_trousers)
+    is_skin = (is_head & ~is_hair & ~is_eye) | is_arm_skin
+    cheeks = is_skin & is_head & (np.abs(z - (eye_z - 0.035)) < 0.025) & (ry < -0.06)
+    # on the eyeballs: cosine of the angle from the eye's forward (-y) axis
+    d_eye = np.stack([p - heads[f"eye.{side}"] for side in ("L", "R")])
+    nearest = np.take_along_axis(d_eye, np.argmin(np.linalg.norm(d_eye, axis=-1), axis=0)[None, ..., None], axis=0)[0]
+    gaze = -nearest[..., 1] / np.maximum(np.linalg.norm(nearest, axis=-1), 1e-12)
+    iris = is_eye & (gaze > np.cos(np.radians(38.0)))
+    pupil = is_eye & (gaze > np.cos(np.radians(16.0)))
+    return dict(iris=iris, pupil=pupil, shirt=is_shirt, trousers=is_trousers, belt=is_belt, skin=is_skin, cheeks=cheeks,
+                hair=is_hair, shoe=is_shoe, sole=is_sole, eye=is_eye, hair_noise=hair_noise)
+
+
+def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts: np.ndarray):
+    """Per-pixel albedo, specular and roughness from the interpolated rest-pose fields."""
+    p = fields[..., 0:3].astype(np.float64)
+    z = p[..., 2]
+    r = {k: (v & mask if v.dtype == bool else v) for k, v in classify(fields, heads, rest_verts).items()}
+    is_shirt, is_trousers, is_belt, is_skin = r["shirt"], r["trousers"], r["belt"], r["skin"]
+    is_hair, is_shoe, is_sole, is_eye, hair_noise = r["hair"], r["shoe"], r["sole"], r["eye"], r["hair_noise"]
+
+    h, w = mask.shape
+    albedo = np.zeros((h, w, 3))
+    spec = np.zeros((h, w))
+    rough = np.zeros((h, w))
+
+    def paint(sel, name, tint=None):
+        col, s, r = MATERIALS[name]
+        col = np.broadcast_to(np.array(col), (h, w, 3))
+        if tint is not None:
+            col = col * tint[..., None]
+        albedo[sel] = col[sel]
+        spec[sel] = s
+        rough[sel] = r
+
+    # shirt: horizontal cream stripes (period 7 cm in the rest pose), soft edges, faint weave noise
+    phase = np.mod(z / 0.07, 1.0)
+    stripe = smoothstep(0.0, 0.06, phase) * (1.0 - smoothstep(0.24, 0.30, phase))
+    shirt_col = (1.0 - stripe[..., None]) * np.array(MATERIALS["shirt"][0]) + stripe[..., None] * np.array(MATERIALS["stripe"][0])
+    shirt_col *= (1.0 + 0.05 * fbm(p, 0.05, 3))[..., None]
+    albedo[is_shirt] = shirt_col[is_shirt]
+    spec[is_shirt] = MATERIALS["shirt"][1]
+    rough[is_shirt] = MATERIALS["shirt"][2]
+    # trousers: low-frequency fading like worn denim
+    paint(is_trousers, "trousers", 1.0 + 0.18 * fbm(p * np.array([2.0, 2.0, 0.5]), 0.12, 5))
+    paint(is_belt, "belt")
+    paint(is_shoe, "shoe", 1.0 + 0.1 * fbm(p, 0.03, 7))
+    paint(is_sole, "sole")
+    paint(is_skin, "skin", 1.0 + 0.05 * fbm(p, 0.04, 9))
+    albedo[r["cheeks"]] *= np.array([1.04, 0.96, 0.96])  # a little redness on the cheeks
+    paint(is_hair, "hair", 1.0 + 0.2 * hair_noise)
+    paint(is_eye, "eye")
+    paint(r["iris"], "iris")
+    paint(r["pupil"], "pupil")
+
+    albedo = np.where(mask[..., None], np.clip(albedo, 0.0, 1.0), 0.0).astype(np.float32)
+    spec = np.where(mask, spec, 0.0).astype(np.float32)
+    rough = np.where(mask, rough, 0.0).astype(np.float32)
+    regions = {
+        "shirt": is_shirt, "trousers": is_trousers, "belt": is_belt, "skin": is_skin, "hair": is_hair,
+        "shoes": is_shoe | is_sole, "eyes": is_eye,
+    }
+    return albedo, spec, rough, regions
