@@ -17,7 +17,7 @@ import numpy as np
 
 from ..camera import Camera
 from .geometry import icosphere, mesh_edges, neighbour_mean, signed_volume, vertex_normals
-from .materials import classify
+from .materials import SAMPLE_OUTFIT, Outfit, classify
 
 ARM_BONES = ("upperarm", "lowerarm", "wrist", "finger", "metacarpal")
 HEAD_BONES = ("neck01", "neck02", "neck03", "head", "eye.L", "eye.R")
@@ -218,13 +218,14 @@ STANDOFF = {"shirt": 0.012, "trousers": 0.016, "belt": 0.018, "shoe": 0.010, "so
 CLOTH = ("shirt", "trousers", "belt", "shoe", "sole")
 
 
-def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict, rest: np.ndarray) -> np.ndarray:
+def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict, rest: np.ndarray,
+          outfit: Outfit = SAMPLE_OUTFIT) -> np.ndarray:
     """Give clothes and hair some thickness: smooth the body under the cloth (Taubin smoothing,
     which does not shrink, along the normals only) and push each region off the skin along the normal by its STANDOFF, with
     short ramps at the hems."""
     n = len(verts)
     edges = mesh_edges(faces)
-    regions = classify(fields, heads, rest)
+    regions = classify(fields, heads, rest, outfit)
     cloth = np.zeros(n)
     off = np.zeros(n)
     for name in CLOTH:

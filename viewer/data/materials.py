@@ -4,6 +4,8 @@ Patterns are functions of the rest-pose position, so they follow the body throug
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:
@@ -37,24 +39,51 @@ def smoothstep(e0, e1, x):
     return t * t * (3.0 - 2.0 * t)
 
 
-# (albedo linear RGB, specular, roughness)
-MATERIALS = {
-    "skin": ((0.52, 0.33, 0.25), 0.5, 0.45),
-    "hair": ((0.08, 0.05, 0.035), 0.4, 0.35),
-    "eye": ((0.50, 0.46, 0.42), 0.6, 0.15),  # sclera ...
-    "iris": ((0.12, 0.07, 0.04), 0.6, 0.15),  # ... brown iris ...
-    "pupil": ((0.02, 0.02, 0.02), 0.6, 0.15),  # ... and pupil
-    "shirt": ((0.40, 0.11, 0.07), 0.3, 0.7),  # brick red ...
-    "stripe": ((0.50, 0.45, 0.36), 0.3, 0.7),  # ... with cream stripes
-    "trousers": ((0.075, 0.10, 0.17), 0.2, 0.85),  # denim-like blue
-    "belt": ((0.07, 0.04, 0.025), 0.45, 0.4),
-    "shoe": ((0.04, 0.04, 0.045), 0.5, 0.3),
-    "sole": ((0.45, 0.44, 0.42), 0.3, 0.6),
-}
+@dataclass(frozen=True)
+class Garment:
+    """A garment's look: base ``color`` (linear RGB), Disney ``specular`` and ``roughness``, and a
+    pattern: ``solid``, ``stripes`` (horizontal, ``period`` metres, ``width`` of a period in the
+    second colour), ``dots`` (a lattice of ``period``, dots of ``width`` x period radius) or
+    ``blotches`` (noise of scale ``period``); ``noise``: amplitude of a low-frequency colour noise."""
+    color: tuple
+    specular: float
+    roughness: float
+    pattern: str = "solid"
+    pattern_color: tuple = (0.0, 0.0, 0.0)
+    period: float = 0.07
+    width: float = 0.24
+    noise: float = 0.05
 
 
-def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray) -> dict:
-    """Material regions (boolean arrays) from rest-pose fields (..., 8) as made by build_body."""
+@dataclass(frozen=True)
+class Outfit:
+    """Everything a person's materials depend on besides the geometry."""
+    skin: tuple = (0.52, 0.33, 0.25)
+    skin_specular: float = 0.5
+    skin_roughness: float = 0.45
+    hair: tuple = (0.08, 0.05, 0.035)
+    hair_specular: float = 0.4
+    hair_roughness: float = 0.35
+    iris: tuple = (0.12, 0.07, 0.04)
+    top: Garment = Garment((0.40, 0.11, 0.07), 0.3, 0.7, "stripes", (0.50, 0.45, 0.36), 0.07, 0.24, 0.05)
+    bottom: Garment = Garment((0.075, 0.10, 0.17), 0.2, 0.85, noise=0.18)
+    shoes: Garment = Garment((0.04, 0.04, 0.045), 0.5, 0.3, noise=0.1)
+    sole: tuple = (0.45, 0.44, 0.42)
+    belt: tuple | None = (0.07, 0.04, 0.025)  # None: no belt
+    sleeve: float = 0.40  # where sleeves end along the arm: 0 shoulder, 0.5 elbow, 1 wrist (> 1: long)
+    leg: float = 1.0  # how far the bottom reaches from the waist to the ankle (1: full length)
+
+
+SAMPLE_OUTFIT = Outfit()  # the bundled sample's figure: striped brick-red T-shirt, jeans, dark shoes
+EYE = ((0.50, 0.46, 0.42), 0.6, 0.15)  # sclera
+PUPIL = ((0.02, 0.02, 0.02), 0.6, 0.15)
+SOLE = (0.3, 0.6)  # specular, roughness
+BELT = (0.45, 0.4)
+
+
+def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Outfit = SAMPLE_OUTFIT) -> dict:
+    """Material regions (boolean arrays) from rest-pose fields (..., 8) as made by build_body;
+    the outfit's sleeve and leg lengths and belt decide where skin shows."""
     p = fields[..., 0:3].astype(np.float64)  # rest position, anny axes (x left, -y front, z up)
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
     w_arm, t_arm, w_head, w_eye, w_foot = (fields[..., k] for k in range(3, 8))
@@ -79,16 +108,18 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray) -> dict:
     is_hair = is_head & ~is_eye & (z > hairline + 0.005 * value_noise(p, 0.012, 13)) & ~ear
 
     is_arm = (w_arm > 0.5) & ~is_head
-    sleeve_end = 0.40 + 0.01 * np.sin(40.0 * np.arctan2(y, x))  # a slightly wavy hem
+    sleeve_end = outfit.sleeve + 0.01 * np.sin(40.0 * np.arctan2(y, x))  # a slightly wavy hem
     is_arm_skin = is_arm & (t_arm > sleeve_end)
     body = ~is_head & ~is_arm
     is_sole = body & (z < z_sole + 0.022)
     is_shoe = body & ~is_sole & ((z < z_ankle + 0.035) | (w_foot > 0.5))
     legs = body & ~is_sole & ~is_shoe & (z < z_waist)
-    is_belt = legs & (z > z_waist - 0.035)
-    is_trousers = legs & ~is_belt
-    is_shirt = ~(is_head | is_arm_skin | is_sole | is_shoe | is_belt | is_trousers)
-    is_skin = (is_head & ~is_hair & ~is_eye) | is_arm_skin
+    z_hem = z_waist - outfit.leg * (z_waist - (z_ankle + 0.035))  # the bottom's hem
+    is_leg_skin = legs & (z < z_hem) if outfit.leg < 1.0 else np.zeros_like(legs)
+    is_belt = legs & (z > z_waist - 0.035) if outfit.belt is not None else np.zeros_like(legs)
+    is_trousers = legs & ~is_belt & ~is_leg_skin
+    is_shirt = ~(is_head | is_arm_skin | is_sole | is_shoe | is_belt | is_trousers | is_leg_skin)
+    is_skin = (is_head & ~is_hair & ~is_eye) | is_arm_skin | is_leg_skin
     cheeks = is_skin & is_head & (np.abs(z - (eye_z - 0.035)) < 0.025) & (ry < -0.06)
     # on the eyeballs: cosine of the angle from the eye's forward (-y) axis
     d_eye = np.stack([p - heads[f"eye.{side}"] for side in ("L", "R")])
@@ -100,11 +131,27 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray) -> dict:
                 hair=is_hair, shoe=is_shoe, sole=is_sole, eye=is_eye, hair_noise=hair_noise)
 
 
-def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts: np.ndarray):
+def _pattern(g: Garment, p: np.ndarray, seed: int) -> np.ndarray:
+    """Weight of the pattern colour (0..1) at rest positions ``p``."""
+    if g.pattern == "stripes":
+        phase = np.mod(p[..., 2] / g.period, 1.0)
+        return smoothstep(0.0, 0.06, phase) * (1.0 - smoothstep(g.width, g.width + 0.06, phase))
+    if g.pattern == "dots":
+        q = p / g.period
+        dist = np.linalg.norm(q - np.round(q), axis=-1)
+        return 1.0 - smoothstep(g.width, g.width + 0.08, dist)
+    if g.pattern == "blotches":
+        return smoothstep(-0.08, 0.08, fbm(p, g.period, seed))
+    if g.pattern == "solid":
+        return np.zeros(p.shape[:-1])
+    raise ValueError(f"unknown pattern {g.pattern!r}")
+
+
+def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts: np.ndarray,
+                   outfit: Outfit = SAMPLE_OUTFIT):
     """Per-pixel albedo, specular and roughness from the interpolated rest-pose fields."""
     p = fields[..., 0:3].astype(np.float64)
-    z = p[..., 2]
-    r = {k: (v & mask if v.dtype == bool else v) for k, v in classify(fields, heads, rest_verts).items()}
+    r = {k: (v & mask if v.dtype == bool else v) for k, v in classify(fields, heads, rest_verts, outfit).items()}
     is_shirt, is_trousers, is_belt, is_skin = r["shirt"], r["trousers"], r["belt"], r["skin"]
     is_hair, is_shoe, is_sole, is_eye, hair_noise = r["hair"], r["shoe"], r["sole"], r["eye"], r["hair_noise"]
 
@@ -113,8 +160,7 @@ def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts
     spec = np.zeros((h, w))
     rough = np.zeros((h, w))
 
-    def paint(sel, name, tint=None):
-        col, s, r = MATERIALS[name]
+    def paint(sel, col, s, r, tint=None):
         col = np.broadcast_to(np.array(col), (h, w, 3))
         if tint is not None:
             col = col * tint[..., None]
@@ -122,25 +168,28 @@ def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts
         spec[sel] = s
         rough[sel] = r
 
-    # shirt: horizontal cream stripes (period 7 cm in the rest pose), soft edges, faint weave noise
-    phase = np.mod(z / 0.07, 1.0)
-    stripe = smoothstep(0.0, 0.06, phase) * (1.0 - smoothstep(0.24, 0.30, phase))
-    shirt_col = (1.0 - stripe[..., None]) * np.array(MATERIALS["shirt"][0]) + stripe[..., None] * np.array(MATERIALS["stripe"][0])
-    shirt_col *= (1.0 + 0.05 * fbm(p, 0.05, 3))[..., None]
-    albedo[is_shirt] = shirt_col[is_shirt]
-    spec[is_shirt] = MATERIALS["shirt"][1]
-    rough[is_shirt] = MATERIALS["shirt"][2]
-    # trousers: low-frequency fading like worn denim
-    paint(is_trousers, "trousers", 1.0 + 0.18 * fbm(p * np.array([2.0, 2.0, 0.5]), 0.12, 5))
-    paint(is_belt, "belt")
-    paint(is_shoe, "shoe", 1.0 + 0.1 * fbm(p, 0.03, 7))
-    paint(is_sole, "sole")
-    paint(is_skin, "skin", 1.0 + 0.05 * fbm(p, 0.04, 9))
+    def garment(sel, g: Garment, noise: np.ndarray, seed: int):
+        k = _pattern(g, p, seed)[..., None]
+        col = (1.0 - k) * np.array(g.color) + k * np.array(g.pattern_color)
+        col *= (1.0 + g.noise * noise)[..., None]
+        albedo[sel] = col[sel]
+        spec[sel] = g.specular
+        rough[sel] = g.roughness
+
+    o = outfit
+    # top: faint weave noise; bottom: low-frequency fading (worn denim); shoes: scuffs
+    garment(is_shirt, o.top, fbm(p, 0.05, 3), 21)
+    garment(is_trousers, o.bottom, fbm(p * np.array([2.0, 2.0, 0.5]), 0.12, 5), 22)
+    if o.belt is not None:
+        paint(is_belt, o.belt, *BELT)
+    garment(is_shoe, o.shoes, fbm(p, 0.03, 7), 23)
+    paint(is_sole, o.sole, *SOLE)
+    paint(is_skin, o.skin, o.skin_specular, o.skin_roughness, 1.0 + 0.05 * fbm(p, 0.04, 9))
     albedo[r["cheeks"]] *= np.array([1.04, 0.96, 0.96])  # a little redness on the cheeks
-    paint(is_hair, "hair", 1.0 + 0.2 * hair_noise)
-    paint(is_eye, "eye")
-    paint(r["iris"], "iris")
-    paint(r["pupil"], "pupil")
+    paint(is_hair, o.hair, o.hair_specular, o.hair_roughness, 1.0 + 0.2 * hair_noise)
+    paint(is_eye, *EYE)
+    paint(r["iris"], o.iris, EYE[1], EYE[2])
+    paint(r["pupil"], *PUPIL)
 
     albedo = np.where(mask[..., None], np.clip(albedo, 0.0, 1.0), 0.0).astype(np.float32)
     spec = np.where(mask, spec, 0.0).astype(np.float32)
