@@ -244,3 +244,60 @@ def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict,
             lap = neighbour_mean(v, edges, n) - v
             v += (lam * cloth * (lap * nrm).sum(axis=1))[:, None] * nrm
     return v + off[:, None] * vertex_normals(v, faces)
+
+
+# ----------------------------------------------------------------------------------------------
+# Random people
+# ----------------------------------------------------------------------------------------------
+
+POSE_STYLES = ("relaxed", "arms_out", "crossed_legs", "stride", "hands_on_hips")
+POSE_STYLE_WEIGHTS = (0.35, 0.2, 0.15, 0.15, 0.15)
+
+
+def sample_phenotype(rng: np.random.Generator) -> dict:
+    """anny phenotype values of an adult (anny: gender 0 male .. 1 female; age 2/3 young adult .. 1 old)."""
+    return dict(gender=float(rng.uniform(0.0, 1.0)), age=float(rng.uniform(0.6, 0.95)), muscle=float(rng.uniform(0.25, 0.75)),
+                weight=float(rng.uniform(0.2, 0.8)), height=float(rng.uniform(0.2, 0.8)),
+                proportions=float(rng.uniform(0.2, 0.8)))
+
+
+def sample_pose(rng: np.random.Generator) -> tuple[str, dict]:
+    """A natural standing pose: bone -> rotation vector (radians, anny's world-aligned local axes:
+    x = the body's left, y = its back, z = up; about x, negative swings a hanging limb forward;
+    about y, positive brings the left arm towards the body and the left leg across). Arms away from
+    and against the body, bent elbows, crossed legs, a stride, hands on hips: the poses that cast
+    limb-on-body shadows."""
+    u = rng.uniform
+    style = POSE_STYLES[int(rng.choice(len(POSE_STYLES), p=POSE_STYLE_WEIGHTS))]
+    pose = {}
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        if style == "hands_on_hips":
+            # elbows out to the side, forearms turned in towards the hips (about the back axis)
+            pose[f"upperarm01.{side}"] = (u(0.1, 0.3), -sign * u(0.2, 0.35), 0.0)
+            pose[f"lowerarm01.{side}"] = (u(-0.1, 0.1), sign * u(1.6, 1.9), 0.0)
+            continue
+        if style == "arms_out":
+            swing, adduct, elbow = u(-0.5, 0.3), u(-0.45, 0.1), u(0.0, 0.9)
+        else:
+            swing, adduct, elbow = u(-0.35, 0.3), u(0.2, 0.68), u(0.05, 1.0)
+        pose[f"upperarm01.{side}"] = (swing, sign * adduct, 0.0)
+        pose[f"lowerarm01.{side}"] = (elbow, 0.0, sign * u(0.0, 0.5))
+    standing = "L" if rng.uniform() < 0.5 else "R"  # the leg carrying the weight
+    free = "R" if standing == "L" else "L"
+    fs = 1.0 if free == "L" else -1.0
+    if style == "crossed_legs":
+        pose[f"upperleg01.{free}"] = (u(-0.3, -0.15), fs * u(0.3, 0.42), 0.0)  # forward and across the other
+        pose[f"lowerleg01.{free}"] = (u(0.05, 0.3), 0.0, 0.0)
+    elif style == "stride":
+        pose[f"upperleg01.{free}"] = (u(-0.5, -0.25), -fs * u(0.0, 0.1), 0.0)
+        pose[f"lowerleg01.{free}"] = (u(0.1, 0.5), 0.0, 0.0)
+        pose[f"upperleg01.{standing}"] = (u(0.1, 0.3), 0.0, 0.0)
+    else:
+        pose[f"upperleg01.{free}"] = (u(-0.35, 0.0), -fs * u(-0.04, 0.12), 0.0)
+        pose[f"lowerleg01.{free}"] = (u(0.0, 0.6), 0.0, 0.0)
+        pose[f"upperleg01.{standing}"] = (0.0, (1.0 if standing == "L" else -1.0) * u(-0.06, 0.04), 0.0)
+    pose["spine03"] = (u(-0.05, 0.05), u(-0.06, 0.06), u(-0.2, 0.2))
+    pose["spine01"] = (u(-0.05, 0.08), u(-0.04, 0.04), u(-0.1, 0.1))
+    pose["neck01"] = (u(-0.1, 0.15), 0.0, 0.0)
+    pose["head"] = (u(-0.15, 0.2), u(-0.12, 0.12), u(-0.5, 0.5))
+    return style, {k: tuple(float(x) for x in v) for k, v in pose.items()}
