@@ -199,3 +199,67 @@ def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts
         "shoes": is_shoe | is_sole, "eyes": is_eye,
     }
     return albedo, spec, rough, regions
+
+
+# ----------------------------------------------------------------------------------------------
+# Random outfits
+# ----------------------------------------------------------------------------------------------
+
+# linear albedo of skin from very light to very dark (measured skin reflectances span roughly this
+# range at 550 nm; the hue shifts from pink-beige to brown)
+SKIN_LIGHT = np.array([0.62, 0.43, 0.35])
+SKIN_DARK = np.array([0.10, 0.055, 0.035])
+HAIR = {  # linear albedo
+    "black": (0.02, 0.018, 0.016), "dark brown": (0.06, 0.035, 0.02), "brown": (0.14, 0.08, 0.045),
+    "blond": (0.45, 0.32, 0.16), "red": (0.30, 0.10, 0.04), "grey": (0.35, 0.34, 0.33),
+}
+IRIS = ((0.12, 0.07, 0.04), (0.05, 0.03, 0.02), (0.10, 0.16, 0.22), (0.12, 0.14, 0.07))
+# cloth kinds: (specular, roughness range)
+CLOTH_KINDS = {"cotton": (0.3, (0.7, 0.9)), "denim": (0.2, (0.8, 0.9)), "satin": (0.6, (0.18, 0.35)),
+               "leather": (0.5, (0.25, 0.45)), "synthetic": (0.45, (0.4, 0.6))}
+
+
+def _srgb_to_linear(c):
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _color(rng: np.random.Generator) -> tuple:
+    """A garment colour: random hue, saturation up to 0.85, display value 0.12 to 0.9 (sRGB), as
+    linear RGB."""
+    import colorsys
+
+    r, g, b = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.85), rng.uniform(0.12, 0.9))
+    return tuple(float(v) for v in _srgb_to_linear([r, g, b]))
+
+
+def _garment(rng: np.random.Generator, kinds: tuple, patterns: tuple) -> Garment:
+    kind = kinds[int(rng.integers(len(kinds)))]
+    specular, (r0, r1) = CLOTH_KINDS[kind]
+    pattern = patterns[int(rng.integers(len(patterns)))]
+    return Garment(_color(rng), specular, float(rng.uniform(r0, r1)), pattern, _color(rng),
+                   period=float(rng.uniform(0.02, 0.12)), width=float(rng.uniform(0.15, 0.45)),
+                   noise=float(rng.uniform(0.02, 0.2)))
+
+
+def sample_outfit(rng: np.random.Generator) -> Outfit:
+    """Skin over the human range, hair, eyes, a top (solid, stripes, dots or blotches), a bottom
+    (trousers or shorts), shoes, sleeves from short to long, a belt or not; per-region specular and
+    roughness (skin glossy, cotton and denim matte, satin and leather glossy)."""
+    t = rng.uniform()
+    skin = SKIN_LIGHT * (1 - t) + SKIN_DARK * t
+    skin = tuple(float(v) for v in skin * rng.uniform(0.93, 1.07, 3))
+    hair = HAIR[list(HAIR)[int(rng.integers(len(HAIR)))]]
+    return Outfit(
+        skin=skin, skin_specular=float(rng.uniform(0.4, 0.6)), skin_roughness=float(rng.uniform(0.35, 0.55)),
+        hair=tuple(float(v) for v in np.array(hair) * rng.uniform(0.85, 1.15, 3)),
+        hair_specular=float(rng.uniform(0.3, 0.5)), hair_roughness=float(rng.uniform(0.25, 0.45)),
+        iris=IRIS[int(rng.integers(len(IRIS)))],
+        top=_garment(rng, ("cotton", "cotton", "satin", "synthetic"), ("solid", "solid", "stripes", "dots", "blotches")),
+        bottom=_garment(rng, ("denim", "cotton", "synthetic", "leather"), ("solid", "solid", "solid", "blotches", "stripes")),
+        shoes=_garment(rng, ("leather", "synthetic", "cotton"), ("solid",)),
+        sole=tuple(float(v) for v in np.full(3, rng.uniform(0.05, 0.6))),
+        belt=(_color(rng) if rng.uniform() < 0.5 else None),
+        sleeve=float(rng.choice([0.15, 0.3, 0.45, 0.8, 1.1])),
+        leg=float(rng.choice([0.4, 0.55, 1.0, 1.0, 1.0])),
+    )
