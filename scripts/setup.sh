@@ -17,7 +17,7 @@ stamp=.venv/.installed-$(cat pyproject.toml constraints.txt | sha1sum | cut -c1-
 if [ ! -f "$stamp" ]; then
     # (grep drops pip's warnings about this machine's optional local package mirrors)
     .venv/bin/pip install -q -c constraints.txt torch==2.13.0 2> >(grep -v "is ignored" >&2)
-    .venv/bin/pip install -q -c constraints.txt -e ".[test,bench]" 2> >(grep -v "is ignored" >&2)
+    .venv/bin/pip install -q -c constraints.txt -e ".[test,bench,data]" 2> >(grep -v "is ignored" >&2)
     rm -f .venv/.installed-*
     touch "$stamp"
 fi

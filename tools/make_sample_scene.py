@@ -3,7 +3,7 @@
 What it does
 ------------
 1. Poses a human body with the ``anny`` package (``pip install anny==0.6.2 -c constraints.txt``, the
-   ``assets`` extra; code Apache-2.0, body data from MakeHuman, CC0) in its ``notoes`` topology (feet
+   ``data`` extra; code Apache-2.0, body data from MakeHuman, CC0) in its ``notoes`` topology (feet
    without toes, for shoes), adding eyeballs (that topology leaves the sockets empty): a standing
    figure with the arms slightly away from the body, elbows a little bent, the left knee bent
    (weight on the right leg) and the head turned a little, so that arms shade the torso and the legs
@@ -59,6 +59,7 @@ from viewer.data.geometry import vertex_normals  # noqa: E402
 from viewer.data.humans import build_body, dress, place_in_camera, rasterize  # noqa: E402
 from viewer.data.materials import make_materials  # noqa: E402
 from viewer.scene import Scene, load_scene, save_scene  # noqa: E402
+from viewer.scene_ops import depth_normal_angle  # noqa: E402
 
 T0 = time.perf_counter()
 
@@ -97,34 +98,6 @@ POSE = {
 # ----------------------------------------------------------------------------------------------
 # Verification
 # ----------------------------------------------------------------------------------------------
-
-
-def normals_from_depth(cam: Camera, depth: np.ndarray, mask: np.ndarray, max_jump: float = 0.02):
-    """Central-difference normals of the unprojected depth map; valid where the 4-neighbourhood is
-    inside the mask and has no depth jump above ``max_jump`` metres."""
-    p = cam.unproject(np.where(mask, depth, 1.0)).astype(np.float64)
-    du = np.zeros_like(p)
-    dv = np.zeros_like(p)
-    du[:, 1:-1] = p[:, 2:] - p[:, :-2]
-    dv[1:-1] = p[2:] - p[:-2]
-    n = np.cross(dv, du)  # dv points down (-y), du right (+x): dv x du = +z for a fronto-parallel plane
-    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
-    valid = mask.copy()
-    valid[0] = valid[-1] = False
-    valid[:, 0] = valid[:, -1] = False
-    for axis in (0, 1):
-        for sh in (1, -1):
-            nb_m = np.roll(mask, sh, axis=axis)
-            nb_d = np.roll(depth, sh, axis=axis)
-            valid &= nb_m & (np.abs(nb_d - depth) < max_jump)
-    return n, valid
-
-
-def depth_normal_angle(scene: Scene):
-    n_d, valid = normals_from_depth(scene.camera, scene.depth, scene.mask)
-    cos = np.clip((n_d * scene.normal).sum(-1), -1.0, 1.0)
-    ang = np.degrees(np.arccos(cos))
-    return ang, valid
 
 
 def ray_cast_check(cam: Camera, pos: np.ndarray, faces: np.ndarray, depth: np.ndarray, mask: np.ndarray,

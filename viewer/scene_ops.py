@@ -1,4 +1,5 @@
-"""Operations on scene bundles that keep them valid (used by benchmarks and tests)."""
+"""Operations on scene bundles: resampling that keeps them valid, and checking normals against
+the depth geometry (used by benchmarks, the synthetic data and tests)."""
 
 from __future__ import annotations
 
@@ -27,3 +28,31 @@ def resample_scene(scene: Scene, size: int) -> Scene:
         camera=Camera(nw, nh, cam.focal_mm, cam.sensor_mm, cam.distance),
         photo=pick(scene.photo), background=pick(scene.background),
     ).validate()
+
+
+def normals_from_depth(cam: Camera, depth: np.ndarray, mask: np.ndarray, max_jump: float = 0.02):
+    """Central-difference normals of the unprojected depth map; valid where the 4-neighbourhood is
+    inside the mask and has no depth jump above ``max_jump`` metres."""
+    p = cam.unproject(np.where(mask, depth, 1.0)).astype(np.float64)
+    du = np.zeros_like(p)
+    dv = np.zeros_like(p)
+    du[:, 1:-1] = p[:, 2:] - p[:, :-2]
+    dv[1:-1] = p[2:] - p[:-2]
+    n = np.cross(dv, du)  # dv points down (-y), du right (+x): dv x du = +z for a fronto-parallel plane
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    valid = mask.copy()
+    valid[0] = valid[-1] = False
+    valid[:, 0] = valid[:, -1] = False
+    for axis in (0, 1):
+        for sh in (1, -1):
+            nb_m = np.roll(mask, sh, axis=axis)
+            nb_d = np.roll(depth, sh, axis=axis)
+            valid &= nb_m & (np.abs(nb_d - depth) < max_jump)
+    return n, valid
+
+
+def depth_normal_angle(scene: Scene):
+    n_d, valid = normals_from_depth(scene.camera, scene.depth, scene.mask)
+    cos = np.clip((n_d * scene.normal).sum(-1), -1.0, 1.0)
+    ang = np.degrees(np.arccos(cos))
+    return ang, valid
