@@ -59,3 +59,24 @@ def neighbour_mean(values: np.ndarray, edges: np.ndarray, n: int) -> np.ndarray:
         np.add.at(cnt, edges[:, a], 1.0)
     cnt = np.maximum(cnt, 1.0).reshape((n,) + (1,) * (values.ndim - 1))
     return acc / cnt
+
+
+def subdivide(vertices: np.ndarray, faces: np.ndarray, attributes: dict, levels: int = 1):
+    """Midpoint subdivision, ``levels`` times: every triangle becomes four, positions stay on the
+    original (flat) triangles, and each per-vertex attribute (name -> (V, ...) array) is averaged
+    at the new vertices (so it is interpolated linearly, as a rasterizer or ray tracer would).
+    Returns (vertices, faces, attributes)."""
+    v, f = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    attrs = {k: np.asarray(a, np.float64) for k, a in attributes.items()}
+    for _ in range(levels):
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        edges, inverse = np.unique(e, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        mid = len(v) + inverse.reshape(3, -1)  # new vertex index of edges (01, 12, 20) of each face
+        v = np.concatenate([v, 0.5 * (v[edges[:, 0]] + v[edges[:, 1]])])
+        attrs = {k: np.concatenate([a, 0.5 * (a[edges[:, 0]] + a[edges[:, 1]])]) for k, a in attrs.items()}
+        a, b, c = f[:, 0], f[:, 1], f[:, 2]
+        ab, bc, ca = mid
+        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([b, bc, ab], 1), np.stack([c, ca, bc], 1),
+                            np.stack([ab, bc, ca], 1)])
+    return v, f, attrs
