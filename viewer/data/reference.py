@@ -66,7 +66,7 @@ def envmap_emitter(mi, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0) -> dict
             "to_world": _transform(mi, to_world)}
 
 
-def _camera(mi, scene: Scene, spp: int) -> dict:
+def camera_sensor(mi, scene: Scene, spp: int) -> dict:
     cam = scene.camera
     w, h = cam.width, cam.height
     fov = np.degrees(2.0 * np.arctan(max(w, h) / 2.0 / cam.focal_px))
@@ -105,18 +105,26 @@ def bundle_mesh(scene: Scene) -> BundleMesh:
                       spec[mesh.triangles[:, 0]])
 
 
-def _mi_mesh(mi, name: str, m: BundleMesh, faces: np.ndarray, bsdf):
+def mi_mesh(mi, name: str, vertices: np.ndarray, normals: np.ndarray, faces: np.ndarray, bsdf,
+            texcoords: np.ndarray | None = None, attributes: dict | None = None):
+    """A Mitsuba mesh of the ``faces`` subset (only the vertices they use), with shading normals,
+    optional texture coordinates and per-vertex attributes (``vertex_<name>``: (V, C) arrays, read
+    by ``mesh_attribute`` textures)."""
     used, local = np.unique(faces, return_inverse=True)
     props = mi.Properties()
     props["bsdf"] = bsdf
     out = mi.Mesh(name, vertex_count=len(used), face_count=len(faces), props=props, has_vertex_normals=True,
-                  has_vertex_texcoords=True)
+                  has_vertex_texcoords=texcoords is not None)
     params = mi.traverse(out)
-    params["vertex_positions"] = mi.Float(m.vertices[used].astype(np.float32).ravel())
-    params["vertex_normals"] = mi.Float(m.normals[used].astype(np.float32).ravel())
-    params["vertex_texcoords"] = mi.Float(m.uv[used].astype(np.float32).ravel())
+    params["vertex_positions"] = mi.Float(np.asarray(vertices, np.float32)[used].ravel())
+    params["vertex_normals"] = mi.Float(np.asarray(normals, np.float32)[used].ravel())
+    if texcoords is not None:
+        params["vertex_texcoords"] = mi.Float(np.asarray(texcoords, np.float32)[used].ravel())
     params["faces"] = mi.UInt32(local.reshape(-1, 3).astype(np.uint32).ravel())
     params.update()
+    for key, values in (attributes or {}).items():
+        values = np.asarray(values, np.float32)[used].reshape(len(used), -1)
+        out.add_attribute(key, values.shape[1], mi.Float(values.ravel()))
     return out
 
 
@@ -131,7 +139,7 @@ def render_bundle_reference(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: f
     rough = mi.Bitmap(np.ascontiguousarray(scene.roughness[..., None], dtype=np.float32))
     level = np.clip(np.rint(m.face_specular * (SPECULAR_LEVELS - 1)), 0, SPECULAR_LEVELS - 1).astype(int)
     emitter = envmap_emitter(mi, env, yaw, tilt)
-    sensor = _camera(mi, scene, spp)
+    sensor = camera_sensor(mi, scene, spp)
     outputs = {}
     for name in ("full", "diffuse_shadowed"):
         items = {"type": "scene", "integrator": {"type": "direct", "hide_emitters": True}, "sensor": sensor, "light": emitter}
@@ -143,10 +151,10 @@ def render_bundle_reference(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: f
                     "roughness": {"type": "bitmap", "bitmap": rough, "filter_type": "nearest", "raw": True},
                     "specular": float(k / (SPECULAR_LEVELS - 1)),
                 })
-                items[f"shape{k}"] = _mi_mesh(mi, f"specular{k}", m, m.triangles[level == k], bsdf)
+                items[f"shape{k}"] = mi_mesh(mi, f"specular{k}", m.vertices, m.normals, m.triangles[level == k], bsdf, m.uv)
         else:
             white = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}})
-            items["shape"] = _mi_mesh(mi, "white", m, m.triangles, white)
+            items["shape"] = mi_mesh(mi, "white", m.vertices, m.normals, m.triangles, white, m.uv)
         img = np.array(mi.render(mi.load_dict(items), spp=spp, seed=seed), dtype=np.float32)
         outputs[name] = img[..., :3]
         outputs["coverage"] = img[..., 3]
