@@ -207,6 +207,27 @@ def cmd_fit_lights(args) -> int:
     return 0
 
 
+def cmd_dataset(args) -> int:
+    import time
+
+    from .data.dataset import HELD_OUT, DatasetConfig, make_dataset, parse_shard
+    from .progress import StageBars
+
+    cfg = DatasetConfig(out=Path(args.out), count=args.count, res=args.res, seed=args.seed, shard=parse_shard(args.shard),
+                        spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool,
+                        held_out_dir=Path(args.maps) if args.maps else HELD_OUT)
+    start = time.perf_counter()
+    with StageBars(prefix=f"dataset {cfg.out.name} {args.shard}: ") as bars:
+        manifest = make_dataset(cfg, progress=bars)
+    seconds = time.perf_counter() - start
+    per = manifest["seconds_per_sample_median"]
+    print(f"{manifest['made']} samples made ({manifest['relit_pairs_made']} relit pairs), {manifest['skipped_finished']} "
+          f"already there, in {seconds:.0f} s" + (f"; {per:.1f} s per sample (median)" if per else "")
+          + f"; peak memory {manifest['peak_memory_mb']:.0f} MB")
+    print(f"wrote {manifest['path']}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench.engine import run_engine_benchmark
 
@@ -294,6 +315,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
+
+    p = sub.add_parser("dataset", help="synthetic training data: people relit by a ray tracer (see docs/dataset.md)")
+    dsub = p.add_subparsers(dest="action", required=True)
+    q = dsub.add_parser("make", help="make (or resume) a dataset in a directory")
+    q.add_argument("--out", required=True, help="dataset directory (outside the repository)")
+    q.add_argument("--count", type=int, required=True, help="people (samples) in the whole dataset")
+    q.add_argument("--res", type=int, default=256, help="image size in pixels (default 256)")
+    q.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    q.add_argument("--shard", default="0/1", help="make samples i, i+n, ... of the dataset (default 0/1: all)")
+    q.add_argument("--spp", type=int, default=64, help="ray-tracing samples per pixel (default 64)")
+    q.add_argument("--lightings", type=int, default=2, help="environment maps per person (default 2)")
+    q.add_argument("--split", choices=("train", "heldout"), default="train",
+                   help="train: procedural maps; heldout: the CC0 maps of --maps, never used for training")
+    q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
+    q.add_argument("--maps", help="folder of held-out maps (default ../shared/data/hdri)")
+    q.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("engine", "shadows", "lights", "viewer", "temporal"),

@@ -1,0 +1,65 @@
+"""``RelightDataset``: the samples of ``relight dataset make`` as a ``torch.utils.data.Dataset``.
+
+Each item is one (person, lighting) pair, a dict of float32 tensors, images channels-first:
+``image`` (3, H, W) the relit photo, ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
+``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
+``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity.
+
+Augmentations (``augment=True``, random per item from a seeded generator): a horizontal mirror
+(images flipped, normals' and lights' x negated, as the mirrored scene would render) and an
+exposure scale (relit image, shading and light intensities scaled together: the lighting is only
+known up to scale from a photo).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from ..imageio import read_exr
+from ..lights import load_lights
+from ..scene import load_scene
+
+EXPOSURE_RANGE = (0.5, 2.0)
+
+
+class RelightDataset(Dataset):
+    def __init__(self, root, augment: bool = False, seed: int = 0):
+        self.root = Path(root)
+        samples = sorted(p.parent for p in (self.root / "samples").glob("*/sample.json"))
+        self.items = [(s, k) for s in samples for k in range(len(json.loads((s / "sample.json").read_text())["lightings"]))]
+        if not self.items:
+            raise FileNotFoundError(f"{self.root}: no finished samples (samples/*/sample.json)")
+        self.augment = augment
+        self.rng = np.random.default_rng(seed)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int) -> dict:
+        sample, k = self.items[i]
+        scene = load_scene(sample)
+        d = sample / f"lighting_{k}"
+        lights = load_lights(d / "lights.json").to_array()
+        item = {
+            "image": read_exr(d / "full.exr"), "mask": scene.mask[..., None].astype(np.float32), "albedo": scene.albedo,
+            "normal": scene.normal, "specular": scene.specular[..., None], "roughness": scene.roughness[..., None],
+            "depth": scene.depth[..., None], "diffuse": read_exr(d / "diffuse.exr"),
+            "specular_shading": read_exr(d / "specular.exr"), "diffuse_shadowed": read_exr(d / "diffuse_shadowed.exr"),
+        }
+        if self.augment:
+            if self.rng.uniform() < 0.5:
+                item = {key: np.ascontiguousarray(v[:, ::-1]) for key, v in item.items()}
+                item["normal"] = item["normal"] * np.array([-1.0, 1.0, 1.0], np.float32)
+                lights[:, 0] = -lights[:, 0]
+            scale = np.float32(np.exp(self.rng.uniform(*np.log(EXPOSURE_RANGE))))
+            for key in ("image", "diffuse", "specular_shading", "diffuse_shadowed"):
+                item[key] = item[key] * scale
+            lights[:, 4:7] *= scale
+        out = {key: torch.from_numpy(np.ascontiguousarray(np.moveaxis(np.asarray(v, np.float32), -1, 0))) for key, v in item.items()}
+        out["lights"] = torch.from_numpy(lights.astype(np.float32))
+        return out
