@@ -38,7 +38,7 @@ def test_g_buffers_are_a_valid_full_body_bundle(people):
 
 
 def test_samplers_cover_their_ranges():
-    styles, skins, sleeves, legs = set(), [], set(), set()
+    styles, skins, sleeves, legs, dresses = set(), [], set(), set(), 0
     for seed in range(60):
         rng = np.random.default_rng(seed)
         ph = sample_phenotype(rng)
@@ -50,6 +50,7 @@ def test_samplers_cover_their_ranges():
         skins.append(np.mean(o.skin))
         sleeves.add(o.sleeve)
         legs.add(o.leg)
+        dresses += o.top == o.bottom and o.leg < 1.0 and o.belt is None
     assert styles == set(POSE_STYLES)
     assert max(skins) > 3 * min(skins)  # light to dark skin
-    assert len(sleeves) >= 4 and len(legs) >= 3
+    assert len(sleeves) >= 4 and len(legs) >= 3 and 2 <= dresses <= 20

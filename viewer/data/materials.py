@@ -244,10 +244,12 @@ def _garment(rng: np.random.Generator, kinds: tuple, patterns: tuple) -> Garment
 
 def sample_outfit(rng: np.random.Generator) -> Outfit:
     """Skin over the human range, hair, eyes, a top (solid, stripes, dots or blotches), a bottom
-    (trousers or shorts), shoes, sleeves from short to long, a belt or not; per-region specular and
-    roughness (skin glossy, cotton and denim matte, satin and leather glossy)."""
+    (trousers or shorts) or a dress (the top's fabric down to the knee), shoes, sleeves from short
+    to long, a belt or not; per-region specular and roughness (skin glossy, cotton and denim matte,
+    satin and leather glossy)."""
     t = rng.uniform()
     skin = SKIN_LIGHT * (1 - t) + SKIN_DARK * t
+    dress = rng.uniform() < 0.15  # one fabric from the shoulders to a hem near the knee (no skirt geometry)
     skin = tuple(float(v) for v in skin * rng.uniform(0.93, 1.07, 3))
     hair = HAIR[list(HAIR)[int(rng.integers(len(HAIR)))]]
     return Outfit(
@@ -255,11 +257,12 @@ def sample_outfit(rng: np.random.Generator) -> Outfit:
         hair=tuple(float(v) for v in np.array(hair) * rng.uniform(0.85, 1.15, 3)),
         hair_specular=float(rng.uniform(0.3, 0.5)), hair_roughness=float(rng.uniform(0.25, 0.45)),
         iris=IRIS[int(rng.integers(len(IRIS)))],
-        top=_garment(rng, ("cotton", "cotton", "satin", "synthetic"), ("solid", "solid", "stripes", "dots", "blotches")),
-        bottom=_garment(rng, ("denim", "cotton", "synthetic", "leather"), ("solid", "solid", "solid", "blotches", "stripes")),
+        top=(top := _garment(rng, ("cotton", "cotton", "satin", "synthetic"), ("solid", "solid", "stripes", "dots", "blotches"))),
+        bottom=top if dress else _garment(rng, ("denim", "cotton", "synthetic", "leather"),
+                                         ("solid", "solid", "solid", "blotches", "stripes")),
         shoes=_garment(rng, ("leather", "synthetic", "cotton"), ("solid",)),
         sole=tuple(float(v) for v in np.full(3, rng.uniform(0.05, 0.6))),
-        belt=(_color(rng) if rng.uniform() < 0.5 else None),
+        belt=(_color(rng) if rng.uniform() < 0.5 and not dress else None),
         sleeve=float(rng.choice([0.15, 0.3, 0.45, 0.8, 1.1])),
-        leg=float(rng.choice([0.4, 0.55, 1.0, 1.0, 1.0])),
+        leg=float(rng.uniform(0.4, 0.6)) if dress else float(rng.choice([0.4, 0.55, 1.0, 1.0, 1.0])),
     )
