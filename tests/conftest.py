@@ -14,3 +14,16 @@ def ctx():
     from viewer.gl import create_headless_context
 
     return create_headless_context()
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory):
+    """A three-person dataset at 64^2 made by the command line in two shards (people 0, 2 and 1),
+    one lighting each, for the dataset, loader and training tests. Returns (dir, the arguments)."""
+    from viewer.cli import main
+
+    out = tmp_path_factory.mktemp("dataset")
+    args = ["dataset", "make", "--out", str(out), "--count", "3", "--res", "64", "--pool", "1", "--spp", "16", "--lightings", "1"]
+    assert main(args + ["--shard", "0/2"]) == 0
+    assert main(args + ["--shard", "1/2"]) == 0
+    return out, args

@@ -15,16 +15,8 @@ from viewer.errors import InputError
 from viewer.imageio import read_exr
 
 
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ds")
-    args = ["dataset", "make", "--out", str(out), "--count", "3", "--res", "64", "--pool", "1", "--spp", "16", "--lightings", "1"]
-    assert main(args + ["--shard", "0/2"]) == 0  # samples 0 and 2
-    assert main(args + ["--shard", "1/2"]) == 0  # sample 1
-    return out, args
-
-
-def test_layout_and_manifests(dataset):
+def test_layout_and_manifests(tiny_dataset):
+    dataset = tiny_dataset
     out, _ = dataset
     for i in range(3):
         d = sample_dir(DatasetConfig(out, 3), i)
@@ -36,7 +28,8 @@ def test_layout_and_manifests(dataset):
     assert (m0["made"], m1["made"]) == (2, 1) and m0["maps"] == m1["maps"] and m0["seconds_per_sample_median"] > 0
 
 
-def test_resume_skips_finished_samples(dataset, capsys):
+def test_resume_skips_finished_samples(tiny_dataset, capsys):
+    dataset = tiny_dataset
     out, args = dataset
     before = (sample_dir(DatasetConfig(out, 3), 0) / "sample.json").stat().st_mtime_ns
     assert main(args) == 0
@@ -44,7 +37,8 @@ def test_resume_skips_finished_samples(dataset, capsys):
     assert (sample_dir(DatasetConfig(out, 3), 0) / "sample.json").stat().st_mtime_ns == before
 
 
-def test_same_seed_same_sample(dataset, tmp_path):
+def test_same_seed_same_sample(tiny_dataset, tmp_path):
+    dataset = tiny_dataset
     out, _ = dataset
     cfg = DatasetConfig(tmp_path, 3, res=64, spp=16, lightings=1, pool=1)
     import shutil
@@ -57,7 +51,8 @@ def test_same_seed_same_sample(dataset, tmp_path):
         assert np.array_equal(a, b)
 
 
-def test_loader_items_and_augmentation(dataset):
+def test_loader_items_and_augmentation(tiny_dataset):
+    dataset = tiny_dataset
     out, _ = dataset
     plain = RelightDataset(out)
     assert len(plain) == 3

@@ -228,6 +228,22 @@ def cmd_dataset(args) -> int:
     return 0
 
 
+def cmd_train(args) -> int:
+    from .nets.train import TrainConfig, train
+    from .progress import StageBars
+
+    cfg = TrainConfig(task=args.network, data=Path(args.data), out=Path(args.out), res=args.res, epochs=args.epochs,
+                      batch=args.batch, lr=args.lr, width=args.width, levels=args.levels, device=args.device, seed=args.seed)
+    with StageBars(prefix=f"training {args.network}: ") as bars:
+        card = train(cfg, progress=bars)
+    last = card["history"][-1]
+    val = f", validation {last['val']:.4g}" if last.get("val") is not None else ""
+    print(f"{args.network}: {card['epochs']} epochs in {card['seconds']:.0f} s on {card['device']} "
+          f"({card['parameters'] / 1e6:.2f} M parameters); training loss {last['train']:.4g}{val}")
+    print(f"wrote {Path(args.out) / card['weights']} and its card {Path(args.out) / (args.network + '.json')}")
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench.engine import run_engine_benchmark
 
@@ -331,6 +347,20 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
     q.add_argument("--maps", help="folder of held-out maps (default ../shared/data/hdri)")
     q.set_defaults(func=cmd_dataset)
+
+    p = sub.add_parser("train", help="train a network on a dataset made by `relight dataset make`")
+    p.add_argument("network", choices=("depth",), help="which network")
+    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("--out", default="runs", help="where checkpoints, loss curves and weights go (default runs/)")
+    p.add_argument("--res", type=int, default=256, help="training resolution (default 256)")
+    p.add_argument("--epochs", type=int, default=20)
+    p.add_argument("--batch", type=int, default=4)
+    p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate, cosine-annealed to 1e-5 (default 1e-3)")
+    p.add_argument("--width", type=int, default=16, help="channels of the first U-Net level (network size)")
+    p.add_argument("--levels", type=int, default=5, help="U-Net levels (default 5)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("engine", "shadows", "lights", "viewer", "temporal"),

@@ -1,0 +1,90 @@
+"""The networks: U-Net shapes, the depth losses, and training / resuming / loading on a real (tiny) dataset."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from viewer.cli import main
+from viewer.nets import depth as dn
+from viewer.nets.train import load_network
+from viewer.nets.unet import UNet
+
+
+def test_unet_outputs():
+    net = UNet(4, {"a": 3, "b": 1}, width=8, levels=3)
+    out = net(torch.zeros(2, 4, 32, 48))
+    assert out["a"].shape == (2, 3, 32, 48) and out["b"].shape == (2, 1, 32, 48)
+    with pytest.raises(ValueError):
+        net(torch.zeros(1, 4, 30, 32))
+
+
+def test_depth_loss_ignores_distance_and_gaps():
+    g = torch.Generator().manual_seed(0)
+    target = 0.5 + 0.05 * torch.rand(1, 1, 16, 16, generator=g)
+    mask = torch.ones(1, 1, 16, 16)
+    mask[..., :3] = 0
+    shifted = target + 0.2  # the same shape further away: no loss
+    loss = dn.depth_loss(shifted, target, mask)
+    assert loss["total"].item() < 1e-6
+    bumped = target.clone()
+    bumped[..., 8:, :] += 0.1  # a step the target does not have: both terms see it
+    loss = dn.depth_loss(bumped, target, mask)
+    assert float(loss["l1"]) > 0.01 and float(loss["slope"]) > 0
+    # a depth gap in the target is left out of the slope term
+    gap_target = target.clone()
+    gap_target[..., 8:, :] += 0.5
+    assert float(dn.depth_loss(gap_target, gap_target, mask)["slope"]) == 0.0
+
+
+def test_metric_depth_inverts_the_normalization():
+    depth = 4.2 + 0.3 * torch.rand(1, 1, 8, 8)
+    mask = torch.ones(1, 1, 8, 8)
+    t = dn.depth_target(depth, mask)
+    back = dn.metric_depth(t, mask, float(dn.masked_median(depth, mask)))
+    assert torch.allclose(back, depth, atol=1e-5)
+
+
+def test_depth_network_can_fit_one_person(tiny_dataset):
+    """A small U-Net fits one example: the loss falls well below a flat figure's."""
+    from viewer.data.loader import RelightDataset
+
+    item = RelightDataset(tiny_dataset[0])[0]
+    batch = {k: v[None] for k, v in item.items()}
+    torch.manual_seed(0)
+    net = UNet(4, {"depth": 1}, width=8, levels=3)
+    opt = torch.optim.Adam(net.parameters(), lr=5e-3, betas=(0.5, 0.999))
+    x = dn.photo_input(batch["image"], batch["mask"])
+    target = dn.depth_target(batch["depth"], batch["mask"])
+    m = batch["mask"] > 0.5
+    flat = float((target - dn.masked_median(target, batch["mask"])).abs()[m].mean())
+    for _ in range(150):
+        loss = dn.depth_loss(torch.sigmoid(net(x)["depth"]), target, batch["mask"])
+        opt.zero_grad()
+        loss["total"].backward()
+        opt.step()
+    assert loss["l1"].item() < 0.5 * flat
+
+
+def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
+    data, _ = tiny_dataset
+    args = ["train", "depth", "--data", str(data), "--out", str(tmp_path), "--res", "64", "--levels", "3", "--width", "8",
+            "--batch", "2"]
+    assert main(args + ["--epochs", "2"]) == 0
+    assert "depth: 2 epochs" in capsys.readouterr().out
+    card = json.loads((tmp_path / "depth.json").read_text())
+    first = card["history"]
+    assert len(first) == 2 and card["val_items"] == 1 and card["train_items"] == 2  # person 0 validates
+    assert (tmp_path / "depth_loss.png").stat().st_size > 0 and (tmp_path / "depth.checkpoint.pt").is_file()
+    # resume: two finished epochs are kept, a third is added
+    assert main(args + ["--epochs", "3"]) == 0
+    history = json.loads((tmp_path / "depth.json").read_text())["history"]
+    assert len(history) == 3 and history[:2] == first
+    net = load_network(tmp_path / "depth.safetensors")
+    out = net(torch.zeros(1, 4, 64, 64))["depth"]
+    assert out.shape == (1, 1, 64, 64) and torch.isfinite(out).all()
+    # a different network size in the same folder is refused with a clear error
+    assert main(args[:-4] + ["--width", "16", "--batch", "2", "--epochs", "4"]) == 2

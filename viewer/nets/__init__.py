@@ -1,0 +1,1 @@
+"""The networks (torch): U-Nets, losses, training, inference."""

@@ -1,0 +1,213 @@
+"""``relight train``: training loops with checkpoints, resume, loss curves and shipped weights.
+
+One loop for every network (:data:`TASKS` says how each reads a batch and scores it). Adam with
+the paper's betas (0.5, 0.999) and a learning rate cosine-annealed to ``lr_min`` over the run;
+the people of the dataset are split into training and validation (by sample, so one person's
+lightings never straddle the split). After every epoch: a checkpoint (written atomically, so an
+interrupted run resumes from the last finished epoch), the loss curves as a PNG, and the weights as
+safetensors with a JSON card (configuration, losses, time).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+
+from ..errors import InputError
+from . import depth as depth_net
+from .unet import UNet
+
+
+@dataclass
+class TrainConfig:
+    task: str
+    data: Path
+    out: Path
+    res: int = 256
+    epochs: int = 20
+    batch: int = 4
+    lr: float = 1e-3
+    lr_min: float = 1e-5
+    width: int = 16
+    levels: int = 5
+    device: str = "cpu"
+    seed: int = 0
+    val_every: int = 10  # every tenth person is a validation person
+
+    def __post_init__(self):
+        if self.task not in TASKS:
+            raise InputError(None, f"unknown network {self.task!r}; one of {', '.join(TASKS)}")
+        if self.epochs < 1 or self.batch < 1 or not self.lr > 0 or self.res % 2 ** (self.levels - 1):
+            raise InputError(None, f"epochs and batch must be >= 1, lr > 0, and --res a multiple of {2 ** (self.levels - 1)}")
+
+
+def _resize(batch: dict, res: int) -> dict:
+    out = {}
+    for key, value in batch.items():
+        if value.ndim == 4 and value.shape[-1] != res:
+            mode = "nearest" if key in ("mask", "depth", "normal") else "area"
+            out[key] = F.interpolate(value, size=(res, res), mode=mode)
+        else:
+            out[key] = value
+    return out
+
+
+class DepthTask:
+    name = "depth"
+    outputs = {"depth": 1}
+    in_channels = 4
+
+    @staticmethod
+    def loss(model, batch) -> dict:
+        x = depth_net.photo_input(batch["image"], batch["mask"])
+        pred = torch.sigmoid(model(x)["depth"])
+        target = depth_net.depth_target(batch["depth"], batch["mask"])
+        losses = depth_net.depth_loss(pred, target, batch["mask"])
+        losses["metres"] = losses["l1"].detach() * depth_net.DEPTH_RANGE  # median-aligned L1, metres
+        # the same error of a flat figure (every pixel at the median depth): the bar to clear
+        m = batch["mask"] > 0.5
+        flat = (target - depth_net.masked_median(target, batch["mask"])).abs()[m].mean()
+        losses["flat_metres"] = flat.detach() * depth_net.DEPTH_RANGE
+        return losses
+
+
+TASKS = {"depth": DepthTask}
+
+
+def _split(dataset, val_every: int):
+    people = sorted({sample for sample, _ in dataset.items})
+    val_people = set(people[::val_every]) if len(people) > 1 else set()
+    train = [i for i, (s, _) in enumerate(dataset.items) if s not in val_people]
+    val = [i for i, (s, _) in enumerate(dataset.items) if s in val_people]
+    return train, val
+
+
+def _atomic_save(obj, path: Path):
+    tmp = path.with_name(f".{path.name}.tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _plot(history: list[dict], path: Path, task: str):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    epochs = [h["epoch"] for h in history]
+    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=100)
+    ax.plot(epochs, [h["train"] for h in history], label="training")
+    if any(h.get("val") is not None for h in history):
+        ax.plot(epochs, [h.get("val") for h in history], label="validation")
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("loss")
+    ax.set_yscale("log")
+    ax.set_title(f"{task} network")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def train(cfg: TrainConfig, progress=None) -> dict:
+    """Train (or resume) ``cfg.task`` on ``cfg.data``; returns the card written beside the weights."""
+    from safetensors.torch import save_file
+
+    from ..data.loader import RelightDataset
+
+    torch.manual_seed(cfg.seed)
+    device = torch.device(cfg.device)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise InputError(None, "--device cuda asked for, but torch sees no CUDA device")
+    task = TASKS[cfg.task]
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed)
+    val_data = RelightDataset(cfg.data, augment=False)
+    train_idx, val_idx = _split(data, cfg.val_every)
+    loader = torch.utils.data.DataLoader(torch.utils.data.Subset(data, train_idx), batch_size=cfg.batch, shuffle=True,
+                                         drop_last=len(train_idx) > cfg.batch,
+                                         generator=torch.Generator().manual_seed(cfg.seed))
+    model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels).to(device)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=(0.5, 0.999))
+    steps = cfg.epochs * max(len(loader), 1)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=cfg.lr_min)
+    ckpt_path = out / f"{cfg.task}.checkpoint.pt"
+    history, start_epoch, seconds = [], 0, 0.0
+    if ckpt_path.is_file():
+        ckpt = torch.load(ckpt_path, map_location=device, weights_only=False)
+        if ckpt["config"]["task"] != cfg.task or ckpt["model_config"] != model.config:
+            raise InputError(ckpt_path, "a checkpoint of a different network or size is in the way (move it, or use another --out)")
+        model.load_state_dict(ckpt["model"])
+        opt.load_state_dict(ckpt["optimizer"])
+        sched.load_state_dict(ckpt["scheduler"])
+        history, start_epoch, seconds = ckpt["history"], ckpt["epoch"] + 1, ckpt["seconds"]
+    for epoch in range(start_epoch, cfg.epochs):
+        t0 = time.perf_counter()
+        model.train()
+        losses = []
+        for step, batch in enumerate(loader):
+            batch = _resize({k: v.to(device) for k, v in batch.items()}, cfg.res)
+            loss = task.loss(model, batch)
+            opt.zero_grad(set_to_none=True)
+            loss["total"].backward()
+            opt.step()
+            sched.step()
+            losses.append(loss["total"].item())
+            if progress is not None:
+                progress(f"epoch {epoch + 1}/{cfg.epochs}", step + 1, len(loader))
+        val = _evaluate(model, task, val_data, val_idx, cfg, device)
+        seconds += time.perf_counter() - t0
+        history.append({"epoch": epoch + 1, "train": float(np.mean(losses)) if losses else None, **val,
+                        "lr": sched.get_last_lr()[0], "seconds": round(seconds, 1)})
+        _atomic_save({"config": {**asdict(cfg), "data": str(cfg.data), "out": str(cfg.out)}, "model_config": model.config,
+                      "model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                      "history": history, "epoch": epoch, "seconds": seconds}, ckpt_path)
+        _plot(history, out / f"{cfg.task}_loss.png", cfg.task)
+    weights = out / f"{cfg.task}.safetensors"
+    save_file({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, str(weights))
+    card = {"network": cfg.task, "model": model.config, "parameters": sum(p.numel() for p in model.parameters()),
+            "data": str(cfg.data), "train_items": len(train_idx), "val_items": len(val_idx), "resolution": cfg.res,
+            "epochs": cfg.epochs, "batch": cfg.batch, "lr": [cfg.lr, cfg.lr_min], "device": str(device),
+            "torch_threads": torch.get_num_threads(), "seconds": round(seconds, 1), "history": history,
+            "weights": weights.name}
+    (out / f"{cfg.task}.json").write_text(json.dumps(card, indent=1) + "\n")
+    return card
+
+
+@torch.no_grad()
+def _evaluate(model, task, dataset, indices, cfg, device) -> dict:
+    if not indices:
+        return {"val": None}
+    model.eval()
+    totals: dict[str, list] = {}
+    for start in range(0, len(indices), cfg.batch):
+        items = [dataset[i] for i in indices[start:start + cfg.batch]]
+        batch = {k: torch.stack([it[k] for it in items]).to(device) for k in items[0]}
+        loss = task.loss(model, _resize(batch, cfg.res))
+        for k, v in loss.items():
+            totals.setdefault(k, []).append(v.item() * len(items))
+    n = len(indices)
+    return {"val": sum(totals["total"]) / n, **{f"val_{k}": sum(v) / n for k, v in totals.items() if k != "total"}}
+
+
+def load_network(path, device="cpu") -> UNet:
+    """A shipped network from its safetensors file and the JSON card beside it."""
+    from safetensors.torch import load_file
+
+    path = Path(path)
+    card_path = path.with_suffix(".json")
+    if not path.is_file() or not card_path.is_file():
+        raise InputError(path, "network weights not found (a .safetensors file with its .json card)")
+    cfg = json.loads(card_path.read_text())["model"]
+    model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"])
+    model.load_state_dict(load_file(str(path), device=str(device)))
+    return model.eval().to(device)
