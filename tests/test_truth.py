@@ -20,12 +20,21 @@ def truth():
     return person, env, r, d, s
 
 
+def _uniform_material(albedo: np.ndarray) -> np.ndarray:
+    """Pixels whose albedo matches their four neighbours' (within 2 %): there a render averaged over
+    the pixel's footprint and the G-buffer's value at its centre describe the same material."""
+    pad = np.pad(albedo, ((1, 1), (1, 1), (0, 0)), mode="edge")
+    nb = np.stack([pad[:-2, 1:-1], pad[2:, 1:-1], pad[1:-1, :-2], pad[1:-1, 2:]])
+    return np.abs(nb - albedo[None]).max(axis=(0, 3)) < 0.02 * np.maximum(albedo.max(-1), 0.05)
+
+
 def test_components_add_up(truth):
     person, _, r, d, s = truth
-    m = person.scene.mask & (r["coverage"] > 0.999)
     a = person.scene.albedo
+    m = person.scene.mask & (r["coverage"] > 0.999) & _uniform_material(a)
+    assert m.sum() > 300
     recon = a * r["diffuse_shadowed"] + r["specular_shadowed"]
-    assert np.abs(recon - r["full"])[m].sum() / r["full"][m].sum() < 0.02
+    assert np.abs(recon - r["full"])[m].sum() / r["full"][m].sum() < 0.005  # measured 0.09 %
     # where the diffuse lobe is not shadowed the render is albedo x diffuse + specular (the
     # unshadowed terms), per pixel to a few % in the median; the tail is specular light whose
     # mirror direction another body part blocks (measured: the unshadowed specular is up to 25 %
