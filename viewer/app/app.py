@@ -72,6 +72,7 @@ class ViewerApp:
         self.n_lights = len(config.lights)
         self.view = ix.ViewState(yaw=config.look.yaw, tilt=config.look.tilt, exposure=config.look.exposure)
         self.dragging = False
+        self._drag_applied = (0.0, 0.0)  # drag motion already turned into rotation (pixels)
         self.panning = False
         self.last_motion = 0.0
         self.job: LightJob | None = None
@@ -111,13 +112,19 @@ class ViewerApp:
         now = time.perf_counter()
         if imgui.is_mouse_clicked(0) and over_image and not recording_turn:
             self.dragging = True
-        elif self.dragging:
-            if imgui.is_mouse_down(0):
-                dx, dy = io.mouse_delta.x, io.mouse_delta.y
+            self._drag_applied = (0.0, 0.0)
+        if self.dragging:
+            # motion since the press, from imgui's own press position: nothing is lost between
+            # the press and the first frame that sees it, nor before the release
+            down = imgui.is_mouse_down(0)
+            if down or imgui.is_mouse_released(0):
+                total = imgui.get_mouse_drag_delta(0, 0.0)
+                dx, dy = total.x - self._drag_applied[0], total.y - self._drag_applied[1]
                 if dx or dy:
                     self.view = ix.dragged(self.view, dx, dy)
+                    self._drag_applied = (total.x, total.y)
                     self.last_motion = now
-            else:
+            if not down:
                 self.dragging = False
         if imgui.is_mouse_clicked(1) and over_image:
             self.panning = True
