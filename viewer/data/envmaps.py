@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..envmap import EnvMap, pixel_directions, solid_angles
+from ..envmap import EnvMap, direction_to_uv, pixel_directions, solid_angles
+from ..imageio import srgb_to_linear
 
 KINDS = ("sky", "studio", "overcast")
 SUPERSAMPLE = 4
@@ -54,16 +55,10 @@ def _direction(azimuth: float, elevation: float) -> np.ndarray:
 
 
 def _subtexel_directions(h: int, w: int) -> np.ndarray:
-    """(h, w, S*S, 3) directions of a regular S x S grid inside every texel."""
+    """(h, w, S*S, 3) directions of a regular S x S grid inside every texel: the texel centres of
+    the map at S times the resolution, grouped by the texel they fall in."""
     s = SUPERSAMPLE
-    off = (np.arange(s) + 0.5) / s
-    u = (np.arange(w)[:, None] + off[None, :]).reshape(-1) / w  # (w*s,)
-    v = (np.arange(h)[:, None] + off[None, :]).reshape(-1) / h
-    phi = 2 * np.pi * u - np.pi
-    lam = np.pi / 2 - np.pi * v
-    d = np.stack(np.broadcast_arrays(np.cos(lam)[:, None] * np.sin(phi)[None, :], np.sin(lam)[:, None],
-                                     -np.cos(lam)[:, None] * np.cos(phi)[None, :]), axis=-1)  # (h*s, w*s, 3)
-    return d.reshape(h, s, w, s, 3).transpose(0, 2, 1, 3, 4).reshape(h, w, s * s, 3)
+    return pixel_directions(h * s, w * s).reshape(h, s, w, s, 3).transpose(0, 2, 1, 3, 4).reshape(h, w, s * s, 3)
 
 
 def _draw(pixels: np.ndarray, e: Emitter, sub: np.ndarray):
@@ -83,8 +78,6 @@ def _draw(pixels: np.ndarray, e: Emitter, sub: np.ndarray):
     omega = solid_angles(h, w)[:, None]
     covered = float((coverage * omega).sum())
     if covered <= 0.0:  # smaller than a sub-texel: all of it into the texel holding the centre
-        from ..envmap import direction_to_uv
-
         uv = direction_to_uv(d[None])[0]
         i, j = min(int(uv[1] * h), h - 1), min(int(uv[0] * w) % w, w - 1)
         pixels[i, j] += (e.energy / omega[i, 0]).astype(np.float32)
@@ -105,8 +98,7 @@ def _temperature_rgb(kelvin: float) -> np.ndarray:
     r = 1.0 if t <= 66 else 1.29293618606 * (t - 60) ** -0.1332047592
     g = (0.39008157876 * np.log(t) - 0.63184144378) if t <= 66 else 1.12989086089 * (t - 60) ** -0.0755148492
     b = 1.0 if t >= 66 else (0.0 if t <= 19 else 0.54320678911 * np.log(t - 10) - 1.19625408914)
-    srgb = np.clip([r, g, b], 0.0, 1.0)
-    lin = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    lin = srgb_to_linear(np.clip([r, g, b], 0.0, 1.0)).astype(np.float64)
     return lin / max(lin[1], 1e-6)
 
 

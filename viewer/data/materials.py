@@ -4,9 +4,12 @@ Patterns are functions of the rest-pose position, so they follow the body throug
 
 from __future__ import annotations
 
+import colorsys
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..imageio import srgb_to_linear
 
 def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:
     """Smooth 3D value noise in [-1, 1] at points p (..., 3), lattice spacing ``scale`` metres."""
@@ -219,18 +222,11 @@ CLOTH_KINDS = {"cotton": (0.3, (0.7, 0.9)), "denim": (0.2, (0.8, 0.9)), "satin":
                "leather": (0.5, (0.25, 0.45)), "synthetic": (0.45, (0.4, 0.6))}
 
 
-def _srgb_to_linear(c):
-    c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def _color(rng: np.random.Generator) -> tuple:
     """A garment colour: random hue, saturation up to 0.85, display value 0.12 to 0.9 (sRGB), as
     linear RGB."""
-    import colorsys
-
     r, g, b = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.85), rng.uniform(0.12, 0.9))
-    return tuple(float(v) for v in _srgb_to_linear([r, g, b]))
+    return tuple(float(v) for v in srgb_to_linear([r, g, b]))
 
 
 def _garment(rng: np.random.Generator, kinds: tuple, patterns: tuple) -> Garment:
