@@ -51,6 +51,16 @@ def mitsuba(variant: str | None = None):
     return mi
 
 
+def specular_levels(specular) -> np.ndarray:
+    """Specular values quantized to ``SPECULAR_LEVELS`` (level k stands for k / (levels - 1))."""
+    return np.clip(np.rint(np.asarray(specular) * (SPECULAR_LEVELS - 1)), 0, SPECULAR_LEVELS - 1).astype(int)
+
+
+def direct_scene(sensor: dict, emitter: dict) -> dict:
+    """A Mitsuba scene dict with direct lighting only and the map hidden behind the geometry; add shapes."""
+    return {"type": "scene", "integrator": {"type": "direct", "hide_emitters": True}, "sensor": sensor, "light": emitter}
+
+
 def _transform(mi, m: np.ndarray):
     full = np.eye(4)
     full[:3, :3] = m
@@ -137,12 +147,12 @@ def render_bundle_reference(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: f
     m = bundle_mesh(scene)
     albedo = mi.Bitmap(np.ascontiguousarray(np.clip(scene.albedo, 0.0, 1.0), dtype=np.float32))
     rough = mi.Bitmap(np.ascontiguousarray(scene.roughness[..., None], dtype=np.float32))
-    level = np.clip(np.rint(m.face_specular * (SPECULAR_LEVELS - 1)), 0, SPECULAR_LEVELS - 1).astype(int)
+    level = specular_levels(m.face_specular)
     emitter = envmap_emitter(mi, env, yaw, tilt)
     sensor = camera_sensor(mi, scene, spp)
     outputs = {}
     for name in ("full", "diffuse_shadowed"):
-        items = {"type": "scene", "integrator": {"type": "direct", "hide_emitters": True}, "sensor": sensor, "light": emitter}
+        items = direct_scene(sensor, emitter)
         if name == "full":
             for k in np.unique(level):
                 bsdf = mi.load_dict({

@@ -24,14 +24,10 @@ import numpy as np
 from ..envmap import EnvMap
 from ..lights import rotation_matrix
 from ..scene import Scene
-from .reference import SPECULAR_LEVELS, camera_sensor, envmap_emitter, mi_mesh, mitsuba
+from .reference import SPECULAR_LEVELS, camera_sensor, direct_scene, envmap_emitter, mi_mesh, mitsuba, specular_levels
 
 UNSHADOWED_SAMPLES = 2048
 EVAL_CHUNK = 1 << 21  # pixel x sample pairs per BSDF evaluation
-
-
-def _levels(specular: np.ndarray) -> np.ndarray:
-    return np.clip(np.rint(np.asarray(specular) * (SPECULAR_LEVELS - 1)), 0, SPECULAR_LEVELS - 1).astype(int)
 
 
 def _principled(mi, base, specular: float, roughness):
@@ -42,7 +38,7 @@ def render_person(person, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0, spp:
     """``full``, ``diffuse_shadowed``, ``specular_shadowed`` and ``coverage`` (see the module doc)."""
     mi = mitsuba()
     scene: Scene = person.scene
-    face_level = _levels(person.specular[person.faces[:, 0]])
+    face_level = specular_levels(person.specular[person.faces[:, 0]])
     attributes = {"vertex_albedo": person.albedo, "vertex_roughness": person.roughness[:, None]}
     bases = {
         "albedo": {"type": "mesh_attribute", "name": "vertex_albedo"},
@@ -54,7 +50,7 @@ def render_person(person, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0, spp:
     sensor = camera_sensor(mi, scene, spp)
     images = {}
     for name, base in bases.items():
-        items = {"type": "scene", "integrator": {"type": "direct", "hide_emitters": True}, "sensor": sensor, "light": emitter}
+        items = direct_scene(sensor, emitter)
         for k in np.unique(face_level):
             bsdf = _principled(mi, base, k / (SPECULAR_LEVELS - 1), roughness)
             items[f"part{k}"] = mi_mesh(mi, f"specular{k}", person.vertices, person.normals, person.faces[face_level == k],
@@ -87,7 +83,7 @@ def unshadowed_shading(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: float 
     view = -scene.points()[rows, cols].astype(np.float64)
     view /= np.linalg.norm(view, axis=1, keepdims=True)
     rough = scene.roughness[rows, cols]
-    level = _levels(scene.specular[rows, cols])
+    level = specular_levels(scene.specular[rows, cols])
     diffuse = np.zeros((len(rows), 3))
     specular = np.zeros((len(rows), 3))
     ctx = mi.BSDFContext()
