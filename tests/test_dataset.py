@@ -70,7 +70,7 @@ def test_loader_items_and_augmentation(tiny_dataset):
         assert torch.allclose(a["image"].sum(), item["image"].sum() * scale, rtol=1e-3)
 
 
-def test_bad_arguments():
+def test_bad_arguments(tmp_path):
     with pytest.raises(InputError):
         DatasetConfig("x", 3, shard=(2, 2))
-    assert main(["dataset", "make", "--out", "/tmp/x", "--count", "1", "--shard", "a/b"]) == 2
+    assert main(["dataset", "make", "--out", str(tmp_path), "--count", "1", "--shard", "a/b"]) == 2

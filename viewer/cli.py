@@ -54,19 +54,25 @@ def _fitted_lights(env, n, method, refit=False):
     return lights, cached
 
 
+def _load_scene(path, size: int | None):
+    """The scene bundle, resampled to ``size`` pixels on the longer side when given (``--size``)."""
+    from .scene import load_scene
+    from .scene_ops import resample_scene
+
+    scene = load_scene(path)
+    if size is None:
+        return scene
+    if not 16 <= size <= 8192:
+        raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
+    return resample_scene(scene, size)
+
+
 def _prepare(scene_path, lights_path, envmap_path, args):
     """Scene (resampled to ``--size``), lights (a file, or fitted to the map) and map pixels."""
     from .envmap import load_envmap
     from .lights import load_lights
-    from .scene import load_scene
-    from .scene_ops import resample_scene
 
-    scene = load_scene(scene_path)
-    size = getattr(args, "size", None)
-    if size is not None:
-        if not 16 <= size <= 8192:
-            raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
-        scene = resample_scene(scene, size)
+    scene = _load_scene(scene_path, getattr(args, "size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
     if lights_path is not None:
         lights = load_lights(lights_path)
@@ -145,7 +151,6 @@ def cmd_view(args) -> int:
     from .app.session import Look
     from .envmap import load_envmap
     from .lights import load_lights
-    from .scene import load_scene
 
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
@@ -156,13 +161,7 @@ def cmd_view(args) -> int:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
     if not (np.isfinite(args.fps) and args.fps > 0):
         raise InputError(None, f"--fps must be a positive number, got {args.fps}")
-    scene = load_scene(scene_path)
-    if args.size is not None:
-        from .scene_ops import resample_scene
-
-        if not 16 <= args.size <= 8192:
-            raise InputError(None, f"--size must be within [16, 8192] pixels, got {args.size}")
-        scene = resample_scene(scene, args.size)
+    scene = _load_scene(scene_path, args.size)
     env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
     if args.lights:
         lights = load_lights(args.lights)
@@ -175,7 +174,8 @@ def cmd_view(args) -> int:
 
     look = Look(yaw=yaw, tilt=args.tilt, exposure=args.exposure, shadows=args.visibility)
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
-                          env_path=Path(env_path) if env_path is not None else None, method=args.method, options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
+                          env_path=Path(env_path) if env_path is not None else None, method=args.method,
+                          options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))))
