@@ -189,12 +189,11 @@ def _evaluate(model, task, dataset, indices, cfg, device) -> dict:
         return {"val": None}
     model.eval()
     totals: dict[str, list] = {}
-    for start in range(0, len(indices), cfg.batch):
-        items = [dataset[i] for i in indices[start:start + cfg.batch]]
-        batch = {k: torch.stack([it[k] for it in items]).to(device) for k in items[0]}
+    for batch in torch.utils.data.DataLoader(torch.utils.data.Subset(dataset, indices), batch_size=cfg.batch):
+        batch = {k: v.to(device) for k, v in batch.items()}
         loss = task.loss(model, _resize(batch, cfg.res))
         for k, v in loss.items():
-            totals.setdefault(k, []).append(v.item() * len(items))
+            totals.setdefault(k, []).append(v.item() * len(batch["image"]))
     n = len(indices)
     return {"val": sum(totals["total"]) / n, **{f"val_{k}": sum(v) / n for k, v in totals.items() if k != "total"}}
 
