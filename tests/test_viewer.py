@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from viewer.bench.viewer import x_display
 from viewer.cli import DEMO_LIGHTS, DEMO_YAW
 from viewer.gl import Engine, EngineOptions
 from viewer.imageio import read_exr
@@ -31,20 +32,8 @@ RELIGHT = [sys.executable, "-m", "viewer.cli"]
 @pytest.fixture(scope="module")
 def display():
     """A private X server (Xvfb) for this module's windows."""
-    for number in range(90, 140):
-        if not Path(f"/tmp/.X{number}-lock").exists():
-            break
-    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1400x1100x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    name = f":{number}"
-    for _ in range(100):
-        if subprocess.run(["xdotool", "getmouselocation"], env={**os.environ, "DISPLAY": name},
-                          capture_output=True).returncode == 0:
-            break
-        time.sleep(0.1)
-    yield name
-    proc.terminate()
-    proc.wait(10)
+    with x_display(private=True) as name:
+        yield name
 
 
 class Viewer:

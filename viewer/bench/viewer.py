@@ -23,17 +23,23 @@ DRAG_EVENT_SECONDS = 0.02
 
 
 @contextmanager
-def x_display():
-    """The current DISPLAY, or a private Xvfb for the duration."""
-    if os.environ.get("DISPLAY"):
+def x_display(private: bool = False):
+    """The current DISPLAY (unless ``private``), or a private Xvfb for the duration, ready for
+    windows and xdotool when it is yielded."""
+    if os.environ.get("DISPLAY") and not private:
         yield os.environ["DISPLAY"]
         return
-    number = next(n for n in range(150, 250) if not Path(f"/tmp/.X{n}-lock").exists())
-    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1600x1200x24", "-nolisten", "tcp"],
+    number = next(n for n in range(90, 250) if not Path(f"/tmp/.X{n}-lock").exists())
+    name = f":{number}"
+    proc = subprocess.Popen(["Xvfb", name, "-screen", "0", "1600x1200x24", "-nolisten", "tcp"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        time.sleep(1.0)
-        yield f":{number}"
+        for _ in range(100):
+            if subprocess.run(["xdotool", "getmouselocation"], env={**os.environ, "DISPLAY": name},
+                              capture_output=True).returncode == 0:
+                break
+            time.sleep(0.1)
+        yield name
     finally:
         proc.terminate()
         proc.wait(10)
