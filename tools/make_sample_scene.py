@@ -43,7 +43,6 @@ about 6 seconds. The output is deterministic (fixed noise seeds).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
