@@ -9,6 +9,8 @@ import torch
 
 from viewer.cli import main
 from viewer.nets import depth as dn
+from viewer.nets import inverse as inv
+from viewer.nets.photo import photo_input
 from viewer.nets.train import load_network
 from viewer.nets.unet import UNet
 
@@ -56,7 +58,7 @@ def test_depth_network_can_fit_one_person(tiny_dataset):
     torch.manual_seed(0)
     net = UNet(4, {"depth": 1}, width=8, levels=3)
     opt = torch.optim.Adam(net.parameters(), lr=5e-3, betas=(0.5, 0.999))
-    x = dn.photo_input(batch["image"], batch["mask"])
+    x, _ = photo_input(batch["image"], batch["mask"], background=False)
     target = dn.depth_target(batch["depth"], batch["mask"])
     m = batch["mask"] > 0.5
     flat = float((target - dn.masked_median(target, batch["mask"])).abs()[m].mean())
@@ -87,3 +89,56 @@ def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
     assert out.shape == (1, 1, 64, 64) and torch.isfinite(out).all()
     # a different network size in the same folder is refused with a clear error
     assert main(args[:-4] + ["--width", "16", "--batch", "2", "--epochs", "4"]) == 2
+
+
+def _logit(p):
+    p = p.clamp(1e-4, 1 - 1e-4)
+    return torch.log(p / (1 - p))
+
+
+def _perfect_outputs(batch, lights):
+    """Network outputs that decode to the true maps and the given (N, 7) lights."""
+    material = torch.cat([batch["albedo"], batch["specular"], batch["roughness"]], dim=1)
+    anchor = torch.as_tensor(inv.fibonacci_sphere(len(lights)), dtype=torch.float32)
+    raw = torch.cat([lights[:, :3] - anchor, torch.logit(lights[:, 3:4] / inv.SIGMA_MAX, eps=1e-4),
+                     lights[:, 4:7] + torch.log(-torch.expm1(-lights[:, 4:7]))], dim=1)  # softplus^-1
+    return {"normal": batch["normal"], "material": _logit(material), "lights": raw.reshape(1, -1)}
+
+
+def test_inverse_losses_agree_with_the_ray_traced_data(tiny_dataset):
+    """The loss conventions against the dataset: the true maps score zero on texture, and the map's
+    fitted lights explain the ray-traced shading far better than the same lights pointing elsewhere."""
+    from viewer.data.loader import RelightDataset
+
+    item = RelightDataset(tiny_dataset[0])[0]
+    batch = {k: v[None] for k, v in item.items()}
+    photo = batch["image"] + (1 - batch["mask"]) * batch["background"]
+    _, scale = photo_input(photo, batch["mask"])
+    lights = batch["lights"][0].clone()
+    lights[:, 4:7] *= scale.reshape(())
+    right = inv.inverse_loss(_perfect_outputs(batch, lights), batch, scale, sigma_items=1)
+    assert right["albedo"] < 1e-3 and right["normal"] < 1e-3 and right["normal_degrees"] < 1.0
+    wrong_lights = lights.clone()
+    wrong_lights[:, :3] = -wrong_lights[:, :3]
+    wrong = inv.inverse_loss(_perfect_outputs(batch, wrong_lights), batch, scale, sigma_items=1)
+    for term in ("diffuse_shading", "full_recon", "sigma"):
+        assert right[term] < 0.35 * wrong[term], (term, float(right[term]), float(wrong[term]))
+    assert torch.isfinite(right["total"]) and right["total"] < wrong["total"]
+
+
+def test_light_tensors_are_valid_for_any_raw_output():
+    raw = torch.randn(3, 7 * 16) * 50
+    raw[0] = 0
+    d, s, i = inv.light_tensors(raw)
+    assert torch.allclose(d.norm(dim=-1), torch.ones(3, 16), atol=1e-5)
+    assert (s >= 0).all() and (s <= inv.SIGMA_MAX).all() and (i >= 0).all() and torch.isfinite(i).all()
+
+
+def test_laplacian_loss_sees_structure_not_only_values():
+    g = torch.Generator().manual_seed(1)
+    a = torch.rand(1, 3, 32, 32, generator=g)
+    mask = torch.ones(1, 1, 32, 32)
+    assert inv.laplacian_l1(a, a, mask) == 0
+    blurred = torch.nn.functional.avg_pool2d(a, 3, 1, 1)
+    assert inv.laplacian_l1(blurred, a, mask) > 0.02  # detail lost
+    assert inv.laplacian_l1(a + 0.1, a, mask) < 0.2 * inv.laplacian_l1(blurred, a, mask)  # a flat offset barely counts

@@ -68,6 +68,17 @@ class Camera:
         pts = np.stack([(uu - cx) * d / f, -(vv - cy) * d / f, -d], axis=-1)
         return pts.astype(np.float32)
 
+    def view_directions(self) -> np.ndarray:
+        """(H, W, 3) float64 unit camera-space direction through every pixel centre (the rays of
+        :meth:`unproject`, towards -z)."""
+        f = self.focal_px
+        cx, cy = self.center
+        u = (np.arange(self.width, dtype=np.float64) + 0.5 - cx) / f
+        v = -(np.arange(self.height, dtype=np.float64) + 0.5 - cy) / f
+        uu, vv = np.meshgrid(u, v)
+        d = np.stack([uu, vv, -np.ones_like(uu)], axis=-1)
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
     def projection_matrix(self, near: float, far: float) -> np.ndarray:
         """OpenGL clip-from-camera matrix (4x4, row-major numpy) matching :meth:`unproject`."""
         f = self.focal_px

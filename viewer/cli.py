@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -123,7 +124,6 @@ def cmd_render(args) -> int:
         for path in _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args):
             print(f"wrote {path}")
         return 0
-    import time
 
     from tqdm import tqdm
 
@@ -154,6 +154,8 @@ def cmd_view(args) -> int:
 
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
+    if args.mask:
+        scene_path = _photo_bundle(args.scene, args.mask, args.device)
     env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
     demo = args.scene is None and args.envmap is None and args.lights is None
     yaw = args.yaw if args.yaw is not None else (DEMO_YAW if demo else 0.0)
@@ -182,9 +184,34 @@ def cmd_view(args) -> int:
     return run_viewer(config)
 
 
-def cmd_fit_lights(args) -> int:
-    import time
+def _photo_bundle(photo, mask, device) -> Path:
+    """The scene bundle of a photo: inferred once, then taken from the cache."""
+    from .inference import cached_bundle
 
+    if photo is None:
+        raise InputError(None, "--mask needs a photo: relight view PHOTO --mask MASK")
+    print(f"inferring the scene bundle of {photo} (once; later runs take it from the cache)")
+    bundle, cached = cached_bundle(photo, mask, device=device)
+    print(f"{'cached' if cached else 'wrote'} scene bundle {bundle}")
+    return bundle
+
+
+def cmd_infer(args) -> int:
+    from .inference import infer, load_networks
+
+    t0 = time.perf_counter()
+    nets = load_networks(args.device, args.networks)
+    record = infer(args.photo, args.mask, args.output, size=args.size, device=args.device, networks=nets,
+                   progress=lambda stage: print(f"  {stage} done", flush=True))
+    print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in record["seconds"].items()))
+    for note in record["notes"]:
+        print(f"note: {note}")
+    print(f"wrote scene bundle {args.output} ({args.size}x{args.size}) with the estimated input lighting "
+          f"{Path(args.output) / 'lights.json'} in {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def cmd_fit_lights(args) -> int:
     from .envmap import load_envmap
     from .lightfit.cache import write_atomic
 
@@ -208,8 +235,6 @@ def cmd_fit_lights(args) -> int:
 
 
 def cmd_dataset(args) -> int:
-    import time
-
     from .data.dataset import HELD_OUT, DatasetConfig, make_dataset, parse_shard
     from .progress import StageBars
 
@@ -232,8 +257,10 @@ def cmd_train(args) -> int:
     from .nets.train import TrainConfig, train
     from .progress import StageBars
 
-    cfg = TrainConfig(task=args.network, data=Path(args.data), out=Path(args.out), res=args.res, epochs=args.epochs,
-                      batch=args.batch, lr=args.lr, width=args.width, levels=args.levels, device=args.device, seed=args.seed)
+    data = [Path(d) for d in args.data]
+    cfg = TrainConfig(task=args.network, data=data if len(data) > 1 else data[0], out=Path(args.out), res=args.res,
+                      epochs=args.epochs, batch=args.batch, lr=args.lr, width=args.width, levels=args.levels,
+                      device=args.device, seed=args.seed, perceptual_weight=args.perceptual_weight)
     with StageBars(prefix=f"training {args.network}: ") as bars:
         card = train(cfg, progress=bars)
     last = card["history"][-1]
@@ -301,7 +328,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("view", help="the interactive viewer: drag to turn the lighting, tune each light, record video")
-    p.add_argument("scene", nargs="?", help="scene bundle directory (default: the bundled sample)")
+    p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo with --mask (default: the bundled sample)")
+    p.add_argument("--mask", help="the photo's person mask: infer its scene bundle (once, cached) and view it")
+    p.add_argument("--device", default="cpu", help="device for inference with --mask (default cpu)")
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
     p.add_argument("-n", "--lights-count", type=int, default=16, help="lights fitted to the map (default 16; cached)")
@@ -319,6 +348,15 @@ def build_parser() -> argparse.ArgumentParser:
                    "after every change (for scripts and tests)")
     _add_engine_args(p)
     p.set_defaults(func=cmd_view)
+
+    p = sub.add_parser("infer", help="photo + person mask -> scene bundle (the networks' maps and the photo's lighting)")
+    p.add_argument("photo", help="photo (PNG/JPEG, sRGB)")
+    p.add_argument("--mask", required=True, help="person mask (PNG, person where > 50 %%), the photo's size")
+    p.add_argument("-o", "--output", required=True, help="scene bundle directory to write")
+    p.add_argument("--size", type=int, default=512, help="pixels of the bundle's square (default 512)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    p.add_argument("--networks", help="folder of network weights (default: the shipped ones in assets/networks)")
+    p.set_defaults(func=cmd_infer)
 
     p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")
     p.add_argument("map", help="equirectangular environment map (.hdr or .exr)")
@@ -349,8 +387,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("train", help="train a network on a dataset made by `relight dataset make`")
-    p.add_argument("network", choices=("depth",), help="which network")
-    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("network", choices=("inverse", "depth"), help="which network")
+    p.add_argument("--data", required=True, nargs="+", help="dataset directory (or several: shards, datasets)")
     p.add_argument("--out", default="runs", help="where checkpoints, loss curves and weights go (default runs/)")
     p.add_argument("--res", type=int, default=256, help="training resolution (default 256)")
     p.add_argument("--epochs", type=int, default=20)
@@ -360,6 +398,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--levels", type=int, default=5, help="U-Net levels (default 5)")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--perceptual-weight", type=float, default=0.1,
+                   help="inverse: weight of the Laplacian-pyramid loss that replaces VGG (default 0.1, the paper's)")
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")

@@ -117,6 +117,12 @@ class EnvMap:
         src = pixel_directions(h, w) @ r  # row-vector form of R^T d
         return EnvMap(_bilinear(self.pixels, direction_to_uv(src)), self.source)
 
+    def seen_through(self, camera, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> np.ndarray:
+        """(H, W, 3) float32: the map turned by (yaw, tilt) as the camera sees it behind the person
+        (bilinear; the display shader's environment background, ``shaders/display.frag.glsl``)."""
+        r = rotation_matrix(yaw_deg, tilt_deg)
+        return _bilinear(self.pixels, direction_to_uv(camera.view_directions() @ r))
+
     def downsampled(self, max_width: int) -> "EnvMap":
         """The map area-averaged to width ``2 * (max_width // 2)`` (unchanged if already no wider).
 

@@ -1,7 +1,9 @@
 """``RelightDataset``: the samples of ``relight dataset make`` as a ``torch.utils.data.Dataset``.
 
 Each item is one (person, lighting) pair, a dict of float32 tensors, images channels-first:
-``image`` (3, H, W) the relit photo, ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
+``image`` (3, H, W) the relit person (zero outside the mask), ``background`` (3, H, W) the turned
+map seen through the camera behind them (:meth:`viewer.envmap.EnvMap.seen_through`; the photo is
+``image + (1 - mask) * background``), ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
 ``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
 ``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity.
 
@@ -20,6 +22,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from ..envmap import EnvMap, load_envmap
 from ..imageio import read_exr
 from ..lights import load_lights
 from ..scene import load_scene
@@ -28,14 +31,25 @@ EXPOSURE_RANGE = (0.5, 2.0)
 
 
 class RelightDataset(Dataset):
+    """The finished samples of one dataset directory, or of several (a list: shards or datasets
+    made on different machines)."""
+
     def __init__(self, root, augment: bool = False, seed: int = 0):
-        self.root = Path(root)
-        samples = sorted(p.parent for p in (self.root / "samples").glob("*/sample.json"))
+        roots = [Path(r) for r in (root if isinstance(root, (list, tuple)) else [root])]
+        samples = sorted(p.parent for r in roots for p in (r / "samples").glob("*/sample.json"))
         self.items = [(s, k) for s in samples for k in range(len(json.loads((s / "sample.json").read_text())["lightings"]))]
         if not self.items:
-            raise FileNotFoundError(f"{self.root}: no finished samples (samples/*/sample.json)")
+            raise FileNotFoundError(f"{', '.join(map(str, roots))}: no finished samples (samples/*/sample.json)")
         self.augment = augment
         self.rng = np.random.default_rng(seed)
+        self._maps: dict[Path, EnvMap] = {}
+
+    def _background(self, sample: Path, k: int, camera) -> np.ndarray:
+        lighting = json.loads((sample / f"lighting_{k}" / "lighting.json").read_text())
+        path = sample.parents[1] / "maps" / f"{lighting['map']}.hdr"
+        if path not in self._maps:
+            self._maps[path] = load_envmap(path)
+        return self._maps[path].seen_through(camera, lighting["yaw"], lighting.get("tilt", 0.0))
 
     def __len__(self) -> int:
         return len(self.items)
@@ -46,7 +60,7 @@ class RelightDataset(Dataset):
         d = sample / f"lighting_{k}"
         lights = load_lights(d / "lights.json").to_array()
         item = {
-            "image": read_exr(d / "full.exr"), "mask": scene.mask[..., None].astype(np.float32), "albedo": scene.albedo,
+            "image": read_exr(d / "full.exr"), "background": self._background(sample, k, scene.camera), "mask": scene.mask[..., None].astype(np.float32), "albedo": scene.albedo,
             "normal": scene.normal, "specular": scene.specular[..., None], "roughness": scene.roughness[..., None],
             "depth": scene.depth[..., None], "diffuse": read_exr(d / "diffuse.exr"),
             "specular_shading": read_exr(d / "specular.exr"), "diffuse_shadowed": read_exr(d / "diffuse_shadowed.exr"),
@@ -57,7 +71,7 @@ class RelightDataset(Dataset):
                 item["normal"] = item["normal"] * np.array([-1.0, 1.0, 1.0], np.float32)
                 lights[:, 0] = -lights[:, 0]
             scale = np.float32(np.exp(self.rng.uniform(*np.log(EXPOSURE_RANGE))))
-            for key in ("image", "diffuse", "specular_shading", "diffuse_shadowed"):
+            for key in ("image", "background", "diffuse", "specular_shading", "diffuse_shadowed"):
                 item[key] = item[key] * scale
             lights[:, 4:7] *= scale
         out = {key: torch.from_numpy(np.ascontiguousarray(np.moveaxis(np.asarray(v, np.float32), -1, 0))) for key, v in item.items()}

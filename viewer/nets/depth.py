@@ -1,6 +1,6 @@
 """The depth network's inputs, targets and losses (the paper's Section 3.2, NOTES.md).
 
-The network sees the photo (tone mapped to display sRGB, as a real photo is) and the mask, and
+The network sees the person (:func:`viewer.nets.photo.photo_input` without the background) and the mask, and
 outputs a sigmoid in [0, 1]: depth normalized by ``DEPTH_RANGE`` metres around the mask's median
 (0.5 = the median). At inference the prediction is shifted so its median over the mask sits at the
 camera distance and scaled back to metres (:func:`metric_depth`); the absolute distance of a
@@ -16,21 +16,6 @@ import torch
 DEPTH_RANGE = 1.0  # metres spanned by normalized depth 0..1 (a standing person is well under 1 m deep)
 SLOPE_WEIGHT = 0.01  # the paper's lambda_slope
 GAP = 0.03 / DEPTH_RANGE  # normalized depth jump treated as a gap (viewer.mesh.GAP_MIN)
-
-
-def photo_input(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """(B, 4, H, W): the linear HDR image exposed so the mask's 99th percentile maps to 0.9,
-    clipped, in sRGB, and the mask. Real photos (already sRGB) skip the exposure step."""
-    b = image.shape[0]
-    lum = image.mean(dim=1, keepdim=True)
-    scale = torch.ones(b, 1, 1, 1, dtype=image.dtype, device=image.device)
-    for i in range(b):
-        values = lum[i][mask[i] > 0.5]
-        if values.numel():
-            scale[i] = 0.9 / torch.quantile(values.float(), 0.99).clamp_min(1e-8)
-    x = (image * scale).clamp(0.0, 1.0)
-    srgb = torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
-    return torch.cat([srgb * mask, mask], dim=1)
 
 
 def masked_median(x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:

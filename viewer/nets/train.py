@@ -22,13 +22,15 @@ from torch.nn import functional as F
 
 from ..errors import InputError
 from . import depth as depth_net
+from . import inverse as inverse_net
+from .photo import photo_input
 from .unet import UNet
 
 
 @dataclass
 class TrainConfig:
     task: str
-    data: Path
+    data: Path | list[Path]
     out: Path
     res: int = 256
     epochs: int = 20
@@ -39,6 +41,7 @@ class TrainConfig:
     levels: int = 5
     device: str = "cpu"
     seed: int = 0
+    perceptual_weight: float = inverse_net.PERCEPTUAL_WEIGHT  # inverse: the Laplacian-pyramid loss's weight
     val_every: int = 10  # every tenth person is a validation person
 
     def __post_init__(self):
@@ -62,11 +65,14 @@ def _resize(batch: dict, res: int) -> dict:
 class DepthTask:
     name = "depth"
     outputs = {"depth": 1}
+    vectors: dict = {}
     in_channels = 4
 
-    @staticmethod
-    def loss(model, batch) -> dict:
-        x = depth_net.photo_input(batch["image"], batch["mask"])
+    def __init__(self, cfg: TrainConfig):
+        self.cfg = cfg
+
+    def loss(self, model, batch) -> dict:
+        x, _ = photo_input(batch["image"], batch["mask"], background=False)
         pred = torch.sigmoid(model(x)["depth"])
         target = depth_net.depth_target(batch["depth"], batch["mask"])
         losses = depth_net.depth_loss(pred, target, batch["mask"])
@@ -78,7 +84,26 @@ class DepthTask:
         return losses
 
 
-TASKS = {"depth": DepthTask}
+class InverseTask:
+    """The inverse-rendering network on the photo with its background (:mod:`.inverse`)."""
+
+    name = "inverse"
+    outputs = inverse_net.OUTPUTS
+    vectors = inverse_net.vectors()
+    in_channels = 4
+
+    def __init__(self, cfg: TrainConfig):
+        self.cfg = cfg
+
+    def loss(self, model, batch) -> dict:
+        photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
+        x, scale = photo_input(photo, batch["mask"])
+        losses = inverse_net.inverse_loss(model(x), batch, scale, self.cfg.perceptual_weight,
+                                          sigma_items=1 if model.training else 0)
+        return losses
+
+
+TASKS = {"depth": DepthTask, "inverse": InverseTask}
 
 
 def _split(dataset, val_every: int):
@@ -87,6 +112,10 @@ def _split(dataset, val_every: int):
     train = [i for i, (s, _) in enumerate(dataset.items) if s not in val_people]
     val = [i for i, (s, _) in enumerate(dataset.items) if s in val_people]
     return train, val
+
+
+def _data_text(data) -> str | list[str]:
+    return [str(d) for d in data] if isinstance(data, (list, tuple)) else str(data)
 
 
 def _atomic_save(obj, path: Path):
@@ -127,7 +156,7 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     device = torch.device(cfg.device)
     if device.type == "cuda" and not torch.cuda.is_available():
         raise InputError(None, "--device cuda asked for, but torch sees no CUDA device")
-    task = TASKS[cfg.task]
+    task = TASKS[cfg.task](cfg)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     data = RelightDataset(cfg.data, augment=True, seed=cfg.seed)
@@ -136,7 +165,7 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     loader = torch.utils.data.DataLoader(torch.utils.data.Subset(data, train_idx), batch_size=cfg.batch, shuffle=True,
                                          drop_last=len(train_idx) > cfg.batch,
                                          generator=torch.Generator().manual_seed(cfg.seed))
-    model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels).to(device)
+    model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels, task.vectors).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=(0.5, 0.999))
     steps = cfg.epochs * max(len(loader), 1)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=cfg.lr_min)
@@ -168,14 +197,14 @@ def train(cfg: TrainConfig, progress=None) -> dict:
         seconds += time.perf_counter() - t0
         history.append({"epoch": epoch + 1, "train": float(np.mean(losses)) if losses else None, **val,
                         "lr": sched.get_last_lr()[0], "seconds": round(seconds, 1)})
-        _atomic_save({"config": {**asdict(cfg), "data": str(cfg.data), "out": str(cfg.out)}, "model_config": model.config,
+        _atomic_save({"config": {**asdict(cfg), "data": _data_text(cfg.data), "out": str(cfg.out)}, "model_config": model.config,
                       "model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
                       "history": history, "epoch": epoch, "seconds": seconds}, ckpt_path)
         _plot(history, out / f"{cfg.task}_loss.png", cfg.task)
     weights = out / f"{cfg.task}.safetensors"
     save_file({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, str(weights))
     card = {"network": cfg.task, "model": model.config, "parameters": sum(p.numel() for p in model.parameters()),
-            "data": str(cfg.data), "train_items": len(train_idx), "val_items": len(val_idx), "resolution": cfg.res,
+            "data": _data_text(cfg.data), "train_items": len(train_idx), "val_items": len(val_idx), "resolution": cfg.res,
             "epochs": cfg.epochs, "batch": cfg.batch, "lr": [cfg.lr, cfg.lr_min], "device": str(device),
             "torch_threads": torch.get_num_threads(), "seconds": round(seconds, 1), "history": history,
             "weights": weights.name}
@@ -207,6 +236,6 @@ def load_network(path, device="cpu") -> UNet:
     if not path.is_file() or not card_path.is_file():
         raise InputError(path, "network weights not found (a .safetensors file with its .json card)")
     cfg = json.loads(card_path.read_text())["model"]
-    model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"])
+    model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"))
     model.load_state_dict(load_file(str(path), device=str(device)))
     return model.eval().to(device)

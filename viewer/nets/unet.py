@@ -3,7 +3,7 @@
 The paper's inverse-rendering network is one encoder with three decoders (normal; albedo +
 specular + roughness; lights) and its depth network a single decoder with a 1x1 last layer and a
 sigmoid. ``width`` (channels of the first level, doubled per level) and ``levels`` are the
-network-size knob.
+network-size knob. The lights come from a :class:`VectorHead` on the bottleneck.
 """
 
 from __future__ import annotations
@@ -52,14 +52,33 @@ class Decoder(nn.Module):
         return self.head(x)
 
 
-class UNet(nn.Module):
-    """``outputs``: decoder name -> output channels. Input sides must be divisible by 2^(levels-1)."""
+class VectorHead(nn.Module):
+    """A vector from the bottleneck (the paper's lights decoder): mean- and max-pooled features
+    through a two-layer perceptron."""
 
-    def __init__(self, in_channels: int, outputs: dict[str, int], width: int = 16, levels: int = 5):
+    def __init__(self, channels: int, out_features: int, hidden: int = 256):
         super().__init__()
+        self.mlp = nn.Sequential(nn.Linear(2 * channels, hidden), nn.SiLU(inplace=True), nn.Linear(hidden, out_features))
+
+    def forward(self, skips: list[torch.Tensor]) -> torch.Tensor:
+        x = skips[-1]
+        return self.mlp(torch.cat([x.mean(dim=(2, 3)), x.amax(dim=(2, 3))], dim=1))
+
+
+class UNet(nn.Module):
+    """``outputs``: decoder name -> output channels (images); ``vectors``: head name -> features
+    (vectors from the bottleneck). Input sides must be divisible by 2^(levels-1)."""
+
+    def __init__(self, in_channels: int, outputs: dict[str, int], width: int = 16, levels: int = 5,
+                 vectors: dict[str, int] | None = None):
+        super().__init__()
+        vectors = dict(vectors or {})
         self.config = {"in_channels": in_channels, "outputs": dict(outputs), "width": width, "levels": levels}
+        if vectors:
+            self.config["vectors"] = vectors
         self.encoder = Encoder(in_channels, width, levels)
         self.decoders = nn.ModuleDict({name: Decoder(self.encoder.channels, c) for name, c in outputs.items()})
+        self.heads = nn.ModuleDict({name: VectorHead(self.encoder.channels[-1], n) for name, n in vectors.items()})
         self.multiple = 2 ** (levels - 1)
 
     def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -67,4 +86,6 @@ class UNet(nn.Module):
         if h % self.multiple or w % self.multiple:
             raise ValueError(f"input {h}x{w} is not a multiple of {self.multiple}")
         skips = self.encoder(x)
-        return {name: dec(skips) for name, dec in self.decoders.items()}
+        out = {name: dec(skips) for name, dec in self.decoders.items()}
+        out.update({name: head(skips) for name, head in self.heads.items()})
+        return out

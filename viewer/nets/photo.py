@@ -1,0 +1,47 @@
+"""What the networks see of a photo: linear RGB exposed so the person's 99th percentile of
+luminance maps to 0.9, clipped to [0, 1] and encoded as display sRGB, plus the mask.
+
+A synthetic HDR image and a real photo (sRGB, decoded to linear first) go through the same
+steps, so the networks meet at inference what they met in training. The exposure ``scale`` is
+returned: quantities the networks predict in exposed units (the lights' intensities, shading)
+are divided by it to get back to the photo's own linear units.
+"""
+
+from __future__ import annotations
+
+import torch
+
+EXPOSED_PERCENTILE = 0.99
+EXPOSED_LEVEL = 0.9
+
+
+def exposure_scale(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(B, 1, 1, 1): the factor that maps the mask's 99th percentile of luminance to 0.9 (1 for an
+    empty mask or a black person)."""
+    lum = image.mean(dim=1, keepdim=True)
+    scale = torch.ones(image.shape[0], 1, 1, 1, dtype=image.dtype, device=image.device)
+    for i in range(image.shape[0]):
+        values = lum[i][mask[i] > 0.5]
+        if values.numel():
+            top = torch.quantile(values.float(), EXPOSED_PERCENTILE)
+            if top > 1e-8:
+                scale[i] = EXPOSED_LEVEL / top
+    return scale
+
+
+def linear_to_srgb(x: torch.Tensor) -> torch.Tensor:
+    return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
+
+
+def srgb_to_linear(x: torch.Tensor) -> torch.Tensor:
+    return torch.where(x <= 0.04045, x / 12.92, ((x.clamp_min(0.0) + 0.055) / 1.055) ** 2.4)
+
+
+def photo_input(image: torch.Tensor, mask: torch.Tensor, background: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(x, scale)``: x (B, 4, H, W) the exposed sRGB photo and the mask; ``background=False``
+    blacks out everything but the person (the depth network's input)."""
+    scale = exposure_scale(image, mask)
+    srgb = linear_to_srgb((image * scale).clamp(0.0, 1.0))
+    if not background:
+        srgb = srgb * mask
+    return torch.cat([srgb, mask], dim=1), scale
