@@ -62,7 +62,7 @@ def read_photo(photo_path, mask_path) -> tuple[np.ndarray, np.ndarray, list[str]
     elif photo.shape[-1] == 4:
         notes.append("the photo's alpha channel is ignored (the mask says where the person is)")
         photo = photo[..., :3]
-    mask_img = _read_u8(mask_path, [], "mask")
+    mask_img = _read_u8(mask_path, notes, "mask")
     mask = (mask_img if mask_img.ndim == 2 else mask_img[..., 0]) > 127
     if mask.shape != photo.shape[:2]:
         raise InputError(mask_path, f"is {mask.shape[1]}x{mask.shape[0]} pixels but the photo {Path(photo_path).name} is "
@@ -147,7 +147,8 @@ def extend(values, mask, steps: int = 6):
     return v
 
 
-def cached_bundle(photo_path, mask_path, size: int = 512, device: str = "cpu", progress=None) -> tuple[Path, bool]:
+def cached_bundle(photo_path, mask_path, size: int = 512, device: str = "cpu", networks_dir=None,
+                  progress=None) -> tuple[Path, bool]:
     """(bundle directory, whether it was cached): inference runs once per (photo, mask, size,
     weights); the bundle is kept beside the light cache (``bundles/``)."""
     import hashlib
@@ -156,7 +157,8 @@ def cached_bundle(photo_path, mask_path, size: int = 512, device: str = "cpu", p
     from .lightfit.cache import cache_dir
 
     h = hashlib.sha256()
-    for path in (photo_path, mask_path, *(network_dir() / f"{n}.safetensors" for n in NETWORKS)):
+    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
+    for path in (photo_path, mask_path, *(networks_dir / f"{n}.safetensors" for n in NETWORKS)):
         path = Path(path)
         if not path.is_file():
             raise InputError(path, "not found")
@@ -167,7 +169,8 @@ def cached_bundle(photo_path, mask_path, size: int = 512, device: str = "cpu", p
         return out, True
     tmp = out.with_name(out.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
-    infer(photo_path, mask_path, tmp, size=size, device=device, progress=progress)
+    infer(photo_path, mask_path, tmp, size=size, device=device, networks=load_networks(device, networks_dir),
+          progress=progress)
     shutil.rmtree(out, ignore_errors=True)
     tmp.rename(out)
     return out, False

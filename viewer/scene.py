@@ -150,8 +150,8 @@ def load_scene(path) -> Scene:
     """Load and validate a scene bundle directory."""
     path = Path(path)
     if path.is_file() and path.suffix.lower() in PHOTO_SUFFIXES:
-        raise InputError(path, "is a photo: relighting needs its scene bundle (a directory of maps); turning a photo into "
-                         "one takes the inference networks, which this version does not include yet")
+        raise InputError(path, "is a photo: relighting needs its scene bundle (a directory of maps); make one with "
+                         f"`relight infer {path.name} --mask MASK.png -o BUNDLE`, or view it with `relight view {path.name} --mask MASK.png`")
     if not path.is_dir():
         raise InputError(path, "scene bundle directory not found")
     meta_path = path / "scene.json"
