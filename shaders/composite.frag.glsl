@@ -12,14 +12,15 @@ uniform ivec2 group_origin[MAX_LIGHTS / 4];
 uniform vec3 intensity[MAX_LIGHTS];      // zero for lights that are skipped
 uniform int groups;
 uniform ivec2 box_origin;
-uniform int visibility_channel;          // 0: soft (CSM), 1: hard (shadow map), 2: none
+uniform sampler2D refined_plane0, refined_plane1, refined_plane2, refined_plane3;  // refined V (r), same tiles
+uniform int visibility_channel;          // 0: soft (CSM), 1: hard (shadow map), 2: none, 3: refined
 uniform bool write_alpha;
 uniform vec2 term_weights;            // (diffuse, specular): 1 shown, 0 left out
 uniform bool unit_albedo;             // show shading: albedo replaced by 1
 layout(location = 0) out vec4 hdr;
 
-vec3 contribution(vec4 b, vec3 albedo, vec3 i) {
-    float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : 1.0);
+vec3 contribution(vec4 b, float refined, vec3 albedo, vec3 i) {
+    float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : (visibility_channel == 3 ? refined : 1.0));
     return v * i * (term_weights.x * albedo * b.z + term_weights.y * b.w);
 }
 
@@ -32,10 +33,11 @@ void main() {
     vec3 sum = vec3(0.0);
     for (int g = 0; g < groups; ++g) {
         ivec2 q = group_origin[g] + local;
-        sum += contribution(texelFetch(light_plane0, q, 0), albedo, intensity[4 * g]);
-        sum += contribution(texelFetch(light_plane1, q, 0), albedo, intensity[4 * g + 1]);
-        sum += contribution(texelFetch(light_plane2, q, 0), albedo, intensity[4 * g + 2]);
-        sum += contribution(texelFetch(light_plane3, q, 0), albedo, intensity[4 * g + 3]);
+        bool r = visibility_channel == 3;
+        sum += contribution(texelFetch(light_plane0, q, 0), r ? texelFetch(refined_plane0, q, 0).r : 0.0, albedo, intensity[4 * g]);
+        sum += contribution(texelFetch(light_plane1, q, 0), r ? texelFetch(refined_plane1, q, 0).r : 0.0, albedo, intensity[4 * g + 1]);
+        sum += contribution(texelFetch(light_plane2, q, 0), r ? texelFetch(refined_plane2, q, 0).r : 0.0, albedo, intensity[4 * g + 2]);
+        sum += contribution(texelFetch(light_plane3, q, 0), r ? texelFetch(refined_plane3, q, 0).r : 0.0, albedo, intensity[4 * g + 3]);
     }
     hdr = vec4(sum, write_alpha ? am.a : 0.0);
 }

@@ -31,12 +31,12 @@ def tiny_dataset(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def tiny_networks(tiny_dataset, tmp_path_factory):
-    """Both networks trained for one epoch on the tiny dataset (small sizes): real weights and cards
-    for the inference tests. Returns their folder."""
+    """The three networks trained for one epoch on the tiny dataset (small sizes): real weights and
+    cards for the inference and refinement tests. Returns their folder."""
     from viewer.cli import main
 
     out = tmp_path_factory.mktemp("networks")
-    for net in ("inverse", "depth"):
+    for net in ("inverse", "depth", "refine"):
         assert main(["train", net, "--data", str(tiny_dataset[0]), "--out", str(out), "--res", "64", "--levels", "3",
                      "--width", "8", "--batch", "2", "--epochs", "1"]) == 0
     return out

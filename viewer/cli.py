@@ -387,7 +387,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("train", help="train a network on a dataset made by `relight dataset make`")
-    p.add_argument("network", choices=("inverse", "depth"), help="which network")
+    p.add_argument("network", choices=("inverse", "depth", "refine"), help="which network")
     p.add_argument("--data", required=True, nargs="+", help="dataset directory (or several: shards, datasets)")
     p.add_argument("--out", default="runs", help="where checkpoints, loss curves and weights go (default runs/)")
     p.add_argument("--res", type=int, default=256, help="training resolution (default 256)")

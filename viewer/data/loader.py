@@ -5,7 +5,9 @@ Each item is one (person, lighting) pair, a dict of float32 tensors, images chan
 map seen through the camera behind them (:meth:`viewer.envmap.EnvMap.seen_through`; the photo is
 ``image + (1 - mask) * background``), ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
 ``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
-``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity.
+``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity; with
+``visibility=R``, also ``hard`` and ``soft`` (N, H, W): the twin's shadow-map and convolutional-
+shadow-map visibility of the true depth under those lights (R-texel shadow maps, cached on disk).
 
 Augmentations (``augment=True``, random per item from a seeded generator): a horizontal mirror
 (images flipped, normals' and lights' x negated, as the mirrored scene would render) and an
@@ -34,7 +36,7 @@ class RelightDataset(Dataset):
     """The finished samples of one dataset directory, or of several (a list: shards or datasets
     made on different machines)."""
 
-    def __init__(self, root, augment: bool = False, seed: int = 0):
+    def __init__(self, root, augment: bool = False, seed: int = 0, visibility: int | None = None):
         roots = [Path(r) for r in (root if isinstance(root, (list, tuple)) else [root])]
         samples = sorted(p.parent for r in roots for p in (r / "samples").glob("*/sample.json"))
         self.items = [(s, k) for s in samples for k in range(len(json.loads((s / "sample.json").read_text())["lightings"]))]
@@ -43,6 +45,7 @@ class RelightDataset(Dataset):
         self.augment = augment
         self.rng = np.random.default_rng(seed)
         self._maps: dict[Path, EnvMap] = {}
+        self.visibility = visibility
 
     def _background(self, sample: Path, k: int, camera) -> np.ndarray:
         lighting = json.loads((sample / f"lighting_{k}" / "lighting.json").read_text())
@@ -58,13 +61,19 @@ class RelightDataset(Dataset):
         sample, k = self.items[i]
         scene = load_scene(sample)
         d = sample / f"lighting_{k}"
-        lights = load_lights(d / "lights.json").to_array()
+        area_lights = load_lights(d / "lights.json")
+        lights = area_lights.to_array()
         item = {
             "image": read_exr(d / "full.exr"), "background": self._background(sample, k, scene.camera), "mask": scene.mask[..., None].astype(np.float32), "albedo": scene.albedo,
             "normal": scene.normal, "specular": scene.specular[..., None], "roughness": scene.roughness[..., None],
             "depth": scene.depth[..., None], "diffuse": read_exr(d / "diffuse.exr"),
             "specular_shading": read_exr(d / "specular.exr"), "diffuse_shadowed": read_exr(d / "diffuse_shadowed.exr"),
         }
+        if self.visibility:
+            from ..nets.refine import cached_visibility
+
+            hard, soft = cached_visibility(d, scene, area_lights, self.visibility)
+            item["hard"], item["soft"] = np.moveaxis(hard, 0, -1), np.moveaxis(soft, 0, -1)
         if self.augment:
             if self.rng.uniform() < 0.5:
                 item = {key: np.ascontiguousarray(v[:, ::-1]) for key, v in item.items()}

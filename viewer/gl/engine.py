@@ -37,7 +37,7 @@ from .. import shadow_space as ss
 from .prefilter import METHODS, BlurPlan, blur_plan
 from .programs import ProgramCache
 
-VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2}
+VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2, "refined": 3}
 # What the display image shows: the relit frame, the diffuse or specular shading alone (composited
 # from the same light atlas), or an inspection view of the bundle's maps or of one light's shadow.
 VIEWS = ("final", "diffuse_shading", "specular_shading", "albedo", "normal", "depth", "specular", "roughness", "shadow")
@@ -119,6 +119,8 @@ class Engine:
         self._specular = scene.has_specular
         self._lights: list[_Light] = []
         self._visibility = "soft"
+        self._refined = False  # the refined planes hold the refinement of the current lights
+        self.refined_planes: list = []
         self._components = (True, True)  # diffuse, specular shown in the final image
         self._view = ("final", 0)  # (view, inspected light)
         self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": np.zeros(3), "rotation": np.eye(3)}
@@ -234,10 +236,12 @@ class Engine:
                 if l.sigma != float(s):
                     l.sigma = float(s)
                     l.dirty_filter = True
+                    self._drop_refined()
                 if not np.array_equal(l.intensity, i):
                     l.intensity = i.copy()
                     self._dirty_composite = True
         if moved:
+            self._drop_refined()
             dirs = np.array([self._lights[k].direction for k in moved])
             frames = ss.light_frames(self._frame_points, dirs, self.options.shadow_resolution, self.options.terms, sphere=self._sphere)
             facing = (self._normals_masked @ dirs.T.astype(np.float32)).max(axis=0, initial=0.0)
@@ -261,12 +265,49 @@ class Engine:
                 self._dirty_composite = True
 
     def set_visibility(self, mode: str):
-        """Which visibility the composite uses: 'soft' (CSM), 'hard' (shadow map) or 'none'."""
+        """Which visibility the composite uses: 'soft' (CSM), 'hard' (shadow map), 'none', or
+        'refined' (the refinement network's, see ``set_refined_visibility``; soft until it is set)."""
         if mode not in VISIBILITY_MODES:
             raise ValueError(f"visibility must be one of {', '.join(VISIBILITY_MODES)}, got {mode!r}")
         if mode != self._visibility:
             self._visibility = mode
             self._dirty_composite = True  # lights whose light pass lacks what the mode needs redo it in render()
+
+    def _drop_refined(self):
+        """The lights' shadows changed: the refined visibility no longer applies (the composite
+        uses the soft visibility until ``set_refined_visibility`` is called again)."""
+        if self._refined:
+            self._refined = False
+            if self._visibility == "refined":
+                self._dirty_composite = True
+
+    @property
+    def refined_current(self) -> bool:
+        """Whether the refined visibility of the current lights has been set."""
+        return self._refined
+
+    def set_refined_visibility(self, visibility: np.ndarray):
+        """The shadow refinement network's visibility (N, H, W) of the current lights, shown in the
+        'refined' mode until a light's direction or sigma changes (then the soft visibility is
+        shown until it is set again). Values are clipped to [0, 1]; non-finite values refused."""
+        vis = np.asarray(visibility, np.float32)
+        h, w = self.scene.height, self.scene.width
+        if vis.shape != (len(self._lights), h, w):
+            raise ValueError(f"refined visibility must be ({len(self._lights)}, {h}, {w}), got {vis.shape}")
+        if not np.all(np.isfinite(vis)):
+            raise ValueError("refined visibility has NaN or Inf values")
+        size = self.light_planes[0].size
+        if not self.refined_planes or self.refined_planes[0].size != size:
+            for t in self.refined_planes:
+                t.release()
+            self.refined_planes = [self._texture(size, 1) for _ in range(LIGHTS_PER_PASS)]
+        x, y, bw, bh = self._mask_box
+        for l, v in zip(self._lights, vis):
+            tile = np.ascontiguousarray(np.clip(v[y:y + bh, x:x + bw], 0.0, 1.0))
+            self.refined_planes[l.slot].write(tile.tobytes(), viewport=(l.tile[0], l.tile[1], bw, bh))
+        self._refined = True
+        if self._visibility == "refined":
+            self._dirty_composite = True
 
     def set_components(self, diffuse: bool = True, specular: bool = True):
         """Show or leave out the diffuse and specular terms of the final image (composite only)."""
@@ -356,6 +397,7 @@ class Engine:
             raise InputError(self.scene.source, f"{len(self._lights)} lights over a {bw}x{bh} mask box need {size[0]}x{size[1]} "
                              f"light-atlas planes, above this GL's texture limit {self._max_texture}")
         self._release_light_atlas()
+        self._drop_refined()
         self.light_planes = [self._texture(size, 4) for _ in range(LIGHTS_PER_PASS)]
         self.light_atlas_fbo = self.ctx.framebuffer(color_attachments=self.light_planes)
         self.light_atlas_fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -383,7 +425,7 @@ class Engine:
             return _PASS_UNSHADOWED
         if visibility == "hard" or self._soft_is_hard(l):
             return _PASS_HARD
-        return _PASS_SOFT
+        return _PASS_SOFT  # soft, and refined (whose network reads the hard and soft visibility)
 
     def _soft_is_hard(self, l: _Light) -> bool:
         """sigma ~ 0: the light's soft visibility is its hard one and its filtering is skipped."""
@@ -554,7 +596,15 @@ class Engine:
                 plane.use(1 + j)
                 prog[f"light_plane{j}"] = 1 + j
             prog["box_origin"] = (x, y)
-            prog["visibility_channel"] = VISIBILITY_MODES[self._visibility]
+            mode = self._visibility
+            if mode == "refined":
+                if self._refined:
+                    for j, plane in enumerate(self.refined_planes):
+                        plane.use(1 + LIGHTS_PER_PASS + j)
+                        prog[f"refined_plane{j}"] = 1 + LIGHTS_PER_PASS + j
+                else:
+                    mode = "soft"  # until the refinement of these lights arrives
+            prog["visibility_channel"] = VISIBILITY_MODES[mode]
             diffuse, specular, unit_albedo = self._composite_terms()
             prog["term_weights"] = (diffuse, specular)
             prog["unit_albedo"] = unit_albedo
@@ -729,6 +779,9 @@ class Engine:
             self._release_light(l)
         self._lights = []
         self._release_light_atlas()
+        for t in self.refined_planes:
+            t.release()
+        self.refined_planes = []
         objects = [getattr(self, name, None) for name in (
             "hdr_fbo", "hdr", "display_fbo", "display", "tex_positions",
             "tex_normals", "tex_albedo", "tex_background", "tex_environment", "_shadow_vao", "_mesh_vbo",

@@ -23,6 +23,7 @@ from torch.nn import functional as F
 from ..errors import InputError
 from . import depth as depth_net
 from . import inverse as inverse_net
+from . import refine as refine_net
 from .photo import photo_input
 from .unet import UNet
 
@@ -55,7 +56,7 @@ def _resize(batch: dict, res: int) -> dict:
     out = {}
     for key, value in batch.items():
         if value.ndim == 4 and value.shape[-1] != res:
-            mode = "nearest" if key in ("mask", "depth", "normal") else "area"
+            mode = "nearest" if key in ("mask", "depth", "normal", "hard") else "area"
             out[key] = F.interpolate(value, size=(res, res), mode=mode)
         else:
             out[key] = value
@@ -103,7 +104,25 @@ class InverseTask:
         return losses
 
 
-TASKS = {"depth": DepthTask, "inverse": InverseTask}
+class RefineTask:
+    """The shadow refinement network on the twin's visibility of the true depth (:mod:`.refine`)."""
+
+    name = "refine"
+    outputs = refine_net.OUTPUTS
+    vectors: dict = {}
+    in_channels = refine_net.IN_CHANNELS
+    visibility = refine_net.SHADOW_RESOLUTION
+
+    def __init__(self, cfg: TrainConfig):
+        self.cfg = cfg
+
+    def loss(self, model, batch) -> dict:
+        photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
+        _, scale = photo_input(photo, batch["mask"])
+        return refine_net.refine_loss(model, batch, scale)
+
+
+TASKS = {"depth": DepthTask, "inverse": InverseTask, "refine": RefineTask}
 
 
 def _split(dataset, val_every: int):
@@ -159,8 +178,9 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     task = TASKS[cfg.task](cfg)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed)
-    val_data = RelightDataset(cfg.data, augment=False)
+    visibility = getattr(task, "visibility", None)
+    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed, visibility=visibility)
+    val_data = RelightDataset(cfg.data, augment=False, visibility=visibility)
     train_idx, val_idx = _split(data, cfg.val_every)
     loader = torch.utils.data.DataLoader(torch.utils.data.Subset(data, train_idx), batch_size=cfg.batch, shuffle=True,
                                          drop_last=len(train_idx) > cfg.batch,
