@@ -66,3 +66,40 @@ def test_light_jobs(tmp_path, monkeypatch):
     broken = LightJob(bad, 16, "fast")
     broken._thread.join(60)
     assert broken.result is None and "bad.hdr" in broken.error
+
+
+def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
+    """The refined mode shows the soft visibility, refines on a thread, and uses the result only for
+    the lighting it was computed for."""
+    import time
+
+    from viewer.refinement import Refiner
+    from viewer.scene_ops import resample_scene
+
+    scene = resample_scene(load_scene(sample_scene_dir()), 96)
+    s = Session(ctx, scene, load_lights(MAPS / "venice_sunset_256.lights.json"), None, EngineOptions(shadow_resolution=256))
+    woken = []
+    s.wake = lambda: woken.append(1)
+    s._refiner = Refiner(tiny_networks / "refine.safetensors")
+    s.update(shadows="refined")
+    soft_shown = s.render().read_hdr().copy()
+    assert s.refining and not s.final.refined_current
+    preview = s.render(preview=True)
+    assert preview.counters["csm_basis"] == 0  # hard shadows while dragging, no refinement
+    deadline = time.time() + 60
+    while not s.refine_job.done and time.time() < deadline:
+        time.sleep(0.05)
+    assert woken and s.poll_refinement() and s.final.refined_current
+    refined = s.render().read_hdr()
+    assert np.all(np.isfinite(refined)) and not np.array_equal(refined, soft_shown)
+    # a job for a lighting that has since moved is dropped; the new lighting gets its own
+    s.update(yaw=40.0)
+    s.render()
+    old = s.refine_job
+    while not old.done:
+        time.sleep(0.05)
+    s.final.set_lights(s.lights.rotated(80.0))  # the lights moved on before the result was polled
+    assert not s.poll_refinement() and not s.final.refined_current
+    s.render()
+    assert s.refining and s.refine_job is not old
+    s.release()

@@ -40,8 +40,9 @@ def _add_view_args(p, yaw_default=0.0):
     p.add_argument("--exposure", type=float, default=0.0, help="exposure in stops (default 0)")
     p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), default="aces")
     p.add_argument("--background", choices=("environment", "photo", "color"), default="environment")
-    p.add_argument("--visibility", choices=("soft", "hard", "none"), default="soft",
-                   help="shadows from the convolutional shadow map (soft), the shadow map (hard) or none")
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), default="soft",
+                   help="shadows from the convolutional shadow map (soft), the refinement network (refined), "
+                        "the shadow map (hard) or none")
 
 
 def _fitted_lights(env, n, method, refit=False):
@@ -339,7 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float, help="initial rotation of the lighting, degrees")
     p.add_argument("--tilt", type=float, default=0.0, help="initial tilt of the lighting, degrees")
     p.add_argument("--exposure", type=float, default=0.0, help="initial exposure, stops")
-    p.add_argument("--visibility", choices=("soft", "hard", "none"), default="soft", help="initial shadow mode")
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), default="soft", help="initial shadow mode")
     p.add_argument("--size", type=int, help="render at this many pixels on the longer side (default: the bundle's size)")
     p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
     p.add_argument("--record-frames", type=int, default=120, help="frames of a 360 degree recording (default 120)")

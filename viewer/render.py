@@ -44,6 +44,19 @@ def apply_settings(engine, scene: Scene, lights: AreaLights, settings: RenderSet
                        color=(0.18, 0.18, 0.18), environment_rotation=rot.T)
 
 
+def render_frame(engine, settings: RenderSettings, refiner=None):
+    """Render; in the refined shadow mode, also run the refinement network for these lights (once
+    per lighting: ``refiner`` is a :class:`viewer.refinement.Refiner`, made on first need)."""
+    engine.render()
+    if settings.visibility == "refined" and not engine.refined_current:
+        from .refinement import Refiner, refine_engine
+
+        refiner = refiner if refiner is not None else Refiner()
+        refine_engine(engine, refiner)
+        engine.render()
+    return refiner
+
+
 def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: RenderSettings,
                     environment: np.ndarray | None = None, passes: bool = True) -> list[Path]:
     """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``."""
@@ -51,11 +64,11 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     if environment is not None:
         engine.set_environment(environment)
     apply_settings(engine, scene, lights, settings, environment is not None)
-    engine.render()
+    render_frame(engine, settings)
     display = engine.read_display().astype(np.float32) / 255.0
     written = [write_png(out_dir / f"{name}.png", display), write_exr(out_dir / f"{name}.exr", engine.read_hdr())]
     if passes:
-        if settings.visibility != "soft":  # the sheet shows both visibilities: compute the soft one too
+        if settings.visibility not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
             engine.set_visibility("soft")
             engine.render()
         written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene, display)))
@@ -81,10 +94,11 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: R
         raise InputError(path, f"a video needs at least one frame, got {frames}")
     if environment is not None:
         engine.set_environment(environment)
+    refiner = None
     with VideoWriter(path, scene.width, scene.height, fps=fps) as video:
         for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
             apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None)
-            engine.render()
+            refiner = render_frame(engine, settings, refiner)
             video.write(engine.read_display())
             if progress is not None:
                 progress(i + 1, frames)

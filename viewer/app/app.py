@@ -68,6 +68,7 @@ class ViewerApp:
         area_h = min(max(sc.height, 480), 1000)
         self.window = Window(area_w + PANEL_WIDTH, max(area_h, 860), "relight")
         self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, config.look)
+        self.session.wake = self.window.wake
         self.env_path = config.env_path
         self.n_lights = len(config.lights)
         self.view = ix.ViewState(yaw=config.look.yaw, tilt=config.look.tilt, exposure=config.look.exposure)
@@ -272,12 +273,14 @@ class ViewerApp:
         try:
             while not w.should_close:
                 busy = self.dragging or self.panning or self.recording is not None
-                w.wait(None if busy else (JOB_WAIT if self.job is not None else IDLE_WAIT))
+                waiting = self.job is not None or self.session.refining
+                w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = time.perf_counter()
                 w.begin_frame()
                 self._input()
                 draw_panel(self)
                 self._poll_job()
+                self.session.poll_refinement()
                 eng, kind = self._render()
                 w.draw_image(eng.display, self.image_rect(), self.image_area())
                 w.end_frame()

@@ -1,5 +1,7 @@
-"""Light fitting off the window's thread: the window keeps drawing (with a progress bar) while a
-map's lights are fitted, then swaps in the new map and its lights together."""
+"""Work off the window's thread: light fitting (the window keeps drawing, with a progress bar,
+while a map's lights are fitted, then swaps in the new map and its lights together) and the shadow
+refinement network (run on the visibility the engine read back; its result is used only if the
+lights have not moved since)."""
 
 from __future__ import annotations
 
@@ -78,5 +80,32 @@ class LightJob:
             self.error = str(exc)
         except Exception as exc:  # shown in the panel; the window keeps the previous map
             self.error = f"{self.path}: {type(exc).__name__}: {exc}"
+        finally:
+            self._wake()
+
+
+class RefineJob:
+    """The refinement network on one lighting's (hard, soft) visibility, on a thread. ``key`` names
+    the lighting it belongs to; ``wake()`` is called when it finishes."""
+
+    def __init__(self, refiner, hard, soft, sigma, depth, mask, key, wake=lambda: None):
+        self.key = key
+        self.result = None
+        self.error: str | None = None
+        self._args = (hard, soft, sigma, depth, mask)
+        self._refiner = refiner
+        self._wake = wake
+        self._thread = threading.Thread(target=self._run, name="shadow-refinement", daemon=True)
+        self._thread.start()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def _run(self):
+        try:
+            self.result = self._refiner(*self._args)
+        except Exception as exc:  # shown in the panel; the soft visibility stays
+            self.error = f"shadow refinement failed: {type(exc).__name__}: {exc}"
         finally:
             self._wake()

@@ -88,6 +88,10 @@ def _shading(app):
     _remember(app, "shadows")
     if changed:
         s.update(shadows=SHADOW_MODES[names[i]])
+    if s.refine_error:
+        imgui.text_colored(imgui.ImVec4(1.0, 0.45, 0.4, 1.0), s.refine_error)
+    elif lk.shadows == "refined" and s.refining:
+        imgui.text_disabled("refining the shadows (soft shown meanwhile)...")
     changed, diffuse = imgui.checkbox("diffuse", lk.diffuse)
     if changed:
         s.update(diffuse=diffuse)

@@ -22,7 +22,7 @@ from ..scene_ops import resample_scene
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
-SHADOW_MODES = {"convolutional (soft)": "soft", "shadow map (hard)": "hard", "none": "none"}
+SHADOW_MODES = {"convolutional (soft)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
     "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
     "albedo": "albedo", "normal": "normal", "depth": "depth", "specular": "specular", "roughness": "roughness",
@@ -37,7 +37,7 @@ class Look:
     tilt: float = 0.0
     exposure: float = 0.0
     intensity: float = 1.0  # scales every light
-    shadows: str = "soft"  # soft | hard | none
+    shadows: str = "soft"  # soft | refined | hard | none
     diffuse: bool = True
     specular: bool = True
     view: str = "final"
@@ -58,6 +58,10 @@ class Session:
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
         self.look = look or Look()
         self._set_environment(self.final)
+        self.wake = lambda: None  # called when background work finishes (the window's wake)
+        self._refiner = None
+        self.refine_job = None
+        self.refine_error = ""
 
     # ------------------------------------------------------------------ state
     @property
@@ -108,14 +112,61 @@ class Session:
         eng = self.preview if preview else self.final
         lk = self.look
         eng.set_lights(self.rotated_lights())
-        eng.set_visibility("hard" if preview and lk.shadows == "soft" else lk.shadows)
+        eng.set_visibility("hard" if preview and lk.shadows in ("soft", "refined") else lk.shadows)
         eng.set_components(diffuse=lk.diffuse, specular=lk.specular)
         eng.set_view(lk.view, lk.light)
         background = "environment" if self.environment is not None else ("photo" if self.scene.background is not None else "color")
         eng.set_display(exposure=lk.exposure, tonemap=lk.tonemap, background=background, color=(0.18, 0.18, 0.18),
                         environment_rotation=rotation_matrix(lk.yaw, lk.tilt).T)
         eng.render()
+        if not preview and lk.shadows == "refined" and not eng.refined_current:
+            self._start_refinement(eng)
         return eng
+
+    # ------------------------------------------------------------------ refined shadows
+    def _lights_key(self, eng: Engine) -> bytes:
+        lights = eng.lights
+        return lights.direction.tobytes() + lights.sigma.tobytes()
+
+    def _start_refinement(self, eng: Engine):
+        """Run the refinement network for the final engine's current lights on a thread (the soft
+        visibility is shown meanwhile); :meth:`poll_refinement` hands its result to the engine."""
+        from ..refinement import Refiner, light_visibility
+        from .jobs import RefineJob
+
+        key = self._lights_key(eng)
+        if self.refine_job is not None and (self.refine_job.key == key or not self.refine_job.done):
+            return  # this lighting's job is running, or another one is: its poll starts the next
+        if self._refiner is None:
+            try:
+                self._refiner = Refiner()
+            except Exception as exc:
+                self.refine_error = str(exc)
+                self.look = replace(self.look, shadows="soft")
+                return
+        hard, soft = light_visibility(eng)
+        self.refine_job = RefineJob(self._refiner, hard, soft, eng.lights.sigma, self.scene.depth, self.scene.mask, key,
+                                    wake=self.wake)
+
+    @property
+    def refining(self) -> bool:
+        return self.refine_job is not None
+
+    def poll_refinement(self) -> bool:
+        """Apply a finished refinement if its lighting is still the final engine's; True when the
+        frame changed."""
+        job = self.refine_job
+        if job is None or not job.done:
+            return False
+        self.refine_job = None
+        if job.error:
+            self.refine_error = job.error
+            return False
+        if job.key != self._lights_key(self.final) or self.look.shadows != "refined":
+            return False  # the lights moved on: the next final render starts a new job
+        self.final.set_refined_visibility(job.result)
+        self.refine_error = ""
+        return True
 
     def release(self):
         for eng in self._engines():
