@@ -142,3 +142,17 @@ def test_laplacian_loss_sees_structure_not_only_values():
     blurred = torch.nn.functional.avg_pool2d(a, 3, 1, 1)
     assert inv.laplacian_l1(blurred, a, mask) > 0.02  # detail lost
     assert inv.laplacian_l1(a + 0.1, a, mask) < 0.2 * inv.laplacian_l1(blurred, a, mask)  # a flat offset barely counts
+
+
+def test_held_out_evaluation_harness(tiny_dataset, tiny_networks, tmp_path):
+    from viewer.bench.networks import run_networks_benchmark, table
+
+    result = run_networks_benchmark(tiny_dataset[0], tiny_networks, output=tmp_path / "b.json", figure=tmp_path / "f.png")
+    m = result["metrics"]
+    assert result["pairs"] == 3 and (tmp_path / "b.json").is_file() and (tmp_path / "f.png").stat().st_size > 0
+    for name in ("albedo", "normal", "shading_SM", "shading_refined", "relit_refined", "relit_SH_baseline", "relit_true_maps_refined"):
+        assert 0 <= m[name]["rmse"]["mean"] < 10 and -1 <= m[name]["ssim"]["mean"] <= 1, name
+    assert 0 <= m["relit_refined"]["flip"]["mean"] <= 1
+    # the true maps through the renderer beat one-epoch networks
+    assert m["relit_true_maps_refined"]["rmse"]["mean"] < m["relit_refined"]["rmse"]["mean"]
+    assert "Relit image" in table(result)

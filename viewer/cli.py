@@ -286,6 +286,17 @@ def cmd_bench(args) -> int:
         from .bench.temporal import run_temporal_benchmark
 
         run_temporal_benchmark(output=args.output or "docs/bench_temporal.json")
+    elif args.what == "networks":
+        from .bench.networks import run_networks_benchmark, table
+        from .progress import StageBars
+
+        if not args.data:
+            raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
+        with StageBars(prefix="evaluating: ") as bars:
+            result = run_networks_benchmark(args.data if len(args.data) > 1 else args.data[0], args.networks,
+                                            output=args.output or "docs/bench_networks.json", limit=args.limit,
+                                            progress=bars)
+        print(table(result))
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
@@ -404,16 +415,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("engine", "shadows", "lights", "viewer", "temporal"),
+    p.add_argument("what", choices=("engine", "shadows", "lights", "viewer", "temporal", "networks"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
-                        "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables")
+                        "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
+                        "networks: the networks on a held-out dataset (--data)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
     p.add_argument("--maps", help="lights: folder of .hdr/.exr maps (default ../shared/data/hdri)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
+    p.add_argument("--data", nargs="+", help="networks: held-out dataset directory (or several)")
+    p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
+    p.add_argument("--limit", type=int, help="networks: evaluate at most this many (input, target) pairs")
     p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json)")
     p.set_defaults(func=cmd_bench)
     return parser

@@ -1,0 +1,266 @@
+"""``relight bench networks``: the shipped networks on the held-out split (people and maps never
+trained on), as tables like the paper's.
+
+For every held-out person and each of its two lightings as the *input* photo (the other is the
+*target*; a person with one lighting is relit under that same lighting):
+
+- **materials and geometry**: the inverse-rendering and depth networks' maps against the truth
+  (RMSE and SSIM over the mask; depth after removing each map's median, in centimetres; the mean
+  normal angle);
+- **shading with shadows** under the target's fitted area lights, from the true geometry and from
+  the predicted one, with the shadow map (SM), the convolutional shadow map (CSM) and the
+  refinement network (refined): the paper's ablation, against the ray-traced shadowed diffuse
+  shading (albedo 1);
+- **specular shading** (predicted maps, refined shadows) against the ray-traced specular lobe;
+- **relit image**: the predicted scene relit under the target's lights by the GL engine (refined,
+  CSM and SM shadows), the same with the true maps (what the renderer alone loses), and the
+  baseline: second-order spherical-harmonics lighting of the target map without shadows
+  (:mod:`viewer.sh`) on the same predicted albedo and normals, against the ray-traced relit image.
+
+Every image is scaled by the target photo's exposure (its 99th percentile of luminance -> 0.9, the
+networks' own convention, so maps of any brightness weigh alike) before RMSE; SSIM uses the same
+scaled images clipped to [0, 1]; FLIP (NVIDIA's, LDR) compares them tone mapped to sRGB. LPIPS
+needs pretrained ImageNet weights, which cannot be fetched here, so it is not reported.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import Camera
+from ..envmap import load_envmap
+from ..gl import Engine, EngineOptions, create_headless_context
+from ..gl.context import describe
+from ..imageio import read_exr
+from ..lights import load_lights
+from ..scene import Scene, load_scene
+
+SHADOW_MODES = {"SM": "hard", "CSM": "soft", "refined": "refined"}
+
+
+def _srgb(x):
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def _box(mask):
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    return slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
+
+
+def metrics(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, data_range: float = 1.0, flip: bool = False) -> dict:
+    """RMSE over the mask, SSIM over the mask's bounding box (zero outside the mask), and FLIP."""
+    from skimage.metrics import structural_similarity
+
+    p = np.where(mask[..., None], np.atleast_3d(pred), 0.0).astype(np.float64)
+    t = np.where(mask[..., None], np.atleast_3d(truth), 0.0).astype(np.float64)
+    out = {"rmse": float(np.sqrt(((p - t) ** 2)[mask].mean()))}
+    rs, cs = _box(mask)
+    pb, tb = p[rs, cs], t[rs, cs]
+    if data_range == 1.0:
+        pb, tb = np.clip(pb, 0, 1), np.clip(tb, 0, 1)
+    out["ssim"] = float(structural_similarity(tb, pb, data_range=data_range, channel_axis=-1, win_size=7))
+    if flip:
+        import flip_evaluator
+
+        ref, test = _srgb(tb).astype(np.float32), _srgb(pb).astype(np.float32)
+        if ref.shape[-1] == 1:
+            ref, test = np.repeat(ref, 3, -1), np.repeat(test, 3, -1)
+        out["flip"] = float(flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False)[1])
+    return out
+
+
+def _engine_image(ctx, scene: Scene, lights, mode: str, view: str, refiner) -> np.ndarray:
+    from ..refinement import refine_engine
+
+    eng = Engine(ctx, scene, EngineOptions())
+    try:
+        eng.set_lights(lights)
+        eng.set_visibility(mode)
+        eng.set_view(view)
+        eng.render()
+        if mode == "refined":
+            refine_engine(eng, refiner)
+            eng.render()
+        return eng.read_hdr()[..., :3].copy()
+    finally:
+        eng.release()
+
+
+def _predict(nets, item) -> tuple[Scene, dict]:
+    import torch
+
+    from ..nets import depth as depth_net
+    from ..nets import inverse as inverse_net
+    from ..nets.photo import photo_input
+
+    with torch.no_grad():
+        mask = item["mask"][None]
+        photo = item["image"][None] + (1 - mask) * item["background"][None]
+        x, _ = photo_input(photo, mask)
+        maps = inverse_net.maps(nets["inverse"](x))
+        xd, _ = photo_input(item["image"][None], mask, background=False)
+        h, w = mask.shape[-2:]
+        cam = Camera(w, h)
+        depth = depth_net.metric_depth(torch.sigmoid(nets["depth"](xd)["depth"]), mask, cam.distance)
+    m = mask[0, 0].numpy() > 0.5
+
+    def hwc(t):
+        return t[0].permute(1, 2, 0).numpy().astype(np.float32)
+
+    normal = hwc(maps["normal"])
+    scene = Scene(albedo=np.where(m[..., None], hwc(maps["albedo"]), 0), specular=np.where(m, hwc(maps["specular"])[..., 0], 0),
+                  roughness=np.where(m, hwc(maps["roughness"])[..., 0], 0), normal=np.where(m[..., None], normal, 0),
+                  depth=np.where(m, np.maximum(hwc(depth)[..., 0], 0.1), cam.distance).astype(np.float32), mask=m, camera=cam)
+    return scene.validate(), {"albedo": scene.albedo, "normal": normal}
+
+
+def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.json", figure="docs/networks_heldout.png",
+                           limit: int | None = None, progress=None) -> dict:
+    from ..data.loader import RelightDataset
+    from ..inference import load_networks, network_dir
+    from ..nets.photo import EXPOSED_LEVEL, EXPOSED_PERCENTILE
+    from ..refinement import Refiner
+    from ..sh import relight as sh_relight
+
+    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
+    nets = load_networks("cpu", networks_dir)
+    refiner = Refiner(networks_dir / "refine.safetensors")
+    ds = RelightDataset(data)
+    ctx = create_headless_context()
+    by_sample: dict[Path, list[int]] = {}
+    for i, (s, _) in enumerate(ds.items):
+        by_sample.setdefault(s, []).append(i)
+    # each lighting as the input, the next one as the target (a person with one lighting: itself)
+    pairs = [(idx[k], idx[(k + 1) % len(idx)]) for idx in by_sample.values() for k in range(min(len(idx), 2))]
+    if limit:
+        pairs = pairs[:limit]
+    rows: dict[str, list[dict]] = {}
+    examples = []
+    start = time.perf_counter()
+
+    def add(name, value):
+        rows.setdefault(name, []).append(value)
+
+    for n, (src, tgt) in enumerate(pairs):
+        sample, k_tgt = ds.items[tgt]
+        item, target = ds[src], ds[tgt]
+        truth = load_scene(sample)
+        m = truth.mask
+        t0 = time.perf_counter()
+        pred, raw = _predict(nets, item)
+        add("seconds_networks", time.perf_counter() - t0)
+        # materials and geometry
+        add("albedo", metrics(pred.albedo, truth.albedo, m))
+        add("specular", metrics(pred.specular[..., None], truth.specular[..., None], m))
+        add("roughness", metrics(pred.roughness[..., None], truth.roughness[..., None], m))
+        add("normal", {**metrics(pred.normal, truth.normal, m, data_range=2.0),
+                       "degrees": float(np.degrees(np.arccos(np.clip((pred.normal * truth.normal).sum(-1)[m], -1, 1))).mean())})
+        dp, dt = pred.depth[m] - np.median(pred.depth[m]), truth.depth[m] - np.median(truth.depth[m])
+        add("depth", {"rmse_cm": float(np.sqrt(np.mean((dp - dt) ** 2)) * 100), "l1_cm": float(np.abs(dp - dt).mean() * 100),
+                      "flat_l1_cm": float(np.abs(dt).mean() * 100)})
+        # the target lighting
+        d = sample / f"lighting_{k_tgt}"
+        lights = load_lights(d / "lights.json")
+        full_t = target["image"].permute(1, 2, 0).numpy()
+        lum = full_t.mean(-1)[m]
+        s = EXPOSED_LEVEL / max(float(np.quantile(lum, EXPOSED_PERCENTILE)), 1e-8)
+        y_diff = target["diffuse_shadowed"].permute(1, 2, 0).numpy() * s
+        for label, mode in SHADOW_MODES.items():
+            add(f"shading_true_geometry_{label}", metrics(s * _engine_image(ctx, truth, lights, mode, "diffuse_shading", refiner), y_diff, m))
+            add(f"shading_{label}", metrics(s * _engine_image(ctx, pred, lights, mode, "diffuse_shading", refiner), y_diff, m))
+        spec_t = s * read_exr(d / "specular_shadowed.exr")
+        add("specular_shading", metrics(s * _engine_image(ctx, pred, lights, "refined", "specular_shading", refiner), spec_t, m))
+        relit = {}
+        for label, mode in SHADOW_MODES.items():
+            relit[label] = s * _engine_image(ctx, pred, lights, mode, "final", refiner)
+            add(f"relit_{label}", metrics(relit[label], s * full_t, m, flip=True))
+        add("relit_true_maps_refined", metrics(s * _engine_image(ctx, truth, lights, "refined", "final", refiner), s * full_t, m, flip=True))
+        lighting = json.loads((d / "lighting.json").read_text())
+        env = load_envmap(sample.parents[1] / "maps" / f"{lighting['map']}.hdr").rotated(lighting["yaw"])
+        relit["SH"] = s * sh_relight(pred.albedo, pred.normal, m, env)
+        add("relit_SH_baseline", metrics(relit["SH"], s * full_t, m, flip=True))
+        if len(examples) < 4 and n % 2 == 0:
+            photo_src = (item["image"] + (1 - item["mask"]) * item["background"]).permute(1, 2, 0).numpy()
+            examples.append({"photo": photo_src, "truth": s * full_t, "ours": relit["refined"], "sh": relit["SH"],
+                             "albedo": (truth.albedo, raw["albedo"]), "normal": (truth.normal, raw["normal"]), "mask": m})
+        if progress is not None:
+            progress("held-out pairs", n + 1, len(pairs))
+    summary = {name: _summarize(values) for name, values in rows.items()}
+    result = {"machine": describe(ctx), "data": [str(d) for d in (data if isinstance(data, (list, tuple)) else [data])],
+              "networks": str(networks_dir), "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
+              "resolution": int(ds[0]["image"].shape[-1]), "seconds": round(time.perf_counter() - start, 1), "metrics": summary}
+    if output:
+        Path(output).parent.mkdir(parents=True, exist_ok=True)
+        Path(output).write_text(json.dumps(result, indent=1) + "\n")
+    if figure and examples:
+        _figure(examples, figure)
+    return result
+
+
+def _summarize(values: list) -> dict:
+    if isinstance(values[0], dict):
+        return {k: {"mean": float(np.mean([v[k] for v in values])), "std": float(np.std([v[k] for v in values]))} for k in values[0]}
+    return {"mean": float(np.mean(values)), "std": float(np.std(values))}
+
+
+def _figure(examples, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cols = ["input photo", "target (ray traced)", "ours (refined)", "SH baseline", "albedo: truth", "albedo: ours",
+            "normal: truth", "normal: ours"]
+    fig, axes = plt.subplots(len(examples), len(cols), figsize=(2.0 * len(cols), 2.2 * len(examples)), dpi=90, squeeze=False)
+    for r, ex in enumerate(examples):
+        m = ex["mask"][..., None]
+        lum = ex["photo"].mean(-1)[ex["mask"]]
+        photo = ex["photo"] * (0.9 / max(float(np.quantile(lum, 0.99)), 1e-8))
+        pics = [photo, ex["truth"], ex["ours"], ex["sh"], ex["albedo"][0], ex["albedo"][1] * m,
+                ex["normal"][0] * 0.5 + 0.5, (ex["normal"][1] * 0.5 + 0.5) * m]
+        for c, pic in enumerate(pics):
+            ax = axes[r, c]
+            ax.imshow(_srgb(pic) if c < 6 else np.clip(pic, 0, 1))
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(cols[c], fontsize=8)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+TABLES = (
+    ("Materials and geometry", (("albedo", "albedo"), ("specular", "specular"), ("roughness", "roughness"), ("normal", "normal")),
+     ("rmse", "ssim")),
+    ("Shading with shadows, true geometry (the SM / CSM / refined ablation)",
+     tuple((f"shading_true_geometry_{k}", k) for k in SHADOW_MODES), ("rmse", "ssim")),
+    ("Shading with shadows, predicted geometry", tuple((f"shading_{k}", k) for k in SHADOW_MODES), ("rmse", "ssim")),
+    ("Specular shading (predicted maps, refined shadows)", (("specular_shading", "specular shading"),), ("rmse", "ssim")),
+    ("Relit image", (("relit_refined", "ours, refined"), ("relit_CSM", "ours, CSM"), ("relit_SM", "ours, SM"),
+                     ("relit_SH_baseline", "SH order 2, no shadows (baseline)"),
+                     ("relit_true_maps_refined", "true maps, refined (renderer alone)")), ("rmse", "ssim", "flip")),
+)
+
+
+def table(result: dict) -> str:
+    """Markdown tables of a :func:`run_networks_benchmark` result (mean +- std over the pairs)."""
+    m = result["metrics"]
+    lines = [f"{result['pairs']} (input, target) pairs of {result['people']} held-out people at {result['resolution']}^2; "
+             f"{result['machine']}"]
+    for title, entries, keys in TABLES:
+        lines += ["", f"**{title}**", "", "| | " + " | ".join(k.upper() for k in keys) + " |", "|---" * (len(keys) + 1) + "|"]
+        for name, label in entries:
+            if name in m:
+                lines.append(f"| {label} | " + " | ".join(f"{m[name][k]['mean']:.4f} +- {m[name][k]['std']:.4f}" for k in keys) + " |")
+    d = m["depth"]
+    lines += ["", f"Depth (median-aligned): RMSE {d['rmse_cm']['mean']:.2f} cm, L1 {d['l1_cm']['mean']:.2f} cm "
+              f"(a flat figure: {d['flat_l1_cm']['mean']:.2f} cm); normal angle {m['normal']['degrees']['mean']:.1f} deg; "
+              f"networks {m['seconds_networks']['mean'] * 1000:.0f} ms per photo"]
+    return "\n".join(lines)
