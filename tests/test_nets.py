@@ -156,3 +156,24 @@ def test_held_out_evaluation_harness(tiny_dataset, tiny_networks, tmp_path):
     # the true maps through the renderer beat one-epoch networks
     assert m["relit_true_maps_refined"]["rmse"]["mean"] < m["relit_refined"]["rmse"]["mean"]
     assert "Relit image" in table(result)
+
+
+def test_torchrun_trains_one_model_in_two_processes(tiny_dataset, tmp_path):
+    """Multi-process training is torch's own: torchrun + DistributedDataParallel (gloo on CPU)."""
+    import socket
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    relight = Path(sys.executable).with_name("relight")
+    res = subprocess.run([str(Path(sys.executable).with_name("torchrun")), "--nproc_per_node", "2", "--master_port", str(port),
+                          str(relight), "train", "depth", "--data", str(tiny_dataset[0]), "--out", str(tmp_path), "--res", "64",
+                          "--levels", "3", "--width", "8", "--batch", "1", "--epochs", "1"], capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    card = json.loads((tmp_path / "depth.json").read_text())
+    assert card["processes"] == 2 and card["epochs_done"] == 1 and card["train_items"] == 2
+    assert load_network(tmp_path / "depth.safetensors") is not None

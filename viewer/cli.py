@@ -264,6 +264,8 @@ def cmd_train(args) -> int:
                       device=args.device, seed=args.seed, perceptual_weight=args.perceptual_weight)
     with StageBars(prefix=f"training {args.network}: ") as bars:
         card = train(cfg, progress=bars)
+    if card is None:  # a torchrun worker other than rank 0: rank 0 reports
+        return 0
     last = card["history"][-1]
     val = f", validation {last['val']:.4g}" if last.get("val") is not None else ""
     print(f"{args.network}: {card['epochs']} epochs in {card['seconds']:.0f} s on {card['device']} "

@@ -3,7 +3,8 @@
 One loop for every network (:data:`TASKS` says how each reads a batch and scores it). Adam with
 the paper's betas (0.5, 0.999) and a learning rate cosine-annealed to ``lr_min`` over the run;
 the people of the dataset are split into training and validation (by sample, so one person's
-lightings never straddle the split). After every epoch: a checkpoint (written atomically, so an
+lightings never straddle the split). Several processes (torchrun) train one model with torch's
+DistributedDataParallel. After every epoch: a checkpoint (written atomically, so an
 interrupted run resumes from the last finished epoch), the loss curves as a PNG, and the weights as
 safetensors with a JSON card (configuration, losses, time).
 """
@@ -165,25 +166,47 @@ def _plot(history: list[dict], path: Path, task: str):
     plt.close(fig)
 
 
-def train(cfg: TrainConfig, progress=None) -> dict:
-    """Train (or resume) ``cfg.task`` on ``cfg.data``; returns the card written beside the weights."""
-    from safetensors.torch import save_file
+def _distributed(device: torch.device) -> tuple[int, int, torch.device]:
+    """(rank, world size, device) under torchrun (``WORLD_SIZE`` > 1: one process per GPU, or per
+    CPU process group with gloo); (0, 1, device) otherwise."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world <= 1:
+        return 0, 1, device
+    import torch.distributed as dist
 
+    if device.type == "cuda":
+        device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+        torch.cuda.set_device(device)
+    if not dist.is_initialized():
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+    return dist.get_rank(), world, device
+
+
+def train(cfg: TrainConfig, progress=None) -> dict:
+    """Train (or resume) ``cfg.task`` on ``cfg.data``; returns the card written beside the weights.
+
+    Under ``torchrun --nproc_per_node K relight train ...`` the model is wrapped in torch's
+    DistributedDataParallel and each process takes 1 / K of every epoch (``--batch`` per process);
+    rank 0 validates and writes the checkpoint, curves and weights."""
     from ..data.loader import RelightDataset
 
     torch.manual_seed(cfg.seed)
     device = torch.device(cfg.device)
     if device.type == "cuda" and not torch.cuda.is_available():
         raise InputError(None, "--device cuda asked for, but torch sees no CUDA device")
+    rank, world, device = _distributed(device)
     task = TASKS[cfg.task](cfg)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     visibility = getattr(task, "visibility", None)
-    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed, visibility=visibility)
+    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed + rank, visibility=visibility)
     val_data = RelightDataset(cfg.data, augment=False, visibility=visibility)
     train_idx, val_idx = _split(data, cfg.val_every)
-    loader = torch.utils.data.DataLoader(torch.utils.data.Subset(data, train_idx), batch_size=cfg.batch, shuffle=True,
-                                         drop_last=len(train_idx) > cfg.batch,
+    subset = torch.utils.data.Subset(data, train_idx)
+    sampler = (torch.utils.data.distributed.DistributedSampler(subset, world, rank, shuffle=True, seed=cfg.seed, drop_last=True)
+               if world > 1 else None)
+    loader = torch.utils.data.DataLoader(subset, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler,
+                                         drop_last=len(train_idx) > cfg.batch * world,
                                          generator=torch.Generator().manual_seed(cfg.seed))
     model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels, task.vectors).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=(0.5, 0.999))
@@ -199,20 +222,28 @@ def train(cfg: TrainConfig, progress=None) -> dict:
         opt.load_state_dict(ckpt["optimizer"])
         sched.load_state_dict(ckpt["scheduler"])
         history, start_epoch, seconds = ckpt["history"], ckpt["epoch"] + 1, ckpt["seconds"]
+    net = model
+    if world > 1:
+        net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+    card = None
     for epoch in range(start_epoch, cfg.epochs):
         t0 = time.perf_counter()
-        model.train()
+        net.train()
+        if sampler is not None:
+            sampler.set_epoch(epoch)
         losses = []
         for step, batch in enumerate(loader):
             batch = _resize({k: v.to(device) for k, v in batch.items()}, cfg.res)
-            loss = task.loss(model, batch)
+            loss = task.loss(net, batch)
             opt.zero_grad(set_to_none=True)
             loss["total"].backward()
             opt.step()
             sched.step()
             losses.append(loss["total"].item())
-            if progress is not None:
+            if progress is not None and rank == 0:
                 progress(f"epoch {epoch + 1}/{cfg.epochs}", step + 1, len(loader))
+        if rank != 0:
+            continue
         val = _evaluate(model, task, val_data, val_idx, cfg, device)
         seconds += time.perf_counter() - t0
         history.append({"epoch": epoch + 1, "train": float(np.mean(losses)) if losses else None, **val,
@@ -221,13 +252,30 @@ def train(cfg: TrainConfig, progress=None) -> dict:
                       "model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
                       "history": history, "epoch": epoch, "seconds": seconds}, ckpt_path)
         _plot(history, out / f"{cfg.task}_loss.png", cfg.task)
+        card = _write_weights(model, cfg, out, device, world, len(train_idx), len(val_idx), seconds, history)
+    if world > 1:
+        torch.distributed.barrier()
+    if card is None and rank == 0:  # nothing left to train (a finished run resumed): the card on disk
+        card = json.loads((out / f"{cfg.task}.json").read_text())
+    return card
+
+
+def _write_weights(model, cfg: TrainConfig, out: Path, device, world: int, n_train: int, n_val: int, seconds: float,
+                   history: list) -> dict:
+    """The weights as safetensors and their JSON card (written after every epoch)."""
+    from safetensors.torch import save_file
+
     weights = out / f"{cfg.task}.safetensors"
-    save_file({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, str(weights))
+    tmp = weights.with_name(f".{weights.name}.tmp")
+    save_file({k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}, str(tmp))
+    os.replace(tmp, weights)
     card = {"network": cfg.task, "model": model.config, "parameters": sum(p.numel() for p in model.parameters()),
-            "data": _data_text(cfg.data), "train_items": len(train_idx), "val_items": len(val_idx), "resolution": cfg.res,
-            "epochs": cfg.epochs, "batch": cfg.batch, "lr": [cfg.lr, cfg.lr_min], "device": str(device),
-            "torch_threads": torch.get_num_threads(), "seconds": round(seconds, 1), "history": history,
-            "weights": weights.name}
+            "data": _data_text(cfg.data), "train_items": n_train, "val_items": n_val, "resolution": cfg.res,
+            "epochs": cfg.epochs, "epochs_done": len(history), "batch": cfg.batch, "processes": world,
+            "lr": [cfg.lr, cfg.lr_min], "device": str(device), "torch_threads": torch.get_num_threads(),
+            "seconds": round(seconds, 1), "history": history, "weights": weights.name}
+    if cfg.task == "inverse":
+        card["perceptual_weight"] = cfg.perceptual_weight
     (out / f"{cfg.task}.json").write_text(json.dumps(card, indent=1) + "\n")
     return card
 
