@@ -6,8 +6,9 @@ map seen through the camera behind them (:meth:`viewer.envmap.EnvMap.seen_throug
 ``image + (1 - mask) * background``), ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
 ``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
 ``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity; with
-``visibility=R``, also ``hard`` and ``soft`` (N, H, W): the twin's shadow-map and convolutional-
-shadow-map visibility of the true depth under those lights (R-texel shadow maps, cached on disk).
+``visibility=R``, also ``hard`` and ``soft`` (N, H, W): the GL engine's shadow-map and
+convolutional-shadow-map visibility of the true depth under those lights (R-texel shadow maps,
+cached on disk).
 
 Augmentations (``augment=True``, random per item from a seeded generator): a horizontal mirror
 (images flipped, normals' and lights' x negated, as the mirrored scene would render) and an
@@ -46,6 +47,7 @@ class RelightDataset(Dataset):
         self.rng = np.random.default_rng(seed)
         self._maps: dict[Path, EnvMap] = {}
         self.visibility = visibility
+        self._gl = None  # a headless GL context, made when visibility is first needed
 
     def _background(self, sample: Path, k: int, camera) -> np.ndarray:
         lighting = json.loads((sample / f"lighting_{k}" / "lighting.json").read_text())
@@ -72,7 +74,11 @@ class RelightDataset(Dataset):
         if self.visibility:
             from ..nets.refine import cached_visibility
 
-            hard, soft = cached_visibility(d, scene, area_lights, self.visibility)
+            if self._gl is None:
+                from ..gl import create_headless_context
+
+                self._gl = create_headless_context()
+            hard, soft = cached_visibility(self._gl, d, scene, area_lights, self.visibility)
             item["hard"], item["soft"] = np.moveaxis(hard, 0, -1), np.moveaxis(soft, 0, -1)
         if self.augment:
             if self.rng.uniform() < 0.5:

@@ -11,7 +11,7 @@ map's fitted lights), in the photo's exposed units.
 Training runs the network on the ``REFINED_LIGHTS`` lights that shade each image most and keeps the
 convolutional-shadow-map visibility of the others in the sum (so the loss still compares whole
 images); inference refines every light. The visibility of the true depth mesh under the true
-lights comes from the torch twin and is cached beside each lighting (``visibility_<R>.npz``).
+lights comes from the GL engine and is cached beside each lighting (``visibility_<R>.npz``).
 """
 
 from __future__ import annotations
@@ -80,24 +80,24 @@ def refine_loss(model, batch: dict, scale: torch.Tensor, refined: int = REFINED_
     return {"total": total, "sm": sm, "csm": csm}
 
 
-def twin_visibility(scene, lights, resolution: int = SHADOW_RESOLUTION) -> tuple[np.ndarray, np.ndarray]:
-    """(hard, soft) visibility (N, H, W) float32 of a scene's depth mesh under area lights (the twin)."""
-    from ..twin import render
-
-    with torch.no_grad():
-        r = render(scene, lights, shadow_resolution=resolution, device="cpu")
-    return r.hard_visibility.numpy(), r.soft_visibility.numpy()
-
-
-def cached_visibility(lighting_dir: Path, scene, lights, resolution: int = SHADOW_RESOLUTION) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`twin_visibility` of one dataset lighting, computed once and kept as ``visibility_<R>.npz``."""
+def cached_visibility(ctx, lighting_dir: Path, scene, lights, resolution: int = SHADOW_RESOLUTION) -> tuple[np.ndarray, np.ndarray]:
+    """(hard, soft) visibility (N, H, W) of one dataset lighting from the GL engine (the same
+    passes the refined mode reads at run time), computed once and kept as ``visibility_<R>.npz``."""
     import os
+
+    from ..gl import Engine, EngineOptions
+    from ..refinement import light_visibility
 
     path = Path(lighting_dir) / f"visibility_{resolution}.npz"
     if path.is_file():
         with np.load(path) as z:
             return z["hard"].astype(np.float32), z["soft"].astype(np.float32)
-    hard, soft = twin_visibility(scene, lights, resolution)
+    eng = Engine(ctx, scene, EngineOptions(shadow_resolution=resolution))
+    try:
+        eng.set_lights(lights)
+        hard, soft = light_visibility(eng)
+    finally:
+        eng.release()
     tmp = path.with_name(f".{path.stem}.tmp.npz")
     np.savez_compressed(tmp, hard=hard.astype(np.uint8), soft=soft.astype(np.float16))
     os.replace(tmp, path)
