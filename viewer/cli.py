@@ -15,6 +15,7 @@ from .resources import asset_dir, sample_scene_dir
 
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 DEMO_LIGHTS = "envmaps/immenstadter_horn_256.lights.json"
+DEMO_PHOTO = "photos/underpass.jpg"
 DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it lights the front
 
 
@@ -106,11 +107,43 @@ def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[P
 
 
 def cmd_demo(args) -> int:
+    """The whole path: the sample scene, then the bundled real photo inferred, relit under the
+    three bundled maps with refined shadows, and a sheet of the photo beside its relightings."""
+    from dataclasses import replace
+
+    from .envmap import load_envmap
+    from .gl import Engine, create_headless_context
+    from .imageio import read_png, write_png
+    from .inference import infer
+    from .lights import load_lights
+    from .render import render_to_files
+    from .scene import load_scene
+
     assets = asset_dir()
     written = _render(sample_scene_dir(), assets / DEMO_LIGHTS, assets / DEMO_ENVMAP, args.output, "demo", args)
     print(f"rendered the sample scene under {DEMO_LIGHTS} (16 area lights):")
     for path in written:
         print(f"  wrote {path}")
+    out = Path(args.output)
+    photo = assets / DEMO_PHOTO
+    t0 = time.perf_counter()
+    record = infer(photo, photo.with_suffix(".mask.png"), out / "photo_bundle", size=512)
+    print(f"inferred the scene bundle of {DEMO_PHOTO} in {time.perf_counter() - t0:.1f} s: {out / 'photo_bundle'}")
+    scene = load_scene(out / "photo_bundle")
+    engine = Engine(create_headless_context(), scene, _engine_options(args))
+    pictures = [read_png(out / "photo_bundle" / "photo.png")[..., :3]]
+    try:
+        for env_path in sorted((assets / "envmaps").glob("*.hdr")):
+            t0 = time.perf_counter()
+            settings = replace(_settings(args), visibility="refined", background="environment")
+            files = render_to_files(engine, scene, load_lights(env_path.with_suffix(".lights.json")), out,
+                                    f"photo_{env_path.stem}", settings, environment=load_envmap(env_path).pixels, passes=False)
+            pictures.append(read_png(files[0])[..., :3])
+            print(f"  relit under {env_path.name} (refined shadows) in {time.perf_counter() - t0:.1f} s: {files[0]}")
+    finally:
+        engine.release()
+    sheet = write_png(out / "photo_relit.png", np.concatenate(pictures, axis=1))
+    print(f"wrote {sheet} (the photo, then relit under each bundled map); inference took {record['seconds_total']:.1f} s")
     return 0
 
 
@@ -315,7 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="relight", description="Relight full-body photos of people under HDR environment maps.")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("demo", help="render the bundled sample scene under the bundled environment's lights")
+    p = sub.add_parser("demo", help="the whole path: the sample scene, then the bundled photo inferred and relit under "
+                                    "the bundled maps")
     p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
     _add_engine_args(p)
     _add_view_args(p, yaw_default=DEMO_YAW)
