@@ -163,6 +163,19 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     assert v.quit() == 0
 
 
+def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_path, monkeypatch):
+    """relight view PHOTO --mask MASK: inference once (cached), then the viewer; the refined shadow
+    mode fills in when the lighting is still."""
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    v = viewer_factory(str(photo), "--mask", str(photo.with_suffix(".mask.png")), "--visibility", "refined")
+    s = v.wait_for(lambda s: s["refined"], 120)
+    assert s["look"]["shadows"] == "refined" and not s["refine_error"]
+    assert len(list((tmp_path / "cache" / "bundles").glob("underpass-*/scene.json"))) == 1
+    assert v.save().stat().st_size > 0
+    assert v.quit() == 0
+
+
 def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
     scene, base, engine = headless
     v = viewer_factory()

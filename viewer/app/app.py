@@ -319,6 +319,8 @@ class ViewerApp:
             "widgets": self.widgets,
             "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "path": str(rec.path)},
             "fitting": self.job is not None,
+            "refined": self.session.final.refined_current,
+            "refine_error": self.session.refine_error,
             "captures": self.captures,
             "videos": self.videos,
             "message": self.message,
