@@ -119,3 +119,18 @@ def test_bundle_is_inferred_once_and_then_cached(tiny_networks, tmp_path, monkey
     assert cached and again == first
     other, cached = cached_bundle(photo, mask, size=96, networks_dir=tiny_networks)
     assert not cached and other != first
+
+
+def test_a_huge_photo_is_framed_and_downscaled(tiny_networks, tmp_path):
+    h, w = 6000, 4000
+    photo = np.zeros((h, w, 3), np.uint8)
+    photo[..., 1] = 90
+    mask = np.zeros((h, w), np.uint8)
+    mask[1000:5200, 1700:2300] = 255
+    photo[mask > 0] = (200, 150, 120)
+    Image.fromarray(photo).save(tmp_path / "huge.jpg", quality=80)
+    Image.fromarray(mask).save(tmp_path / "huge.png")
+    record = infer(tmp_path / "huge.jpg", tmp_path / "huge.png", tmp_path / "b", size=128,
+                   networks=load_networks("cpu", tiny_networks))
+    assert record["photo_size"] == [w, h] and record["framing"]["side"] == int(np.ceil(4200 / FILL))
+    assert load_scene(tmp_path / "b").mask.sum() > 0
