@@ -5,7 +5,8 @@ Each item is one (person, lighting) pair, a dict of float32 tensors, images chan
 map seen through the camera behind them (:meth:`viewer.envmap.EnvMap.seen_through`; the photo is
 ``image + (1 - mask) * background``), ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
 ``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
-``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity; with
+``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity (``fields``
+picks which images are read: a network that needs three of them reads three); with
 ``visibility=R``, also ``hard`` and ``soft`` (N, H, W): the GL engine's shadow-map and
 convolutional-shadow-map visibility of the true depth under those lights (R-texel shadow maps,
 cached on disk).
@@ -31,13 +32,16 @@ from ..lights import load_lights
 from ..scene import load_scene
 
 EXPOSURE_RANGE = (0.5, 2.0)
+FIELDS = ("image", "background", "mask", "albedo", "normal", "specular", "roughness", "depth", "diffuse",
+          "specular_shading", "diffuse_shadowed")
 
 
 class RelightDataset(Dataset):
     """The finished samples of one dataset directory, or of several (a list: shards or datasets
     made on different machines)."""
 
-    def __init__(self, root, augment: bool = False, seed: int = 0, visibility: int | None = None):
+    def __init__(self, root, augment: bool = False, seed: int = 0, visibility: int | None = None,
+                 fields: tuple[str, ...] | None = None):
         roots = [Path(r) for r in (root if isinstance(root, (list, tuple)) else [root])]
         samples = sorted(p.parent for r in roots for p in (r / "samples").glob("*/sample.json"))
         self.items = [(s, k) for s in samples for k in range(len(json.loads((s / "sample.json").read_text())["lightings"]))]
@@ -47,6 +51,7 @@ class RelightDataset(Dataset):
         self.rng = np.random.default_rng(seed)
         self._maps: dict[Path, EnvMap] = {}
         self.visibility = visibility
+        self.fields = tuple(fields) if fields is not None else FIELDS  # what to read (lights always)
         self._gl = None  # a headless GL context, made when visibility is first needed
 
     def _background(self, sample: Path, k: int, camera) -> np.ndarray:
@@ -65,12 +70,15 @@ class RelightDataset(Dataset):
         d = sample / f"lighting_{k}"
         area_lights = load_lights(d / "lights.json")
         lights = area_lights.to_array()
-        item = {
-            "image": read_exr(d / "full.exr"), "background": self._background(sample, k, scene.camera), "mask": scene.mask[..., None].astype(np.float32), "albedo": scene.albedo,
-            "normal": scene.normal, "specular": scene.specular[..., None], "roughness": scene.roughness[..., None],
-            "depth": scene.depth[..., None], "diffuse": read_exr(d / "diffuse.exr"),
-            "specular_shading": read_exr(d / "specular.exr"), "diffuse_shadowed": read_exr(d / "diffuse_shadowed.exr"),
+        read = {
+            "image": lambda: read_exr(d / "full.exr"), "background": lambda: self._background(sample, k, scene.camera),
+            "mask": lambda: scene.mask[..., None].astype(np.float32), "albedo": lambda: scene.albedo,
+            "normal": lambda: scene.normal, "specular": lambda: scene.specular[..., None],
+            "roughness": lambda: scene.roughness[..., None], "depth": lambda: scene.depth[..., None],
+            "diffuse": lambda: read_exr(d / "diffuse.exr"), "specular_shading": lambda: read_exr(d / "specular.exr"),
+            "diffuse_shadowed": lambda: read_exr(d / "diffuse_shadowed.exr"),
         }
+        item = {key: read[key]() for key in self.fields}
         if self.visibility:
             from ..nets.refine import cached_visibility
 
@@ -83,11 +91,13 @@ class RelightDataset(Dataset):
         if self.augment:
             if self.rng.uniform() < 0.5:
                 item = {key: np.ascontiguousarray(v[:, ::-1]) for key, v in item.items()}
-                item["normal"] = item["normal"] * np.array([-1.0, 1.0, 1.0], np.float32)
+                if "normal" in item:
+                    item["normal"] = item["normal"] * np.array([-1.0, 1.0, 1.0], np.float32)
                 lights[:, 0] = -lights[:, 0]
             scale = np.float32(np.exp(self.rng.uniform(*np.log(EXPOSURE_RANGE))))
             for key in ("image", "background", "diffuse", "specular_shading", "diffuse_shadowed"):
-                item[key] = item[key] * scale
+                if key in item:
+                    item[key] = item[key] * scale
             lights[:, 4:7] *= scale
         out = {key: torch.from_numpy(np.ascontiguousarray(np.moveaxis(np.asarray(v, np.float32), -1, 0))) for key, v in item.items()}
         out["lights"] = torch.from_numpy(lights.astype(np.float32))

@@ -25,7 +25,7 @@ from ..errors import InputError
 from . import depth as depth_net
 from . import inverse as inverse_net
 from . import refine as refine_net
-from .photo import photo_input
+from .photo import exposure_scale, photo_input
 from .unet import UNet
 
 
@@ -69,6 +69,7 @@ class DepthTask:
     outputs = {"depth": 1}
     vectors: dict = {}
     in_channels = 4
+    fields = ("image", "mask", "depth")
 
     def __init__(self, cfg: TrainConfig):
         self.cfg = cfg
@@ -93,6 +94,7 @@ class InverseTask:
     outputs = inverse_net.OUTPUTS
     vectors = inverse_net.vectors()
     in_channels = 4
+    fields = None  # all of them
 
     def __init__(self, cfg: TrainConfig):
         self.cfg = cfg
@@ -113,14 +115,13 @@ class RefineTask:
     vectors: dict = {}
     in_channels = refine_net.IN_CHANNELS
     visibility = refine_net.SHADOW_RESOLUTION
+    fields = ("image", "mask", "normal", "depth", "diffuse_shadowed")
 
     def __init__(self, cfg: TrainConfig):
         self.cfg = cfg
 
     def loss(self, model, batch) -> dict:
-        photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
-        _, scale = photo_input(photo, batch["mask"])
-        return refine_net.refine_loss(model, batch, scale)
+        return refine_net.refine_loss(model, batch, exposure_scale(batch["image"], batch["mask"]))
 
 
 TASKS = {"depth": DepthTask, "inverse": InverseTask, "refine": RefineTask}
@@ -199,8 +200,8 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     visibility = getattr(task, "visibility", None)
-    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed + rank, visibility=visibility)
-    val_data = RelightDataset(cfg.data, augment=False, visibility=visibility)
+    data = RelightDataset(cfg.data, augment=True, seed=cfg.seed + rank, visibility=visibility, fields=task.fields)
+    val_data = RelightDataset(cfg.data, augment=False, visibility=visibility, fields=task.fields)
     train_idx, val_idx = _split(data, cfg.val_every)
     subset = torch.utils.data.Subset(data, train_idx)
     sampler = (torch.utils.data.distributed.DistributedSampler(subset, world, rank, shuffle=True, seed=cfg.seed, drop_last=True)
