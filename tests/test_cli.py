@@ -9,6 +9,7 @@ import numpy as np
 
 from viewer.cli import main
 from viewer.imageio import read_exr, read_png
+from viewer.scene import load_scene
 
 
 def test_demo_writes_png_and_exr(tmp_path, capsys):
@@ -21,6 +22,17 @@ def test_demo_writes_png_and_exr(tmp_path, capsys):
     assert np.isfinite(hdr).all() and hdr.max() > 0.05  # lit, not a silent black image
     assert img.std() > 0.05
     assert (tmp_path / "demo_passes.png").is_file()
+    # the whole path on the bundled photo: inferred, then relit under each bundled map (refined shadows)
+    assert "inferred the scene bundle of photos/underpass.jpg" in out
+    bundle = load_scene(tmp_path / "photo_bundle")
+    assert bundle.width == 512 and bundle.mask.mean() > 0.05
+    sheet = read_png(tmp_path / "photo_relit.png")
+    assert sheet.shape == (512, 4 * 512, 3)
+    relit = [sheet[:, k * 512:(k + 1) * 512] for k in range(1, 4)]
+    m = bundle.mask
+    for a in relit:
+        assert a[m].std() > 0.02  # lit, with shading
+    assert np.abs(relit[0][m] - relit[1][m]).mean() > 0.02  # different maps, different pictures
 
 
 def run_cli(*args):

@@ -74,21 +74,26 @@ def metrics(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, data_range: f
     return out
 
 
-def _engine_image(ctx, scene: Scene, lights, mode: str, view: str, refiner) -> np.ndarray:
+def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
+    """{(shadow mode, view): HDR (H, W, 3)} from one engine for the scene (refined: the refinement
+    network on the engine's own visibility)."""
     from ..refinement import refine_engine
 
     eng = Engine(ctx, scene, EngineOptions())
+    out = {}
     try:
         eng.set_lights(lights)
-        eng.set_visibility(mode)
-        eng.set_view(view)
-        eng.render()
-        if mode == "refined":
-            refine_engine(eng, refiner)
+        for mode, view in wanted:
+            eng.set_visibility(mode)
+            eng.set_view(view)
             eng.render()
-        return eng.read_hdr()[..., :3].copy()
+            if mode == "refined" and not eng.refined_current:
+                refine_engine(eng, refiner)
+                eng.render()
+            out[mode, view] = eng.read_hdr()[..., :3].copy()
     finally:
         eng.release()
+    return out
 
 
 def _predict(nets, item) -> tuple[Scene, dict]:
@@ -170,16 +175,20 @@ def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.
         lum = full_t.mean(-1)[m]
         s = EXPOSED_LEVEL / max(float(np.quantile(lum, EXPOSED_PERCENTILE)), 1e-8)
         y_diff = target["diffuse_shadowed"].permute(1, 2, 0).numpy() * s
+        modes = list(SHADOW_MODES.values())
+        true_img = _engine_images(ctx, truth, lights, [(mode, "diffuse_shading") for mode in modes] + [("refined", "final")], refiner)
+        pred_img = _engine_images(ctx, pred, lights, [(mode, v) for mode in modes for v in ("diffuse_shading", "final")]
+                                  + [("refined", "specular_shading")], refiner)
         for label, mode in SHADOW_MODES.items():
-            add(f"shading_true_geometry_{label}", metrics(s * _engine_image(ctx, truth, lights, mode, "diffuse_shading", refiner), y_diff, m))
-            add(f"shading_{label}", metrics(s * _engine_image(ctx, pred, lights, mode, "diffuse_shading", refiner), y_diff, m))
+            add(f"shading_true_geometry_{label}", metrics(s * true_img[mode, "diffuse_shading"], y_diff, m))
+            add(f"shading_{label}", metrics(s * pred_img[mode, "diffuse_shading"], y_diff, m))
         spec_t = s * read_exr(d / "specular_shadowed.exr")
-        add("specular_shading", metrics(s * _engine_image(ctx, pred, lights, "refined", "specular_shading", refiner), spec_t, m))
+        add("specular_shading", metrics(s * pred_img["refined", "specular_shading"], spec_t, m))
         relit = {}
         for label, mode in SHADOW_MODES.items():
-            relit[label] = s * _engine_image(ctx, pred, lights, mode, "final", refiner)
+            relit[label] = s * pred_img[mode, "final"]
             add(f"relit_{label}", metrics(relit[label], s * full_t, m, flip=True))
-        add("relit_true_maps_refined", metrics(s * _engine_image(ctx, truth, lights, "refined", "final", refiner), s * full_t, m, flip=True))
+        add("relit_true_maps_refined", metrics(s * true_img["refined", "final"], s * full_t, m, flip=True))
         lighting = json.loads((d / "lighting.json").read_text())
         env = load_envmap(sample.parents[1] / "maps" / f"{lighting['map']}.hdr").rotated(lighting["yaw"])
         relit["SH"] = s * sh_relight(pred.albedo, pred.normal, m, env)
