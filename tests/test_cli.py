@@ -56,9 +56,15 @@ def test_bad_inputs_give_one_line_errors(tmp_path):
 
 
 def test_viewing_precomputed_maps_never_imports_torch(tmp_path):
-    code = ("import sys; from viewer.cli import main; main(['demo', '-o', sys.argv[1]]);"
+    """Rendering a scene bundle under a light file (what the demo does after inference) needs no torch."""
+    from viewer.cli import DEMO_ENVMAP, DEMO_LIGHTS
+    from viewer.resources import asset_dir, sample_scene_dir
+
+    args = [str(sample_scene_dir()), str(asset_dir() / DEMO_LIGHTS), "--env", str(asset_dir() / DEMO_ENVMAP),
+            "-o", str(tmp_path / "x.png")]
+    code = ("import sys; from viewer.cli import main; assert main(['render', *sys.argv[1:]]) == 0;"
             "assert 'torch' not in sys.modules, 'torch was imported'")
-    res = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True)
+    res = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
 
 

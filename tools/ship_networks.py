@@ -50,13 +50,14 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
     lines = ["# Model card: the shipped networks", "",
              "Written by `tools/ship_networks.py` from the training cards in `assets/networks/*.json` and the held-out",
              "evaluation `docs/bench_networks.json`. Method and losses: [networks.md](networks.md).", "",
-             "| network | what | parameters | size | resolution | epochs | training time | device | final validation loss |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| network | what | parameters | size | resolution | epochs | batch | training time | device | final validation loss |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for net, c in cards.items():
         size = (ROOT / "assets" / "networks" / f"{net}.safetensors").stat().st_size / 1e6
         last = c["history"][-1]
         lines.append(f"| {net} | {WHAT[net]} | {c['parameters'] / 1e6:.2f} M (width {c['model']['width']}, "
                      f"{c['model']['levels']} levels) | {size:.1f} MB | {c['resolution']}^2 | {c.get('epochs_done', c['epochs'])} | "
+                     f"{c['batch']} | "
                      f"{c['seconds'] / 60:.0f} min | {c['device']}, {c['torch_threads']} thread(s) x {c.get('processes', 1)} process(es) | "
                      f"{last['val']:.4f} |")
     c = cards["inverse"]
@@ -68,7 +69,7 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
               "  procedural skies, studios and overcast maps (docs/dataset.md). No real photo and no held-out map was",
               "  seen in training.",
               "- Learning rate: cosine-annealed Adam (betas 0.5, 0.999) from "
-              f"{c['lr'][0]:g} to {c['lr'][1]:g}; batch {c['batch']}; mirror and exposure augmentation."]
+              f"{c['lr'][0]:g} to {c['lr'][1]:g}; mirror and exposure augmentation."]
     for net in ("depth", "inverse"):
         last = cards[net]["history"][-1]
         if net == "depth":

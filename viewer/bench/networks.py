@@ -231,7 +231,7 @@ def _figure(examples, path):
         lum = ex["photo"].mean(-1)[ex["mask"]]
         photo = ex["photo"] * (0.9 / max(float(np.quantile(lum, 0.99)), 1e-8))
         pics = [photo, ex["truth"], ex["ours"], ex["sh"], ex["albedo"][0], ex["albedo"][1] * m,
-                ex["normal"][0] * 0.5 + 0.5, (ex["normal"][1] * 0.5 + 0.5) * m]
+                (ex["normal"][0] * 0.5 + 0.5) * m, (ex["normal"][1] * 0.5 + 0.5) * m]
         for c, pic in enumerate(pics):
             ax = axes[r, c]
             ax.imshow(_srgb(pic) if c < 6 else np.clip(pic, 0, 1))
