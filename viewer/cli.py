@@ -224,9 +224,8 @@ def _photo_bundle(photo, mask, device) -> Path:
 
     if photo is None:
         raise InputError(None, "--mask needs a photo: relight view PHOTO --mask MASK")
-    print(f"inferring the scene bundle of {photo} (once; later runs take it from the cache)")
     bundle, cached = cached_bundle(photo, mask, device=device)
-    print(f"{'cached' if cached else 'wrote'} scene bundle {bundle}")
+    print(f"scene bundle of {photo}: {bundle} ({'from the cache' if cached else 'inferred now, cached for next time'})")
     return bundle
 
 
