@@ -23,17 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .resources import asset_dir
+from .resources import network_dir
 
 NETWORK_RES = 256
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 MIN_PERSON_PX = 32  # a person shorter than this in the photo is refused
 MAX_PIXELS = 200_000_000
 NETWORKS = ("inverse", "depth")
-
-
-def network_dir() -> Path:
-    return asset_dir() / "networks"
 
 
 @dataclass(frozen=True)
@@ -120,15 +116,11 @@ def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
 
 
 def resize(image: np.ndarray, size: int) -> np.ndarray:
-    """Area-filtered (down) or bicubic (up) resize of a uint8 or float image to size x size."""
+    """Area-filtered (down) or bicubic (up) resize of a uint8 image to size x size."""
     from PIL import Image
 
-    if image.dtype == np.uint8:
-        return np.asarray(Image.fromarray(image).resize((size, size), Image.Resampling.BOX if image.shape[0] > size
-                                                          else Image.Resampling.BICUBIC))
-    chans = [np.asarray(Image.fromarray(np.ascontiguousarray(image[..., c], np.float32)).resize(
-        (size, size), Image.Resampling.BOX if image.shape[0] > size else Image.Resampling.BILINEAR)) for c in range(image.shape[-1])]
-    return np.stack(chans, axis=-1)
+    return np.asarray(Image.fromarray(image).resize((size, size), Image.Resampling.BOX if image.shape[0] > size
+                                                    else Image.Resampling.BICUBIC))
 
 
 def extend(values, mask, steps: int = 6):
@@ -194,7 +186,6 @@ def infer(photo_path, mask_path, out_dir, size: int = 512, device: str = "cpu", 
     from .lights import AreaLights
     from .nets import depth as depth_net
     from .nets import inverse as inverse_net
-    from .nets import photo as photo_net
     from .scene import Scene, save_scene
 
     if not 64 <= size <= 4096:
@@ -213,24 +204,20 @@ def infer(photo_path, mask_path, out_dir, size: int = 512, device: str = "cpu", 
     photo, mask, notes = read_photo(photo_path, mask_path)
     f = framing(mask)
     photo_sq, mask_sq = crop(photo, f, "edge"), crop(mask.astype(np.uint8) * 255, f, "constant")
-    small = resize(photo_sq, NETWORK_RES).astype(np.float32) / 255.0
+    small = srgb_to_linear(resize(photo_sq, NETWORK_RES).astype(np.float32) / 255.0)
     small_mask = resize(mask_sq, NETWORK_RES) > 127
     step("read")
     nets = networks if networks is not None else load_networks(device)
     step("load networks")
     dev = torch.device(device)
     with torch.no_grad():
-        linear = photo_net.srgb_to_linear(torch.from_numpy(small).permute(2, 0, 1)[None].to(dev))
+        linear = torch.from_numpy(small).permute(2, 0, 1)[None].to(dev)
         m = torch.from_numpy(small_mask.astype(np.float32))[None, None].to(dev)
-        x, scale = photo_net.photo_input(linear, m)
-        out = nets["inverse"](x)
+        maps, (direction, sigma, intensity), scale = inverse_net.predict(nets["inverse"], linear, m)
         step("inverse rendering")
-        xd, _ = photo_net.photo_input(linear * m, m, background=False)
         cam = Camera(size, size)
-        depth = depth_net.metric_depth(torch.sigmoid(nets["depth"](xd)["depth"]), m, cam.distance)
+        depth = depth_net.predict(nets["depth"], linear, m, cam.distance)
         step("depth")
-        maps = inverse_net.maps(out)
-        direction, sigma, intensity = inverse_net.light_tensors(out["lights"])
         stack = torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
         stack = extend(stack, m)
         big = torch.nn.functional.interpolate(stack, size=(size, size), mode="bilinear", align_corners=False)[0]
@@ -247,8 +234,7 @@ def infer(photo_path, mask_path, out_dir, size: int = 512, device: str = "cpu", 
                   mask=big_mask, camera=cam, photo=big_photo, background=big_photo)
     out_dir = Path(out_dir)
     save_scene(scene.validate(), out_dir)
-    lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(),
-                        (intensity[0] / scale[0, 0, 0]).cpu().numpy())
+    lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
     lights.save(out_dir / "lights.json", fit={"source": Path(photo_path).name, "method": "inverse-rendering network"})
     step("write")
     record = {"photo": str(photo_path), "mask": str(mask_path), "size": size, "network_resolution": NETWORK_RES,

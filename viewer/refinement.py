@@ -14,13 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .resources import asset_dir
+from .resources import network_dir
 
 LIGHTS_PER_BATCH = 4
-
-
-def network_path() -> Path:
-    return asset_dir() / "networks" / "refine.safetensors"
 
 
 class Refiner:
@@ -29,7 +25,7 @@ class Refiner:
     def __init__(self, path=None, device: str = "cpu"):
         from .nets.train import load_network
 
-        self.path = Path(path) if path is not None else network_path()
+        self.path = Path(path) if path is not None else network_dir() / "refine.safetensors"
         if not self.path.is_file():
             raise InputError(self.path, "the shadow refinement network is not installed (assets/networks/refine.safetensors)")
         self.device = device

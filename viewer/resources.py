@@ -28,3 +28,8 @@ def asset_dir() -> Path:
 
 def sample_scene_dir() -> Path:
     return asset_dir() / "sample_scene"
+
+
+def network_dir() -> Path:
+    """The shipped network weights (``<net>.safetensors`` with their ``<net>.json`` cards)."""
+    return asset_dir() / "networks"

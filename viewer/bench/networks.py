@@ -101,17 +101,14 @@ def _predict(nets, item) -> tuple[Scene, dict]:
 
     from ..nets import depth as depth_net
     from ..nets import inverse as inverse_net
-    from ..nets.photo import photo_input
 
     with torch.no_grad():
         mask = item["mask"][None]
         photo = item["image"][None] + (1 - mask) * item["background"][None]
-        x, _ = photo_input(photo, mask)
-        maps = inverse_net.maps(nets["inverse"](x))
-        xd, _ = photo_input(item["image"][None], mask, background=False)
+        maps, _, _ = inverse_net.predict(nets["inverse"], photo, mask)
         h, w = mask.shape[-2:]
         cam = Camera(w, h)
-        depth = depth_net.metric_depth(torch.sigmoid(nets["depth"](xd)["depth"]), mask, cam.distance)
+        depth = depth_net.predict(nets["depth"], photo, mask, cam.distance)
     m = mask[0, 0].numpy() > 0.5
 
     def hwc(t):
@@ -127,7 +124,8 @@ def _predict(nets, item) -> tuple[Scene, dict]:
 def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.json", figure="docs/networks_heldout.png",
                            limit: int | None = None, progress=None) -> dict:
     from ..data.loader import RelightDataset
-    from ..inference import load_networks, network_dir
+    from ..inference import load_networks
+    from ..resources import network_dir
     from ..nets.photo import EXPOSED_LEVEL, EXPOSED_PERCENTILE
     from ..refinement import Refiner
     from ..sh import relight as sh_relight

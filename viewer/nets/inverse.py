@@ -33,6 +33,7 @@ from torch.nn import functional as F
 from ..lightfit.fit import fibonacci_sphere
 from ..median_cut import SIGMA_MAX
 from ..twin.brdf import diffuse_shading, specular_shading
+from .photo import photo_input
 
 N_LIGHTS = 16
 PERCEPTUAL_WEIGHT = 0.1  # the paper's lambda_vgg, for the Laplacian-pyramid replacement
@@ -65,6 +66,16 @@ def maps(out: dict) -> dict[str, torch.Tensor]:
     m = torch.sigmoid(out["material"])
     return {"normal": n / n.norm(dim=1, keepdim=True).clamp_min(1e-6), "albedo": m[:, :3], "specular": m[:, 3:4],
             "roughness": m[:, 4:5]}
+
+
+def predict(model, photo: torch.Tensor, mask: torch.Tensor):
+    """``(maps, (direction, sigma, intensity), scale)`` of a linear photo (B, 3, H, W) with its
+    background and its mask (B, 1, H, W): :func:`maps`, the lights with intensities in the photo's
+    own linear units (the exposure undone), and the exposure ``scale`` (B, 1, 1, 1) the network saw."""
+    x, scale = photo_input(photo, mask)
+    out = model(x)
+    direction, sigma, intensity = light_tensors(out["lights"])
+    return maps(out), (direction, sigma, intensity / scale.reshape(-1, 1, 1)), scale
 
 
 def shading(normal, specular, roughness, direction, intensity) -> tuple[torch.Tensor, torch.Tensor]:

@@ -33,10 +33,6 @@ def linear_to_srgb(x: torch.Tensor) -> torch.Tensor:
     return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
 
 
-def srgb_to_linear(x: torch.Tensor) -> torch.Tensor:
-    return torch.where(x <= 0.04045, x / 12.92, ((x.clamp_min(0.0) + 0.055) / 1.055) ** 2.4)
-
-
 def photo_input(image: torch.Tensor, mask: torch.Tensor, background: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
     """``(x, scale)``: x (B, 4, H, W) the exposed sRGB photo and the mask; ``background=False``
     blacks out everything but the person (the depth network's input)."""
