@@ -35,7 +35,7 @@ from ..camera import Camera
 from ..envmap import load_envmap
 from ..gl import Engine, EngineOptions, create_headless_context
 from ..gl.context import describe
-from ..imageio import read_exr
+from ..imageio import linear_to_srgb, read_exr
 from ..lights import load_lights
 from ..scene import Scene, load_scene
 
@@ -43,8 +43,7 @@ SHADOW_MODES = {"SM": "hard", "CSM": "soft", "refined": "refined"}
 
 
 def _srgb(x):
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return linear_to_srgb(np.clip(x, 0.0, 1.0))
 
 
 def _box(mask):
@@ -77,7 +76,7 @@ def metrics(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, data_range: f
 def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
     """{(shadow mode, view): HDR (H, W, 3)} from one engine for the scene (refined: the refinement
     network on the engine's own visibility)."""
-    from ..refinement import refine_engine
+    from ..render import RenderSettings, render_frame
 
     eng = Engine(ctx, scene, EngineOptions())
     out = {}
@@ -86,25 +85,22 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
         for mode, view in wanted:
             eng.set_visibility(mode)
             eng.set_view(view)
-            eng.render()
-            if mode == "refined" and not eng.refined_current:
-                refine_engine(eng, refiner)
-                eng.render()
+            render_frame(eng, RenderSettings(visibility=mode), refiner)
             out[mode, view] = eng.read_hdr()[..., :3].copy()
     finally:
         eng.release()
     return out
 
 
-def _predict(nets, item) -> tuple[Scene, dict]:
+def _predict(nets, photo, mask) -> tuple[Scene, dict]:
+    """The predicted scene of a linear photo (3, H, W) with its background and its mask (1, H, W)."""
     import torch
 
     from ..nets import depth as depth_net
     from ..nets import inverse as inverse_net
 
     with torch.no_grad():
-        mask = item["mask"][None]
-        photo = item["image"][None] + (1 - mask) * item["background"][None]
+        photo, mask = photo[None], mask[None]
         maps, _, _ = inverse_net.predict(nets["inverse"], photo, mask)
         h, w = mask.shape[-2:]
         cam = Camera(w, h)
@@ -126,7 +122,7 @@ def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.
     from ..data.loader import RelightDataset
     from ..inference import load_networks
     from ..resources import network_dir
-    from ..nets.photo import EXPOSED_LEVEL, EXPOSED_PERCENTILE
+    from ..nets.photo import exposure_scale
     from ..refinement import Refiner
     from ..sh import relight as sh_relight
 
@@ -154,8 +150,9 @@ def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.
         item, target = ds[src], ds[tgt]
         truth = load_scene(sample)
         m = truth.mask
+        photo = item["image"] + (1 - item["mask"]) * item["background"]
         t0 = time.perf_counter()
-        pred, raw = _predict(nets, item)
+        pred, raw = _predict(nets, photo, item["mask"])
         add("seconds_networks", time.perf_counter() - t0)
         # materials and geometry
         add("albedo", metrics(pred.albedo, truth.albedo, m))
@@ -170,8 +167,7 @@ def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.
         d = sample / f"lighting_{k_tgt}"
         lights = load_lights(d / "lights.json")
         full_t = target["image"].permute(1, 2, 0).numpy()
-        lum = full_t.mean(-1)[m]
-        s = EXPOSED_LEVEL / max(float(np.quantile(lum, EXPOSED_PERCENTILE)), 1e-8)
+        s = float(exposure_scale(target["image"][None], target["mask"][None]))
         y_diff = target["diffuse_shadowed"].permute(1, 2, 0).numpy() * s
         modes = list(SHADOW_MODES.values())
         true_img = _engine_images(ctx, truth, lights, [(mode, "diffuse_shading") for mode in modes] + [("refined", "final")], refiner)
@@ -192,8 +188,8 @@ def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.
         relit["SH"] = s * sh_relight(pred.albedo, pred.normal, m, env)
         add("relit_SH_baseline", metrics(relit["SH"], s * full_t, m, flip=True))
         if len(examples) < 4 and n % 2 == 0:
-            photo_src = (item["image"] + (1 - item["mask"]) * item["background"]).permute(1, 2, 0).numpy()
-            examples.append({"photo": photo_src, "truth": s * full_t, "ours": relit["refined"], "sh": relit["SH"],
+            exposed = float(exposure_scale(photo[None], item["mask"][None])) * photo.permute(1, 2, 0).numpy()
+            examples.append({"photo": exposed, "truth": s * full_t, "ours": relit["refined"], "sh": relit["SH"],
                              "albedo": (truth.albedo, raw["albedo"]), "normal": (truth.normal, raw["normal"]), "mask": m})
         if progress is not None:
             progress("held-out pairs", n + 1, len(pairs))
@@ -226,9 +222,7 @@ def _figure(examples, path):
     fig, axes = plt.subplots(len(examples), len(cols), figsize=(2.0 * len(cols), 2.2 * len(examples)), dpi=90, squeeze=False)
     for r, ex in enumerate(examples):
         m = ex["mask"][..., None]
-        lum = ex["photo"].mean(-1)[ex["mask"]]
-        photo = ex["photo"] * (0.9 / max(float(np.quantile(lum, 0.99)), 1e-8))
-        pics = [photo, ex["truth"], ex["ours"], ex["sh"], ex["albedo"][0], ex["albedo"][1] * m,
+        pics = [ex["photo"], ex["truth"], ex["ours"], ex["sh"], ex["albedo"][0], ex["albedo"][1] * m,
                 (ex["normal"][0] * 0.5 + 0.5) * m, (ex["normal"][1] * 0.5 + 0.5) * m]
         for c, pic in enumerate(pics):
             ax = axes[r, c]
