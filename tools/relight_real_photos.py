@@ -23,8 +23,8 @@ from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.imageio import linear_to_srgb
 from viewer.inference import infer, load_networks
 from viewer.lightfit import lights_for_map
-from viewer.refinement import Refiner, refine_engine
-from viewer.render import RenderSettings, apply_settings
+from viewer.refinement import Refiner
+from viewer.render import RenderSettings, apply_settings, render_frame
 from viewer.scene import load_scene
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -60,10 +60,9 @@ def main() -> int:
             for name, yaw, env, lights in maps:
                 t0 = time.perf_counter()
                 eng.set_environment(env.pixels)
-                apply_settings(eng, scene, lights, RenderSettings(yaw=yaw, visibility="refined"), True)
-                eng.render()
-                refine_engine(eng, refiner)
-                eng.render()
+                settings = RenderSettings(yaw=yaw, visibility="refined")
+                apply_settings(eng, scene, lights, settings, True)
+                render_frame(eng, settings, refiner)
                 record[stem]["relight_seconds"][name] = round(time.perf_counter() - t0, 3)
                 row.append(eng.read_display().astype(np.float32) / 255.0)
         finally:

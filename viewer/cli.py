@@ -132,10 +132,10 @@ def cmd_demo(args) -> int:
     scene = load_scene(out / "photo_bundle")
     engine = Engine(create_headless_context(), scene, _engine_options(args))
     pictures = [read_png(out / "photo_bundle" / "photo.png")[..., :3]]
+    settings = replace(_settings(args), visibility="refined", background="environment")
     try:
         for env_path in sorted((assets / "envmaps").glob("*.hdr")):
             t0 = time.perf_counter()
-            settings = replace(_settings(args), visibility="refined", background="environment")
             files = render_to_files(engine, scene, load_lights(env_path.with_suffix(".lights.json")), out,
                                     f"photo_{env_path.stem}", settings, environment=load_envmap(env_path).pixels, passes=False)
             pictures.append(read_png(files[0])[..., :3])
