@@ -64,15 +64,26 @@ def _resize(batch: dict, res: int) -> dict:
     return out
 
 
-class DepthTask:
-    name = "depth"
-    outputs = {"depth": 1}
+class Task:
+    """How one network is built and scored: its U-Net outputs (image decoders and bottleneck
+    vectors), input channels, the dataset images it reads (None: all), the visibility cache it
+    needs (shadow-map texels, or None), and ``loss(model, batch)`` -> dict with ``total``."""
+
+    name: str
+    outputs: dict
     vectors: dict = {}
     in_channels = 4
-    fields = ("image", "mask", "depth")
+    fields: tuple | None = None
+    visibility: int | None = None
 
     def __init__(self, cfg: TrainConfig):
         self.cfg = cfg
+
+
+class DepthTask(Task):
+    name = "depth"
+    outputs = {"depth": 1}
+    fields = ("image", "mask", "depth")
 
     def loss(self, model, batch) -> dict:
         x, _ = photo_input(batch["image"], batch["mask"], background=False)
@@ -87,17 +98,12 @@ class DepthTask:
         return losses
 
 
-class InverseTask:
+class InverseTask(Task):
     """The inverse-rendering network on the photo with its background (:mod:`.inverse`)."""
 
     name = "inverse"
     outputs = inverse_net.OUTPUTS
     vectors = inverse_net.vectors()
-    in_channels = 4
-    fields = None  # all of them
-
-    def __init__(self, cfg: TrainConfig):
-        self.cfg = cfg
 
     def loss(self, model, batch) -> dict:
         photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
@@ -107,18 +113,14 @@ class InverseTask:
         return losses
 
 
-class RefineTask:
-    """The shadow refinement network on the twin's visibility of the true depth (:mod:`.refine`)."""
+class RefineTask(Task):
+    """The shadow refinement network on the GL engine's visibility of the true depth (:mod:`.refine`)."""
 
     name = "refine"
     outputs = refine_net.OUTPUTS
-    vectors: dict = {}
     in_channels = refine_net.IN_CHANNELS
     visibility = refine_net.SHADOW_RESOLUTION
     fields = ("image", "mask", "normal", "depth", "diffuse_shadowed")
-
-    def __init__(self, cfg: TrainConfig):
-        self.cfg = cfg
 
     def loss(self, model, batch) -> dict:
         return refine_net.refine_loss(model, batch, exposure_scale(batch["image"], batch["mask"]))
@@ -199,7 +201,7 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     task = TASKS[cfg.task](cfg)
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
-    visibility = getattr(task, "visibility", None)
+    visibility = task.visibility
     data = RelightDataset(cfg.data, augment=True, seed=cfg.seed + rank, visibility=visibility, fields=task.fields)
     val_data = RelightDataset(cfg.data, augment=False, visibility=visibility, fields=task.fields)
     train_idx, val_idx = _split(data, cfg.val_every)
