@@ -40,9 +40,44 @@ class LightsResult:
     how: str  # "bundled", "cached" or "fitted"
 
 
-class LightJob:
-    """Load ``path`` and get its ``n`` lights (beside the map, from the cache, or fitted) on a thread.
-    ``wake()`` is called when it finishes (to wake the window's event wait)."""
+class ThreadJob:
+    """Work on a daemon thread: ``result`` when :meth:`work` returns, ``error`` (one line, from
+    :meth:`failure`) when it raises; ``wake()`` is called when it finishes (to wake the window's
+    event wait). Subclasses set their own fields, then call ``super().__init__``, which starts it."""
+
+    thread_name = "job"
+
+    def __init__(self, wake=lambda: None):
+        self.result = None
+        self.error: str | None = None
+        self._wake = wake
+        self._thread = threading.Thread(target=self._run, name=self.thread_name, daemon=True)
+        self._thread.start()
+
+    @property
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
+    def work(self):
+        raise NotImplementedError
+
+    def failure(self, exc: Exception) -> str:
+        raise NotImplementedError
+
+    def _run(self):
+        try:
+            self.result = self.work()
+        except Exception as exc:  # shown in the panel; the window keeps what it had
+            self.error = self.failure(exc)
+        finally:
+            self._wake()
+
+
+class LightJob(ThreadJob):
+    """Load ``path`` and get its ``n`` lights (beside the map, from the cache, or fitted) on a
+    thread; ``result`` is a :class:`LightsResult`."""
+
+    thread_name = "light-fit"
 
     def __init__(self, path, n: int, method: str, wake=lambda: None):
         self.path = Path(path)
@@ -50,62 +85,42 @@ class LightJob:
         self.method = method
         self.stage = "loading the map"
         self.fraction = 0.0
-        self.result: LightsResult | None = None
-        self.error: str | None = None
-        self._wake = wake
-        self._thread = threading.Thread(target=self._run, name="light-fit", daemon=True)
-        self._thread.start()
-
-    @property
-    def done(self) -> bool:
-        return not self._thread.is_alive()
+        super().__init__(wake)
 
     def _progress(self, stage: str, done: int, total: int):
         self.stage = stage
         self.fraction = done / max(total, 1)
 
-    def _run(self):
+    def work(self) -> LightsResult:
         from ..lightfit import lights_for_map
 
-        try:
-            env = load_envmap(self.path)
-            lights = sidecar_lights(self.path, self.n, self.method)
-            how = "bundled"
-            if lights is None:
-                self.stage = "fitting"
-                lights, cached = lights_for_map(env, self.n, self.method, progress=self._progress)
-                how = "cached" if cached else "fitted"
-            self.result = LightsResult(env, lights, how)
-        except InputError as exc:
-            self.error = str(exc)
-        except Exception as exc:  # shown in the panel; the window keeps the previous map
-            self.error = f"{self.path}: {type(exc).__name__}: {exc}"
-        finally:
-            self._wake()
+        env = load_envmap(self.path)
+        lights = sidecar_lights(self.path, self.n, self.method)
+        how = "bundled"
+        if lights is None:
+            self.stage = "fitting"
+            lights, cached = lights_for_map(env, self.n, self.method, progress=self._progress)
+            how = "cached" if cached else "fitted"
+        return LightsResult(env, lights, how)
+
+    def failure(self, exc: Exception) -> str:
+        return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"
 
 
-class RefineJob:
+class RefineJob(ThreadJob):
     """The refinement network on one lighting's (hard, soft) visibility, on a thread. ``key`` names
-    the lighting it belongs to; ``wake()`` is called when it finishes."""
+    the lighting it belongs to."""
+
+    thread_name = "shadow-refinement"
 
     def __init__(self, refiner, hard, soft, sigma, depth, mask, key, wake=lambda: None):
         self.key = key
-        self.result = None
-        self.error: str | None = None
         self._args = (hard, soft, sigma, depth, mask)
         self._refiner = refiner
-        self._wake = wake
-        self._thread = threading.Thread(target=self._run, name="shadow-refinement", daemon=True)
-        self._thread.start()
+        super().__init__(wake)
 
-    @property
-    def done(self) -> bool:
-        return not self._thread.is_alive()
+    def work(self):
+        return self._refiner(*self._args)
 
-    def _run(self):
-        try:
-            self.result = self._refiner(*self._args)
-        except Exception as exc:  # shown in the panel; the soft visibility stays
-            self.error = f"shadow refinement failed: {type(exc).__name__}: {exc}"
-        finally:
-            self._wake()
+    def failure(self, exc: Exception) -> str:
+        return f"shadow refinement failed: {type(exc).__name__}: {exc}"
