@@ -20,17 +20,31 @@ DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it ligh
 
 
 def _engine_options(args):
-    from .gl import EngineOptions
+    """The preset's engine options with the knobs given on the command line in place of its values."""
+    from dataclasses import replace
 
-    return EngineOptions(shadow_resolution=args.shadow_resolution, shadow_step=args.shadow_step, terms=args.terms,
-                         prefilter=args.prefilter)
+    from .presets import preset
+
+    given = {k: getattr(args, k) for k in ("shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
+    return replace(preset(args.preset).options, **given)
+
+
+def _lights_count(args) -> int:
+    from .presets import preset
+
+    return args.lights_count if args.lights_count is not None else preset(args.preset).lights
 
 
 def _add_engine_args(p):
-    p.add_argument("--shadow-resolution", type=int, default=512, help="texels of each shadow map (default 512)")
-    p.add_argument("--shadow-step", type=int, default=0, help="depth-mesh decimation for shadow maps (default 0 = auto)")
-    p.add_argument("--terms", type=int, default=4, help="CSM Fourier terms (default 4 = 8 basis maps)")
-    p.add_argument("--prefilter", choices=("pyramid", "exact"), default="pyramid", help="CSM pre-filtering (default pyramid)")
+    from .presets import DEFAULT_PRESET, PRESETS
+
+    p.add_argument("--preset", choices=tuple(PRESETS), default=DEFAULT_PRESET,
+                   help=f"quality preset: lights and engine options from docs/results.md (default {DEFAULT_PRESET}); "
+                        "the options below override its values")
+    p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
+    p.add_argument("--shadow-step", type=int, help="depth-mesh decimation for shadow maps (0 = auto, the presets' choice)")
+    p.add_argument("--terms", type=int, help="CSM Fourier terms M, 2M basis maps (preset's; balanced 4)")
+    p.add_argument("--prefilter", choices=("pyramid", "exact"), help="CSM pre-filtering (preset's; balanced pyramid)")
 
 
 def _add_view_args(p, yaw_default=0.0):
@@ -80,7 +94,7 @@ def _prepare(scene_path, lights_path, envmap_path, args):
     if lights_path is not None:
         lights = load_lights(lights_path)
     elif env is not None:
-        lights, cached = _fitted_lights(env, args.lights_count, args.method)
+        lights, cached = _fitted_lights(env, _lights_count(args), args.method)
         print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {envmap_path}")
     else:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
@@ -202,9 +216,9 @@ def cmd_view(args) -> int:
     if args.lights:
         lights = load_lights(args.lights)
     else:
-        lights = sidecar_lights(env_path, args.lights_count, args.method)
+        lights = sidecar_lights(env_path, _lights_count(args), args.method)
         if lights is None:
-            lights, cached = _fitted_lights(env, args.lights_count, args.method)
+            lights, cached = _fitted_lights(env, _lights_count(args), args.method)
             print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {env_path}")
     from .app import ViewerConfig, run_viewer
 
@@ -331,6 +345,20 @@ def cmd_bench(args) -> int:
                                             output=args.output or "docs/bench_networks.json", limit=args.limit,
                                             progress=bars)
         print(table(result))
+    elif args.what == "report":
+        from .bench.report import run_report
+
+        if args.data and len(args.data) > 1:
+            raise InputError(None, "bench report takes one held-out dataset (--data DIR)")
+        result = run_report(quick=args.quick, data=args.data[0] if args.data else None, out_dir=args.output,
+                            maps_dir=args.maps)
+        out = Path(args.output or ("out/report-quick" if args.quick else "docs"))
+        for name, p in result["presets"].items():
+            s = next(m for m in result["methods"] if m["label"] == p["label"])
+            print(f"{name:>11}: {p['label']:<44} {s['full_ms']:7.1f} ms  RMSE {s['rmse']:.4f}  FLIP {s['flip']:.4f}")
+        for name, t in result["targets"].items():
+            print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
+        print(f"wrote {out / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
@@ -361,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "default: lights fitted to --env (cached)")
     p.add_argument("--env", "--envmap", dest="envmap",
                    help="environment map (.hdr/.exr): the background, and the lights when no light file is given")
-    p.add_argument("-n", "--lights-count", type=int, default=16, help="lights to fit to --env (default 16)")
+    p.add_argument("-n", "--lights-count", type=int, help="lights to fit to --env (default: the preset's, balanced 16)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.add_argument("-o", "--out", "--output", dest="output", default="out/render.png",
@@ -380,7 +408,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu", help="device for inference with --mask (default cpu)")
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
-    p.add_argument("-n", "--lights-count", type=int, default=16, help="lights fitted to the map (default 16; cached)")
+    p.add_argument("-n", "--lights-count", type=int, help="lights fitted to the map (default: the preset's, balanced 16; cached)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float, help="initial rotation of the lighting, degrees")
@@ -450,21 +478,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("engine", "shadows", "lights", "viewer", "temporal", "networks"),
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
-                        "networks: the networks on a held-out dataset (--data)")
+                        "networks: the networks on a held-out dataset (--data); report: error against time of the "
+                        "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check)")
+    p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
-    p.add_argument("--maps", help="lights: folder of .hdr/.exr maps (default ../shared/data/hdri)")
+    p.add_argument("--maps", help="lights, report: folder of .hdr/.exr maps (default ../shared/data/hdri)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
-    p.add_argument("--data", nargs="+", help="networks: held-out dataset directory (or several)")
+    p.add_argument("--data", nargs="+", help="networks, report: held-out dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
     p.add_argument("--limit", type=int, help="networks: evaluate at most this many (input, target) pairs")
-    p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json)")
+    p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json); report: the folder "
+                   "(default docs/, with --quick out/report-quick/)")
     p.set_defaults(func=cmd_bench)
     return parser
 

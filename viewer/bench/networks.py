@@ -35,42 +35,12 @@ from ..camera import Camera
 from ..envmap import load_envmap
 from ..gl import Engine, EngineOptions, create_headless_context
 from ..gl.context import describe
-from ..imageio import linear_to_srgb, read_exr
+from ..imageio import read_exr
 from ..lights import load_lights
 from ..scene import Scene, load_scene
+from .metrics import metrics, srgb
 
 SHADOW_MODES = {"SM": "hard", "CSM": "soft", "refined": "refined"}
-
-
-def _srgb(x):
-    return linear_to_srgb(np.clip(x, 0.0, 1.0))
-
-
-def _box(mask):
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    return slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)
-
-
-def metrics(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, data_range: float = 1.0, flip: bool = False) -> dict:
-    """RMSE over the mask, SSIM over the mask's bounding box (zero outside the mask), and FLIP."""
-    from skimage.metrics import structural_similarity
-
-    p = np.where(mask[..., None], np.atleast_3d(pred), 0.0).astype(np.float64)
-    t = np.where(mask[..., None], np.atleast_3d(truth), 0.0).astype(np.float64)
-    out = {"rmse": float(np.sqrt(((p - t) ** 2)[mask].mean()))}
-    rs, cs = _box(mask)
-    pb, tb = p[rs, cs], t[rs, cs]
-    if data_range == 1.0:
-        pb, tb = np.clip(pb, 0, 1), np.clip(tb, 0, 1)
-    out["ssim"] = float(structural_similarity(tb, pb, data_range=data_range, channel_axis=-1, win_size=7))
-    if flip:
-        import flip_evaluator
-
-        ref, test = _srgb(tb).astype(np.float32), _srgb(pb).astype(np.float32)
-        if ref.shape[-1] == 1:
-            ref, test = np.repeat(ref, 3, -1), np.repeat(test, 3, -1)
-        out["flip"] = float(flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False)[1])
-    return out
 
 
 def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
@@ -226,7 +196,7 @@ def _figure(examples, path):
                 (ex["normal"][0] * 0.5 + 0.5) * m, (ex["normal"][1] * 0.5 + 0.5) * m]
         for c, pic in enumerate(pics):
             ax = axes[r, c]
-            ax.imshow(_srgb(pic) if c < 6 else np.clip(pic, 0, 1))
+            ax.imshow(srgb(pic) if c < 6 else np.clip(pic, 0, 1))
             ax.set_xticks([])
             ax.set_yticks([])
             if r == 0:

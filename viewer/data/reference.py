@@ -139,10 +139,11 @@ def mi_mesh(mi, name: str, vertices: np.ndarray, normals: np.ndarray, faces: np.
 
 
 def render_bundle_reference(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0, spp: int = 256,
-                            seed: int = 0) -> dict[str, np.ndarray]:
-    """``full`` and ``diffuse_shadowed`` (H, W, 3) float32 of the bundle's depth mesh under ``env``
-    turned by (yaw, tilt), zero where no surface is seen (the map itself is hidden), and
-    ``coverage`` (H, W): the fraction of each pixel the mesh covers (see the module docstring)."""
+                            seed: int = 0, images=("full", "diffuse_shadowed")) -> dict[str, np.ndarray]:
+    """``images`` (default ``full`` and ``diffuse_shadowed``), each (H, W, 3) float32, of the
+    bundle's depth mesh under ``env`` turned by (yaw, tilt), zero where no surface is seen (the map
+    itself is hidden), and ``coverage`` (H, W): the fraction of each pixel the mesh covers (see the
+    module docstring)."""
     mi = mitsuba()
     m = bundle_mesh(scene)
     albedo = mi.Bitmap(np.ascontiguousarray(np.clip(scene.albedo, 0.0, 1.0), dtype=np.float32))
@@ -151,7 +152,7 @@ def render_bundle_reference(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: f
     emitter = envmap_emitter(mi, env, yaw, tilt)
     sensor = camera_sensor(mi, scene, spp)
     outputs = {}
-    for name in ("full", "diffuse_shadowed"):
+    for name in images:
         items = direct_scene(sensor, emitter)
         if name == "full":
             for k in np.unique(level):

@@ -61,6 +61,8 @@ class EngineOptions:
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
     skip_threshold: float = 1e-5  # lights whose upper bound is below this fraction of the diffuse level are skipped
+    leave_out: bool = True  # skip what the scene does not need (dark lights, soft filtering at sigma ~ 0, specular
+    # work on a matte scene); False does all of it, for measuring what the policy saves (relight bench report)
     profile: bool = False  # finish GL work after every pass and record its wall time
 
     def __post_init__(self):
@@ -116,7 +118,7 @@ class Engine:
         self.timings: dict[str, list[float]] = defaultdict(list)
         self.csm_offset, self.csm_clamp = ss.csm_constants(o.terms)
         self._n_tex = (o.terms + 1) // 2
-        self._specular = scene.has_specular
+        self._specular = scene.has_specular or not o.leave_out
         self._lights: list[_Light] = []
         self._visibility = "soft"
         self._refined = False  # the refined planes hold the refinement of the current lights
@@ -259,7 +261,7 @@ class Engine:
         level = sum(peaks) * self._diffuse_bound
         level = level if level > 0 else sum(l.bound for l in self._lights)
         for l in self._lights:
-            active = l.bound > 0.0 and l.bound >= self.options.skip_threshold * level
+            active = not self.options.leave_out or (l.bound > 0.0 and l.bound >= self.options.skip_threshold * level)
             if active != l.active:
                 l.active = active
                 self._dirty_composite = True
@@ -429,7 +431,7 @@ class Engine:
 
     def _soft_is_hard(self, l: _Light) -> bool:
         """sigma ~ 0: the light's soft visibility is its hard one and its filtering is skipped."""
-        return l.sigma < self.options.hard_sigma
+        return self.options.leave_out and l.sigma < self.options.hard_sigma
 
     def _ensure_light_resources(self, l: _Light):
         if l.shadow_map is None:
