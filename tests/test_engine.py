@@ -414,3 +414,23 @@ def test_components_and_views(ctx):
     with pytest.raises(ValueError):
         eng.set_view("shadow", light=5)
     eng.release()
+
+
+def test_leave_out_off_does_all_the_work_for_the_same_image(ctx):
+    """leave_out=False (what `relight bench report` measures the policy against) computes every
+    light, filters at sigma ~ 0 and runs specular on a matte scene; the image stays the same."""
+    sc = plane_and_box(48, specular=0.0)
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [0.5, 0.5, 1.0], [-0.2, 0.3, 1.0]]), [1.0, 1.0, 0.01],
+                        [[1, 1, 1], [0, 0, 0], [2, 2, 2]])
+    out = {}
+    for leave_out in (True, False):
+        eng = make_engine(ctx, sc, leave_out=leave_out)
+        eng.set_lights(lights)
+        eng.render()
+        specular = any("SPECULAR" in dict(k[2]) for k in eng.programs._programs if k[1] == "light_pass.frag.glsl")
+        out[leave_out] = (eng.read_hdr(), eng.counters["shadow_map"], eng.counters["prefilter"], specular)
+        eng.release()
+    (on, maps_on, filters_on, spec_on), (off, maps_off, filters_off, spec_off) = out[True], out[False]
+    assert (maps_on, filters_on, spec_on) == (2, 1, False)
+    assert (maps_off, filters_off, spec_off) == (3, 3, True)
+    assert np.abs(on - off).mean() < 2e-3 * off.mean()

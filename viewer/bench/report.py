@@ -59,7 +59,7 @@ class ReportConfig:
     fit_method: str  # how the area lights are fitted to the maps (cached)
 
 
-FULL = ReportConfig(quick=False, sample_size=512, yaws=(0.0, 120.0, 240.0), spp=128, photo=True, people=6, timing_maps=4,
+FULL = ReportConfig(quick=False, sample_size=512, yaws=(0.0, 180.0), spp=128, photo=True, people=4, timing_maps=3,
                     repeats=3, temporal_frames=128, temporal_size=256, temporal_spp=64,
                     temporal_maps=("immenstadter_horn_1k", "studio_small_03_1k"), fit_method="fast")
 QUICK = ReportConfig(quick=True, sample_size=128, yaws=(0.0,), spp=16, photo=False, people=1, timing_maps=2,

@@ -1,0 +1,91 @@
+"""``relight bench report``: the quick configuration end to end (what CI runs to catch a broken
+harness), the Pareto front, the presets' rules and the presets as the engine's defaults."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from viewer.bench.methods import Method
+from viewer.bench.report import choose_presets, pareto
+from viewer.gl import EngineOptions
+from viewer.imageio import read_png
+from viewer.presets import DEFAULT_PRESET, PRESETS
+
+
+def test_pareto_front():
+    points = [(10, 0.5), (20, 0.3), (15, 0.6), (30, 0.3), (40, 0.1), (40, 0.1)]
+    assert pareto(points) == [True, True, False, False, True, True]
+
+
+def _summary(method: Method, ms: float, rmse: float) -> dict:
+    from dataclasses import asdict
+
+    return {"label": method.label, "method": asdict(method), "full_ms": ms, "rmse": rmse}
+
+
+def test_preset_rules_pick_from_measurements():
+    base = Method()
+    rows = [_summary(replace(base, lights=4), 20, 0.30), _summary(replace(base, lights=8, shadow_resolution=256), 60, 0.20),
+            _summary(base, 150, 0.105), _summary(replace(base, lights=32), 400, 0.101),
+            _summary(replace(base, lights=64), 900, 0.100), _summary(replace(base, lights=64, terms=8), 1500, 0.090),
+            _summary(Method("sh"), 5, 0.01)]  # a baseline is never a preset
+    picks = choose_presets(rows, replace(base, lights=64).label)
+    assert picks == {"interactive": replace(base, lights=8, shadow_resolution=256).label, "balanced": base.label,
+                     "final": replace(base, lights=64).label}
+
+
+def test_balanced_preset_is_the_default():
+    assert DEFAULT_PRESET == "balanced" and PRESETS["balanced"].options == EngineOptions()
+    from viewer.cli import _engine_options, _lights_count, build_parser
+
+    args = build_parser().parse_args(["render", "scene", "--preset", "interactive", "--terms", "8"])
+    assert _lights_count(args) == PRESETS["interactive"].lights
+    assert _engine_options(args) == replace(PRESETS["interactive"].options, terms=8)
+    args = build_parser().parse_args(["view"])
+    assert _lights_count(args) == PRESETS["balanced"].lights and _engine_options(args) == EngineOptions()
+
+
+@pytest.fixture(scope="module")
+def quick_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    proc = subprocess.run([sys.executable, "-m", "viewer.cli", "bench", "report", "--quick", "-o", str(out)],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out, proc.stdout
+
+
+def test_quick_report_writes_its_pages(quick_report):
+    out, stdout = quick_report
+    result = json.loads((out / "results.json").read_text())
+    md = (out / "results.md").read_text()
+    for name in PRESETS:
+        assert f"**{name}**" in md and name in stdout
+    assert "## Targets" in md and "## Temporal stability" in md and result["machine"]["gl"] in md
+    for fig in ("results_error_vs_time.png", "results_drmse.png", "results_examples.png"):
+        img = read_png(out / fig)
+        assert img.shape[0] > 200 and img.std() > 0.05, fig
+        assert f"({fig})" in md
+    assert any(m["pareto"] for m in result["methods"])
+    for m in result["methods"]:
+        assert all(np.isfinite(m[k]) for k in ("rmse", "ssim", "flip", "full_ms", "update_ms")), m["label"]
+        assert 0 <= m["rmse"] < 0.5 and 0 < m["full_ms"]
+    for rows in result["temporal"]["maps"].values():
+        floor = rows["reference noise floor"]["drmse"]["1"]
+        assert all(floor * 0.5 <= r["drmse"]["1"] < 0.3 for r in rows.values())
+
+
+def test_quick_report_measures_what_it_claims(quick_report):
+    """Values that can fail: more lights approach the reference, the twin computes the engine's
+    image, the leave-out policy does not change the image."""
+    out, _ = quick_report
+    by_label = {m["label"]: m for m in json.loads((out / "results.json").read_text())["methods"]}
+    base = Method.from_preset(PRESETS["balanced"])
+    assert by_label[replace(base, lights=64).label]["rmse"] < by_label[replace(base, lights=4).label]["rmse"]
+    assert abs(by_label[replace(base, kind="twin").label]["rmse"] - by_label[base.label]["rmse"]) < 0.01
+    assert abs(by_label[replace(base, leave_out=False).label]["rmse"] - by_label[base.label]["rmse"]) < 0.005
