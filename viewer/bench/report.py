@@ -33,12 +33,14 @@ import numpy as np
 
 from ..progress import StageBars
 from ..resources import asset_dir, sample_scene_dir
-from .cases import Case, Lighting, MapStore, find_maps, heldout_cases, interior, photo_case, reference, sample_case, scene_hash
+from ..lightfit.cache import cache_dir
+from .cases import REFERENCE_VERSION, Case, Lighting, MapStore, find_maps, heldout_cases, interior, photo_case, reference, sample_case, scene_hash
 from .methods import Method, Renderer, sweep
 
 SHARED_MAPS = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "hdri"
 INTERACTIVE_MS = 90.0  # interactive preset: full frame within this (>= 10 fps with margin)
 FINAL_MS = 1000.0  # final preset: full frame within this
+ROWS_VERSION = 1  # bump when the error rows change meaning (metrics, masks, exposure)
 BALANCED_SLACK = 0.05  # balanced preset: error within this fraction of the 64-light setting's
 
 
@@ -111,6 +113,16 @@ def _cases(config: ReportConfig, maps: MapStore, names, data) -> list[Case]:
     return cases
 
 
+def _saved_rows(key: str, method: Method, case: Case, config: ReportConfig) -> Path:
+    """Where one method's error rows on one case are kept, so a report that stopped (or one with
+    a new setting) redoes only what is missing; times are always measured afresh."""
+    import hashlib
+
+    what = json.dumps([key, asdict(method), [asdict(l) for l in case.lightings], config.spp, config.fit_method,
+                       REFERENCE_VERSION, ROWS_VERSION], default=str)
+    return cache_dir().with_name("report") / f"{hashlib.sha256(what.encode()).hexdigest()[:24]}.json"
+
+
 def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, examples: dict) -> list[dict]:
     """Every method's errors on every case and lighting; ``examples`` gets the display images of
     the first case's first lighting (the reference and every method that is not a knob variant)."""
@@ -132,6 +144,13 @@ def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, e
             done += 1
             progress("ray-traced references (cached)", done, total)
         for k, method in enumerate(methods):
+            saved = _saved_rows(key, method, case, config)
+            if saved.is_file() and not (case is cases[0] and method.label in examples):
+                reused = json.loads(saved.read_text())
+                rows += [{**r, "reused": True} for r in reused]
+                progress(f"rendering {case.name}", k + 1, len(methods))
+                continue
+            mine = []
             renderer = Renderer(ctx, method, case.scene)
             try:
                 for j, (lighting, (ref, s), truth, env) in enumerate(zip(case.lightings, refs, truths, envs)):
@@ -144,9 +163,12 @@ def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, e
                            "yaw": lighting.yaw, **metrics(shown, np.clip(s * ref, 0.0, 1.0), mask, flip=True)}
                     if truth is not None:
                         row["truth"] = metrics(shown, np.clip(s * truth, 0.0, 1.0), mask, flip=True)
-                    rows.append(row)
+                    mine.append(row)
             finally:
                 renderer.release()
+            rows += mine
+            saved.parent.mkdir(parents=True, exist_ok=True)
+            saved.write_text(json.dumps(mine))
             progress(f"rendering {case.name}", k + 1, len(methods))
     return rows
 
@@ -314,7 +336,7 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
         "cases": [{"name": c.name, "group": c.group, "size": [c.scene.width, c.scene.height], "lightings": len(c.lightings),
                    "with_truth": sum(l.truth is not None for l in c.lightings)} for c in cases],
         "maps": names, "timing_maps": timing_names,
-        "methods": summaries, "rows": rows, "temporal": temporal,
+        "methods": summaries, "rows": rows, "temporal": temporal, "reused_rows": sum(bool(r.get("reused")) for r in rows),
         "presets": {name: {"label": Method.from_preset(p).label, "lights": p.lights, "rule": p.rule} for name, p in PRESETS.items()},
         "rule_picks": choose_presets(summaries, n64), "n64": n64,
         "targets": targets(summaries, PRESETS, n64),
