@@ -263,3 +263,42 @@ def test_view_without_a_display_says_so(tmp_path):
     res = subprocess.run([*RELIGHT, "view", "--out-dir", str(tmp_path)], env=env, capture_output=True, text=True, timeout=120)
     assert res.returncode == 2
     assert "no display" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, tmp_path):
+    """Choosing the interactive preset in the panel refits its number of lights and renders with its
+    engine options: the saved frame is the headless engine's with that preset."""
+    from viewer.presets import PRESETS
+
+    v = viewer_factory()
+    s = v.state()
+    assert s["preset"] == "balanced"
+    x0, y0, x1, y1 = s["widgets"]["quality"]
+    v.xdotool("mousemove", int(x0 + 20), int((y0 + y1) / 2))
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    time.sleep(0.5)
+    row = list(PRESETS).index("interactive")  # the list opens under the combo, one row per preset
+    v.xdotool("mousemove", int(x0 + 20), int(y1 + (y1 - y0) * (row + 0.5) + 3))
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    p = PRESETS["interactive"]
+    v.wait_for(lambda s: s["preset"] == "interactive" and s["n_lights"] == p.lights and not s["fitting"], 180)
+    shot = v.save()
+    saved = json.loads(shot.with_suffix(".json").read_text())
+    assert saved["preset"] == "interactive"
+    (tmp_path / "lights.json").write_text(json.dumps(saved["lights"]))
+    lights = load_lights(tmp_path / "lights.json")
+    assert len(lights) == p.lights
+    scene = resample_scene(load_scene(sample_scene_dir()), SIZE)
+    from viewer.envmap import load_envmap
+
+    engine = Engine(ctx, scene, p.options)
+    engine.set_environment(load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr").pixels)
+    yaw = saved["look"]["yaw"]  # the saved lights are turned by the look's yaw (tilt 0)
+    apply_settings(engine, scene, lights.rotated(-yaw), RenderSettings(yaw=yaw), True)
+    engine.render()
+    expected = engine.read_hdr()
+    engine.release()
+    assert rel_l1(read_exr(shot.with_suffix(".exr")), expected) < 1e-3
+    assert v.quit() == 0

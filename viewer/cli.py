@@ -228,7 +228,7 @@ def cmd_view(args) -> int:
                           options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
-                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))))
+                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset)
     return run_viewer(config)
 
 

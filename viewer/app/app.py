@@ -55,6 +55,7 @@ class ViewerConfig:
     fps: float = 30.0
     state_file: Path | None = None  # state, widget positions and frame times as JSON (scripts, tests, benchmarks)
     bundled_maps: tuple = ()
+    preset: str = "balanced"  # the quality preset the options came from (viewer/presets.py)
 
 
 class ViewerApp:
@@ -71,6 +72,7 @@ class ViewerApp:
         self.session.wake = self.window.wake
         self.env_path = config.env_path
         self.n_lights = len(config.lights)
+        self.preset = config.preset
         self.view = ix.ViewState(yaw=config.look.yaw, tilt=config.look.tilt, exposure=config.look.exposure)
         self.dragging = False
         self._drag_applied = (0.0, 0.0)  # drag motion already turned into rotation (pixels)
@@ -174,7 +176,7 @@ class ViewerApp:
         stem = self._capture_stem()
         png = write_png(stem.with_suffix(".png"), eng.read_display().astype(np.float32) / 255.0)
         write_exr(stem.with_suffix(".exr"), eng.read_hdr())
-        state = {"look": self._look_json(), "map": str(self.env_path) if self.env_path else None}
+        state = {"look": self._look_json(), "map": str(self.env_path) if self.env_path else None, "preset": self.preset}
         state["lights"] = self.session.rotated_lights().to_json()
         stem.with_suffix(".json").write_text(json.dumps(state, indent=2) + "\n")
         self.captures.append(str(png))
@@ -219,6 +221,19 @@ class ViewerApp:
             return
         self.error = ""
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
+
+    def set_preset(self, name: str):
+        """A quality preset: its engine options now, its number of lights refitted (cached) when the
+        lights came from a map."""
+        from ..presets import preset
+
+        p = preset(name)
+        self.preset = name
+        self.session.set_options(p.options)
+        if p.lights != len(self.session.sigma) and self.env_path is not None:
+            self.n_lights = p.lights
+            self.open_map(self.env_path, p.lights)
+        self.message = f"preset {name}: {p.lights} lights, shadow maps {p.options.shadow_resolution}, M = {p.options.terms}"
 
     def _poll_job(self):
         job = self.job
@@ -314,6 +329,7 @@ class ViewerApp:
             "look": self._look_json(),
             "sigma": [float(v) for v in self.session.sigma],
             "n_lights": len(self.session.sigma),
+            "preset": self.preset,
             "map": str(self.env_path) if self.env_path else None,
             "image_rect": list(self.image_rect()),
             "widgets": self.widgets,

@@ -9,6 +9,7 @@ import numpy as np
 from imgui_bundle import imgui, implot
 
 from ..gl.engine import VIEWS
+from ..presets import PRESETS
 from .app import KEYS_HELP, PANEL_WIDTH
 from .session import PREVIEW_SIZE, SHADOW_MODES, VIEW_NAMES
 
@@ -82,6 +83,15 @@ def _shading(app):
     if not imgui.collapsing_header("Shading", imgui.TreeNodeFlags_.default_open):
         return
     lk = s.look
+    presets = list(PRESETS)
+    changed, i = imgui.combo("quality", presets.index(app.preset) if app.preset in presets else 0, presets)
+    _remember(app, "quality")
+    if imgui.is_item_hovered() and app.preset in PRESETS:
+        p = PRESETS[app.preset]
+        imgui.set_tooltip(f"{p.lights} lights, shadow maps {p.options.shadow_resolution}, M = {p.options.terms}\n"
+                          f"chosen as {p.rule} (docs/results.md)")
+    if changed:
+        app.set_preset(presets[i])
     names = list(SHADOW_MODES)
     current = list(SHADOW_MODES.values()).index(lk.shadows)
     changed, i = imgui.combo("shadows", current, names)

@@ -83,6 +83,17 @@ class Session:
         if self.look.light >= len(lights):
             self.look = replace(self.look, light=0, view="final" if self.look.view == "shadow" else self.look.view)
 
+    def set_options(self, options: EngineOptions):
+        """New engine options (a quality preset): the engines are made again; the next render
+        brings them up to the current state."""
+        if options == self.options:
+            return
+        self.release()
+        self.options = options
+        self.final = Engine(self.ctx, self.scene, options)
+        self._set_environment(self.final)
+        self.refine_job = None  # a running refinement was for the old engine's shadow maps
+
     def set_sigma(self, index: int, sigma: float):
         self.sigma[index] = max(float(sigma), 0.0)
 
