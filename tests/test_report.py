@@ -89,3 +89,16 @@ def test_quick_report_measures_what_it_claims(quick_report):
     assert by_label[replace(base, lights=64).label]["rmse"] < by_label[replace(base, lights=4).label]["rmse"]
     assert abs(by_label[replace(base, kind="twin").label]["rmse"] - by_label[base.label]["rmse"]) < 0.01
     assert abs(by_label[replace(base, leave_out=False).label]["rmse"] - by_label[base.label]["rmse"]) < 0.005
+
+
+def test_cases_helpers(tmp_path):
+    from viewer.bench.cases import find_maps, interior
+    from viewer.errors import InputError
+
+    mask = np.zeros((6, 7), bool)
+    mask[1:5, 1:6] = True
+    inner = interior(mask)
+    assert inner.sum() == 2 * 3 and inner[2:4, 2:5].all()
+    assert not interior(np.ones((1, 1), bool)).any()  # the image border counts as outside
+    with pytest.raises(InputError, match="no .hdr/.exr"):
+        find_maps(tmp_path)
