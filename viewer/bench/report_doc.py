@@ -107,6 +107,32 @@ def _knob_rows(result: dict) -> list[str]:
     return lines
 
 
+def _groups(result: dict) -> list[str]:
+    return sorted({r["group"] for r in result["rows"]})
+
+
+def _soft_hard_rows(result: dict) -> list[str]:
+    """Per N: the engine at the balanced options against the directional baseline."""
+    base = next(m for m in result["methods"] if m["label"] == result["presets"]["balanced"]["label"])["method"]
+    lines = []
+    for n in sorted({m["method"]["lights"] for m in result["methods"] if m["method"]["kind"] == "directional"}):
+        pair = []
+        for kind in ("engine", "directional"):
+            want = {**base, "kind": kind, "lights": n}
+            hit = [m for m in result["methods"] if m["method"] == want]
+            if not hit:
+                break
+            mine = [r for r in result["rows"] if r["method"] == hit[0]["label"]]
+            cells = [f"{hit[0]['full_ms']:.0f} ms"]
+            for g in _groups(result):
+                rows = [r for r in mine if r["group"] == g]
+                cells.append(f"{np.mean([r['rmse'] for r in rows]):.4f} / {np.mean([r['flip'] for r in rows]):.4f}")
+            pair += cells
+        if len(pair) == 2 * (1 + len(_groups(result))):
+            lines.append(f"| {n} | " + " | ".join(pair) + " |")
+    return lines
+
+
 def write_markdown(result: dict, path: Path):
     m = result["machine"]
     config = result["config"]
@@ -167,8 +193,7 @@ def write_markdown(result: dict, path: Path):
     lines += [
         "",
         "Balanced is the default of the engine (`EngineOptions()`), the viewer and `relight render` "
-        "(`--preset` picks another). A preset that differs from its rule's pick means the two were within this "
-        "machine's timing noise or the rule's pick has a drawback named in docs/engine.md.",
+        "(`--preset` picks another). Where a shipped preset differs from its rule's pick, viewer/presets.py says why.",
         "",
         "## Targets",
         "",
@@ -189,6 +214,15 @@ def write_markdown(result: dict, path: Path):
         "| knob | values |",
         "|---|---|",
         *_knob_rows(result),
+        "",
+        "## Soft shadows (area lights) against hard shadows (directional lights) at equal N",
+        "",
+        "Same fitted lights, same engine; *hard* sets every sigma to 0 (shadow maps only). RMSE / FLIP per group.",
+        "",
+        "| N | soft: full frame | soft: " + " | soft: ".join(_groups(result)) + " | hard: full frame | hard: "
+        + " | hard: ".join(_groups(result)) + " |",
+        "|---|" + "---|" * (2 + 2 * len(_groups(result))),
+        *_soft_hard_rows(result),
         "",
         "## Every setting, fastest first",
         "",
