@@ -40,7 +40,7 @@ from .methods import Method, Renderer, sweep
 SHARED_MAPS = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "hdri"
 INTERACTIVE_MS = 90.0  # interactive preset: full frame within this (>= 10 fps with margin)
 FINAL_MS = 1000.0  # final preset: full frame within this
-ROWS_VERSION = 1  # bump when the error rows change meaning (metrics, masks, exposure)
+ROWS_VERSION = 1  # bump when the error rows change meaning in this module (masks, exposure); code elsewhere is hashed
 BALANCED_SLACK = 0.05  # balanced preset: error within this fraction of the 64-light setting's
 
 
@@ -113,13 +113,31 @@ def _cases(config: ReportConfig, maps: MapStore, names, data) -> list[Case]:
     return cases
 
 
-def _saved_rows(key: str, method: Method, case: Case, config: ReportConfig) -> Path:
+def renderer_code_hash() -> str:
+    """A hash of the code an error row depends on: the shaders, the engine, the twin, the baselines
+    and the metrics (any change there computes the rows again)."""
+    import hashlib
+
+    from ..resources import shader_dir
+
+    pkg = Path(__file__).resolve().parents[1]
+    files = sorted(shader_dir().glob("*.glsl")) + sorted((pkg / "gl").glob("*.py")) + sorted((pkg / "twin").glob("*.py"))
+    files += [pkg / name for name in ("mesh.py", "shadow_space.py", "sh.py", "lights.py", "scene.py", "scene_ops.py")]
+    files += [pkg / "bench" / name for name in ("methods.py", "metrics.py", "cases.py")]
+    h = hashlib.sha256()
+    for f in files:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _saved_rows(key: str, method: Method, case: Case, config: ReportConfig, code: str) -> Path:
     """Where one method's error rows on one case are kept, so a report that stopped (or one with
     a new setting) redoes only what is missing; times are always measured afresh."""
     import hashlib
 
     what = json.dumps([key, asdict(method), [asdict(l) for l in case.lightings], config.spp, config.fit_method,
-                       REFERENCE_VERSION, ROWS_VERSION], default=str)
+                       REFERENCE_VERSION, ROWS_VERSION, code], default=str)
     return cache_dir().with_name("report") / f"{hashlib.sha256(what.encode()).hexdigest()[:24]}.json"
 
 
@@ -130,6 +148,7 @@ def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, e
     from .metrics import metrics, srgb
 
     rows = []
+    code = renderer_code_hash()
     total = sum(len(c.lightings) for c in cases)
     done = 0
     for case in cases:
@@ -144,7 +163,7 @@ def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, e
             done += 1
             progress("ray-traced references (cached)", done, total)
         for k, method in enumerate(methods):
-            saved = _saved_rows(key, method, case, config)
+            saved = _saved_rows(key, method, case, config, code)
             if saved.is_file() and not (case is cases[0] and method.label in examples):
                 reused = json.loads(saved.read_text())
                 rows += [{**r, "reused": True} for r in reused]
