@@ -363,7 +363,7 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
     result["seconds"] = round(time.perf_counter() - start, 1)
     result = json.loads(json.dumps(result))  # the pages read what the JSON holds (string keys)
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "results.json").write_text(json.dumps(result, indent=1) + "\n")
+    (out_dir / "results.json").write_text(json.dumps(result, separators=(",", ":")) + "\n")  # every row: compact
     write_figures(result, out_dir)
     first = cases[0]
     ref = reference(first.scene, scene_hash(first.scene), maps, first.lightings[0], config.spp)
