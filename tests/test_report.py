@@ -102,3 +102,10 @@ def test_cases_helpers(tmp_path):
     assert not interior(np.ones((1, 1), bool)).any()  # the image border counts as outside
     with pytest.raises(InputError, match="no .hdr/.exr"):
         find_maps(tmp_path)
+
+
+def test_report_refuses_a_folder_that_is_not_a_dataset(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "viewer.cli", "bench", "report", "--quick", "--data", str(tmp_path),
+                           "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert str(tmp_path) in proc.stderr and "dataset" in proc.stderr

@@ -67,7 +67,8 @@ def photo_case(photo: Path, mask: Path, maps, yaw: float, size: int = 512) -> Ca
 def heldout_cases(data: Path, maps, people: int, seed: int = 0) -> list[Case]:
     """The first ``people`` people of a held-out dataset (``relight dataset make --split heldout``),
     each under every map at one random yaw, plus its own records' lightings (with their truth)."""
-    samples = sorted(p for p in (Path(data) / "samples").iterdir() if (p / "scene.json").is_file())
+    folder = Path(data) / "samples"
+    samples = sorted(p for p in folder.iterdir() if (p / "scene.json").is_file()) if folder.is_dir() else []
     if not samples:
         raise InputError(data, "no samples: expected a dataset made by `relight dataset make`")
     rng = np.random.default_rng(seed)

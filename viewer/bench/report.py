@@ -108,8 +108,10 @@ def _cases(config: ReportConfig, maps: MapStore, names, data) -> list[Case]:
         photos = asset_dir() / "photos"
         cases.append(photo_case(photos / "underpass.jpg", photos / "underpass.mask.png", names, 0.0))
     if data is not None:
-        maps.add(find_maps(Path(data) / "maps"))
-        cases += heldout_cases(Path(data), names, config.people)
+        held = heldout_cases(Path(data), names, config.people)
+        if (Path(data) / "maps").is_dir():  # the maps of the dataset's own records
+            maps.add(find_maps(Path(data) / "maps"))
+        cases += held
     return cases
 
 
