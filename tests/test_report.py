@@ -34,7 +34,8 @@ def test_preset_rules_pick_from_measurements():
     rows = [_summary(replace(base, lights=4), 20, 0.30), _summary(replace(base, lights=8, shadow_resolution=256), 60, 0.20),
             _summary(base, 150, 0.105), _summary(replace(base, lights=32), 400, 0.101),
             _summary(replace(base, lights=64), 900, 0.100), _summary(replace(base, lights=64, terms=8), 1500, 0.090),
-            _summary(Method("sh"), 5, 0.01)]  # a baseline is never a preset
+            _summary(Method("sh"), 5, 0.01),  # a baseline is never a preset
+            _summary(replace(base, sigma_scale=0.5), 100, 0.099)]  # nor scaled sigmas (presets keep the fitted ones)
     picks = choose_presets(rows, replace(base, lights=64).label)
     assert picks == {"interactive": replace(base, lights=8, shadow_resolution=256).label, "balanced": base.label,
                      "final": replace(base, lights=64).label}

@@ -38,6 +38,7 @@ class Method:
     terms: int = 4
     prefilter: str = "pyramid"
     leave_out: bool = True
+    sigma_scale: float = 1.0  # the fitted sigmas times this (how much softness the scenes want)
 
     @staticmethod
     def from_preset(preset) -> "Method":
@@ -62,6 +63,8 @@ class Method:
         text = f"N={self.lights} SM {self.shadow_resolution} step {step} M={self.terms} {self.prefilter}"
         if not self.leave_out:
             text += " leave-out off"
+        if self.sigma_scale != 1.0:
+            text += f" sigma x{self.sigma_scale:g}"
         return ("torch twin " if self.kind == "twin" else "") + text
 
 
@@ -96,7 +99,11 @@ class Renderer:
             self._twin_scene = SceneTensors.from_scene(scene, method.shadow_step, "cpu")
 
     def _lights(self, lights: AreaLights) -> AreaLights:
-        return directional(lights) if self.method.kind == "directional" else lights
+        if self.method.kind == "directional":
+            return directional(lights)
+        if self.method.sigma_scale != 1.0:
+            return AreaLights(lights.direction, lights.sigma * self.method.sigma_scale, lights.intensity)
+        return lights
 
     def image(self, lights: AreaLights | None, env=None) -> np.ndarray:
         kind = self.method.kind
@@ -110,7 +117,7 @@ class Renderer:
             from ..twin import render as twin_render
 
             with torch.no_grad():
-                out = twin_render(self._twin_scene, lights, shadow_resolution=self.method.shadow_resolution,
+                out = twin_render(self._twin_scene, self._lights(lights), shadow_resolution=self.method.shadow_resolution,
                                   terms=self.method.terms)
             return out.image.numpy().astype(np.float32)
         self.engine.set_lights(self._lights(lights))
@@ -165,6 +172,7 @@ def sweep(quick: bool, presets) -> list[Method]:
     methods += [replace(base, prefilter=p) for p in ("pyramid", "exact")]
     methods += [replace(base, shadow_step=s) for s in ((1, 4) if quick else (1, 2, 4, 6))]
     methods += [replace(base, leave_out=False)]
+    methods += [replace(base, sigma_scale=k) for k in ((0.5,) if quick else (0.25, 0.5))]  # 0 is the directional baseline
     if not quick:  # corners: cheap and expensive combinations the one-knob sweep does not reach
         for n in (8, 16, 32):
             methods += [replace(base, lights=n, shadow_resolution=256, terms=2),

@@ -239,7 +239,8 @@ def pareto(points) -> list[bool]:
 
 def choose_presets(summaries: list[dict], n64_label: str) -> dict:
     """The presets' rules (viewer/presets.py) applied to the engine's measured settings."""
-    engine = [s for s in summaries if s["method"]["kind"] == "engine"]
+    # a preset keeps the fitted sigmas (the viewer's sliders tune them), so scaled ones are not candidates
+    engine = [s for s in summaries if s["method"]["kind"] == "engine" and s["method"]["sigma_scale"] == 1.0]
     n64 = next(s for s in engine if s["label"] == n64_label)
     fast = [s for s in engine if s["full_ms"] <= INTERACTIVE_MS]
     slow = [s for s in engine if s["full_ms"] <= FINAL_MS]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-KNOBS = ("lights", "shadow_resolution", "shadow_step", "terms", "prefilter", "leave_out")
+KNOBS = ("lights", "shadow_resolution", "shadow_step", "terms", "prefilter", "leave_out", "sigma_scale")
 KIND_STYLE = {"engine": ("tab:blue", "o"), "directional": ("tab:orange", "s"), "sh": ("tab:green", "D"), "twin": ("tab:red", "^")}
 ERROR_FIGURE = "results_error_vs_time.png"
 TEMPORAL_FIGURE = "results_drmse.png"
@@ -217,7 +217,8 @@ def write_markdown(result: dict, path: Path):
         "",
         "## Soft shadows (area lights) against hard shadows (directional lights) at equal N",
         "",
-        "Same fitted lights, same engine; *hard* sets every sigma to 0 (shadow maps only). RMSE / FLIP per group.",
+        "Same fitted lights, same engine; *hard* sets every sigma to 0 (shadow maps only). RMSE / FLIP per group. "
+        "The knob `sigma_scale` above (the fitted sigmas times 0.25 or 0.5) shows whether less softness helps.",
         "",
         "| N | soft: full frame | soft: " + " | soft: ".join(_groups(result)) + " | hard: full frame | hard: "
         + " | hard: ".join(_groups(result)) + " |",
