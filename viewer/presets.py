@@ -20,10 +20,10 @@ class Preset:
     rule: str  # how it is chosen from the front (relight bench report applies it)
 
 
-# The 2026-11-22 report (docs/results.md) picked, by these rules: interactive = 8 lights (72 ms, RMSE
-# 0.0658), final = 64 lights (412 ms, 0.0588), both with the default options; for balanced, 16
-# lights with mesh step 2 (147 ms, 0.0617, +4.9 % over 64 lights). Balanced keeps the automatic
-# decimation (3 per 512 pixels, 128 ms, 0.0619, +5.2 %): a fixed step does not scale with the image
+# The 2026-11-22 report (docs/results.md) picked, by these rules: interactive = 8 lights (67 ms, RMSE
+# 0.0658), final = 64 lights (413 ms, 0.0588), both with the default options; for balanced, 16
+# lights with mesh step 2 (157 ms, 0.0617, +4.9 % over 64 lights). Balanced keeps the automatic
+# decimation (3 per 512 pixels, 122 ms, 0.0619, +5.2 %): a fixed step does not scale with the image
 # (step 2 at 1024^2 draws 9 times the automatic triangles) and the error differs by 0.3 %.
 PRESETS = {
     "interactive": Preset("interactive", 8, EngineOptions(),
