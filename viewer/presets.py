@@ -19,6 +19,10 @@ class Preset:
     options: EngineOptions
     rule: str  # how it is chosen from the front (relight bench report applies it)
 
+    @property
+    def summary(self) -> str:
+        return f"{self.lights} lights, shadow maps {self.options.shadow_resolution}, M = {self.options.terms}"
+
 
 # The 2026-11-22 report (docs/results.md) picked, by these rules: interactive = 8 lights (67 ms, RMSE
 # 0.0658), final = 64 lights (413 ms, 0.0588), both with the default options; for balanced, 16

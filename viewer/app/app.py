@@ -233,7 +233,7 @@ class ViewerApp:
         if p.lights != len(self.session.sigma) and self.env_path is not None:
             self.n_lights = p.lights
             self.open_map(self.env_path, p.lights)
-        self.message = f"preset {name}: {p.lights} lights, shadow maps {p.options.shadow_resolution}, M = {p.options.terms}"
+        self.message = f"preset {name}: {p.summary}"
 
     def _poll_job(self):
         job = self.job

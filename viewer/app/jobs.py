@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import threading
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +41,7 @@ class LightsResult:
     how: str  # "bundled", "cached" or "fitted"
 
 
-class ThreadJob:
+class ThreadJob(ABC):
     """Work on a daemon thread: ``result`` when :meth:`work` returns, ``error`` (one line, from
     :meth:`failure`) when it raises; ``wake()`` is called when it finishes (to wake the window's
     event wait). Subclasses set their own fields, then call ``super().__init__``, which starts it."""
@@ -58,11 +59,13 @@ class ThreadJob:
     def done(self) -> bool:
         return not self._thread.is_alive()
 
+    @abstractmethod
     def work(self):
-        raise NotImplementedError
+        """The job's work, on the thread; its return value becomes ``result``."""
 
+    @abstractmethod
     def failure(self, exc: Exception) -> str:
-        raise NotImplementedError
+        """The one-line ``error`` for an exception ``work`` raised."""
 
     def _run(self):
         try:

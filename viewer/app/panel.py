@@ -88,8 +88,7 @@ def _shading(app):
     _remember(app, "quality")
     if imgui.is_item_hovered() and app.preset in PRESETS:
         p = PRESETS[app.preset]
-        imgui.set_tooltip(f"{p.lights} lights, shadow maps {p.options.shadow_resolution}, M = {p.options.terms}\n"
-                          f"chosen as {p.rule} (docs/results.md)")
+        imgui.set_tooltip(f"{p.summary}\nchosen as {p.rule} (docs/results.md)")
     if changed:
         app.set_preset(presets[i])
     names = list(SHADOW_MODES)
