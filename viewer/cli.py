@@ -352,13 +352,12 @@ def cmd_bench(args) -> int:
             raise InputError(None, "bench report takes one held-out dataset (--data DIR)")
         result = run_report(quick=args.quick, data=args.data[0] if args.data else None, out_dir=args.output,
                             maps_dir=args.maps)
-        out = Path(args.output or ("out/report-quick" if args.quick else "docs"))
         for name, p in result["presets"].items():
             s = next(m for m in result["methods"] if m["label"] == p["label"])
             print(f"{name:>11}: {p['label']:<44} {s['full_ms']:7.1f} ms  RMSE {s['rmse']:.4f}  FLIP {s['flip']:.4f}")
         for name, t in result["targets"].items():
             print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
-        print(f"wrote {out / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
+        print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 

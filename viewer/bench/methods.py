@@ -25,6 +25,7 @@ import numpy as np
 
 from ..gl import Engine, EngineOptions
 from ..lights import AreaLights
+from .engine import frame_seconds
 
 KINDS = ("engine", "directional", "sh", "twin")
 
@@ -68,10 +69,6 @@ class Method:
         return ("torch twin " if self.kind == "twin" else "") + text
 
 
-def directional(lights: AreaLights) -> AreaLights:
-    return AreaLights(lights.direction, np.zeros(len(lights)), lights.intensity)
-
-
 def edited(lights: AreaLights, toggle: bool) -> AreaLights:
     """The brightest light's sigma x 1.2 and intensity x 1.1 (or back, when ``toggle`` is False)."""
     k = int(np.argmax(lights.intensity.sum(axis=1)))
@@ -99,11 +96,10 @@ class Renderer:
             self._twin_scene = SceneTensors.from_scene(scene, method.shadow_step, "cpu")
 
     def _lights(self, lights: AreaLights) -> AreaLights:
-        if self.method.kind == "directional":
-            return directional(lights)
-        if self.method.sigma_scale != 1.0:
-            return AreaLights(lights.direction, lights.sigma * self.method.sigma_scale, lights.intensity)
-        return lights
+        """The lights as this method renders them: sigma 0 for the directional baseline, else the
+        fitted sigmas times the method's scale."""
+        scale = 0.0 if self.method.kind == "directional" else self.method.sigma_scale
+        return lights if scale == 1.0 else AreaLights(lights.direction, lights.sigma * scale, lights.intensity)
 
     def image(self, lights: AreaLights | None, env=None) -> np.ndarray:
         kind = self.method.kind
@@ -126,8 +122,8 @@ class Renderer:
 
     def times(self, lights: AreaLights | None, env, repeats: int) -> tuple[list[float], list[float]]:
         """(full frame seconds, update seconds) measured ``repeats`` times each under this lighting."""
-        full, update = [], []
         if self.engine is None:  # SH and the twin: every frame is computed from scratch
+            full = []
             self.image(lights, env)
             for i in range(repeats):
                 t0 = time.perf_counter()
@@ -138,21 +134,9 @@ class Renderer:
         eng, ctx = self.engine, self.ctx
         eng.set_lights(self._lights(lights))
         eng.render()
-        for i in range(repeats):
-            ctx.finish()
-            t0 = time.perf_counter()
-            eng.set_lights(self._lights(lights.rotated(3.0 * (i + 1))))
-            eng.render()
-            ctx.finish()
-            full.append(time.perf_counter() - t0)
+        full = [frame_seconds(eng, ctx, self._lights(lights.rotated(3.0 * (i + 1)))) for i in range(repeats)]
         base = self._lights(lights.rotated(3.0 * repeats))
-        for i in range(repeats):
-            ctx.finish()
-            t0 = time.perf_counter()
-            eng.set_lights(edited(base, i % 2 == 0))
-            eng.render()
-            ctx.finish()
-            update.append(time.perf_counter() - t0)
+        update = [frame_seconds(eng, ctx, edited(base, i % 2 == 0)) for i in range(repeats)]
         return full, update
 
     def release(self):

@@ -41,7 +41,8 @@ SHARED_MAPS = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "
 INTERACTIVE_MS = 90.0  # interactive preset: full frame within this (>= 10 fps with margin)
 FINAL_MS = 1000.0  # final preset: full frame within this
 ROWS_VERSION = 1  # bump when the error rows change meaning in this module (masks, exposure); code elsewhere is hashed
-BALANCED_SLACK = 0.05  # balanced preset: error within this fraction of the 64-light setting's
+BALANCED_SLACK = 0.05
+REFERENCE = "reference (Mitsuba)"  # the reference's picture among the examples  # balanced preset: error within this fraction of the 64-light setting's
 
 
 @dataclass(frozen=True)
@@ -144,8 +145,8 @@ def _saved_rows(key: str, method: Method, case: Case, config: ReportConfig, code
 
 
 def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, examples: dict) -> list[dict]:
-    """Every method's errors on every case and lighting; ``examples`` gets the display images of
-    the first case's first lighting (the reference and every method that is not a knob variant)."""
+    """Every method's errors on every case and lighting; ``examples`` ({label: None}) gets the
+    display images of the first case's first lighting for its labels (``REFERENCE``: the reference)."""
     from ..imageio import read_exr
     from .metrics import metrics, srgb
 
@@ -164,6 +165,9 @@ def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, e
             envs.append(maps[lighting.map_name].rotated(lighting.yaw) if any(m.kind == "sh" for m in methods) else None)
             done += 1
             progress("ray-traced references (cached)", done, total)
+        if case is cases[0] and REFERENCE in examples:
+            ref, s = refs[0]
+            examples[REFERENCE] = srgb(s * ref)
         for k, method in enumerate(methods):
             saved = _saved_rows(key, method, case, config, code)
             if saved.is_file() and not (case is cases[0] and method.label in examples):
@@ -323,7 +327,6 @@ def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
 def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> dict:
     from ..gl import create_headless_context
     from ..presets import PRESETS
-    from .metrics import srgb
     from .report_doc import EXAMPLES_FIGURE, write_examples, write_figures, write_markdown
 
     config = QUICK if quick else FULL
@@ -336,13 +339,14 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
         maps = MapStore(find_maps(maps_dir or SHARED_MAPS))
     names = sorted(maps.paths)
     methods = sweep(quick, PRESETS)
+    balanced = Method.from_preset(PRESETS["balanced"])
     counts = sorted({m.lights for m in methods if m.uses_lights})
     with StageBars("report: ") as progress:
         cases = _cases(config, maps, names, data)
         lights = _lights_by_map(maps, sorted({l.map_name for c in cases for l in c.lightings} | set(config.temporal_maps)),
                                 counts, config.fit_method, progress)
-        shown = {p: Method.from_preset(PRESETS[p]).label for p in PRESETS}
-        shown.update({"SH order 2": "SH order 2, no shadows", "directional": replace(Method.from_preset(PRESETS["balanced"]), kind="directional").label})
+        shown = {REFERENCE: REFERENCE, **{p: Method.from_preset(PRESETS[p]).label for p in PRESETS},
+                 "SH order 2": Method("sh").label, "directional": replace(balanced, kind="directional").label}
         examples = dict.fromkeys(shown.values())
         rows = _error_rows(ctx, cases, methods, maps, lights, config, progress, examples)
         timing_names = names[:: max(len(names) // config.timing_maps, 1)][: config.timing_maps]
@@ -351,9 +355,9 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
     summaries = _summaries(methods, rows, times)
     for s, on in zip(summaries, pareto([(s["full_ms"], s["rmse"]) for s in summaries])):
         s["pareto"] = on
-    n64 = replace(Method.from_preset(PRESETS["balanced"]), lights=64).label
+    n64 = replace(balanced, lights=64).label
     result = {
-        "quick": quick, "config": asdict(config), "machine": _machine(ctx),
+        "quick": quick, "out_dir": str(out_dir), "config": asdict(config), "machine": _machine(ctx),
         "date": time.strftime("%Y-%m-%d"),
         "cases": [{"name": c.name, "group": c.group, "size": [c.scene.width, c.scene.height], "lightings": len(c.lightings),
                    "with_truth": sum(l.truth is not None for l in c.lightings)} for c in cases],
@@ -369,9 +373,7 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
     (out_dir / "results.json").write_text(json.dumps(result, separators=(",", ":")) + "\n")  # every row: compact
     write_figures(result, out_dir)
     first = cases[0]
-    ref = reference(first.scene, scene_hash(first.scene), maps, first.lightings[0], config.spp)
-    pictures = {"reference (Mitsuba)": srgb(_exposure(ref, interior(first.scene.mask)) * ref)}
-    pictures.update({name: examples[label] for name, label in shown.items() if examples.get(label) is not None})
+    pictures = {name: examples[label] for name, label in shown.items() if examples.get(label) is not None}
     write_examples(pictures, f"{first.name}, {first.lightings[0].map_name} at yaw {first.lightings[0].yaw:g}",
                    out_dir / EXAMPLES_FIGURE)
     write_markdown(result, out_dir / "results.md")

@@ -111,7 +111,7 @@ def _groups(result: dict) -> list[str]:
     return sorted({r["group"] for r in result["rows"]})
 
 
-def _soft_hard_rows(result: dict) -> list[str]:
+def _soft_hard_rows(result: dict, groups: list[str]) -> list[str]:
     """Per N: the engine at the balanced options against the directional baseline."""
     base = next(m for m in result["methods"] if m["label"] == result["presets"]["balanced"]["label"])["method"]
     lines = []
@@ -124,11 +124,11 @@ def _soft_hard_rows(result: dict) -> list[str]:
                 break
             mine = [r for r in result["rows"] if r["method"] == hit[0]["label"]]
             cells = [f"{hit[0]['full_ms']:.0f} ms"]
-            for g in _groups(result):
+            for g in groups:
                 rows = [r for r in mine if r["group"] == g]
                 cells.append(f"{np.mean([r['rmse'] for r in rows]):.4f} / {np.mean([r['flip'] for r in rows]):.4f}")
             pair += cells
-        if len(pair) == 2 * (1 + len(_groups(result))):
+        if len(pair) == 2 * (1 + len(groups)):
             lines.append(f"| {n} | " + " | ".join(pair) + " |")
     return lines
 
@@ -138,6 +138,7 @@ def write_markdown(result: dict, path: Path):
     config = result["config"]
     presets = _preset_of(result)
     by_label = {s["label"]: s for s in result["methods"]}
+    groups = _groups(result)
     lines = [
         "# Error against run time, temporal stability and the quality presets",
         "",
@@ -220,10 +221,10 @@ def write_markdown(result: dict, path: Path):
         "Same fitted lights, same engine; *hard* sets every sigma to 0 (shadow maps only). RMSE / FLIP per group. "
         "The knob `sigma_scale` above (the fitted sigmas times 0.25 or 0.5) shows whether less softness helps.",
         "",
-        "| N | soft: full frame | soft: " + " | soft: ".join(_groups(result)) + " | hard: full frame | hard: "
-        + " | hard: ".join(_groups(result)) + " |",
-        "|---|" + "---|" * (2 + 2 * len(_groups(result))),
-        *_soft_hard_rows(result),
+        "| N | soft: full frame | soft: " + " | soft: ".join(groups) + " | hard: full frame | hard: "
+        + " | hard: ".join(groups) + " |",
+        "|---|" + "---|" * (2 + 2 * len(groups)),
+        *_soft_hard_rows(result, groups),
         "",
         "## Every setting, fastest first",
         "",
