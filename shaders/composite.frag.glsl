@@ -1,7 +1,8 @@
 // Composite over the mask's bounding box of up to MAX_LIGHTS lights (additively blended when
 // there are more): HDR += sum_l V_l * I_l * (w_d A' * S_diff_l + w_s S_spec_l). Alpha carries the
 // mask. (w_d, w_s) switch the diffuse and specular terms; A' is the albedo, or 1 to show the
-// diffuse shading itself.
+// diffuse shading itself. With FRAME_SHADING the two shading sums sum_l V_l I_l S_diff_l and
+// sum_l V_l I_l S_spec_l are also written (alpha = mask), for the frame composite.
 // Light 4g + j of a chunk sits in plane j of the light atlas, in the tile of group g.
 #ifndef MAX_LIGHTS
 #define MAX_LIGHTS 64
@@ -18,26 +19,44 @@ uniform bool write_alpha;
 uniform vec2 term_weights;            // (diffuse, specular): 1 shown, 0 left out
 uniform bool unit_albedo;             // show shading: albedo replaced by 1
 layout(location = 0) out vec4 hdr;
+#ifdef FRAME_SHADING
+layout(location = 1) out vec4 shading_diffuse;
+layout(location = 2) out vec4 shading_specular;
+#endif
 
-vec3 contribution(vec4 b, float refined, vec3 albedo, vec3 i) {
+vec3 sum_diffuse = vec3(0.0);
+vec3 sum_specular = vec3(0.0);
+
+void contribution(vec4 b, float refined, vec3 i) {
     float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : (visibility_channel == 3 ? refined : 1.0));
-    return v * i * (term_weights.x * albedo * b.z + term_weights.y * b.w);
+    sum_diffuse += v * i * b.z;
+    sum_specular += v * i * b.w;
 }
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 am = texelFetch(albedo_mask, px, 0);
-    if (am.a < 0.5) { hdr = vec4(0.0); return; }
+    if (am.a < 0.5) {
+        hdr = vec4(0.0);
+#ifdef FRAME_SHADING
+        shading_diffuse = shading_specular = vec4(0.0);
+#endif
+        return;
+    }
     vec3 albedo = unit_albedo ? vec3(1.0) : am.rgb;
     ivec2 local = px - box_origin;
-    vec3 sum = vec3(0.0);
     for (int g = 0; g < groups; ++g) {
         ivec2 q = group_origin[g] + local;
         bool r = visibility_channel == 3;
-        sum += contribution(texelFetch(light_plane0, q, 0), r ? texelFetch(refined_plane0, q, 0).r : 0.0, albedo, intensity[4 * g]);
-        sum += contribution(texelFetch(light_plane1, q, 0), r ? texelFetch(refined_plane1, q, 0).r : 0.0, albedo, intensity[4 * g + 1]);
-        sum += contribution(texelFetch(light_plane2, q, 0), r ? texelFetch(refined_plane2, q, 0).r : 0.0, albedo, intensity[4 * g + 2]);
-        sum += contribution(texelFetch(light_plane3, q, 0), r ? texelFetch(refined_plane3, q, 0).r : 0.0, albedo, intensity[4 * g + 3]);
+        contribution(texelFetch(light_plane0, q, 0), r ? texelFetch(refined_plane0, q, 0).r : 0.0, intensity[4 * g]);
+        contribution(texelFetch(light_plane1, q, 0), r ? texelFetch(refined_plane1, q, 0).r : 0.0, intensity[4 * g + 1]);
+        contribution(texelFetch(light_plane2, q, 0), r ? texelFetch(refined_plane2, q, 0).r : 0.0, intensity[4 * g + 2]);
+        contribution(texelFetch(light_plane3, q, 0), r ? texelFetch(refined_plane3, q, 0).r : 0.0, intensity[4 * g + 3]);
     }
-    hdr = vec4(sum, write_alpha ? am.a : 0.0);
+    float a = write_alpha ? am.a : 0.0;
+    hdr = vec4(term_weights.x * albedo * sum_diffuse + term_weights.y * sum_specular, a);
+#ifdef FRAME_SHADING
+    shading_diffuse = vec4(sum_diffuse, a);
+    shading_specular = vec4(sum_specular, a);
+#endif
 }

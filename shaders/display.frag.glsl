@@ -1,11 +1,14 @@
 // Display image: exposure, tone map and sRGB of the HDR composite over a background
-// (the rotated environment map seen through the camera, the photo's own background, or a colour).
+// (the rotated environment map seen through the camera, the photo's own background, a colour, or
+// none: transparent, the composite's alpha kept). With HDR_OUTPUT the same composite is written in
+// linear HDR instead (before exposure and tone map; transparent: premultiplied RGB and alpha), the
+// EXR that goes with a display PNG.
 #include "tonemap.glsl"
 #include "envmap.glsl"
 uniform sampler2D hdr;
 uniform sampler2D background_image;   // linear RGB, image rows top first
 uniform sampler2D environment;        // equirectangular, linear RGB
-uniform int background_mode;          // 0 colour, 1 photo background, 2 environment map
+uniform int background_mode;          // 0 colour, 1 photo background, 2 environment map, 3 transparent
 uniform vec3 background_color;        // linear
 uniform mat3 environment_rotation;    // camera-space view direction -> map direction
 uniform vec2 focal_center_px;         // principal point (pixels)
@@ -18,14 +21,24 @@ void main() {
     vec4 c = texelFetch(hdr, px, 0);
     float scale = exp2(exposure);
     vec3 bg = background_color;
-    if (background_mode == 1) {
+    if (c.a >= 1.0) {
+        // the person covers the pixel: no background to look up
+    } else if (background_mode == 1) {
         bg = texelFetch(background_image, px, 0).rgb;
     } else if (background_mode == 2) {
         vec2 q = vec2(px) + 0.5;
         vec3 view = normalize(vec3((q.x - focal_center_px.x) / focal_px, -(q.y - focal_center_px.y) / focal_px, -1.0));
         bg = textureLod(environment, direction_to_equirect(environment_rotation * view), 0.0).rgb;
     }
+#ifdef HDR_OUTPUT
+    color = background_mode == 3 ? vec4(c.rgb * c.a, c.a) : vec4(mix(bg, c.rgb, c.a), 1.0);
+#else
     vec3 fg = tonemap(c.rgb * scale, tonemap_op);
+    if (background_mode == 3) {
+        color = vec4(linear_to_srgb(fg), c.a);
+        return;
+    }
     vec3 back = tonemap(bg * scale, tonemap_op);
     color = vec4(linear_to_srgb(mix(back, fg, c.a)), 1.0);
+#endif
 }

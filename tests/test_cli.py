@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 
+from viewer.bench.metrics import detail_kept
 from viewer.cli import main
 from viewer.imageio import read_exr, read_png
 from viewer.scene import load_scene
@@ -22,16 +23,19 @@ def test_demo_writes_png_and_exr(tmp_path, capsys):
     assert np.isfinite(hdr).all() and hdr.max() > 0.05  # lit, not a silent black image
     assert img.std() > 0.05
     assert (tmp_path / "demo_passes.png").is_file()
-    # the whole path on the bundled photo: inferred, then relit under each bundled map (refined shadows)
-    assert "inferred the scene bundle of photos/underpass.jpg" in out
+    # the whole path on the bundled photo (automatic mask): inferred, then relit at the photo's own
+    # size under each bundled map (refined shadows), with the photo's detail
+    assert "inferred the scene bundle of photos/underpass.jpg (automatic mask)" in out
     bundle = load_scene(tmp_path / "photo_bundle")
-    assert bundle.width == 512 and bundle.mask.mean() > 0.05
+    w, h = 681, 1024  # the bundled photo's size
+    assert bundle.output_size == (w, h) and bundle.frame.alpha.mean() > 0.05
     sheet = read_png(tmp_path / "photo_relit.png")
-    assert sheet.shape == (512, 4 * 512, 3)
-    relit = [sheet[:, k * 512:(k + 1) * 512] for k in range(1, 4)]
-    m = bundle.mask
+    assert sheet.shape == (h, 4 * w, 3)
+    photo, relit = sheet[:, :w], [sheet[:, k * w:(k + 1) * w] for k in range(1, 4)]
+    m = bundle.frame.alpha > 0.5
     for a in relit:
         assert a[m].std() > 0.02  # lit, with shading
+        assert 0.7 < detail_kept(a, photo, m) < 1.3  # the photo's own detail, not a blur
     assert np.abs(relit[0][m] - relit[1][m]).mean() > 0.02  # different maps, different pictures
 
 

@@ -1,62 +1,139 @@
-"""``relight infer``: a real photo to a scene bundle the engine renders, bad inputs, the bundle cache."""
+"""``relight infer``: a real photo to a scene bundle in the photo's own frame, the frame mapping,
+the photo's own lights (relit under them, the output is the photo), EXIF rotation, bad inputs,
+the bundle cache."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 
-from viewer.cli import main
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.inference import FILL, cached_bundle, crop, framing, infer, load_networks
+from viewer.detail import detail_albedo, foreground_colours
+from viewer.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, framing, infer, infer_scene, load_networks,
+                              to_work_frame, write_bundle)
 from viewer.lights import load_lights
+from viewer.photo_frame import frame_sizes, resize
+from viewer.render import RenderSettings, apply_settings
 from viewer.scene import load_scene
 
 from conftest import SHARED_DATA
 
 PHOTOS = SHARED_DATA / "photos"
+LANDSCAPE = "unsplash-1535323700481"  # 1950 x 1302, its hand-made mask is RGB
 
 
-def _person(tmp_path, h=96, w=64, mode="RGB"):
+def _person(tmp_path, h=96, w=64, mode="RGB", name="photo"):
     """A synthetic photo (a lit ellipse on a gradient) and its mask, written as PNGs."""
     yy, xx = np.mgrid[:h, :w]
     inside = ((yy - h / 2) / (0.4 * h)) ** 2 + ((xx - w / 2) / (0.15 * w)) ** 2 < 1
     img = np.stack([xx / w, yy / h, np.full((h, w), 0.5)], -1)
     img[inside] = [0.8, 0.6, 0.5]
-    photo, mask = tmp_path / "photo.png", tmp_path / "mask.png"
+    photo, mask = tmp_path / f"{name}.png", tmp_path / f"{name}.mask.png"
     u8 = (img * 255).astype(np.uint8)
     Image.fromarray(u8[..., 0] if mode == "L" else u8).save(photo)
     Image.fromarray((inside * 255).astype(np.uint8)).save(mask)
     return photo, mask, inside
 
 
-def test_real_photo_becomes_a_bundle_the_engine_renders(tiny_networks, ctx, tmp_path, capsys):
-    photo, mask = PHOTOS / "unsplash-1535323700481.jpg", PHOTOS / "unsplash-1535323700481.mask.png"  # landscape, RGB mask
-    out = tmp_path / "bundle"
-    assert main(["infer", str(photo), "--mask", str(mask), "-o", str(out), "--size", "128",
-                 "--networks", str(tiny_networks)]) == 0
-    assert "wrote scene bundle" in capsys.readouterr().out
+@pytest.fixture(scope="module")
+def landscape(tmp_path_factory, ctx):
+    """The landscape photo inferred with the shipped networks and its hand-made mask (evaluation
+    use): (bundle folder, the inference in memory with its intermediate images)."""
+    out = tmp_path_factory.mktemp("landscape") / "bundle"
+    result = infer_scene(PHOTOS / f"{LANDSCAPE}.jpg", PHOTOS / f"{LANDSCAPE}.mask.png", ctx=ctx, keep_intermediate=True)
+    write_bundle(result, out)
+    return out, result
+
+
+@pytest.fixture(scope="module")
+def landscape_bundle(landscape):
+    return landscape[0], landscape[1]["record"]
+
+
+def test_a_real_photo_becomes_a_bundle_in_its_own_frame(landscape_bundle, ctx):
+    out, record = landscape_bundle
     scene = load_scene(out)
-    assert scene.width == scene.height == 128 and scene.photo is not None
+    assert scene.output_size == (1950, 1302)  # the photo's own size and aspect: nothing cropped or padded
     rows = np.flatnonzero(scene.mask.any(axis=1))
-    assert abs((rows[-1] - rows[0] + 1) / 128 - FILL) < 0.03  # framed as the training people are
+    assert abs((rows[-1] - rows[0] + 1) - 512) < 8  # the person spans the work size in the maps
+    assert scene.width / scene.height == pytest.approx(1950 / 1302, abs=0.01)
+    # the frame mapping: the maps' mask, brought to the frame, is the frame's matte
+    up = resize(scene.mask.astype(np.float32), scene.output_size) > 0.5
+    matte = scene.frame.alpha > 0.5
+    assert (up & matte).sum() / (up | matte).sum() > 0.93
     inside = scene.mask
     assert np.all(np.isfinite(scene.depth)) and np.all(scene.depth[inside] > 0)
     assert np.allclose(np.linalg.norm(scene.normal[inside], axis=-1), 1, atol=1e-3)
+    assert 0 < scene.frame.albedo.max() <= 1 and scene.frame.albedo[~(scene.frame.alpha > 0)].max() == 0
     lights = load_lights(out / "lights.json")
-    assert len(lights) == 16 and np.all(np.isfinite(lights.intensity)) and np.all(lights.intensity >= 0)
-    record = json.loads((out / "inference.json").read_text())
-    assert record["photo_size"] == [1950, 1302] and record["seconds_total"] > 0
-    engine = Engine(ctx, scene, EngineOptions(shadow_resolution=256))
+    assert 1 <= len(lights) <= 48 and np.all(np.isfinite(lights.intensity)) and np.all(lights.intensity >= 0)
+    assert len(load_lights(out / "lights_network.json")) == 16
+    saved = json.loads((out / "inference.json").read_text())
+    assert saved["photo_size"] == [1950, 1302] and saved["seconds_total"] > 0
+    assert saved["sizes"]["frame"] == [1950, 1302] and saved["photo_lighting"]["psnr_db"] > 18
+
+
+def _own_lights_error(ctx, scene, lights):
+    engine = Engine(ctx, scene, EngineOptions())
     try:
-        engine.set_lights(lights)
+        apply_settings(engine, scene, lights, RenderSettings(exposure=0.0, background="photo"), has_environment=False)
         hdr = engine.render().read_hdr()
+        assert engine.read_display().shape == (1302, 1950, 3)
     finally:
         engine.release()
-    assert np.all(np.isfinite(hdr)) and hdr[..., :3][inside].mean() > 0
+    photo = scene.frame.photo
+    solid = (scene.frame.alpha > 0.999) & (scene.frame.albedo.max(axis=-1) < 0.99) & (photo.min(axis=-1) > 0.01)
+    assert solid.sum() > 0.3 * (scene.frame.alpha > 0.5).sum()
+    return float(np.abs(hdr[solid] - photo[solid]).mean() / photo[solid].mean())
+
+
+def test_relit_under_its_own_lights_the_output_is_the_photo(landscape, ctx):
+    """The quotient image's oracle: the photo's fitted lights, through the same frame composite,
+    give back the photo (where its shading is not too dark to divide by, and nothing clipped);
+    the shipped detail albedo shares its low frequencies with the network's, so it is the photo
+    up to that smooth correction."""
+    out, result = landscape
+    lights = load_lights(out / "lights.json")
+    sc = result["scene"]
+    exact, _ = detail_albedo("quotient", foreground_colours(sc.frame.photo, sc.frame.alpha, result["record"]["framing"]["side"] / 64),
+                             sc.frame.alpha, result["network_albedo_frame"], result["shading"],
+                             lowpass_sigma=result["record"]["framing"]["side"] / NETWORK_RES, shared_scale=0.0)
+    unshared = replace(sc, frame=replace(sc.frame, albedo=exact))
+    assert _own_lights_error(ctx, unshared, lights) < 0.03
+    assert _own_lights_error(ctx, load_scene(out), lights) < 0.15
+
+
+def test_work_frame_mapping_follows_the_framing():
+    """A map over the framing's square, resampled at the work frame: each work pixel reads the
+    square at its own frame position."""
+    f = Framing(top=-10, left=30, side=200)
+    res = 64
+    # channel 0 = the square's x coordinate (frame pixels), channel 1 = y, at the network pixel centres
+    centres = (np.arange(res) + 0.5) * f.side / res
+    xs, ys = np.meshgrid(f.left + centres, f.top + centres)
+    stack = torch.from_numpy(np.stack([xs, ys])[None].astype(np.float64))
+    s = 0.5  # work pixels per frame pixel
+    work = to_work_frame(stack, f, (150, 100), s)
+    wx, wy = (np.arange(150) + 0.5) / s, (np.arange(100) + 0.5) / s
+    inner = (wx > f.left + 3) & (wx < f.left + f.side - 3)
+    rows = (wy > f.top + 3) & (wy < f.top + f.side - 3)
+    np.testing.assert_allclose(work[rows][:, inner, 0], np.broadcast_to(wx[inner], (rows.sum(), inner.sum())), atol=1e-6)
+    np.testing.assert_allclose(work[rows][:, inner, 1], np.broadcast_to(wy[rows, None], (rows.sum(), inner.sum())), atol=1e-6)
+
+
+def test_frame_sizes():
+    s = frame_sizes((4000, 3000), (600, 2000))
+    assert s.frame == (2048, 1536) and max(s.work) == round(2048 * 512 / (2000 * 2048 / 4000))
+    small = frame_sizes((300, 200), (50, 150))
+    assert small.frame == small.work == (300, 200)  # never larger than the photo
+    with pytest.raises(InputError, match="--max-size"):
+        frame_sizes((300, 200), (50, 150), max_size=4)
 
 
 def test_framing_pads_with_the_photo_edge():
@@ -71,16 +148,40 @@ def test_framing_pads_with_the_photo_edge():
     assert crop(mask.astype(np.uint8), f, "constant")[:, 0].sum() == 0
 
 
-def test_grayscale_and_16_bit_inputs_are_handled(tiny_networks, tmp_path):
+def test_exif_rotated_photos_come_out_upright(tiny_networks, tmp_path, ctx):
+    photo, mask, inside = _person(tmp_path, h=120, w=80)
+    upright = np.asarray(Image.open(photo))
+    # stored as a phone stores it: the pixels turned, with orientation 6 (turn 90 degrees clockwise to view)
+    stored = Image.fromarray(np.rot90(upright, 1).copy())
+    exif = stored.getexif()
+    exif[0x0112] = 6
+    stored.save(tmp_path / "phone.jpg", exif=exif, quality=95)
+    nets = load_networks("cpu", tiny_networks)
+    record = infer(tmp_path / "phone.jpg", mask, tmp_path / "b", size=64, networks=nets, ctx=ctx)
+    assert record["sizes"]["frame"] == [80, 120] and any("EXIF orientation 6" in n for n in record["notes"])
+    scene = load_scene(tmp_path / "b")
+    assert scene.output_size == (80, 120)
+    # upright: the frame's photo is the photo as seen, not its stored pixels
+    seen = np.asarray(Image.open(photo), np.float32) / 255.0
+    from viewer.imageio import linear_to_srgb
+
+    assert np.abs(linear_to_srgb(scene.frame.photo) - seen).mean() < 0.03
+    # a mask drawn on the stored (sideways) pixels is refused with a hint
+    Image.fromarray(np.rot90(np.asarray(Image.open(mask)), 1).copy()).save(tmp_path / "sideways.png")
+    with pytest.raises(InputError, match="before its EXIF rotation"):
+        infer(tmp_path / "phone.jpg", tmp_path / "sideways.png", tmp_path / "c", size=64, networks=nets, ctx=ctx)
+
+
+def test_grayscale_and_16_bit_inputs_are_handled(tiny_networks, tmp_path, ctx):
     photo, mask, _ = _person(tmp_path, mode="L")
     Image.fromarray((np.asarray(Image.open(mask)).astype(np.uint16) * 257)).save(tmp_path / "mask16.png")
     nets = load_networks("cpu", tiny_networks)
-    record = infer(photo, tmp_path / "mask16.png", tmp_path / "b", size=64, networks=nets)
+    record = infer(photo, tmp_path / "mask16.png", tmp_path / "b", size=64, networks=nets, ctx=ctx)
     assert any("grayscale" in n for n in record["notes"]) and any("16-bit" in n for n in record["notes"])
     assert load_scene(tmp_path / "b").mask.sum() > 0
 
 
-def test_bad_inputs_name_the_file_and_the_problem(tiny_networks, tmp_path):
+def test_bad_inputs_name_the_file_and_the_problem(tiny_networks, tmp_path, ctx):
     photo, mask, inside = _person(tmp_path)
     nets = load_networks("cpu", tiny_networks)
     Image.fromarray(np.zeros((96, 64), np.uint8)).save(tmp_path / "empty.png")
@@ -89,39 +190,55 @@ def test_bad_inputs_name_the_file_and_the_problem(tiny_networks, tmp_path):
     tiny[40:50, 30:33] = 255
     Image.fromarray(tiny).save(tmp_path / "tiny.png")
     (tmp_path / "broken.png").write_bytes(b"not a png")
-    for p, m, message in ((photo, tmp_path / "empty.png", "no person in the mask"),
-                          (photo, tmp_path / "small.png", "a mask must match its photo"),
-                          (photo, tmp_path / "tiny.png", "pixels tall"),
-                          (tmp_path / "broken.png", mask, "cannot read the photo"),
-                          (tmp_path / "missing.jpg", mask, "photo not found")):
+    (tmp_path / "a-file").write_text("x")
+    for p, m, out, message in ((photo, tmp_path / "empty.png", "out", "no person in the mask"),
+                               (photo, tmp_path / "small.png", "out", "a mask must match its photo"),
+                               (photo, tmp_path / "tiny.png", "out", "pixels tall"),
+                               (tmp_path / "broken.png", mask, "out", "cannot read the photo"),
+                               (tmp_path / "missing.jpg", mask, "out", "photo not found"),
+                               (photo, mask, "a-file", "not a folder")):
         with pytest.raises(InputError, match=message) as info:
-            infer(p, m, tmp_path / "out", size=64, networks=nets)
+            infer(p, m, tmp_path / out, size=64, networks=nets, ctx=ctx)
         assert info.value.path is not None
-    with pytest.raises(InputError, match="--size"):
-        infer(photo, mask, tmp_path / "out", size=10_000, networks=nets)
+    with pytest.raises(InputError, match="work size"):
+        infer(photo, mask, tmp_path / "out", size=10_000, networks=nets, ctx=ctx)
+    assert (tmp_path / "a-file").read_text() == "x"  # nothing the user had is lost
 
 
-def test_full_mask_is_relit_with_a_note(tiny_networks, tmp_path):
+def test_a_failed_inference_leaves_the_previous_bundle(tiny_networks, tmp_path, ctx):
+    photo, mask, _ = _person(tmp_path)
+    nets = load_networks("cpu", tiny_networks)
+    infer(photo, mask, tmp_path / "b", size=64, networks=nets, ctx=ctx)
+    before = sorted(p.name for p in (tmp_path / "b").iterdir())
+    Image.fromarray(np.zeros((96, 64), np.uint8)).save(tmp_path / "empty.png")
+    with pytest.raises(InputError):
+        infer(photo, tmp_path / "empty.png", tmp_path / "b", size=64, networks=nets, ctx=ctx)
+    assert sorted(p.name for p in (tmp_path / "b").iterdir()) == before
+    assert load_scene(tmp_path / "b").mask.any()
+
+
+def test_full_mask_is_relit_with_a_note(tiny_networks, tmp_path, ctx):
     photo, _, _ = _person(tmp_path)
     Image.fromarray(np.full((96, 64), 255, np.uint8)).save(tmp_path / "full.png")
-    record = infer(photo, tmp_path / "full.png", tmp_path / "b", size=64, networks=load_networks("cpu", tiny_networks))
+    record = infer(photo, tmp_path / "full.png", tmp_path / "b", size=64, networks=load_networks("cpu", tiny_networks),
+                   ctx=ctx)
     assert any("whole photo" in n for n in record["notes"])
     scene = load_scene(tmp_path / "b")
-    assert np.all(np.isfinite(scene.albedo)) and np.all(np.isfinite(scene.depth))
+    assert np.all(np.isfinite(scene.albedo)) and np.all(np.isfinite(scene.frame.albedo))
 
 
-def test_bundle_is_inferred_once_and_then_cached(tiny_networks, tmp_path, monkeypatch):
+def test_bundle_is_inferred_once_and_then_cached(tiny_networks, tmp_path, monkeypatch, ctx):
     monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
     photo, mask, _ = _person(tmp_path)
-    first, cached = cached_bundle(photo, mask, size=64, networks_dir=tiny_networks)
+    first, cached = cached_bundle(photo, mask, size=64, networks_dir=tiny_networks, ctx=ctx)
     assert not cached and (first / "scene.json").is_file()
-    again, cached = cached_bundle(photo, mask, size=64, networks_dir=tiny_networks)
+    again, cached = cached_bundle(photo, mask, size=64, networks_dir=tiny_networks, ctx=ctx)
     assert cached and again == first
-    other, cached = cached_bundle(photo, mask, size=96, networks_dir=tiny_networks)
+    other, cached = cached_bundle(photo, mask, size=48, networks_dir=tiny_networks, ctx=ctx)
     assert not cached and other != first
 
 
-def test_a_huge_photo_is_framed_and_downscaled(tiny_networks, tmp_path):
+def test_a_huge_photo_is_capped_to_the_output_size(tiny_networks, tmp_path, ctx):
     h, w = 6000, 4000
     photo = np.zeros((h, w, 3), np.uint8)
     photo[..., 1] = 90
@@ -131,6 +248,8 @@ def test_a_huge_photo_is_framed_and_downscaled(tiny_networks, tmp_path):
     Image.fromarray(photo).save(tmp_path / "huge.jpg", quality=80)
     Image.fromarray(mask).save(tmp_path / "huge.png")
     record = infer(tmp_path / "huge.jpg", tmp_path / "huge.png", tmp_path / "b", size=128,
-                   networks=load_networks("cpu", tiny_networks))
-    assert record["photo_size"] == [w, h] and record["framing"]["side"] == int(np.ceil(4200 / FILL))
-    assert load_scene(tmp_path / "b").mask.sum() > 0
+                   networks=load_networks("cpu", tiny_networks), ctx=ctx)
+    assert record["photo_size"] == [w, h] and record["sizes"]["frame"] == [1365, 2048]
+    assert record["framing"]["side"] == pytest.approx(4200 * 2048 / 6000 / FILL, abs=2)
+    scene = load_scene(tmp_path / "b")
+    assert scene.output_size == (1365, 2048) and scene.mask.sum() > 0

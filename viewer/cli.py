@@ -47,14 +47,34 @@ def _add_engine_args(p):
     p.add_argument("--prefilter", choices=("pyramid", "exact"), help="CSM pre-filtering (preset's; balanced pyramid)")
 
 
+def _exposure(text: str):
+    """--exposure: "auto" (a photo keeps its own brightness) or stops."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a number of stops, got {text!r}") from None
+    if not (np.isfinite(value) and abs(value) <= 40):
+        raise argparse.ArgumentTypeError(f"exposure must be 'auto' or within [-40, 40] stops, got {text!r}")
+    return value
+
+
 def _add_view_args(p, yaw_default=0.0):
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float, default=yaw_default,
                    help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
                         "a video starts there")
     p.add_argument("--tilt", type=float, default=0.0, help="tilt the lighting (degrees)")
-    p.add_argument("--exposure", type=float, default=0.0, help="exposure in stops (default 0)")
+    p.add_argument("--exposure", type=_exposure, default="auto",
+                   help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
+                        "(0 stops for a scene without a photo)")
     p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), default="aces")
-    p.add_argument("--background", choices=("environment", "photo", "color"), default="environment")
+    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"), default="environment",
+                   help="behind the person: the environment map seen through the photo's camera (default), the "
+                        "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
+    p.add_argument("--max-size", type=int, default=2048,
+                   help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
+                        "the photo's own size up to this)")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), default="soft",
                    help="shadows from the convolutional shadow map (soft), the refinement network (refined), "
                         "the shadow map (hard) or none")
@@ -71,17 +91,26 @@ def _fitted_lights(env, n, method, refit=False):
     return lights, cached
 
 
-def _load_scene(path, size: int | None):
-    """The scene bundle, resampled to ``size`` pixels on the longer side when given (``--size``)."""
+def _load_scene(path, size: int | None, max_size: int | None = None):
+    """The scene bundle, its maps resampled to ``size`` pixels on the longer side when given
+    (``--size``), its frame capped to ``max_size`` (``--max-size``)."""
+    from .photo_frame import scaled_size
     from .scene import load_scene
     from .scene_ops import resample_scene
 
     scene = load_scene(path)
-    if size is None:
-        return scene
-    if not 16 <= size <= 8192:
-        raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
-    return resample_scene(scene, size)
+    if size is not None:
+        if not 16 <= size <= 8192:
+            raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
+        scene = resample_scene(scene, size, keep_frame=True)
+    if max_size is not None:
+        if not 16 <= max_size <= 16384:
+            raise InputError(None, f"--max-size must be within [16, 16384] pixels, got {max_size}")
+        if scene.frame is not None and max(scene.output_size) > max_size:
+            scene.frame = scene.frame.resized(scaled_size(scene.output_size, max_size))
+        elif scene.frame is None and max(scene.output_size) > max_size:
+            scene = resample_scene(scene, max_size)
+    return scene
 
 
 def _prepare(scene_path, lights_path, envmap_path, args):
@@ -89,7 +118,7 @@ def _prepare(scene_path, lights_path, envmap_path, args):
     from .envmap import load_envmap
     from .lights import load_lights
 
-    scene = _load_scene(scene_path, getattr(args, "size", None))
+    scene = _load_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
     if lights_path is not None:
         lights = load_lights(lights_path)
@@ -121,8 +150,9 @@ def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[P
 
 
 def cmd_demo(args) -> int:
-    """The whole path: the sample scene, then the bundled real photo inferred, relit under the
-    three bundled maps with refined shadows, and a sheet of the photo beside its relightings."""
+    """The whole path: the sample scene, then the bundled real photo inferred (automatic mask),
+    relit at its own size under the three bundled maps with refined shadows, and a sheet of the
+    photo beside its relightings."""
     from dataclasses import replace
 
     from .envmap import load_envmap
@@ -130,8 +160,8 @@ def cmd_demo(args) -> int:
     from .imageio import read_png, write_png
     from .inference import infer
     from .lights import load_lights
+    from .photo_frame import read_photo, resize
     from .render import render_to_files
-    from .scene import load_scene
 
     assets = asset_dir()
     written = _render(sample_scene_dir(), assets / DEMO_LIGHTS, assets / DEMO_ENVMAP, args.output, "demo", args)
@@ -141,11 +171,13 @@ def cmd_demo(args) -> int:
     out = Path(args.output)
     photo = assets / DEMO_PHOTO
     t0 = time.perf_counter()
-    record = infer(photo, photo.with_suffix(".mask.png"), out / "photo_bundle", size=512)
-    print(f"inferred the scene bundle of {DEMO_PHOTO} in {time.perf_counter() - t0:.1f} s: {out / 'photo_bundle'}")
-    scene = load_scene(out / "photo_bundle")
-    engine = Engine(create_headless_context(), scene, _engine_options(args))
-    pictures = [read_png(out / "photo_bundle" / "photo.png")[..., :3]]
+    ctx = create_headless_context()
+    record = infer(photo, None, out / "photo_bundle", max_size=args.max_size, ctx=ctx)
+    print(f"inferred the scene bundle of {DEMO_PHOTO} (automatic mask) in {time.perf_counter() - t0:.1f} s: "
+          f"{out / 'photo_bundle'}")
+    scene = _load_scene(out / "photo_bundle", None, args.max_size)
+    engine = Engine(ctx, scene, _engine_options(args))
+    pictures = [resize(read_photo(photo, []), scene.output_size).astype(np.float32) / 255.0]  # upright, the output's size
     settings = replace(_settings(args), visibility="refined", background="environment")
     try:
         for env_path in sorted((assets / "envmaps").glob("*.hdr")):
@@ -153,7 +185,8 @@ def cmd_demo(args) -> int:
             files = render_to_files(engine, scene, load_lights(env_path.with_suffix(".lights.json")), out,
                                     f"photo_{env_path.stem}", settings, environment=load_envmap(env_path).pixels, passes=False)
             pictures.append(read_png(files[0])[..., :3])
-            print(f"  relit under {env_path.name} (refined shadows) in {time.perf_counter() - t0:.1f} s: {files[0]}")
+            print(f"  relit under {env_path.name} (refined shadows), {scene.output_size[0]}x{scene.output_size[1]}, "
+                  f"in {time.perf_counter() - t0:.1f} s: {files[0]}")
     finally:
         engine.release()
     sheet = write_png(out / "photo_relit.png", np.concatenate(pictures, axis=1))
@@ -199,11 +232,13 @@ def cmd_view(args) -> int:
     from .app.session import Look
     from .envmap import load_envmap
     from .lights import load_lights
+    from .scene import PHOTO_SUFFIXES
 
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
-    if args.mask:
-        scene_path = _photo_bundle(args.scene, args.mask, args.device)
+    photo = args.scene is not None and Path(args.scene).suffix.lower() in PHOTO_SUFFIXES
+    if args.mask and not photo:
+        raise InputError(args.scene, "--mask needs a photo: relight view PHOTO [--mask MASK]")
     env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
     demo = args.scene is None and args.envmap is None and args.lights is None
     yaw = args.yaw if args.yaw is not None else (DEMO_YAW if demo else 0.0)
@@ -211,15 +246,32 @@ def cmd_view(args) -> int:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
     if not (np.isfinite(args.fps) and args.fps > 0):
         raise InputError(None, f"--fps must be a positive number, got {args.fps}")
-    scene = _load_scene(scene_path, args.size)
-    env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
-    if args.lights:
-        lights = load_lights(args.lights)
-    else:
-        lights = sidecar_lights(env_path, _lights_count(args), args.method)
-        if lights is None:
-            lights, cached = _fitted_lights(env, _lights_count(args), args.method)
-            print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {env_path}")
+    window = None
+    if photo:
+        from .app.window import Window
+
+        # the window first: its GL context also serves the inference (a headless EGL context made
+        # before the window's would make the window fail, ../shared/docs/STACK.md)
+        window = Window(960, 720, f"relight - {Path(args.scene).name}")
+        try:
+            scene_path = _photo_bundle(args.scene, args.mask, args.device, window)
+        except BaseException:
+            window.release()
+            raise
+    try:
+        scene = _load_scene(scene_path, args.size, args.max_size)
+        env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
+        if args.lights:
+            lights = load_lights(args.lights)
+        else:
+            lights = sidecar_lights(env_path, _lights_count(args), args.method)
+            if lights is None:
+                lights, cached = _fitted_lights(env, _lights_count(args), args.method)
+                print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {env_path}")
+    except BaseException:
+        if window is not None:
+            window.release()
+        raise
     from .app import ViewerConfig, run_viewer
 
     look = Look(yaw=yaw, tilt=args.tilt, exposure=args.exposure, shadows=args.visibility)
@@ -228,18 +280,26 @@ def cmd_view(args) -> int:
                           options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
-                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset)
+                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset,
+                          window=window)
     return run_viewer(config)
 
 
-def _photo_bundle(photo, mask, device) -> Path:
-    """The scene bundle of a photo: inferred once, then taken from the cache."""
+def _photo_bundle(photo, mask, device, window) -> Path:
+    """The scene bundle of a photo: inferred once (its stages shown in the window), then taken
+    from the cache."""
     from .inference import cached_bundle
 
-    if photo is None:
-        raise InputError(None, "--mask needs a photo: relight view PHOTO --mask MASK")
-    bundle, cached = cached_bundle(photo, mask, device=device)
-    print(f"scene bundle of {photo}: {bundle} ({'from the cache' if cached else 'inferred now, cached for next time'})")
+    start = time.perf_counter()
+
+    def progress(stage):
+        print(f"  {stage} done ({time.perf_counter() - start:.1f} s)", flush=True)
+        window.show_message(f"Preparing {Path(photo).name}: {stage} done")
+
+    window.show_message(f"Preparing {Path(photo).name}: reading the photo, finding the person...")
+    bundle, cached = cached_bundle(photo, mask, device=device, progress=progress, ctx=window.ctx)
+    print(f"scene bundle of {photo}: {bundle} ({'from the cache' if cached else 'inferred now, cached for next time'}; "
+          f"{time.perf_counter() - start:.1f} s)")
     return bundle
 
 
@@ -248,13 +308,16 @@ def cmd_infer(args) -> int:
 
     t0 = time.perf_counter()
     nets = load_networks(args.device, args.networks)
-    record = infer(args.photo, args.mask, args.output, size=args.size, device=args.device, networks=nets,
-                   progress=lambda stage: print(f"  {stage} done", flush=True))
+    record = infer(args.photo, args.mask, args.output, size=args.size, max_size=args.max_size, device=args.device,
+                   networks=nets, progress=lambda stage: print(f"  {stage} done", flush=True))
     print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in record["seconds"].items()))
     for note in record["notes"]:
         print(f"note: {note}")
-    print(f"wrote scene bundle {args.output} ({args.size}x{args.size}) with the estimated input lighting "
-          f"{Path(args.output) / 'lights.json'} in {time.perf_counter() - t0:.2f} s")
+    sizes, fit = record["sizes"], record["photo_lighting"]
+    print(f"the photo's own lighting: {fit['lights']} lights explain the photo to {fit['psnr_db']:.1f} dB (PSNR over the person)")
+    print(f"wrote scene bundle {args.output}: frame {sizes['frame'][0]}x{sizes['frame'][1]} (the photo's own size, "
+          f"at most --max-size), maps {sizes['work'][0]}x{sizes['work'][1]}, mask {'from ' + args.mask if args.mask else 'automatic'}; "
+          f"{time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -320,6 +383,29 @@ def cmd_train(args) -> int:
     return 0
 
 
+def photos_table(result: dict) -> str:
+    """The bench photos figures as text."""
+    lines = []
+    for row in result["photos"]:
+        ex = row["explains_photo"]
+        lines.append(f"{row['photo']}: mask IoU {row.get('mask', {}).get('iou', float('nan')):.3f}; the photo's lighting "
+                     f"explains it to {ex['fitted']['psnr_db']:.1f} dB / SSIM {ex['fitted']['ssim']:.3f} "
+                     f"(the network's guess {ex['network']['psnr_db']:.1f} dB); inference {row['inference_seconds_total']:.1f} s")
+        for method, m in row["methods"].items():
+            kept = ", ".join(f"{v:.2f}" for v in m["detail_kept"].values())
+            lines.append(f"  {method:>17}: detail kept {kept} (mean {m['detail_kept_mean']:.2f}); light moved {m['light_moved']:.2f}"
+                         + (f"; under its own lights {m['own_lights']['psnr_db']:.1f} dB" if "own_lights" in m else "")
+                         + (f"; {m['times_ms']}" if "times_ms" in m else ""))
+    if "heldout" in result:
+        h = result["heldout"]
+        lines.append(f"held-out: {h['pairs']} pairs of {h['people']} people at {h['resolution']}^2")
+        for method in result["methods"] + ["before"]:
+            if method in h:
+                lines.append(f"  {method:>17}: RMSE {h[method]['rmse']['mean']:.4f} SSIM {h[method]['ssim']['mean']:.4f} "
+                             f"FLIP {h[method]['flip']['mean']:.4f}")
+    return "\n".join(lines)
+
+
 def cmd_bench(args) -> int:
     from .bench.engine import run_engine_benchmark
 
@@ -358,6 +444,19 @@ def cmd_bench(args) -> int:
         for name, t in result["targets"].items():
             print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
         print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
+    elif args.what == "photos":
+        from .bench.photos import run_photos_benchmark
+        from .progress import StageBars
+
+        out_dir = Path(args.output or "out/bench-photos")
+        if args.data and len(args.data) > 1:
+            raise InputError(None, "bench photos takes one held-out dataset (--data DIR)")
+        start = time.perf_counter()
+        result = run_photos_benchmark(args.photos, args.maps, args.data[0] if args.data else None, out_dir, limit=args.limit,
+                                      progress=lambda what: print(f"  {what} ({time.perf_counter() - start:.0f} s)", flush=True))
+        print(photos_table(result))
+        print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.png'}, {out_dir / 'photos_detail.png'} "
+              f"in {result['seconds'] / 60:.1f} min")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
@@ -396,14 +495,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, help="video frames (default 120 for a .mp4)")
     p.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
     p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
-    p.add_argument("--size", type=int, help="render at this many pixels on the longer side (default: the bundle's size)")
+    p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     _add_engine_args(p)
     _add_view_args(p)
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("view", help="the interactive viewer: drag to turn the lighting, tune each light, record video")
-    p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo with --mask (default: the bundled sample)")
-    p.add_argument("--mask", help="the photo's person mask: infer its scene bundle (once, cached) and view it")
+    p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo (its bundle is inferred once and cached; "
+                   "default: the bundled sample)")
+    p.add_argument("--mask", help="the photo's person mask (default: found automatically)")
     p.add_argument("--device", default="cpu", help="device for inference with --mask (default cpu)")
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
@@ -412,9 +512,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float, help="initial rotation of the lighting, degrees")
     p.add_argument("--tilt", type=float, default=0.0, help="initial tilt of the lighting, degrees")
-    p.add_argument("--exposure", type=float, default=0.0, help="initial exposure, stops")
+    p.add_argument("--exposure", type=_exposure, default="auto",
+                   help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), default="soft", help="initial shadow mode")
-    p.add_argument("--size", type=int, help="render at this many pixels on the longer side (default: the bundle's size)")
+    p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
+    p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")
     p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
     p.add_argument("--record-frames", type=int, default=120, help="frames of a 360 degree recording (default 120)")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate of recordings (default 30)")
@@ -423,11 +525,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_engine_args(p)
     p.set_defaults(func=cmd_view)
 
-    p = sub.add_parser("infer", help="photo + person mask -> scene bundle (the networks' maps and the photo's lighting)")
-    p.add_argument("photo", help="photo (PNG/JPEG, sRGB)")
-    p.add_argument("--mask", required=True, help="person mask (PNG, person where > 50 %%), the photo's size")
+    p = sub.add_parser("infer", help="photo -> scene bundle (the networks' maps, the photo's own lighting, its detail)")
+    p.add_argument("photo", help="photo (PNG/JPEG, sRGB; EXIF rotation applied)")
+    p.add_argument("--mask", help="person mask (PNG, person where > 50 %%, grey levels kept as a soft edge), the photo's "
+                   "size; default: found automatically (MediaPipe)")
     p.add_argument("-o", "--output", required=True, help="scene bundle directory to write")
-    p.add_argument("--size", type=int, default=512, help="pixels of the bundle's square (default 512)")
+    p.add_argument("--size", type=int, default=512, help="pixels of the person's longer side in the maps, where the shadow "
+                   "work runs (default 512)")
+    p.add_argument("--max-size", type=int, default=2048, help="longer side of the bundle's frame: the photo's own size up "
+                   "to this (default 2048)")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
     p.add_argument("--networks", help="folder of network weights (default: the shipped ones in assets/networks)")
     p.set_defaults(func=cmd_infer)
@@ -477,22 +583,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks"),
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
                         "networks: the networks on a held-out dataset (--data); report: error against time of the "
-                        "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check)")
+                        "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check); "
+                        "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
+                        "mask IoU, times; --data adds held-out pairs)")
+    p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
+                   "(default ../shared/data/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
-    p.add_argument("--maps", help="lights, report: folder of .hdr/.exr maps (default ../shared/data/hdri)")
+    p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default ../shared/data/hdri)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
-    p.add_argument("--data", nargs="+", help="networks, report: held-out dataset directory (networks: or several)")
+    p.add_argument("--data", nargs="+", help="networks, report, photos: held-out dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
-    p.add_argument("--limit", type=int, help="networks: evaluate at most this many (input, target) pairs")
+    p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs")
     p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json); report: the folder "
                    "(default docs/, with --quick out/report-quick/)")
     p.set_defaults(func=cmd_bench)

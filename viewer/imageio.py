@@ -5,11 +5,37 @@ Every failure is an :class:`InputError` naming the file.
 
 from __future__ import annotations
 
+import contextlib
+import os
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """Yield a temporary path beside ``path``; when the block ends without an exception it
+    replaces ``path`` in one step (a reader never sees a half-written file, an interrupted write
+    leaves the old file as it was)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_text(path, text: str) -> Path:
+    """Write a text file (JSON, Markdown) atomically."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+    return path
 
 
 def read_exr(path) -> np.ndarray:
@@ -53,8 +79,8 @@ def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
     if arr.ndim == 3 and arr.shape[-1] == 1:
         arr = np.ascontiguousarray(arr[..., 0])
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    OpenEXR.File(header, {name: arr}).write(str(path))
+    with atomic_path(path) as tmp:
+        OpenEXR.File(header, {name: arr}).write(str(tmp))
     return path
 
 
@@ -80,17 +106,23 @@ def read_png(path) -> np.ndarray:
     return arr
 
 
-def write_png(path, arr: np.ndarray) -> Path:
-    """Write values in [0, 1] (clipped) as an 8-bit PNG."""
+def write_png(path, arr: np.ndarray, bits: int = 8, compress_level: int = 6) -> Path:
+    """Write values in [0, 1] (clipped) as an 8-bit PNG (grey, RGB or RGBA), or a 16-bit grey
+    PNG (``bits=16``, for mattes)."""
     from PIL import Image
 
     path = Path(path)
     arr = np.asarray(arr, dtype=np.float32)
-    u8 = (np.clip(np.nan_to_num(arr), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-    if u8.ndim == 3 and u8.shape[-1] == 1:
-        u8 = u8[..., 0]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(u8).save(path)
+    if arr.ndim == 3 and arr.shape[-1] == 1:
+        arr = arr[..., 0]
+    if bits == 16:
+        if arr.ndim != 2:
+            raise ValueError("16-bit PNGs are written for one channel only")
+        im = Image.fromarray((np.clip(np.nan_to_num(arr), 0.0, 1.0) * 65535.0 + 0.5).astype(np.uint16))
+    else:
+        im = Image.fromarray((np.clip(np.nan_to_num(arr), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8))
+    with atomic_path(path) as tmp:
+        im.save(tmp, format="PNG", compress_level=compress_level)
     return path
 
 

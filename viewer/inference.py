@@ -1,40 +1,50 @@
-"""Photo -> scene bundle: the one-time inference of the paper's Stage 1 and Stage 2 networks.
+"""Photo -> scene bundle: the one-time inference (the paper's Stage 1 and Stage 2 networks), the
+photo's own lighting and the detail layer.
 
-``infer(photo, mask)`` reads a photo and its person mask, frames the person the way the training
-images frame them (a square around the mask, the person ``FILL`` of its height, padded by
-repeating the photo's edge), runs the inverse-rendering network (normal, albedo, specular,
-roughness and the photo's own area lights) on the photo with its background, and the depth network
-on the person, then writes a scene bundle at ``size`` pixels: the maps, the mask, the framed photo
-(also as the background), the estimated input lighting ``lights.json``, and ``inference.json``
-(where everything came from, timings).
+``infer(photo, mask=None)``:
 
-The networks run at their training resolution (``NETWORK_RES``); their maps are extended a few
-pixels past the mask (so that upsampling does not mix in what the networks say about the
-background) and upsampled to the bundle's size; the mask comes from the full-resolution mask.
+1. reads the photo upright (EXIF orientation applied) and caps it to the output frame
+   (``max_size`` on the longer side, :mod:`viewer.photo_frame`); the person's soft matte comes
+   from the mask file, or from the automatic person mask (:mod:`viewer.segmentation`);
+2. frames the person the way the training images frame them (a square around the matte, the
+   person ``FILL`` of its height, padded by repeating the photo's edge: internal to the networks,
+   never shown) and runs the inverse-rendering network (normal, albedo, specular, roughness, the
+   photo's lights as the network guesses them) and the depth network at ``NETWORK_RES``;
+3. brings their maps to the work frame (the photo's field of view, the person about ``work_size``
+   pixels: the resolution of the shadow work), extended a few pixels past the mask first, so that
+   resampling never mixes in what the networks say about the background;
+4. fits the photo's own lights to the photo (:mod:`viewer.photo_lighting`) with the GL engine;
+5. makes the detail albedo at the frame's resolution (:mod:`viewer.detail`) from the photo and its
+   shading under those lights, upsampled by the same frame composite that draws every relit frame;
+6. writes the scene bundle (the maps at the work frame, the frame layer, the photo's lights
+   ``lights.json``, the network's guess ``lights_network.json``, ``inference.json``) into a new
+   folder that replaces ``out_dir`` only when complete.
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from . import detail as detail_mod
 from .errors import InputError
+from .photo_frame import MAX_SIZE, WORK_PERSON, check_person, frame_sizes, person_box, read_mask, read_photo, resize
 from .resources import network_dir
 
 NETWORK_RES = 256
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
-MIN_PERSON_PX = 32  # a person shorter than this in the photo is refused
-MAX_PIXELS = 200_000_000
 NETWORKS = ("inverse", "depth")
+PIPELINE = "frame-2"  # bundles cached by an older pipeline are inferred again
 
 
 @dataclass(frozen=True)
 class Framing:
-    """The square of the photo the networks see: top-left corner (may be negative) and side, pixels."""
+    """The square of the frame the networks see: top-left corner (may be negative) and side, pixels."""
 
     top: int
     left: int
@@ -44,64 +54,10 @@ class Framing:
         return {"top": self.top, "left": self.left, "side": self.side}
 
 
-def read_photo(photo_path, mask_path) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(photo (H, W, 3) uint8 sRGB, mask (H, W) bool, notes). Grayscale photos become RGB, alpha is
-    dropped, 16-bit images are reduced to 8 bits; a mask may be grayscale or RGB (first channel)."""
-    from PIL import Image
-
-    Image.MAX_IMAGE_PIXELS = MAX_PIXELS
-    notes = []
-    photo = _read_u8(photo_path, notes, "photo")
-    if photo.ndim == 2:
-        notes.append("the photo is grayscale: used as RGB")
-        photo = np.repeat(photo[..., None], 3, axis=-1)
-    elif photo.shape[-1] == 4:
-        notes.append("the photo's alpha channel is ignored (the mask says where the person is)")
-        photo = photo[..., :3]
-    mask_img = _read_u8(mask_path, notes, "mask")
-    mask = (mask_img if mask_img.ndim == 2 else mask_img[..., 0]) > 127
-    if mask.shape != photo.shape[:2]:
-        raise InputError(mask_path, f"is {mask.shape[1]}x{mask.shape[0]} pixels but the photo {Path(photo_path).name} is "
-                                    f"{photo.shape[1]}x{photo.shape[0]}: a mask must match its photo")
-    if not mask.any():
-        raise InputError(mask_path, "no person in the mask (no pixel is above 50 %)")
-    rows = np.flatnonzero(mask.any(axis=1))
-    if rows[-1] - rows[0] + 1 < MIN_PERSON_PX:
-        raise InputError(mask_path, f"the person is {rows[-1] - rows[0] + 1} pixels tall; at least {MIN_PERSON_PX} are needed")
-    if mask.all():
-        notes.append("the mask covers the whole photo: there is no background to read the lighting from")
-    return photo, mask, notes
-
-
-def _read_u8(path, notes: list, what: str) -> np.ndarray:
-    from PIL import Image
-
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, f"{what} not found")
-    try:
-        with Image.open(path) as im:
-            im.load()
-            if im.mode in ("I;16", "I;16B", "I;16L", "I"):
-                notes.append(f"the {what} is 16-bit: reduced to 8 bits")
-                arr = (np.asarray(im, dtype=np.float64) / 257.0).round().clip(0, 255).astype(np.uint8)
-            else:
-                if im.mode not in ("L", "RGB", "RGBA"):
-                    im = im.convert("RGBA" if "A" in im.getbands() else "RGB")
-                arr = np.asarray(im, dtype=np.uint8)
-    except InputError:
-        raise
-    except Exception as exc:
-        raise InputError(path, f"cannot read the {what} ({exc})") from None
-    return arr
-
-
 def framing(mask: np.ndarray) -> Framing:
-    rows = np.flatnonzero(mask.any(axis=1))
-    cols = np.flatnonzero(mask.any(axis=0))
-    height, width = rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1
+    top, left, height, width = person_box(mask)
     side = int(np.ceil(max(height / FILL, width / 0.95)))
-    cy, cx = (rows[0] + rows[-1] + 1) / 2.0, (cols[0] + cols[-1] + 1) / 2.0
+    cy, cx = top + height / 2.0, left + width / 2.0
     return Framing(int(round(cy - side / 2.0)), int(round(cx - side / 2.0)), side)
 
 
@@ -113,14 +69,6 @@ def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
     padded = np.pad(image, pad, mode=mode) if any(a or b for a, b in pad[:2]) else image
     t, l = f.top + pad[0][0], f.left + pad[1][0]
     return padded[t:t + f.side, l:l + f.side]
-
-
-def resize(image: np.ndarray, size: int) -> np.ndarray:
-    """Area-filtered (down) or bicubic (up) resize of a uint8 image to size x size."""
-    from PIL import Image
-
-    return np.asarray(Image.fromarray(image).resize((size, size), Image.Resampling.BOX if image.shape[0] > size
-                                                    else Image.Resampling.BICUBIC))
 
 
 def extend(values, mask, steps: int = 6):
@@ -139,33 +87,28 @@ def extend(values, mask, steps: int = 6):
     return v
 
 
-def cached_bundle(photo_path, mask_path, size: int = 512, device: str = "cpu", networks_dir=None,
-                  progress=None) -> tuple[Path, bool]:
-    """(bundle directory, whether it was cached): inference runs once per (photo, mask, size,
-    weights); the bundle is kept beside the light cache (``bundles/``)."""
-    import hashlib
-    import shutil
+def to_work_frame(stack, f: Framing, work_size: tuple[int, int], work_scale: float):
+    """The networks' maps (1, C, R, R) over the framing's square, resampled (bilinear) at the
+    centres of the work frame's pixels: (H, W, C) numpy. A work pixel (x, y) is the frame point
+    ((x + 0.5) / s, (y + 0.5) / s); outside the square the border is repeated (never in the mask)."""
+    import torch
+    from torch.nn import functional as F
 
-    from .lightfit.cache import cache_dir
+    w, h = work_size
+    xs = ((torch.arange(w, dtype=torch.float64) + 0.5) / work_scale - f.left) / f.side * 2.0 - 1.0
+    ys = ((torch.arange(h, dtype=torch.float64) + 0.5) / work_scale - f.top) / f.side * 2.0 - 1.0
+    gy, gx = torch.meshgrid(ys, xs, indexing="ij")
+    grid = torch.stack([gx, gy], dim=-1)[None].to(stack.dtype)
+    out = F.grid_sample(stack, grid, mode="bilinear", padding_mode="border", align_corners=False)
+    return out[0].permute(1, 2, 0).cpu().numpy()
 
-    h = hashlib.sha256()
-    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
-    for path in (photo_path, mask_path, *(networks_dir / f"{n}.safetensors" for n in NETWORKS)):
-        path = Path(path)
-        if not path.is_file():
-            raise InputError(path, "not found")
-        h.update(path.read_bytes())
-    h.update(str(size).encode())
-    out = cache_dir().with_name("bundles") / f"{Path(photo_path).stem}-{h.hexdigest()[:16]}"
-    if (out / "inference.json").is_file():
-        return out, True
-    tmp = out.with_name(out.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    infer(photo_path, mask_path, tmp, size=size, device=device, networks=load_networks(device, networks_dir),
-          progress=progress)
-    shutil.rmtree(out, ignore_errors=True)
-    tmp.rename(out)
-    return out, False
+
+def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Area resize of ``image`` weighted by ``weight`` (what lies outside the person does not
+    darken its edge)."""
+    num = resize((image * weight[..., None]).astype(np.float32), size)
+    den = resize(weight.astype(np.float32), size)
+    return num / np.maximum(den, 1e-6)[..., None]
 
 
 def load_networks(device="cpu", directory=None) -> dict:
@@ -175,72 +118,224 @@ def load_networks(device="cpu", directory=None) -> dict:
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
 
 
-def infer(photo_path, mask_path, out_dir, size: int = 512, device: str = "cpu", networks: dict | None = None,
-          progress=None) -> dict:
+def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+                  networks_dir=None, progress=None, ctx=None) -> tuple[Path, bool]:
+    """(bundle directory, whether it was cached): inference runs once per (photo, mask or the
+    automatic one, sizes, weights, pipeline); the bundle is kept beside the light cache
+    (``bundles/``)."""
+    import hashlib
+
+    from .lightfit.cache import cache_dir
+
+    h = hashlib.sha256()
+    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
+    for path in (photo_path, *([mask_path] if mask_path is not None else []),
+                 *(networks_dir / f"{n}.safetensors" for n in NETWORKS)):
+        path = Path(path)
+        if not path.is_file():
+            raise InputError(path, "not found")
+        h.update(path.read_bytes())
+    h.update(f"{size} {max_size} {mask_path is None} {PIPELINE} {detail_mod.DEFAULT}".encode())
+    out = cache_dir().with_name("bundles") / f"{Path(photo_path).stem}-{h.hexdigest()[:16]}"
+    if (out / "inference.json").is_file():
+        return out, True
+    infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
+          networks=load_networks(device, networks_dir), progress=progress, ctx=ctx)
+    return out, False
+
+
+class _Stages:
+    """Seconds per stage, reported to ``progress(stage)`` as each one ends."""
+
+    def __init__(self, progress):
+        self.times: dict[str, float] = {}
+        self.progress = progress
+        self._t = time.perf_counter()
+
+    def __call__(self, name: str):
+        now = time.perf_counter()
+        self.times[name] = round(now - self._t, 3)
+        self._t = now
+        if self.progress is not None:
+            self.progress(name)
+
+
+def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+          networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT) -> dict:
     """Write the scene bundle of ``photo_path`` into ``out_dir``; returns the record also written
-    as ``inference.json``."""
+    as ``inference.json``. ``mask_path`` None: the automatic person mask. ``size``: pixels of the
+    person's longer side in the maps; ``max_size``: the frame's longer side."""
+    result = infer_scene(photo_path, mask_path, size=size, max_size=max_size, device=device, networks=networks,
+                         progress=progress, ctx=ctx, detail=detail)
+    write_bundle(result, out_dir)
+    if progress is not None:
+        progress("write")
+    return result["record"]
+
+
+def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+                networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
+                keep_intermediate: bool = False) -> dict:
+    """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
+    (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
+    network's maps and the photo's shading at the frame (for the benchmarks)."""
     import torch
 
     from .camera import Camera
+    from .gl import Engine, EngineOptions, create_headless_context
     from .imageio import srgb_to_linear
     from .lights import AreaLights
     from .nets import depth as depth_net
     from .nets import inverse as inverse_net
-    from .scene import Scene, save_scene
+    from .photo_frame import scaled_size
+    from .photo_lighting import fit_mask, fit_photo_lights
+    from .scene import FrameLayer, Scene
 
-    if not 64 <= size <= 4096:
-        raise InputError(None, f"--size must be within [64, 4096] pixels, got {size}")
-    times = {}
-    t0 = time.perf_counter()
+    stage = _Stages(progress)
+    notes: list[str] = []
+    photo = read_photo(photo_path, notes)
+    h, w = photo.shape[:2]
+    frame = (w, h) if max(w, h) <= max_size else scaled_size((w, h), max_size)
+    frame_photo = resize(photo, frame)
+    stage("read")
+    if mask_path is not None:
+        alpha = np.clip(resize(read_mask(mask_path, (h, w), notes), frame), 0.0, 1.0)
+        mask_source = str(mask_path)
+    else:
+        from .segmentation import person_matte
 
-    def step(name):
-        nonlocal t0
-        now = time.perf_counter()
-        times[name] = round(now - t0, 3)
-        t0 = now
-        if progress is not None:
-            progress(name)
+        alpha = person_matte(frame_photo, photo_path, notes)
+        mask_source = "automatic (MediaPipe pose segmentation, guided filter)"
+    person = alpha > 0.5
+    check_person(person, mask_path if mask_path is not None else photo_path)
+    if person.all():
+        notes.append("the mask covers the whole photo: there is no background to read the lighting from")
+    _, _, ph, pw = person_box(person)
+    sizes = frame_sizes((w, h), (pw * w / frame[0], ph * h / frame[1]), max_size, size)
+    stage("mask")
 
-    photo, mask, notes = read_photo(photo_path, mask_path)
-    f = framing(mask)
-    photo_sq, mask_sq = crop(photo, f, "edge"), crop(mask.astype(np.uint8) * 255, f, "constant")
-    small = srgb_to_linear(resize(photo_sq, NETWORK_RES).astype(np.float32) / 255.0)
-    small_mask = resize(mask_sq, NETWORK_RES) > 127
-    step("read")
+    f = framing(person)
+    square = crop(frame_photo, f, "edge")
+    small = srgb_to_linear(resize(square, (NETWORK_RES, NETWORK_RES)).astype(np.float32) / 255.0)
+    small_mask = resize(crop(alpha, f, "constant"), (NETWORK_RES, NETWORK_RES)) > 0.5
+    if not small_mask.any():
+        raise InputError(mask_path or photo_path, "the person is too thin to be seen at the networks' resolution")
     nets = networks if networks is not None else load_networks(device)
-    step("load networks")
+    stage("load networks")
     dev = torch.device(device)
+    s = sizes.work_scale
+    work_mask = resize(alpha, sizes.work) > 0.5
+    if not work_mask.any():
+        raise InputError(mask_path or photo_path, "the person vanishes at the work resolution; give a larger --size")
+    side_work = f.side * s
+    # the framing's square sees what the training camera sees: 50 mm on 36 mm across the square
+    cam = Camera(sizes.work[0], sizes.work[1], sensor_mm=36.0 * max(sizes.work) / side_work)
     with torch.no_grad():
         linear = torch.from_numpy(small).permute(2, 0, 1)[None].to(dev)
         m = torch.from_numpy(small_mask.astype(np.float32))[None, None].to(dev)
         maps, (direction, sigma, intensity), scale = inverse_net.predict(nets["inverse"], linear, m)
-        step("inverse rendering")
-        cam = Camera(size, size)
+        stage("inverse rendering")
         depth = depth_net.predict(nets["depth"], linear, m, cam.distance)
-        step("depth")
+        stage("depth")
         stack = torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
-        stack = extend(stack, m)
-        big = torch.nn.functional.interpolate(stack, size=(size, size), mode="bilinear", align_corners=False)[0]
-        big = big.permute(1, 2, 0).cpu().numpy()
-    big_mask = resize(mask_sq, size) > 127
-    normal = big[..., 5:8] / np.maximum(np.linalg.norm(big[..., 5:8], axis=-1, keepdims=True), 1e-6)
-    keep = big_mask[..., None]
-    big_photo = srgb_to_linear(resize(photo_sq, size).astype(np.float32) / 255.0).astype(np.float32)
-    scene = Scene(albedo=np.where(keep, np.clip(big[..., :3], 0, 1), 0).astype(np.float32),
-                  specular=np.where(big_mask, np.clip(big[..., 3], 0, 1), 0).astype(np.float32),
-                  roughness=np.where(big_mask, np.clip(big[..., 4], 0, 1), 0).astype(np.float32),
-                  normal=np.where(keep, normal, 0).astype(np.float32),
-                  depth=np.where(big_mask, np.maximum(big[..., 8], 0.1), cam.distance).astype(np.float32),
-                  mask=big_mask, camera=cam, photo=big_photo, background=big_photo)
-    out_dir = Path(out_dir)
-    save_scene(scene.validate(), out_dir)
-    lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
-    lights.save(out_dir / "lights.json", fit={"source": Path(photo_path).name, "method": "inverse-rendering network"})
-    step("write")
-    record = {"photo": str(photo_path), "mask": str(mask_path), "size": size, "network_resolution": NETWORK_RES,
-              "framing": f.to_json(), "photo_size": [int(photo.shape[1]), int(photo.shape[0])], "notes": notes,
-              "exposure_scale": float(scale[0, 0, 0]), "device": str(dev), "seconds": times,
-              "seconds_total": round(sum(times.values()), 3)}
-    (out_dir / "inference.json").write_text(json.dumps(record, indent=1) + "\n")
-    return record
+        work = to_work_frame(extend(stack, m).cpu().double(), f, sizes.work, s).astype(np.float32)
+    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
+    inside = work_mask[..., None]
+    network_albedo = np.where(inside, np.clip(work[..., :3], 0, 1), 0).astype(np.float32)
+    frame_linear = srgb_to_linear(frame_photo.astype(np.float32) / 255.0)
+    frame_network_albedo = np.clip(resize(network_albedo, sizes.frame), 0, 1)
+    scene = Scene(albedo=network_albedo,
+                  specular=np.where(work_mask, np.clip(work[..., 3], 0, 1), 0).astype(np.float32),
+                  roughness=np.where(work_mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
+                  normal=np.where(inside, normal, 0).astype(np.float32),
+                  depth=np.where(work_mask, np.maximum(work[..., 8], 0.1), cam.distance).astype(np.float32),
+                  mask=work_mask, camera=cam,
+                  frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear))
+    scene.validate()
+    stage("maps to the work frame")
 
+    own_ctx = ctx is None
+    ctx = create_headless_context() if own_ctx else ctx
+    engine = Engine(ctx, scene, EngineOptions())
+    try:
+        # the photo at the maps' level of detail: one network pixel of low-pass
+        net_px_work = side_work / NETWORK_RES
+        target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, net_px_work)
+        valid = fit_mask(scene, resize(frame_linear, sizes.work))
+        if not valid.any():
+            valid = work_mask
+        lights, fit = fit_photo_lights(engine, target, valid)
+        stage("fit the photo's lights")
+        engine.set_lights(lights)
+        engine.set_view("final")
+        explained = engine.render().read_work_hdr()
+        fit["psnr_db"] = fit_psnr(explained, target, valid)
+        engine.set_view("diffuse_shading")
+        diffuse = engine.render().read_hdr()
+        engine.set_view("specular_shading")
+        specular = engine.render().read_hdr()
+    finally:
+        engine.release()
+        if own_ctx:
+            ctx.release()
+    stage("render the photo's shading")
+    person_colours = detail_mod.foreground_colours(frame_linear, alpha, sigma=f.side / 64)
+    frame_albedo, detail_stats = detail_mod.detail_albedo(detail, person_colours, alpha, frame_network_albedo,
+                                                          (diffuse, specular), lowpass_sigma=f.side / NETWORK_RES)
+    scene.frame.albedo = frame_albedo
+    scene.albedo = np.where(inside, np.clip(mask_normalized_resize(frame_albedo, alpha, sizes.work), 0, 1), 0).astype(np.float32)
+    scene.validate()
+    stage("detail")
+    network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
+    record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
+              "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
+              "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
+              "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
+    result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}
+    if keep_intermediate:
+        result.update(network_albedo_frame=frame_network_albedo, shading=(diffuse, specular), target=target,
+                      valid=valid, explained=explained)
+    return result
+
+
+def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float:
+    """PSNR (dB) of a render against the photo's low-pass over ``valid``, in display sRGB."""
+    from .imageio import linear_to_srgb
+
+    a, b = linear_to_srgb(render[valid]), linear_to_srgb(target[valid])
+    mse = float(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2))
+    return float(10 * np.log10(1.0 / max(mse, 1e-12)))
+
+
+def write_bundle(result: dict, out_dir) -> Path:
+    """Write :func:`infer_scene`'s result as a scene bundle; a previous bundle in ``out_dir`` is
+    replaced only once the new one is complete."""
+    from .scene import save_scene
+
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder: give a folder for the scene bundle")
+    tmp = out_dir.with_name(f".{out_dir.name}.partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        save_scene(result["scene"], tmp)
+        result["lights"].save(tmp / "lights.json", fit={"source": Path(result["record"]["photo"]).name,
+                                                          "method": "fitted to the photo (viewer.photo_lighting)"})
+        result["network_lights"].save(tmp / "lights_network.json",
+                                      fit={"source": Path(result["record"]["photo"]).name, "method": "inverse-rendering network"})
+        record = result["record"]
+        record["seconds"] = dict(result["stages"].times)
+        record["seconds_total"] = round(sum(record["seconds"].values()), 3)
+        from .imageio import write_text
+
+        write_text(tmp / "inference.json", json.dumps(record, indent=1) + "\n")
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise InputError(out_dir, f"cannot write the scene bundle ({exc})") from None
+    old = out_dir.with_name(f".{out_dir.name}.old")
+    if out_dir.exists():
+        shutil.rmtree(old, ignore_errors=True)
+        out_dir.rename(old)
+    tmp.rename(out_dir)
+    shutil.rmtree(old, ignore_errors=True)
+    return out_dir

@@ -13,14 +13,50 @@ from .lights import AreaLights, rotation_matrix
 from .scene import Scene
 
 
+AUTO = "auto"
+ACES_WHITE = 1e6  # the tone curve's input range (shaders/tonemap.glsl)
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     yaw: float = 0.0  # degrees, rotation of the lighting about the vertical axis
     tilt: float = 0.0
-    exposure: float = 0.0  # stops
+    exposure: float | str = 0.0  # stops, or "auto": the photo's own brightness (see photo_exposure)
     tonemap: str = "aces"
-    background: str = "environment"  # environment | photo | color
+    background: str = "environment"  # environment | photo | color | transparent
     visibility: str = "soft"
+
+
+def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
+    """The display tone curves of shaders/tonemap.glsl, in numpy."""
+    x = np.clip(np.asarray(x, np.float64), 0.0, ACES_WHITE)
+    if op == "aces":
+        return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
+    if op == "reinhard":
+        return x / (1.0 + x)
+    return np.clip(x, 0.0, 1.0)
+
+
+def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
+    """Exposure (stops) at which the relit person's median luminance, tone-mapped, matches the
+    photo's own median luminance over the person: the photo's exposure carried over, so a
+    brighter map does not wash out black clothes nor a dim one sink the person (0 for a scene
+    without a photo). Uses the engine's current work-resolution render."""
+    from .detail import luminance
+
+    if scene.photo is None or scene.frame is None:
+        return 0.0
+    relit = luminance(engine.read_work_hdr()[scene.mask])
+    shown = luminance(scene.photo[scene.mask])
+    r, p = float(np.median(relit)), float(np.median(shown))
+    if not (r > 0 and p > 0):
+        return 0.0
+    # tone_curve(2^e r) = p: bisection on e (the curves increase monotonically)
+    lo, hi = -30.0, 30.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap) < min(p, 0.999) else (lo, mid)
+    return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
 
 
 def effective_background(settings: RenderSettings, scene: Scene, has_environment: bool) -> str:
@@ -39,9 +75,18 @@ def apply_settings(engine, scene: Scene, lights: AreaLights, settings: RenderSet
     rot = rotation_matrix(settings.yaw, settings.tilt)
     engine.set_lights(lights.rotated(settings.yaw, settings.tilt))
     engine.set_visibility(settings.visibility)
-    engine.set_display(exposure=settings.exposure, tonemap=settings.tonemap,
+    engine.set_display(exposure=settings.exposure if settings.exposure != AUTO else None, tonemap=settings.tonemap,
                        background=effective_background(settings, scene, has_environment),
                        color=(0.18, 0.18, 0.18), environment_rotation=rot.T)
+
+
+def resolve_exposure(engine, scene: Scene, settings: RenderSettings) -> RenderSettings:
+    """``settings`` with an "auto" exposure replaced by :func:`photo_exposure` of a render of
+    them (renders once)."""
+    if settings.exposure != AUTO:
+        return settings
+    engine.render()
+    return replace(settings, exposure=photo_exposure(engine, scene, settings.tonemap))
 
 
 def render_frame(engine, settings: RenderSettings, refiner=None):
@@ -64,9 +109,14 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     if environment is not None:
         engine.set_environment(environment)
     apply_settings(engine, scene, lights, settings, environment is not None)
+    settings = resolve_exposure(engine, scene, settings)
+    apply_settings(engine, scene, lights, settings, environment is not None)
     render_frame(engine, settings)
-    display = engine.read_display().astype(np.float32) / 255.0
-    written = [write_png(out_dir / f"{name}.png", display), write_exr(out_dir / f"{name}.exr", engine.read_hdr())]
+    transparent = effective_background(settings, scene, environment is not None) == "transparent"
+    display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
+    hdr = engine.read_output_hdr()
+    written = [write_png(out_dir / f"{name}.png", display),
+               write_exr(out_dir / f"{name}.exr", hdr if transparent else hdr[..., :3])]
     if passes:
         if settings.visibility not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
             engine.set_visibility("soft")
@@ -95,7 +145,10 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: R
     if environment is not None:
         engine.set_environment(environment)
     refiner = None
-    with VideoWriter(path, scene.width, scene.height, fps=fps) as video:
+    apply_settings(engine, scene, lights, settings, environment is not None)
+    settings = resolve_exposure(engine, scene, settings)  # one exposure for the whole turn
+    width, height = engine.output_size
+    with VideoWriter(path, width, height, fps=fps) as video:
         for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
             apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None)
             refiner = render_frame(engine, settings, refiner)
@@ -140,6 +193,10 @@ def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
         linear_to_srgb(grey(shade / scale)),
         final,
     ]
+    if final.shape[:2] != m.shape:  # the frame's image, shown at the maps' size
+        from .photo_frame import resize
+
+        tiles[-1] = resize(final.astype(np.float32), (m.shape[1], m.shape[0]))
     names = ["albedo", "normal", "depth", "specular", "soft shadows (CSM)", "hard shadows (shadow map)",
              "shading, no shadows", "final"]
     tiles = [_label(t, name) for t, name in zip(tiles, names)]

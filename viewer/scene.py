@@ -13,9 +13,15 @@ depth.exr          distance along the view axis in metres (> 0), float32
 mask.png           8-bit, person where > 127
 photo.png          optional: the input photo, sRGB
 background.png     optional: the photo's background (person removed), sRGB
+frame_photo.png    optional (version 2): the photo at output resolution, sRGB
+frame_alpha.png    optional (version 2): the person's soft matte at output resolution, 16-bit
+frame_albedo.exr   optional (version 2): the detail albedo at output resolution, linear RGB
 =================  ===========================================================================
 
-Only pixels inside the mask carry data; loading zeroes everything outside it.
+Only pixels inside the mask carry data; loading zeroes everything outside it. The three
+``frame_*`` files form the :class:`FrameLayer`: the photo's own frame (its aspect, the person where
+the photo had them) at the output resolution, over the same field of view as the maps (see
+:mod:`viewer.photo_frame`). A bundle made from a photo has one; a synthetic scene need not.
 """
 
 from __future__ import annotations
@@ -28,10 +34,10 @@ import numpy as np
 
 from .camera import Camera
 from .errors import InputError
-from .imageio import read_exr, read_png, srgb_to_linear, write_exr, write_png, linear_to_srgb
+from .imageio import linear_to_srgb, read_exr, read_png, srgb_to_linear, write_exr, write_png, write_text
 
 FORMAT = "relight-scene"
-VERSION = 1
+VERSION = 2  # 2: the frame layer (version 1 bundles load as before)
 MAP_FILES = {
     "albedo": "albedo.exr",
     "specular": "specular.exr",
@@ -41,6 +47,60 @@ MAP_FILES = {
     "mask": "mask.png",
 }
 OPTIONAL_FILES = {"photo": "photo.png", "background": "background.png"}
+FRAME_FILES = {"photo": "frame_photo.png", "alpha": "frame_alpha.png", "albedo": "frame_albedo.exr"}
+ASPECT_TOLERANCE_PX = 1.5  # the frame and the maps may differ by rounding only
+
+
+@dataclass
+class FrameLayer:
+    """The photo's frame at output resolution (what the final composite draws): the detail
+    albedo, the person's soft matte and the photo, float32, row 0 at the top. It covers the field
+    of view of the scene's maps, at ``width / scene.width`` times their resolution."""
+
+    albedo: np.ndarray  # (Hf, Wf, 3) linear, [0, 1]
+    alpha: np.ndarray  # (Hf, Wf) [0, 1]
+    photo: np.ndarray  # (Hf, Wf, 3) linear
+
+    @property
+    def height(self) -> int:
+        return int(self.alpha.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.alpha.shape[1])
+
+    def resized(self, size: tuple[int, int]) -> "FrameLayer":
+        """The layer at ``size`` = (width, height) (area average down, bilinear up)."""
+        from .photo_frame import resize
+
+        if size == (self.width, self.height):
+            return self
+        return FrameLayer(albedo=np.clip(resize(self.albedo, size), 0, 1), alpha=np.clip(resize(self.alpha, size), 0, 1),
+                          photo=np.maximum(resize(self.photo, size), 0))
+
+    def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> "FrameLayer":
+        def file(name):
+            return base / FRAME_FILES[name] if base is not None else FRAME_FILES[name]
+
+        h, w = self.alpha.shape[:2] if self.alpha.ndim >= 2 else (0, 0)
+        if self.alpha.ndim != 2 or h < 1 or w < 1:
+            raise InputError(file("alpha"), f"the matte must be one channel with pixels, got shape {self.alpha.shape}")
+        for name, shape in (("albedo", (h, w, 3)), ("photo", (h, w, 3)), ("alpha", (h, w))):
+            arr = np.asarray(getattr(self, name), np.float32)
+            if arr.ndim == 3 and arr.shape[-1] == 4:
+                arr = arr[..., :3]
+            if arr.shape != shape:
+                raise InputError(file(name), f"shape {arr.shape} does not match the frame's {w}x{h}")
+            if not np.isfinite(arr).all():
+                raise InputError(file(name), "contains NaN or Inf")
+            lo, hi = float(arr.min()), float(arr.max())
+            if name != "photo" and (lo < -1e-3 or hi > 1 + 1e-3):
+                raise InputError(file(name), f"values must lie in [0, 1], found [{lo:.4g}, {hi:.4g}]")
+            setattr(self, name, np.ascontiguousarray(np.clip(arr, 0.0, None if name == "photo" else 1.0)))
+        mw, mh = maps_size
+        if abs(w * mh / mw - h) > ASPECT_TOLERANCE_PX * max(1.0, h / mh):
+            raise InputError(file("alpha"), f"the frame {w}x{h} does not have the aspect of the maps ({mw}x{mh})")
+        return self
 PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp")
 NORMAL_TOLERANCE = 1e-2  # | |n| - 1 | allowed inside the mask before loading refuses the map
 MAX_DEPTH = 1e4  # metres; a larger depth is a corrupt pixel, not a photographed person
@@ -59,6 +119,7 @@ class Scene:
     camera: Camera
     photo: np.ndarray | None = None  # (H, W, 3) linear RGB
     background: np.ndarray | None = None  # (H, W, 3) linear RGB
+    frame: FrameLayer | None = None  # the photo's frame at output resolution
     source: Path | None = field(default=None, compare=False)
 
     @property
@@ -68,6 +129,11 @@ class Scene:
     @property
     def width(self) -> int:
         return int(self.mask.shape[1])
+
+    @property
+    def output_size(self) -> tuple[int, int]:
+        """(width, height) of the images rendered from this scene: the frame's, else the maps'."""
+        return (self.frame.width, self.frame.height) if self.frame is not None else (self.width, self.height)
 
     @property
     def has_specular(self) -> bool:
@@ -143,6 +209,8 @@ class Scene:
             setattr(self, name, np.ascontiguousarray(arr))
         if (self.camera.width, self.camera.height) != (w, h):
             raise InputError(file("scene.json"), f"camera resolution {self.camera.width}x{self.camera.height} does not match the maps' {w}x{h}")
+        if self.frame is not None:
+            self.frame.validate((w, h), base)
         return self
 
 
@@ -175,7 +243,7 @@ def load_scene(path) -> Scene:
     maps = meta.get("maps", {})
     if not isinstance(maps, dict) or not all(isinstance(v, str) for v in maps.values()):
         raise InputError(meta_path, "maps must be an object of map name -> file name")
-    files = {**MAP_FILES, **OPTIONAL_FILES, **maps}
+    files = {**MAP_FILES, **OPTIONAL_FILES, **_plain_names(maps, meta_path)}
     try:
         cam_meta = dict(meta["camera"])
         cam_meta.setdefault("width", meta["width"])
@@ -199,8 +267,45 @@ def load_scene(path) -> Scene:
             if img.ndim == 2:
                 img = np.repeat(img[..., None], 3, axis=-1)
             extra[name] = srgb_to_linear(img[..., :3])
-    scene = Scene(mask=mask > 0.5, camera=camera, source=path, **maps, **extra)
+    frame = _load_frame(path, meta, meta_path)
+    if frame is not None:  # the maps' photo and background are the frame's, at their resolution
+        from .photo_frame import resize
+
+        small = np.maximum(resize(frame.photo, (camera.width, camera.height)), 0)
+        extra.setdefault("photo", small)
+        extra.setdefault("background", small)
+    scene = Scene(mask=mask > 0.5, camera=camera, source=path, frame=frame, **maps, **extra)
     return scene.validate(path)
+
+
+def _plain_names(maps: dict, meta_path: Path) -> dict:
+    """Map entries must be plain file names inside the bundle (no folders, no way out of it)."""
+    for name, value in maps.items():
+        if not isinstance(value, str) or not value or Path(value).name != value or value in (".", ".."):
+            raise InputError(meta_path, f"map {name!r}: {value!r} is not a plain file name inside the bundle")
+        if (meta_path.parent / value).is_symlink():
+            raise InputError(meta_path, f"map {name!r}: {value} is a symbolic link; bundles hold their own files")
+    return maps
+
+
+def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
+    entry = meta.get("frame")
+    if entry is None:
+        return None
+    if not isinstance(entry, dict) or not isinstance(entry.get("maps", {}), dict):
+        raise InputError(meta_path, "frame must be an object with width, height and maps")
+    files = {**FRAME_FILES, **_plain_names(entry.get("maps", {}), meta_path)}
+    photo = read_png(path / files["photo"])
+    if photo.ndim == 2:
+        photo = np.repeat(photo[..., None], 3, axis=-1)
+    alpha = read_png(path / files["alpha"])
+    albedo = read_exr(path / files["albedo"])
+    frame = FrameLayer(albedo=albedo[..., :3] if albedo.ndim == 3 else albedo, alpha=alpha if alpha.ndim == 2 else alpha[..., 0],
+                       photo=srgb_to_linear(photo[..., :3]))
+    size = (entry.get("width"), entry.get("height"))
+    if size != (frame.width, frame.height):
+        raise InputError(meta_path, f"frame is {size[0]}x{size[1]} but {files['alpha']} is {frame.width}x{frame.height}")
+    return frame
 
 
 def save_scene(scene: Scene, path) -> Path:
@@ -214,9 +319,14 @@ def save_scene(scene: Scene, path) -> Path:
     write_exr(path / MAP_FILES["depth"], scene.depth)
     write_png(path / MAP_FILES["mask"], scene.mask.astype(np.float32))
     maps = dict(MAP_FILES)
+    frame = scene.frame
+    if frame is not None:
+        write_png(path / FRAME_FILES["photo"], linear_to_srgb(frame.photo), compress_level=1)
+        write_png(path / FRAME_FILES["alpha"], frame.alpha, bits=16, compress_level=1)
+        write_exr(path / FRAME_FILES["albedo"], frame.albedo, half=True)
     for name in OPTIONAL_FILES:
         img = getattr(scene, name)
-        if img is not None:
+        if img is not None and frame is None:  # with a frame, they are the frame photo's
             write_png(path / OPTIONAL_FILES[name], linear_to_srgb(img))
             maps[name] = OPTIONAL_FILES[name]
     meta = {
@@ -230,5 +340,8 @@ def save_scene(scene: Scene, path) -> Path:
         "normal_space": "camera (x right, y up, z towards the camera)",
         "maps": maps,
     }
-    (path / "scene.json").write_text(json.dumps(meta, indent=2) + "\n")
+    if frame is not None:
+        meta["frame"] = {"width": frame.width, "height": frame.height, "maps": dict(FRAME_FILES),
+                         "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage"}}
+    write_text(path / "scene.json", json.dumps(meta, indent=2) + "\n")
     return path

@@ -9,9 +9,11 @@ from .camera import Camera
 from .scene import Scene
 
 
-def resample_scene(scene: Scene, size: int) -> Scene:
-    """Nearest-neighbour resample to ``size`` pixels on the longer side (maps stay valid: unit
-    normals, binary mask); the camera keeps its lens, so the figure covers the same field of view."""
+def resample_scene(scene: Scene, size: int, keep_frame: bool = False) -> Scene:
+    """Nearest-neighbour resample of the maps to ``size`` pixels on the longer side (maps stay
+    valid: unit normals, binary mask); the camera keeps its lens, so the figure covers the same
+    field of view. The frame layer (output resolution) is kept with ``keep_frame``, else dropped:
+    the scene then renders at the maps' size (the viewer's drag preview)."""
     h, w = scene.height, scene.width
     scale = size / max(h, w)
     nh, nw = max(int(round(h * scale)), 1), max(int(round(w * scale)), 1)
@@ -27,6 +29,7 @@ def resample_scene(scene: Scene, size: int) -> Scene:
         normal=pick(scene.normal), depth=pick(scene.depth), mask=pick(scene.mask),
         camera=Camera(nw, nh, cam.focal_mm, cam.sensor_mm, cam.distance),
         photo=pick(scene.photo), background=pick(scene.background),
+        frame=scene.frame if keep_frame else None,
     ).validate()
 
 

@@ -48,7 +48,8 @@ class VideoWriter:
             rate = Fraction(self.fps).limit_denominator(1001)
             self._time_base = 1 / (rate * TICKS_PER_FRAME)
             stream = self._container.add_stream("libx264", rate=rate)
-            stream.width, stream.height = (v + v % 2 for v in self.size)  # 4:2:0 needs even sides
+            # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
+            stream.width, stream.height = (max(v - v % 2, 2) for v in self.size)
             stream.pix_fmt = "yuv420p"
             stream.codec_context.time_base = self._time_base
             stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
@@ -74,9 +75,9 @@ class VideoWriter:
         pts = self.frames * TICKS_PER_FRAME if seconds is None else int(round(seconds / self._time_base))
         pts = max(pts, self._last_pts + 1)  # strictly increasing, even for two frames at the same time
         self._last_pts = pts
-        pad_w, pad_h = self._stream.width - w, self._stream.height - h
-        if pad_w or pad_h:
-            rgb = np.pad(rgb, ((0, pad_h), (0, pad_w), (0, 0)), mode="edge")
+        sw, sh = self._stream.width, self._stream.height
+        if (sw, sh) != (w, h):
+            rgb = rgb[:sh, :sw] if sw <= w and sh <= h else np.pad(rgb, ((0, max(sh - h, 0)), (0, max(sw - w, 0)), (0, 0)), mode="edge")[:sh, :sw]
         self._queue.put((np.ascontiguousarray(rgb), pts))
         self.frames += 1
 

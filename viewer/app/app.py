@@ -16,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..imageio import write_exr, write_png
+from ..imageio import write_exr, write_png, write_text
 from ..lights import AreaLights
+from ..render import AUTO, photo_exposure
 from ..scene import Scene
 from . import interaction as ix
 from .jobs import LightJob
@@ -41,6 +42,18 @@ L                   record what you do, live (L again stops)
 Q / Esc             quit"""
 
 
+MAX_AREA = (1000, 860)  # largest image area the window opens with (pixels)
+MIN_AREA = 480
+
+
+def image_area_size(size: tuple[int, int]) -> tuple[int, int]:
+    """The image area for an output of ``size``: its aspect, at most MAX_AREA, at least MIN_AREA
+    on the shorter side where that fits."""
+    w, h = size
+    scale = min(MAX_AREA[0] / w, MAX_AREA[1] / h, max(MIN_AREA / min(w, h), 1.0))
+    return max(int(round(w * scale)), MIN_AREA // 2), max(int(round(h * scale)), MIN_AREA // 2)
+
+
 @dataclass
 class ViewerConfig:
     scene: Scene
@@ -56,6 +69,7 @@ class ViewerConfig:
     state_file: Path | None = None  # state, widget positions and frame times as JSON (scripts, tests, benchmarks)
     bundled_maps: tuple = ()
     preset: str = "balanced"  # the quality preset the options came from (viewer/presets.py)
+    window: object = None  # a window already open (a photo's inference ran in its context), else one is made
 
 
 class ViewerApp:
@@ -65,15 +79,24 @@ class ViewerApp:
 
         self.config = config
         sc = config.scene
-        area_w = min(max(sc.width, 480), 1000)
-        area_h = min(max(sc.height, 480), 1000)
-        self.window = Window(area_w + PANEL_WIDTH, max(area_h, 860), "relight")
-        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, config.look)
+        area_w, area_h = image_area_size(sc.output_size)
+        if config.window is not None:
+            self.window = config.window
+            self.window.resize(area_w + PANEL_WIDTH, max(area_h, 860))
+        else:
+            self.window = Window(area_w + PANEL_WIDTH, max(area_h, 860), "relight")
+        # "auto" exposure: the photo's own brightness, set from the first render (and again for each new map)
+        self.auto_exposure = config.look.exposure == AUTO
+        self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
+        look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
+        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look)
         self.session.wake = self.window.wake
         self.env_path = config.env_path
         self.n_lights = len(config.lights)
         self.preset = config.preset
-        self.view = ix.ViewState(yaw=config.look.yaw, tilt=config.look.tilt, exposure=config.look.exposure)
+        self.view = ix.ViewState(yaw=look.yaw, tilt=look.tilt, exposure=look.exposure)
+        if self.auto_exposure:
+            self._apply_auto_exposure()
         self.dragging = False
         self._drag_applied = (0.0, 0.0)  # drag motion already turned into rotation (pixels)
         self.panning = False
@@ -93,6 +116,16 @@ class ViewerApp:
         self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd())
         self.show_browser = False
 
+    def _apply_auto_exposure(self):
+        """Exposure from the photo's own brightness under the current lights (a no-op, 0 stops,
+        for a scene without a photo)."""
+        s = self.session
+        s.update(yaw=self.view.yaw, tilt=self.view.tilt, exposure=self.view.exposure)
+        eng = s.render(preview=False)
+        e = self._auto_value = photo_exposure(eng, s.scene, s.look.tonemap)
+        self.view = replace(self.view, exposure=e)
+        s.update(exposure=e)
+
     # ------------------------------------------------------------------ geometry
     def image_area(self) -> tuple[float, float, float, float]:
         w, h = self.window.size
@@ -101,7 +134,7 @@ class ViewerApp:
     def image_rect(self) -> tuple[float, float, float, float]:
         _, _, aw, ah = self.image_area()
         sc = self.session.scene
-        return ix.image_rect((sc.width, sc.height), (aw, ah), self.view.zoom, self.view.pan)
+        return ix.image_rect(sc.output_size, (aw, ah), self.view.zoom, self.view.pan)
 
     # ------------------------------------------------------------------ input
     def _input(self):
@@ -175,10 +208,10 @@ class ViewerApp:
         eng = self.session.render(preview=False)
         stem = self._capture_stem()
         png = write_png(stem.with_suffix(".png"), eng.read_display().astype(np.float32) / 255.0)
-        write_exr(stem.with_suffix(".exr"), eng.read_hdr())
+        write_exr(stem.with_suffix(".exr"), eng.read_output_hdr()[..., :3])
         state = {"look": self._look_json(), "map": str(self.env_path) if self.env_path else None, "preset": self.preset}
         state["lights"] = self.session.rotated_lights().to_json()
-        stem.with_suffix(".json").write_text(json.dumps(state, indent=2) + "\n")
+        write_text(stem.with_suffix(".json"), json.dumps(state, indent=2) + "\n")
         self.captures.append(str(png))
         self.message = f"saved {png.name} (+ .exr, .json)"
         print(f"saved {png} {stem.with_suffix('.exr')} {stem.with_suffix('.json')}", flush=True)
@@ -187,14 +220,13 @@ class ViewerApp:
         if self.recording is not None:
             self._finish_recording(stopped=True)
             return
-        sc = self.session.scene
+        size = self.session.scene.output_size
         path = self._capture_stem().with_suffix(".mp4")
         try:
             if kind == "turntable":
-                self.recording = TurntableRecording(path, (sc.width, sc.height), self.view.yaw, self.config.record_frames,
-                                                    self.config.fps)
+                self.recording = TurntableRecording(path, size, self.view.yaw, self.config.record_frames, self.config.fps)
             else:
-                self.recording = LiveRecording(path, (sc.width, sc.height), self.config.fps)
+                self.recording = LiveRecording(path, size, self.config.fps)
         except Exception as exc:
             self._report(f"cannot record to {path}", exc)
             return
@@ -248,6 +280,8 @@ class ViewerApp:
         self.session.set_lights(res.lights, environment=res.env.pixels)
         self.env_path = job.path
         self.n_lights = len(res.lights)
+        if self.auto_exposure and self.view.exposure == self._auto_value:
+            self._apply_auto_exposure()
         self.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
         print(self.message, flush=True)
 

@@ -108,6 +108,33 @@ class Window:
         self.ctx.scissor = None
         self.ctx.viewport = (0, 0, fw, fh)
 
+    def resize(self, width: int, height: int):
+        glfw.set_window_size(self.handle, int(width), int(height))
+
+    def show_message(self, text: str):
+        """Draw one frame holding only ``text`` (progress while the window waits on work that
+        blocks its thread, such as a photo's inference)."""
+        self.wait(None)
+        self.begin_frame()
+        w, h = self.size
+        imgui.set_next_window_pos(imgui.ImVec2(0, 0))
+        imgui.set_next_window_size(imgui.ImVec2(float(w), float(h)))
+        flags = imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_saved_settings
+        imgui.begin("message", None, flags)
+        size = imgui.calc_text_size(text)
+        imgui.set_cursor_pos(imgui.ImVec2(max((w - size.x) / 2, 8.0), max((h - size.y) / 2, 8.0)))
+        imgui.text(text)
+        imgui.end()
+        fw, fh = self.framebuffer_size
+        self.ctx.screen.use()
+        self.ctx.scissor = None
+        self.ctx.viewport = (0, 0, fw, fh)
+        self.ctx.clear(0.08, 0.08, 0.09)
+        from OpenGL import GL
+
+        GL.glUseProgram(0)  # the backend restores the bound program: never one an engine has since released
+        self.end_frame()
+
     def end_frame(self):
         imgui.render()
         self.imgui.render(imgui.get_draw_data())

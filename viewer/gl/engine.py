@@ -9,10 +9,12 @@ Passes (one shader file each in shaders/), per light l:
 then for all lights:
   5. composite        HDR = sum_l V_l I_l (A S_diff_l + S_spec_l)
   6. display          exposure, tone map, sRGB over a background
+For a scene with a frame layer (a photo's bundle: frame_pass.py), 5 also writes the shading sums,
+and the frame composite and display (5f, 6f) run at the output frame's resolution in place of 6.
 
 Cache rules: a new direction redoes 1-6 for that light; a new sigma redoes 2-6 for that light; a
-new intensity, the diffuse / specular switches or a shading view redo 5-6; exposure, tone map,
-background or an inspection view redo 6 only. Lights that cannot contribute (zero intensity,
+new intensity, the diffuse / specular switches or a shading view redo 5-6 (and 5f-6f); exposure,
+tone map, background or an inspection view redo 6 (6f) only. Lights that cannot contribute (zero intensity,
 facing no pixel, or an upper bound below ``skip_threshold`` of the scene's diffuse level) are
 skipped, soft filtering is skipped where sigma ~ 0 (soft = hard visibility) and whenever the soft
 visibility is not shown (hard or no shadows), shadow maps are skipped when no shadows are shown,
@@ -34,6 +36,7 @@ from ..lights import AreaLights
 from ..mesh import caster_points, depth_mesh, resolve_step
 from ..scene import Scene
 from .. import shadow_space as ss
+from .frame_pass import MAX_FILL_LOD, FramePass
 from .prefilter import METHODS, BlurPlan, blur_plan
 from .programs import ProgramCache
 
@@ -45,7 +48,7 @@ _INSPECT_VIEWS = {"albedo": 1, "normal": 2, "depth": 3, "specular": 4, "roughnes
 # light-pass modes per light (shaders/light_pass.frag.glsl)
 _PASS_OFF, _PASS_HARD, _PASS_SOFT, _PASS_UNSHADOWED = 0, 1, 2, 3
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
-BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2}
+BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2, "transparent": 3}
 MAX_LIGHTS_PER_COMPOSITE = 64
 LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each, shaders/light_pass.frag.glsl)
 SMALL_ATLAS_TILE = 64  # tiles up to this size are drawn whole, in one draw
@@ -110,8 +113,9 @@ class Engine:
         self.options = options or EngineOptions()
         o = self.options
         max_size = self._max_texture = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
-        if max(scene.width, scene.height, o.shadow_resolution) > max_size:
-            raise InputError(scene.source, f"image {scene.width}x{scene.height} or shadow map {o.shadow_resolution} exceeds this GL's texture limit {max_size}")
+        if max(scene.width, scene.height, o.shadow_resolution, *scene.output_size) > max_size:
+            raise InputError(scene.source, f"image {scene.width}x{scene.height} (output {scene.output_size[0]}x{scene.output_size[1]}) "
+                             f"or shadow map {o.shadow_resolution} exceeds this GL's texture limit {max_size}")
         self.programs = ProgramCache(ctx)
         self.counters: Counter = Counter()
         self.profile = self.options.profile  # may be toggled: profiling syncs after every pass
@@ -127,8 +131,10 @@ class Engine:
         self._view = ("final", 0)  # (view, inspected light)
         self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": np.zeros(3), "rotation": np.eye(3)}
         self._dirty_composite = True
+        self._dirty_frame = True  # the frame composite (scenes with a frame layer)
         self._dirty_display = True
         self._dirty_background = True  # display pixels outside the mask's box need redrawing
+        self.frame_pass: FramePass | None = None
         self._upload_scene()
 
     # ------------------------------------------------------------------ resources
@@ -154,10 +160,16 @@ class Engine:
         self.tex_background = self._texture((w, h), 4, np.dstack([bg, np.ones((h, w), np.float32)]).astype("f4").tobytes())
         self.tex_environment = self._texture((1, 1), 4, np.zeros(4, "f4").tobytes(), linear=True, repeat=True)
         self.hdr = self._texture((w, h), 4)
-        self.hdr_fbo = ctx.framebuffer(color_attachments=[self.hdr])
+        targets = [self.hdr]
+        self.shading_targets = []
+        if s.frame is not None:  # the work composite also writes the shading sums the frame composite reads
+            self.shading_targets = [self._texture((w, h), 4, linear=True) for _ in range(2)]
+            targets += self.shading_targets
+            self.frame_pass = FramePass(ctx, self.programs, self._fullscreen, s.frame, s.camera, self._texture)
+        self.hdr_fbo = ctx.framebuffer(color_attachments=targets)
         self.hdr_fbo.clear(0.0, 0.0, 0.0, 0.0)
-        self.display = self._texture((w, h), 4, dtype="f1")
-        self.display_fbo = ctx.framebuffer(color_attachments=[self.display])
+        self.work_display = self._texture((w, h), 4, dtype="f1")
+        self.display_fbo = ctx.framebuffer(color_attachments=[self.work_display])
 
         self.shadow_step = resolve_step(o.shadow_step, s)
         mesh = depth_mesh(s, step=self.shadow_step)
@@ -332,7 +344,7 @@ class Engine:
             self._view = new
             if self._composite_terms() != terms:
                 self._dirty_composite = True
-            self._dirty_display = self._dirty_background = True
+            self._dirty_frame = self._dirty_display = self._dirty_background = True
 
     def _composite_terms(self) -> tuple[float, float, bool]:
         """(diffuse weight, specular weight, unit albedo) of the composite: the shading views show
@@ -352,7 +364,7 @@ class Engine:
             raise ValueError(f"tone map must be one of {', '.join(TONEMAPS)}, got {tonemap!r}")
         if background is not None and background not in BACKGROUNDS:
             raise ValueError(f"background must be one of {', '.join(BACKGROUNDS)}, got {background!r}")
-        if background == "photo" and self.scene.background is None:
+        if background == "photo" and self.scene.background is None and self.frame_pass is None:
             raise ValueError("this scene bundle has no background image (background.png)")
         for key, value in (("exposure", exposure), ("tonemap", tonemap), ("background", background), ("color", color),
                            ("rotation", environment_rotation)):
@@ -587,7 +599,10 @@ class Engine:
             self._fullscreen(prog)
 
     def _composite(self):
-        prog = self.programs.get("fullscreen.vert.glsl", "composite.frag.glsl", MAX_LIGHTS=MAX_LIGHTS_PER_COMPOSITE)
+        defines = {"MAX_LIGHTS": MAX_LIGHTS_PER_COMPOSITE}
+        if self.frame_pass is not None:
+            defines["FRAME_SHADING"] = None
+        prog = self.programs.get("fullscreen.vert.glsl", "composite.frag.glsl", **defines)
         with self._timed("composite"):
             x, y, _, _ = self._mask_box
             self.hdr_fbo.scissor = self._mask_box  # outside the box the HDR stays cleared to zero
@@ -636,27 +651,37 @@ class Engine:
         if self._view[0] in _INSPECT_VIEWS:
             self._inspect()
             return
-        st = self._display_state
-        prog = self.programs.get("fullscreen.vert.glsl", "display.frag.glsl")
-        cam = self.scene.camera
+        fp = self.frame_pass
         with self._timed("display"):
-            # only the foreground changed: redraw just the mask's bounding box
-            self.display_fbo.scissor = None if self._dirty_background else self._mask_box
-            self.display_fbo.use()
-            self.hdr.use(0)
-            self.tex_background.use(1)
-            self.tex_environment.use(2)
-            prog["hdr"] = 0
-            prog["background_image"] = 1
-            prog["environment"] = 2
-            prog["background_mode"] = BACKGROUNDS[st["background"]]
-            prog["background_color"] = tuple(float(c) for c in st["color"])
-            prog["environment_rotation"].write(np.asarray(st["rotation"], dtype="f4").T.tobytes())
-            prog["focal_center_px"] = cam.center
-            prog["focal_px"] = cam.focal_px
+            if fp is None:
+                box = None if self._dirty_background else self._mask_box  # only the foreground changed
+                self._draw_display(self.display_fbo, self.hdr, self.tex_background, self.scene.camera, box)
+            else:
+                box = None if self._dirty_background else fp.box
+                self._draw_display(fp.display_fbo, fp.hdr, fp.tex_photo, fp.camera, box)
+
+    def _draw_display(self, fbo, hdr, background_image, cam, box, hdr_output: bool = False):
+        """The display shader over ``fbo`` (``box`` = (x, y, w, h) to redraw only that part)."""
+        st = self._display_state
+        prog = self.programs.get("fullscreen.vert.glsl", "display.frag.glsl", **({"HDR_OUTPUT": None} if hdr_output else {}))
+        fbo.scissor = box
+        fbo.use()
+        hdr.use(0)
+        background_image.use(1)
+        self.tex_environment.use(2)
+        prog["hdr"] = 0
+        prog["background_image"] = 1
+        prog["environment"] = 2
+        prog["background_mode"] = BACKGROUNDS[st["background"]]
+        prog["background_color"] = tuple(float(c) for c in st["color"])
+        prog["environment_rotation"].write(np.asarray(st["rotation"], dtype="f4").T.tobytes())
+        prog["focal_center_px"] = cam.center
+        prog["focal_px"] = cam.focal_px
+        if not hdr_output:
             prog["exposure"] = float(st["exposure"])
             prog["tonemap_op"] = TONEMAPS[st["tonemap"]]
-            self._fullscreen(prog)
+        self._fullscreen(prog)
+        fbo.scissor = None
 
     def _inspect(self):
         view, index = self._view
@@ -718,6 +743,13 @@ class Engine:
         if self._dirty_composite:
             self._composite()
             self._dirty_composite = False
+            self._dirty_display = self._dirty_frame = True
+        if self.frame_pass is not None and self._dirty_frame and self._view[0] not in _INSPECT_VIEWS:
+            with self._timed("frame_composite"):
+                for tex in self.shading_targets:
+                    tex.build_mipmaps(0, MAX_FILL_LOD)
+                self.frame_pass.composite(*self.shading_targets, self._composite_terms())
+            self._dirty_frame = False
             self._dirty_display = True
         if self._dirty_display:
             self._display()
@@ -731,13 +763,56 @@ class Engine:
         arr = np.frombuffer(tex.read(), dtype=np.float32 if dtype == "f4" else np.uint8)
         return arr.reshape(h, w, components).copy()
 
+    @property
+    def display(self) -> moderngl.Texture:
+        """The display image shown and saved: at the output frame's resolution for a scene with a
+        frame layer (the maps' resolution for the inspection views), else at the maps'."""
+        if self.frame_pass is not None and self._view[0] not in _INSPECT_VIEWS:
+            return self.frame_pass.display
+        return self.work_display
+
+    @property
+    def output_size(self) -> tuple[int, int]:
+        """(width, height) of :attr:`display` and :meth:`read_hdr`."""
+        return self.display.size
+
     def read_hdr(self) -> np.ndarray:
-        """(H, W, 3) float32 linear HDR, row 0 at the top."""
+        """(H, W, 3) float32 linear HDR of the person (zero outside), at the output size, row 0 at
+        the top."""
+        return self.read_hdr_rgba()[..., :3]
+
+    def read_hdr_rgba(self) -> np.ndarray:
+        """(H, W, 4): the person's linear HDR and its coverage (the mask, or the frame's matte)."""
+        tex = self.frame_pass.hdr if self.frame_pass is not None else self.hdr
+        return self._read(tex, 4)
+
+    def read_work_hdr(self) -> np.ndarray:
+        """(H, W, 3) linear HDR at the maps' (work) resolution."""
         return self._read(self.hdr, 4)[..., :3]
 
     def read_display(self) -> np.ndarray:
         """(H, W, 3) uint8 sRGB display image."""
         return self._read(self.display, 4, dtype="f1")[..., :3]
+
+    def read_display_rgba(self) -> np.ndarray:
+        """(H, W, 4) uint8: the display image and its alpha (the coverage for the transparent
+        background, 255 otherwise)."""
+        return self._read(self.display, 4, dtype="f1")
+
+    def read_output_hdr(self) -> np.ndarray:
+        """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
+        the same background (alpha 1), or premultiplied with its coverage for the transparent
+        background: the EXR that goes with the display PNG."""
+        fp = self.frame_pass
+        hdr, background, cam = (fp.hdr, fp.tex_photo, fp.camera) if fp is not None else (self.hdr, self.tex_background, self.scene.camera)
+        tex = self._texture(hdr.size, 4)
+        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        try:
+            self._draw_display(fbo, hdr, background, cam, None, hdr_output=True)
+            return self._read(tex, 4)
+        finally:
+            fbo.release()
+            tex.release()
 
     def read_light(self, index: int) -> dict:
         """Per-light intermediate outputs (H, W) each: soft and hard visibility, diffuse and
@@ -784,11 +859,14 @@ class Engine:
         for t in self.refined_planes:
             t.release()
         self.refined_planes = []
+        if self.frame_pass is not None:
+            self.frame_pass.release()
+            self.frame_pass = None
         objects = [getattr(self, name, None) for name in (
-            "hdr_fbo", "hdr", "display_fbo", "display", "tex_positions",
+            "hdr_fbo", "hdr", "display_fbo", "work_display", "tex_positions",
             "tex_normals", "tex_albedo", "tex_background", "tex_environment", "_shadow_vao", "_mesh_vbo",
             "_mesh_ibo", "_shadow_depth")]
-        objects += list(self._fullscreen_vaos.values())
+        objects += list(getattr(self, "shading_targets", [])) + list(self._fullscreen_vaos.values())
         self._fullscreen_vaos.clear()
         for obj in objects:
             if obj is not None:

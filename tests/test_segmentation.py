@@ -1,0 +1,52 @@
+"""The automatic person mask on real photos: close to the hand-made masks, soft at the edge, the
+largest of several people, and one clear line when there is nobody."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from viewer.bench.photos import mask_iou, read_reference_mask
+from viewer.envmap import load_envmap
+from viewer.errors import InputError
+from viewer.imageio import linear_to_srgb
+from viewer.photo_frame import read_photo, resize
+from viewer.segmentation import person_matte
+
+from conftest import SHARED_DATA
+
+PHOTOS = SHARED_DATA / "photos"
+
+
+@pytest.mark.parametrize("stem", ["unsplash-1507274733827", "unsplash-1535323700481"])
+def test_matte_matches_the_hand_made_mask(stem):
+    photo = read_photo(PHOTOS / f"{stem}.jpg", [])
+    notes = []
+    matte = person_matte(photo, stem, notes)
+    assert matte.shape == photo.shape[:2] and matte.dtype == np.float32
+    assert mask_iou(matte, read_reference_mask(PHOTOS / f"{stem}.mask.png")) > 0.96
+    edge = (matte > 0.02) & (matte < 0.98)
+    assert 0.002 < edge.mean() < 0.1  # a soft boundary, not a jagged cut, and not a blur
+    assert notes == []
+
+
+def test_the_largest_of_several_people_is_kept_with_a_note():
+    a = read_photo(PHOTOS / "unsplash-1535323700481.jpg", [])
+    b = read_photo(PHOTOS / "unsplash-1507274733827.jpg", [])
+    big = resize(a, (a.shape[1] * 1000 // a.shape[0], 1000))
+    small = resize(b, (b.shape[1] * 600 // b.shape[0], 600))
+    two = np.zeros((1000, big.shape[1] + small.shape[1], 3), np.uint8)
+    two[:, :big.shape[1]] = big
+    two[400:, big.shape[1]:] = small
+    notes = []
+    matte = person_matte(two, "two people", notes) > 0.5
+    assert any("2 people" in n for n in notes)
+    assert matte[:, :big.shape[1]].sum() > 0.95 * matte.sum()  # the larger person, alone
+
+
+def test_no_person_is_one_clear_line():
+    env = load_envmap(SHARED_DATA / "hdri" / "st_fagans_interior_1k.hdr").pixels  # a room, nobody in it
+    room = (linear_to_srgb(env / np.percentile(env, 90)) * 255).astype(np.uint8)
+    with pytest.raises(InputError, match="no person found") as info:
+        person_matte(room, "room.jpg")
+    assert info.value.path == "room.jpg"

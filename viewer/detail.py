@@ -1,0 +1,130 @@
+"""Detail from the photo: the detail albedo the frame composite multiplies by the new shading.
+
+The networks see the person at 256 pixels, so their albedo carries none of the photo's fine
+texture (faces, hair, cloth weave). The frame composite draws ``A_frame D_new + S_new`` at the
+photo's own resolution, with the new shading sums D, S brought from the work resolution; the
+photo's detail comes in through ``A_frame``, made once at inference by one of:
+
+- ``network``: the network's albedo, upsampled (no detail: what the product did before);
+- ``highpass``: the network's albedo times the photo's high-frequency ratio, photo over its
+  low-pass (a mask-normalized Gaussian of about one network pixel);
+- ``quotient``: the photo divided by its own shading: ``Q = (photo - S_old) / D_old`` with D_old,
+  S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo_lighting`),
+  upsampled exactly as the frame composite upsamples the new ones. Under new lights the output is
+  then the photo times D_new / D_old, the quotient image, with the old highlights taken out.
+  Where D_old is dark (below ``DARK`` of its mean over the person) the quotient is noise over a
+  small number: there it fades to ``highpass``. The subtraction of the old highlights never
+  removes more than ``HIGHLIGHT_KEEP`` of a pixel. Q and the network's albedo N are two estimates
+  of the same albedo with different errors (Q carries whatever of the photo's shading the model
+  did not explain, N is blurred and desaturated), so above a scale of ``SHARED_SCALE`` network
+  pixels they are averaged in log space: ``A = Q (LP(N) / LP(Q))^NETWORK_SHARE`` (LP a Gaussian of
+  that scale); below it, A is the photo's own detail. On the held-out pairs this sharing is what
+  makes the detail step better than the network's albedo alone on RMSE as well as SSIM and FLIP
+  (docs/photos.md); relit under its own lights, the output is then the photo up to that shared
+  low-frequency correction.
+
+The method is chosen by measurement (docs/photos.md; ``relight bench photos``): ``DEFAULT``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+METHODS = ("quotient", "highpass", "network")
+DEFAULT = "quotient"
+DARK = 0.1  # D_old below this fraction of its mean over the person: the quotient fades out
+HIGHLIGHT_KEEP = 0.5  # removing the old specular keeps at least this fraction of the photo
+MAX_RATIO = 4.0  # bound of the high-frequency ratio (a speck of glare over a dark low-pass)
+SHARED_SCALE = 0.25  # network pixels: above this scale the quotient and the network's albedo are averaged
+NETWORK_SHARE = 0.25  # the network's weight in that (log-space) average (docs/photos.md: how it was chosen)
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian low-pass of ``image`` (H, W[, C]) over the pixels ``weight`` (H, W) covers, each
+    pixel the weighted mean of its neighbourhood (OpenCV's Gaussian, normalized convolution)."""
+    import cv2
+
+    if sigma <= 0:
+        return image.astype(np.float32)
+    k = 2 * int(np.ceil(3 * sigma)) + 1
+    w = weight.astype(np.float32)
+    num = cv2.GaussianBlur(image.astype(np.float32) * (w[..., None] if image.ndim == 3 else w), (k, k), sigma,
+                           borderType=cv2.BORDER_REFLECT)
+    den = cv2.GaussianBlur(w, (k, k), sigma, borderType=cv2.BORDER_REFLECT)
+    den = np.maximum(den, 1e-6)
+    return (num / (den[..., None] if image.ndim == 3 else den)).astype(np.float32)
+
+
+def foreground_colours(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
+    """The person's own colours on the matte's soft edge: a fringe pixel mixes the person F with
+    the background B as ``I = a F + (1 - a) B``; B is estimated by spreading the clear background
+    (a < 0.05) inwards (a mask-normalized Gaussian of ``sigma`` pixels), and F solved for, so that
+    the old background does not glow around the relit person. Where the matte is wrong (a soft
+    matte over a solid limb) that solution overshoots, so F is kept between the pixel's own colour
+    and the person's nearby solid colour (a >= 0.99, spread outwards the same way). Pixels with
+    a >= 0.99 are kept."""
+    fringe = (alpha > 0.0) & (alpha < 0.99)
+    clear, solid = alpha < 0.05, alpha >= 0.99
+    if not (fringe.any() and clear.any() and solid.any()):
+        return photo
+    background = masked_lowpass(photo, clear, sigma)
+    person = masked_lowpass(photo, solid, sigma)
+    a = np.maximum(alpha, 0.25)[..., None]  # below a quarter, F is too uncertain: leaned on B's estimate
+    fg = np.clip((photo - (1.0 - a) * background) / a, np.minimum(photo, person), np.maximum(photo, person))
+    return np.where(fringe[..., None], fg, photo).astype(np.float32)
+
+
+def highpass_ratio(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
+    """photo / low-pass(photo) per channel inside the matte (1 outside), bounded by MAX_RATIO."""
+    low = masked_lowpass(photo, alpha > 0.5, sigma)
+    floor = 1e-3 * max(float(photo[alpha > 0.5].mean()) if (alpha > 0.5).any() else 1.0, 1e-6)
+    ratio = (photo + floor) / (low + floor)
+    return np.where(alpha[..., None] > 0, np.clip(ratio, 0.0, MAX_RATIO), 1.0).astype(np.float32)
+
+
+def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_albedo: np.ndarray,
+                  shading: tuple[np.ndarray, np.ndarray] | None, lowpass_sigma: float,
+                  shared_scale: float | None = None) -> tuple[np.ndarray, dict]:
+    """(A_frame (H, W, 3) in [0, 1], statistics) at the frame's resolution.
+
+    ``photo`` linear (H, W, 3); ``alpha`` the matte; ``network_albedo`` the network's albedo
+    brought to the frame; ``shading`` = (D_old, S_old) at the frame (needed by ``quotient``);
+    ``lowpass_sigma`` one network pixel in frame pixels (the high-pass's scale); ``shared_scale``
+    the quotient's sharing scale in network pixels (0: no sharing)."""
+    if method not in METHODS:
+        raise ValueError(f"detail method must be one of {', '.join(METHODS)}, got {method!r}")
+    inside = alpha > 0
+    stats = {"method": method}
+    if method == "network":
+        albedo = network_albedo
+    else:
+        albedo = network_albedo * highpass_ratio(photo, alpha, lowpass_sigma)
+        if method == "quotient":
+            if shading is None:
+                raise ValueError("the quotient needs the photo's own shading")
+            diffuse, specular = shading
+            person = alpha > 0.5
+            mean = diffuse[person].mean(axis=0) if person.any() else np.ones(3, np.float32)
+            floor = np.maximum(DARK * mean, 1e-12).astype(np.float32)
+            lit = photo - np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)
+            quotient = lit / np.maximum(diffuse, floor)
+            # weight 0 below the floor, 1 from twice the floor up, per channel
+            w = np.clip(diffuse / floor - 1.0, 0.0, 1.0)
+            albedo = w * quotient + (1.0 - w) * albedo
+            shared_scale = SHARED_SCALE if shared_scale is None else shared_scale
+            if shared_scale > 0:
+                sigma = shared_scale * lowpass_sigma
+                low_q = masked_lowpass(albedo, person, sigma)
+                low_n = masked_lowpass(network_albedo, person, sigma)
+                albedo = albedo * (np.maximum(low_n, 1e-4) / np.maximum(low_q, 1e-4)) ** NETWORK_SHARE
+            stats["dark_fraction"] = float((w[person] < 1).any(axis=-1).mean()) if person.any() else 0.0
+            stats["highlight_removed"] = float((np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)[person]).mean()
+                                              / max(float(photo[person].mean()), 1e-12)) if person.any() else 0.0
+    clipped = (albedo > 1.0).any(axis=-1) & inside
+    stats["clipped_fraction"] = float(clipped.sum() / max(int(inside.sum()), 1))
+    albedo = np.where(inside[..., None], np.clip(albedo, 0.0, 1.0), 0.0).astype(np.float32)
+    return albedo, stats
