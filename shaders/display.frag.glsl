@@ -26,9 +26,7 @@ void main() {
     } else if (background_mode == 1) {
         bg = texelFetch(background_image, px, 0).rgb;
     } else if (background_mode == 2) {
-        vec2 q = vec2(px) + 0.5;
-        vec3 view = normalize(vec3((q.x - focal_center_px.x) / focal_px, -(q.y - focal_center_px.y) / focal_px, -1.0));
-        bg = textureLod(environment, direction_to_equirect(environment_rotation * view), 0.0).rgb;
+        bg = environment_seen(environment, environment_rotation, vec2(px) + 0.5, focal_center_px, focal_px);
     }
 #ifdef HDR_OUTPUT
     color = background_mode == 3 ? vec4(c.rgb * c.a, c.a) : vec4(mix(bg, c.rgb, c.a), 1.0);

@@ -7,3 +7,10 @@ vec2 direction_to_equirect(vec3 d) {
     float lam = asin(clamp(d.y, -1.0, 1.0));
     return vec2((phi + 3.14159265358979) / (2.0 * 3.14159265358979), (1.5707963267949 - lam) / 3.14159265358979);
 }
+
+// The environment as a perspective camera sees it at pixel position q (pixels, row 0 at the top),
+// turned by rotation (camera-space view direction -> map direction).
+vec3 environment_seen(sampler2D environment, mat3 rotation, vec2 q, vec2 center, float focal) {
+    vec3 view = normalize(vec3((q.x - center.x) / focal, -(q.y - center.y) / focal, -1.0));
+    return textureLod(environment, direction_to_equirect(rotation * view), 0.0).rgb;
+}

@@ -1,24 +1,46 @@
-// The final composite at the output frame's resolution (docs/engine.md, "Frame"):
+// The final composite and display at the output frame's resolution, in one pass
+// (docs/engine.md, "Frame passes"):
 //   HDR = w_d A_frame D + w_s S,  alpha = the person's soft matte,
 // with A_frame the detail albedo at the frame's resolution and D, S the diffuse and specular
 // shading sums of the work-resolution composite (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
-// brought to the frame by filled_sample (bilinear, normalized by the mask, filled past it).
+// brought to the frame by filled_sample (bilinear, normalized by the mask, filled past it); then,
+// over the cached background, exposure, tone map and sRGB as the work display does.
+// output_mode 0 writes the display image; 1 the person's HDR and matte; 2 the HDR composited over
+// the background before exposure (transparent: premultiplied), the EXR beside a display PNG.
 #include "filled_sample.glsl"
+#include "tonemap.glsl"
 uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution
 uniform sampler2D shading_diffuse;     // work resolution, premultiplied by the mask, mipmapped
 uniform sampler2D shading_specular;
+uniform sampler2D background;          // linear, frame resolution (frame_background.frag.glsl)
 uniform vec2 frame_to_uv;              // 1 / frame size: the work images span the same field of view
 uniform int max_lod;
 uniform vec2 term_weights;             // (diffuse, specular): 1 shown, 0 left out
 uniform bool unit_albedo;              // show shading: albedo replaced by 1
-layout(location = 0) out vec4 hdr;
+uniform bool transparent;
+uniform float exposure;                // stops
+uniform int tonemap_op;
+uniform int output_mode;
+layout(location = 0) out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     vec4 aa = texelFetch(frame_albedo_alpha, px, 0);
-    if (aa.a <= 0.0) { hdr = vec4(0.0); return; }
-    vec2 uv = (vec2(px) + 0.5) * frame_to_uv;
-    vec3 d = filled_sample(shading_diffuse, uv, max_lod);
-    vec3 s = filled_sample(shading_specular, uv, max_lod);
-    vec3 albedo = unit_albedo ? vec3(1.0) : aa.rgb;
-    hdr = vec4(term_weights.x * albedo * d + term_weights.y * s, aa.a);
+    vec3 fg = vec3(0.0);
+    if (aa.a > 0.0) {
+        vec2 uv = (vec2(px) + 0.5) * frame_to_uv;
+        vec3 d = filled_sample(shading_diffuse, uv, max_lod);
+        vec3 s = filled_sample(shading_specular, uv, max_lod);
+        fg = term_weights.x * (unit_albedo ? vec3(1.0) : aa.rgb) * d + term_weights.y * s;
+    }
+    if (output_mode == 1) { color = vec4(fg, aa.a); return; }
+    vec3 bg = aa.a >= 1.0 ? vec3(0.0) : texelFetch(background, px, 0).rgb;
+    if (output_mode == 2) {
+        color = transparent ? vec4(fg * aa.a, aa.a) : vec4(mix(bg, fg, aa.a), 1.0);
+        return;
+    }
+    float scale = exp2(exposure);
+    vec3 front = tonemap(fg * scale, tonemap_op);
+    if (transparent) { color = vec4(linear_to_srgb(front), aa.a); return; }
+    vec3 back = aa.a >= 1.0 ? vec3(0.0) : tonemap(bg * scale, tonemap_op);
+    color = vec4(linear_to_srgb(mix(back, front, aa.a)), 1.0);
 }

@@ -401,8 +401,10 @@ def photos_table(result: dict) -> str:
         lines.append(f"held-out: {h['pairs']} pairs of {h['people']} people at {h['resolution']}^2")
         for method in result["methods"] + ["before"]:
             if method in h:
+                d = h[method]["rmse"]["vs_network"]
                 lines.append(f"  {method:>17}: RMSE {h[method]['rmse']['mean']:.4f} SSIM {h[method]['ssim']['mean']:.4f} "
-                             f"FLIP {h[method]['flip']['mean']:.4f}")
+                             f"FLIP {h[method]['flip']['mean']:.4f}; RMSE against the network's albedo {d['mean']:+.4f} "
+                             f"+- {d['stderr']:.4f}, better in {d['better_pairs']}/{h['pairs']} pairs")
     return "\n".join(lines)
 
 

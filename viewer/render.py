@@ -44,7 +44,7 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
     without a photo). Uses the engine's current work-resolution render."""
     from .detail import luminance
 
-    if scene.photo is None or scene.frame is None:
+    if scene.photo is None:
         return 0.0
     relit = luminance(engine.read_work_hdr()[scene.mask])
     shown = luminance(scene.photo[scene.mask])

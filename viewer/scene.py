@@ -211,6 +211,12 @@ class Scene:
             raise InputError(file("scene.json"), f"camera resolution {self.camera.width}x{self.camera.height} does not match the maps' {w}x{h}")
         if self.frame is not None:
             self.frame.validate((w, h), base)
+            if self.photo is None:  # the maps' photo and background are the frame's, at their resolution
+                from .photo_frame import resize
+
+                self.photo = np.maximum(resize(self.frame.photo, (w, h)), 0).astype(np.float32)
+            if self.background is None:
+                self.background = self.photo
         return self
 
 
@@ -268,12 +274,6 @@ def load_scene(path) -> Scene:
                 img = np.repeat(img[..., None], 3, axis=-1)
             extra[name] = srgb_to_linear(img[..., :3])
     frame = _load_frame(path, meta, meta_path)
-    if frame is not None:  # the maps' photo and background are the frame's, at their resolution
-        from .photo_frame import resize
-
-        small = np.maximum(resize(frame.photo, (camera.width, camera.height)), 0)
-        extra.setdefault("photo", small)
-        extra.setdefault("background", small)
     scene = Scene(mask=mask > 0.5, camera=camera, source=path, frame=frame, **maps, **extra)
     return scene.validate(path)
 

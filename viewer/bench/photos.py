@@ -50,7 +50,7 @@ DEFAULT_MAPS = SHARED / "hdri"
 FIGURE_MAPS = (("venice_sunset_1k", 200.0), ("studio_small_03_1k", 30.0), ("immenstadter_horn_1k", 180.0))
 BEFORE = "before"  # the network's maps alone at the maps' resolution, upsampled: the output before this step
 # the detail variants measured: label -> (viewer.detail method, sharing scale; None = the default)
-VARIANTS = {"network": ("network", None), "highpass": ("highpass", None), "quotient-unshared": ("quotient", 0.0),
+VARIANTS = {"network": ("network", None), "highpass": ("highpass", None), "quotient-plain": ("quotient", 0.0),
             "quotient": ("quotient", None)}
 SUN = (0.8, 0.35, 0.49)  # a sun from the camera's right (x right, y up, z to the camera); mirrored for the left
 
@@ -293,9 +293,15 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
             if progress is not None:
                 progress(f"held-out pair {n + 1}/{len(pairs)}")
     out = {"pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}), "resolution": int(ds[0]["image"].shape[-1])}
+    base = rows["network"]
     for method, values in rows.items():
         out[method] = {k: {"mean": float(np.mean([v[k] for v in values])), "std": float(np.std([v[k] for v in values]))}
                        for k in values[0]}
+        # against the network's albedo alone, pair by pair: mean difference and its standard error
+        for k in values[0]:
+            d = np.array([v[k] for v in values]) - np.array([b[k] for b in base])
+            out[method][k]["vs_network"] = {"mean": float(d.mean()), "stderr": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0,
+                                             "better_pairs": int((d < 0).sum() if k != "ssim" else (d > 0).sum())}
     return out
 
 

@@ -10,11 +10,13 @@ then for all lights:
   5. composite        HDR = sum_l V_l I_l (A S_diff_l + S_spec_l)
   6. display          exposure, tone map, sRGB over a background
 For a scene with a frame layer (a photo's bundle: frame_pass.py), 5 also writes the shading sums,
-and the frame composite and display (5f, 6f) run at the output frame's resolution in place of 6.
+and at the output frame's resolution the frame composite with its display (5f) runs in place of 6,
+over a frame background (6b) kept until the background, the map or its rotation changes.
 
 Cache rules: a new direction redoes 1-6 for that light; a new sigma redoes 2-6 for that light; a
-new intensity, the diffuse / specular switches or a shading view redo 5-6 (and 5f-6f); exposure,
-tone map, background or an inspection view redo 6 (6f) only. Lights that cannot contribute (zero intensity,
+new intensity, the diffuse / specular switches or a shading view redo 5-6 (5f); exposure,
+tone map, background or an inspection view redo 6 (5f, over the whole frame) only; the background,
+the map or its rotation also 6b. Lights that cannot contribute (zero intensity,
 facing no pixel, or an upper bound below ``skip_threshold`` of the scene's diffuse level) are
 skipped, soft filtering is skipped where sigma ~ 0 (soft = hard visibility) and whenever the soft
 visibility is not shown (hard or no shadows), shadow maps are skipped when no shadows are shown,
@@ -36,7 +38,7 @@ from ..lights import AreaLights
 from ..mesh import caster_points, depth_mesh, resolve_step
 from ..scene import Scene
 from .. import shadow_space as ss
-from .frame_pass import MAX_FILL_LOD, FramePass
+from .frame_pass import MAX_FILL_LOD, OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FramePass
 from .prefilter import METHODS, BlurPlan, blur_plan
 from .programs import ProgramCache
 
@@ -131,7 +133,8 @@ class Engine:
         self._view = ("final", 0)  # (view, inspected light)
         self._display_state: dict = {"exposure": 0.0, "tonemap": "aces", "background": "color", "color": np.zeros(3), "rotation": np.eye(3)}
         self._dirty_composite = True
-        self._dirty_frame = True  # the frame composite (scenes with a frame layer)
+        self._dirty_frame = True  # the shading sums' mipmaps (scenes with a frame layer)
+        self._dirty_frame_background = True
         self._dirty_display = True
         self._dirty_background = True  # display pixels outside the mask's box need redrawing
         self.frame_pass: FramePass | None = None
@@ -380,6 +383,8 @@ class Engine:
                 st[key] = value
                 self._dirty_display = True
                 self._dirty_background = True
+                if key in ("background", "color", "rotation"):
+                    self._dirty_frame_background = True
 
     def set_environment(self, pixels: np.ndarray):
         """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background."""
@@ -390,6 +395,7 @@ class Engine:
         self.tex_environment = self._texture((w, h), 4, data.tobytes(), linear=True, repeat=True)
         self._dirty_display = True
         self._dirty_background = True
+        self._dirty_frame_background = True
 
     # ------------------------------------------------------------------ passes
     def _release_light(self, l: _Light):
@@ -652,13 +658,23 @@ class Engine:
             self._inspect()
             return
         fp = self.frame_pass
-        with self._timed("display"):
-            if fp is None:
+        if fp is None:
+            with self._timed("display"):
                 box = None if self._dirty_background else self._mask_box  # only the foreground changed
                 self._draw_display(self.display_fbo, self.hdr, self.tex_background, self.scene.camera, box)
-            else:
-                box = None if self._dirty_background else fp.box
-                self._draw_display(fp.display_fbo, fp.hdr, fp.tex_photo, fp.camera, box)
+            return
+        if self._dirty_frame_background:
+            with self._timed("frame_background"):
+                fp.draw_background(self._display_state, BACKGROUNDS, self.tex_environment)
+            self._dirty_frame_background = False
+        if self._dirty_frame:
+            with self._timed("frame_mipmaps"):
+                for tex in self.shading_targets:
+                    tex.build_mipmaps(0, MAX_FILL_LOD)
+            self._dirty_frame = False
+        with self._timed("frame_composite"):
+            box = None if self._dirty_background else fp.box  # only the foreground changed
+            fp.draw(fp.display_fbo, self.shading_targets, self._composite_terms(), self._display_state, TONEMAPS, box=box)
 
     def _draw_display(self, fbo, hdr, background_image, cam, box, hdr_output: bool = False):
         """The display shader over ``fbo`` (``box`` = (x, y, w, h) to redraw only that part)."""
@@ -744,13 +760,6 @@ class Engine:
             self._composite()
             self._dirty_composite = False
             self._dirty_display = self._dirty_frame = True
-        if self.frame_pass is not None and self._dirty_frame and self._view[0] not in _INSPECT_VIEWS:
-            with self._timed("frame_composite"):
-                for tex in self.shading_targets:
-                    tex.build_mipmaps(0, MAX_FILL_LOD)
-                self.frame_pass.composite(*self.shading_targets, self._composite_terms())
-            self._dirty_frame = False
-            self._dirty_display = True
         if self._dirty_display:
             self._display()
             self._dirty_display = False
@@ -783,8 +792,20 @@ class Engine:
 
     def read_hdr_rgba(self) -> np.ndarray:
         """(H, W, 4): the person's linear HDR and its coverage (the mask, or the frame's matte)."""
-        tex = self.frame_pass.hdr if self.frame_pass is not None else self.hdr
-        return self._read(tex, 4)
+        if self.frame_pass is None:
+            return self._read(self.hdr, 4)
+        self._frame_ready()
+        return self.frame_pass.read(self.shading_targets, self._composite_terms(), self._display_state, TONEMAPS, OUTPUT_PERSON_HDR)
+
+    def _frame_ready(self):
+        """The frame composite's inputs up to date (after render())."""
+        if self._dirty_frame:
+            for tex in self.shading_targets:
+                tex.build_mipmaps(0, MAX_FILL_LOD)
+            self._dirty_frame = False
+        if self._dirty_frame_background:
+            self.frame_pass.draw_background(self._display_state, BACKGROUNDS, self.tex_environment)
+            self._dirty_frame_background = False
 
     def read_work_hdr(self) -> np.ndarray:
         """(H, W, 3) linear HDR at the maps' (work) resolution."""
@@ -804,11 +825,13 @@ class Engine:
         the same background (alpha 1), or premultiplied with its coverage for the transparent
         background: the EXR that goes with the display PNG."""
         fp = self.frame_pass
-        hdr, background, cam = (fp.hdr, fp.tex_photo, fp.camera) if fp is not None else (self.hdr, self.tex_background, self.scene.camera)
-        tex = self._texture(hdr.size, 4)
+        if fp is not None:
+            self._frame_ready()
+            return fp.read(self.shading_targets, self._composite_terms(), self._display_state, TONEMAPS, OUTPUT_COMPOSITED_HDR)
+        tex = self._texture(self.hdr.size, 4)
         fbo = self.ctx.framebuffer(color_attachments=[tex])
         try:
-            self._draw_display(fbo, hdr, background, cam, None, hdr_output=True)
+            self._draw_display(fbo, self.hdr, self.tex_background, self.scene.camera, None, hdr_output=True)
             return self._read(tex, 4)
         finally:
             fbo.release()
