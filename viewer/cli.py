@@ -217,12 +217,12 @@ def cmd_render(args) -> int:
     start = time.perf_counter()
     try:
         with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
-            render_turntable(engine, scene, lights, out, _settings(args), frames, fps=args.fps, turn=args.turn,
-                             environment=env, progress=lambda done, total: bar.update(1))
+            width, height = render_turntable(engine, scene, lights, out, _settings(args), frames, fps=args.fps, turn=args.turn,
+                                             environment=env, progress=lambda done, total: bar.update(1))
     finally:
         engine.release()
     seconds = time.perf_counter() - start
-    print(f"wrote {out} ({frames} frames, {scene.width}x{scene.height}, {args.fps:g} fps, "
+    print(f"wrote {out} ({frames} frames, {width}x{height}, {args.fps:g} fps, "
           f"{args.turn:g} degrees; {seconds:.1f} s, {1000 * seconds / frames:.0f} ms per frame)")
     return 0
 

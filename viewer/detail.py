@@ -39,6 +39,7 @@ DEFAULT = "quotient"
 DARK = 0.1  # D_old below this fraction of its mean over the person: the quotient fades out
 HIGHLIGHT_KEEP = 0.5  # removing the old specular keeps at least this fraction of the photo
 MAX_RATIO = 4.0  # bound of the high-frequency ratio (a speck of glare over a dark low-pass)
+LOWPASS_SHRINK = 2.0  # a low-pass of sigma s runs on the image shrunk by s / this (at least 2 pixels of sigma remain)
 SHARED_SCALE = 0.25  # network pixels: the scale at which the quotient is compared with the network's albedo
 BRIGHT_SHARE = 0.5  # of a coarse excess of brightness over the network's albedo, the share (log) left to the light
 
@@ -49,18 +50,29 @@ def luminance(rgb: np.ndarray) -> np.ndarray:
 
 def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian low-pass of ``image`` (H, W[, C]) over the pixels ``weight`` (H, W) covers, each
-    pixel the weighted mean of its neighbourhood (OpenCV's Gaussian, normalized convolution)."""
+    pixel the weighted mean of its neighbourhood (OpenCV's Gaussian, normalized convolution). A
+    wide Gaussian runs on the image shrunk by up to half its sigma (area average) and is brought
+    back bilinearly: the same low-pass at a fraction of the cost."""
     import cv2
 
     if sigma <= 0:
         return image.astype(np.float32)
+    h, w = weight.shape
+    w32 = weight.astype(np.float32)
+    num = image.astype(np.float32) * (w32[..., None] if image.ndim == 3 else w32)
+    factor = max(1, int(sigma / LOWPASS_SHRINK))
+    if factor > 1:
+        size = (max(w // factor, 1), max(h // factor, 1))
+        num = cv2.resize(num, size, interpolation=cv2.INTER_AREA)
+        w32 = cv2.resize(w32, size, interpolation=cv2.INTER_AREA)
+        sigma = sigma * size[0] / w
     k = 2 * int(np.ceil(3 * sigma)) + 1
-    w = weight.astype(np.float32)
-    num = cv2.GaussianBlur(image.astype(np.float32) * (w[..., None] if image.ndim == 3 else w), (k, k), sigma,
-                           borderType=cv2.BORDER_REFLECT)
-    den = cv2.GaussianBlur(w, (k, k), sigma, borderType=cv2.BORDER_REFLECT)
-    den = np.maximum(den, 1e-6)
-    return (num / (den[..., None] if image.ndim == 3 else den)).astype(np.float32)
+    num = cv2.GaussianBlur(num, (k, k), sigma, borderType=cv2.BORDER_REFLECT)
+    den = np.maximum(cv2.GaussianBlur(w32, (k, k), sigma, borderType=cv2.BORDER_REFLECT), 1e-6)
+    out = num / (den[..., None] if num.ndim == 3 else den)
+    if factor > 1:
+        out = cv2.resize(out, (w, h), interpolation=cv2.INTER_LINEAR)
+    return out.reshape(image.shape).astype(np.float32, copy=False)
 
 
 def foreground_colours(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:

@@ -267,13 +267,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         lights, fit = fit_photo_lights(engine, target, valid)
         stage("fit the photo's lights")
         engine.set_lights(lights)
-        engine.set_view("final")
         explained = engine.render().read_work_hdr()
         fit["psnr_db"] = fit_psnr(explained, target, valid)
-        engine.set_view("diffuse_shading")
-        diffuse = engine.render().read_hdr()
-        engine.set_view("specular_shading")
-        specular = engine.render().read_hdr()
+        diffuse, specular = engine.read_frame_shading()
     finally:
         engine.release()
         if own_ctx:

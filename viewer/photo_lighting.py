@@ -101,8 +101,10 @@ def fit_photo_lights(engine, photo: np.ndarray, valid: np.ndarray, n: int = BASI
         rows, cols = rows[keep], cols[keep]
     basis = basis_lights(n)
     b = basis_images(engine, basis, (rows, cols)).astype(np.float64)  # (K, P, 3)
+    # the least squares must not fail on a stray non-finite texel (a degenerate normal or depth)
+    b = np.nan_to_num(b, nan=0.0, posinf=0.0, neginf=0.0)
     t_render = time.perf_counter() - t0
-    target = photo[rows, cols].astype(np.float64)  # (P, 3)
+    target = np.nan_to_num(photo[rows, cols].astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)  # (P, 3)
     intensity = np.zeros((n, 3))
     for c in range(3):
         bc, tc = b[:, :, c].T, target[:, c]

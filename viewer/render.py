@@ -134,10 +134,10 @@ def turntable_yaws(start: float, turn: float, frames: int) -> np.ndarray:
 
 def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: RenderSettings, frames: int,
                      fps: float = 30.0, turn: float = 360.0, environment: np.ndarray | None = None,
-                     progress=None) -> Path:
+                     progress=None) -> tuple[int, int]:
     """A relit video of the lighting turning about the vertical axis (``frames`` frames over
     ``turn`` degrees, starting at ``settings.yaw``) written to ``path`` (H.264 MP4).
-    ``progress(done, total)`` is called after every frame."""
+    ``progress(done, total)`` is called after every frame. Returns the video's (width, height)."""
     from .video import VideoWriter
 
     if frames < 1:
@@ -155,7 +155,7 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: R
             video.write(engine.read_display())
             if progress is not None:
                 progress(i + 1, frames)
-    return Path(path)
+    return video.encoded_size
 
 
 def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:

@@ -36,6 +36,8 @@ class VideoWriter:
             raise InputError(self.path, f"frame rate must be positive, got {fps}")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.size = (int(width), int(height))
+        # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
+        self.encoded_size = tuple(max(v - v % 2, 2) for v in self.size)
         self.fps = float(fps)
         self.frames = 0
         self._last_pts = -1
@@ -48,8 +50,7 @@ class VideoWriter:
             rate = Fraction(self.fps).limit_denominator(1001)
             self._time_base = 1 / (rate * TICKS_PER_FRAME)
             stream = self._container.add_stream("libx264", rate=rate)
-            # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
-            stream.width, stream.height = (max(v - v % 2, 2) for v in self.size)
+            stream.width, stream.height = self.encoded_size
             stream.pix_fmt = "yuv420p"
             stream.codec_context.time_base = self._time_base
             stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)

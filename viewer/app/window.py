@@ -132,6 +132,8 @@ class Window:
         self.ctx.clear(0.08, 0.08, 0.09)
         from OpenGL import GL
 
+        while self.ctx.error != "GL_NO_ERROR":  # engine work (texture reads) can leave an error the backend would raise
+            pass
         GL.glUseProgram(0)  # the backend restores the bound program: never one an engine has since released
         self.end_frame()
 

@@ -264,7 +264,7 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
         by_sample.setdefault(s, []).append(i)
     pairs = [(idx[k], idx[(k + 1) % len(idx)]) for idx in by_sample.values() for k in range(min(len(idx), 2))]
     pairs = pairs[:limit] if limit else pairs
-    rows: dict = {m: [] for m in (BEFORE, *methods)}
+    rows: dict = {m: [] for m in methods}
     with tempfile.TemporaryDirectory() as tmp:
         for n, (src, tgt) in enumerate(pairs):
             item, target = ds[src], ds[tgt]

@@ -25,6 +25,7 @@ and specular work is compiled out for a scene without specular reflectance.
 
 from __future__ import annotations
 
+import functools
 import time
 from collections import Counter, defaultdict
 from contextlib import contextmanager
@@ -40,7 +41,21 @@ from ..scene import Scene
 from .. import shadow_space as ss
 from .frame_pass import MAX_FILL_LOD, OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FramePass
 from .prefilter import METHODS, BlurPlan, blur_plan
-from .programs import ProgramCache
+from .programs import shared_programs
+
+
+def _in_context(method):
+    """Runs an engine method with the engine's GL context current. Creating another context (the
+    training loader's, a dataset renderer's) makes that one current, and GL object names belong to
+    one context; moderngl only switches contexts on ``with ctx``."""
+
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        with self.ctx:
+            return method(self, *args, **kwargs)
+
+    return run
+
 
 VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2, "refined": 3}
 # What the display image shows: the relit frame, the diffuse or specular shading alone (composited
@@ -118,7 +133,7 @@ class Engine:
         if max(scene.width, scene.height, o.shadow_resolution, *scene.output_size) > max_size:
             raise InputError(scene.source, f"image {scene.width}x{scene.height} (output {scene.output_size[0]}x{scene.output_size[1]}) "
                              f"or shadow map {o.shadow_resolution} exceeds this GL's texture limit {max_size}")
-        self.programs = ProgramCache(ctx)
+        self.programs = shared_programs(ctx)  # compiled once per context, not released with the engine
         self.counters: Counter = Counter()
         self.profile = self.options.profile  # may be toggled: profiling syncs after every pass
         self.timings: dict[str, list[float]] = defaultdict(list)
@@ -149,6 +164,7 @@ class Engine:
         tex.repeat_y = False
         return tex
 
+    @_in_context
     def _upload_scene(self):
         s, o, ctx = self.scene, self.options, self.ctx
         w, h = s.width, s.height
@@ -230,6 +246,7 @@ class Engine:
             np.array([l.intensity for l in self._lights]).reshape(-1, 3),
         )
 
+    @_in_context
     def set_lights(self, lights: AreaLights):
         """Replace the light set; only what changed is marked for recomputation."""
         lights.validate()
@@ -303,6 +320,7 @@ class Engine:
         """Whether the refined visibility of the current lights has been set."""
         return self._refined
 
+    @_in_context
     def set_refined_visibility(self, visibility: np.ndarray):
         """The shadow refinement network's visibility (N, H, W) of the current lights, shown in the
         'refined' mode until a light's direction or sigma changes (then the soft visibility is
@@ -386,6 +404,7 @@ class Engine:
                 if key in ("background", "color", "rotation"):
                     self._dirty_frame_background = True
 
+    @_in_context
     def set_environment(self, pixels: np.ndarray):
         """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background."""
         pixels = np.asarray(pixels, dtype=np.float32)
@@ -721,6 +740,7 @@ class Engine:
             prog["background_color"] = (0.1, 0.1, 0.1)
             self._fullscreen(prog)
 
+    @_in_context
     def render(self) -> "Engine":
         """Bring every output up to date, redoing only the passes whose inputs changed."""
         if not self._lights:
@@ -785,17 +805,32 @@ class Engine:
         """(width, height) of :attr:`display` and :meth:`read_hdr`."""
         return self.display.size
 
+    @_in_context
     def read_hdr(self) -> np.ndarray:
         """(H, W, 3) float32 linear HDR of the person (zero outside), at the output size, row 0 at
         the top."""
         return self.read_hdr_rgba()[..., :3]
 
+    @_in_context
     def read_hdr_rgba(self) -> np.ndarray:
         """(H, W, 4): the person's linear HDR and its coverage (the mask, or the frame's matte)."""
         if self.frame_pass is None:
             return self._read(self.hdr, 4)
         self._frame_ready()
         return self.frame_pass.read(self.shading_targets, self._composite_terms(), self._display_state, TONEMAPS, OUTPUT_PERSON_HDR)
+
+    @_in_context
+    def read_frame_shading(self) -> tuple[np.ndarray, np.ndarray]:
+        """The diffuse and specular shading sums (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
+        (H, W, 3) each at the output frame's resolution, upsampled exactly as the frame composite
+        upsamples them (a scene with a frame layer; after render())."""
+        if self.frame_pass is None:
+            raise ValueError("the scene has no frame layer")
+        self._frame_ready()
+        fp, st = self.frame_pass, self._display_state
+        diffuse = fp.read(self.shading_targets, (1.0, 0.0, True), st, TONEMAPS, OUTPUT_PERSON_HDR)[..., :3]
+        specular = fp.read(self.shading_targets, (0.0, 1.0, False), st, TONEMAPS, OUTPUT_PERSON_HDR)[..., :3]
+        return diffuse, specular
 
     def _frame_ready(self):
         """The frame composite's inputs up to date (after render())."""
@@ -807,19 +842,23 @@ class Engine:
             self.frame_pass.draw_background(self._display_state, BACKGROUNDS, self.tex_environment)
             self._dirty_frame_background = False
 
+    @_in_context
     def read_work_hdr(self) -> np.ndarray:
         """(H, W, 3) linear HDR at the maps' (work) resolution."""
         return self._read(self.hdr, 4)[..., :3]
 
+    @_in_context
     def read_display(self) -> np.ndarray:
         """(H, W, 3) uint8 sRGB display image."""
         return self._read(self.display, 4, dtype="f1")[..., :3]
 
+    @_in_context
     def read_display_rgba(self) -> np.ndarray:
         """(H, W, 4) uint8: the display image and its alpha (the coverage for the transparent
         background, 255 otherwise)."""
         return self._read(self.display, 4, dtype="f1")
 
+    @_in_context
     def read_output_hdr(self) -> np.ndarray:
         """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
         the same background (alpha 1), or premultiplied with its coverage for the transparent
@@ -837,6 +876,7 @@ class Engine:
             fbo.release()
             tex.release()
 
+    @_in_context
     def read_light(self, index: int) -> dict:
         """Per-light intermediate outputs (H, W) each: soft and hard visibility, diffuse and
         specular shading per unit intensity. All zero for a skipped light and outside the mask."""
@@ -850,6 +890,7 @@ class Engine:
             full[y:y + bh, x:x + bw] = np.frombuffer(data, np.float32).reshape(bh, bw, 4)
         return {"visibility_soft": full[..., 0], "visibility_hard": full[..., 1], "diffuse": full[..., 2], "specular": full[..., 3]}
 
+    @_in_context
     def read_shadow_map(self, index: int) -> np.ndarray:
         """(R, R) normalised depth of a light's shadow map, row 0 at v = 0."""
         l = self._lights[index]
@@ -857,6 +898,7 @@ class Engine:
             raise ValueError(f"light {index} contributes nothing, so it has no current shadow map")
         return self._read(l.shadow_map, 1)[..., 0]
 
+    @_in_context
     def read_filtered_basis(self, index: int) -> np.ndarray:
         """A light's pre-filtered CSM basis, (2 M, n, n): cos and sin of c_k z for k = 0 .. M-1, at
         the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft
@@ -873,6 +915,7 @@ class Engine:
     def light_active(self, index: int) -> bool:
         return self._lights[index].active
 
+    @_in_context
     def release(self):
         """Free every GL object the engine created (the context stays)."""
         for l in self._lights:
@@ -894,4 +937,3 @@ class Engine:
         for obj in objects:
             if obj is not None:
                 obj.release()
-        self.programs.release()

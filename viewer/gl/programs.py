@@ -59,3 +59,15 @@ class ProgramCache:
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
+
+
+def shared_programs(ctx: moderngl.Context) -> ProgramCache:
+    """The context's one program cache, kept in ``ctx.extra``: every engine made on a context
+    (the inference's, the viewer's final and preview engines, a preset's new one) compiles each
+    program once (about a second of llvmpipe's time each otherwise); the programs live as long as
+    the context."""
+    if ctx.extra is None:
+        ctx.extra = {}
+    if not isinstance(ctx.extra, dict):
+        return ProgramCache(ctx)
+    return ctx.extra.setdefault("programs", ProgramCache(ctx))
