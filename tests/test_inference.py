@@ -253,3 +253,30 @@ def test_a_huge_photo_is_capped_to_the_output_size(tiny_networks, tmp_path, ctx)
     assert record["framing"]["side"] == pytest.approx(4200 * 2048 / 6000 / FILL, abs=2)
     scene = load_scene(tmp_path / "b")
     assert scene.output_size == (1365, 2048) and scene.mask.sum() > 0
+
+
+def test_render_outputs_keep_the_photo_frame(landscape_bundle, tmp_path, capsys):
+    """relight render on a photo's bundle: PNG and EXR at the photo's own size; a transparent
+    background gives RGBA files whose alpha is the person's matte; --max-size caps a video, whose
+    frames keep the photo's aspect (an odd side loses its last row, never padded)."""
+    from viewer.cli import main
+    from viewer.imageio import read_exr, read_png
+    from viewer.video import read_video
+
+    out, _ = landscape_bundle
+    scene = load_scene(out)
+    lights = str(out / "lights.json")
+    png = tmp_path / "t.png"
+    assert main(["render", str(out), lights, "--background", "transparent", "-o", str(png)]) == 0
+    rgba, hdr = read_png(png), read_exr(png.with_suffix(".exr"))
+    assert rgba.shape == (1302, 1950, 4) and hdr.shape == (1302, 1950, 4)
+    assert np.isfinite(hdr).all()
+    matte = scene.frame.alpha
+    assert np.abs(rgba[..., 3] - matte).mean() < 0.01 and np.abs(hdr[..., 3] - matte).mean() < 0.01
+    assert rgba[..., 3][matte == 0].max() == 0 and rgba[..., :3][matte > 0.99].mean() > 0.05
+    video = tmp_path / "v.mp4"
+    assert main(["render", str(out), lights, "--frames", "2", "--max-size", "641", "-o", str(video)]) == 0
+    assert "(2 frames, 640x428," in capsys.readouterr().out
+    frames, _ = read_video(video)
+    assert frames.shape == (2, 428, 640, 3)
+    assert frames.reshape(2, -1).std(axis=1).min() > 5  # a picture, not a black frame

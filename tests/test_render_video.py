@@ -77,7 +77,8 @@ def test_turntable_is_temporally_stable(ctx, tmp_path):
     assert drmse(noisy, reference)[1] > 0.01 and flicker_ratio(noisy) > 2 * flicker_ratio(reference)
 
     eng = Engine(ctx, scene, EngineOptions())
-    path = render_turntable(eng, scene, lights, tmp_path / "t.mp4", RenderSettings(yaw=180.0, background="color"), 32)
+    path = tmp_path / "t.mp4"
+    assert render_turntable(eng, scene, lights, path, RenderSettings(yaw=180.0, background="color"), 32) == (256, 256)
     eng.release()
     video, _ = read_video(path)
     assert video.shape == (32, 256, 256, 3)

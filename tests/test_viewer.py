@@ -17,7 +17,8 @@ import pytest
 from viewer.bench.viewer import x_display
 from viewer.cli import DEMO_LIGHTS, DEMO_YAW
 from viewer.gl import Engine, EngineOptions
-from viewer.imageio import read_exr
+from viewer.bench.metrics import detail_kept
+from viewer.imageio import read_exr, read_png
 from viewer.lights import load_lights
 from viewer.render import RenderSettings, apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
@@ -164,15 +165,20 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
 
 
 def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_path, monkeypatch):
-    """relight view PHOTO --mask MASK: inference once (cached), then the viewer; the refined shadow
-    mode fills in when the lighting is still."""
+    """relight view PHOTO: the person found automatically, inference once (cached), then the
+    viewer; the refined shadow mode fills in when the lighting is still; a saved frame has the
+    photo's own size, with the person where the photo has them."""
     monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
     photo = asset_dir() / "photos" / "underpass.jpg"
-    v = viewer_factory(str(photo), "--mask", str(photo.with_suffix(".mask.png")), "--visibility", "refined")
+    v = viewer_factory(str(photo), "--visibility", "refined")
     s = v.wait_for(lambda s: s["refined"], 120)
     assert s["look"]["shadows"] == "refined" and not s["refine_error"]
     assert len(list((tmp_path / "cache" / "bundles").glob("underpass-*/scene.json"))) == 1
-    assert v.save().stat().st_size > 0
+    shot = read_png(v.save())
+    assert shot.shape[:2] == (1024, 681)
+    hand = read_png(photo.with_suffix(".mask.png")) > 0.5
+    hand = hand if hand.ndim == 2 else hand[..., 0]
+    assert 0.7 < detail_kept(shot, read_png(photo), hand) < 1.3  # the photo's own detail, in its own place
     assert v.quit() == 0
 
 

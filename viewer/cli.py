@@ -457,7 +457,7 @@ def cmd_bench(args) -> int:
         result = run_photos_benchmark(args.photos, args.maps, args.data[0] if args.data else None, out_dir, limit=args.limit,
                                       progress=lambda what: print(f"  {what} ({time.perf_counter() - start:.0f} s)", flush=True))
         print(photos_table(result))
-        print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.png'}, {out_dir / 'photos_detail.png'} "
+        print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.jpg'}, {out_dir / 'photos_detail.jpg'} "
               f"in {result['seconds'] / 60:.1f} min")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark

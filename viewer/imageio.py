@@ -126,6 +126,17 @@ def write_png(path, arr: np.ndarray, bits: int = 8, compress_level: int = 6) -> 
     return path
 
 
+def write_jpeg(path, arr: np.ndarray, quality: int = 90) -> Path:
+    """Write RGB values in [0, 1] (clipped) as a JPEG (figures of photographs: a fifth of a PNG's size)."""
+    from PIL import Image
+
+    path = Path(path)
+    im = Image.fromarray((np.clip(np.nan_to_num(np.asarray(arr, np.float32)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8))
+    with atomic_path(path) as tmp:
+        im.save(tmp, format="JPEG", quality=quality)
+    return path
+
+
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=np.float32)
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)

@@ -32,8 +32,9 @@ class Refiner:
         self.model = load_network(self.path, device)
 
     def __call__(self, hard: np.ndarray, soft: np.ndarray, sigma: np.ndarray, depth: np.ndarray,
-                 mask: np.ndarray) -> np.ndarray:
-        """hard, soft (N, H, W); sigma (N,); depth, mask (H, W) -> refined visibility (N, H, W)."""
+                 mask: np.ndarray, cancelled=None) -> np.ndarray:
+        """hard, soft (N, H, W); sigma (N,); depth, mask (H, W) -> refined visibility (N, H, W).
+        ``cancelled()``, if given, is called before each batch of lights (it raises to stop)."""
         import torch
 
         from .nets.refine import refined_visibility
@@ -51,6 +52,8 @@ class Refiner:
         out = np.zeros((n, h, w), np.float32)
         with torch.no_grad():
             for start in range(0, n, LIGHTS_PER_BATCH):
+                if cancelled is not None:
+                    cancelled()
                 sl = slice(start, min(start + LIGHTS_PER_BATCH, n))
                 v = refined_visibility(self.model, t(hard[sl])[None], t(soft[sl])[None],
                                        torch.as_tensor(sigma[sl], dtype=torch.float32, device=self.device)[None], d, m)

@@ -161,7 +161,7 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: R
 def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
     """A 2 x 4 picture of the inputs and intermediate passes, for looking rather than reading:
     albedo, normal, depth, specular | summed soft visibility, summed hard visibility, shading
-    without shadows, ``final`` (the display image, float RGB in [0, 1])."""
+    without shadows, ``final`` (the display image, float RGB or RGBA in [0, 1])."""
     m = scene.mask
     n = len(engine.lights)
     weights = engine.lights.intensity.mean(axis=1)
@@ -193,6 +193,8 @@ def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
         linear_to_srgb(grey(shade / scale)),
         final,
     ]
+    if final.shape[-1] == 4:  # a transparent background, shown over grey
+        final = tiles[-1] = final[..., :3] * final[..., 3:] + 0.5 * (1.0 - final[..., 3:])
     if final.shape[:2] != m.shape:  # the frame's image, shown at the maps' size
         from .photo_frame import resize
 

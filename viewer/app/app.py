@@ -342,6 +342,8 @@ class ViewerApp:
                     self._finish_recording(stopped=True)
                 self._write_state(force=True)
             finally:
+                if self.job is not None:
+                    self.job.stop()  # a light fit in progress ends at its next step
                 self.session.release()
                 w.release()
             if previous is not None:

@@ -41,10 +41,16 @@ class LightsResult:
     how: str  # "bundled", "cached" or "fitted"
 
 
+class Cancelled(Exception):
+    """Raised inside a job's work when :meth:`ThreadJob.stop` asked it to end."""
+
+
 class ThreadJob(ABC):
     """Work on a daemon thread: ``result`` when :meth:`work` returns, ``error`` (one line, from
     :meth:`failure`) when it raises; ``wake()`` is called when it finishes (to wake the window's
-    event wait). Subclasses set their own fields, then call ``super().__init__``, which starts it."""
+    event wait). Subclasses set their own fields, then call ``super().__init__``, which starts it.
+    :meth:`stop` ends a job early: its work checks :meth:`check_cancelled` between steps (a daemon
+    thread still inside torch when the program exits aborts the process)."""
 
     thread_name = "job"
 
@@ -52,12 +58,23 @@ class ThreadJob(ABC):
         self.result = None
         self.error: str | None = None
         self._wake = wake
+        self._cancel = threading.Event()
         self._thread = threading.Thread(target=self._run, name=self.thread_name, daemon=True)
         self._thread.start()
 
     @property
     def done(self) -> bool:
         return not self._thread.is_alive()
+
+    def check_cancelled(self):
+        if self._cancel.is_set():
+            raise Cancelled()
+
+    def stop(self, timeout: float = 60.0) -> bool:
+        """Ask the work to end at its next step and wait for it; True once the thread has ended."""
+        self._cancel.set()
+        self._thread.join(timeout)
+        return self.done
 
     @abstractmethod
     def work(self):
@@ -70,6 +87,8 @@ class ThreadJob(ABC):
     def _run(self):
         try:
             self.result = self.work()
+        except Cancelled:
+            pass
         except Exception as exc:  # shown in the panel; the window keeps what it had
             self.error = self.failure(exc)
         finally:
@@ -91,6 +110,7 @@ class LightJob(ThreadJob):
         super().__init__(wake)
 
     def _progress(self, stage: str, done: int, total: int):
+        self.check_cancelled()
         self.stage = stage
         self.fraction = done / max(total, 1)
 
@@ -123,7 +143,7 @@ class RefineJob(ThreadJob):
         super().__init__(wake)
 
     def work(self):
-        return self._refiner(*self._args)
+        return self._refiner(*self._args, cancelled=self.check_cancelled)
 
     def failure(self, exc: Exception) -> str:
         return f"shadow refinement failed: {type(exc).__name__}: {exc}"

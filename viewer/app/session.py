@@ -3,7 +3,8 @@
 The *final* engine renders at the bundle's resolution with the chosen options; the *preview*
 engine renders the same scene resampled to ``PREVIEW_SIZE`` pixels (shadow maps of
 ``PREVIEW_SHADOW_RESOLUTION``, hard shadows in place of soft ones: filtering 16 convolutional
-shadow maps costs more than everything else at that size) and is used only while the lighting is
+shadow maps costs more than everything else at that size; a photo's frame, which carries the
+photo's detail, is kept at up to ``PREVIEW_FRAME_SIZE`` pixels) and is used only while the lighting is
 being dragged, so a drag stays interactive; when the drag stops the final engine renders the same state, so what stays on screen is
 always the full-quality frame of the current state. Each frame shown is one complete engine render
 of one state: never a mix of old and new lights.
@@ -18,10 +19,12 @@ import numpy as np
 from ..gl import Engine, EngineOptions
 from ..lights import AreaLights, rotation_matrix
 from ..scene import Scene
+from ..photo_frame import scaled_size
 from ..scene_ops import resample_scene
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
+PREVIEW_FRAME_SIZE = 1024  # a photo's frame during a drag: the photo's detail stays, at a quarter of 2048^2's pixels
 SHADOW_MODES = {"convolutional (soft)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
     "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
@@ -107,7 +110,11 @@ class Session:
     @property
     def preview(self) -> Engine:
         if self._preview is None:
-            small = resample_scene(self.scene, PREVIEW_SIZE) if max(self.scene.width, self.scene.height) > PREVIEW_SIZE else self.scene
+            small = self.scene
+            if max(small.width, small.height) > PREVIEW_SIZE:
+                small = resample_scene(small, PREVIEW_SIZE, keep_frame=True)
+            if small.frame is not None and max(small.output_size) > PREVIEW_FRAME_SIZE:
+                small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, PREVIEW_FRAME_SIZE)))
             res = min(PREVIEW_SHADOW_RESOLUTION, self.options.shadow_resolution)
             self._preview = Engine(self.ctx, small, replace(self.options, shadow_resolution=res, shadow_step=0))
             self._set_environment(self._preview)
@@ -180,6 +187,8 @@ class Session:
         return True
 
     def release(self):
+        if self.refine_job is not None:
+            self.refine_job.stop()
         for eng in self._engines():
             eng.release()
         self._preview = None

@@ -18,8 +18,8 @@ With ``--data`` (a held-out dataset, ``relight dataset make --split heldout``), 
 lighting, written as an 8-bit sRGB photo, is inferred with its true mask and relit under its other
 lighting: relit RMSE, SSIM and FLIP against the ray-traced truth with each detail method.
 
-Writes ``photos.json`` and the figures ``photos_relit.png`` (photo, before, now, under each map) and
-``photos_detail.png`` (a 1:1 crop of the face) into the output folder.
+Writes ``photos.json`` and the figures ``photos_relit.jpg`` (photo, before, now, under each map) and
+``photos_detail.jpg`` (a crop of the face, every method) into the output folder.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from .. import detail as detail_mod
 from ..envmap import load_envmap
 from ..gl import Engine, EngineOptions, create_headless_context
 from ..gl.context import describe
-from ..imageio import linear_to_srgb, write_png, write_text
+from ..imageio import linear_to_srgb, write_jpeg, write_text
 from ..inference import NETWORK_RES, infer_scene, load_networks, mask_normalized_resize
 from ..lightfit import lights_for_map
 from ..lights import AreaLights
@@ -345,8 +345,8 @@ def _label(tile: np.ndarray, text: str) -> np.ndarray:
 
 
 def _figures(pictures: list, rows: list, out_dir: Path):
-    """photos_relit.png: per photo a row (photo, then before / now under each map), 400 px tall;
-    photos_detail.png: a 1:1 crop around the face of the photo, before, and every method."""
+    """photos_relit.jpg: per photo two rows (photo, then before / now under each map), 480 px tall;
+    photos_detail.jpg: a crop around the face of the photo, before, and every method, 320 px."""
     height = 480
     blocks = []
     for pics, row in zip(pictures, rows):
@@ -363,7 +363,7 @@ def _figures(pictures: list, rows: list, out_dir: Path):
         blocks.append(np.concatenate(lines, axis=0))
     width = max(b.shape[1] for b in blocks)
     blocks = [np.pad(b, ((0, 8), (0, width - b.shape[1]), (0, 0)), constant_values=1.0) for b in blocks]
-    write_png(out_dir / "photos_relit.png", np.concatenate(blocks, axis=0))
+    write_jpeg(out_dir / "photos_relit.jpg", np.concatenate(blocks, axis=0))
     crops = []
     name = FIGURE_MAPS[0][0]
     for pics, row in zip(pictures, rows):
@@ -377,4 +377,4 @@ def _figures(pictures: list, rows: list, out_dir: Path):
         tiles = [_label(pics["photo"][y0:y0 + side, x0:x0 + side], "photo")]
         tiles += [_label(pics[m, name][y0:y0 + side, x0:x0 + side], m) for m in sorted(methods, key=str)]
         crops.append(np.concatenate([resize(t, (320, 320)) for t in tiles], axis=1))
-    write_png(out_dir / "photos_detail.png", np.concatenate(crops, axis=0))
+    write_jpeg(out_dir / "photos_detail.jpg", np.concatenate(crops, axis=0))

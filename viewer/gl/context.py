@@ -21,6 +21,15 @@ def create_headless_context() -> moderngl.Context:
         ) from None
 
 
+def make_current(ctx: moderngl.Context):
+    """Make ``ctx`` the thread's current GL context. Creating another context (the training
+    loader's, a dataset renderer's) makes that one current, and GL object names belong to one
+    context, so every engine entry point calls this. moderngl has no call for it: entering the
+    context does it, and leaving it (``with ctx:``) would make *no* context current (glcontext
+    releases rather than restores), so it is entered and never left."""
+    ctx.__enter__()
+
+
 def describe(ctx: moderngl.Context) -> str:
     info = ctx.info
     return f"{info.get('GL_RENDERER', '?')} (OpenGL {ctx.version_code})"

@@ -39,20 +39,19 @@ from ..lights import AreaLights
 from ..mesh import caster_points, depth_mesh, resolve_step
 from ..scene import Scene
 from .. import shadow_space as ss
+from .context import make_current
 from .frame_pass import MAX_FILL_LOD, OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FramePass
 from .prefilter import METHODS, BlurPlan, blur_plan
 from .programs import shared_programs
 
 
 def _in_context(method):
-    """Runs an engine method with the engine's GL context current. Creating another context (the
-    training loader's, a dataset renderer's) makes that one current, and GL object names belong to
-    one context; moderngl only switches contexts on ``with ctx``."""
+    """Runs an engine method with the engine's GL context current (see :func:`make_current`)."""
 
     @functools.wraps(method)
     def run(self, *args, **kwargs):
-        with self.ctx:
-            return method(self, *args, **kwargs)
+        make_current(self.ctx)
+        return method(self, *args, **kwargs)
 
     return run
 
@@ -126,6 +125,7 @@ class Engine:
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, options: EngineOptions | None = None):
         self.ctx = ctx
+        make_current(ctx)
         self.scene = scene
         self.options = options or EngineOptions()
         o = self.options
@@ -164,7 +164,6 @@ class Engine:
         tex.repeat_y = False
         return tex
 
-    @_in_context
     def _upload_scene(self):
         s, o, ctx = self.scene, self.options, self.ctx
         w, h = s.width, s.height
