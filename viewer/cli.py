@@ -388,7 +388,9 @@ def photos_table(result: dict) -> str:
     lines = []
     for row in result["photos"]:
         ex = row["explains_photo"]
-        lines.append(f"{row['photo']}: mask IoU {row.get('mask', {}).get('iou', float('nan')):.3f}; the photo's lighting "
+        mask = row.get("mask", {})
+        lines.append(f"{row['photo']}: mask IoU {mask.get('iou', float('nan')):.3f}, mean |difference| "
+                     f"{mask.get('mean_abs_percent', float('nan')):.2f} %; the photo's lighting "
                      f"explains it to {ex['fitted']['psnr_db']:.1f} dB / SSIM {ex['fitted']['ssim']:.3f} "
                      f"(the network's guess {ex['network']['psnr_db']:.1f} dB); inference {row['inference_seconds_total']:.1f} s")
         for method, m in row["methods"].items():

@@ -2,8 +2,9 @@
 
 For each photo of ``--photos`` (default the two shared ones), with the automatic mask:
 
-- **mask**: the automatic matte's IoU against the hand-made mask beside the photo
-  (``<stem>.mask.png``, evaluation only), and its time;
+- **mask**: the automatic matte's IoU and mean absolute difference against the hand-made mask
+  beside the photo (``<stem>.mask.png``, evaluation only), the share of the photo in its soft
+  band, and its time;
 - **the photo's own lighting** before any detail step: the render of the network's maps under the
   lights fitted to the photo, against the photo's low-pass over the person (PSNR and SSIM, display
   sRGB), next to the same for the lights the inverse-rendering network guessed;
@@ -154,7 +155,11 @@ def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, di
     if reference.is_file():
         t0 = time.perf_counter()
         matte = person_matte(resize(photo, (photo.shape[1], photo.shape[0])), path)
-        row["mask"] = {"iou": mask_iou(matte, read_reference_mask(reference)), "seconds": round(time.perf_counter() - t0, 3)}
+        seconds = round(time.perf_counter() - t0, 3)
+        hand = read_reference_mask(reference)
+        # mean |alpha - hand-made mask| (%) also counts a soft band too wide; soft band: 2 % < alpha < 98 %
+        row["mask"] = {"iou": mask_iou(matte, hand), "mean_abs_percent": float(np.abs(matte - hand).mean() * 100),
+                       "soft_band_percent": float(((matte > 0.02) & (matte < 0.98)).mean() * 100), "seconds": seconds}
     t0 = time.perf_counter()
     result = infer_scene(path, None, networks=nets, ctx=ctx, keep_intermediate=True)
     row["inference_seconds"] = dict(result["stages"].times)
