@@ -1,6 +1,7 @@
 // Inspection views of the scene bundle and of one light's visibility, drawn into the display
 // image instead of the relit frame: albedo (sRGB), normal (n * 0.5 + 0.5), depth (near = white),
-// specular, roughness, and a light's shadow (its soft or hard visibility, white = lit).
+// specular, roughness, and a light's shadow (its soft or hard visibility, white = lit). Drawn at
+// the display's size: a scene with a frame layer shows each output pixel's nearest work pixel.
 #include "tonemap.glsl"
 uniform sampler2D positions;    // camera-space points (xyz) and roughness (w)
 uniform sampler2D normals;      // unit normals (xyz) and specular (w)
@@ -13,9 +14,10 @@ uniform ivec2 box_origin;       // the mask's bounding box in the image
 uniform int visibility_channel; // 0 soft, 1 hard
 uniform bool light_valid;       // false for a light that contributes nothing (skipped): shown black
 uniform vec3 background_color;  // display (sRGB) colour outside the mask
+uniform vec2 display_to_work;   // work pixels per display pixel (1 without a frame layer)
 layout(location = 0) out vec4 color;
 void main() {
-    ivec2 px = ivec2(gl_FragCoord.xy);
+    ivec2 px = min(ivec2(gl_FragCoord.xy * display_to_work), textureSize(albedo_mask, 0) - 1);
     vec4 am = texelFetch(albedo_mask, px, 0);
     if (am.a < 0.5) { color = vec4(background_color, 1.0); return; }
     vec4 pr = texelFetch(positions, px, 0);

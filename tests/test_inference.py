@@ -202,7 +202,26 @@ def test_bad_inputs_name_the_file_and_the_problem(tiny_networks, tmp_path, ctx):
         assert info.value.path is not None
     with pytest.raises(InputError, match="work size"):
         infer(photo, mask, tmp_path / "out", size=10_000, networks=nets, ctx=ctx)
+    with pytest.raises(InputError, match="--max-size must be within"):
+        infer(photo, mask, tmp_path / "out", max_size=20, networks=nets, ctx=ctx)
     assert (tmp_path / "a-file").read_text() == "x"  # nothing the user had is lost
+    # a folder holding the user's files is never replaced by a bundle
+    (tmp_path / "pictures").mkdir()
+    (tmp_path / "pictures" / "holiday.jpg").write_bytes(b"mine")
+    with pytest.raises(InputError, match="other files and no scene bundle"):
+        infer(photo, mask, tmp_path / "pictures", size=64, networks=nets, ctx=ctx)
+    assert (tmp_path / "pictures" / "holiday.jpg").read_bytes() == b"mine"
+
+
+def test_photos_over_the_pixel_limit_are_refused_in_one_line(tmp_path, monkeypatch):
+    import viewer.photo_frame as photo_frame
+    from viewer.photo_frame import read_photo
+
+    Image.fromarray(np.zeros((300, 400, 3), np.uint8)).save(tmp_path / "big.png")
+    monkeypatch.setattr(photo_frame, "MAX_PIXELS", 100_000)
+    with pytest.raises(InputError, match="400x300 pixels, more than") as info:
+        read_photo(tmp_path / "big.png", [])
+    assert str(info.value.path) == str(tmp_path / "big.png")
 
 
 def test_a_failed_inference_leaves_the_previous_bundle(tiny_networks, tmp_path, ctx):
@@ -280,3 +299,29 @@ def test_render_outputs_keep_the_photo_frame(landscape_bundle, tmp_path, capsys)
     frames, _ = read_video(video)
     assert frames.shape == (2, 428, 640, 3)
     assert frames.reshape(2, -1).std(axis=1).min() > 5  # a picture, not a black frame
+
+
+def test_inspection_views_keep_the_frame_size(landscape_bundle, ctx):
+    """A photo's bundle shows its maps at the output frame's size (each pixel its nearest work
+    pixel), so saved frames and recordings never change size with the view."""
+    out, _ = landscape_bundle
+    scene = load_scene(out)
+    eng = Engine(ctx, scene, EngineOptions())
+    try:
+        apply_settings(eng, scene, load_lights(out / "lights.json"), RenderSettings(exposure=0.0), has_environment=False)
+        final = eng.render().read_display()
+        eng.set_view("normal")
+        normal = eng.render().read_display()
+        eng.set_view("shadow", 0)
+        assert eng.render().read_display().shape == final.shape == normal.shape == (1302, 1950, 3)
+        eng.set_view("final")
+        assert np.array_equal(eng.render().read_display(), final)
+    finally:
+        eng.release()
+    sy, sx = scene.height / 1302, scene.width / 1950
+    ys, xs = np.nonzero(scene.frame.alpha > 0.99)
+    pick = np.random.default_rng(0).choice(len(ys), 200, replace=False)
+    for y, x in zip(ys[pick], xs[pick]):
+        wy, wx = min(int((y + 0.5) * sy), scene.height - 1), min(int((x + 0.5) * sx), scene.width - 1)
+        if scene.mask[wy, wx]:
+            np.testing.assert_allclose(normal[y, x] / 255.0, scene.normal[wy, wx] * 0.5 + 0.5, atol=1.5 / 255)

@@ -172,7 +172,7 @@ def cmd_demo(args) -> int:
     photo = assets / DEMO_PHOTO
     t0 = time.perf_counter()
     ctx = create_headless_context()
-    record = infer(photo, None, out / "photo_bundle", max_size=args.max_size, ctx=ctx)
+    infer(photo, None, out / "photo_bundle", max_size=args.max_size, ctx=ctx)
     print(f"inferred the scene bundle of {DEMO_PHOTO} (automatic mask) in {time.perf_counter() - t0:.1f} s: "
           f"{out / 'photo_bundle'}")
     scene = _load_scene(out / "photo_bundle", None, args.max_size)
@@ -190,7 +190,7 @@ def cmd_demo(args) -> int:
     finally:
         engine.release()
     sheet = write_png(out / "photo_relit.png", np.concatenate(pictures, axis=1))
-    print(f"wrote {sheet} (the photo, then relit under each bundled map); inference took {record['seconds_total']:.1f} s")
+    print(f"wrote {sheet} (the photo, then relit under each bundled map)")
     return 0
 
 
@@ -254,7 +254,7 @@ def cmd_view(args) -> int:
         # before the window's would make the window fail, ../shared/docs/STACK.md)
         window = Window(960, 720, f"relight - {Path(args.scene).name}")
         try:
-            scene_path = _photo_bundle(args.scene, args.mask, args.device, window)
+            scene_path = _photo_bundle(args.scene, args.mask, args.device, window, args.max_size)
         except BaseException:
             window.release()
             raise
@@ -285,7 +285,7 @@ def cmd_view(args) -> int:
     return run_viewer(config)
 
 
-def _photo_bundle(photo, mask, device, window) -> Path:
+def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
     """The scene bundle of a photo: inferred once (its stages shown in the window), then taken
     from the cache."""
     from .inference import cached_bundle
@@ -297,7 +297,7 @@ def _photo_bundle(photo, mask, device, window) -> Path:
         window.show_message(f"Preparing {Path(photo).name}: {stage} done")
 
     window.show_message(f"Preparing {Path(photo).name}: reading the photo, finding the person...")
-    bundle, cached = cached_bundle(photo, mask, device=device, progress=progress, ctx=window.ctx)
+    bundle, cached = cached_bundle(photo, mask, max_size=max_size, device=device, progress=progress, ctx=window.ctx)
     print(f"scene bundle of {photo}: {bundle} ({'from the cache' if cached else 'inferred now, cached for next time'}; "
           f"{time.perf_counter() - start:.1f} s)")
     return bundle
@@ -508,7 +508,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo (its bundle is inferred once and cached; "
                    "default: the bundled sample)")
     p.add_argument("--mask", help="the photo's person mask (default: found automatically)")
-    p.add_argument("--device", default="cpu", help="device for inference with --mask (default cpu)")
+    p.add_argument("--device", default="cpu", help="device for a photo's inference (default cpu)")
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
     p.add_argument("-n", "--lights-count", type=int, help="lights fitted to the map (default: the preset's, balanced 16; cached)")

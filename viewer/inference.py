@@ -10,7 +10,7 @@ photo's own lighting and the detail layer.
    person ``FILL`` of its height, padded by repeating the photo's edge: internal to the networks,
    never shown) and runs the inverse-rendering network (normal, albedo, specular, roughness, the
    photo's lights as the network guesses them) and the depth network at ``NETWORK_RES``;
-3. brings their maps to the work frame (the photo's field of view, the person about ``work_size``
+3. brings their maps to the work frame (the photo's field of view, the person about ``size``
    pixels: the resolution of the shadow work), extended a few pixels past the mask first, so that
    resampling never mixes in what the networks say about the background;
 4. fits the photo's own lights to the photo (:mod:`viewer.photo_lighting`) with the GL engine;
@@ -33,7 +33,8 @@ import numpy as np
 
 from . import detail as detail_mod
 from .errors import InputError
-from .photo_frame import MAX_SIZE, WORK_PERSON, check_person, frame_sizes, person_box, read_mask, read_photo, resize
+from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
+                          resize)
 from .resources import network_dir
 
 NETWORK_RES = 256
@@ -165,6 +166,7 @@ def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int
     """Write the scene bundle of ``photo_path`` into ``out_dir``; returns the record also written
     as ``inference.json``. ``mask_path`` None: the automatic person mask. ``size``: pixels of the
     person's longer side in the maps; ``max_size``: the frame's longer side."""
+    bundle_target(out_dir)  # refused before the work, not after it
     result = infer_scene(photo_path, mask_path, size=size, max_size=max_size, device=device, networks=networks,
                          progress=progress, ctx=ctx, detail=detail)
     write_bundle(result, out_dir)
@@ -187,7 +189,6 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     from .lights import AreaLights
     from .nets import depth as depth_net
     from .nets import inverse as inverse_net
-    from .photo_frame import scaled_size
     from .photo_lighting import fit_mask, fit_photo_lights
     from .scene import FrameLayer, Scene
 
@@ -195,7 +196,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     notes: list[str] = []
     photo = read_photo(photo_path, notes)
     h, w = photo.shape[:2]
-    frame = (w, h) if max(w, h) <= max_size else scaled_size((w, h), max_size)
+    frame = output_frame((w, h), max_size)
     frame_photo = resize(photo, frame)
     stage("read")
     if mask_path is not None:
@@ -209,7 +210,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     person = alpha > 0.5
     check_person(person, mask_path if mask_path is not None else photo_path)
     if person.all():
-        notes.append("the mask covers the whole photo: there is no background to read the lighting from")
+        notes.append("the mask covers the whole photo: there is no background to see the new lighting against")
     _, _, ph, pw = person_box(person)
     sizes = frame_sizes((w, h), (pw * w / frame[0], ph * h / frame[1]), max_size, size)
     stage("mask")
@@ -243,7 +244,10 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     inside = work_mask[..., None]
     network_albedo = np.where(inside, np.clip(work[..., :3], 0, 1), 0).astype(np.float32)
     frame_linear = srgb_to_linear(frame_photo.astype(np.float32) / 255.0)
-    frame_network_albedo = np.clip(resize(network_albedo, sizes.frame), 0, 1)
+    # upsampled from the maps extended past the mask, not from the zeroed ones: zeros mixed in at
+    # the outline would darken the matte's edge (frame pixels whose work pixel is outside the mask)
+    frame_network_albedo = np.where(alpha[..., None] > 0, np.clip(resize(np.clip(work[..., :3], 0, 1), sizes.frame), 0, 1),
+                                    0).astype(np.float32)
     scene = Scene(albedo=network_albedo,
                   specular=np.where(work_mask, np.clip(work[..., 3], 0, 1), 0).astype(np.float32),
                   roughness=np.where(work_mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
@@ -256,8 +260,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
 
     own_ctx = ctx is None
     ctx = create_headless_context() if own_ctx else ctx
-    engine = Engine(ctx, scene, EngineOptions())
+    engine = None
     try:
+        engine = Engine(ctx, scene, EngineOptions())
         # the photo at the maps' level of detail: one network pixel of low-pass
         net_px_work = side_work / NETWORK_RES
         target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, net_px_work)
@@ -271,16 +276,12 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         fit["psnr_db"] = fit_psnr(explained, target, valid)
         diffuse, specular = engine.read_frame_shading()
     finally:
-        engine.release()
+        if engine is not None:
+            engine.release()
         if own_ctx:
             ctx.release()
     stage("render the photo's shading")
-    person_colours = detail_mod.foreground_colours(frame_linear, alpha, sigma=f.side / 64)
-    frame_albedo, detail_stats = detail_mod.detail_albedo(detail, person_colours, alpha, frame_network_albedo,
-                                                          (diffuse, specular), lowpass_sigma=f.side / NETWORK_RES)
-    scene.frame.albedo = frame_albedo
-    scene.albedo = np.where(inside, np.clip(mask_normalized_resize(frame_albedo, alpha, sizes.work), 0, 1), 0).astype(np.float32)
-    scene.validate()
+    scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, detail)
     stage("detail")
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
     record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
@@ -294,6 +295,22 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     return result
 
 
+def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarray, np.ndarray], framing_side: float,
+                method: str = detail_mod.DEFAULT, shared_scale: float | None = None):
+    """(``scene`` with the detail albedo of ``method`` in its frame layer and, area-averaged over
+    the person, in its maps; the detail step's statistics). ``shading`` = (D_old, S_old) at the
+    frame, ``framing_side`` the networks' square in frame pixels."""
+    from dataclasses import replace
+
+    frame = scene.frame
+    colours = detail_mod.foreground_colours(frame.photo, frame.alpha, sigma=framing_side / 64)
+    albedo, stats = detail_mod.detail_albedo(method, colours, frame.alpha, network_albedo_frame, shading,
+                                             lowpass_sigma=framing_side / NETWORK_RES, shared_scale=shared_scale)
+    work = mask_normalized_resize(albedo, frame.alpha, (scene.width, scene.height))
+    return replace(scene, albedo=np.where(scene.mask[..., None], np.clip(work, 0, 1), 0).astype(np.float32),
+                   frame=replace(frame, albedo=albedo)).validate(), stats
+
+
 def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float:
     """PSNR (dB) of a render against the photo's low-pass over ``valid``, in display sRGB."""
     from .imageio import linear_to_srgb
@@ -303,15 +320,27 @@ def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float
     return float(10 * np.log10(1.0 / max(mse, 1e-12)))
 
 
+def bundle_target(out_dir) -> Path:
+    """``out_dir`` as a place for a scene bundle: new, empty, or an earlier bundle (which is
+    replaced). A folder holding anything else is refused: replacing it would delete the user's files."""
+    out_dir = Path(out_dir).resolve()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder: give a folder for the scene bundle")
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not (out_dir / "scene.json").is_file():
+        raise InputError(out_dir, "is a folder with other files and no scene bundle in it: give a new or empty "
+                         "folder for the bundle (nothing was written)")
+    return out_dir
+
+
 def write_bundle(result: dict, out_dir) -> Path:
     """Write :func:`infer_scene`'s result as a scene bundle; a previous bundle in ``out_dir`` is
     replaced only once the new one is complete."""
+    from .imageio import write_text
     from .scene import save_scene
 
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a folder: give a folder for the scene bundle")
+    out_dir = bundle_target(out_dir)
     tmp = out_dir.with_name(f".{out_dir.name}.partial")
+    old = out_dir.with_name(f".{out_dir.name}.old")
     shutil.rmtree(tmp, ignore_errors=True)
     try:
         save_scene(result["scene"], tmp)
@@ -322,16 +351,15 @@ def write_bundle(result: dict, out_dir) -> Path:
         record = result["record"]
         record["seconds"] = dict(result["stages"].times)
         record["seconds_total"] = round(sum(record["seconds"].values()), 3)
-        from .imageio import write_text
-
         write_text(tmp / "inference.json", json.dumps(record, indent=1) + "\n")
+        if out_dir.exists():
+            shutil.rmtree(old, ignore_errors=True)
+            out_dir.rename(old)
+        tmp.rename(out_dir)
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if old.is_dir() and not out_dir.exists():
+            old.rename(out_dir)  # the earlier bundle back in its place
         raise InputError(out_dir, f"cannot write the scene bundle ({exc})") from None
-    old = out_dir.with_name(f".{out_dir.name}.old")
-    if out_dir.exists():
-        shutil.rmtree(old, ignore_errors=True)
-        out_dir.rename(old)
-    tmp.rename(out_dir)
     shutil.rmtree(old, ignore_errors=True)
     return out_dir

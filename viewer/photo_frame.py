@@ -17,6 +17,7 @@ the middle), so a pixel (x, y) of the frame is the point (x s, y s) of the work 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,8 @@ MAX_SIZE = 2048  # default longer side of every output
 WORK_PERSON = 512  # default pixels of the person's longer side in the work frame
 MAX_PIXELS = 200_000_000  # larger photos are refused (decompression bombs)
 MIN_PERSON_PX = 32
+MIN_FRAME = 64  # --max-size below this leaves no room for a person of MIN_PERSON_PX
+MAX_WORK = 4096  # the work frame's longer side at most (its float targets grow with its square)
 
 
 @dataclass(frozen=True)
@@ -58,18 +61,23 @@ def scaled_size(size: tuple[int, int], longest: int) -> tuple[int, int]:
     return max(int(round(w * s)), 1), max(int(round(h * s)), 1)
 
 
+def output_frame(photo_size: tuple[int, int], max_size: int = MAX_SIZE) -> tuple[int, int]:
+    """The output frame (width, height): the photo's own size, its longer side capped at ``max_size``."""
+    if not MIN_FRAME <= max_size <= 16384:
+        raise InputError(None, f"--max-size must be within [{MIN_FRAME}, 16384] pixels, got {max_size}")
+    return tuple(photo_size) if max(photo_size) <= max_size else scaled_size(photo_size, max_size)
+
+
 def frame_sizes(photo_size: tuple[int, int], person_box: tuple[int, int], max_size: int = MAX_SIZE,
                 work_person: int = WORK_PERSON) -> FrameSizes:
     """The frame (photo capped at ``max_size``) and the work frame (person's longer side about
-    ``work_person`` pixels, never larger than the frame) of a photo whose person's bounding box is
-    ``person_box`` = (width, height) photo pixels."""
-    if not 16 <= max_size <= 16384:
-        raise InputError(None, f"--max-size must be within [16, 16384] pixels, got {max_size}")
-    if not 32 <= work_person <= 4096:
-        raise InputError(None, f"the work size must be within [32, 4096] pixels, got {work_person}")
-    frame = photo_size if max(photo_size) <= max_size else scaled_size(photo_size, max_size)
+    ``work_person`` pixels, never larger than the frame nor than ``MAX_WORK``) of a photo whose
+    person's bounding box is ``person_box`` = (width, height) photo pixels."""
+    if not MIN_PERSON_PX <= work_person <= MAX_WORK:
+        raise InputError(None, f"the work size must be within [{MIN_PERSON_PX}, {MAX_WORK}] pixels, got {work_person}")
+    frame = output_frame(photo_size, max_size)
     person = max(person_box) * max(frame) / max(photo_size)
-    work_long = min(max(frame), int(round(max(frame) * work_person / max(person, 1.0))))
+    work_long = min(max(frame), MAX_WORK, int(round(max(frame) * work_person / max(person, 1.0))))
     work = frame if work_long >= max(frame) else scaled_size(frame, work_long)
     return FrameSizes(tuple(photo_size), tuple(frame), tuple(work))
 
@@ -100,7 +108,13 @@ def read_image_u8(path, what: str, notes: list) -> np.ndarray:
     if not path.is_file():
         raise InputError(path, f"{what} not found")
     try:
-        with Image.open(path) as im:
+        with warnings.catch_warnings():  # the size check below refuses it in one line instead
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            opened = Image.open(path)
+        with opened as im:
+            if im.width * im.height > MAX_PIXELS:  # Pillow itself only refuses twice its limit
+                raise InputError(path, f"the {what} has {im.width}x{im.height} pixels, more than "
+                                       f"{MAX_PIXELS // 1_000_000} megapixels")
             orientation = im.getexif().get(0x0112, 1)
             upright = ImageOps.exif_transpose(im)
             upright.load()
@@ -135,15 +149,13 @@ def read_photo(path, notes: list) -> np.ndarray:
     elif photo.shape[-1] == 4:
         notes.append("the photo's alpha channel is ignored (the person mask says where the person is)")
         photo = photo[..., :3]
-    elif photo.shape[-1] == 2:  # grey + alpha
-        photo = np.repeat(photo[..., :1], 3, axis=-1)
     return np.ascontiguousarray(photo)
 
 
 def read_mask(path, photo_shape: tuple[int, int], notes: list) -> np.ndarray:
     """A person mask file as a matte (H, W) float32 in [0, 1] matching the upright photo: grey
-    or RGB (first channel); a mask drawn on the photo as stored (before its EXIF rotation) is
-    turned with it."""
+    or RGB (first channel). A mask drawn on the photo as stored (before its EXIF rotation) is
+    refused with that hint."""
     img = read_image_u8(path, "mask", notes)
     if img.ndim == 3:
         img = img[..., 0]

@@ -117,7 +117,7 @@ def fit_photo_lights(engine, photo: np.ndarray, valid: np.ndarray, n: int = BASI
         intensity[:, c] = x
     model = np.einsum("kpc,kc->pc", b, intensity)
     keep = intensity.max(axis=1) > 1e-6 * max(float(intensity.max()), 1e-30)
-    if not keep.any():  # a black photo: one dim light from the front keeps the scene renderable
+    if not keep.any():  # a black photo has no light to fit: one light from the front, at zero, keeps the light file valid
         keep[np.argmax(basis.direction[:, 2])] = True
     lights = AreaLights(basis.direction[keep], basis.sigma[keep], intensity[keep].astype(np.float32))
     record = {

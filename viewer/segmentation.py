@@ -27,7 +27,7 @@ import numpy as np
 from .errors import InputError
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
-GUIDE_RADIUS_FRACTION = 1 / 150  # guided filter radius, of the frame's longer side (16 px at 2048)
+GUIDE_RADIUS_FRACTION = 1 / 150  # guided filter radius, of the frame's longer side (14 px at 2048)
 GUIDE_EPS = 1e-2  # guided filter regularization (image values in [0, 1]); measured in docs/photos.md
 # The guided filter's soft edge is as wide as its window (it inherits the coarse model's blur), and
 # a relit person shows the photo's old background through that band as a halo: a contrast of 2

@@ -132,8 +132,9 @@ class Window:
         self.ctx.clear(0.08, 0.08, 0.09)
         from OpenGL import GL
 
-        while self.ctx.error != "GL_NO_ERROR":  # engine work (texture reads) can leave an error the backend would raise
-            pass
+        for _ in range(16):  # engine work (texture reads) can leave errors the backend would raise
+            if self.ctx.error == "GL_NO_ERROR":
+                break
         GL.glUseProgram(0)  # the backend restores the bound program: never one an engine has since released
         self.end_frame()
 

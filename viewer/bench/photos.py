@@ -38,11 +38,11 @@ from ..envmap import load_envmap
 from ..gl import Engine, EngineOptions, create_headless_context
 from ..gl.context import describe
 from ..imageio import linear_to_srgb, write_jpeg, write_text
-from ..inference import NETWORK_RES, infer_scene, load_networks, mask_normalized_resize
+from ..inference import infer_scene, load_networks, with_detail
 from ..lightfit import lights_for_map
 from ..lights import AreaLights
 from ..photo_frame import read_photo, resize
-from ..render import RenderSettings, apply_settings, photo_exposure
+from ..render import RenderSettings, apply_settings, resolve_exposure
 from .metrics import detail_kept, light_moved, metrics
 
 SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -88,23 +88,17 @@ def sun_and_sky(direction) -> AreaLights:
 
 def _with_detail(result: dict, label: str) -> "object":
     """The inferred scene with the detail albedo of the variant ``label`` (the frame's and the maps')."""
-    from ..scene import FrameLayer, Scene
+    from ..scene import Scene
 
     sc = result["scene"]
-    frame = sc.frame
     if label == BEFORE:
         albedo = np.where(sc.mask[..., None], resize(result["network_albedo_frame"], (sc.width, sc.height)), 0)
         return Scene(albedo=np.clip(albedo, 0, 1).astype(np.float32), specular=sc.specular, roughness=sc.roughness,
                      normal=sc.normal, depth=sc.depth, mask=sc.mask, camera=sc.camera, photo=sc.photo,
                      background=sc.background).validate()
-    colours = detail_mod.foreground_colours(frame.photo, frame.alpha, sigma=result["record"]["framing"]["side"] / 64)
     method, shared = VARIANTS[label]
-    albedo, _ = detail_mod.detail_albedo(method, colours, frame.alpha, result["network_albedo_frame"], result["shading"],
-                                         lowpass_sigma=result["record"]["framing"]["side"] / NETWORK_RES, shared_scale=shared)
-    work = np.where(sc.mask[..., None], np.clip(mask_normalized_resize(albedo, frame.alpha, (sc.width, sc.height)), 0, 1), 0)
-    return Scene(albedo=work.astype(np.float32), specular=sc.specular, roughness=sc.roughness, normal=sc.normal,
-                 depth=sc.depth, mask=sc.mask, camera=sc.camera, photo=sc.photo, background=sc.background,
-                 frame=FrameLayer(albedo=albedo, alpha=frame.alpha, photo=frame.photo)).validate()
+    return with_detail(sc, result["network_albedo_frame"], result["shading"], result["record"]["framing"]["side"], method,
+                       shared)[0]
 
 
 def _render(engine, scene, lights, settings, env_pixels, frame_size) -> tuple[np.ndarray, np.ndarray]:
@@ -113,11 +107,9 @@ def _render(engine, scene, lights, settings, env_pixels, frame_size) -> tuple[np
     if env_pixels is not None:
         engine.set_environment(env_pixels)
     apply_settings(engine, scene, lights, settings, env_pixels is not None)
+    settings = resolve_exposure(engine, scene, settings)
+    apply_settings(engine, scene, lights, settings, env_pixels is not None)
     engine.render()
-    if settings.exposure == "auto":
-        apply_settings(engine, scene, lights, replace(settings, exposure=photo_exposure(engine, scene, settings.tonemap)),
-                       env_pixels is not None)
-        engine.render()
     display = engine.read_display().astype(np.float32) / 255.0
     hdr = engine.read_hdr()
     return resize(display, frame_size), resize(hdr, frame_size)

@@ -182,6 +182,8 @@ class Engine:
         self.shading_targets = []
         if s.frame is not None:  # the work composite also writes the shading sums the frame composite reads
             self.shading_targets = [self._texture((w, h), 4, linear=True) for _ in range(2)]
+            for tex in self.shading_targets:  # filled_sample reads coarser mip levels past the mask
+                tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
             targets += self.shading_targets
             self.frame_pass = FramePass(ctx, self.programs, self._fullscreen, s.frame, s.camera, self._texture)
         self.hdr_fbo = ctx.framebuffer(color_attachments=targets)
@@ -681,15 +683,7 @@ class Engine:
                 box = None if self._dirty_background else self._mask_box  # only the foreground changed
                 self._draw_display(self.display_fbo, self.hdr, self.tex_background, self.scene.camera, box)
             return
-        if self._dirty_frame_background:
-            with self._timed("frame_background"):
-                fp.draw_background(self._display_state, BACKGROUNDS, self.tex_environment)
-            self._dirty_frame_background = False
-        if self._dirty_frame:
-            with self._timed("frame_mipmaps"):
-                for tex in self.shading_targets:
-                    tex.build_mipmaps(0, MAX_FILL_LOD)
-            self._dirty_frame = False
+        self._frame_ready()
         with self._timed("frame_composite"):
             box = None if self._dirty_background else fp.box  # only the foreground changed
             fp.draw(fp.display_fbo, self.shading_targets, self._composite_terms(), self._display_state, TONEMAPS, box=box)
@@ -720,9 +714,11 @@ class Engine:
     def _inspect(self):
         view, index = self._view
         prog = self.programs.get("fullscreen.vert.glsl", "inspect.frag.glsl")
+        fbo = self.display_fbo if self.frame_pass is None else self.frame_pass.display_fbo  # the display's size stays
         with self._timed("display"):
-            self.display_fbo.scissor = None
-            self.display_fbo.use()
+            fbo.scissor = None
+            fbo.use()
+            prog["display_to_work"] = (self.scene.width / fbo.size[0], self.scene.height / fbo.size[1])
             for unit, (name, tex) in enumerate((("positions", self.tex_positions), ("normals", self.tex_normals),
                                                 ("albedo_mask", self.tex_albedo))):
                 tex.use(unit)
@@ -794,8 +790,8 @@ class Engine:
     @property
     def display(self) -> moderngl.Texture:
         """The display image shown and saved: at the output frame's resolution for a scene with a
-        frame layer (the maps' resolution for the inspection views), else at the maps'."""
-        if self.frame_pass is not None and self._view[0] not in _INSPECT_VIEWS:
+        frame layer (the inspection views too), else at the maps'."""
+        if self.frame_pass is not None:
             return self.frame_pass.display
         return self.work_display
 
@@ -832,14 +828,16 @@ class Engine:
         return diffuse, specular
 
     def _frame_ready(self):
-        """The frame composite's inputs up to date (after render())."""
-        if self._dirty_frame:
-            for tex in self.shading_targets:
-                tex.build_mipmaps(0, MAX_FILL_LOD)
-            self._dirty_frame = False
+        """The frame composite's inputs up to date: the shading sums' mipmaps and the background."""
         if self._dirty_frame_background:
-            self.frame_pass.draw_background(self._display_state, BACKGROUNDS, self.tex_environment)
+            with self._timed("frame_background"):
+                self.frame_pass.draw_background(self._display_state, BACKGROUNDS, self.tex_environment)
             self._dirty_frame_background = False
+        if self._dirty_frame:
+            with self._timed("frame_mipmaps"):
+                for tex in self.shading_targets:
+                    tex.build_mipmaps(0, MAX_FILL_LOD)
+            self._dirty_frame = False
 
     @_in_context
     def read_work_hdr(self) -> np.ndarray:
