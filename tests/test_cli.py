@@ -118,3 +118,11 @@ def test_fit_lights_bad_maps_give_one_line_errors(tmp_path):
     cv2.imwrite(str(black), np.zeros((8, 16, 3), np.float32))
     res = run_cli("fit-lights", str(black), "-n", "2", "-o", str(tmp_path / "b.json"), "--method", "median-cut")
     assert res.returncode == 0 and "black" in res.stderr
+
+
+def test_benchmarks_leave_the_checkout_clean(tmp_path):
+    """A benchmark without -o writes under out/ of the working folder, never into docs/."""
+    res = subprocess.run([sys.executable, "-m", "viewer.cli", "bench", "engine", "--sizes", "64", "--lights", "8",
+                          "--repeats", "1", "--no-twin"], capture_output=True, text=True, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file()) == ["out/bench_engine.json"]

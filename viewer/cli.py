@@ -415,15 +415,15 @@ def cmd_bench(args) -> int:
 
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
-                             output=args.output or "docs/bench_engine.json", twin=not args.no_twin)
+                             output=args.output or "out/bench_engine.json", twin=not args.no_twin)
     elif args.what == "viewer":
         from .bench.viewer import run_viewer_benchmark
 
-        run_viewer_benchmark(sizes=args.sizes, output=args.output or "docs/bench_viewer.json")
+        run_viewer_benchmark(sizes=args.sizes, output=args.output or "out/bench_viewer.json")
     elif args.what == "temporal":
         from .bench.temporal import run_temporal_benchmark
 
-        run_temporal_benchmark(output=args.output or "docs/bench_temporal.json")
+        run_temporal_benchmark(output=args.output or "out/bench_temporal.json")
     elif args.what == "networks":
         from .bench.networks import run_networks_benchmark, table
         from .progress import StageBars
@@ -432,7 +432,7 @@ def cmd_bench(args) -> int:
             raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
         with StageBars(prefix="evaluating: ") as bars:
             result = run_networks_benchmark(args.data if len(args.data) > 1 else args.data[0], args.networks,
-                                            output=args.output or "docs/bench_networks.json", limit=args.limit,
+                                            output=args.output or "out/bench_networks.json", limit=args.limit,
                                             progress=bars)
         print(table(result))
     elif args.what == "report":
@@ -464,12 +464,12 @@ def cmd_bench(args) -> int:
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
-        run_shadow_benchmark(repeats=args.repeats, output=args.output or "docs/bench_shadows.json")
+        run_shadow_benchmark(repeats=args.repeats, output=args.output or "out/bench_shadows.json")
     else:
         from .bench.lights import COUNTS, DEFAULT_MAPS, run_lights_benchmark
 
         run_lights_benchmark(maps_dir=args.maps or DEFAULT_MAPS, counts=args.counts or COUNTS,
-                             output=args.output or "docs/bench_lights.json")
+                             output=args.output or "out/bench_lights.json")
     return 0
 
 
@@ -607,8 +607,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", nargs="+", help="networks, report, photos: held-out dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
     p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs")
-    p.add_argument("-o", "--output", help="JSON path (default docs/bench_<what>.json); report: the folder "
-                   "(default docs/, with --quick out/report-quick/)")
+    p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "
+                   "photos: the folder (default out/report/, with --quick out/report-quick/; out/bench-photos/). "
+                   "The committed figures are refreshed only when asked: -o docs/bench_<what>.json, or -o docs")
     p.set_defaults(func=cmd_bench)
     return parser
 

@@ -117,8 +117,9 @@ class AreaLights:
         data = self.to_json()
         if fit is not None:
             data["fit"] = fit
-        path.write_text(json.dumps(data, indent=2) + "\n")
-        return path
+        from .imageio import write_text
+
+        return write_text(path, json.dumps(data, indent=2) + "\n")
 
 
 def rotation_matrix(yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> np.ndarray:

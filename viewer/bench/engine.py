@@ -73,7 +73,7 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
     return results
 
 
-def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: int = 5, output="docs/bench_engine.json",
+def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: int = 5, output="out/bench_engine.json",
                          twin: bool = True) -> dict:
     from ..gl import Engine, EngineOptions, create_headless_context
     from ..gl.context import describe

@@ -6,8 +6,9 @@ the fit's wall time (including the reference shading it needs, computed once per
 each method that uses it) and the relative L1 shading errors of :mod:`viewer.lightfit.evaluate`
 (sphere; sphere-on-plane with shadows; held-out box-on-plane with shadows) are recorded.
 
-Writes ``docs/bench_lights.json`` (every row), ``docs/bench_lights.md`` (tables of medians over
-the maps, and per map at N = 16) and ``docs/bench_lights.png`` (error against seconds).
+Writes ``bench_lights.json`` (every row), ``bench_lights.md`` (tables of medians over the maps, and
+per map at N = 16) and ``bench_lights.png`` (error against seconds) into ``out/`` (or beside the
+``-o`` path; ``-o docs/bench_lights.json`` refreshes the committed ones).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 import torch
 
 from ..envmap import load_envmap
+from ..imageio import atomic_path, write_text
 from ..lightfit.evaluate import held_out, shading_errors
 from ..lightfit.fit import METHODS, fit_lights
 from ..lightfit.problem import FitSettings, build_problem
@@ -30,7 +32,7 @@ COUNTS = (4, 8, 16, 32)
 VIEWS = ("sphere", "plane", "heldout")
 
 
-def run_lights_benchmark(maps_dir=DEFAULT_MAPS, counts=COUNTS, methods=METHODS, output="docs/bench_lights.json"):
+def run_lights_benchmark(maps_dir=DEFAULT_MAPS, counts=COUNTS, methods=METHODS, output="out/bench_lights.json"):
     maps = sorted(Path(maps_dir).glob("*.hdr")) + sorted(Path(maps_dir).glob("*.exr"))
     if not maps:
         raise SystemExit(f"no .hdr/.exr maps in {maps_dir}")
@@ -63,8 +65,8 @@ def write_results(rows, counts, methods, settings, output):
     output.parent.mkdir(parents=True, exist_ok=True)
     meta = {"machine": f"{platform.machine()}, {torch.get_num_threads()} torch threads, CPU", "settings": vars(settings),
             "error": "relative L1 of linear shading over 7 rotations of the map"}
-    output.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
-    output.with_suffix(".md").write_text(markdown_tables(rows, counts, methods))
+    write_text(output, json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
+    write_text(output.with_suffix(".md"), markdown_tables(rows, counts, methods))
     plot(rows, methods, output.with_suffix(".png"))
 
 
@@ -123,5 +125,6 @@ def plot(rows, methods, path):
         ax.grid(alpha=0.3)
     axes[0].legend(title="method (lines: medians)")
     fig.tight_layout()
-    fig.savefig(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
     plt.close(fig)

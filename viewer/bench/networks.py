@@ -35,7 +35,7 @@ from ..camera import Camera
 from ..envmap import load_envmap
 from ..gl import Engine, EngineOptions, create_headless_context
 from ..gl.context import describe
-from ..imageio import read_exr
+from ..imageio import atomic_path, read_exr, write_text
 from ..lights import load_lights
 from ..scene import Scene, load_scene
 from .metrics import metrics, srgb
@@ -87,7 +87,7 @@ def _predict(nets, photo, mask) -> tuple[Scene, dict]:
     return scene.validate(), {"albedo": scene.albedo, "normal": normal}
 
 
-def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.json", figure="docs/networks_heldout.png",
+def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
                            limit: int | None = None, progress=None) -> dict:
     from ..data.loader import RelightDataset
     from ..inference import load_networks
@@ -168,8 +168,8 @@ def run_networks_benchmark(data, networks_dir=None, output="docs/bench_networks.
               "networks": str(networks_dir), "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
               "resolution": int(ds[0]["image"].shape[-1]), "seconds": round(time.perf_counter() - start, 1), "metrics": summary}
     if output:
-        Path(output).parent.mkdir(parents=True, exist_ok=True)
-        Path(output).write_text(json.dumps(result, indent=1) + "\n")
+        write_text(output, json.dumps(result, indent=1) + "\n")
+    figure = figure or (Path(output).with_name("networks_heldout.png") if output else None)
     if figure and examples:
         _figure(examples, figure)
     return result
@@ -203,7 +203,8 @@ def _figure(examples, path):
                 ax.set_title(cols[c], fontsize=8)
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
     plt.close(fig)
 
 

@@ -16,8 +16,9 @@ pipeline, temporal stability, and the quality presets chosen from the Pareto fro
 6. **Temporal stability**: dRMSE at steps 1, 2, 4 of turntables of two maps, presets and baselines,
    against the ray-traced turntable, with the reference's own Monte Carlo floor.
 
-Writes ``results.json``, ``results.md`` and two PNG figures into the output folder (``docs/``, or
-``out/report-quick/`` for ``--quick``, the small configuration CI runs to catch a broken harness).
+Writes ``results.json``, ``results.md`` and two PNG figures into the output folder (``out/report/``,
+or ``out/report-quick/`` for ``--quick``, the small configuration CI runs to catch a broken harness;
+``-o docs`` refreshes the committed report).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..imageio import write_text
 from ..progress import StageBars
 from ..resources import asset_dir, sample_scene_dir
 from ..lightfit.cache import cache_dir
@@ -193,7 +195,7 @@ def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, e
                 renderer.release()
             rows += mine
             saved.parent.mkdir(parents=True, exist_ok=True)
-            saved.write_text(json.dumps(mine))
+            write_text(saved, json.dumps(mine))
             progress(f"rendering {case.name}", k + 1, len(methods))
     return rows
 
@@ -330,7 +332,7 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
     from .report_doc import EXAMPLES_FIGURE, write_examples, write_figures, write_markdown
 
     config = QUICK if quick else FULL
-    out_dir = Path(out_dir or ("out/report-quick" if quick else "docs"))
+    out_dir = Path(out_dir or ("out/report-quick" if quick else "out/report"))
     start = time.perf_counter()
     ctx = create_headless_context()
     if quick:
@@ -370,7 +372,7 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
     result["seconds"] = round(time.perf_counter() - start, 1)
     result = json.loads(json.dumps(result))  # the pages read what the JSON holds (string keys)
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "results.json").write_text(json.dumps(result, separators=(",", ":")) + "\n")  # every row: compact
+    write_text(out_dir / "results.json", json.dumps(result, separators=(",", ":")) + "\n")  # every row: compact
     write_figures(result, out_dir)
     first = cases[0]
     pictures = {name: examples[label] for name, label in shown.items() if examples.get(label) is not None}

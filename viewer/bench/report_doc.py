@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..imageio import atomic_path, write_text
+
 KNOBS = ("lights", "shadow_resolution", "shadow_step", "terms", "prefilter", "leave_out", "sigma_scale")
 KIND_STYLE = {"engine": ("tab:blue", "o"), "directional": ("tab:orange", "s"), "sh": ("tab:green", "D"), "twin": ("tab:red", "^")}
 ERROR_FIGURE = "results_error_vs_time.png"
@@ -50,7 +52,8 @@ def write_figures(result: dict, out_dir: Path):
     m = result["machine"]
     fig.suptitle(f"Error against run time ({m['cores']} cores, {m['gl']}); stars: presets; dotted: 100 ms", fontsize=10)
     fig.tight_layout()
-    fig.savefig(out_dir / ERROR_FIGURE, dpi=100)
+    with atomic_path(out_dir / ERROR_FIGURE) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
 
     temporal = result["temporal"]["maps"]
@@ -67,7 +70,8 @@ def write_figures(result: dict, out_dir: Path):
     axes[0][0].legend(fontsize=8)
     fig.suptitle(f"Temporal stability: {result['temporal']['frames']}-frame turntables against the ray-traced one", fontsize=10)
     fig.tight_layout()
-    fig.savefig(out_dir / TEMPORAL_FIGURE, dpi=100)
+    with atomic_path(out_dir / TEMPORAL_FIGURE) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
 
 
@@ -85,7 +89,8 @@ def write_examples(images: dict, title: str, path: Path):
         ax.axis("off")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
 
 
@@ -257,4 +262,4 @@ def write_markdown(result: dict, path: Path):
     lines += ["", f"![dRMSE]({TEMPORAL_FIGURE})", ""]
     if (path.parent / EXAMPLES_FIGURE).is_file():
         lines += ["## One lighting, side by side", "", f"![examples]({EXAMPLES_FIGURE})", ""]
-    path.write_text("\n".join(lines))
+    write_text(path, "\n".join(lines))

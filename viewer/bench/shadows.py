@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..imageio import atomic_path, write_text
 from ..lights import AreaLights
 from ..resources import sample_scene_dir
 from .engine import _median_ms, bench_lights, frame_seconds
@@ -47,7 +48,7 @@ def weighted_error(scene, lights: AreaLights, vis, ref) -> float:
     return num / max(den, 1e-30)
 
 
-def run_shadow_benchmark(repeats: int = 3, output="docs/bench_shadows.json", n_lights: int = 16) -> dict:
+def run_shadow_benchmark(repeats: int = 3, output="out/bench_shadows.json", n_lights: int = 16) -> dict:
     from ..gl import Engine, EngineOptions, create_headless_context
     from ..gl.context import describe
     from ..scene import load_scene
@@ -92,7 +93,7 @@ def run_shadow_benchmark(repeats: int = 3, output="docs/bench_shadows.json", n_l
     if output:
         path = Path(output)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(report, indent=2) + "\n")
+        write_text(path, json.dumps(report, indent=2) + "\n")
         _plot(report, path.with_suffix(".png"))
         print(f"wrote {path} and {path.with_suffix('.png')}")
     return report
@@ -118,5 +119,6 @@ def _plot(report: dict, path: Path):
         ax.grid(alpha=0.3)
     fig.suptitle(f"Error vs time, {report['machine']}", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..gl import Engine, EngineOptions, create_headless_context
 from ..gl.context import describe
+from ..imageio import write_text
 from ..lights import load_lights
 from ..render import RenderSettings, apply_settings, turntable_yaws
 from ..resources import asset_dir, sample_scene_dir
@@ -46,7 +47,7 @@ def _turn(ctx, scene, lights, options, visibility):
     return np.stack(frames), float(np.median(times) * 1000)
 
 
-def run_temporal_benchmark(output="docs/bench_temporal.json") -> dict:
+def run_temporal_benchmark(output="out/bench_temporal.json") -> dict:
     ctx = create_headless_context()
     scene = resample_scene(load_scene(sample_scene_dir()), SIZE)
     rows = []
@@ -66,6 +67,6 @@ def run_temporal_benchmark(output="docs/bench_temporal.json") -> dict:
               "reference": "engine with shadow maps 2048, mesh step 1, M = 8 (pyramid prefilter)", "rows": rows}
     path = Path(output)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(result, indent=1) + "\n")
+    write_text(path, json.dumps(result, indent=1) + "\n")
     print(f"wrote {path}")
     return result

@@ -115,7 +115,7 @@ def measure_size(size: int, display: str, workdir: Path) -> dict:
     }
 
 
-def run_viewer_benchmark(sizes=(512, 1024), output="docs/bench_viewer.json") -> dict:
+def run_viewer_benchmark(sizes=(512, 1024), output="out/bench_viewer.json") -> dict:
     from ..gl.context import create_headless_context, describe
 
     renderer = describe(create_headless_context())

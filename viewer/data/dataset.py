@@ -35,7 +35,7 @@ import numpy as np
 
 from ..envmap import EnvMap, load_envmap, save_envmap
 from ..errors import InputError
-from ..imageio import write_exr
+from ..imageio import write_exr, write_text
 from ..lights import AreaLights, load_lights
 from ..scene import save_scene
 
@@ -135,7 +135,7 @@ def make_sample(cfg: DatasetConfig, index: int, pool: list[PoolMap]) -> dict:
     out = sample_dir(cfg, index)
     person = make_person(seed, cfg.res)
     save_scene(person.scene, out)
-    (out / "meta.json").write_text(json.dumps(person.meta(), indent=1) + "\n")
+    write_text(out / "meta.json", json.dumps(person.meta(), indent=1) + "\n")
     t_person = time.perf_counter() - start
     lightings = []
     for k in range(cfg.lightings):
@@ -148,7 +148,7 @@ def make_sample(cfg: DatasetConfig, index: int, pool: list[PoolMap]) -> dict:
                           ("diffuse_shadowed", r["diffuse_shadowed"]), ("specular_shadowed", r["specular_shadowed"])):
             write_exr(d / f"{name}.exr", img)
         pm.lights.rotated(yaw).save(d / "lights.json", fit={"source": pm.name, "yaw": yaw})
-        (d / "lighting.json").write_text(json.dumps({"map": pm.name, "kind": pm.kind, "yaw": yaw}) + "\n")
+        write_text(d / "lighting.json", json.dumps({"map": pm.name, "kind": pm.kind, "yaw": yaw}) + "\n")
         lightings.append({"map": pm.name, "kind": pm.kind, "yaw": yaw})
     record = {"index": index, "seed": seed, "res": cfg.res, "spp": cfg.spp, "split": cfg.split, "lightings": lightings,
               "seconds": round(time.perf_counter() - start, 3), "person_seconds": round(t_person, 3)}
@@ -183,6 +183,6 @@ def make_dataset(cfg: DatasetConfig, progress=None) -> dict:
         "peak_memory_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
     }
     path = Path(cfg.out) / f"manifest-{i}of{n}.json"
-    path.write_text(json.dumps(manifest, indent=1) + "\n")
+    write_text(path, json.dumps(manifest, indent=1) + "\n")
     manifest["path"] = str(path)
     return manifest

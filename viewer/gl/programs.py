@@ -13,10 +13,15 @@ GLSL_VERSION = "#version 410 core"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
 
 
-def shader_source(name: str, defines: dict | None = None, directory: Path | None = None) -> str:
-    """The text of ``shaders/name`` with includes expanded (each file once) and defines prepended."""
+def shader_source(name: str, defines: dict | None = None, directory: Path | None = None,
+                  files: list[str] | None = None) -> str:
+    """The text of ``shaders/name`` with includes expanded (each file once) and defines prepended.
+    Each file's text starts with ``#line 1 k`` and the text after an include with the line it came
+    from, so the GLSL compiler reports (source string k, line) of the ``.glsl`` file itself;
+    ``files``, when given, receives the file names by k (:func:`explain_errors`)."""
     directory = directory or shader_dir()
     seen: set[str] = set()
+    files = files if files is not None else []
 
     def expand(fname: str) -> str:
         if fname in seen:
@@ -25,33 +30,62 @@ def shader_source(name: str, defines: dict | None = None, directory: Path | None
         path = directory / fname
         if not path.is_file():
             raise FileNotFoundError(f"shader file not found: {path}")
+        index = len(files)
+        files.append(fname)
+        out, last = [f"#line 1 {index}"], 0
         text = path.read_text()
-        return _INCLUDE.sub(lambda m: expand(m.group(1)), text)
+        for m in _INCLUDE.finditer(text):
+            out.append(text[last:m.start()])
+            out.append(expand(m.group(1)))
+            line = text.count("\n", 0, m.end()) + 2  # the line after the include
+            out.append(f"#line {line} {index}\n")
+            last = m.end() + 1
+        out.append(text[last:])
+        return out[0] + "\n" + "".join(out[1:])
 
     lines = [GLSL_VERSION]
     for key, value in (defines or {}).items():
         lines.append(f"#define {key} {value}" if value is not None else f"#define {key}")
-    lines.append("#line 1")
     return "\n".join(lines) + "\n" + expand(name)
+
+
+# Mesa: "0:12(5): error: ..."; NVIDIA: "0(12) : error ..."; the first number is the source string
+_ERROR_PLACE = re.compile(r"^(\d+)(?::(\d+)\(\d+\)|\((\d+)\))", re.M)
+
+
+def explain_errors(log: str, files: list[str], directory: Path) -> str:
+    """A compiler log with each (source string, line) replaced by the ``.glsl`` file and line."""
+
+    def place(m):
+        k, line = int(m.group(1)), m.group(2) or m.group(3)
+        return f"{directory / files[k]}:{line}" if k < len(files) else m.group(0)
+
+    return _ERROR_PLACE.sub(place, log)
 
 
 class ProgramCache:
     """Compiles each (vertex, fragment, defines) program once per context."""
 
-    def __init__(self, ctx: moderngl.Context):
+    def __init__(self, ctx: moderngl.Context, directory: Path | None = None):
         self.ctx = ctx
+        self.directory = directory or shader_dir()
         self._programs: dict = {}
 
     def get(self, vertex: str, fragment: str, **defines) -> moderngl.Program:
         key = (vertex, fragment, tuple(sorted(defines.items())))
         prog = self._programs.get(key)
         if prog is None:
+            sources = {}
+            for stage, name in (("vertex_shader", vertex), ("fragment_shader", fragment)):
+                files: list[str] = []
+                sources[stage] = (shader_source(name, defines, self.directory, files), files)
             try:
-                prog = self.ctx.program(
-                    vertex_shader=shader_source(vertex, defines), fragment_shader=shader_source(fragment, defines)
-                )
+                prog = self.ctx.program(**{stage: text for stage, (text, _) in sources.items()})
             except moderngl.Error as exc:
-                raise RuntimeError(f"compiling {vertex} + {fragment}: {exc}") from None
+                # moderngl names the stage that failed; its log's places are that stage's files
+                failed = "fragment_shader" if "fragment_shader" in str(exc) else "vertex_shader"
+                raise RuntimeError(f"compiling {vertex} + {fragment}: "
+                                   f"{explain_errors(str(exc), sources[failed][1], self.directory)}") from None
             self._programs[key] = prog
         return prog
 

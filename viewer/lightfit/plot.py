@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..envmap import EnvMap, direction_to_uv
-from ..imageio import linear_to_srgb
+from ..imageio import atomic_path, linear_to_srgb
 from ..lights import AreaLights
 from ..median_cut import LUMINANCE
 
@@ -60,6 +60,7 @@ def plot_lights(env: EnvMap, lights: AreaLights, path, title: str | None = None)
     name = Path(env.source).name if env.source else "environment map"
     ax.set_title(title or f"{len(lights)} area lights on {name} (marker size: sigma {lights.sigma.min():.1f}-{lights.sigma.max():.1f})")
     fig.tight_layout()
-    fig.savefig(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
     plt.close(fig)
     return path

@@ -22,6 +22,7 @@ import torch
 from torch.nn import functional as F
 
 from ..errors import InputError
+from ..imageio import atomic_path, write_text
 from . import depth as depth_net
 from . import inverse as inverse_net
 from . import refine as refine_net
@@ -165,7 +166,8 @@ def _plot(history: list[dict], path: Path, task: str):
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
     plt.close(fig)
 
 
@@ -279,7 +281,7 @@ def _write_weights(model, cfg: TrainConfig, out: Path, device, world: int, n_tra
             "seconds": round(seconds, 1), "history": history, "weights": weights.name}
     if cfg.task == "inverse":
         card["perceptual_weight"] = cfg.perceptual_weight
-    (out / f"{cfg.task}.json").write_text(json.dumps(card, indent=1) + "\n")
+    write_text(out / f"{cfg.task}.json", json.dumps(card, indent=1) + "\n")
     return card
 
 
