@@ -11,7 +11,7 @@ from viewer.cli import main
 from viewer.nets import depth as dn
 from viewer.nets import inverse as inv
 from viewer.nets.photo import photo_input
-from viewer.nets.train import load_network
+from viewer.nets.weights import load_network
 from viewer.nets.unet import UNet
 
 

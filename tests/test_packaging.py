@@ -29,3 +29,30 @@ def test_wheel_install_finds_shaders_and_assets(tmp_path):
     assert out.returncode == 0, out.stderr
     shader_dir, scene_dir = out.stdout.split()
     assert shader_dir.startswith(str(target)) and scene_dir.startswith(str(target))
+
+
+LAB = ("viewer.bench", "viewer.data", "viewer.nets.train")  # datasets, ground truth, training, benchmarks
+_WITHOUT_LAB = f"""
+import importlib.abc, sys
+class NoLab(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if any(name == lab or name.startswith(lab + ".") for lab in {LAB!r}):
+            raise ImportError("the product imported the lab module " + name)
+sys.meta_path.insert(0, NoLab())
+from viewer.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_the_product_runs_without_the_lab(tmp_path):
+    """infer (automatic mask), render with refined shadows, and fit-lights, with every lab module
+    unimportable: the product never imports datasets, ground truth, training or benchmarks."""
+    photo = ROOT / "assets" / "photos" / "underpass.jpg"
+    env_map = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
+    for args in (["infer", str(photo), "-o", str(tmp_path / "b"), "--max-size", "320", "--size", "128"],
+                 ["render", str(tmp_path / "b"), "--env", str(env_map), "--visibility", "refined", "-o", str(tmp_path / "x.png")],
+                 ["fit-lights", str(env_map), "-n", "4", "--method", "median-cut", "-o", str(tmp_path / "l.json")]):
+        res = subprocess.run([sys.executable, "-c", _WITHOUT_LAB, *args], capture_output=True, text=True,
+                             env={**os.environ, "RELIGHT_CACHE": str(tmp_path / "cache")})
+        assert res.returncode == 0, res.stderr[-2000:]
+    assert (tmp_path / "x.png").is_file() and (tmp_path / "l.json").is_file()

@@ -113,7 +113,7 @@ def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[in
 
 
 def load_networks(device="cpu", directory=None) -> dict:
-    from .nets.train import load_network
+    from .nets.weights import load_network
 
     directory = Path(directory) if directory is not None else network_dir()
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}

@@ -23,7 +23,7 @@ class Refiner:
     """Loads the refinement network once; ``__call__`` gives the refined visibility (N, H, W)."""
 
     def __init__(self, path=None, device: str = "cpu"):
-        from .nets.train import load_network
+        from .nets.weights import load_network
 
         self.path = Path(path) if path is not None else network_dir() / "refine.safetensors"
         if not self.path.is_file():

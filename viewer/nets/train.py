@@ -298,17 +298,3 @@ def _evaluate(model, task, dataset, indices, cfg, device) -> dict:
             totals.setdefault(k, []).append(v.item() * len(batch["image"]))
     n = len(indices)
     return {"val": sum(totals["total"]) / n, **{f"val_{k}": sum(v) / n for k, v in totals.items() if k != "total"}}
-
-
-def load_network(path, device="cpu") -> UNet:
-    """A shipped network from its safetensors file and the JSON card beside it."""
-    from safetensors.torch import load_file
-
-    path = Path(path)
-    card_path = path.with_suffix(".json")
-    if not path.is_file() or not card_path.is_file():
-        raise InputError(path, "network weights not found (a .safetensors file with its .json card)")
-    cfg = json.loads(card_path.read_text())["model"]
-    model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"))
-    model.load_state_dict(load_file(str(path), device=str(device)))
-    return model.eval().to(device)
