@@ -1,9 +1,7 @@
 // Shared BRDF: Lambert diffuse and the Disney principled specular lobe (GGX), per unit light
 // intensity, the light treated as directional (the paper, Stage 1). Included by every pass that
 // shades; mirrored by viewer/twin/brdf.py. View vector (0, 0, 1) as in the paper.
-
-const float PI = 3.14159265358979;
-const float MIN_ALPHA = 1e-3;
+// PI, MIN_ALPHA and SPECULAR_SCALE are #defines generated from viewer/constants.py.
 
 float lambert_shading(vec3 n, vec3 l) {
     return max(dot(n, l), 0.0) / PI;
@@ -14,7 +12,7 @@ float smith_g1(float x, float a2) {
     return 1.0 / (x + sqrt(a2 + x * x - a2 * x * x));
 }
 
-// n.l * F * D * G for the Disney specular lobe with F0 = 0.08 * specular, alpha = roughness^2.
+// n.l * F * D * G for the Disney specular lobe with F0 = SPECULAR_SCALE * specular, alpha = roughness^2.
 float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness) {
     const vec3 v = vec3(0.0, 0.0, 1.0);
     float nl = dot(n, l);
@@ -25,7 +23,7 @@ float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness) {
     float lh = max(dot(l, h), 0.0);
     float alpha = max(roughness * roughness, MIN_ALPHA);
     float a2 = alpha * alpha;
-    float f0 = 0.08 * specular;
+    float f0 = SPECULAR_SCALE * specular;
     float m = 1.0 - lh;
     float m2 = m * m;
     float fresnel = f0 + (1.0 - f0) * (m2 * m2 * m);  // Schlick; cheaper than pow() on llvmpipe

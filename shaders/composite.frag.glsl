@@ -5,7 +5,7 @@
 // sum_l V_l I_l S_spec_l are also written (alpha = mask), for the frame composite.
 // Light 4g + j of a chunk sits in plane j of the light atlas, in the tile of group g.
 #ifndef MAX_LIGHTS
-#define MAX_LIGHTS 64
+#error MAX_LIGHTS is defined by the engine (MAX_LIGHTS_PER_COMPOSITE in viewer/gl/engine.py)
 #endif
 uniform sampler2D albedo_mask;           // linear albedo (rgb) and mask (a)
 uniform sampler2D light_plane0, light_plane1, light_plane2, light_plane3;  // (V_soft, V_hard, S_diff, S_spec)

@@ -5,12 +5,12 @@
 // basis atlas), so every pass binds one texture. Mirrored by viewer/twin/csm.py.
 
 #ifndef TERMS
-#define TERMS 4
+#error TERMS is defined by the engine (EngineOptions.terms)
 #endif
 #define BASIS_TILES ((TERMS + 1) / 2)
 
 float csm_frequency(int k) {  // k = 0 .. TERMS-1
-    return 3.14159265358979 * float(2 * k + 1);
+    return PI * float(2 * k + 1);
 }
 
 // The four basis values of tile t at depth z.
@@ -36,7 +36,7 @@ vec4 csm_fetch(sampler2D atlas, int t, vec2 uv) {
 // offset and clamp_value come from viewer.shadow_space.csm_constants(TERMS).
 float csm_visibility(sampler2D atlas, vec2 uv, float d, float offset, float clamp_value) {
     float dd = clamp(d, 0.0, 1.0) - offset;  // receivers pushed past the range must not wrap
-    float t0 = 3.14159265358979 * dd;
+    float t0 = PI * dd;
     vec2 cs = vec2(cos(t0), sin(t0));                                   // (cos c_k dd, sin c_k dd)
     vec2 rot = vec2(cs.x * cs.x - cs.y * cs.y, 2.0 * cs.x * cs.y);      // rotation by 2 pi dd
     float s = 0.0;

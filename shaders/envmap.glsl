@@ -5,7 +5,7 @@ vec2 direction_to_equirect(vec3 d) {
     d = normalize(d);
     float phi = atan(d.x, -d.z);
     float lam = asin(clamp(d.y, -1.0, 1.0));
-    return vec2((phi + 3.14159265358979) / (2.0 * 3.14159265358979), (1.5707963267949 - lam) / 3.14159265358979);
+    return vec2((phi + PI) / (2.0 * PI), (0.5 * PI - lam) / PI);
 }
 
 // The environment as a perspective camera sees it at pixel position q (pixels, row 0 at the top),

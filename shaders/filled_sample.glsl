@@ -3,7 +3,7 @@
 // bilinear lookup divided by its alpha is a normalized convolution: the person's values are
 // averaged, the empty background never mixes in. Where no masked texel is near (a frame pixel on
 // the soft matte's fringe outside the work mask), coarser mip levels reach further.
-const float FILLED_MIN_COVERAGE = 0.05;
+// FILLED_MIN_COVERAGE: a #define generated from viewer/constants.py
 
 vec3 filled_sample(sampler2D image, vec2 uv, int max_lod) {
     vec4 s = textureLod(image, uv, 0.0);

@@ -39,3 +39,21 @@ def test_the_shipped_shaders_compile(ctx):
     for frag in sorted(p.name for p in shader_dir().glob("*.frag.glsl")):
         vert = "shadow_map.vert.glsl" if frag.startswith("shadow_map") else "fullscreen.vert.glsl"
         cache.get(vert, frag, TERMS=4, MAX_LIGHTS=16)
+
+
+def test_shared_constants_come_from_one_place():
+    """viewer.constants reaches every shader as #defines; no shader restates a value, and the torch
+    twin uses the same objects."""
+    import viewer.twin.brdf as twin_brdf
+    from viewer.constants import GLSL_CONSTANTS, MIN_ALPHA, SPECULAR_SCALE
+    from viewer.gl.programs import shader_source
+
+    for shader in ("light_pass.frag.glsl", "frame_composite.frag.glsl", "csm_basis.frag.glsl"):
+        src = shader_source(shader)
+        for name, value in GLSL_CONSTANTS.items():
+            assert f"#define {name} {float(value)!r}\n" in src
+    for path in shader_dir().glob("*.glsl"):
+        text = path.read_text()
+        for literal in ("3.14159", "0.08 *", "MIN_ALPHA =", "FILLED_MIN_COVERAGE ="):
+            assert literal not in text, (path.name, literal)
+    assert twin_brdf.MIN_ALPHA is MIN_ALPHA and twin_brdf.SPECULAR_SCALE is SPECULAR_SCALE

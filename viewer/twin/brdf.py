@@ -15,8 +15,7 @@ import math
 
 import torch
 
-MIN_ALPHA = 1e-3  # alpha = max(roughness^2, MIN_ALPHA)
-SPECULAR_SCALE = 0.08  # F0 = 0.08 * specular (Disney)
+from ..constants import MIN_ALPHA, SPECULAR_SCALE  # the shaders' values (generated #defines)
 
 
 def _cosines(normal: torch.Tensor, light_dir: torch.Tensor) -> torch.Tensor:

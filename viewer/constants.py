@@ -1,0 +1,24 @@
+"""Constants the GLSL shaders and the Python code share, in one place.
+
+Every entry of :data:`GLSL_CONSTANTS` reaches every shader as a generated ``#define``
+(:func:`viewer.gl.programs.shader_source`), and the torch twin and the numpy code import the same
+names, so the two sides cannot drift apart. (Values that vary per draw, such as the CSM offset and
+clamp of ``viewer.shadow_space.csm_constants``, are uniforms set from Python instead.)
+"""
+
+from __future__ import annotations
+
+import math
+
+PI = math.pi
+MIN_ALPHA = 1e-3  # GGX alpha = max(roughness^2, MIN_ALPHA): roughness 0 stays finite
+SPECULAR_SCALE = 0.08  # Disney: F0 = SPECULAR_SCALE * specular
+FILLED_MIN_COVERAGE = 0.05  # filled_sample: mask coverage below which a coarser mip level is read
+
+GLSL_CONSTANTS = {"PI": PI, "MIN_ALPHA": MIN_ALPHA, "SPECULAR_SCALE": SPECULAR_SCALE,
+                  "FILLED_MIN_COVERAGE": FILLED_MIN_COVERAGE}
+
+
+def glsl_defines() -> list[str]:
+    """The ``#define`` lines of :data:`GLSL_CONSTANTS` (floats written as GLSL float literals)."""
+    return [f"#define {name} {float(value)!r}" for name, value in GLSL_CONSTANTS.items()]
