@@ -413,17 +413,18 @@ def photos_table(result: dict) -> str:
 def cmd_bench(args) -> int:
     from .bench.engine import run_engine_benchmark
 
+    output = args.output or f"out/bench_{args.what}.json"  # report and photos take a folder (below)
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
-                             output=args.output or "out/bench_engine.json", twin=not args.no_twin)
+                             output=output, twin=not args.no_twin)
     elif args.what == "viewer":
         from .bench.viewer import run_viewer_benchmark
 
-        run_viewer_benchmark(sizes=args.sizes, output=args.output or "out/bench_viewer.json")
+        run_viewer_benchmark(sizes=args.sizes, output=output)
     elif args.what == "temporal":
         from .bench.temporal import run_temporal_benchmark
 
-        run_temporal_benchmark(output=args.output or "out/bench_temporal.json")
+        run_temporal_benchmark(output=output)
     elif args.what == "networks":
         from .bench.networks import run_networks_benchmark, table
         from .progress import StageBars
@@ -432,7 +433,7 @@ def cmd_bench(args) -> int:
             raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
         with StageBars(prefix="evaluating: ") as bars:
             result = run_networks_benchmark(args.data if len(args.data) > 1 else args.data[0], args.networks,
-                                            output=args.output or "out/bench_networks.json", limit=args.limit,
+                                            output=output, limit=args.limit,
                                             progress=bars)
         print(table(result))
     elif args.what == "report":
@@ -464,12 +465,12 @@ def cmd_bench(args) -> int:
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
-        run_shadow_benchmark(repeats=args.repeats, output=args.output or "out/bench_shadows.json")
+        run_shadow_benchmark(repeats=args.repeats, output=output)
     else:
         from .bench.lights import COUNTS, DEFAULT_MAPS, run_lights_benchmark
 
         run_lights_benchmark(maps_dir=args.maps or DEFAULT_MAPS, counts=args.counts or COUNTS,
-                             output=args.output or "out/bench_lights.json")
+                             output=output)
     return 0
 
 

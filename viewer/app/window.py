@@ -14,7 +14,7 @@ import glfw
 import moderngl
 
 from ..errors import InputError
-from ..gl.programs import ProgramCache
+from ..gl.programs import shared_programs
 
 
 class Window:
@@ -46,7 +46,7 @@ class Window:
         io = imgui.get_io()
         glfw.set_cursor_pos_callback(self.handle, lambda _w, x, y: io.add_mouse_pos_event(float(x), float(y)))
         glfw.focus_window(self.handle)
-        self._programs = ProgramCache(self.ctx)
+        self._programs = shared_programs(self.ctx)  # the engines drawing into this window use the same
         self._sampler = self.ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
         self._vao = None
 

@@ -88,14 +88,10 @@ def sun_and_sky(direction) -> AreaLights:
 
 def _with_detail(result: dict, label: str) -> "object":
     """The inferred scene with the detail albedo of the variant ``label`` (the frame's and the maps')."""
-    from ..scene import Scene
-
     sc = result["scene"]
     if label == BEFORE:
         albedo = np.where(sc.mask[..., None], resize(result["network_albedo_frame"], (sc.width, sc.height)), 0)
-        return Scene(albedo=np.clip(albedo, 0, 1).astype(np.float32), specular=sc.specular, roughness=sc.roughness,
-                     normal=sc.normal, depth=sc.depth, mask=sc.mask, camera=sc.camera, photo=sc.photo,
-                     background=sc.background).validate()
+        return replace(sc, albedo=np.clip(albedo, 0, 1).astype(np.float32), frame=None).validate()
     method, shared = VARIANTS[label]
     return with_detail(sc, result["network_albedo_frame"], result["shading"], result["record"]["framing"]["side"], method,
                        shared)[0]

@@ -101,9 +101,9 @@ def shared_programs(ctx: moderngl.Context) -> ProgramCache:
     """The context's one program cache, kept in ``ctx.extra``: every engine made on a context
     (the inference's, the viewer's final and preview engines, a preset's new one) compiles each
     program once (about a second of llvmpipe's time each otherwise); the programs live as long as
-    the context."""
+    the context, whose owner releases them (the viewer's window)."""
     if ctx.extra is None:
         ctx.extra = {}
-    if not isinstance(ctx.extra, dict):
-        return ProgramCache(ctx)
-    return ctx.extra.setdefault("programs", ProgramCache(ctx))
+    if "programs" not in ctx.extra:
+        ctx.extra["programs"] = ProgramCache(ctx)
+    return ctx.extra["programs"]
