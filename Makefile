@@ -1,3 +1,6 @@
+# the lab's shared data (held-out maps, real photos): relight bench/dataset read $RELIGHT_DATA/hdri and /photos
+export RELIGHT_DATA ?= $(abspath ../shared/data)
+
 .PHONY: demo test bench setup
 
 setup:

@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 
-from viewer.bench.metrics import detail_kept
+from viewer.lab.bench.metrics import detail_kept
 from viewer.cli import main
 from viewer.imageio import read_exr, read_png
 from viewer.scene import load_scene

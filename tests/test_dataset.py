@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from viewer.cli import main
-from viewer.data.dataset import DatasetConfig, make_sample, map_pool, sample_dir
-from viewer.data.loader import RelightDataset
+from viewer.lab.data.dataset import DatasetConfig, make_sample, map_pool, sample_dir
+from viewer.lab.data.loader import RelightDataset
 from viewer.errors import InputError
 from viewer.imageio import read_exr
 

@@ -181,7 +181,7 @@ def test_cache_rules(ctx, scene):
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1, "display": 1}
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0).scaled(2.0))) == {"composite": 1, "display": 1}
     assert delta(lambda: eng.set_display(exposure=1.0)) == {"display": 1}
-    assert delta(lambda: eng.set_display(exposure=1.0, environment_rotation=np.eye(3))) == {}  # unchanged: nothing redone
+    assert delta(lambda: eng.set_display(exposure=1.0, yaw=0.0)) == {}  # unchanged: nothing redone
     assert delta(lambda: eng.render()) == {}
     rotated = lights.with_sigma(1, 9.0).scaled(2.0).rotated(20.0)
     assert delta(lambda: eng.set_lights(rotated)) == {"shadow_map": 3, "csm_basis": 2, "prefilter": 2, "light_pass": 1, "composite": 1, "display": 1}
@@ -213,7 +213,7 @@ def test_lights_that_contribute_nothing_are_skipped(ctx, scene):
 def used_programs(eng, fragment: str) -> list:
     """The cache keys of the programs with this fragment shader that the engine drew with (the
     context's program cache is shared by every engine on it)."""
-    drawn = set(eng._fullscreen_vaos)
+    drawn = set(eng.kit.fullscreen_vaos)
     return [k for k, prog in eng.programs._programs.items() if k[1] == fragment and prog.glo in drawn]
 
 
@@ -441,3 +441,55 @@ def test_leave_out_off_does_all_the_work_for_the_same_image(ctx):
     assert (maps_on, filters_on, spec_on) == (2, 1, False)
     assert (maps_off, filters_off, spec_off) == (3, 3, True)
     assert np.abs(on - off).mean() < 2e-3 * off.mean()
+
+
+def test_frame_cache_rules(ctx, scene):
+    """A scene with a frame layer: each change redoes exactly the frame passes whose declared inputs
+    it touches (the frame background only for the background, its colour, the map or its turn)."""
+    from dataclasses import replace
+
+    from viewer.scene import FrameLayer
+
+    up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
+    frame = FrameLayer(albedo=up(scene.albedo), alpha=up(scene.mask.astype(np.float32)), photo=up(scene.albedo) * 0.5)
+    sc = replace(scene, frame=frame)
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 0.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
+    eng = make_engine(ctx, sc)
+    eng.set_lights(lights)
+    eng.render()
+    assert eng.output_size == (192, 192)
+    assert {k: eng.counters[k] for k in ("composite", "frame_background", "frame_mipmaps", "frame_composite")} == \
+        {"composite": 1, "frame_background": 1, "frame_mipmaps": 1, "frame_composite": 1}
+
+    def delta(action):
+        start = dict(eng.counters)
+        action()
+        eng.render()
+        return {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)}
+
+    assert delta(lambda: eng.set_display(exposure=1.0)) == {"frame_composite": 1}
+    assert delta(lambda: eng.set_display(background_color=(0.5, 0.2, 0.1))) == {"frame_background": 1, "frame_composite": 1}
+    assert delta(lambda: eng.set_display(yaw=30.0)) == {"frame_background": 1, "frame_composite": 1}
+    assert delta(lambda: eng.set_environment(np.ones((8, 16, 3), np.float32))) == {"frame_background": 1, "frame_composite": 1}
+    assert delta(lambda: eng.set_lights(lights.scaled(2.0))) == {"composite": 1, "frame_mipmaps": 1, "frame_composite": 1}
+    assert delta(lambda: eng.set_view("albedo")) == {"display": 1}  # an inspection view: the frame passes wait
+    assert delta(lambda: eng.set_view("final")) == {"frame_mipmaps": 1, "frame_composite": 1}
+    assert delta(lambda: eng.render()) == {}
+    eng.release()
+
+
+def test_passes_declare_what_makes_them_stale(ctx, scene):
+    """The cache table of docs/engine.md is the passes' own declarations: each change names the
+    inputs it touches, and the passes that read them (directly or through a pass they read) run."""
+    eng = make_engine(ctx, scene)
+    readers = {}
+    for p in (*eng._light_passes, *eng._frame_passes):
+        for what in (*p.inputs, *getattr(p, "whole_inputs", ())):
+            readers.setdefault(what, set()).add(p.name)
+    assert readers["direction"] == {"shadow_map", "light_pass"}
+    assert readers["sigma"] == {"csm_basis"}
+    assert readers["shadow_map"] == {"csm_basis", "light_pass"} and readers["csm_basis"] == {"prefilter"}
+    assert readers["prefilter"] == {"light_pass"} and readers["light_pass"] == {"composite"}
+    assert readers["intensity"] == {"composite"} and readers["display"] == {"display"}
+    assert readers["composite"] == {"display"}
+    eng.release()

@@ -232,7 +232,7 @@ def test_median_cut_irradiance_matches_the_map(horn):
 def test_bundled_environment_carries_its_fitted_lights(horn):
     import json
 
-    from viewer.lightfit.evaluate import shading_errors
+    from viewer.lab.bench.lightfit_evaluate import shading_errors
     from viewer.lightfit.problem import FitSettings, build_problem
 
     env = load_envmap(BUNDLED.with_suffix(".hdr"))

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.bench.engine import bench_lights
-from viewer.bench.groundtruth import RayTracedVisibility
-from viewer.bench.shadows import weighted_error
+from viewer.lab.bench.engine import bench_lights
+from viewer.lab.bench.groundtruth import RayTracedVisibility
+from viewer.lab.bench.shadows import weighted_error
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import AreaLights
 from viewer.resources import sample_scene_dir

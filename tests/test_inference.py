@@ -19,8 +19,9 @@ from viewer.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, f
                               to_work_frame, write_bundle)
 from viewer.lights import load_lights
 from viewer.photo_frame import frame_sizes, resize
-from viewer.render import RenderSettings, apply_settings
+from viewer.render import apply_settings
 from viewer.scene import load_scene
+from viewer.settings import Look
 
 from conftest import SHARED_DATA
 
@@ -82,7 +83,7 @@ def test_a_real_photo_becomes_a_bundle_in_its_own_frame(landscape_bundle, ctx):
 def _own_lights_error(ctx, scene, lights):
     engine = Engine(ctx, scene, EngineOptions())
     try:
-        apply_settings(engine, scene, lights, RenderSettings(exposure=0.0, background="photo"), has_environment=False)
+        apply_settings(engine, scene, lights, Look(exposure=0.0, background="photo"), has_environment=False)
         hdr = engine.render().read_hdr()
         assert engine.read_display().shape == (1302, 1950, 3)
     finally:
@@ -308,7 +309,7 @@ def test_inspection_views_keep_the_frame_size(landscape_bundle, ctx):
     scene = load_scene(out)
     eng = Engine(ctx, scene, EngineOptions())
     try:
-        apply_settings(eng, scene, load_lights(out / "lights.json"), RenderSettings(exposure=0.0), has_environment=False)
+        apply_settings(eng, scene, load_lights(out / "lights.json"), Look(exposure=0.0), has_environment=False)
         final = eng.render().read_display()
         eng.set_view("normal")
         normal = eng.render().read_display()

@@ -10,7 +10,7 @@ import torch
 from conftest import SHARED_DATA
 from viewer.envmap import EnvMap, load_envmap, pixel_directions, save_envmap
 from viewer.lightfit import cache_path, lights_for_map, map_hash
-from viewer.lightfit.evaluate import held_out, relative_l1, shading_errors
+from viewer.lab.bench.lightfit_evaluate import held_out, relative_l1, shading_errors
 from viewer.lightfit.fit import fit_lights
 from viewer.lightfit.problem import FitSettings, VisibilityTable, build_problem, shadowed_views
 from viewer.lightfit.reference import plane_reference, sphere_reference

@@ -51,7 +51,7 @@ def test_metric_depth_inverts_the_normalization():
 
 def test_depth_network_can_fit_one_person(tiny_dataset):
     """A small U-Net fits one example: the loss falls well below a flat figure's."""
-    from viewer.data.loader import RelightDataset
+    from viewer.lab.data.loader import RelightDataset
 
     item = RelightDataset(tiny_dataset[0])[0]
     batch = {k: v[None] for k, v in item.items()}
@@ -108,7 +108,7 @@ def _perfect_outputs(batch, lights):
 def test_inverse_losses_agree_with_the_ray_traced_data(tiny_dataset):
     """The loss conventions against the dataset: the true maps score zero on texture, and the map's
     fitted lights explain the ray-traced shading far better than the same lights pointing elsewhere."""
-    from viewer.data.loader import RelightDataset
+    from viewer.lab.data.loader import RelightDataset
 
     item = RelightDataset(tiny_dataset[0])[0]
     batch = {k: v[None] for k, v in item.items()}
@@ -145,7 +145,7 @@ def test_laplacian_loss_sees_structure_not_only_values():
 
 
 def test_held_out_evaluation_harness(tiny_dataset, tiny_networks, tmp_path):
-    from viewer.bench.networks import run_networks_benchmark, table
+    from viewer.lab.bench.networks import run_networks_benchmark, table
 
     result = run_networks_benchmark(tiny_dataset[0], tiny_networks, output=tmp_path / "b.json", figure=tmp_path / "f.png")
     m = result["metrics"]

@@ -31,7 +31,7 @@ def test_wheel_install_finds_shaders_and_assets(tmp_path):
     assert shader_dir.startswith(str(target)) and scene_dir.startswith(str(target))
 
 
-LAB = ("viewer.bench", "viewer.data", "viewer.nets.train")  # datasets, ground truth, training, benchmarks
+LAB = ("viewer.lab",)  # datasets, ground truth, training, benchmarks
 _WITHOUT_LAB = f"""
 import importlib.abc, sys
 class NoLab(importlib.abc.MetaPathFinder):

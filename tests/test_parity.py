@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from viewer.bench.engine import bench_lights
+from viewer.lab.bench.engine import bench_lights
 from viewer.gl import Engine, EngineOptions
 from viewer.resources import sample_scene_dir
 from viewer.scene import load_scene

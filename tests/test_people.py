@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.data.humans import POSE_STYLES, sample_phenotype, sample_pose
-from viewer.data.materials import sample_outfit
-from viewer.data.people import make_person
+from viewer.lab.data.humans import POSE_STYLES, sample_phenotype, sample_pose
+from viewer.lab.data.materials import sample_outfit
+from viewer.lab.data.people import make_person
 from viewer.scene_ops import depth_normal_angle
 
 

@@ -1,11 +1,11 @@
-"""Procedural environment maps for training (viewer/data/envmaps.py)."""
+"""Procedural environment maps for training (viewer/lab/data/envmaps.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from viewer.data.envmaps import KINDS, random_map, sky, studio, overcast
+from viewer.lab.data.envmaps import KINDS, random_map, sky, studio, overcast
 from viewer.envmap import pixel_directions, solid_angles
 from viewer.median_cut import median_cut_lights
 

@@ -1,4 +1,4 @@
-"""Mitsuba ground truth of a scene bundle's own geometry (viewer/data/reference.py)."""
+"""Mitsuba ground truth of a scene bundle's own geometry (viewer/lab/data/reference.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from scenes import plane_and_box
-from viewer.data.reference import envmap_emitter, mitsuba, render_bundle_reference
+from viewer.lab.data.reference import envmap_emitter, mitsuba, render_bundle_reference
 from viewer.envmap import EnvMap, load_envmap, pixel_directions
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import load_lights, rotation_matrix
@@ -37,7 +37,7 @@ def test_background_seen_through_the_camera_matches_mitsuba():
     """EnvMap.seen_through (the input photo's background in training) against Mitsuba's camera
     looking at the turned map with nothing in front of it."""
     from viewer.camera import Camera
-    from viewer.data.reference import camera_sensor
+    from viewer.lab.data.reference import camera_sensor
     from viewer.scene import Scene
 
     mi = mitsuba()

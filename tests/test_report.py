@@ -11,8 +11,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from viewer.bench.methods import Method
-from viewer.bench.report import choose_presets, pareto
+from viewer.lab.bench.methods import Method
+from viewer.lab.bench.report import choose_presets, pareto
 from viewer.gl import EngineOptions
 from viewer.imageio import read_png
 from viewer.presets import DEFAULT_PRESET, PRESETS
@@ -93,7 +93,7 @@ def test_quick_report_measures_what_it_claims(quick_report):
 
 
 def test_cases_helpers(tmp_path):
-    from viewer.bench.cases import find_maps, interior
+    from viewer.lab.bench.cases import find_maps, interior
     from viewer.errors import InputError
 
     mask = np.zeros((6, 7), bool)

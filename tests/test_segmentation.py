@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.bench.photos import mask_iou, read_reference_mask
+from viewer.lab.bench.photos import mask_iou, read_reference_mask
 from viewer.envmap import load_envmap
 from viewer.errors import InputError
 from viewer.imageio import linear_to_srgb

@@ -9,9 +9,10 @@ from viewer.app.session import PREVIEW_SIZE, Session
 from viewer.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import load_lights
-from viewer.render import RenderSettings, apply_settings
+from viewer.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
+from viewer.settings import Look
 
 MAPS = asset_dir() / "envmaps"
 
@@ -26,7 +27,7 @@ def test_session_final_and_preview(ctx):
     final = s.render(preview=False)
     ref = Engine(ctx, scene, EngineOptions())
     ref.set_environment(env)
-    apply_settings(ref, scene, lights.with_sigma(0, 12.0), RenderSettings(yaw=150.0, exposure=0.5), True)
+    apply_settings(ref, scene, lights.with_sigma(0, 12.0), Look(yaw=150.0, exposure=0.5), True)
     ref.render()
     np.testing.assert_array_equal(final.read_display(), ref.read_display())
     ref.release()

@@ -1,12 +1,12 @@
-"""Ground truth of a synthetic person (viewer/data/truth.py) checked against itself."""
+"""Ground truth of a synthetic person (viewer/lab/data/truth.py) checked against itself."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from viewer.data.people import make_person
-from viewer.data.truth import render_person, unshadowed_shading
+from viewer.lab.data.people import make_person
+from viewer.lab.data.truth import render_person, unshadowed_shading
 from viewer.envmap import load_envmap
 from viewer.resources import asset_dir
 

@@ -14,16 +14,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viewer.bench.viewer import x_display
+from viewer.lab.bench.viewer import x_display
 from viewer.cli import DEMO_LIGHTS, DEMO_YAW
 from viewer.gl import Engine, EngineOptions
-from viewer.bench.metrics import detail_kept
+from viewer.lab.bench.metrics import detail_kept
 from viewer.imageio import read_exr, read_png
 from viewer.lights import load_lights
-from viewer.render import RenderSettings, apply_settings
+from viewer.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
+from viewer.settings import Look
 from viewer.video import read_video
 
 SIZE = 256
@@ -125,7 +126,7 @@ def headless(ctx):
 
 def render_hdr(headless, yaw, lights=None):
     scene, base, engine = headless
-    apply_settings(engine, scene, lights or base, RenderSettings(yaw=yaw), True)
+    apply_settings(engine, scene, lights or base, Look(yaw=yaw), True)
     engine.render()
     return engine.read_output_hdr()[..., :3]  # what a saved frame's EXR holds: the display's HDR, background included
 
@@ -302,7 +303,7 @@ def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, 
     engine = Engine(ctx, scene, p.options)
     engine.set_environment(load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr").pixels)
     yaw = saved["look"]["yaw"]  # the saved lights are turned by the look's yaw (tilt 0)
-    apply_settings(engine, scene, lights.rotated(-yaw), RenderSettings(yaw=yaw), True)
+    apply_settings(engine, scene, lights.rotated(-yaw), Look(yaw=yaw), True)
     engine.render()
     expected = engine.read_output_hdr()[..., :3]
     engine.release()

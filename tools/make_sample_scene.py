@@ -54,9 +54,9 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from viewer.camera import Camera  # noqa: E402
-from viewer.data.geometry import vertex_normals  # noqa: E402
-from viewer.data.humans import build_body, dress, place_in_camera, rasterize  # noqa: E402
-from viewer.data.materials import make_materials  # noqa: E402
+from viewer.lab.data.geometry import vertex_normals  # noqa: E402
+from viewer.lab.data.humans import build_body, dress, place_in_camera, rasterize  # noqa: E402
+from viewer.lab.data.materials import make_materials  # noqa: E402
 from viewer.scene import Scene, load_scene, save_scene  # noqa: E402
 from viewer.scene_ops import depth_normal_angle  # noqa: E402
 

@@ -79,7 +79,7 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
             lines.append(f"- Inverse validation: albedo L1 {last['val_albedo']:.3f}, normal {last['val_normal_degrees']:.1f} degrees, "
                          f"diffuse shading L1 {last['val_diffuse_shading']:.3f} (exposed units).")
     if bench is not None:
-        from viewer.bench.networks import table
+        from viewer.lab.bench.networks import table
 
         lines += ["", "## Held-out evaluation", "", table(bench)]
     lines += ["", "## Limits",

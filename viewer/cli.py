@@ -13,6 +13,7 @@ from .errors import InputError
 from .lightfit import DEFAULT_METHOD, METHODS
 from .resources import asset_dir, sample_scene_dir
 
+COMMAND_GROUP = "relight.commands"
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 DEMO_LIGHTS = "envmaps/immenstadter_horn_256.lights.json"
 DEMO_PHOTO = "photos/underpass.jpg"
@@ -23,22 +24,22 @@ def _engine_options(args):
     """The preset's engine options with the knobs given on the command line in place of its values."""
     from dataclasses import replace
 
-    from .presets import preset
+    from .presets import DEFAULT_PRESET, preset
 
     given = {k: getattr(args, k) for k in ("shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
-    return replace(preset(args.preset).options, **given)
+    return replace(preset(args.preset or DEFAULT_PRESET).options, **given)
 
 
 def _lights_count(args) -> int:
-    from .presets import preset
+    from .presets import DEFAULT_PRESET, preset
 
-    return args.lights_count if args.lights_count is not None else preset(args.preset).lights
+    return args.lights_count if args.lights_count is not None else preset(args.preset or DEFAULT_PRESET).lights
 
 
 def _add_engine_args(p):
     from .presets import DEFAULT_PRESET, PRESETS
 
-    p.add_argument("--preset", choices=tuple(PRESETS), default=DEFAULT_PRESET,
+    p.add_argument("--preset", choices=tuple(PRESETS),
                    help=f"quality preset: lights and engine options from docs/results.md (default {DEFAULT_PRESET}); "
                         "the options below override its values")
     p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
@@ -48,35 +49,35 @@ def _add_engine_args(p):
 
 
 def _exposure(text: str):
-    """--exposure: "auto" (a photo keeps its own brightness) or stops."""
+    """--exposure: "auto" (a photo keeps its own brightness) or a number of stops."""
     if text.strip().lower() == "auto":
         return "auto"
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected 'auto' or a number of stops, got {text!r}") from None
-    if not (np.isfinite(value) and abs(value) <= 40):
-        raise argparse.ArgumentTypeError(f"exposure must be 'auto' or within [-40, 40] stops, got {text!r}")
-    return value
+    return value  # its range is the look's to check (viewer.settings.Look)
 
 
 def _add_view_args(p, yaw_default=0.0):
-    p.add_argument("--yaw", "--rotate", dest="yaw", type=float, default=yaw_default,
+    p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
+                   "object (docs/settings.md); the options below override its values")
+    p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
                    help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
                         "a video starts there")
-    p.add_argument("--tilt", type=float, default=0.0, help="tilt the lighting (degrees)")
-    p.add_argument("--exposure", type=_exposure, default="auto",
+    p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
+    p.add_argument("--exposure", type=_exposure,
                    help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
                         "(0 stops for a scene without a photo)")
-    p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), default="aces")
-    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"), default="environment",
+    p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), help="tone curve (default aces)")
+    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
                    help="behind the person: the environment map seen through the photo's camera (default), the "
                         "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
     p.add_argument("--max-size", type=int, default=2048,
                    help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
                         "the photo's own size up to this)")
-    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), default="soft",
-                   help="shadows from the convolutional shadow map (soft), the refinement network (refined), "
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
+                   help="shadows (default soft) from the convolutional shadow map (soft), the refinement network (refined), "
                         "the shadow map (hard) or none")
 
 
@@ -130,21 +131,51 @@ def _prepare(scene_path, lights_path, envmap_path, args):
     return scene, lights, (env.pixels if env is not None else None)
 
 
-def _settings(args):
-    from .render import RenderSettings
-
-    return RenderSettings(yaw=args.yaw, tilt=args.tilt, exposure=args.exposure, tonemap=args.tonemap,
-                          background=args.background, visibility=args.visibility)
+# the look's fields and the options that set them (each default None: given or not)
+_LOOK_OPTIONS = (("yaw", "yaw"), ("tilt", "tilt"), ("exposure", "exposure"), ("tonemap", "tonemap"),
+                 ("background", "background"), ("shadows", "visibility"), ("preset", "preset"))
 
 
-def _render(scene_path, lights_path, envmap_path, out_dir, name, args) -> list[Path]:
+def _settings(args, yaw_default: float = 0.0):
+    """The look of a command: a saved one (``--look FILE``: a frame saved by the viewer, its state
+    file, or a bare look object) or the defaults, with every option given on the command line in
+    its place. Also settles ``args.preset`` (the look's)."""
+    from .settings import AUTO, Look
+
+    base = _read_look(args.look) if getattr(args, "look", None) else Look(yaw=yaw_default, exposure=AUTO)
+    given = {field: getattr(args, option) for field, option in _LOOK_OPTIONS if getattr(args, option, None) is not None}
+    try:
+        look = base.replace(**given)
+    except InputError as exc:  # name the option, not the field
+        option = next((o for f, o in _LOOK_OPTIONS if exc.problem.startswith(f.replace("tonemap", "tone map"))), None)
+        raise InputError(None, f"--{option}: {exc.problem}" if option else exc.problem) from None
+    args.preset = look.preset
+    return look
+
+
+def _read_look(path):
+    """The look in a JSON file (``{"look": {...}}`` as the viewer saves it, or the look itself)."""
+    import json
+
+    from .settings import Look
+
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(path, f"cannot read the look: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise InputError(path, f"not a JSON look file ({type(exc).__name__})") from None
+    return Look.from_json(data.get("look", data) if isinstance(data, dict) else data, where=path)
+
+
+def _render(scene_path, lights_path, envmap_path, out_dir, name, args, look) -> list[Path]:
     from .gl import Engine, create_headless_context
     from .render import render_to_files
 
     scene, lights, env = _prepare(scene_path, lights_path, envmap_path, args)
     engine = Engine(create_headless_context(), scene, _engine_options(args))
     try:
-        return render_to_files(engine, scene, lights, out_dir, name, _settings(args), environment=env)
+        return render_to_files(engine, scene, lights, out_dir, name, look, environment=env)
     finally:
         engine.release()
 
@@ -164,7 +195,8 @@ def cmd_demo(args) -> int:
     from .render import render_to_files
 
     assets = asset_dir()
-    written = _render(sample_scene_dir(), assets / DEMO_LIGHTS, assets / DEMO_ENVMAP, args.output, "demo", args)
+    look = _settings(args, DEMO_YAW)
+    written = _render(sample_scene_dir(), assets / DEMO_LIGHTS, assets / DEMO_ENVMAP, args.output, "demo", args, look)
     print(f"rendered the sample scene under {DEMO_LIGHTS} (16 area lights):")
     for path in written:
         print(f"  wrote {path}")
@@ -178,7 +210,7 @@ def cmd_demo(args) -> int:
     scene = _load_scene(out / "photo_bundle", None, args.max_size)
     engine = Engine(ctx, scene, _engine_options(args))
     pictures = [resize(read_photo(photo, []), scene.output_size).astype(np.float32) / 255.0]  # upright, the output's size
-    settings = replace(_settings(args), visibility="refined", background="environment")
+    settings = replace(look, shadows="refined", background="environment")
     try:
         for env_path in sorted((assets / "envmaps").glob("*.hdr")):
             t0 = time.perf_counter()
@@ -195,6 +227,7 @@ def cmd_demo(args) -> int:
 
 
 def cmd_render(args) -> int:
+    look = _settings(args)
     out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in (".png", ".mp4"):
@@ -202,7 +235,7 @@ def cmd_render(args) -> int:
     if suffix == ".png":
         if args.frames is not None:
             raise InputError(out, "--frames makes a video: give a .mp4 output path")
-        for path in _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args):
+        for path in _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args, look):
             print(f"wrote {path}")
         return 0
 
@@ -217,7 +250,7 @@ def cmd_render(args) -> int:
     start = time.perf_counter()
     try:
         with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
-            width, height = render_turntable(engine, scene, lights, out, _settings(args), frames, fps=args.fps, turn=args.turn,
+            width, height = render_turntable(engine, scene, lights, out, look, frames, fps=args.fps, turn=args.turn,
                                              environment=env, progress=lambda done, total: bar.update(1))
     finally:
         engine.release()
@@ -229,7 +262,6 @@ def cmd_render(args) -> int:
 
 def cmd_view(args) -> int:
     from .app.jobs import sidecar_lights
-    from .app.session import Look
     from .envmap import load_envmap
     from .lights import load_lights
     from .scene import PHOTO_SUFFIXES
@@ -241,7 +273,7 @@ def cmd_view(args) -> int:
         raise InputError(args.scene, "--mask needs a photo: relight view PHOTO [--mask MASK]")
     env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
     demo = args.scene is None and args.envmap is None and args.lights is None
-    yaw = args.yaw if args.yaw is not None else (DEMO_YAW if demo else 0.0)
+    look = _settings(args, DEMO_YAW if demo else 0.0)
     if args.record_frames < 1:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
     if not (np.isfinite(args.fps) and args.fps > 0):
@@ -274,7 +306,6 @@ def cmd_view(args) -> int:
         raise
     from .app import ViewerConfig, run_viewer
 
-    look = Look(yaw=yaw, tilt=args.tilt, exposure=args.exposure, shadows=args.visibility)
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
                           env_path=Path(env_path) if env_path is not None else None, method=args.method,
                           options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
@@ -344,137 +375,7 @@ def cmd_fit_lights(args) -> int:
     return 0
 
 
-def cmd_dataset(args) -> int:
-    from .data.dataset import HELD_OUT, DatasetConfig, make_dataset, parse_shard
-    from .progress import StageBars
-
-    cfg = DatasetConfig(out=Path(args.out), count=args.count, res=args.res, seed=args.seed, shard=parse_shard(args.shard),
-                        spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool,
-                        held_out_dir=Path(args.maps) if args.maps else HELD_OUT)
-    start = time.perf_counter()
-    with StageBars(prefix=f"dataset {cfg.out.name} {args.shard}: ") as bars:
-        manifest = make_dataset(cfg, progress=bars)
-    seconds = time.perf_counter() - start
-    per = manifest["seconds_per_sample_median"]
-    print(f"{manifest['made']} samples made ({manifest['relit_pairs_made']} relit pairs), {manifest['skipped_finished']} "
-          f"already there, in {seconds:.0f} s" + (f"; {per:.1f} s per sample (median)" if per else "")
-          + f"; peak memory {manifest['peak_memory_mb']:.0f} MB")
-    print(f"wrote {manifest['path']}")
-    return 0
-
-
-def cmd_train(args) -> int:
-    from .nets.train import TrainConfig, train
-    from .progress import StageBars
-
-    data = [Path(d) for d in args.data]
-    cfg = TrainConfig(task=args.network, data=data if len(data) > 1 else data[0], out=Path(args.out), res=args.res,
-                      epochs=args.epochs, batch=args.batch, lr=args.lr, width=args.width, levels=args.levels,
-                      device=args.device, seed=args.seed, perceptual_weight=args.perceptual_weight)
-    with StageBars(prefix=f"training {args.network}: ") as bars:
-        card = train(cfg, progress=bars)
-    if card is None:  # a torchrun worker other than rank 0: rank 0 reports
-        return 0
-    last = card["history"][-1]
-    val = f", validation {last['val']:.4g}" if last.get("val") is not None else ""
-    print(f"{args.network}: {card['epochs']} epochs in {card['seconds']:.0f} s on {card['device']} "
-          f"({card['parameters'] / 1e6:.2f} M parameters); training loss {last['train']:.4g}{val}")
-    print(f"wrote {Path(args.out) / card['weights']} and its card {Path(args.out) / (args.network + '.json')}")
-    return 0
-
-
-def photos_table(result: dict) -> str:
-    """The bench photos figures as text."""
-    lines = []
-    for row in result["photos"]:
-        ex = row["explains_photo"]
-        mask = row.get("mask", {})
-        lines.append(f"{row['photo']}: mask IoU {mask.get('iou', float('nan')):.3f}, mean |difference| "
-                     f"{mask.get('mean_abs_percent', float('nan')):.2f} %; the photo's lighting "
-                     f"explains it to {ex['fitted']['psnr_db']:.1f} dB / SSIM {ex['fitted']['ssim']:.3f} "
-                     f"(the network's guess {ex['network']['psnr_db']:.1f} dB); inference {row['inference_seconds_total']:.1f} s")
-        for method, m in row["methods"].items():
-            kept = ", ".join(f"{v:.2f}" for v in m["detail_kept"].values())
-            lines.append(f"  {method:>17}: detail kept {kept} (mean {m['detail_kept_mean']:.2f}); light moved {m['light_moved']:.2f}"
-                         + (f"; under its own lights {m['own_lights']['psnr_db']:.1f} dB" if "own_lights" in m else "")
-                         + (f"; {m['times_ms']}" if "times_ms" in m else ""))
-    if "heldout" in result:
-        h = result["heldout"]
-        lines.append(f"held-out: {h['pairs']} pairs of {h['people']} people at {h['resolution']}^2")
-        for method in result["methods"] + ["before"]:
-            if method in h:
-                d = h[method]["rmse"]["vs_network"]
-                lines.append(f"  {method:>17}: RMSE {h[method]['rmse']['mean']:.4f} SSIM {h[method]['ssim']['mean']:.4f} "
-                             f"FLIP {h[method]['flip']['mean']:.4f}; RMSE against the network's albedo {d['mean']:+.4f} "
-                             f"+- {d['stderr']:.4f}, better in {d['better_pairs']}/{h['pairs']} pairs")
-    return "\n".join(lines)
-
-
-def cmd_bench(args) -> int:
-    from .bench.engine import run_engine_benchmark
-
-    output = args.output or f"out/bench_{args.what}.json"  # report and photos take a folder (below)
-    if args.what == "engine":
-        run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
-                             output=output, twin=not args.no_twin)
-    elif args.what == "viewer":
-        from .bench.viewer import run_viewer_benchmark
-
-        run_viewer_benchmark(sizes=args.sizes, output=output)
-    elif args.what == "temporal":
-        from .bench.temporal import run_temporal_benchmark
-
-        run_temporal_benchmark(output=output)
-    elif args.what == "networks":
-        from .bench.networks import run_networks_benchmark, table
-        from .progress import StageBars
-
-        if not args.data:
-            raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
-        with StageBars(prefix="evaluating: ") as bars:
-            result = run_networks_benchmark(args.data if len(args.data) > 1 else args.data[0], args.networks,
-                                            output=output, limit=args.limit,
-                                            progress=bars)
-        print(table(result))
-    elif args.what == "report":
-        from .bench.report import run_report
-
-        if args.data and len(args.data) > 1:
-            raise InputError(None, "bench report takes one held-out dataset (--data DIR)")
-        result = run_report(quick=args.quick, data=args.data[0] if args.data else None, out_dir=args.output,
-                            maps_dir=args.maps)
-        for name, p in result["presets"].items():
-            s = next(m for m in result["methods"] if m["label"] == p["label"])
-            print(f"{name:>11}: {p['label']:<44} {s['full_ms']:7.1f} ms  RMSE {s['rmse']:.4f}  FLIP {s['flip']:.4f}")
-        for name, t in result["targets"].items():
-            print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
-        print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
-    elif args.what == "photos":
-        from .bench.photos import run_photos_benchmark
-        from .progress import StageBars
-
-        out_dir = Path(args.output or "out/bench-photos")
-        if args.data and len(args.data) > 1:
-            raise InputError(None, "bench photos takes one held-out dataset (--data DIR)")
-        start = time.perf_counter()
-        result = run_photos_benchmark(args.photos, args.maps, args.data[0] if args.data else None, out_dir, limit=args.limit,
-                                      progress=lambda what: print(f"  {what} ({time.perf_counter() - start:.0f} s)", flush=True))
-        print(photos_table(result))
-        print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.jpg'}, {out_dir / 'photos_detail.jpg'} "
-              f"in {result['seconds'] / 60:.1f} min")
-    elif args.what == "shadows":
-        from .bench.shadows import run_shadow_benchmark
-
-        run_shadow_benchmark(repeats=args.repeats, output=output)
-    else:
-        from .bench.lights import COUNTS, DEFAULT_MAPS, run_lights_benchmark
-
-        run_lights_benchmark(maps_dir=args.maps or DEFAULT_MAPS, counts=args.counts or COUNTS,
-                             output=output)
-    return 0
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="relight", description="Relight full-body photos of people under HDR environment maps.")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -515,11 +416,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-n", "--lights-count", type=int, help="lights fitted to the map (default: the preset's, balanced 16; cached)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
+                   "options below override its values")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float, help="initial rotation of the lighting, degrees")
-    p.add_argument("--tilt", type=float, default=0.0, help="initial tilt of the lighting, degrees")
-    p.add_argument("--exposure", type=_exposure, default="auto",
+    p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
+    p.add_argument("--exposure", type=_exposure,
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
-    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), default="soft", help="initial shadow mode")
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
     p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")
     p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
@@ -555,69 +458,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
 
-    p = sub.add_parser("dataset", help="synthetic training data: people relit by a ray tracer (see docs/dataset.md)")
-    dsub = p.add_subparsers(dest="action", required=True)
-    q = dsub.add_parser("make", help="make (or resume) a dataset in a directory")
-    q.add_argument("--out", required=True, help="dataset directory (outside the repository)")
-    q.add_argument("--count", type=int, required=True, help="people (samples) in the whole dataset")
-    q.add_argument("--res", type=int, default=256, help="image size in pixels (default 256)")
-    q.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    q.add_argument("--shard", default="0/1", help="make samples i, i+n, ... of the dataset (default 0/1: all)")
-    q.add_argument("--spp", type=int, default=64, help="ray-tracing samples per pixel (default 64)")
-    q.add_argument("--lightings", type=int, default=2, help="environment maps per person (default 2)")
-    q.add_argument("--split", choices=("train", "heldout"), default="train",
-                   help="train: procedural maps; heldout: the CC0 maps of --maps, never used for training")
-    q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
-    q.add_argument("--maps", help="folder of held-out maps (default ../shared/data/hdri)")
-    q.set_defaults(func=cmd_dataset)
-
-    p = sub.add_parser("train", help="train a network on a dataset made by `relight dataset make`")
-    p.add_argument("network", choices=("inverse", "depth", "refine"), help="which network")
-    p.add_argument("--data", required=True, nargs="+", help="dataset directory (or several: shards, datasets)")
-    p.add_argument("--out", default="runs", help="where checkpoints, loss curves and weights go (default runs/)")
-    p.add_argument("--res", type=int, default=256, help="training resolution (default 256)")
-    p.add_argument("--epochs", type=int, default=20)
-    p.add_argument("--batch", type=int, default=4)
-    p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate, cosine-annealed to 1e-5 (default 1e-3)")
-    p.add_argument("--width", type=int, default=16, help="channels of the first U-Net level (network size)")
-    p.add_argument("--levels", type=int, default=5, help="U-Net levels (default 5)")
-    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--perceptual-weight", type=float, default=0.1,
-                   help="inverse: weight of the Laplacian-pyramid loss that replaces VGG (default 0.1, the paper's)")
-    p.set_defaults(func=cmd_train)
-
-    p = sub.add_parser("bench", help="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos"),
-                   help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
-                        "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
-                        "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
-                        "networks: the networks on a held-out dataset (--data); report: error against time of the "
-                        "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check); "
-                        "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
-                        "mask IoU, times; --data adds held-out pairs)")
-    p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
-                   "(default ../shared/data/photos)")
-    p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
-    p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
-    p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
-    p.add_argument("--repeats", type=int, default=5)
-    p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
-    p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default ../shared/data/hdri)")
-    p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
-    p.add_argument("--data", nargs="+", help="networks, report, photos: held-out dataset directory (networks: or several)")
-    p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
-    p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs")
-    p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "
-                   "photos: the folder (default out/report/, with --quick out/report-quick/; out/bench-photos/). "
-                   "The committed figures are refreshed only when asked: -o docs/bench_<what>.json, or -o docs")
-    p.set_defaults(func=cmd_bench)
     return parser
 
 
+def command_plugins() -> dict:
+    """Commands other installed code adds to ``relight`` (the ``relight.commands`` entry points:
+    the lab's dataset, train and bench), by name; none is imported until it runs."""
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep for ep in entry_points(group=COMMAND_GROUP)}
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    plugins = command_plugins()
     try:
+        if argv and argv[0] in plugins:
+            return plugins[argv[0]].load()(argv[1:])
+        args = build_parser(plugins).parse_args(argv)
         return args.func(args)
     except InputError as exc:
         print(f"relight: error: {exc}", file=sys.stderr)

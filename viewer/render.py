@@ -2,29 +2,18 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
 from .imageio import linear_to_srgb, write_exr, write_png
-from .lights import AreaLights, rotation_matrix
+from .lights import AreaLights
 from .scene import Scene
+from .settings import AUTO, Look
 
-
-AUTO = "auto"
 ACES_WHITE = 1e6  # the tone curve's input range (shaders/tonemap.glsl)
-
-
-@dataclass(frozen=True)
-class RenderSettings:
-    yaw: float = 0.0  # degrees, rotation of the lighting about the vertical axis
-    tilt: float = 0.0
-    exposure: float | str = 0.0  # stops, or "auto": the photo's own brightness (see photo_exposure)
-    tonemap: str = "aces"
-    background: str = "environment"  # environment | photo | color | transparent
-    visibility: str = "soft"
 
 
 def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
@@ -59,7 +48,7 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
     return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
 
 
-def effective_background(settings: RenderSettings, scene: Scene, has_environment: bool) -> str:
+def effective_background(settings: Look, scene: Scene, has_environment: bool) -> str:
     """The requested background, falling back to the photo's, then to a plain colour."""
     background = settings.background
     if background == "environment" and not has_environment:
@@ -69,18 +58,14 @@ def effective_background(settings: RenderSettings, scene: Scene, has_environment
     return background
 
 
-def apply_settings(engine, scene: Scene, lights: AreaLights, settings: RenderSettings, has_environment: bool):
+def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has_environment: bool):
     """Set the engine's lights (rotated by yaw / tilt, the environment background with them),
     shadow mode and display; the caller renders."""
-    rot = rotation_matrix(settings.yaw, settings.tilt)
     engine.set_lights(lights.rotated(settings.yaw, settings.tilt))
-    engine.set_visibility(settings.visibility)
-    engine.set_display(exposure=settings.exposure if settings.exposure != AUTO else None, tonemap=settings.tonemap,
-                       background=effective_background(settings, scene, has_environment),
-                       color=(0.18, 0.18, 0.18), environment_rotation=rot.T)
+    engine.set_look(replace(settings, background=effective_background(settings, scene, has_environment)))
 
 
-def resolve_exposure(engine, scene: Scene, settings: RenderSettings) -> RenderSettings:
+def resolve_exposure(engine, scene: Scene, settings: Look) -> Look:
     """``settings`` with an "auto" exposure replaced by :func:`photo_exposure` of a render of
     them (renders once)."""
     if settings.exposure != AUTO:
@@ -89,11 +74,11 @@ def resolve_exposure(engine, scene: Scene, settings: RenderSettings) -> RenderSe
     return replace(settings, exposure=photo_exposure(engine, scene, settings.tonemap))
 
 
-def render_frame(engine, settings: RenderSettings, refiner=None):
+def render_frame(engine, settings: Look, refiner=None):
     """Render; in the refined shadow mode, also run the refinement network for these lights (once
     per lighting: ``refiner`` is a :class:`viewer.refinement.Refiner`, made on first need)."""
     engine.render()
-    if settings.visibility == "refined" and not engine.refined_current:
+    if settings.shadows == "refined" and not engine.refined_current:
         from .refinement import Refiner, refine_engine
 
         refiner = refiner if refiner is not None else Refiner()
@@ -102,7 +87,7 @@ def render_frame(engine, settings: RenderSettings, refiner=None):
     return refiner
 
 
-def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: RenderSettings,
+def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
                     environment: np.ndarray | None = None, passes: bool = True) -> list[Path]:
     """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``."""
     out_dir = Path(out_dir)
@@ -118,11 +103,11 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     written = [write_png(out_dir / f"{name}.png", display),
                write_exr(out_dir / f"{name}.exr", hdr if transparent else hdr[..., :3])]
     if passes:
-        if settings.visibility not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
+        if settings.shadows not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
             engine.set_visibility("soft")
             engine.render()
         written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene, display)))
-        engine.set_visibility(settings.visibility)
+        engine.set_visibility(settings.shadows)
     return written
 
 
@@ -132,7 +117,7 @@ def turntable_yaws(start: float, turn: float, frames: int) -> np.ndarray:
     return start + turn * np.arange(frames) / frames if abs(turn) >= 360 else start + turn * np.arange(frames) / max(frames - 1, 1)
 
 
-def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: RenderSettings, frames: int,
+def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: Look, frames: int,
                      fps: float = 30.0, turn: float = 360.0, environment: np.ndarray | None = None,
                      progress=None) -> tuple[int, int]:
     """A relit video of the lighting turning about the vertical axis (``frames`` frames over

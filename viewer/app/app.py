@@ -18,40 +18,19 @@ import numpy as np
 
 from ..imageio import write_exr, write_png, write_text
 from ..lights import AreaLights
-from ..render import AUTO, photo_exposure
+from ..render import photo_exposure
 from ..scene import Scene
+from ..settings import AUTO, Look
 from . import interaction as ix
 from .jobs import LightJob
+from .layout import PANEL_WIDTH, image_area_size
 from .recording import LiveRecording, TurntableRecording
-from .session import Look, Session
+from .session import Session
 
-PANEL_WIDTH = 400
 STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
 JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
 FRAME_HISTORY = 600
-
-KEYS_HELP = """\
-drag on the image   turn the lighting (left-right: longitude, up-down: tilt)
-wheel               exposure;  Ctrl+wheel: zoom;  right-drag: pan
-F                   fit the image (reset zoom and pan)
-0                   reset the lighting rotation
-S                   save the frame: PNG, HDR EXR and the lights as JSON
-R                   record a 360 degree turn of the lighting (R again stops)
-L                   record what you do, live (L again stops)
-Q / Esc             quit"""
-
-
-MAX_AREA = (1000, 860)  # largest image area the window opens with (pixels)
-MIN_AREA = 480
-
-
-def image_area_size(size: tuple[int, int]) -> tuple[int, int]:
-    """The image area for an output of ``size``: its aspect, at most MAX_AREA, at least MIN_AREA
-    on the shorter side where that fits."""
-    w, h = size
-    scale = min(MAX_AREA[0] / w, MAX_AREA[1] / h, max(MIN_AREA / min(w, h), 1.0))
-    return max(int(round(w * scale)), MIN_AREA // 2), max(int(round(h * scale)), MIN_AREA // 2)
 
 
 @dataclass
@@ -94,7 +73,7 @@ class ViewerApp:
         self.env_path = config.env_path
         self.n_lights = len(config.lights)
         self.preset = config.preset
-        self.view = ix.ViewState(yaw=look.yaw, tilt=look.tilt, exposure=look.exposure)
+        self.view = ix.ViewState()  # zoom and pan; the rotation and exposure are the session's look
         if self.auto_exposure:
             self._apply_auto_exposure()
         self.dragging = False
@@ -120,10 +99,8 @@ class ViewerApp:
         """Exposure from the photo's own brightness under the current lights (a no-op, 0 stops,
         for a scene without a photo)."""
         s = self.session
-        s.update(yaw=self.view.yaw, tilt=self.view.tilt, exposure=self.view.exposure)
         eng = s.render(preview=False)
         e = self._auto_value = photo_exposure(eng, s.scene, s.look.tonemap)
-        self.view = replace(self.view, exposure=e)
         s.update(exposure=e)
 
     # ------------------------------------------------------------------ geometry
@@ -157,7 +134,7 @@ class ViewerApp:
                 total = imgui.get_mouse_drag_delta(0, 0.0)
                 dx, dy = total.x - self._drag_applied[0], total.y - self._drag_applied[1]
                 if dx or dy:
-                    self.view = ix.dragged(self.view, dx, dy)
+                    self.session.look = ix.dragged(self.session.look, dx, dy)
                     self._drag_applied = (total.x, total.y)
                     self.last_motion = now
             if not down:
@@ -170,7 +147,10 @@ class ViewerApp:
             else:
                 self.panning = False
         if over_image and io.mouse_wheel:
-            self.view = ix.wheeled(self.view, io.mouse_wheel, zoom=io.key_ctrl, cursor=(mx - ax, my - ay), area=(aw, ah))
+            if io.key_ctrl:
+                self.view = ix.zoomed(self.view, io.mouse_wheel, cursor=(mx - ax, my - ay), area=(aw, ah))
+            else:
+                self.session.look = ix.wheeled(self.session.look, io.mouse_wheel)
         if io.want_capture_keyboard:
             return
         if imgui.is_key_pressed(imgui.Key.s, False):
@@ -182,7 +162,7 @@ class ViewerApp:
         if imgui.is_key_pressed(imgui.Key.f, False):
             self.view = replace(self.view, zoom=1.0, pan=(0.0, 0.0))
         if imgui.is_key_pressed(imgui.Key._0, False):
-            self.view = replace(self.view, yaw=0.0, tilt=0.0)
+            self.session.update(yaw=0.0, tilt=0.0)
         if imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
             self.window.close()
 
@@ -224,7 +204,7 @@ class ViewerApp:
         path = self._capture_stem().with_suffix(".mp4")
         try:
             if kind == "turntable":
-                self.recording = TurntableRecording(path, size, self.view.yaw, self.config.record_frames, self.config.fps)
+                self.recording = TurntableRecording(path, size, self.session.look.yaw, self.config.record_frames, self.config.fps)
             else:
                 self.recording = LiveRecording(path, size, self.config.fps)
         except Exception as exc:
@@ -235,7 +215,6 @@ class ViewerApp:
     def _finish_recording(self, stopped: bool = False):
         rec, self.recording = self.recording, None
         if isinstance(rec, TurntableRecording):
-            self.view = replace(self.view, yaw=rec.start_yaw)
             self.session.update(yaw=rec.start_yaw)
         try:
             path = rec.close()
@@ -280,7 +259,7 @@ class ViewerApp:
         self.session.set_lights(res.lights, environment=res.env.pixels)
         self.env_path = job.path
         self.n_lights = len(res.lights)
-        if self.auto_exposure and self.view.exposure == self._auto_value:
+        if self.auto_exposure and self.session.look.exposure == self._auto_value:
             self._apply_auto_exposure()
         self.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
         print(self.message, flush=True)
@@ -290,8 +269,8 @@ class ViewerApp:
         """Render the current state; returns the engine to show and what kind of frame it was."""
         s = self.session
         rec = self.recording
-        yaw = rec.next_yaw() if isinstance(rec, TurntableRecording) else self.view.yaw
-        s.update(yaw=yaw, tilt=self.view.tilt, exposure=self.view.exposure)
+        if isinstance(rec, TurntableRecording):
+            s.update(yaw=rec.next_yaw())
         moving = self.dragging and time.perf_counter() - self.last_motion < STILL_SECONDS
         preview = moving and rec is None
         eng = s.preview if preview else s.final
@@ -352,9 +331,7 @@ class ViewerApp:
 
     # ------------------------------------------------------------------ state file
     def _look_json(self) -> dict:
-        lk = self.session.look
-        return {"yaw": lk.yaw, "tilt": lk.tilt, "exposure": lk.exposure, "intensity": lk.intensity, "shadows": lk.shadows,
-                "diffuse": lk.diffuse, "specular": lk.specular, "view": lk.view, "light": lk.light}
+        return replace(self.session.look, preset=self.preset).to_json()
 
     def _write_state(self, force: bool = False):
         path = self.config.state_file

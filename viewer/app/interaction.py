@@ -1,4 +1,6 @@
-"""What the mouse and wheel do, as plain functions of a small state (no window, no GL): testable.
+"""What the mouse and wheel do, as plain functions (no window, no GL): testable. The lighting's
+rotation and the exposure belong to the look (:class:`viewer.settings.Look`); where the image sits
+in the window (zoom, pan) to :class:`ViewState`.
 
 Dragging on the image turns the lighting as if grabbing the environment map: the map behind the
 person follows the cursor (horizontal drag = longitude, vertical drag = tilt, clamped to +-90
@@ -9,36 +11,41 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from ..settings import EXPOSURE_LIMIT, Look
+
 DEGREES_PER_PIXEL = 0.5  # of mouse motion, in window pixels
 EXPOSURE_PER_NOTCH = 0.25  # stops per wheel notch
 ZOOM_PER_NOTCH = 1.15
 ZOOM_RANGE = (0.25, 8.0)  # at 8x a fitted 1000-pixel image spans 8000 pixels: within GL viewport limits
 TILT_RANGE = (-90.0, 90.0)
-EXPOSURE_RANGE = (-20.0, 20.0)
 
 
 @dataclass(frozen=True)
 class ViewState:
-    yaw: float = 0.0  # degrees, rotation of the lighting (and the map behind) about the vertical axis
-    tilt: float = 0.0  # degrees, about the camera's horizontal axis
-    exposure: float = 0.0  # stops
     zoom: float = 1.0  # 1 = the image fitted into the image area
     pan: tuple[float, float] = (0.0, 0.0)  # image-area pixels the image centre is moved by
 
 
-def dragged(state: ViewState, dx: float, dy: float) -> ViewState:
+def dragged(look: Look, dx: float, dy: float) -> Look:
     """Turn the lighting by a mouse motion of (dx, dy) window pixels (y down). Positive yaw turns a
     point in front of the camera to the left, so a drag to the right decreases it."""
-    yaw = (state.yaw - dx * DEGREES_PER_PIXEL + 180.0) % 360.0 - 180.0
-    tilt = min(max(state.tilt - dy * DEGREES_PER_PIXEL, TILT_RANGE[0]), TILT_RANGE[1])
-    return replace(state, yaw=yaw, tilt=tilt)
+    yaw = (look.yaw - dx * DEGREES_PER_PIXEL + 180.0) % 360.0 - 180.0
+    tilt = min(max(look.tilt - dy * DEGREES_PER_PIXEL, TILT_RANGE[0]), TILT_RANGE[1])
+    return replace(look, yaw=yaw, tilt=tilt)
 
 
-def wheeled(state: ViewState, notches: float, zoom: bool = False, cursor=(0.0, 0.0), area=(1, 1)) -> ViewState:
-    """Exposure up / down, or (``zoom``) zoom about ``cursor`` (area pixels, origin top left)."""
-    if not zoom:
-        e = min(max(state.exposure + notches * EXPOSURE_PER_NOTCH, EXPOSURE_RANGE[0]), EXPOSURE_RANGE[1])
-        return replace(state, exposure=e)
+def exposed(look: Look, stops: float) -> Look:
+    """The look at ``stops`` of exposure, held within the look's limits."""
+    return replace(look, exposure=min(max(float(stops), -EXPOSURE_LIMIT), EXPOSURE_LIMIT))
+
+
+def wheeled(look: Look, notches: float) -> Look:
+    """Exposure up / down by the wheel."""
+    return exposed(look, look.exposure_stops + notches * EXPOSURE_PER_NOTCH)
+
+
+def zoomed(state: ViewState, notches: float, cursor=(0.0, 0.0), area=(1, 1)) -> ViewState:
+    """Zoom about ``cursor`` (area pixels, origin top left)."""
     z = min(max(state.zoom * ZOOM_PER_NOTCH ** notches, ZOOM_RANGE[0]), ZOOM_RANGE[1])
     k = z / state.zoom
     # keep the image point under the cursor fixed: c + pan' - cursor = k (c + pan - cursor)

@@ -3,14 +3,13 @@ frame time, keys. Draws and applies the user's changes to the app's state."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from imgui_bundle import imgui, implot
 
-from ..gl.engine import VIEWS
 from ..presets import PRESETS
-from .app import KEYS_HELP, PANEL_WIDTH
+from ..settings import VIEWS
+from .interaction import exposed
+from .layout import KEYS_HELP, PANEL_WIDTH
 from .session import PREVIEW_SIZE, SHADOW_MODES, VIEW_NAMES
 
 MAX_LIGHTS = 64
@@ -59,19 +58,19 @@ def _lighting(app):
     s = app.session
     if not imgui.collapsing_header("Lighting", imgui.TreeNodeFlags_.default_open):
         return
-    v = app.view
+    v = s.look
     changed, yaw = imgui.slider_float("longitude", v.yaw, -180.0, 180.0, "%.1f deg")
     _remember(app, "longitude")
     if changed:
-        app.view = replace(app.view, yaw=yaw)
+        s.update(yaw=yaw)
     changed, tilt = imgui.slider_float("tilt", v.tilt, -90.0, 90.0, "%.1f deg")
     _remember(app, "tilt")
     if changed:
-        app.view = replace(app.view, tilt=tilt)
-    changed, exposure = imgui.slider_float("exposure", v.exposure, -10.0, 10.0, "%+.2f stops")
+        s.update(tilt=tilt)
+    changed, exposure = imgui.slider_float("exposure", v.exposure_stops, -10.0, 10.0, "%+.2f stops")
     _remember(app, "exposure")
     if changed:
-        app.view = replace(app.view, exposure=exposure)
+        s.look = exposed(s.look, exposure)
     changed, intensity = imgui.slider_float("intensity", s.look.intensity, 0.0, 8.0, "x %.2f", imgui.SliderFlags_.logarithmic)
     _remember(app, "intensity")
     if changed:

@@ -12,15 +12,17 @@ of one state: never a mix of old and new lights.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from ..gl import Engine, EngineOptions
-from ..lights import AreaLights, rotation_matrix
+from ..lights import AreaLights
+from ..render import effective_background
 from ..scene import Scene
 from ..photo_frame import scaled_size
 from ..scene_ops import resample_scene
+from ..settings import Look
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
@@ -31,21 +33,6 @@ VIEW_NAMES = {
     "albedo": "albedo", "normal": "normal", "depth": "depth", "specular": "specular", "roughness": "roughness",
     "shadow": "shadow of the selected light",
 }
-
-
-@dataclass(frozen=True)
-class Look:
-    """Everything that decides the picture besides the lights' base values."""
-    yaw: float = 0.0
-    tilt: float = 0.0
-    exposure: float = 0.0
-    intensity: float = 1.0  # scales every light
-    shadows: str = "soft"  # soft | refined | hard | none
-    diffuse: bool = True
-    specular: bool = True
-    view: str = "final"
-    light: int = 0  # the selected light (its shadow in the "shadow" view)
-    tonemap: str = "aces"
 
 
 class Session:
@@ -130,12 +117,8 @@ class Session:
         eng = self.preview if preview else self.final
         lk = self.look
         eng.set_lights(self.rotated_lights())
-        eng.set_visibility("hard" if preview and lk.shadows in ("soft", "refined") else lk.shadows)
-        eng.set_components(diffuse=lk.diffuse, specular=lk.specular)
-        eng.set_view(lk.view, lk.light)
-        background = "environment" if self.environment is not None else ("photo" if self.scene.background is not None else "color")
-        eng.set_display(exposure=lk.exposure, tonemap=lk.tonemap, background=background, color=(0.18, 0.18, 0.18),
-                        environment_rotation=rotation_matrix(lk.yaw, lk.tilt).T)
+        eng.set_look(replace(lk, background=effective_background(lk, self.scene, self.environment is not None),
+                             shadows="hard" if preview and lk.shadows in ("soft", "refined") else lk.shadows))
         eng.render()
         if not preview and lk.shadows == "refined" and not eng.refined_current:
             self._start_refinement(eng)

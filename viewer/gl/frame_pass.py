@@ -17,9 +17,10 @@ composite also writes the two shading sums ``D = sum_l V_l I_l S_diff_l`` and
    background, exposure, tone map and sRGB: the display image, in the same pass. The same shader
    gives the frame's HDR on request (:meth:`FramePass.read`), for saved EXRs.
 
-Cache rules (kept by :class:`viewer.gl.engine.Engine`): the frame composite is redone over the
-matte's bounding box when the work composite is, over the whole frame when a display setting
-changes; the frame background when the background, the map or its rotation does.
+Cache rules (each pass's ``inputs``; the engine tracks them): the shading sums' mipmaps after
+each work composite; the frame composite over the matte's bounding box when the work composite
+is redone, over the whole frame when the look or the view changes; the frame background when
+the background, its colour, the map or its rotation does.
 """
 
 from __future__ import annotations
@@ -29,59 +30,106 @@ import numpy as np
 
 from ..camera import Camera
 from ..scene import FrameLayer
+from ..settings import BACKGROUNDS, TONEMAPS, Look
+from .kit import PassKit
 
 MAX_FILL_LOD = 4  # mip levels the frame composite may reach past the mask (16 work pixels)
 OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR = 0, 1, 2
 
 
-class FramePass:
-    """Owns the frame-resolution textures: ``draw_background``, ``draw`` (the display), ``read``."""
+def frame_camera(frame: FrameLayer, camera: Camera) -> Camera:
+    """The scene's camera at the frame's resolution."""
+    return Camera(frame.width, frame.height, camera.focal_mm, camera.sensor_mm, camera.distance)
 
-    def __init__(self, ctx: moderngl.Context, programs, fullscreen, frame: FrameLayer, camera: Camera, texture):
-        self.ctx = ctx
-        self.programs = programs
-        self._fullscreen = fullscreen
-        self._texture = texture
-        self.camera = Camera(frame.width, frame.height, camera.focal_mm, camera.sensor_mm, camera.distance)
+
+class FrameBackgroundPass:
+    """7. The background at the frame's resolution (environment through the camera, photo, colour,
+    transparent), in linear HDR, kept in a texture. Owns the photo's and the background's textures."""
+
+    name = "frame_background"
+    inputs = ("background", "environment")  # the background mode, its colour, the map or its rotation
+
+    def __init__(self, kit: PassKit, frame: FrameLayer, camera: Camera):
+        self.kit = kit
+        self.camera = frame_camera(frame, camera)
+        size = self.size = (frame.width, frame.height)
+        photo = np.dstack([frame.photo, np.ones(frame.alpha.shape, np.float32)]).astype(np.float16)
+        self.photo = kit.texture(size, 4, photo.tobytes(), dtype="f2")
+        self.image = kit.texture(size, 4, dtype="f2")
+        self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
+
+    def run(self, look: Look, background: str, environment: moderngl.Texture):
+        kit = self.kit
+        with kit.timed(self.name):
+            prog = kit.programs.get("fullscreen.vert.glsl", "frame_background.frag.glsl")
+            self.fbo.use()
+            self.photo.use(0)
+            environment.use(1)
+            prog["photo"] = 0
+            prog["environment"] = 1
+            prog["background_mode"] = BACKGROUNDS[background]
+            prog["background_color"] = look.background_color
+            prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
+            prog["focal_center_px"] = self.camera.center
+            prog["focal_px"] = self.camera.focal_px
+            kit.fullscreen(prog)
+
+    def release(self):
+        for obj in (self.fbo, self.image, self.photo):
+            obj.release()
+
+
+class FrameMipmapsPass:
+    """The shading sums' mip levels, which filled_sample reads past the mask."""
+
+    name = "frame_mipmaps"
+    inputs = ("composite", "view")
+
+    def __init__(self, kit: PassKit):
+        self.kit = kit
+
+    def run(self, shading):
+        with self.kit.timed(self.name):
+            for tex in shading:
+                tex.build_mipmaps(0, MAX_FILL_LOD)
+
+
+class FrameCompositePass:
+    """8. At each frame pixel A_frame D + S over the background, then exposure, tone map and sRGB:
+    the display image (or, on request, the frame's HDR). Owns the frame's albedo and matte and the
+    display image."""
+
+    name = "frame_composite"
+    inputs = ("composite",)  # redrawn over the matte's box only
+    whole_inputs = ("display", "view", "environment")  # redrawn over the whole frame
+
+    def __init__(self, kit: PassKit, frame: FrameLayer):
+        self.kit = kit
         size = self.size = (frame.width, frame.height)
         albedo_alpha = np.dstack([frame.albedo, frame.alpha]).astype(np.float16)
-        self.tex_albedo_alpha = texture(size, 4, albedo_alpha.tobytes(), dtype="f2")
-        photo = np.dstack([frame.photo, np.ones(frame.alpha.shape, np.float32)]).astype(np.float16)
-        self.tex_photo = texture(size, 4, photo.tobytes(), dtype="f2")
-        self.background = texture(size, 4, dtype="f2")
-        self.background_fbo = ctx.framebuffer(color_attachments=[self.background])
-        self.display = texture(size, 4, dtype="f1")
-        self.display_fbo = ctx.framebuffer(color_attachments=[self.display])
+        self.albedo_alpha = kit.texture(size, 4, albedo_alpha.tobytes(), dtype="f2")
+        self.image = kit.texture(size, 4, dtype="f1")
+        self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
         rows, cols = np.nonzero(frame.alpha > 0)
         self.box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1)) \
             if rows.size else (0, 0, 1, 1)
 
-    def draw_background(self, state: dict, modes: dict, environment: moderngl.Texture):
-        """The background of the display state (``background``, ``color``, ``rotation``)."""
-        prog = self.programs.get("fullscreen.vert.glsl", "frame_background.frag.glsl")
-        self.background_fbo.use()
-        self.tex_photo.use(0)
-        environment.use(1)
-        prog["photo"] = 0
-        prog["environment"] = 1
-        prog["background_mode"] = modes[state["background"]]
-        prog["background_color"] = tuple(float(c) for c in state["color"])
-        prog["environment_rotation"].write(np.asarray(state["rotation"], dtype="f4").T.tobytes())
-        prog["focal_center_px"] = self.camera.center
-        prog["focal_px"] = self.camera.focal_px
-        self._fullscreen(prog)
+    def run(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, box=None):
+        with self.kit.timed(self.name):
+            self.draw(self.fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, box)
 
-    def draw(self, fbo: moderngl.Framebuffer, shading, terms, state: dict, tonemaps: dict, output_mode: int = OUTPUT_DISPLAY,
-             box=None):
+    def draw(self, fbo: moderngl.Framebuffer, shading, background: moderngl.Texture, terms, look: Look, transparent: bool,
+             output_mode: int = OUTPUT_DISPLAY, box=None):
         """The frame composite into ``fbo``: the display image (``output_mode`` 0) over ``box``
         (None: the whole frame), or one of the HDR outputs."""
-        prog = self.programs.get("fullscreen.vert.glsl", "frame_composite.frag.glsl")
+        kit = self.kit
+        prog = kit.programs.get("fullscreen.vert.glsl", "frame_composite.frag.glsl")
         fbo.scissor = box
         fbo.use()
-        self.tex_albedo_alpha.use(0)
+        self.albedo_alpha.use(0)
         shading[0].use(1)
         shading[1].use(2)
-        self.background.use(3)
+        background.use(3)
         prog["frame_albedo_alpha"] = 0
         prog["shading_diffuse"] = 1
         prog["shading_specular"] = 2
@@ -91,27 +139,25 @@ class FramePass:
         diffuse, specular, unit_albedo = terms
         prog["term_weights"] = (diffuse, specular)
         prog["unit_albedo"] = unit_albedo
-        prog["transparent"] = state["background"] == "transparent"
-        prog["exposure"] = float(state["exposure"])
-        prog["tonemap_op"] = tonemaps[state["tonemap"]]
+        prog["transparent"] = transparent
+        prog["exposure"] = look.exposure_stops
+        prog["tonemap_op"] = TONEMAPS[look.tonemap]
         prog["output_mode"] = output_mode
-        self._fullscreen(prog)
+        kit.fullscreen(prog)
         fbo.scissor = None
 
-    def read(self, shading, terms, state: dict, tonemaps: dict, output_mode: int) -> np.ndarray:
+    def read(self, shading, background, terms, look: Look, transparent: bool, output_mode: int) -> np.ndarray:
         """(H, W, 4) float32: the person's HDR and matte (``OUTPUT_PERSON_HDR``) or the HDR over
         the background (``OUTPUT_COMPOSITED_HDR``), drawn into a texture made for the call."""
-        tex = self._texture(self.size, 4)
-        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        tex = self.kit.texture(self.size, 4)
+        fbo = self.kit.ctx.framebuffer(color_attachments=[tex])
         try:
-            self.draw(fbo, shading, terms, state, tonemaps, output_mode)
-            w, h = self.size
-            return np.frombuffer(tex.read(), np.float32).reshape(h, w, 4).copy()
+            self.draw(fbo, shading, background, terms, look, transparent, output_mode)
+            return self.kit.read(tex, 4)
         finally:
             fbo.release()
             tex.release()
 
     def release(self):
-        for obj in (self.background_fbo, self.background, self.display_fbo, self.display, self.tex_albedo_alpha,
-                    self.tex_photo):
+        for obj in (self.fbo, self.image, self.albedo_alpha):
             obj.release()

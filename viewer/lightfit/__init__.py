@@ -2,15 +2,13 @@
 
 Modules: :mod:`.samples` (the map as directional samples), :mod:`.views` (fitting scenes with
 analytic visibility), :mod:`.reference` (reference shading), :mod:`.problem` (one map's fitting
-problem and the lights' differentiable shading), :mod:`.fit` (the methods), :mod:`.evaluate`
-(shading errors), :mod:`.cache` (content-addressed cache), :mod:`.plot` (lights on the map).
+problem and the lights' differentiable shading), :mod:`.fit` (the methods, named in :mod:`.methods`),
+:mod:`.cache` (content-addressed cache), :mod:`.plot` (lights on the map).
 Importing this package does not import torch (only fitting does), so viewing cached lights
 stays light.
 """
 
-METHODS = ("fast", "paper", "median-cut")  # see viewer.lightfit.fit
-DEFAULT_METHOD = "fast"
-
-from .cache import cache_dir, cache_path, lights_for_map, map_hash  # noqa: E402 (cache.py uses the names above)
+from .cache import cache_dir, cache_path, lights_for_map, map_hash
+from .methods import DEFAULT_METHOD, METHODS
 
 __all__ = ["DEFAULT_METHOD", "METHODS", "cache_dir", "cache_path", "lights_for_map", "map_hash"]

@@ -48,7 +48,7 @@ def cache_path(env: EnvMap, n: int, method: str, directory=None) -> Path:
 def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, directory=None, progress=None,
                    refit: bool = False) -> tuple[AreaLights, bool]:
     """The fitted lights of ``env`` and whether they came from the cache (else they are fitted now)."""
-    from . import DEFAULT_METHOD
+    from .methods import DEFAULT_METHOD
 
     method = method or DEFAULT_METHOD
     path = cache_path(env, n, method, directory)

@@ -46,7 +46,7 @@ from ..envmap import EnvMap
 from ..errors import InputError
 from ..lights import AreaLights
 from ..median_cut import SIGMA_MAX, median_cut_lights
-from . import DEFAULT_METHOD, METHODS
+from .methods import DEFAULT_METHOD, METHODS
 from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
 
 FAST_STEPS = 300

@@ -16,9 +16,7 @@ lights comes from the GL engine and is cached beside each lighting (``visibility
 
 from __future__ import annotations
 
-from pathlib import Path
 
-import numpy as np
 import torch
 
 from ..median_cut import SIGMA_MAX
@@ -78,27 +76,3 @@ def refine_loss(model, batch: dict, scale: torch.Tensor, refined: int = REFINED_
         csm = masked_l1((soft[:, :, None] * shading).sum(dim=1), target, mask)
     total = masked_l1(pred, target, mask)
     return {"total": total, "sm": sm, "csm": csm}
-
-
-def cached_visibility(ctx, lighting_dir: Path, scene, lights, resolution: int = SHADOW_RESOLUTION) -> tuple[np.ndarray, np.ndarray]:
-    """(hard, soft) visibility (N, H, W) of one dataset lighting from the GL engine (the same
-    passes the refined mode reads at run time), computed once and kept as ``visibility_<R>.npz``."""
-    import os
-
-    from ..gl import Engine, EngineOptions
-    from ..refinement import light_visibility
-
-    path = Path(lighting_dir) / f"visibility_{resolution}.npz"
-    if path.is_file():
-        with np.load(path) as z:
-            return z["hard"].astype(np.float32), z["soft"].astype(np.float32)
-    eng = Engine(ctx, scene, EngineOptions(shadow_resolution=resolution))
-    try:
-        eng.set_lights(lights)
-        hard, soft = light_visibility(eng)
-    finally:
-        eng.release()
-    tmp = path.with_name(f".{path.stem}.tmp.npz")
-    np.savez_compressed(tmp, hard=hard.astype(np.uint8), soft=soft.astype(np.float16))
-    os.replace(tmp, path)
-    return hard, soft.astype(np.float16).astype(np.float32)

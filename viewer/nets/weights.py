@@ -1,6 +1,6 @@
 """Loading the shipped networks: weights from safetensors (never a pickle), the architecture from
 the JSON card beside them. Part of the product (inference and the refined shadow mode); training
-(:mod:`viewer.nets.train`) writes what this reads."""
+(:mod:`viewer.lab.train`) writes what this reads."""
 
 from __future__ import annotations
 

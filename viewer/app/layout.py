@@ -1,0 +1,26 @@
+"""The window's layout: the image area beside the side panel, and the key help the panel shows
+(shared by the app, which places the image, and the panel, which draws itself)."""
+
+from __future__ import annotations
+
+PANEL_WIDTH = 400
+KEYS_HELP = """\
+drag on the image   turn the lighting (left-right: longitude, up-down: tilt)
+wheel               exposure;  Ctrl+wheel: zoom;  right-drag: pan
+F                   fit the image (reset zoom and pan)
+0                   reset the lighting rotation
+S                   save the frame: PNG, HDR EXR and the lights as JSON
+R                   record a 360 degree turn of the lighting (R again stops)
+L                   record what you do, live (L again stops)
+Q / Esc             quit"""
+
+MAX_AREA = (1000, 860)  # largest image area the window opens with (pixels)
+MIN_AREA = 480
+
+
+def image_area_size(size: tuple[int, int]) -> tuple[int, int]:
+    """The image area for an output of ``size``: its aspect, at most MAX_AREA, at least MIN_AREA
+    on the shorter side where that fits."""
+    w, h = size
+    scale = min(MAX_AREA[0] / w, MAX_AREA[1] / h, max(MIN_AREA / min(w, h), 1.0))
+    return max(int(round(w * scale)), MIN_AREA // 2), max(int(round(h * scale)), MIN_AREA // 2)

@@ -1,0 +1,104 @@
+"""6. The display (display.frag.glsl) of a scene without a frame layer: exposure, ACES / Reinhard /
+clamp, sRGB over the environment map, the background image or a colour, at the maps' resolution;
+and the inspection views (inspect.frag.glsl) of any scene: its maps, or one light's shadow."""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from ..camera import Camera
+from ..settings import BACKGROUNDS, TONEMAPS, Look
+from .kit import PassKit
+from .light import PASS_OFF, Light
+from .light_pass import LightAtlas
+from .scene_resources import SceneResources
+
+INSPECT_VIEWS = {"albedo": 1, "normal": 2, "depth": 3, "specular": 4, "roughness": 5, "shadow": 6}
+
+
+class DisplayPass:
+    """Owns the work-resolution display image (uint8 sRGB + alpha)."""
+
+    name = "display"
+    inputs = ("composite",)  # redrawn over the mask's box only
+    whole_inputs = ("display", "view", "environment")  # redrawn over the whole image
+
+    def __init__(self, kit: PassKit, scene: SceneResources, size, camera: Camera):
+        self.kit, self.scene, self.camera = kit, scene, camera
+        self.image = kit.texture(size, 4, dtype="f1")
+        self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
+
+    def run(self, hdr: moderngl.Texture, look: Look, background: str, box=None):
+        with self.kit.timed(self.name):
+            self.draw(self.fbo, hdr, look, background, box)
+
+    def draw(self, fbo, hdr, look: Look, background: str, box=None, hdr_output: bool = False):
+        """The display shader over ``fbo`` (``box`` = (x, y, w, h) to redraw only that part; ``hdr_output``:
+        the linear HDR over the background, before exposure and tone map)."""
+        kit, sc = self.kit, self.scene
+        prog = kit.programs.get("fullscreen.vert.glsl", "display.frag.glsl", **({"HDR_OUTPUT": None} if hdr_output else {}))
+        fbo.scissor = box
+        fbo.use()
+        hdr.use(0)
+        sc.background.use(1)
+        sc.environment.use(2)
+        prog["hdr"] = 0
+        prog["background_image"] = 1
+        prog["environment"] = 2
+        prog["background_mode"] = BACKGROUNDS[background]
+        prog["background_color"] = look.background_color
+        prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
+        prog["focal_center_px"] = self.camera.center
+        prog["focal_px"] = self.camera.focal_px
+        if not hdr_output:
+            prog["exposure"] = look.exposure_stops
+            prog["tonemap_op"] = TONEMAPS[look.tonemap]
+        kit.fullscreen(prog)
+        fbo.scissor = None
+
+    def read_hdr_output(self, hdr, look: Look, background: str) -> np.ndarray:
+        tex = self.kit.texture(hdr.size, 4)
+        fbo = self.kit.ctx.framebuffer(color_attachments=[tex])
+        try:
+            self.draw(fbo, hdr, look, background, None, hdr_output=True)
+            return self.kit.read(tex, 4)
+        finally:
+            fbo.release()
+            tex.release()
+
+    def release(self):
+        self.fbo.release()
+        self.image.release()
+
+
+class InspectPass:
+    """An inspection view into the display image (the display's size stays): the albedo, normal,
+    depth, specular or roughness map, or one light's shadow under the current shadow mode."""
+
+    name = "display"  # counted as a display run
+    inputs = ("view", "light_pass")
+
+    def __init__(self, kit: PassKit, scene: SceneResources, work_size):
+        self.kit, self.scene, self.work_size = kit, scene, work_size
+
+    def run(self, fbo, view: str, light: Light | None, atlas: LightAtlas, visibility: str):
+        kit, sc = self.kit, self.scene
+        prog = kit.programs.get("fullscreen.vert.glsl", "inspect.frag.glsl")
+        with kit.timed(self.name):
+            fbo.scissor = None
+            fbo.use()
+            prog["display_to_work"] = (self.work_size[0] / fbo.size[0], self.work_size[1] / fbo.size[1])
+            for unit, (name, tex) in enumerate((("positions", sc.positions), ("normals", sc.normals), ("albedo_mask", sc.albedo))):
+                tex.use(unit)
+                prog[name] = unit
+            (atlas.planes[light.slot] if light is not None else sc.albedo).use(3)
+            prog["light_plane"] = 3
+            prog["light_valid"] = light is not None and light.active and light.pass_mode != PASS_OFF
+            prog["tile_origin"] = light.tile if light is not None else (0, 0)
+            prog["box_origin"] = sc.mask_box[:2]
+            prog["visibility_channel"] = 1 if visibility == "hard" else 0
+            prog["view"] = INSPECT_VIEWS[view]
+            prog["depth_range"] = sc.depth_range
+            prog["background_color"] = (0.1, 0.1, 0.1)
+            kit.fullscreen(prog)

@@ -1,0 +1,62 @@
+"""One area light in the engine: its parameters, what the engine derived from them (the shadow
+frame, how much it can contribute), which of its per-light passes are stale, and the GL resources
+it owns (its shadow map and the atlases of its convolutional shadow map)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from .. import shadow_space as ss
+from .kit import PassKit
+from .prefilter import BlurPlan
+
+# light-pass modes per light (shaders/light_pass.frag.glsl): what the light atlas holds for it
+PASS_OFF, PASS_HARD, PASS_SOFT, PASS_UNSHADOWED = 0, 1, 2, 3
+PER_LIGHT_PASSES = ("shadow_map", "csm_basis", "prefilter", "light_pass")
+
+
+@dataclass
+class Light:
+    direction: np.ndarray
+    sigma: float
+    intensity: np.ndarray
+    frame: ss.LightFrame | None = None  # the shadow map's orthographic frame
+    facing: float = 0.0  # max n.l over the mask's normals
+    bound: float = 0.0  # max intensity x facing x the scene's response bound: >= any pixel's value
+    active: bool = True  # False: it cannot contribute, every pass skips it (its stale passes wait)
+    stale: set = field(default_factory=lambda: set(PER_LIGHT_PASSES))  # per-light passes to redo
+    pass_mode: int = PASS_OFF  # light-pass mode the light atlas currently holds for this light
+    tile: tuple = (0, 0)  # origin of this light's group tile in the light atlas
+    slot: int = 0  # plane of the light atlas (light index % LIGHTS_PER_PASS)
+    # resources, made on first use
+    shadow_map: moderngl.Texture | None = None
+    shadow_fbo: moderngl.Framebuffer | None = None
+    plan: BlurPlan | None = None  # how its basis is pre-filtered (from sigma)
+    filtered: moderngl.Texture | None = None  # pre-filtered basis atlas (one of ``work``)
+    work: dict = field(default_factory=dict)  # intermediate atlases: slot -> (texture, framebuffer)
+
+    def ensure_shadow_map(self, kit: PassKit, resolution: int, depth: moderngl.Renderbuffer):
+        if self.shadow_map is None:
+            self.shadow_map = kit.texture((resolution, resolution), 1)
+            self.shadow_fbo = kit.ctx.framebuffer(color_attachments=[self.shadow_map], depth_attachment=depth)
+
+    def work_atlas(self, kit: PassKit, size, slot: str):
+        """This light's own intermediate atlas ``slot`` of ``size`` (kept per light so that every
+        stage can run for all lights before the next starts: llvmpipe then waits once per stage)."""
+        entry = self.work.get(slot)
+        if entry is None or entry[0].size != tuple(size):
+            if entry is not None:
+                entry[1].release()
+                entry[0].release()
+            tex = kit.texture(size, 4, linear=(slot == "filtered"))
+            entry = self.work[slot] = (tex, kit.ctx.framebuffer(color_attachments=[tex]))
+        return entry
+
+    def release(self):
+        for res in [self.shadow_fbo, self.shadow_map] + [r for entry in self.work.values() for r in reversed(entry)]:
+            if res is not None:
+                res.release()
+        self.work.clear()

@@ -1,0 +1,143 @@
+"""4. The light pass (light_pass.frag.glsl): at every camera pixel of the mask's box, four lights at
+once, each light's soft visibility (CSM), hard visibility (shadow test), and Lambert and Disney
+specular shading per unit intensity, into the light atlas. Also the refined visibility the
+refinement network gives for the same lights (the 'refined' shadow mode), kept beside the atlas."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from .. import shadow_space as ss
+from .kit import PassKit
+from .light import PASS_HARD, PASS_SOFT, Light
+from .scene_resources import SceneResources
+
+LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each)
+
+
+class LightAtlas:
+    """LIGHTS_PER_PASS RGBA32F planes holding every light's (V_soft, V_hard, S_diff, S_spec) over
+    the mask's bounding box; light i is in plane i % 4, in the tile of its group i // 4 (a few
+    textures to bind in the composite, four lights per light pass). Sized for the light count."""
+
+    def __init__(self, kit: PassKit, mask_box, max_texture: int, source):
+        self.kit, self.mask_box, self.max_texture, self.source = kit, mask_box, max_texture, source
+        self.planes: list = []
+        self.fbo = None
+
+    def allocate(self, lights: list[Light]):
+        _, _, bw, bh = self.mask_box
+        n = max((len(lights) + LIGHTS_PER_PASS - 1) // LIGHTS_PER_PASS, 1)  # groups
+        cols = min(max(int(np.ceil(np.sqrt(n * bh / bw))), 1), n)
+        rows = int(np.ceil(n / cols))
+        size = (cols * bw, rows * bh)
+        if max(size) > self.max_texture:
+            raise InputError(self.source, f"{len(lights)} lights over a {bw}x{bh} mask box need {size[0]}x{size[1]} "
+                             f"light-atlas planes, above this GL's texture limit {self.max_texture}")
+        self.release()
+        self.planes = [self.kit.texture(size, 4) for _ in range(LIGHTS_PER_PASS)]
+        self.fbo = self.kit.ctx.framebuffer(color_attachments=self.planes)
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0)
+        for i, l in enumerate(lights):
+            g = i // LIGHTS_PER_PASS
+            l.tile = ((g % cols) * bw, (g // cols) * bh)
+            l.slot = i % LIGHTS_PER_PASS
+
+    def read_tile(self, l: Light) -> np.ndarray:
+        """(h, w, 4) of one light over the mask's box."""
+        _, _, bw, bh = self.mask_box
+        data = self.fbo.read(viewport=(l.tile[0], l.tile[1], bw, bh), components=4, dtype="f4", attachment=l.slot)
+        return np.frombuffer(data, np.float32).reshape(bh, bw, 4)
+
+    def release(self):
+        for res in [self.fbo, *self.planes]:
+            if res is not None:
+                res.release()
+        self.planes = []
+        self.fbo = None
+
+
+class RefinedVisibility:
+    """The refinement network's visibility of the current lights, one plane per light-atlas plane
+    at the same tiles (what the composite reads in the 'refined' mode). ``current`` is False
+    once a light's direction or sigma changed."""
+
+    def __init__(self, kit: PassKit, mask_box):
+        self.kit, self.mask_box = kit, mask_box
+        self.planes: list = []
+        self.current = False
+
+    def write(self, lights: list[Light], visibility: np.ndarray, size):
+        if not self.planes or self.planes[0].size != size:
+            self.release()
+            self.planes = [self.kit.texture(size, 1) for _ in range(LIGHTS_PER_PASS)]
+        x, y, bw, bh = self.mask_box
+        for l, v in zip(lights, visibility):
+            tile = np.ascontiguousarray(np.clip(v[y:y + bh, x:x + bw], 0.0, 1.0))
+            self.planes[l.slot].write(tile.tobytes(), viewport=(l.tile[0], l.tile[1], bw, bh))
+        self.current = True
+
+    def release(self):
+        for t in self.planes:
+            t.release()
+        self.planes = []
+
+
+class LightShadingPass:
+    """One light pass per group of four lights; a light's ``pass_mode`` says what its slot holds
+    (0 nothing, 1 hard visibility only, 2 hard and CSM, 3 unit visibility)."""
+
+    name = "light_pass"
+    inputs = ("direction", "shadow_map", "prefilter")  # and the mode the shown visibility needs (Engine._needed_pass)
+
+    def __init__(self, kit: PassKit, scene: SceneResources, atlas: LightAtlas, resolution: int, terms: int, specular: bool):
+        self.kit, self.scene, self.atlas = kit, scene, atlas
+        self.resolution, self.terms, self.specular = resolution, terms, specular
+        self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
+
+    def run(self, group: list[Light], modes: list[int]):
+        kit, sc = self.kit, self.scene
+        defines = {"TERMS": self.terms}
+        if self.specular:
+            defines["SPECULAR"] = None
+        prog = kit.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", **defines)
+        with kit.timed(self.name):
+            sc.positions.use(0)
+            sc.normals.use(1)
+            prog["positions"] = 0
+            prog["normals"] = 1
+            frames = np.zeros((LIGHTS_PER_PASS, 4, 4), "f4")
+            dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
+            scales = np.ones(LIGHTS_PER_PASS, "f4")
+            fallback = sc.positions  # any texture: slots without a light never read it
+            for j in range(LIGHTS_PER_PASS):
+                l = group[j] if j < len(group) else None
+                used = l is not None and modes[j] in (PASS_HARD, PASS_SOFT)
+                (l.shadow_map if used else fallback).use(2 + j)
+                (l.filtered if used and modes[j] == PASS_SOFT else fallback).use(6 + j)
+                prog[f"shadow_map{j}"] = 2 + j
+                prog[f"filtered_basis{j}"] = 6 + j
+                if used:
+                    frames[j] = l.frame.matrix().T
+                    scales[j] = l.frame.depth_scale()
+                if l is not None:
+                    dirs[j] = l.frame.direction
+            prog["light_frame"].write(frames.tobytes())
+            prog["light_dir"].write(dirs.tobytes())
+            prog["depth_scale"].write(scales.tobytes())
+            prog["light_mode"].write(np.array(list(modes) + [0] * (LIGHTS_PER_PASS - len(modes)), "i4").tobytes())
+            prog["texel_world"] = group[0].frame.texel_world(self.resolution)
+            prog["hard_threshold"] = ss.HARD_SHADOW_THRESHOLD
+            prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS
+            prog["slope_bias_texels"] = ss.SLOPE_BIAS_TEXELS
+            prog["max_slope"] = ss.MAX_SLOPE
+            prog["csm_offset"] = self.csm_offset
+            prog["csm_clamp"] = self.csm_clamp
+            x, y, bw, bh = sc.mask_box
+            prog["tile_origin"] = group[0].tile
+            prog["box_origin"] = (x, y)
+            fbo = self.atlas.fbo
+            fbo.viewport = fbo.scissor = (group[0].tile[0], group[0].tile[1], bw, bh)
+            fbo.use()
+            kit.fullscreen(prog)

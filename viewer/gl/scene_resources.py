@@ -1,0 +1,59 @@
+"""The scene on the GPU: the maps as textures, the background image and environment map, and the
+figures every pass reads off the scene (the mask's box, the depth range, the shadow casters'
+bounding sphere, the bounds that decide which lights can contribute). Made once per engine: the
+scene never changes in an engine's life; only the environment map is replaced."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..mesh import caster_points, depth_mesh, resolve_step
+from ..scene import Scene
+from .. import shadow_space as ss
+from .kit import PassKit
+
+
+class SceneResources:
+    def __init__(self, kit: PassKit, scene: Scene, shadow_step: int):
+        s = scene
+        w, h = s.width, s.height
+        self.kit = kit
+        mask = s.mask.astype(np.float32)
+        pts = s.points()
+        # two fetches per pixel and light: (position, roughness) and (normal, specular); normals are
+        # zero outside the mask, so n.l <= 0 there
+        self.positions = kit.texture((w, h), 4, np.dstack([pts, s.roughness]).astype("f4").tobytes())
+        self.normals = kit.texture((w, h), 4, np.dstack([s.normal, s.specular]).astype("f4").tobytes())
+        self.albedo = kit.texture((w, h), 4, np.dstack([s.albedo, mask]).astype("f4").tobytes())
+        bg = s.background if s.background is not None else np.zeros((h, w, 3), np.float32)
+        self.background = kit.texture((w, h), 4, np.dstack([bg, np.ones((h, w), np.float32)]).astype("f4").tobytes())
+        self.environment = kit.texture((1, 1), 4, np.zeros(4, "f4").tobytes(), linear=True, repeat=True)
+
+        self.shadow_step = resolve_step(shadow_step, s)
+        self.mesh = depth_mesh(s, step=self.shadow_step)  # the shadow casters (decimated depth mesh)
+        self.caster_points = caster_points(s, self.mesh).astype(np.float32)
+        self.sphere = ss.bounding_sphere(self.caster_points.astype(np.float64))
+        rows, cols = np.nonzero(s.mask)
+        self.depth_range = (float(s.depth[s.mask].min()), float(s.depth[s.mask].max()))
+        # camera-pixel passes only touch the mask's bounding box (the rest stays cleared to zero)
+        self.mask_box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
+        self.normals_masked = np.ascontiguousarray(s.normal[s.mask], dtype=np.float32)
+        # Upper bound of (A S_diff + S_spec) per unit intensity and unit n.l over the scene:
+        # S_spec = n.l F D G <= n.l * 1 * 1 / (pi alpha^2) * 1 / (n.l alpha) (G1(n.l) n.l <= 1,
+        # G1(n.v) <= 1 / alpha), i.e. <= 1 / (pi alpha^3) with the smallest alpha of a specular pixel.
+        glossy = s.mask & (s.specular > 0)
+        alpha = max(float(s.roughness[glossy].min()) ** 2, 1e-3) if glossy.any() else None
+        self.diffuse_bound = float(s.albedo[s.mask].max()) / np.pi
+        self.response_bound = self.diffuse_bound + (1.0 / (np.pi * alpha**3) if alpha else 0.0)
+
+    def set_environment(self, pixels: np.ndarray):
+        """Replace the equirectangular map (H, W, 3) linear RGB of the 'environment' background."""
+        pixels = np.asarray(pixels, dtype=np.float32)
+        h, w = pixels.shape[:2]
+        self.environment.release()
+        data = np.dstack([pixels, np.ones((h, w), np.float32)]).astype("f4")
+        self.environment = self.kit.texture((w, h), 4, data.tobytes(), linear=True, repeat=True)
+
+    def release(self):
+        for tex in (self.positions, self.normals, self.albedo, self.background, self.environment):
+            tex.release()

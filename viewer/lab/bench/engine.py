@@ -1,0 +1,158 @@
+"""``relight bench engine``: per-pass GL engine times for full recompute (rotation), sigma change
+and intensity change, at several output sizes and light counts, and the torch twin on the same frame.
+
+Times are wall-clock medians over repeats with ``ctx.finish()`` around each pass (GL timer queries
+are meaningless on llvmpipe). Results go to stdout and a JSON file.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer.lights import AreaLights
+from viewer.mesh import resolve_step
+from viewer.resources import asset_dir, sample_scene_dir
+
+ENVMAP = "envmaps/immenstadter_horn_256.hdr"
+
+
+def bench_lights(n: int) -> AreaLights:
+    """N lights from the bundled environment map (median cut), so sigma and intensity spreads are
+    those of a real map."""
+    from viewer.envmap import load_envmap
+    from viewer.median_cut import median_cut_lights
+
+    return median_cut_lights(load_envmap(asset_dir() / ENVMAP), n)
+
+
+def _median_ms(values) -> float:
+    return float(np.median(values) * 1000.0) if len(values) else 0.0
+
+
+def frame_seconds(engine, ctx, lights: AreaLights) -> float:
+    """Wall time of one frame: set the lights, render, and wait for the GL work to finish."""
+    ctx.finish()
+    t0 = time.perf_counter()
+    engine.set_lights(lights)
+    engine.render()
+    ctx.finish()
+    return time.perf_counter() - t0
+
+
+def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
+    engine.set_lights(lights)
+    engine.render()
+    ctx.finish()
+    results = {}
+    brightest = int(np.argmax(lights.intensity.max(axis=1)))
+    changes = {
+        "full": lambda i: lights.rotated(7.0 * (i + 1)),
+        "sigma": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest, float(lights.sigma.max() * (1.5 if i % 2 == 0 else 1.0) + 1.0)),
+        "intensity": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest, float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
+    }
+    for kind, make in changes.items():
+        engine.set_lights(make(-1))  # settle on this series' base state before timing it
+        engine.render()
+        per_pass: dict[str, list[float]] = {}
+        totals, profiled = [], []
+        for i in range(2 * repeats):  # alternate: plain frames (total) and profiled frames (per pass)
+            engine.profile = i % 2 == 1
+            for v in engine.timings.values():
+                v.clear()
+            (profiled if engine.profile else totals).append(frame_seconds(engine, ctx, make(i)))
+            if engine.profile:
+                for name, ts in engine.timings.items():
+                    per_pass.setdefault(name, []).append(sum(ts))
+        results[kind] = {"total_ms": _median_ms(totals), "profiled_total_ms": _median_ms(profiled),
+                         "passes_ms": {k: _median_ms(v) for k, v in per_pass.items()}}
+    return results
+
+
+def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: int = 5, output="out/bench_engine.json",
+                         twin: bool = True) -> dict:
+    from viewer.gl import Engine, EngineOptions, create_headless_context
+    from viewer.gl.context import describe
+    from viewer.scene import load_scene
+    from viewer.scene_ops import resample_scene
+
+    ctx = create_headless_context()
+    base = load_scene(sample_scene_dir())  # 512^2
+    report = {"machine": {"renderer": describe(ctx), "cpu": platform.processor() or platform.machine(),
+                          "python": platform.python_version()},
+              "options": {}, "repeats": repeats, "runs": []}
+    print(f"GL engine benchmark on {describe(ctx)}; medians of {repeats} runs")
+    print(f"{'size':>5} {'lights':>6} {'full ms':>8} {'sigma ms':>9} {'intens ms':>9} {'twin ms':>8}  passes (full)")
+    for size in sizes:
+        scene = resample_scene(base, size)
+        options = EngineOptions(shadow_step=resolve_step(0, scene), profile=True)
+        report["options"][str(size)] = {"shadow_resolution": options.shadow_resolution, "shadow_step": options.shadow_step,
+                                        "terms": options.terms, "prefilter": options.prefilter}
+        for n in light_counts:
+            lights = bench_lights(n)
+            engine = Engine(ctx, scene, options)
+            res = _time_engine(engine, ctx, lights, repeats)
+            engine.release()
+            run = {"size": size, "lights": n, **res}
+            if twin:
+                run["twin_full_ms"] = _time_twin(scene, lights, options, repeats=2)
+                run["twin_over_gl"] = run["twin_full_ms"] / max(res["full"]["total_ms"], 1e-9)
+            report["runs"].append(run)
+            passes = " ".join(f"{k}={v:.1f}" for k, v in res["full"]["passes_ms"].items())
+            twin_ms = f"{run['twin_full_ms']:8.0f}" if twin else f"{'-':>8}"
+            print(f"{size:>5} {n:>6} {res['full']['total_ms']:8.1f} {res['sigma']['total_ms']:9.1f} "
+                  f"{res['intensity']['total_ms']:9.1f} {twin_ms}  {passes}")
+    report["sigma_sweep"] = _sigma_sweep(ctx, base, repeats)
+    if output:
+        path = Path(output)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(report, indent=2) + "\n")
+        print(f"wrote {path}")
+    return report
+
+
+SWEEP_SIGMAS = (0.5, 2.0, 8.0, 20.0, 50.0)
+
+
+def _sigma_sweep(ctx, scene, repeats: int) -> dict:
+    """Time of one light's sigma change (pre-filter + light pass + composite) against sigma, for the
+    pyramid and the exact Gaussian: the pyramid's cost must not grow with sigma."""
+    from viewer.gl import Engine, EngineOptions
+
+    lights = bench_lights(16).rotated(180.0)
+    target = int(np.argmax(lights.intensity.max(axis=1)))
+    sweep = {}
+    print("sigma change of one light (ms), 512^2, 16 lights:")
+    print(f"{'sigma':>7} " + " ".join(f"{s:>8}" for s in SWEEP_SIGMAS))
+    for method in ("pyramid", "exact"):
+        engine = Engine(ctx, scene, EngineOptions(prefilter=method))
+        engine.set_lights(lights)
+        engine.render()
+        row = []
+        for sigma in SWEEP_SIGMAS:
+            times = [frame_seconds(engine, ctx, lights.with_sigma(target, sigma * (1.0 + 0.01 * (i % 2))))
+                     for i in range(repeats)]
+            row.append(_median_ms(times))
+        engine.release()
+        sweep[method] = dict(zip(map(str, SWEEP_SIGMAS), row))
+        print(f"{method:>7} " + " ".join(f"{t:8.1f}" for t in row))
+    return sweep
+
+
+def _time_twin(scene, lights: AreaLights, options, repeats: int = 2) -> float:
+    import torch
+
+    from viewer.twin import render as twin_render
+
+    times = []
+    with torch.no_grad():
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            twin_render(scene, lights, shadow_resolution=options.shadow_resolution, shadow_step=options.shadow_step,
+                        terms=options.terms)
+            times.append(time.perf_counter() - t0)
+    return _median_ms(times)

@@ -1,0 +1,239 @@
+"""``relight bench networks``: the shipped networks on the held-out split (people and maps never
+trained on), as tables like the paper's.
+
+For every held-out person and each of its two lightings as the *input* photo (the other is the
+*target*; a person with one lighting is relit under that same lighting):
+
+- **materials and geometry**: the inverse-rendering and depth networks' maps against the truth
+  (RMSE and SSIM over the mask; depth after removing each map's median, in centimetres; the mean
+  normal angle);
+- **shading with shadows** under the target's fitted area lights, from the true geometry and from
+  the predicted one, with the shadow map (SM), the convolutional shadow map (CSM) and the
+  refinement network (refined): the paper's ablation, against the ray-traced shadowed diffuse
+  shading (albedo 1);
+- **specular shading** (predicted maps, refined shadows) against the ray-traced specular lobe;
+- **relit image**: the predicted scene relit under the target's lights by the GL engine (refined,
+  CSM and SM shadows), the same with the true maps (what the renderer alone loses), and the
+  baseline: second-order spherical-harmonics lighting of the target map without shadows
+  (:mod:`viewer.sh`) on the same predicted albedo and normals, against the ray-traced relit image.
+
+Every image is scaled by the target photo's exposure (its 99th percentile of luminance -> 0.9, the
+networks' own convention, so maps of any brightness weigh alike) before RMSE; SSIM uses the same
+scaled images clipped to [0, 1]; FLIP (NVIDIA's, LDR) compares them tone mapped to sRGB. LPIPS
+needs pretrained ImageNet weights, which cannot be fetched here, so it is not reported.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer.camera import Camera
+from viewer.envmap import load_envmap
+from viewer.gl import Engine, EngineOptions, create_headless_context
+from viewer.gl.context import describe
+from viewer.imageio import atomic_path, read_exr, write_text
+from viewer.lights import load_lights
+from viewer.scene import Scene, load_scene
+from viewer.lab.bench.metrics import metrics, srgb
+
+SHADOW_MODES = {"SM": "hard", "CSM": "soft", "refined": "refined"}
+
+
+def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
+    """{(shadow mode, view): HDR (H, W, 3)} from one engine for the scene (refined: the refinement
+    network on the engine's own visibility)."""
+    from viewer.render import render_frame
+    from viewer.settings import Look
+
+    eng = Engine(ctx, scene, EngineOptions())
+    out = {}
+    try:
+        eng.set_lights(lights)
+        for mode, view in wanted:
+            eng.set_visibility(mode)
+            eng.set_view(view)
+            render_frame(eng, Look(shadows=mode), refiner)
+            out[mode, view] = eng.read_hdr()[..., :3].copy()
+    finally:
+        eng.release()
+    return out
+
+
+def _predict(nets, photo, mask) -> tuple[Scene, dict]:
+    """The predicted scene of a linear photo (3, H, W) with its background and its mask (1, H, W)."""
+    import torch
+
+    from viewer.nets import depth as depth_net
+    from viewer.nets import inverse as inverse_net
+
+    with torch.no_grad():
+        photo, mask = photo[None], mask[None]
+        maps, _, _ = inverse_net.predict(nets["inverse"], photo, mask)
+        h, w = mask.shape[-2:]
+        cam = Camera(w, h)
+        depth = depth_net.predict(nets["depth"], photo, mask, cam.distance)
+    m = mask[0, 0].numpy() > 0.5
+
+    def hwc(t):
+        return t[0].permute(1, 2, 0).numpy().astype(np.float32)
+
+    normal = hwc(maps["normal"])
+    scene = Scene(albedo=np.where(m[..., None], hwc(maps["albedo"]), 0), specular=np.where(m, hwc(maps["specular"])[..., 0], 0),
+                  roughness=np.where(m, hwc(maps["roughness"])[..., 0], 0), normal=np.where(m[..., None], normal, 0),
+                  depth=np.where(m, np.maximum(hwc(depth)[..., 0], 0.1), cam.distance).astype(np.float32), mask=m, camera=cam)
+    return scene.validate(), {"albedo": scene.albedo, "normal": normal}
+
+
+def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
+                           limit: int | None = None, progress=None) -> dict:
+    from viewer.lab.data.loader import RelightDataset
+    from viewer.inference import load_networks
+    from viewer.resources import network_dir
+    from viewer.nets.photo import exposure_scale
+    from viewer.refinement import Refiner
+    from viewer.sh import relight as sh_relight
+
+    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
+    nets = load_networks("cpu", networks_dir)
+    refiner = Refiner(networks_dir / "refine.safetensors")
+    ds = RelightDataset(data)
+    ctx = create_headless_context()
+    by_sample: dict[Path, list[int]] = {}
+    for i, (s, _) in enumerate(ds.items):
+        by_sample.setdefault(s, []).append(i)
+    # each lighting as the input, the next one as the target (a person with one lighting: itself)
+    pairs = [(idx[k], idx[(k + 1) % len(idx)]) for idx in by_sample.values() for k in range(min(len(idx), 2))]
+    if limit:
+        pairs = pairs[:limit]
+    rows: dict[str, list[dict]] = {}
+    examples = []
+    start = time.perf_counter()
+
+    def add(name, value):
+        rows.setdefault(name, []).append(value)
+
+    for n, (src, tgt) in enumerate(pairs):
+        sample, k_tgt = ds.items[tgt]
+        item, target = ds[src], ds[tgt]
+        truth = load_scene(sample)
+        m = truth.mask
+        photo = item["image"] + (1 - item["mask"]) * item["background"]
+        t0 = time.perf_counter()
+        pred, raw = _predict(nets, photo, item["mask"])
+        add("seconds_networks", time.perf_counter() - t0)
+        # materials and geometry
+        add("albedo", metrics(pred.albedo, truth.albedo, m))
+        add("specular", metrics(pred.specular[..., None], truth.specular[..., None], m))
+        add("roughness", metrics(pred.roughness[..., None], truth.roughness[..., None], m))
+        add("normal", {**metrics(pred.normal, truth.normal, m, data_range=2.0),
+                       "degrees": float(np.degrees(np.arccos(np.clip((pred.normal * truth.normal).sum(-1)[m], -1, 1))).mean())})
+        dp, dt = pred.depth[m] - np.median(pred.depth[m]), truth.depth[m] - np.median(truth.depth[m])
+        add("depth", {"rmse_cm": float(np.sqrt(np.mean((dp - dt) ** 2)) * 100), "l1_cm": float(np.abs(dp - dt).mean() * 100),
+                      "flat_l1_cm": float(np.abs(dt).mean() * 100)})
+        # the target lighting
+        d = sample / f"lighting_{k_tgt}"
+        lights = load_lights(d / "lights.json")
+        full_t = target["image"].permute(1, 2, 0).numpy()
+        s = float(exposure_scale(target["image"][None], target["mask"][None]))
+        y_diff = target["diffuse_shadowed"].permute(1, 2, 0).numpy() * s
+        modes = list(SHADOW_MODES.values())
+        true_img = _engine_images(ctx, truth, lights, [(mode, "diffuse_shading") for mode in modes] + [("refined", "final")], refiner)
+        pred_img = _engine_images(ctx, pred, lights, [(mode, v) for mode in modes for v in ("diffuse_shading", "final")]
+                                  + [("refined", "specular_shading")], refiner)
+        for label, mode in SHADOW_MODES.items():
+            add(f"shading_true_geometry_{label}", metrics(s * true_img[mode, "diffuse_shading"], y_diff, m))
+            add(f"shading_{label}", metrics(s * pred_img[mode, "diffuse_shading"], y_diff, m))
+        spec_t = s * read_exr(d / "specular_shadowed.exr")
+        add("specular_shading", metrics(s * pred_img["refined", "specular_shading"], spec_t, m))
+        relit = {}
+        for label, mode in SHADOW_MODES.items():
+            relit[label] = s * pred_img[mode, "final"]
+            add(f"relit_{label}", metrics(relit[label], s * full_t, m, flip=True))
+        add("relit_true_maps_refined", metrics(s * true_img["refined", "final"], s * full_t, m, flip=True))
+        lighting = json.loads((d / "lighting.json").read_text())
+        env = load_envmap(sample.parents[1] / "maps" / f"{lighting['map']}.hdr").rotated(lighting["yaw"])
+        relit["SH"] = s * sh_relight(pred.albedo, pred.normal, m, env)
+        add("relit_SH_baseline", metrics(relit["SH"], s * full_t, m, flip=True))
+        if len(examples) < 4 and n % 2 == 0:
+            exposed = float(exposure_scale(photo[None], item["mask"][None])) * photo.permute(1, 2, 0).numpy()
+            examples.append({"photo": exposed, "truth": s * full_t, "ours": relit["refined"], "sh": relit["SH"],
+                             "albedo": (truth.albedo, raw["albedo"]), "normal": (truth.normal, raw["normal"]), "mask": m})
+        if progress is not None:
+            progress("held-out pairs", n + 1, len(pairs))
+    summary = {name: _summarize(values) for name, values in rows.items()}
+    result = {"machine": describe(ctx), "data": [str(d) for d in (data if isinstance(data, (list, tuple)) else [data])],
+              "networks": str(networks_dir), "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
+              "resolution": int(ds[0]["image"].shape[-1]), "seconds": round(time.perf_counter() - start, 1), "metrics": summary}
+    if output:
+        write_text(output, json.dumps(result, indent=1) + "\n")
+    figure = figure or (Path(output).with_name("networks_heldout.png") if output else None)
+    if figure and examples:
+        _figure(examples, figure)
+    return result
+
+
+def _summarize(values: list) -> dict:
+    if isinstance(values[0], dict):
+        return {k: {"mean": float(np.mean([v[k] for v in values])), "std": float(np.std([v[k] for v in values]))} for k in values[0]}
+    return {"mean": float(np.mean(values)), "std": float(np.std(values))}
+
+
+def _figure(examples, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cols = ["input photo", "target (ray traced)", "ours (refined)", "SH baseline", "albedo: truth", "albedo: ours",
+            "normal: truth", "normal: ours"]
+    fig, axes = plt.subplots(len(examples), len(cols), figsize=(2.0 * len(cols), 2.2 * len(examples)), dpi=90, squeeze=False)
+    for r, ex in enumerate(examples):
+        m = ex["mask"][..., None]
+        pics = [ex["photo"], ex["truth"], ex["ours"], ex["sh"], ex["albedo"][0], ex["albedo"][1] * m,
+                (ex["normal"][0] * 0.5 + 0.5) * m, (ex["normal"][1] * 0.5 + 0.5) * m]
+        for c, pic in enumerate(pics):
+            ax = axes[r, c]
+            ax.imshow(srgb(pic) if c < 6 else np.clip(pic, 0, 1))
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(cols[c], fontsize=8)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+
+
+TABLES = (
+    ("Materials and geometry", (("albedo", "albedo"), ("specular", "specular"), ("roughness", "roughness"), ("normal", "normal")),
+     ("rmse", "ssim")),
+    ("Shading with shadows, true geometry (the SM / CSM / refined ablation)",
+     tuple((f"shading_true_geometry_{k}", k) for k in SHADOW_MODES), ("rmse", "ssim")),
+    ("Shading with shadows, predicted geometry", tuple((f"shading_{k}", k) for k in SHADOW_MODES), ("rmse", "ssim")),
+    ("Specular shading (predicted maps, refined shadows)", (("specular_shading", "specular shading"),), ("rmse", "ssim")),
+    ("Relit image", (("relit_refined", "ours, refined"), ("relit_CSM", "ours, CSM"), ("relit_SM", "ours, SM"),
+                     ("relit_SH_baseline", "SH order 2, no shadows (baseline)"),
+                     ("relit_true_maps_refined", "true maps, refined (renderer alone)")), ("rmse", "ssim", "flip")),
+)
+
+
+def table(result: dict) -> str:
+    """Markdown tables of a :func:`run_networks_benchmark` result (mean +- std over the pairs)."""
+    m = result["metrics"]
+    lines = [f"{result['pairs']} (input, target) pairs of {result['people']} held-out people at {result['resolution']}^2; "
+             f"{result['machine']}"]
+    for title, entries, keys in TABLES:
+        lines += ["", f"**{title}**", "", "| | " + " | ".join(k.upper() for k in keys) + " |", "|---" * (len(keys) + 1) + "|"]
+        for name, label in entries:
+            if name in m:
+                lines.append(f"| {label} | " + " | ".join(f"{m[name][k]['mean']:.4f} +- {m[name][k]['std']:.4f}" for k in keys) + " |")
+    d = m["depth"]
+    lines += ["", f"Depth (median-aligned): RMSE {d['rmse_cm']['mean']:.2f} cm, L1 {d['l1_cm']['mean']:.2f} cm "
+              f"(a flat figure: {d['flat_l1_cm']['mean']:.2f} cm); normal angle {m['normal']['degrees']['mean']:.1f} deg; "
+              f"networks {m['seconds_networks']['mean'] * 1000:.0f} ms per photo"]
+    return "\n".join(lines)

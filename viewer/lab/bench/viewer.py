@@ -1,0 +1,140 @@
+"""Frame times of the real viewer window: ``relight view`` in a subprocess on an X display (an
+Xvfb started here when there is none), driven by xdotool like a person: a drag across the image
+(preview frames), the full-quality frame when the mouse stops, clicks on a sigma slider, idle
+frames. Frame times are the viewer's own (events to swap, from its state file)."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+DRAG_SECONDS = 4.0
+DRAG_STEP_PX = 3  # per motion event
+DRAG_EVENT_SECONDS = 0.02
+
+
+@contextmanager
+def x_display(private: bool = False):
+    """The current DISPLAY (unless ``private``), or a private Xvfb for the duration, ready for
+    windows and xdotool when it is yielded."""
+    if os.environ.get("DISPLAY") and not private:
+        yield os.environ["DISPLAY"]
+        return
+    number = next(n for n in range(90, 250) if not Path(f"/tmp/.X{n}-lock").exists())
+    name = f":{number}"
+    proc = subprocess.Popen(["Xvfb", name, "-screen", "0", "1600x1200x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(100):
+            if subprocess.run(["xdotool", "getmouselocation"], env={**os.environ, "DISPLAY": name},
+                              capture_output=True).returncode == 0:
+                break
+            time.sleep(0.1)
+        yield name
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
+def _wait(state_path: Path, predicate, proc, timeout=180.0) -> dict:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if proc.poll() is not None:
+            raise RuntimeError(f"the viewer exited ({proc.returncode}): {proc.stderr.read()[-1500:]}")
+        try:
+            s = json.loads(state_path.read_text())
+            if predicate(s):
+                return s
+        except (OSError, json.JSONDecodeError):
+            pass
+        time.sleep(0.1)
+    raise RuntimeError("the viewer did not get ready in time")
+
+
+def measure_size(size: int, display: str, workdir: Path) -> dict:
+    env = {**os.environ, "DISPLAY": display}
+    state_path = workdir / f"state_{size}.json"
+    proc = subprocess.Popen([sys.executable, "-m", "viewer.cli", "view", "--size", str(size), "--state-file", str(state_path),
+                             "--out-dir", str(workdir)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+    def xdo(*args):
+        subprocess.run(["xdotool", *map(str, args)], env=env, check=True)
+
+    try:
+        s = _wait(state_path, lambda s: s["frame_count"] >= 3, proc)
+        x, y, w, h = s["image_rect"]
+        xdo("mousemove", int(x + 0.3 * w), int(y + 0.5 * h))
+        time.sleep(0.3)
+        xdo("mousedown", 1)
+        moves = int(DRAG_SECONDS / DRAG_EVENT_SECONDS)
+        chain = []
+        for _ in range(moves):
+            chain += ["mousemove_relative", "--", DRAG_STEP_PX, 0, "sleep", DRAG_EVENT_SECONDS]
+        xdo(*chain)
+        xdo("mouseup", 1)
+        time.sleep(1.0)
+        top = min((r for name, r in s["widgets"].items() if name.startswith("sigma ")), key=lambda r: r[1])
+        x0, y0, x1, y1 = top  # the brightest light's slider (the list is sorted by brightness)
+        for f in (0.1, 0.3, 0.5, 0.2, 0.4, 0.6, 0.15, 0.35):
+            xdo("mousemove", int(x0 + f * (x1 - x0)), int((y0 + y1) / 2), "click", 1)
+            time.sleep(0.5)
+        time.sleep(1.0)
+        xdo("key", "q")
+        proc.wait(60)
+        s = json.loads(state_path.read_text())
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    frames = s["frames"]
+    kinds = [k for _, k in frames]
+    ms = np.array([m for m, _ in frames])
+    drag = ms[[k == "drag" for k in kinds]]
+    last_drag = max(i for i, k in enumerate(kinds) if k == "drag")
+    updates = [i for i, k in enumerate(kinds) if k == "update" and i > last_drag]
+    converge = float(ms[updates[0]]) if updates else None
+    sigma = ms[updates[1:]] if len(updates) > 1 else np.array([])
+    idle = ms[[k == "idle" for k in kinds]]
+    return {
+        "size": size,
+        "drag_frames": int(drag.size),
+        "drag_ms_median": float(np.median(drag)) if drag.size else None,
+        "drag_ms_p90": float(np.percentile(drag, 90)) if drag.size else None,
+        "drag_fps": float(1000.0 / np.median(drag)) if drag.size else None,
+        "converge_ms": converge,
+        "sigma_ms_median": float(np.median(sigma)) if sigma.size else None,
+        "idle_ms_median": float(np.median(idle)) if idle.size else None,
+    }
+
+
+def run_viewer_benchmark(sizes=(512, 1024), output="out/bench_viewer.json") -> dict:
+    from viewer.gl.context import create_headless_context, describe
+
+    renderer = describe(create_headless_context())
+    runs = []
+    with x_display() as display, tempfile.TemporaryDirectory() as tmp:
+        for size in sizes:
+            r = measure_size(size, display, Path(tmp))
+            runs.append(r)
+            print(f"{size}^2: drag {r['drag_ms_median']:.0f} ms median ({r['drag_fps']:.1f} fps, p90 "
+                  f"{r['drag_ms_p90']:.0f} ms, {r['drag_frames']} frames); full frame when the mouse stops "
+                  f"{r['converge_ms']:.0f} ms; sigma slider {r['sigma_ms_median']:.0f} ms; idle {r['idle_ms_median']:.0f} ms",
+                  flush=True)
+    result = {"machine": {"renderer": renderer, "cpu": platform.machine(), "cores": os.cpu_count(),
+                          "python": platform.python_version()},
+              "method": "relight view under X (Xvfb when no DISPLAY), driven by xdotool; frame time = events to "
+                        "buffer swap, as the viewer records it; 16 lights of the bundled map",
+              "runs": runs}
+    path = Path(output)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"wrote {path}")
+    return result

@@ -1,0 +1,249 @@
+"""The lab's commands, ``relight dataset``, ``relight train`` and ``relight bench``: offline work
+(synthetic data, ray-traced truth, training, benchmarks) that imports the product and is never
+imported by it. The product's command line finds these through the ``relight.commands`` entry
+points (pyproject.toml) and loads this module only when one of them runs.
+
+Folders of shared data (the held-out environment maps, the real photos) are arguments; their
+default is the folder named by the environment variable ``RELIGHT_DATA`` (``hdri/`` and
+``photos/`` inside it; the Makefile sets it to ``../shared/data``, the checkout's neighbour).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from viewer.errors import InputError
+
+DATA_VARIABLE = "RELIGHT_DATA"
+
+
+def shared_folder(given: str | None, part: str, option: str) -> Path:
+    """The folder given on the command line, else ``$RELIGHT_DATA/<part>``; one line when neither."""
+    if given:
+        return Path(given)
+    root = os.environ.get(DATA_VARIABLE)
+    if not root:
+        raise InputError(None, f"give {option} DIR, or set {DATA_VARIABLE} to the shared data folder (the one holding hdri/ "
+                               "and photos/, e.g. ../shared/data)")
+    return Path(root) / part
+
+
+def cmd_dataset(args) -> int:
+    from .data.dataset import DatasetConfig, make_dataset, parse_shard
+    from viewer.progress import StageBars
+
+    cfg = DatasetConfig(out=Path(args.out), count=args.count, res=args.res, seed=args.seed, shard=parse_shard(args.shard),
+                        spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool,
+                        held_out_dir=shared_folder(args.maps, "hdri", "--maps") if args.split == "heldout" else None)
+    start = time.perf_counter()
+    with StageBars(prefix=f"dataset {cfg.out.name} {args.shard}: ") as bars:
+        manifest = make_dataset(cfg, progress=bars)
+    seconds = time.perf_counter() - start
+    per = manifest["seconds_per_sample_median"]
+    print(f"{manifest['made']} samples made ({manifest['relit_pairs_made']} relit pairs), {manifest['skipped_finished']} "
+          f"already there, in {seconds:.0f} s" + (f"; {per:.1f} s per sample (median)" if per else "")
+          + f"; peak memory {manifest['peak_memory_mb']:.0f} MB")
+    print(f"wrote {manifest['path']}")
+    return 0
+
+
+def cmd_train(args) -> int:
+    from .train import TrainConfig, train
+    from viewer.progress import StageBars
+
+    data = [Path(d) for d in args.data]
+    cfg = TrainConfig(task=args.network, data=data if len(data) > 1 else data[0], out=Path(args.out), res=args.res,
+                      epochs=args.epochs, batch=args.batch, lr=args.lr, width=args.width, levels=args.levels,
+                      device=args.device, seed=args.seed, perceptual_weight=args.perceptual_weight)
+    with StageBars(prefix=f"training {args.network}: ") as bars:
+        card = train(cfg, progress=bars)
+    if card is None:  # a torchrun worker other than rank 0: rank 0 reports
+        return 0
+    last = card["history"][-1]
+    val = f", validation {last['val']:.4g}" if last.get("val") is not None else ""
+    print(f"{args.network}: {card['epochs']} epochs in {card['seconds']:.0f} s on {card['device']} "
+          f"({card['parameters'] / 1e6:.2f} M parameters); training loss {last['train']:.4g}{val}")
+    print(f"wrote {Path(args.out) / card['weights']} and its card {Path(args.out) / (args.network + '.json')}")
+    return 0
+
+
+def photos_table(result: dict) -> str:
+    """The bench photos figures as text."""
+    lines = []
+    for row in result["photos"]:
+        ex = row["explains_photo"]
+        mask = row.get("mask", {})
+        lines.append(f"{row['photo']}: mask IoU {mask.get('iou', float('nan')):.3f}, mean |difference| "
+                     f"{mask.get('mean_abs_percent', float('nan')):.2f} %; the photo's lighting "
+                     f"explains it to {ex['fitted']['psnr_db']:.1f} dB / SSIM {ex['fitted']['ssim']:.3f} "
+                     f"(the network's guess {ex['network']['psnr_db']:.1f} dB); inference {row['inference_seconds_total']:.1f} s")
+        for method, m in row["methods"].items():
+            kept = ", ".join(f"{v:.2f}" for v in m["detail_kept"].values())
+            lines.append(f"  {method:>17}: detail kept {kept} (mean {m['detail_kept_mean']:.2f}); light moved {m['light_moved']:.2f}"
+                         + (f"; under its own lights {m['own_lights']['psnr_db']:.1f} dB" if "own_lights" in m else "")
+                         + (f"; {m['times_ms']}" if "times_ms" in m else ""))
+    if "heldout" in result:
+        h = result["heldout"]
+        lines.append(f"held-out: {h['pairs']} pairs of {h['people']} people at {h['resolution']}^2")
+        for method in result["methods"] + ["before"]:
+            if method in h:
+                d = h[method]["rmse"]["vs_network"]
+                lines.append(f"  {method:>17}: RMSE {h[method]['rmse']['mean']:.4f} SSIM {h[method]['ssim']['mean']:.4f} "
+                             f"FLIP {h[method]['flip']['mean']:.4f}; RMSE against the network's albedo {d['mean']:+.4f} "
+                             f"+- {d['stderr']:.4f}, better in {d['better_pairs']}/{h['pairs']} pairs")
+    return "\n".join(lines)
+
+
+def cmd_bench(args) -> int:
+    from .bench.engine import run_engine_benchmark
+
+    output = args.output or f"out/bench_{args.what}.json"  # report and photos take a folder (below)
+    if args.what == "engine":
+        run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
+                             output=output, twin=not args.no_twin)
+    elif args.what == "viewer":
+        from .bench.viewer import run_viewer_benchmark
+
+        run_viewer_benchmark(sizes=args.sizes, output=output)
+    elif args.what == "temporal":
+        from .bench.temporal import run_temporal_benchmark
+
+        run_temporal_benchmark(output=output)
+    elif args.what == "networks":
+        from .bench.networks import run_networks_benchmark, table
+        from viewer.progress import StageBars
+
+        if not args.data:
+            raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
+        with StageBars(prefix="evaluating: ") as bars:
+            result = run_networks_benchmark(args.data if len(args.data) > 1 else args.data[0], args.networks,
+                                            output=output, limit=args.limit,
+                                            progress=bars)
+        print(table(result))
+    elif args.what == "report":
+        from .bench.report import run_report
+
+        if args.data and len(args.data) > 1:
+            raise InputError(None, "bench report takes one held-out dataset (--data DIR)")
+        result = run_report(quick=args.quick, data=args.data[0] if args.data else None, out_dir=args.output,
+                            maps_dir=None if args.quick else shared_folder(args.maps, "hdri", "--maps"))
+        for name, p in result["presets"].items():
+            s = next(m for m in result["methods"] if m["label"] == p["label"])
+            print(f"{name:>11}: {p['label']:<44} {s['full_ms']:7.1f} ms  RMSE {s['rmse']:.4f}  FLIP {s['flip']:.4f}")
+        for name, t in result["targets"].items():
+            print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
+        print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
+    elif args.what == "photos":
+        from .bench.photos import run_photos_benchmark
+        from viewer.progress import StageBars
+
+        out_dir = Path(args.output or "out/bench-photos")
+        if args.data and len(args.data) > 1:
+            raise InputError(None, "bench photos takes one held-out dataset (--data DIR)")
+        start = time.perf_counter()
+        result = run_photos_benchmark(shared_folder(args.photos, "photos", "--photos"), shared_folder(args.maps, "hdri", "--maps"), args.data[0] if args.data else None, out_dir, limit=args.limit,
+                                      progress=lambda what: print(f"  {what} ({time.perf_counter() - start:.0f} s)", flush=True))
+        print(photos_table(result))
+        print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.jpg'}, {out_dir / 'photos_detail.jpg'} "
+              f"in {result['seconds'] / 60:.1f} min")
+    elif args.what == "shadows":
+        from .bench.shadows import run_shadow_benchmark
+
+        run_shadow_benchmark(repeats=args.repeats, output=output)
+    else:
+        from .bench.lights import COUNTS, run_lights_benchmark
+
+        run_lights_benchmark(maps_dir=shared_folder(args.maps, "hdri", "--maps"), counts=args.counts or COUNTS,
+                             output=output)
+    return 0
+
+
+def build_parsers() -> dict[str, argparse.ArgumentParser]:
+    """One parser per lab command, each named ``relight <command>``."""
+    commands: dict[str, argparse.ArgumentParser] = {}
+    p = commands["dataset"] = argparse.ArgumentParser(prog="relight dataset", description="synthetic training data: people relit by a ray tracer (see docs/dataset.md)")
+    dsub = p.add_subparsers(dest="action", required=True)
+    q = dsub.add_parser("make", help="make (or resume) a dataset in a directory")
+    q.add_argument("--out", required=True, help="dataset directory (outside the repository)")
+    q.add_argument("--count", type=int, required=True, help="people (samples) in the whole dataset")
+    q.add_argument("--res", type=int, default=256, help="image size in pixels (default 256)")
+    q.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    q.add_argument("--shard", default="0/1", help="make samples i, i+n, ... of the dataset (default 0/1: all)")
+    q.add_argument("--spp", type=int, default=64, help="ray-tracing samples per pixel (default 64)")
+    q.add_argument("--lightings", type=int, default=2, help="environment maps per person (default 2)")
+    q.add_argument("--split", choices=("train", "heldout"), default="train",
+                   help="train: procedural maps; heldout: the CC0 maps of --maps, never used for training")
+    q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
+    q.add_argument("--maps", help="folder of held-out maps (default $RELIGHT_DATA/hdri)")
+    q.set_defaults(func=cmd_dataset)
+
+    p = commands["train"] = argparse.ArgumentParser(prog="relight train", description="train a network on a dataset made by `relight dataset make`")
+    p.add_argument("network", choices=("inverse", "depth", "refine"), help="which network")
+    p.add_argument("--data", required=True, nargs="+", help="dataset directory (or several: shards, datasets)")
+    p.add_argument("--out", default="runs", help="where checkpoints, loss curves and weights go (default runs/)")
+    p.add_argument("--res", type=int, default=256, help="training resolution (default 256)")
+    p.add_argument("--epochs", type=int, default=20)
+    p.add_argument("--batch", type=int, default=4)
+    p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate, cosine-annealed to 1e-5 (default 1e-3)")
+    p.add_argument("--width", type=int, default=16, help="channels of the first U-Net level (network size)")
+    p.add_argument("--levels", type=int, default=5, help="U-Net levels (default 5)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--perceptual-weight", type=float, default=0.1,
+                   help="inverse: weight of the Laplacian-pyramid loss that replaces VGG (default 0.1, the paper's)")
+    p.set_defaults(func=cmd_train)
+
+    p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos"),
+                   help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
+                        "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
+                        "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
+                        "networks: the networks on a held-out dataset (--data); report: error against time of the "
+                        "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check); "
+                        "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
+                        "mask IoU, times; --data adds held-out pairs)")
+    p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
+                   "(default $RELIGHT_DATA/photos)")
+    p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
+    p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
+    p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
+    p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default $RELIGHT_DATA/hdri)")
+    p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
+    p.add_argument("--data", nargs="+", help="networks, report, photos: held-out dataset directory (networks: or several)")
+    p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
+    p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs")
+    p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "
+                   "photos: the folder (default out/report/, with --quick out/report-quick/; out/bench-photos/). "
+                   "The committed figures are refreshed only when asked: -o docs/bench_<what>.json, or -o docs")
+    p.set_defaults(func=cmd_bench)
+    return commands
+
+
+def run(command: str, argv) -> int:
+    """Parse ``argv`` (the words after ``relight <command>``) and run the command."""
+    args = build_parsers()[command].parse_args(argv)
+    return args.func(args)
+
+
+def dataset(argv) -> int:
+    return run("dataset", argv)
+
+
+def train(argv) -> int:
+    return run("train", argv)
+
+
+def bench(argv) -> int:
+    return run("bench", argv)
+
+
+if __name__ == "__main__":
+    from viewer.cli import main
+
+    sys.exit(main())

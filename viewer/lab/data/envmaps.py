@@ -1,0 +1,155 @@
+"""Procedural environment maps for training variety (the nine CC0 maps stay held out):
+
+- ``sky``: a clear sky (a blue zenith fading to a paler horizon) over a ground of random colour,
+  with a sun of random angular size, elevation, azimuth, colour and brightness (sun to sky ratios
+  from 10 to 1e5, the stiff case);
+- ``studio``: a dark room with two to four soft rectangular emitters (key, fill, rim) of random
+  direction, size, colour temperature and strength;
+- ``overcast``: the CIE overcast sky, L(theta) = L_z (1 + 2 cos theta) / 3 above the horizon, over a
+  dim ground.
+
+Every map is a function of its seed alone (``numpy.random.default_rng(seed)``), in the project's
+frame and units (docs/conventions.md). Emitters are drawn with their exact energy: each texel's
+coverage is supersampled (4 x 4), and an emitter smaller than a sub-texel puts its whole energy
+into the texel that holds its centre, so a tiny sun keeps its light.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viewer.envmap import EnvMap, direction_to_uv, pixel_directions, solid_angles
+from viewer.imageio import srgb_to_linear
+
+KINDS = ("sky", "studio", "overcast")
+SUPERSAMPLE = 4
+
+
+@dataclass(frozen=True)
+class Emitter:
+    """A light in the map: unit ``direction``; ``radius`` (radians) of a disc (sun) or half-size of a
+    square patch (studio); RGB ``energy`` (irradiance it gives a surface facing it)."""
+    direction: np.ndarray
+    radius: float
+    energy: np.ndarray
+    square: bool = False
+
+
+@dataclass(frozen=True)
+class ProceduralMap:
+    env: EnvMap
+    kind: str
+    emitters: tuple  # the Emitters drawn into it (for tests and the manifest)
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)
+    return v / np.linalg.norm(v)
+
+
+def _direction(azimuth: float, elevation: float) -> np.ndarray:
+    """Camera-space direction at ``azimuth`` (radians from -z, towards +x) and ``elevation``."""
+    return np.array([np.cos(elevation) * np.sin(azimuth), np.sin(elevation), -np.cos(elevation) * np.cos(azimuth)])
+
+
+def _subtexel_directions(h: int, w: int) -> np.ndarray:
+    """(h, w, S*S, 3) directions of a regular S x S grid inside every texel: the texel centres of
+    the map at S times the resolution, grouped by the texel they fall in."""
+    s = SUPERSAMPLE
+    return pixel_directions(h * s, w * s).reshape(h, s, w, s, 3).transpose(0, 2, 1, 3, 4).reshape(h, w, s * s, 3)
+
+
+def _draw(pixels: np.ndarray, e: Emitter, sub: np.ndarray):
+    """Add emitter ``e`` to ``pixels`` with its exact energy (module docstring)."""
+    h, w = pixels.shape[:2]
+    d = _unit(e.direction)
+    if e.square:
+        # patch axes: a tangent frame of d; inside when both angular offsets are within the half-size
+        up = np.array([0.0, 1.0, 0.0]) if abs(d[1]) < 0.99 else np.array([1.0, 0.0, 0.0])
+        a = _unit(np.cross(up, d))
+        b = np.cross(d, a)
+        along = sub @ d
+        inside = (along > 0) & (np.abs(np.arctan2(sub @ a, along)) <= e.radius) & (np.abs(np.arctan2(sub @ b, along)) <= e.radius)
+    else:
+        inside = sub @ d >= np.cos(e.radius)
+    coverage = inside.mean(axis=2)  # (h, w)
+    omega = solid_angles(h, w)[:, None]
+    covered = float((coverage * omega).sum())
+    if covered <= 0.0:  # smaller than a sub-texel: all of it into the texel holding the centre
+        uv = direction_to_uv(d[None])[0]
+        i, j = min(int(uv[1] * h), h - 1), min(int(uv[0] * w) % w, w - 1)
+        pixels[i, j] += (e.energy / omega[i, 0]).astype(np.float32)
+        return
+    pixels += (coverage[..., None] * (e.energy / covered)).astype(np.float32)  # energy exactly e.energy
+
+
+def _sky_gradient(dirs: np.ndarray, zenith: np.ndarray, horizon: np.ndarray, ground: np.ndarray) -> np.ndarray:
+    y = dirs[..., 1:2]
+    t = np.clip(y, 0.0, 1.0) ** 0.5
+    sky = horizon * (1 - t) + zenith * t
+    return np.where(y >= 0, sky, ground).astype(np.float32)
+
+
+def _temperature_rgb(kelvin: float) -> np.ndarray:
+    """Approximate linear RGB of a black body at ``kelvin`` (2000-10000 K), green normalized to 1."""
+    t = kelvin / 100.0
+    r = 1.0 if t <= 66 else 1.29293618606 * (t - 60) ** -0.1332047592
+    g = (0.39008157876 * np.log(t) - 0.63184144378) if t <= 66 else 1.12989086089 * (t - 60) ** -0.0755148492
+    b = 1.0 if t >= 66 else (0.0 if t <= 19 else 0.54320678911 * np.log(t - 10) - 1.19625408914)
+    lin = srgb_to_linear(np.clip([r, g, b], 0.0, 1.0)).astype(np.float64)
+    return lin / max(lin[1], 1e-6)
+
+
+def sky(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    h, w = width // 2, width
+    dirs = pixel_directions(h, w)
+    level = 10 ** rng.uniform(-0.5, 0.5)  # sky radiance scale
+    zenith = level * np.array([0.25, 0.45, 1.0]) * rng.uniform(0.8, 1.2, 3)
+    horizon = level * np.array([0.8, 0.9, 1.0]) * rng.uniform(0.9, 1.1, 3)
+    ground = level * rng.uniform(0.05, 0.3) * rng.uniform(0.6, 1.0, 3)
+    pixels = _sky_gradient(dirs, zenith, horizon, ground)
+    sky_irradiance = float(np.pi * level * 0.6)
+    elevation = np.radians(rng.uniform(3.0, 75.0))
+    sun = Emitter(_direction(rng.uniform(-np.pi, np.pi), elevation), np.radians(10 ** rng.uniform(np.log10(0.25), np.log10(8.0))),
+                  sky_irradiance * 10 ** rng.uniform(1.0, 5.0) * _temperature_rgb(rng.uniform(3000, 6500)))
+    _draw(pixels, sun, _subtexel_directions(h, w))
+    return ProceduralMap(EnvMap(pixels, source=None), "sky", (sun,))
+
+
+def studio(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    h, w = width // 2, width
+    dirs = pixel_directions(h, w)
+    wall = 10 ** rng.uniform(-2.5, -1.0)
+    pixels = _sky_gradient(dirs, np.full(3, wall), np.full(3, wall * 1.2), np.full(3, wall * 0.5))
+    sub = _subtexel_directions(h, w)
+    emitters = []
+    for k in range(int(rng.integers(2, 5))):
+        elevation = np.radians(rng.uniform(-10.0, 60.0))
+        # key and fill in front of the subject (towards the camera, +z is behind the camera: azimuth ~ pi), rim behind
+        azimuth = rng.uniform(np.pi / 2, 3 * np.pi / 2) if k < 2 else rng.uniform(-np.pi / 2, np.pi / 2)
+        e = Emitter(_direction(azimuth, elevation), np.radians(rng.uniform(5.0, 20.0)),
+                    10 ** rng.uniform(0.0, 1.5) * _temperature_rgb(rng.uniform(2700, 7500)), square=True)
+        _draw(pixels, e, sub)
+        emitters.append(e)
+    return ProceduralMap(EnvMap(pixels, source=None), "studio", tuple(emitters))
+
+
+def overcast(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    h, w = width // 2, width
+    dirs = pixel_directions(h, w)
+    lz = 10 ** rng.uniform(-0.3, 0.7)
+    tint = rng.uniform(0.9, 1.1, 3)
+    cos_theta = np.clip(dirs[..., 1], 0.0, 1.0)
+    sky_l = (lz * (1 + 2 * cos_theta) / 3)[..., None] * tint
+    ground = lz * rng.uniform(0.05, 0.2) * rng.uniform(0.6, 1.0, 3)
+    pixels = np.where(dirs[..., 1:2] >= 0, sky_l, ground).astype(np.float32)
+    return ProceduralMap(EnvMap(pixels, source=None), "overcast", ())
+
+
+def random_map(seed: int, width: int = 256, kinds=KINDS) -> ProceduralMap:
+    """A procedural map of a kind drawn from ``kinds``, everything decided by ``seed``."""
+    rng = np.random.default_rng([seed, 0x5EED])
+    kind = kinds[int(rng.integers(len(kinds)))]
+    return {"sky": sky, "studio": studio, "overcast": overcast}[kind](rng, width)

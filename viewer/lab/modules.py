@@ -1,0 +1,168 @@
+"""The package's module map, read from the code: every ``import`` of every module (top-level and
+inside functions) as a graph, its cycles, and the picture of it in ``docs/architecture.md``.
+
+``python -m viewer.lab.modules`` prints the generated part of docs/architecture.md;
+``--write docs/architecture.md`` replaces it there (between the ``modules:begin`` and
+``modules:end`` markers). ``tests/test_architecture.py`` checks that the file is current, that
+there are no import cycles and that no product module imports the lab.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import sys
+from pathlib import Path
+
+PACKAGE = "viewer"
+LAB = "viewer.lab"
+BEGIN, END = "<!-- modules:begin (python -m viewer.lab.modules --write docs/architecture.md) -->", "<!-- modules:end -->"
+# the stages of the picture: a module belongs to the group of the longest prefix it starts with
+GROUPS = (
+    ("lab", ("viewer.lab",), "datasets, ground truth, training, benchmarks"),
+    ("cli", ("viewer.cli",), "the relight command"),
+    ("app", ("viewer.app",), "the viewer window: input, panel, session, jobs, recording"),
+    ("output", ("viewer.render", "viewer.video", "viewer.temporal"), "headless frames, MP4, temporal metrics"),
+    ("inference", ("viewer.inference", "viewer.segmentation", "viewer.photo_lighting", "viewer.detail",
+                   "viewer.refinement", "viewer.nets"), "photo to scene bundle, the networks, refinement"),
+    ("engine", ("viewer.gl", "viewer.presets"), "GL passes, programs, context; quality presets"),
+    ("twin", ("viewer.twin",), "the engine in differentiable torch"),
+    ("lights", ("viewer.lightfit", "viewer.median_cut", "viewer.envmap", "viewer.sh"), "environment maps, light fitting"),
+    ("scene", ("viewer.scene", "viewer.scene_ops", "viewer.camera", "viewer.mesh", "viewer.shadow_space", "viewer.settings",
+               "viewer.lights", "viewer.photo_frame"), "scene bundle, photo frame, camera, geometry, area lights, the Look"),
+    ("base", ("viewer.errors", "viewer.imageio", "viewer.resources", "viewer.constants", "viewer.progress", "viewer"),
+     "errors, files, assets, constants, progress"),
+)
+
+
+def package_root() -> Path:
+    return Path(__file__).resolve().parents[1]
+
+
+def modules(root: Path | None = None) -> dict[str, Path]:
+    """Dotted module name -> file, for every module of the package."""
+    root = root or package_root()
+    out = {}
+    for path in sorted(root.rglob("*.py")):
+        parts = (PACKAGE,) + path.relative_to(root).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = path
+    return out
+
+
+def import_graph(root: Path | None = None) -> dict[str, set[str]]:
+    """Module -> the package's modules it imports (anywhere in its body)."""
+    mods = modules(root)
+    graph: dict[str, set[str]] = {}
+    for name, path in mods.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package.split(".")[:len(package.split(".")) - node.level + 1]
+                    target = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    target = node.module or ""
+                for alias in node.names:
+                    full = f"{target}.{alias.name}"
+                    deps.add(full if full in mods else target)
+            elif isinstance(node, ast.Import):
+                deps.update(alias.name for alias in node.names)
+        graph[name] = {d for d in deps if d in mods and d != name}
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan), each sorted."""
+    index, low, stack, on_stack, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                out.append(sorted(component))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10 * len(graph) + 100))
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def group_of(name: str) -> str:
+    """The group of a module (the one whose prefix matches it longest)."""
+    best, length = "base", -1
+    for group, prefixes, _ in GROUPS:
+        for prefix in prefixes:
+            if (name == prefix or name.startswith(prefix + ".")) and len(prefix) > length:
+                best, length = group, len(prefix)
+    return best
+
+
+def summary(path: Path) -> str:
+    """The first sentence of a module's docstring."""
+    doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
+    first = " ".join(doc.split("\n\n")[0].split())
+    return first.split(". ")[0].rstrip(".") if first else ""
+
+
+def markdown(root: Path | None = None) -> str:
+    """The generated part of docs/architecture.md: the group picture (Mermaid) and the module table."""
+    mods = modules(root)
+    graph = import_graph(root)
+    edges = sorted({(group_of(a), group_of(b)) for a, deps in graph.items() for b in deps if group_of(a) != group_of(b)})
+    lines = [BEGIN, "", "```mermaid", "flowchart TD"]
+    lines += [f'    {group}["<b>{group}</b><br/>{what}"]' for group, _, what in GROUPS]
+    lines += [f"    {a} --> {b}" for a, b in edges]
+    lines += ["```", "", f"{len(mods)} modules, {sum(len(d) for d in graph.values())} imports between them, "
+              f"{len(cycles(graph))} import cycles. An arrow reads \"imports\".", "",
+              "| group | module | what it is | imports (in the package) |", "|---|---|---|---|"]
+    order = {group: i for i, (group, _, _) in enumerate(GROUPS)}
+    for name in sorted(mods, key=lambda m: (order[group_of(m)], m)):
+        deps = ", ".join(sorted(d.removeprefix("viewer.") for d in graph[name])) or "-"
+        lines.append(f"| {group_of(name)} | `{name}` | {summary(mods[name])} | {deps} |")
+    lines += ["", END]
+    return "\n".join(lines)
+
+
+def update(doc: Path, root: Path | None = None) -> bool:
+    """Replace the generated part of ``doc``; True if it changed."""
+    from viewer.imageio import write_text
+
+    text = doc.read_text(encoding="utf-8")
+    start, end = text.index(BEGIN), text.index(END) + len(END)
+    new = text[:start] + markdown(root) + text[end:]
+    if new != text:
+        write_text(doc, new)
+    return new != text
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m viewer.lab.modules", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--write", help="the Markdown file whose generated part to replace (docs/architecture.md)")
+    args = parser.parse_args(argv)
+    if args.write:
+        print(f"{'updated' if update(Path(args.write)) else 'unchanged'}: {args.write}")
+    else:
+        print(markdown())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,109 @@
+"""What the user sees, in one type: :class:`Look` (the lighting's rotation, exposure, tone map,
+background, shadow mode, the shown terms and view, the light intensity and the quality preset).
+
+The command line (``relight render``, ``demo``, ``view``), the viewer, the video writer, the GL
+engine (``Engine.set_look``) and the saved state files all carry this one type, and it is
+validated in one place (:meth:`Look.__post_init__`): a bad value is one clear line naming the
+field, whatever path it came by. :meth:`Look.from_json` also reads the state files older versions
+wrote (``shadows``/``visibility``, a plain ``exposure`` number, no ``preset``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from .errors import InputError
+from .lights import rotation_matrix
+
+AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.render.photo_exposure)
+EXPOSURE_LIMIT = 40.0  # stops either way
+TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
+BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2, "transparent": 3}
+VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2, "refined": 3}
+# What the display image shows: the relit frame, the diffuse or specular shading alone (composited
+# from the same light atlas), or an inspection view of the bundle's maps or of one light's shadow.
+VIEWS = ("final", "diffuse_shading", "specular_shading", "albedo", "normal", "depth", "specular", "roughness", "shadow")
+PRESET_NAMES = ("interactive", "balanced", "final")  # viewer.presets.PRESETS (tested equal)
+MAX_INTENSITY = 1e6
+
+
+def _choice(name: str, value, choices) -> None:
+    if value not in choices:
+        raise InputError(None, f"{name} must be one of {', '.join(choices)}, got {value!r}")
+
+
+def _finite(name: str, value, low: float, high: float, unit: str = "") -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(float(value)) or not low <= float(value) <= high:
+        raise InputError(None, f"{name} must be a finite number in [{low:g}, {high:g}]{unit}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Look:
+    yaw: float = 0.0  # degrees: the lighting (and the map behind) turned about the vertical axis
+    tilt: float = 0.0  # degrees, about the camera's horizontal axis
+    exposure: float | str = 0.0  # stops, or "auto" (a photo keeps its own brightness; 0 until resolved)
+    tonemap: str = "aces"
+    background: str = "environment"  # environment | photo | color | transparent
+    background_color: tuple = (0.18, 0.18, 0.18)  # linear RGB of the "color" background
+    shadows: str = "soft"  # soft (CSM) | refined (network) | hard (shadow map) | none
+    diffuse: bool = True  # the diffuse term shown
+    specular: bool = True  # the specular term shown
+    view: str = "final"  # VIEWS
+    light: int = 0  # the selected light (its shadow in the "shadow" view)
+    intensity: float = 1.0  # scales every light
+    preset: str = "balanced"  # quality preset (viewer.presets)
+
+    def __post_init__(self):
+        _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
+        _finite("tilt", self.tilt, -1e6, 1e6, " degrees")
+        if self.exposure != AUTO:
+            _finite("exposure", self.exposure, -EXPOSURE_LIMIT, EXPOSURE_LIMIT, " stops (or auto)")
+        _choice("tone map", self.tonemap, TONEMAPS)
+        _choice("background", self.background, BACKGROUNDS)
+        color = np.asarray(self.background_color, dtype=np.float64)
+        if color.shape != (3,) or not np.all(np.isfinite(color)) or np.any(color < 0):
+            raise InputError(None, f"background colour must be three finite values >= 0, got {self.background_color!r}")
+        object.__setattr__(self, "background_color", tuple(float(c) for c in color))
+        _choice("shadows", self.shadows, VISIBILITY_MODES)
+        _choice("view", self.view, VIEWS)
+        if not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
+            raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
+        _finite("intensity", self.intensity, 0.0, MAX_INTENSITY)
+        _choice("preset", self.preset, PRESET_NAMES)
+
+    @property
+    def environment_rotation(self) -> np.ndarray:
+        """3x3: camera directions to the turned map's directions (the background's lookup)."""
+        return rotation_matrix(self.yaw, self.tilt).T
+
+    @property
+    def exposure_stops(self) -> float:
+        """The exposure to display with: 0 stops while "auto" is not resolved yet."""
+        return 0.0 if self.exposure == AUTO else float(self.exposure)
+
+    def replace(self, **changes) -> "Look":
+        return replace(self, **changes)
+
+    def to_json(self) -> dict:
+        out = asdict(self)
+        out["background_color"] = list(self.background_color)
+        return out
+
+    @classmethod
+    def from_json(cls, data, where=None) -> "Look":
+        """A look saved by :meth:`to_json`, or by an older version (``visibility`` for ``shadows``);
+        unknown keys are ignored, a bad value is one line naming ``where``."""
+        if not isinstance(data, dict):
+            raise InputError(where, f"the look must be a JSON object, got {type(data).__name__}")
+        data = dict(data)
+        if "visibility" in data and "shadows" not in data:
+            data["shadows"] = data.pop("visibility")
+        known = {f.name for f in fields(cls)}
+        try:
+            return cls(**{k: v for k, v in data.items() if k in known})
+        except InputError as exc:
+            raise InputError(where, exc.problem) from None
