@@ -18,7 +18,8 @@ these declarations):
     8 FrameCompositePass   inputs: composite (matte's box); display, view, environment (whole frame)
   the inspection views (InspectPass) draw in place of 6 / 8.
 
-When a pass runs, what it made counts as changed in turn (``_changed``), which is how a new direction
+Reading results back is the other half of the interface (outputs.py, a mixin). When a pass runs,
+what it made counts as changed in turn (``_changed``), which is how a new direction
 reaches the composite. Left out on purpose: lights that cannot contribute (zero intensity, facing no
 pixel, or an upper bound below ``skip_threshold`` of the scene's diffuse level), soft filtering where
 sigma ~ 0 (soft = hard visibility) and whenever the soft visibility is not shown, shadow maps when no
@@ -26,8 +27,6 @@ shadows are shown, and the specular code on a scene without specular reflectance
 """
 
 from __future__ import annotations
-
-import functools
 
 import moderngl
 import numpy as np
@@ -40,12 +39,12 @@ from .. import shadow_space as ss
 from .composite_pass import CompositePass
 from .context import make_current
 from .display_pass import INSPECT_VIEWS, DisplayPass, InspectPass
-from .frame_pass import (OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FrameBackgroundPass, FrameCompositePass,
-                         FrameMipmapsPass)
+from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light
 from .light_pass import LIGHTS_PER_PASS, LightAtlas, LightShadingPass, RefinedVisibility
 from .options import EngineOptions
+from .outputs import EngineOutputs, in_context
 from .programs import shared_programs
 from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
@@ -55,18 +54,7 @@ DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "backgroun
 BACKGROUND_FIELDS = ("yaw", "tilt", "background", "background_color")  # what the frame background shows
 
 
-def _in_context(method):
-    """Runs an engine method with the engine's GL context current (see :func:`make_current`)."""
-
-    @functools.wraps(method)
-    def run(self, *args, **kwargs):
-        make_current(self.ctx)
-        return method(self, *args, **kwargs)
-
-    return run
-
-
-class Engine:
+class Engine(EngineOutputs):
     """Owns the GL resources of one scene; ``set_lights`` and ``set_look``, then ``render``; read outputs back."""
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, options: EngineOptions | None = None):
@@ -149,7 +137,7 @@ class Engine:
             np.array([l.intensity for l in self._lights]).reshape(-1, 3),
         )
 
-    @_in_context
+    @in_context
     def set_lights(self, lights: AreaLights):
         """Replace the light set; only what changed is marked for recomputation."""
         lights.validate()
@@ -266,7 +254,7 @@ class Engine:
         """Whether the refined visibility of the current lights has been set."""
         return self.refined.current
 
-    @_in_context
+    @in_context
     def set_refined_visibility(self, visibility: np.ndarray):
         """The shadow refinement network's visibility (N, H, W) of the current lights, shown in the
         'refined' mode until a light's direction or sigma changes (then the soft visibility is
@@ -291,7 +279,7 @@ class Engine:
             return 0.0, 1.0, False
         return float(self.look.diffuse), float(self.look.specular), False
 
-    @_in_context
+    @in_context
     def set_environment(self, pixels: np.ndarray):
         """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background."""
         self.resources.set_environment(pixels)
@@ -316,7 +304,7 @@ class Engine:
         """sigma ~ 0: the light's soft visibility is its hard one and its filtering is skipped."""
         return self.options.leave_out and l.sigma < self.options.hard_sigma
 
-    @_in_context
+    @in_context
     def render(self) -> "Engine":
         """Bring every output up to date, redoing only the passes whose inputs changed. Each stage
         runs for all lights before the next starts: llvmpipe waits once per stage, not per pass."""
@@ -392,106 +380,10 @@ class Engine:
         return self.display_pass.read(self.composite_pass.shading, self.frame_background.image, terms, self.look,
                                       self.look.background == "transparent", output_mode)
 
-    # ------------------------------------------------------------------ outputs
-    @property
-    def display(self) -> moderngl.Texture:
-        """The display image shown and saved: at the output frame's resolution for a scene with a
-        frame layer (the inspection views too), else at the maps'."""
-        return self.display_pass.image
-
-    @property
-    def output_size(self) -> tuple[int, int]:
-        """(width, height) of :attr:`display` and :meth:`read_hdr`."""
-        return self.display.size
-
-    @_in_context
-    def read_hdr(self) -> np.ndarray:
-        """(H, W, 3) float32 linear HDR of the person (zero outside), at the output size, row 0 at
-        the top."""
-        return self.read_hdr_rgba()[..., :3]
-
-    @_in_context
-    def read_hdr_rgba(self) -> np.ndarray:
-        """(H, W, 4): the person's linear HDR and its coverage (the mask, or the frame's matte)."""
-        if self.frame_background is None:
-            return self.kit.read(self.composite_pass.hdr, 4)
-        return self._frame_read(self._composite_terms(), OUTPUT_PERSON_HDR)
-
-    @_in_context
-    def read_frame_shading(self) -> tuple[np.ndarray, np.ndarray]:
-        """The diffuse and specular shading sums (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
-        (H, W, 3) each at the output frame's resolution, upsampled exactly as the frame composite
-        upsamples them (a scene with a frame layer; after render())."""
-        if self.frame_background is None:
-            raise ValueError("the scene has no frame layer")
-        diffuse = self._frame_read((1.0, 0.0, True), OUTPUT_PERSON_HDR)[..., :3]
-        specular = self._frame_read((0.0, 1.0, False), OUTPUT_PERSON_HDR)[..., :3]
-        return diffuse, specular
-
-    @_in_context
-    def read_work_hdr(self) -> np.ndarray:
-        """(H, W, 3) linear HDR at the maps' (work) resolution."""
-        return self.kit.read(self.composite_pass.hdr, 4)[..., :3]
-
-    @_in_context
-    def read_display(self) -> np.ndarray:
-        """(H, W, 3) uint8 sRGB display image."""
-        return self.kit.read(self.display, 4, dtype="f1")[..., :3]
-
-    @_in_context
-    def read_display_rgba(self) -> np.ndarray:
-        """(H, W, 4) uint8: the display image and its alpha (the coverage for the transparent
-        background, 255 otherwise)."""
-        return self.kit.read(self.display, 4, dtype="f1")
-
-    @_in_context
-    def read_output_hdr(self) -> np.ndarray:
-        """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
-        the same background (alpha 1), or premultiplied with its coverage for the transparent
-        background: the EXR that goes with the display PNG."""
-        if self.frame_background is not None:
-            return self._frame_read(self._composite_terms(), OUTPUT_COMPOSITED_HDR)
-        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.look, self.look.background)
-
-    @_in_context
-    def read_light(self, index: int) -> dict:
-        """Per-light intermediate outputs (H, W) each: soft and hard visibility, diffuse and
-        specular shading per unit intensity. All zero for a skipped light and outside the mask."""
-        l = self._lights[index]
-        full = np.zeros((self.scene.height, self.scene.width, 4), np.float32)
-        if l.active and l.pass_mode != PASS_OFF:
-            x, y, bw, bh = self.resources.mask_box
-            full[y:y + bh, x:x + bw] = self.atlas.read_tile(l)
-        return {"visibility_soft": full[..., 0], "visibility_hard": full[..., 1], "diffuse": full[..., 2], "specular": full[..., 3]}
-
-    @_in_context
-    def read_shadow_map(self, index: int) -> np.ndarray:
-        """(R, R) normalised depth of a light's shadow map, row 0 at v = 0."""
-        l = self._lights[index]
-        if not l.active or l.shadow_map is None or "shadow_map" in l.stale:
-            raise ValueError(f"light {index} contributes nothing, so it has no current shadow map")
-        return self.kit.read(l.shadow_map, 1)[..., 0]
-
-    @_in_context
-    def read_filtered_basis(self, index: int) -> np.ndarray:
-        """A light's pre-filtered CSM basis, (2 M, n, n): cos and sin of c_k z for k = 0 .. M-1, at
-        the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft
-        visibility is its hard one (sigma ~ 0) or that contributes nothing."""
-        l = self._lights[index]
-        if not l.active or l.filtered is None or l.stale & {"shadow_map", "csm_basis"} or l.plan is None \
-                or self._soft_is_hard(l):
-            raise ValueError(f"light {index} has no current filtered basis (skipped, or sigma ~ 0)")
-        atlas = self.kit.read(l.filtered, 4)  # (n, tiles * n, 4)
-        n = atlas.shape[0]
-        n_tex = self.csm_basis_pass.n_tex
-        tiles = [atlas[:, t * n:(t + 1) * n] for t in range(n_tex)]
-        maps = [tile[..., c] for tile in tiles for c in range(4)]
-        return np.stack(maps[:2 * self.options.terms])
-
     def light_active(self, index: int) -> bool:
         return self._lights[index].active
 
-    @_in_context
+    @in_context
     def release(self):
         """Free every GL object the engine created (the context and its programs stay)."""
         for l in self._lights:

@@ -1,0 +1,125 @@
+"""Reading the engine's outputs back: the display image, the HDR (work and frame resolution), the
+frame's shading sums, each light's planes, shadow map and filtered basis. A mixin of
+:class:`viewer.gl.engine.Engine` (which keeps the passes these read), so the engine's own module is
+the scheduler alone."""
+
+from __future__ import annotations
+
+import functools
+
+import moderngl
+import numpy as np
+
+from .context import make_current
+from .frame_pass import OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR
+from .light import PASS_OFF
+
+
+def in_context(method):
+    """Runs an engine method with the engine's GL context current (see :func:`make_current`)."""
+
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        make_current(self.ctx)
+        return method(self, *args, **kwargs)
+
+    return run
+
+
+class EngineOutputs:
+    """The read-back half of the engine's interface (after ``render``)."""
+
+    @property
+    def display(self) -> moderngl.Texture:
+        """The display image shown and saved: at the output frame's resolution for a scene with a
+        frame layer (the inspection views too), else at the maps'."""
+        return self.display_pass.image
+
+    @property
+    def output_size(self) -> tuple[int, int]:
+        """(width, height) of :attr:`display` and :meth:`read_hdr`."""
+        return self.display.size
+
+    @in_context
+    def read_hdr(self) -> np.ndarray:
+        """(H, W, 3) float32 linear HDR of the person (zero outside), at the output size, row 0 at
+        the top."""
+        return self.read_hdr_rgba()[..., :3]
+
+    @in_context
+    def read_hdr_rgba(self) -> np.ndarray:
+        """(H, W, 4): the person's linear HDR and its coverage (the mask, or the frame's matte)."""
+        if self.frame_background is None:
+            return self.kit.read(self.composite_pass.hdr, 4)
+        return self._frame_read(self._composite_terms(), OUTPUT_PERSON_HDR)
+
+    @in_context
+    def read_frame_shading(self) -> tuple[np.ndarray, np.ndarray]:
+        """The diffuse and specular shading sums (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
+        (H, W, 3) each at the output frame's resolution, upsampled exactly as the frame composite
+        upsamples them (a scene with a frame layer; after render())."""
+        if self.frame_background is None:
+            raise ValueError("the scene has no frame layer")
+        diffuse = self._frame_read((1.0, 0.0, True), OUTPUT_PERSON_HDR)[..., :3]
+        specular = self._frame_read((0.0, 1.0, False), OUTPUT_PERSON_HDR)[..., :3]
+        return diffuse, specular
+
+    @in_context
+    def read_work_hdr(self) -> np.ndarray:
+        """(H, W, 3) linear HDR at the maps' (work) resolution."""
+        return self.kit.read(self.composite_pass.hdr, 4)[..., :3]
+
+    @in_context
+    def read_display(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB display image."""
+        return self.kit.read(self.display, 4, dtype="f1")[..., :3]
+
+    @in_context
+    def read_display_rgba(self) -> np.ndarray:
+        """(H, W, 4) uint8: the display image and its alpha (the coverage for the transparent
+        background, 255 otherwise)."""
+        return self.kit.read(self.display, 4, dtype="f1")
+
+    @in_context
+    def read_output_hdr(self) -> np.ndarray:
+        """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
+        the same background (alpha 1), or premultiplied with its coverage for the transparent
+        background: the EXR that goes with the display PNG."""
+        if self.frame_background is not None:
+            return self._frame_read(self._composite_terms(), OUTPUT_COMPOSITED_HDR)
+        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.look, self.look.background)
+
+    @in_context
+    def read_light(self, index: int) -> dict:
+        """Per-light intermediate outputs (H, W) each: soft and hard visibility, diffuse and
+        specular shading per unit intensity. All zero for a skipped light and outside the mask."""
+        l = self._lights[index]
+        full = np.zeros((self.scene.height, self.scene.width, 4), np.float32)
+        if l.active and l.pass_mode != PASS_OFF:
+            x, y, bw, bh = self.resources.mask_box
+            full[y:y + bh, x:x + bw] = self.atlas.read_tile(l)
+        return {"visibility_soft": full[..., 0], "visibility_hard": full[..., 1], "diffuse": full[..., 2], "specular": full[..., 3]}
+
+    @in_context
+    def read_shadow_map(self, index: int) -> np.ndarray:
+        """(R, R) normalised depth of a light's shadow map, row 0 at v = 0."""
+        l = self._lights[index]
+        if not l.active or l.shadow_map is None or "shadow_map" in l.stale:
+            raise ValueError(f"light {index} contributes nothing, so it has no current shadow map")
+        return self.kit.read(l.shadow_map, 1)[..., 0]
+
+    @in_context
+    def read_filtered_basis(self, index: int) -> np.ndarray:
+        """A light's pre-filtered CSM basis, (2 M, n, n): cos and sin of c_k z for k = 0 .. M-1, at
+        the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft
+        visibility is its hard one (sigma ~ 0) or that contributes nothing."""
+        l = self._lights[index]
+        if not l.active or l.filtered is None or l.stale & {"shadow_map", "csm_basis"} or l.plan is None \
+                or self._soft_is_hard(l):
+            raise ValueError(f"light {index} has no current filtered basis (skipped, or sigma ~ 0)")
+        atlas = self.kit.read(l.filtered, 4)  # (n, tiles * n, 4)
+        n = atlas.shape[0]
+        n_tex = self.csm_basis_pass.n_tex
+        tiles = [atlas[:, t * n:(t + 1) * n] for t in range(n_tex)]
+        maps = [tile[..., c] for tile in tiles for c in range(4)]
+        return np.stack(maps[:2 * self.options.terms])
