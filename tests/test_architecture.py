@@ -111,3 +111,41 @@ def test_a_saved_look_renders_what_the_options_render(tmp_path):
     assert main(common + ["--look", str(saved), "--exposure", "-1", "-o", str(tmp_path / "c.png")]) == 0
     a, b, c = (read_png(tmp_path / f"{k}.png") for k in "abc")
     assert (a == b).all() and c.mean() < a.mean() - 0.02
+
+
+def test_the_lab_commands_are_listed_but_not_imported():
+    import subprocess
+    import sys
+
+    code = ("import sys; from viewer.cli import build_parser, command_plugins; "
+            "build_parser(command_plugins()).print_help(); print(sorted(m for m in sys.modules if m.startswith('viewer.lab')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert all(f"    {name}" in out for name in ("bench", "dataset", "train")) and out.strip().endswith("[]")
+
+
+def test_a_look_saved_with_more_lights_fits_fewer():
+    look = Look(view="shadow", light=12, intensity=2.0)
+    assert look.fitted(16) is look
+    assert look.fitted(8) == Look(view="final", light=0, intensity=2.0)
+    assert Look(view="albedo", light=12).fitted(4).view == "albedo"
+
+
+def test_a_saved_looks_intensity_and_selected_light_are_rendered(tmp_path):
+    """A capture saved at x2 intensity renders brighter than at x1; one whose selected light is
+    past the light file's count renders (the relit image) instead of failing."""
+    from viewer.cli import main
+    from viewer.imageio import read_exr
+
+    env = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
+    lights = ROOT / "assets" / "envmaps" / "venice_sunset_256.lights.json"
+    scene = ROOT / "assets" / "sample_scene"
+    hdr = {}
+    for k, look in {"one": Look(exposure=0.0), "two": Look(exposure=0.0, intensity=2.0, view="shadow", light=40)}.items():
+        saved = tmp_path / f"{k}.json"
+        saved.write_text(json.dumps({"look": look.to_json()}))
+        assert main(["render", str(scene), str(lights), "--env", str(env), "--size", "96", "--background", "transparent",
+                     "--look", str(saved), "-o", str(tmp_path / f"{k}.png")]) == 0
+        hdr[k] = read_exr(tmp_path / f"{k}.exr")
+    person = hdr["one"][..., :3].sum(axis=-1) > 0
+    ratio = hdr["two"][..., :3][person].sum() / hdr["one"][..., :3][person].sum()
+    assert 1.9 < ratio < 2.1

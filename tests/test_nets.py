@@ -91,6 +91,33 @@ def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
     assert main(args[:-4] + ["--width", "16", "--batch", "2", "--epochs", "4"]) == 2
 
 
+
+class _RunsCode:
+    """What a crafted checkpoint holds: unpickling it would run a command."""
+
+    def __init__(self, marker):
+        self.marker = marker
+
+    def __reduce__(self):
+        import os
+
+        return (os.system, (f"touch {self.marker}",))
+
+
+def test_a_crafted_checkpoint_is_refused_without_running_it(tiny_dataset, tmp_path, capsys):
+    data, _ = tiny_dataset
+    marker = tmp_path / "code-ran"
+    torch.save({"config": {"task": "depth"}, "payload": _RunsCode(marker)}, tmp_path / "depth.checkpoint.pt")
+    args = ["train", "depth", "--data", str(data), "--out", str(tmp_path), "--res", "64", "--levels", "3", "--width", "8",
+            "--batch", "2", "--epochs", "1"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "depth.checkpoint.pt: refused: not a plain checkpoint" in err and err.count("\n") == 1
+    assert not marker.exists() and not (tmp_path / "depth.safetensors").exists()
+    (tmp_path / "depth.checkpoint.pt").write_bytes(b"PK\x03\x04 truncated")
+    assert main(args) == 2
+    assert "not a readable checkpoint" in capsys.readouterr().err
+
 def _logit(p):
     p = p.clamp(1e-4, 1 - 1e-4)
     return torch.log(p / (1 - p))

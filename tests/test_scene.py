@@ -72,7 +72,7 @@ def test_empty_mask_and_missing_files(bundle):
     with pytest.raises(InputError, match="depth.exr: file not found"):
         load_scene(path)
     (path / "scene.json").write_text("{nope")
-    with pytest.raises(InputError, match="scene.json: invalid JSON"):
+    with pytest.raises(InputError, match="scene.json: not a scene bundle description: invalid JSON"):
         load_scene(path)
     with pytest.raises(InputError, match="not found"):
         load_scene(path / "nowhere")

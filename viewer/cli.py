@@ -61,7 +61,7 @@ def _exposure(text: str):
 
 def _add_view_args(p, yaw_default=0.0):
     p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
-                   "object (docs/settings.md); the options below override its values")
+                   "object (docs/architecture.md); the options below override its values")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
                    help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
                         "a video starts there")
@@ -79,6 +79,24 @@ def _add_view_args(p, yaw_default=0.0):
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
                    help="shadows (default soft) from the convolutional shadow map (soft), the refinement network (refined), "
                         "the shadow map (hard) or none")
+
+
+def _writable(path, folder: bool = False) -> Path:
+    """``path`` if the program can write it (its folder made when missing), checked before any work
+    is done: else one line naming it. ``folder``: the path is itself a folder to write into."""
+    import os
+
+    path = Path(path)
+    where = path if folder else path.parent
+    if not folder and path.is_dir():
+        raise InputError(path, "is a folder: give a file path")
+    try:
+        where.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(path, f"cannot write here ({exc.strerror or exc})") from None
+    if not os.access(where, os.W_OK | os.X_OK):
+        raise InputError(path, f"cannot write here ({where} is not writable)")
+    return path
 
 
 def _fitted_lights(env, n, method, refit=False):
@@ -155,16 +173,10 @@ def _settings(args, yaw_default: float = 0.0):
 
 def _read_look(path):
     """The look in a JSON file (``{"look": {...}}`` as the viewer saves it, or the look itself)."""
-    import json
-
+    from .imageio import read_json
     from .settings import Look
 
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(path, f"cannot read the look: {exc.strerror or exc}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise InputError(path, f"not a JSON look file ({type(exc).__name__})") from None
+    data = read_json(path, "JSON look file")
     return Look.from_json(data.get("look", data) if isinstance(data, dict) else data, where=path)
 
 
@@ -196,6 +208,7 @@ def cmd_demo(args) -> int:
 
     assets = asset_dir()
     look = _settings(args, DEMO_YAW)
+    _writable(args.output, folder=True)
     written = _render(sample_scene_dir(), assets / DEMO_LIGHTS, assets / DEMO_ENVMAP, args.output, "demo", args, look)
     print(f"rendered the sample scene under {DEMO_LIGHTS} (16 area lights):")
     for path in written:
@@ -232,6 +245,7 @@ def cmd_render(args) -> int:
     suffix = out.suffix.lower()
     if suffix not in (".png", ".mp4"):
         raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
+    _writable(out)
     if suffix == ".png":
         if args.frames is not None:
             raise InputError(out, "--frames makes a video: give a .mp4 output path")
@@ -337,6 +351,9 @@ def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
 def cmd_infer(args) -> int:
     from .inference import infer, load_networks
 
+    from .inference import bundle_target
+
+    _writable(bundle_target(args.output).parent, folder=True)
     t0 = time.perf_counter()
     nets = load_networks(args.device, args.networks)
     record = infer(args.photo, args.mask, args.output, size=args.size, max_size=args.max_size, device=args.device,
@@ -359,6 +376,7 @@ def cmd_fit_lights(args) -> int:
     out = Path(args.output)
     if out.suffix.lower() != ".json":
         raise InputError(out, "the light file is JSON: give a .json output path")
+    _writable(out)
     env = load_envmap(args.map, repair=args.repair)
     start = time.perf_counter()
     lights, cached = _fitted_lights(env, args.n, args.method, refit=args.refit)
@@ -458,6 +476,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
 
+    for name in sorted(plugins or {}):  # listed for --help; main() runs them with their own parser
+        sub.add_parser(name, help=f"offline work (the lab, viewer/lab): see relight {name} --help")
     return parser
 
 
@@ -469,9 +489,16 @@ def command_plugins() -> dict:
     return {ep.name: ep for ep in entry_points(group=COMMAND_GROUP)}
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"relight: warning: {message}", file=sys.stderr if file is None else file, flush=True)
+
+
 def main(argv=None) -> int:
+    import warnings
+
     argv = list(sys.argv[1:] if argv is None else argv)
     plugins = command_plugins()
+    shown, warnings.showwarning = warnings.showwarning, _one_line_warning  # a warning is one line, like an error
     try:
         if argv and argv[0] in plugins:
             return plugins[argv[0]].load()(argv[1:])
@@ -480,9 +507,11 @@ def main(argv=None) -> int:
     except InputError as exc:
         print(f"relight: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("relight: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        print("relight: interrupted" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ())), file=sys.stderr)
         return 130
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":

@@ -167,6 +167,31 @@ def _bilinear(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return (top * (1 - fy) + bottom * fy).astype(np.float32)
 
 
+MAX_MAP_WIDTH = 16384
+MAX_MAP_PIXELS = MAX_MAP_WIDTH * MAX_MAP_WIDTH // 2  # 1.6 GB of float32 RGB
+
+
+def _rgbe_size(path: Path) -> tuple[int, int]:
+    """(width, height) from a Radiance header, read before any pixel (a hostile header cannot make
+    the reader allocate what it claims)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(65536)
+    except OSError as exc:
+        raise InputError(path, f"cannot read the map ({exc.strerror or exc})") from None
+    lines = head.split(b"\n")
+    if not lines or not lines[0].startswith(b"#?"):
+        raise InputError(path, "not a Radiance HDR image (no #? signature)")
+    try:
+        blank = lines.index(b"", 1)
+        y_tag, height, x_tag, width = lines[blank + 1].split()[:4]
+        if y_tag.lstrip(b"+-") != b"Y" or x_tag.lstrip(b"+-") != b"X":
+            raise ValueError
+        return int(width), int(height)
+    except (ValueError, IndexError):
+        raise InputError(path, "not a Radiance HDR image (no resolution line after the header)") from None
+
+
 def load_envmap(path, repair: bool = False) -> EnvMap:
     """Read a ``.hdr`` or ``.exr`` equirectangular map and validate it (see :class:`EnvMap`).
 
@@ -186,7 +211,14 @@ def load_envmap(path, repair: bool = False) -> EnvMap:
     else:
         import cv2
 
-        bgr = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        width, height = _rgbe_size(path)
+        if width * height > MAX_MAP_PIXELS:
+            raise InputError(path, f"claims {width}x{height} pixels, more than the {MAX_MAP_WIDTH}x{MAX_MAP_WIDTH // 2} "
+                                   "this program reads (downsample it first)")
+        try:
+            bgr = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        except cv2.error as exc:
+            raise InputError(path, f"cannot read as a Radiance HDR image ({str(exc).strip().splitlines()[-1][:120]})") from None
         if bgr is None or bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.float32:
             raise InputError(path, "cannot read as a Radiance HDR image")
         px = bgr[..., ::-1]

@@ -1,4 +1,5 @@
-"""Reading and writing images in standard formats: EXR (linear float), PNG (8/16-bit), HDR.
+"""Reading and writing files in standard formats: EXR (linear float), PNG (8/16-bit), HDR, and the
+JSON the program reads (light files, bundles' scene.json, caches, cards, saved looks).
 
 Every failure is an :class:`InputError` naming the file.
 """
@@ -28,6 +29,36 @@ def atomic_path(path):
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+MAX_JSON_BYTES = 64 << 20  # no JSON file this program reads is near this
+
+
+def read_json(path, what: str = "JSON file"):
+    """The JSON value in ``path``: strict UTF-8, at most MAX_JSON_BYTES, any nesting the parser can
+    take; anything else (missing, a folder, unreadable, wrongly encoded, malformed, absurdly deep
+    or big) is one :class:`InputError` naming the file and ``what`` it should have been."""
+    import json
+
+    path = Path(path)
+    try:
+        if path.stat().st_size > MAX_JSON_BYTES:
+            raise InputError(path, f"is {path.stat().st_size >> 20} MB: too big for a {what}")
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(path, f"{what} not found") from None
+    except IsADirectoryError:
+        raise InputError(path, f"is a folder, not a {what}") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read the {what} ({exc.strerror or exc})") from None
+    try:
+        return json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise InputError(path, f"not a {what}: byte {exc.start} is not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(path, f"not a {what}: invalid JSON at line {exc.lineno} column {exc.colno} ({exc.msg})") from None
+    except RecursionError:
+        raise InputError(path, f"not a {what}: nested too deeply") from None
 
 
 def write_text(path, text: str) -> Path:

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .imageio import read_json, write_text
 
 FORMAT = "relight-lights"
 VERSION = 1
@@ -117,8 +118,6 @@ class AreaLights:
         data = self.to_json()
         if fit is not None:
             data["fit"] = fit
-        from .imageio import write_text
-
         return write_text(path, json.dumps(data, indent=2) + "\n")
 
 
@@ -150,10 +149,7 @@ def load_lights(path) -> AreaLights:
         if arr.ndim != 2 or arr.shape[1] != 7 or len(arr) == 0:
             raise InputError(path, f"the paper's light files are N x 7 arrays, got shape {arr.shape}")
         return from_paper_array(arr).validate(path)
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputError(path, f"invalid JSON ({exc})") from None
+    data = read_json(path, "light file")
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise InputError(path, f"not a light file (format should be {FORMAT!r})")
     try:

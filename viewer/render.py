@@ -61,8 +61,8 @@ def effective_background(settings: Look, scene: Scene, has_environment: bool) ->
 def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has_environment: bool):
     """Set the engine's lights (rotated by yaw / tilt, the environment background with them),
     shadow mode and display; the caller renders."""
-    engine.set_lights(lights.rotated(settings.yaw, settings.tilt))
-    engine.set_look(replace(settings, background=effective_background(settings, scene, has_environment)))
+    engine.set_lights(lights.rotated(settings.yaw, settings.tilt).scaled(settings.intensity))
+    engine.set_look(replace(settings.fitted(len(lights)), background=effective_background(settings, scene, has_environment)))
 
 
 def resolve_exposure(engine, scene: Scene, settings: Look) -> Look:

@@ -34,7 +34,7 @@ import numpy as np
 
 from .camera import Camera
 from .errors import InputError
-from .imageio import linear_to_srgb, read_exr, read_png, srgb_to_linear, write_exr, write_png, write_text
+from .imageio import linear_to_srgb, read_exr, read_json, read_png, srgb_to_linear, write_exr, write_png, write_text
 
 FORMAT = "relight-scene"
 VERSION = 2  # 2: the frame layer (version 1 bundles load as before)
@@ -231,10 +231,7 @@ def load_scene(path) -> Scene:
     meta_path = path / "scene.json"
     if not meta_path.is_file():
         raise InputError(meta_path, "missing: a scene bundle needs scene.json")
-    try:
-        meta = json.loads(meta_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputError(meta_path, f"invalid JSON ({exc})") from None
+    meta = read_json(meta_path, "scene bundle description")
     if not isinstance(meta, dict):
         raise InputError(meta_path, "must hold a JSON object")
     if meta.get("format") != FORMAT:

@@ -85,6 +85,13 @@ class Look:
         """The exposure to display with: 0 stops while "auto" is not resolved yet."""
         return 0.0 if self.exposure == AUTO else float(self.exposure)
 
+    def fitted(self, n_lights: int) -> "Look":
+        """This look for a set of ``n_lights`` lights: a selected light past the set (a look saved
+        with more lights) becomes light 0, and its shadow view the relit image."""
+        if self.light < n_lights:
+            return self
+        return replace(self, light=0, view="final" if self.view == "shadow" else self.view)
+
     def replace(self, **changes) -> "Look":
         return replace(self, **changes)
 

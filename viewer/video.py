@@ -1,12 +1,15 @@
 """Relit video files: H.264 in MP4 through PyAV (FFmpeg's libx264), encoded on a background thread.
 
-The MP4 is fragmented (a self-contained fragment per keyframe interval, the index up front), so a
-recording cut short, even by a crash, is a playable file holding every finished fragment; a
-normal :meth:`VideoWriter.close` flushes the encoder and keeps every frame.
+Frames go to ``<name>.partial.mp4`` beside the target, which replaces the target in one step when
+:meth:`VideoWriter.close` has flushed every frame: an earlier video of the same name stays whole
+until the new one is. The MP4 is fragmented (a self-contained fragment per keyframe interval, the
+index up front), so a recording cut short, even by a crash, leaves a playable partial file holding
+every finished fragment, under its own clearly marked name.
 """
 
 from __future__ import annotations
 
+import os
 import queue
 import threading
 from fractions import Fraction
@@ -18,6 +21,12 @@ from .errors import InputError
 
 TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
 FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
+
+
+def partial_path(path) -> Path:
+    """Where a video is written until it is complete: ``name.partial.mp4`` beside ``name.mp4``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.partial{path.suffix}")
 
 
 class VideoWriter:
@@ -35,6 +44,9 @@ class VideoWriter:
         if not (fps > 0 and np.isfinite(fps)):
             raise InputError(self.path, f"frame rate must be positive, got {fps}")
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.path.is_dir():
+            raise InputError(self.path, "is a folder: give a .mp4 file path")
+        self.partial = partial_path(self.path)
         self.size = (int(width), int(height))
         # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
         self.encoded_size = tuple(max(v - v % 2, 2) for v in self.size)
@@ -43,7 +55,7 @@ class VideoWriter:
         self._last_pts = -1
         # flush_packets: each finished fragment reaches the file at once, not when an I/O buffer fills
         try:
-            self._container = av.open(str(self.path), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
+            self._container = av.open(str(self.partial), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
         except (OSError, av.FFmpegError) as exc:
             raise InputError(self.path, f"cannot write the video ({exc})") from None
         try:
@@ -113,19 +125,36 @@ class VideoWriter:
         if self._error is not None:
             raise RuntimeError(f"encoding {self.path} failed: {self._error}") from self._error
 
-    def close(self) -> Path:
-        """Flush the encoder and finish the file; returns its path."""
+    def _finish_encoding(self):
         if self._thread.is_alive():
             self._queue.put(None)
             self._thread.join()
+
+    def close(self) -> Path:
+        """Flush the encoder, finish the file and put it in place of the target; returns its path."""
+        self._finish_encoding()
         self._raise_pending()
+        os.replace(self.partial, self.path)
         return self.path
+
+    def abort(self) -> Path:
+        """Stop here: the frames so far are flushed into the partial file, which stays under its own
+        name (the target is left as it was); returns the partial file's path."""
+        self._finish_encoding()
+        if not self.frames:
+            self.partial.unlink(missing_ok=True)
+        return self.partial
 
     def __enter__(self) -> "VideoWriter":
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.close()
+            return
+        partial = self.abort()
+        if exc is not None and self.frames:
+            exc.add_note(f"the {self.frames} frames so far are in {partial}; {self.path} was left as it was")
 
 
 def read_video(path) -> tuple[np.ndarray, float]:

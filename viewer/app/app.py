@@ -283,6 +283,8 @@ class ViewerApp:
             except Exception as exc:
                 self._report(f"recording {rec.path} failed", exc)
                 self.recording = None
+                if isinstance(rec, TurntableRecording):
+                    s.update(yaw=rec.start_yaw)  # the lighting goes back to where the turn started
                 try:
                     rec.close()  # releases the file; its error is the one just reported
                 except Exception:

@@ -5,7 +5,6 @@ lights have not moved since)."""
 
 from __future__ import annotations
 
-import json
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -13,6 +12,7 @@ from pathlib import Path
 
 from ..envmap import EnvMap, load_envmap
 from ..errors import InputError
+from ..imageio import read_json
 from ..lights import AreaLights, load_lights
 
 
@@ -23,8 +23,8 @@ def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
     if not side.is_file():
         return None
     try:
-        fit = json.loads(side.read_text()).get("fit") or {}
-    except (OSError, json.JSONDecodeError):
+        fit = read_json(side, "light file").get("fit") or {}
+    except (InputError, AttributeError):
         return None
     if fit.get("n") != n or fit.get("method") != method:
         return None

@@ -46,7 +46,7 @@ class Session:
         self.environment = environment
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
-        self.look = look or Look()
+        self.look = (look or Look()).fitted(len(lights))
         self._set_environment(self.final)
         self.wake = lambda: None  # called when background work finishes (the window's wake)
         self._refiner = None

@@ -76,8 +76,8 @@ class InspectPass:
     """An inspection view into the display image (the display's size stays): the albedo, normal,
     depth, specular or roughness map, or one light's shadow under the current shadow mode."""
 
-    name = "display"  # counted as a display run
-    inputs = ("view", "light_pass")
+    name = "display"  # counted as a display run; drawn in place of the display when the view is an inspection
+    # view, so it is redrawn whenever the display is (the engine tracks the display's inputs)
 
     def __init__(self, kit: PassKit, scene: SceneResources, work_size):
         self.kit, self.scene, self.work_size = kit, scene, work_size

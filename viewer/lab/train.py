@@ -187,6 +187,26 @@ def _distributed(device: torch.device) -> tuple[int, int, torch.device]:
     return dist.get_rank(), world, device
 
 
+CHECKPOINT_KEYS = ("config", "model_config", "model", "optimizer", "scheduler", "history", "epoch", "seconds")
+
+
+def load_checkpoint(path: Path, device) -> dict:
+    """A training checkpoint, loaded with ``weights_only=True``: tensors and plain data only, so a
+    crafted file cannot run code (it is refused with one line, as is a truncated or foreign one)."""
+    import pickle
+
+    try:
+        ckpt = torch.load(path, map_location=device, weights_only=True)
+    except pickle.UnpicklingError as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(path, f"refused: not a plain checkpoint (loading it would run code or build objects: {first[:120]})") from None
+    except (RuntimeError, EOFError, OSError, ValueError) as exc:
+        raise InputError(path, f"not a readable checkpoint ({type(exc).__name__}); move it away to start afresh") from None
+    if not isinstance(ckpt, dict) or not all(k in ckpt for k in CHECKPOINT_KEYS):
+        raise InputError(path, "not a checkpoint of relight train (keys missing); move it away to start afresh")
+    return ckpt
+
+
 def train(cfg: TrainConfig, progress=None) -> dict:
     """Train (or resume) ``cfg.task`` on ``cfg.data``; returns the card written beside the weights.
 
@@ -220,7 +240,7 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     ckpt_path = out / f"{cfg.task}.checkpoint.pt"
     history, start_epoch, seconds = [], 0, 0.0
     if ckpt_path.is_file():
-        ckpt = torch.load(ckpt_path, map_location=device, weights_only=False)
+        ckpt = load_checkpoint(ckpt_path, device)
         if ckpt["config"]["task"] != cfg.task or ckpt["model_config"] != model.config:
             raise InputError(ckpt_path, "a checkpoint of a different network or size is in the way (move it, or use another --out)")
         model.load_state_dict(ckpt["model"])

@@ -52,6 +52,9 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
 
     method = method or DEFAULT_METHOD
     path = cache_path(env, n, method, directory)
+    usable = not path.exists() or path.is_file()
+    if not usable:
+        warnings.warn(f"{path}: the cache entry is not a file; fitting without the cache (remove it to cache again)", stacklevel=2)
     if path.is_file() and not refit:
         try:
             return load_lights(path), True
@@ -63,7 +66,11 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
     lights = fit_lights(env, n, method, progress=progress)
     record = {"source": Path(env.source).name if env.source else None, "method": method, "n": n,
               "seconds": round(time.perf_counter() - start, 3), "version": FIT_VERSION}
-    write_atomic(path, lights, record)
+    if usable:
+        try:
+            write_atomic(path, lights, record)
+        except OSError as exc:  # a read-only cache costs the next run a refit, nothing more
+            warnings.warn(f"{path}: cannot cache the lights ({exc.strerror or exc})", stacklevel=2)
     return lights, False
 
 

@@ -4,10 +4,10 @@ the JSON card beside them. Part of the product (inference and the refined shadow
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..errors import InputError
+from ..imageio import read_json
 from .unet import UNet
 
 
@@ -20,7 +20,7 @@ def load_network(path, device="cpu") -> UNet:
     if not path.is_file() or not card_path.is_file():
         raise InputError(path, "network weights not found (a .safetensors file with its .json card)")
     try:
-        cfg = json.loads(card_path.read_text(encoding="utf-8"))["model"]
+        cfg = read_json(card_path, "network card")["model"]
         model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"))
     except (ValueError, KeyError, TypeError) as exc:
         raise InputError(card_path, f"not a network card this program reads ({type(exc).__name__}: {exc})") from None

@@ -38,7 +38,7 @@ def _turn(ctx, scene, lights, options, visibility):
     eng = Engine(ctx, scene, options)
     frames, times = [], []
     for yaw in turntable_yaws(0.0, 360.0, FRAMES):
-        apply_settings(eng, scene, lights, Look(yaw=float(yaw), background="color", visibility=visibility), False)
+        apply_settings(eng, scene, lights, Look(yaw=float(yaw), background="color", shadows=visibility), False)
         t = time.perf_counter()
         eng.render()
         ctx.finish()

@@ -1,0 +1,101 @@
+"""Interrupted work never damages what the user had: real processes are killed (SIGINT, SIGKILL)
+at several moments while they write a video or a frame, and the target is then either the old
+file or the complete new one (a video cut short stays under its own ``.partial.mp4`` name)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from viewer.video import partial_path, read_video
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "assets" / "sample_scene"
+LIGHTS = ROOT / "assets" / "envmaps" / "venice_sunset_256.lights.json"
+
+
+def relight(*args) -> list[str]:
+    return [sys.executable, "-m", "viewer.cli", *map(str, args)]
+
+
+def wait_for(condition, timeout=120.0):
+    start = time.monotonic()
+    while not condition():
+        if time.monotonic() - start > timeout:
+            raise AssertionError("timed out")
+        time.sleep(0.02)
+
+
+@pytest.fixture(scope="module")
+def earlier_video(tmp_path_factory):
+    path = tmp_path_factory.mktemp("video") / "turn.mp4"
+    res = subprocess.run(relight("render", SCENE, LIGHTS, "--size", "96", "--frames", "6", "-o", path), capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    return path, path.read_bytes()
+
+
+@pytest.mark.parametrize("sig, after_frames", [(signal.SIGINT, 10), (signal.SIGKILL, 0), (signal.SIGKILL, 30)])
+def test_an_interrupted_video_leaves_the_earlier_one_whole(earlier_video, sig, after_frames):
+    path, before = earlier_video
+    partial = partial_path(path)
+    partial.unlink(missing_ok=True)
+    proc = subprocess.Popen(relight("render", SCENE, LIGHTS, "--size", "96", "--frames", "2000", "--yaw", "40", "-o", path),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for(lambda: partial.exists())
+        if after_frames:  # a fragment holds one second (30 frames); wait until the file has grown past its header
+            size = partial.stat().st_size
+            wait_for(lambda: partial.stat().st_size > size + 100 * after_frames)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert path.read_bytes() == before  # the earlier video, untouched
+    if sig == signal.SIGINT:
+        last = err.strip().splitlines()[-1]  # (above it: the progress bar)
+        assert proc.returncode == 130 and err.count("relight:") == 1 and "Traceback" not in err
+        assert last.startswith("relight: interrupted") and "turn.partial.mp4" in last and "left as it was" in last
+        frames, _ = read_video(partial)  # what was recorded so far plays
+        assert len(frames) > 0
+    else:
+        assert proc.returncode == -signal.SIGKILL
+    partial.unlink(missing_ok=True)
+
+
+def test_a_killed_frame_write_leaves_the_old_frame_or_the_new_one(tmp_path):
+    """SIGKILL at several moments of ``render -o x.png``: x.png (and its EXR) are always whole
+    files, the old ones or the new ones, never truncated."""
+    out = tmp_path / "x.png"
+    args = ("render", SCENE, LIGHTS, "--size", "128")
+    assert subprocess.run(relight(*args, "-o", out), capture_output=True).returncode == 0
+    old = out.read_bytes(), out.with_suffix(".exr").read_bytes()
+    new_dir = tmp_path / "new"
+    assert subprocess.run(relight(*args, "--yaw", "90", "-o", new_dir / "x.png"), capture_output=True).returncode == 0
+    new = (new_dir / "x.png").read_bytes(), (new_dir / "x.exr").read_bytes()
+    assert new != old
+    start = time.monotonic()
+    complete = subprocess.run(relight(*args, "--yaw", "90", "-o", tmp_path / "timing.png"), capture_output=True)
+    seconds = time.monotonic() - start
+    assert complete.returncode == 0
+    seen = set()
+    for fraction in (0.3, 0.6, 0.8, 0.9, 0.95, 1.0):
+        proc = subprocess.Popen(relight(*args, "--yaw", "90", "-o", out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        time.sleep(seconds * fraction)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        now = out.read_bytes(), out.with_suffix(".exr").read_bytes()
+        assert now[0] in (old[0], new[0]) and now[1] in (old[1], new[1])
+        seen.add((now[0] == new[0], now[1] == new[1]))
+        for stray in tmp_path.glob(".x.*.tmp"):  # a killed writer's temporary file is the only trace
+            stray.unlink()
+        out.write_bytes(old[0])
+        out.with_suffix(".exr").write_bytes(old[1])
+    assert (False, False) in seen  # killed before anything was replaced at least once
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".mp4")]
