@@ -493,3 +493,14 @@ def test_passes_declare_what_makes_them_stale(ctx, scene):
     assert readers["intensity"] == {"composite"} and readers["display"] == {"display"}
     assert readers["composite"] == {"display"}
     eng.release()
+
+
+def test_a_map_wider_than_the_textures_is_averaged_down_not_black():
+    from viewer.gl.scene_resources import fit_environment
+
+    rng = np.random.default_rng(3)
+    px = rng.random((64, 130, 3)).astype(np.float32)
+    small = fit_environment(px, 32)
+    assert small.shape == (64 // 5, 130 // 5, 3)  # factor 5: the smallest that fits 32 texels
+    np.testing.assert_allclose(small[1, 2], px[5:10, 10:15].mean(axis=(0, 1)), rtol=1e-5)
+    assert fit_environment(px, 130) is px

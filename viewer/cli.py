@@ -100,12 +100,16 @@ def _writable(path, folder: bool = False) -> Path:
 
 
 def _fitted_lights(env, n, method, refit=False):
-    """Lights of ``env`` from the cache, or fitted now with a progress bar."""
+    """Lights of ``env`` from the cache, or fitted now with a progress bar (a black map is reported
+    by the caller on every run, cached or not: the fitter's own warning is left out)."""
+    import warnings
+
     from .lightfit import lights_for_map
     from .progress import StageBars
 
     name = Path(env.source).name if env.source else "the map"
-    with StageBars(prefix=f"fitting {n} lights to {name}: ") as bars:
+    with StageBars(prefix=f"fitting {n} lights to {name}: ") as bars, warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*the map is black")
         lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit)
     return lights, cached
 
@@ -146,7 +150,15 @@ def _prepare(scene_path, lights_path, envmap_path, args):
         print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {envmap_path}")
     else:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
+    _warn_if_dark(lights, lights_path or envmap_path)
     return scene, lights, (env.pixels if env is not None else None)
+
+
+def _warn_if_dark(lights, source):
+    """Every run with lights that give no light says so (a black map's lights come from the cache too)."""
+    if not np.any(lights.intensity > 0):
+        print(f"relight: warning: {source}: every light has zero intensity, so the person renders black "
+              "(is the map black?)", file=sys.stderr, flush=True)
 
 
 # the look's fields and the options that set them (each default None: given or not)
@@ -314,6 +326,7 @@ def cmd_view(args) -> int:
             if lights is None:
                 lights, cached = _fitted_lights(env, _lights_count(args), args.method)
                 print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {env_path}")
+        _warn_if_dark(lights, args.lights or env_path)
     except BaseException:
         if window is not None:
             window.release()
@@ -384,8 +397,7 @@ def cmd_fit_lights(args) -> int:
     write_atomic(out, lights, {"source": Path(args.map).name, "method": args.method, "n": args.n})
     how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
     print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
-    if not np.any(lights.intensity > 0):
-        print(f"relight: warning: {args.map} is black: every light has zero intensity", file=sys.stderr)
+    _warn_if_dark(lights, args.map)
     if args.plot:
         from .lightfit.plot import plot_lights
 

@@ -211,6 +211,7 @@ def load_envmap(path, repair: bool = False) -> EnvMap:
     else:
         import cv2
 
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # failures are ours to say, in one line
         width, height = _rgbe_size(path)
         if width * height > MAX_MAP_PIXELS:
             raise InputError(path, f"claims {width}x{height} pixels, more than the {MAX_MAP_WIDTH}x{MAX_MAP_WIDTH // 2} "

@@ -35,6 +35,7 @@ VERSION = 1
 UNIT_TOLERANCE = 1e-3
 PAPER_TO_CAMERA = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
 MAX_INTENSITY = 1e20  # far above any real light (a sun is ~1e5 in these units), far below float overflow
+MAX_SIGMA = 256.0  # 256-px units: a Gaussian as wide as a whole 256-texel shadow map; beyond it nothing changes
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,10 @@ class AreaLights:
         if (self.sigma < 0).any():
             i = int(np.argmax(self.sigma < 0))
             raise InputError(where, f"light {i}: sigma must be >= 0, got {self.sigma[i]:.4g}")
+        if (self.sigma > MAX_SIGMA).any():
+            i = int(np.argmax(self.sigma > MAX_SIGMA))
+            raise InputError(where, f"light {i}: sigma {self.sigma[i]:.4g} is beyond {MAX_SIGMA:g} (a blur wider than the "
+                                    "whole shadow map: the light's size cannot grow its shadows any further)")
         if (self.intensity > MAX_INTENSITY).any():
             i = int(np.argmax((self.intensity > MAX_INTENSITY).any(axis=1)))
             raise InputError(where, f"light {i}: intensity {self.intensity[i].tolist()} is implausibly large (> {MAX_INTENSITY:g})")

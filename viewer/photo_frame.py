@@ -152,6 +152,9 @@ def read_photo(path, notes: list) -> np.ndarray:
     return np.ascontiguousarray(photo)
 
 
+MAX_GREY_FRACTION = 0.25  # of a mask's pixels between 10 % and 90 %
+
+
 def read_mask(path, photo_shape: tuple[int, int], notes: list) -> np.ndarray:
     """A person mask file as a matte (H, W) float32 in [0, 1] matching the upright photo: grey
     or RGB (first channel). A mask drawn on the photo as stored (before its EXIF rotation) is
@@ -166,6 +169,10 @@ def read_mask(path, photo_shape: tuple[int, int], notes: list) -> np.ndarray:
                                    "the mask looks drawn on the photo before its EXIF rotation; turn it upright")
         raise InputError(path, f"is {img.shape[1]}x{img.shape[0]} pixels but the photo is {w}x{h}: a mask must match its photo")
     matte = img.astype(np.float32) / 255.0
+    grey = float(((matte > 0.1) & (matte < 0.9)).mean())
+    if grey > MAX_GREY_FRACTION:  # hand-made masks have < 1 % (soft edges); a photo has ~95 %
+        raise InputError(path, f"is not a person mask: {grey:.0%} of its pixels are neither person nor background "
+                               "(a mask is black and white, soft at the edges at most; is it the photo?)")
     if not (matte > 0.5).any():
         raise InputError(path, "no person in the mask (no pixel is above 50 %)")
     return matte

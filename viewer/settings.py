@@ -31,7 +31,7 @@ MAX_INTENSITY = 1e6
 
 
 def _choice(name: str, value, choices) -> None:
-    if value not in choices:
+    if not isinstance(value, str) or value not in choices:
         raise InputError(None, f"{name} must be one of {', '.join(choices)}, got {value!r}")
 
 
@@ -64,13 +64,19 @@ class Look:
             _finite("exposure", self.exposure, -EXPOSURE_LIMIT, EXPOSURE_LIMIT, " stops (or auto)")
         _choice("tone map", self.tonemap, TONEMAPS)
         _choice("background", self.background, BACKGROUNDS)
-        color = np.asarray(self.background_color, dtype=np.float64)
+        try:
+            color = np.asarray(self.background_color, dtype=np.float64)
+        except (TypeError, ValueError):
+            color = np.zeros(0)
         if color.shape != (3,) or not np.all(np.isfinite(color)) or np.any(color < 0):
             raise InputError(None, f"background colour must be three finite values >= 0, got {self.background_color!r}")
         object.__setattr__(self, "background_color", tuple(float(c) for c in color))
         _choice("shadows", self.shadows, VISIBILITY_MODES)
+        for name in ("diffuse", "specular"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise InputError(None, f"{name} must be true or false, got {getattr(self, name)!r}")
         _choice("view", self.view, VIEWS)
-        if not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
+        if isinstance(self.light, bool) or not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
         _finite("intensity", self.intensity, 0.0, MAX_INTENSITY)
         _choice("preset", self.preset, PRESET_NAMES)

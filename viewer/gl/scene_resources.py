@@ -13,6 +13,21 @@ from .. import shadow_space as ss
 from .kit import PassKit
 
 
+MAX_ENVIRONMENT_WIDTH = 8192  # texels of the background's map: a bigger map is box-averaged down to it
+
+
+def fit_environment(pixels: np.ndarray, max_width: int) -> np.ndarray:
+    """The equirectangular map (H, W, 3) box-averaged by the smallest integer factor that brings its
+    width to ``max_width`` or below (a map wider than the GL's textures would otherwise show black)."""
+    h, w = pixels.shape[:2]
+    factor = -(-w // max_width)
+    if factor <= 1:
+        return pixels
+    h2, w2 = h // factor, w // factor
+    cropped = pixels[:h2 * factor, :w2 * factor].astype(np.float64)
+    return cropped.reshape(h2, factor, w2, factor, 3).mean(axis=(1, 3)).astype(np.float32)
+
+
 class SceneResources:
     def __init__(self, kit: PassKit, scene: Scene, shadow_step: int):
         s = scene
@@ -48,7 +63,8 @@ class SceneResources:
 
     def set_environment(self, pixels: np.ndarray):
         """Replace the equirectangular map (H, W, 3) linear RGB of the 'environment' background."""
-        pixels = np.asarray(pixels, dtype=np.float32)
+        limit = min(MAX_ENVIRONMENT_WIDTH, int(self.kit.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384)))
+        pixels = fit_environment(np.asarray(pixels, dtype=np.float32), limit)
         h, w = pixels.shape[:2]
         self.environment.release()
         data = np.dstack([pixels, np.ones((h, w), np.float32)]).astype("f4")

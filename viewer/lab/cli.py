@@ -150,6 +150,19 @@ def cmd_bench(args) -> int:
         print(photos_table(result))
         print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.jpg'}, {out_dir / 'photos_detail.jpg'} "
               f"in {result['seconds'] / 60:.1f} min")
+    elif args.what == "robustness":
+        from .bench.robustness import run_robustness_benchmark
+
+        def show(case):
+            r = case.result
+            print(f"  {'clean' if r['clean'] else 'NOT CLEAN'}: {case.group}: {case.name} (exit {r['exit']}, {r['seconds']:.1f} s)"
+                  + ("" if r["clean"] else f": {'; '.join(r['problems'])}: {r['last_line']}"), flush=True)
+
+        result = run_robustness_benchmark(output=output, progress=show)
+        for group, g in result["groups"].items():
+            print(f"{group:>16}: {g['clean']}/{g['tried']} clean")
+        print(f"{result['tried']} cases tried, {result['clean']} ended cleanly, {result['tracebacks']} tracebacks, "
+              f"in {result['seconds'] / 60:.1f} min; wrote {output}")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 
@@ -198,14 +211,15 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.set_defaults(func=cmd_train)
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos"),
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
                         "networks: the networks on a held-out dataset (--data); report: error against time of the "
                         "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check); "
                         "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
-                        "mask IoU, times; --data adds held-out pairs)")
+                        "mask IoU, times; --data adds held-out pairs); robustness: the bad-input campaign (hostile files and options "
+                        "against the real CLI: how many cases end cleanly)")
     p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")

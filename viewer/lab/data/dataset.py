@@ -63,6 +63,8 @@ class DatasetConfig:
             raise InputError(None, f"--shard must be i/n with 0 <= i < n, got {i}/{n}")
         if self.count < 1 or self.res < 32 or self.spp < 1 or self.lightings < 1 or self.pool < 1:
             raise InputError(None, "count, spp, lightings and pool must be >= 1 and res >= 32")
+        if not 0 <= self.seed < 2**31:
+            raise InputError(None, f"--seed must be in [0, 2^31), got {self.seed}")
         if self.split not in ("train", "heldout"):
             raise InputError(None, f"split must be train or heldout, got {self.split!r}")
         if self.split == "heldout" and self.held_out_dir is None:
@@ -142,7 +144,7 @@ def make_sample(cfg: DatasetConfig, index: int, pool: list[PoolMap]) -> dict:
     for k in range(cfg.lightings):
         pm = pool[int(rng.integers(len(pool)))]
         yaw = float(rng.uniform(0.0, 360.0))
-        r = render_person(person, pm.env, yaw=yaw, spp=cfg.spp, seed=seed + k)
+        r = render_person(person, pm.env, yaw=yaw, spp=cfg.spp, seed=(seed + k) % 2**32)  # Mitsuba's seed is 32-bit
         diffuse, specular = unshadowed_shading(person.scene, pm.env, yaw=yaw)
         d = out / f"lighting_{k}"
         for name, img in (("full", r["full"]), ("diffuse", diffuse), ("specular", specular),
