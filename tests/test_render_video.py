@@ -166,3 +166,14 @@ def test_passes_sheet_without_shadows(tmp_path):
     w = sheet.shape[1] // 4
     for i in range(3):  # soft shadows, hard shadows, shading: none of them black
         assert sheet[h + 20:, i * w:(i + 1) * w].mean() > 0.02
+
+
+def test_the_temporal_benchmarks_turn_renders(ctx, monkeypatch):
+    """``relight bench temporal``'s turntable (a few frames of it): it renders through the product's look."""
+    import viewer.lab.bench.temporal as temporal
+
+    monkeypatch.setattr(temporal, "FRAMES", 4)
+    scene = resample_scene(load_scene(sample_scene_dir()), 64)
+    frames, ms = temporal._turn(ctx, scene, load_lights(asset_dir() / "envmaps" / "venice_sunset_256.lights.json"),
+                                EngineOptions(shadow_resolution=128), "soft")
+    assert frames.shape == (4, 64, 64, 3) and ms > 0 and frames.std(axis=0).mean() > 1e-3  # the light turns
