@@ -262,10 +262,9 @@ def load_scene(path) -> Scene:
     mask = maps.pop("mask")
     if mask.ndim == 3:
         mask = mask[..., 0]
-    for said in ((camera.width, camera.height), (meta.get("width", camera.width), meta.get("height", camera.height))):
-        if tuple(said) != (mask.shape[1], mask.shape[0]):
-            raise InputError(meta_path, f"says the maps are {said[0]}x{said[1]} but {files['mask']} is "
-                                        f"{mask.shape[1]}x{mask.shape[0]}")
+    said = (meta.get("width", camera.width), meta.get("height", camera.height))  # (the camera's: Scene.validate)
+    if said != (mask.shape[1], mask.shape[0]):
+        raise InputError(meta_path, f"says the maps are {said[0]}x{said[1]} but {files['mask']} is {mask.shape[1]}x{mask.shape[0]}")
     extra = {}
     for name in OPTIONAL_FILES:
         f = path / files[name]

@@ -40,6 +40,7 @@ class Case:
     expect: str  # "ok", "black" (ok, with a warning line) or "error"
     output: str | None = None  # the -o target (absent or unchanged on an error)
     cache: str | None = None  # its own light cache (default: the campaign's)
+    upright: tuple | None = None  # an inferred bundle's frame must come out this size (not sideways)
     result: dict = field(default_factory=dict)
 
 
@@ -333,6 +334,17 @@ def make_cases(work: Path) -> list[Case]:
         o = str(out / f"bundle{next(counter)}")
         cases.append(Case("photo", what, ["infer", str(photo), "--mask", str(m), "--size", "64", "--max-size", "256", "-o", o],
                           "error", o))
+    upright = Image.open(photo)
+    stored = upright.transpose(Image.Transpose.ROTATE_90)  # as a phone stores it: turned, with orientation 6
+    exif = stored.getexif()
+    exif[0x0112] = 6
+    sideways = work / "files" / "exif_rotated.jpg"
+    stored.save(sideways, exif=exif.tobytes(), quality=92)
+    o = str(out / f"bundle{next(counter)}")
+    scale = 256 / max(upright.size)
+    cases.append(Case("photo", "an EXIF-rotated photo (comes out upright)", ["infer", str(sideways), "--size", "64",
+                                                                              "--max-size", "256", "-o", o], "ok", o,
+                      upright=(round(upright.size[0] * scale), round(upright.size[1] * scale))))
     o = str(out / "folder_with_files")
     Path(o).mkdir(exist_ok=True)
     (Path(o) / "keep.txt").write_text("the user's")
@@ -358,6 +370,10 @@ def _judge(case: Case, proc, seconds: float, before: dict, work: Path) -> dict:
     else:
         if proc.returncode != 0:
             problems.append(f"exit {proc.returncode}, expected 0")
+        elif case.upright is not None:
+            frame = json.loads((Path(case.output) / "scene.json").read_text())["frame"]
+            if abs(frame["width"] - case.upright[0]) > 1 or abs(frame["height"] - case.upright[1]) > 1:
+                problems.append(f"frame {frame['width']}x{frame['height']}, expected {case.upright[0]}x{case.upright[1]} upright")
         elif case.output and case.output.endswith(".png"):
             from viewer.imageio import read_png
 
