@@ -157,11 +157,12 @@ def load_lights(path) -> AreaLights:
     data = read_json(path, "light file")
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise InputError(path, f"not a light file (format should be {FORMAT!r})")
-    try:
+    try:  # (a value beyond float32 becomes Inf, which validate() names: no overflow warning)
         items = data["lights"]
-        d = np.array([it["direction"] for it in items], dtype=np.float32).reshape(-1, 3)
-        s = np.array([it["sigma"] for it in items], dtype=np.float32)
-        i = np.array([it["intensity"] for it in items], dtype=np.float32).reshape(-1, 3)
+        with np.errstate(over="ignore"):
+            d = np.array([it["direction"] for it in items], dtype=np.float32).reshape(-1, 3)
+            s = np.array([it["sigma"] for it in items], dtype=np.float32)
+            i = np.array([it["intensity"] for it in items], dtype=np.float32).reshape(-1, 3)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(path, f"malformed light entry ({exc})") from None
     if len(d) == 0:
