@@ -204,3 +204,23 @@ def test_torchrun_trains_one_model_in_two_processes(tiny_dataset, tmp_path):
     card = json.loads((tmp_path / "depth.json").read_text())
     assert card["processes"] == 2 and card["epochs_done"] == 1 and card["train_items"] == 2
     assert load_network(tmp_path / "depth.safetensors") is not None
+
+
+def test_the_chroma_loss_sees_colour_not_brightness():
+    """An albedo half as bright has no chroma loss (the L1 has); a washed-out one has."""
+    import numpy as np
+
+    from viewer.lab.bench.metrics import chroma
+    from viewer.nets.inverse import chroma_l1, masked_l1
+
+    torch.manual_seed(0)
+    target = torch.rand(2, 3, 16, 16) * torch.tensor([0.9, 0.2, 0.6]).view(1, 3, 1, 1) + 0.05
+    mask = torch.ones(2, 1, 16, 16)
+    grey = target.mean(dim=1, keepdim=True).expand_as(target)
+    washed = 0.3 * target + 0.7 * grey
+    assert chroma_l1(0.5 * target, target, mask).item() < 1e-6 < masked_l1(0.5 * target, target, mask).item()
+    assert chroma_l1(washed, target, mask).item() > 0.05
+    hwc = lambda t: t[0].permute(1, 2, 0).numpy()  # noqa: E731
+    c = chroma(hwc(washed), hwc(target), np.ones((16, 16), bool))
+    assert c["chroma_l1"] > 0.05 and c["saturation_pred"] < 0.5 * c["saturation_true"]
+    assert chroma(hwc(target) * 2, hwc(target), np.ones((16, 16), bool))["chroma_l1"] < 1e-9

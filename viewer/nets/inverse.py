@@ -38,6 +38,7 @@ from .photo import photo_input
 N_LIGHTS = 16
 PERCEPTUAL_WEIGHT = 0.1  # the paper's lambda_vgg, for the Laplacian-pyramid replacement
 SIGMA_WEIGHT = 0.01  # the paper's lambda_sigma
+CHROMA_WEIGHT = 1.0  # the albedo's chromaticity L1 (issue 18: plain L1 let clothes come out grey)
 LAPLACIAN_LEVELS = 4
 SIGMA_SHADOW_RESOLUTION = 128  # shadow maps of the sigma loss (sigma is in 256-texel units anyway)
 OUTPUTS = {"normal": 3, "material": 5}
@@ -96,6 +97,19 @@ def masked_l1(a: torch.Tensor, b: torch.Tensor, mask: torch.Tensor) -> torch.Ten
     return ((a - b).abs() * m).sum() / m.sum().clamp_min(1.0)
 
 
+def chromaticity(rgb: torch.Tensor, eps: float = 1e-3) -> torch.Tensor:
+    """(B, 3, H, W) colour with its brightness divided out: rgb / (r + g + b)."""
+    return rgb / rgb.sum(dim=1, keepdim=True).clamp_min(eps)
+
+
+def chroma_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor, eps: float = 1e-3) -> torch.Tensor:
+    """L1 between the chromaticities of two albedos over the mask (where the target is not black):
+    blind to brightness, so it asks for the hue and saturation that a plain L1, dominated by
+    brightness, lets drift to grey."""
+    m = mask * (target.sum(dim=1, keepdim=True) > eps)
+    return masked_l1(chromaticity(pred, eps), chromaticity(target, eps), m)
+
+
 def laplacian_l1(a: torch.Tensor, b: torch.Tensor, mask: torch.Tensor, levels: int = LAPLACIAN_LEVELS) -> torch.Tensor:
     """L1 between the Laplacian pyramids of the masked images (mean over levels)."""
     x, y = a * mask, b * mask
@@ -150,6 +164,7 @@ def inverse_loss(out: dict, batch: dict, scale: torch.Tensor, perceptual_weight:
     r_full_hat, r_full = r_diff_hat + s_spec, r_diff + t_spec
     terms = {
         "albedo": masked_l1(pred["albedo"], albedo, mask),
+        "albedo_chroma": chroma_l1(pred["albedo"], albedo, mask),
         "specular": masked_l1(pred["specular"], batch["specular"], mask),
         "roughness": masked_l1(pred["roughness"], batch["roughness"], mask),
         "normal": masked_l1(pred["normal"], batch["normal"], mask),
@@ -163,7 +178,8 @@ def inverse_loss(out: dict, batch: dict, scale: torch.Tensor, perceptual_weight:
     terms["sigma"] = sigma_loss(batch, scale, direction, sigma, intensity, sigma_items) if sigma_items else mask.new_zeros(())
     total = sum(terms[k] for k in ("albedo", "specular", "roughness", "normal", "diffuse_shading", "specular_shading",
                                    "diffuse_recon", "full_recon"))
-    terms["total"] = total + perceptual_weight * terms["perceptual"] + SIGMA_WEIGHT * terms["sigma"]
+    terms["total"] = (total + CHROMA_WEIGHT * terms["albedo_chroma"] + perceptual_weight * terms["perceptual"]
+                      + SIGMA_WEIGHT * terms["sigma"])
     with torch.no_grad():
         cos = (pred["normal"] * batch["normal"]).sum(dim=1, keepdim=True).clamp(-1.0, 1.0)
         m = mask > 0.5

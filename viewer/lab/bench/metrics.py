@@ -39,6 +39,21 @@ def metrics(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, data_range: f
     return out
 
 
+def chroma(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, eps: float = 1e-3) -> dict:
+    """How far an albedo's colours are from the truth's, brightness aside: the mean L1 between
+    chromaticities rgb / (r + g + b) over the mask (where the truth is not black), and the mean
+    saturation (L1 distance of the chromaticity from grey, 1/3 each) of both: a prediction that
+    washes colours out has a lower saturation than the truth."""
+    p, t = np.asarray(pred, np.float64)[mask], np.asarray(truth, np.float64)[mask]
+    keep = t.sum(-1) > eps
+    cp = p[keep] / np.maximum(p[keep].sum(-1, keepdims=True), eps)
+    ct = t[keep] / np.maximum(t[keep].sum(-1, keepdims=True), eps)
+    if not len(ct):
+        return {"chroma_l1": 0.0, "saturation_pred": 0.0, "saturation_true": 0.0}
+    return {"chroma_l1": float(np.abs(cp - ct).sum(-1).mean()), "saturation_pred": float(np.abs(cp - 1 / 3).sum(-1).mean()),
+            "saturation_true": float(np.abs(ct - 1 / 3).sum(-1).mean())}
+
+
 def _luminance(rgb: np.ndarray) -> np.ndarray:
     return np.asarray(rgb, np.float64)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
 

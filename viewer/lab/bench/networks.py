@@ -38,7 +38,7 @@ from viewer.gl.context import describe
 from viewer.imageio import atomic_path, read_exr, write_text
 from viewer.lights import load_lights
 from viewer.scene import Scene, load_scene
-from viewer.lab.bench.metrics import metrics, srgb
+from viewer.lab.bench.metrics import chroma, metrics, srgb
 
 SHADOW_MODES = {"SM": "hard", "CSM": "soft", "refined": "refined"}
 
@@ -127,6 +127,7 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
         add("seconds_networks", time.perf_counter() - t0)
         # materials and geometry
         add("albedo", metrics(pred.albedo, truth.albedo, m))
+        add("albedo_chroma", chroma(pred.albedo, truth.albedo, m))
         add("specular", metrics(pred.specular[..., None], truth.specular[..., None], m))
         add("roughness", metrics(pred.roughness[..., None], truth.roughness[..., None], m))
         add("normal", {**metrics(pred.normal, truth.normal, m, data_range=2.0),
@@ -232,6 +233,10 @@ def table(result: dict) -> str:
         for name, label in entries:
             if name in m:
                 lines.append(f"| {label} | " + " | ".join(f"{m[name][k]['mean']:.4f} +- {m[name][k]['std']:.4f}" for k in keys) + " |")
+    if "albedo_chroma" in m:
+        c = m["albedo_chroma"]
+        lines += ["", f"Albedo colour (brightness aside): chromaticity L1 {c['chroma_l1']['mean']:.4f}; saturation "
+                      f"{c['saturation_pred']['mean']:.4f} predicted against {c['saturation_true']['mean']:.4f} true"]
     d = m["depth"]
     lines += ["", f"Depth (median-aligned): RMSE {d['rmse_cm']['mean']:.2f} cm, L1 {d['l1_cm']['mean']:.2f} cm "
               f"(a flat figure: {d['flat_l1_cm']['mean']:.2f} cm); normal angle {m['normal']['degrees']['mean']:.1f} deg; "
