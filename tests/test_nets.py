@@ -183,6 +183,11 @@ def test_held_out_evaluation_harness(tiny_dataset, tiny_networks, tmp_path):
     # the true maps through the renderer beat one-epoch networks
     assert m["relit_true_maps_refined"]["rmse"]["mean"] < m["relit_refined"]["rmse"]["mean"]
     assert "Relit image" in table(result)
+    # the photo's own lights, fitted to the photo, explain its shading better than the one-epoch network's guess
+    own = m["own_lights"]
+    assert 0 <= own["fitted_rmse_rel_scaled"]["mean"] <= own["fitted_rmse_rel"]["mean"] + 1e-9
+    assert own["fitted_rmse_rel"]["mean"] < own["network_rmse_rel"]["mean"]
+    assert 0 <= m["albedo_chroma"]["chroma_l1"]["mean"] < 2 and "own lights" in table(result)
 
 
 def test_torchrun_trains_one_model_in_two_processes(tiny_dataset, tmp_path):

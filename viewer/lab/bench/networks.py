@@ -36,7 +36,7 @@ from viewer.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import atomic_path, read_exr, write_text
-from viewer.lights import load_lights
+from viewer.lights import AreaLights, load_lights
 from viewer.scene import Scene, load_scene
 from viewer.lab.bench.metrics import chroma, metrics, srgb
 
@@ -72,7 +72,7 @@ def _predict(nets, photo, mask) -> tuple[Scene, dict]:
 
     with torch.no_grad():
         photo, mask = photo[None], mask[None]
-        maps, _, _ = inverse_net.predict(nets["inverse"], photo, mask)
+        maps, (direction, sigma, intensity), _ = inverse_net.predict(nets["inverse"], photo, mask)
         h, w = mask.shape[-2:]
         cam = Camera(w, h)
         depth = depth_net.predict(nets["depth"], photo, mask, cam.distance)
@@ -85,7 +85,39 @@ def _predict(nets, photo, mask) -> tuple[Scene, dict]:
     scene = Scene(albedo=np.where(m[..., None], hwc(maps["albedo"]), 0), specular=np.where(m, hwc(maps["specular"])[..., 0], 0),
                   roughness=np.where(m, hwc(maps["roughness"])[..., 0], 0), normal=np.where(m[..., None], normal, 0),
                   depth=np.where(m, np.maximum(hwc(depth)[..., 0], 0.1), cam.distance).astype(np.float32), mask=m, camera=cam)
-    return scene.validate(), {"albedo": scene.albedo, "normal": normal}
+    lights = AreaLights(direction[0].numpy(), sigma[0].numpy(), intensity[0].numpy())
+    return scene.validate(), {"albedo": scene.albedo, "normal": normal, "lights": lights}
+
+
+def _relative_rmse(pred: np.ndarray, truth: np.ndarray, m: np.ndarray) -> dict:
+    """RMSE over the mask relative to the truth's mean, as it is and after the best single scale
+    (which separates the shading's shape from its overall brightness)."""
+    p, t = pred[m].astype(np.float64), truth[m].astype(np.float64)
+    level = max(float(np.abs(t).mean()), 1e-12)
+    k = float((p * t).sum() / max((p * p).sum(), 1e-30))
+    return {"rmse_rel": float(np.sqrt(((p - t) ** 2).mean())) / level,
+            "rmse_rel_scaled": float(np.sqrt(((k * p - t) ** 2).mean())) / level}
+
+
+def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading: np.ndarray, network_lights) -> dict:
+    """How well the input photo's own lights are known (what relighting divides out): its shadowed
+    diffuse shading rebuilt on the TRUE geometry under the lights the product fits to the photo on
+    the predicted maps (viewer.photo_lighting, as ``relight infer`` does), and under the inverse
+    network's own guess, against the ray-traced shading of the photo's lighting."""
+    from viewer.photo_lighting import fit_mask, fit_photo_lights
+
+    eng = Engine(ctx, pred, EngineOptions())
+    try:
+        valid = fit_mask(pred, photo)
+        fitted, _ = fit_photo_lights(eng, photo, valid if valid.any() else pred.mask)
+    finally:
+        eng.release()
+    out = {}
+    for name, lights in (("fitted", fitted), ("network", network_lights)):
+        img = _engine_images(ctx, truth, lights, [("soft", "diffuse_shading")], None)["soft", "diffuse_shading"]
+        for k, v in _relative_rmse(img, shading, truth.mask).items():
+            out[f"{name}_{k}"] = v
+    return out
 
 
 def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
@@ -135,6 +167,9 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
         dp, dt = pred.depth[m] - np.median(pred.depth[m]), truth.depth[m] - np.median(truth.depth[m])
         add("depth", {"rmse_cm": float(np.sqrt(np.mean((dp - dt) ** 2)) * 100), "l1_cm": float(np.abs(dp - dt).mean() * 100),
                       "flat_l1_cm": float(np.abs(dt).mean() * 100)})
+        # the photo's own lighting, as the product estimates it
+        add("own_lights", _own_lights_error(ctx, pred, truth, photo.permute(1, 2, 0).numpy(),
+                                            item["diffuse_shadowed"].permute(1, 2, 0).numpy(), raw["lights"]))
         # the target lighting
         d = sample / f"lighting_{k_tgt}"
         lights = load_lights(d / "lights.json")
@@ -233,6 +268,12 @@ def table(result: dict) -> str:
         for name, label in entries:
             if name in m:
                 lines.append(f"| {label} | " + " | ".join(f"{m[name][k]['mean']:.4f} +- {m[name][k]['std']:.4f}" for k in keys) + " |")
+    if "own_lights" in m:
+        o = m["own_lights"]
+        lines += ["", "The photo's own lights (its shadowed diffuse shading rebuilt on the true geometry; RMSE relative "
+                      "to the mean, as is / after the best single scale): fitted to the photo "
+                      f"{o['fitted_rmse_rel']['mean']:.3f} / {o['fitted_rmse_rel_scaled']['mean']:.3f}; the network's guess "
+                      f"{o['network_rmse_rel']['mean']:.3f} / {o['network_rmse_rel_scaled']['mean']:.3f}"]
     if "albedo_chroma" in m:
         c = m["albedo_chroma"]
         lines += ["", f"Albedo colour (brightness aside): chromaticity L1 {c['chroma_l1']['mean']:.4f}; saturation "
