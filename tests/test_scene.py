@@ -121,8 +121,8 @@ def test_one_pixel_mask_scene():
     (lambda m: [1, 2], "JSON object"),
     (lambda m: {**m, "maps": ["albedo.exr"]}, "maps must be"),
     (lambda m: {**m, "version": "abc"}, "version must be an integer"),
-    (lambda m: {**m, "camera": {**m["camera"], "focal_mm": 0}}, "focal_mm must be a positive"),
-    (lambda m: {**m, "camera": {**m["camera"], "focal_mm": float("nan")}}, "focal_mm must be a positive"),
+    (lambda m: {**m, "camera": {**m["camera"], "focal_mm": 0}}, "focal_mm must be a number in"),
+    (lambda m: {**m, "camera": {**m["camera"], "focal_mm": float("nan")}}, "focal_mm must be a number in"),
     (lambda m: {**m, "camera": {**m["camera"], "model": "orthographic"}}, "perspective"),
 ])
 def test_malformed_scene_json_is_named(bundle, edit, message):

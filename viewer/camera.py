@@ -41,6 +41,9 @@ class Camera:
         """Raises ValueError for anything but a perspective camera with positive finite values."""
         if d.get("model", "perspective") != "perspective":
             raise ValueError(f"camera model must be 'perspective', got {d.get('model')!r}")
+        for name in ("width", "height"):
+            if isinstance(d[name], bool) or not isinstance(d[name], (int, float)) or not 1 <= d[name] <= 65536:
+                raise ValueError(f"{name} must be a whole number of pixels in [1, 65536], got {d[name]!r}")
         cam = Camera(
             width=int(d["width"]),
             height=int(d["height"]),
@@ -48,10 +51,10 @@ class Camera:
             sensor_mm=float(d.get("sensor_mm", 36.0)),
             distance=float(d.get("distance", 4.0)),
         )
-        for name in ("focal_mm", "sensor_mm", "distance"):
+        for name, (low, high) in (("focal_mm", (0.1, 1e5)), ("sensor_mm", (0.1, 1e4)), ("distance", (1e-3, 1e5))):
             value = getattr(cam, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value}")
+            if not (np.isfinite(value) and low <= value <= high):
+                raise ValueError(f"{name} must be a number in [{low:g}, {high:g}], got {value}")
         if cam.width < 1 or cam.height < 1:
             raise ValueError(f"resolution must be positive, got {cam.width}x{cam.height}")
         return cam

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .video import partial_path as video_partial
 from .lightfit import DEFAULT_METHOD, METHODS
 from .resources import asset_dir, sample_scene_dir
 
@@ -27,13 +28,27 @@ def _engine_options(args):
     from .presets import DEFAULT_PRESET, preset
 
     given = {k: getattr(args, k) for k in ("shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
-    return replace(preset(args.preset or DEFAULT_PRESET).options, **given)
+    try:
+        return replace(preset(args.preset or DEFAULT_PRESET).options, **given)
+    except InputError as exc:  # name the option
+        option = next((f"--{k.replace('_', '-')}" for k in given if k.split("_")[-1] in exc.problem), None)
+        raise InputError(None, f"{option}: {exc.problem}" if option else exc.problem) from None
 
 
 def _lights_count(args) -> int:
     from .presets import DEFAULT_PRESET, preset
 
-    return args.lights_count if args.lights_count is not None else preset(args.preset or DEFAULT_PRESET).lights
+    if args.lights_count is None:
+        return preset(args.preset or DEFAULT_PRESET).lights
+    return _light_count_option(args.lights_count)
+
+
+def _light_count_option(n: int) -> int:
+    from .lights import MAX_LIGHTS
+
+    if not 1 <= n <= MAX_LIGHTS:
+        raise InputError(None, f"-n: the number of lights must be in [1, {MAX_LIGHTS}], got {n}")
+    return n
 
 
 def _add_engine_args(p):
@@ -97,6 +112,29 @@ def _writable(path, folder: bool = False) -> Path:
     if not os.access(where, os.W_OK | os.X_OK):
         raise InputError(path, f"cannot write here ({where} is not writable)")
     return path
+
+
+NAME_MAX = 255 - 24  # bytes of a file name, leaving room for the temporary name it is written under
+
+
+def _not_an_input(outputs, inputs):
+    """Refuse outputs that would replace an input (a map, a light file, a photo) or land inside an
+    input folder (a scene bundle): the user's files are never written over."""
+    for out in outputs:
+        out = Path(out)
+        if len(out.name.encode()) > NAME_MAX:
+            raise InputError(out, f"the file name is longer than {NAME_MAX} bytes")
+        if not out.name.isprintable():
+            raise InputError(out, "the file name holds control characters (a newline?)")
+        resolved = out.resolve()
+        for given in inputs:
+            if given is None:
+                continue
+            src = Path(given).resolve()
+            if resolved == src or (src.is_dir() and src in resolved.parents):
+                raise InputError(out, f"would write over the input {given}: give another output path")
+        if out.is_dir():
+            raise InputError(out, "is a folder: the output would replace it")
 
 
 def _fitted_lights(env, n, method, refit=False):
@@ -251,6 +289,20 @@ def cmd_demo(args) -> int:
     return 0
 
 
+MAX_FRAMES = 100_000  # an hour at 30 fps
+FPS_RANGE = (0.1, 1000.0)
+
+
+def _check_video(args):
+    """--frames, --fps and --turn within what a video can be, named when not."""
+    if args.frames is not None and not 1 <= args.frames <= MAX_FRAMES:
+        raise InputError(None, f"--frames must be in [1, {MAX_FRAMES}], got {args.frames}")
+    if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
+        raise InputError(None, f"--fps must be in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], got {args.fps}")
+    if not (np.isfinite(args.turn) and abs(args.turn) <= 36000):
+        raise InputError(None, f"--turn must be a finite number of degrees within +-36000, got {args.turn}")
+
+
 def cmd_render(args) -> int:
     look = _settings(args)
     out = Path(args.output)
@@ -258,6 +310,10 @@ def cmd_render(args) -> int:
     if suffix not in (".png", ".mp4"):
         raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
     _writable(out)
+    outputs = [out] if suffix == ".mp4" else [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
+    _not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look])
+    if suffix == ".mp4":
+        _check_video(args)
     if suffix == ".png":
         if args.frames is not None:
             raise InputError(out, "--frames makes a video: give a .mp4 output path")
@@ -366,7 +422,12 @@ def cmd_infer(args) -> int:
 
     from .inference import bundle_target
 
-    _writable(bundle_target(args.output).parent, folder=True)
+    target = bundle_target(args.output)
+    _writable(target.parent, folder=True)
+    for given in (args.photo, args.mask, args.networks):
+        if given is not None and target in Path(given).resolve().parents:
+            raise InputError(args.output, f"holds the input {given}: the bundle written there would replace it; "
+                                          "give another folder")
     t0 = time.perf_counter()
     nets = load_networks(args.device, args.networks)
     record = infer(args.photo, args.mask, args.output, size=args.size, max_size=args.max_size, device=args.device,
@@ -390,9 +451,16 @@ def cmd_fit_lights(args) -> int:
     if out.suffix.lower() != ".json":
         raise InputError(out, "the light file is JSON: give a .json output path")
     _writable(out)
+    if args.plot:
+        if Path(args.plot).suffix.lower() != ".png":
+            raise InputError(args.plot, "the plot is a PNG: give a .png path")
+        _writable(args.plot)
+        if Path(args.plot).resolve() == out.resolve():
+            raise InputError(args.plot, "is the light file's path too: give the plot its own")
+    _not_an_input([out] + ([args.plot] if args.plot else []), [args.map])
     env = load_envmap(args.map, repair=args.repair)
     start = time.perf_counter()
-    lights, cached = _fitted_lights(env, args.n, args.method, refit=args.refit)
+    lights, cached = _fitted_lights(env, _light_count_option(args.n), args.method, refit=args.refit)
     seconds = time.perf_counter() - start
     write_atomic(out, lights, {"source": Path(args.map).name, "method": args.method, "n": args.n})
     how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
@@ -518,6 +586,10 @@ def main(argv=None) -> int:
         return args.func(args)
     except InputError as exc:
         print(f"relight: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # the system refused a read or a write the checks could not foresee
+        where = exc.filename if exc.filename is not None else None
+        print(f"relight: error: {InputError(where, exc.strerror or str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         print("relight: interrupted" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ())), file=sys.stderr)

@@ -90,6 +90,9 @@ class EnvMap:
             raise InputError(self.source, f"{bad} pixel(s) are NaN or Inf (load with repair=True to replace them with 0)")
         if (px < 0).any():
             raise InputError(self.source, f"{int((px < 0).any(axis=2).sum())} pixel(s) have negative values")
+        if (px > MAX_RADIANCE).any():
+            raise InputError(self.source, f"{int((px > MAX_RADIANCE).any(axis=2).sum())} pixel(s) are above {MAX_RADIANCE:g}, "
+                                          "brighter than any sky (a sun is about 1e5 in these units)")
 
     @property
     def height(self) -> int:
@@ -167,6 +170,7 @@ def _bilinear(pixels: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return (top * (1 - fy) + bottom * fy).astype(np.float32)
 
 
+MAX_RADIANCE = 1e12  # far above a sun (~1e5), far below float32 overflow once summed over a map
 MAX_MAP_WIDTH = 16384
 MAX_MAP_PIXELS = MAX_MAP_WIDTH * MAX_MAP_WIDTH // 2  # 1.6 GB of float32 RGB
 

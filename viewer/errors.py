@@ -1,10 +1,15 @@
 """The one exception type users see: a clear message naming the file and the problem."""
 
 
+def one_line(text: str) -> str:
+    """``text`` with control characters (a newline in a file name) shown escaped: a message stays one line."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+
+
 class InputError(ValueError):
-    """Bad user input (a file or a parameter). The message names the file and what is wrong."""
+    """Bad user input (a file or a parameter). The message names the file and what is wrong, on one line."""
 
     def __init__(self, path, problem: str):
-        self.path = str(path) if path is not None else None
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}" if self.path else problem)
+        self.path = one_line(path) if path is not None else None
+        self.problem = one_line(problem)
+        super().__init__(f"{self.path}: {self.problem}" if self.path else self.problem)

@@ -41,6 +41,8 @@ def read_json(path, what: str = "JSON file"):
     import json
 
     path = Path(path)
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise InputError(path, f"is not a regular file (a device or a pipe), not a {what}")
     try:
         if path.stat().st_size > MAX_JSON_BYTES:
             raise InputError(path, f"is {path.stat().st_size >> 20} MB: too big for a {what}")

@@ -35,6 +35,7 @@ VERSION = 1
 UNIT_TOLERANCE = 1e-3
 PAPER_TO_CAMERA = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
 MAX_INTENSITY = 1e20  # far above any real light (a sun is ~1e5 in these units), far below float overflow
+MAX_LIGHTS = 256  # the engine's light atlas holds them in a few textures; the final preset uses 64
 MAX_SIGMA = 256.0  # 256-px units: a Gaussian as wide as a whole 256-texel shadow map; beyond it nothing changes
 
 
@@ -54,6 +55,8 @@ class AreaLights:
 
     def validate(self, where=None) -> "AreaLights":
         n = len(self)
+        if n > MAX_LIGHTS:
+            raise InputError(where, f"{n} lights: at most {MAX_LIGHTS} (the presets use 8 to 64)")
         if self.sigma.shape != (n,) or self.intensity.shape != (n, 3):
             raise InputError(where, f"inconsistent light counts: {n} directions, {self.sigma.shape[0]} sigmas, {self.intensity.shape[0]} intensities")
         for name in ("direction", "sigma", "intensity"):
@@ -151,6 +154,8 @@ def load_lights(path) -> AreaLights:
             arr = np.load(path, allow_pickle=False)
         except (ValueError, OSError) as exc:
             raise InputError(path, f"cannot read as a numpy array ({exc})") from None
+        if arr.dtype.kind not in "fiu":
+            raise InputError(path, f"the paper's light files hold numbers, got {arr.dtype} values")
         if arr.ndim != 2 or arr.shape[1] != 7 or len(arr) == 0:
             raise InputError(path, f"the paper's light files are N x 7 arrays, got shape {arr.shape}")
         return from_paper_array(arr).validate(path)
@@ -163,7 +168,7 @@ def load_lights(path) -> AreaLights:
             d = np.array([it["direction"] for it in items], dtype=np.float32).reshape(-1, 3)
             s = np.array([it["sigma"] for it in items], dtype=np.float32)
             i = np.array([it["intensity"] for it in items], dtype=np.float32).reshape(-1, 3)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise InputError(path, f"malformed light entry ({exc})") from None
     if len(d) == 0:
         raise InputError(path, "contains no lights")

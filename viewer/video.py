@@ -41,8 +41,8 @@ class VideoWriter:
         self.path = Path(path)
         if self.path.suffix.lower() != ".mp4":
             raise InputError(self.path, "videos are written as H.264 MP4: give a .mp4 path")
-        if not (fps > 0 and np.isfinite(fps)):
-            raise InputError(self.path, f"frame rate must be positive, got {fps}")
+        if not (np.isfinite(fps) and 0.1 <= fps <= 1000):
+            raise InputError(self.path, f"frame rate must be in [0.1, 1000] frames a second, got {fps}")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.is_dir():
             raise InputError(self.path, "is a folder: give a .mp4 file path")

@@ -21,8 +21,12 @@ def load_network(path, device="cpu") -> UNet:
         raise InputError(path, "network weights not found (a .safetensors file with its .json card)")
     try:
         cfg = read_json(card_path, "network card")["model"]
+        sizes = [cfg["in_channels"], cfg["width"], *dict(cfg["outputs"]).values(), *dict(cfg.get("vectors") or {}).values()]
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 4096 for v in sizes) \
+                or not (isinstance(cfg["levels"], int) and 1 <= cfg["levels"] <= 8) or cfg["width"] > 256:
+            raise ValueError("sizes out of range (channels and outputs 1-4096, width 1-256, levels 1-8)")
         model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"))
-    except (ValueError, KeyError, TypeError) as exc:
+    except (ValueError, KeyError, TypeError, AttributeError, RuntimeError, IndexError) as exc:
         raise InputError(card_path, f"not a network card this program reads ({type(exc).__name__}: {exc})") from None
     try:
         model.load_state_dict(load_file(str(path), device=str(device)))

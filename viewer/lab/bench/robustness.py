@@ -44,9 +44,19 @@ class Case:
     result: dict = field(default_factory=dict)
 
 
+def _exists(path) -> bool:
+    try:
+        return Path(path).exists()
+    except OSError:  # a name the system refuses (too long): nothing is there
+        return False
+
+
 def _digest(path: Path) -> str | None:
-    if not path.exists():
+    """A file's or folder's content hash; a pipe or a device is named, never read (it could block or never end)."""
+    if not _exists(path):
         return None
+    if not path.is_dir() and not path.is_file():
+        return f"special:{path.resolve()}"
     if path.is_dir():
         return "dir:" + ",".join(sorted(p.name + ":" + (_digest(p) or "") for p in path.iterdir()))
     return hashlib.sha256(path.read_bytes()).hexdigest()
@@ -137,7 +147,7 @@ def make_cases(work: Path) -> list[Case]:
     ]
     for what, path in maps:
         render("environment map", what, sample, "--env", path, "-n", "4", "--method", "median-cut")
-    from viewer.envmap import EnvMap, save_envmap
+    from viewer.envmap import EnvMap, load_envmap, save_envmap
 
     px = np.ones((32, 64, 3), np.float32)
     px[3, 5] = np.nan
@@ -236,7 +246,6 @@ def make_cases(work: Path) -> list[Case]:
     render("light file", "a link to /etc/passwd", sample, passwd)
 
     # ---------------------------------------------------------------- light cache entries
-    from viewer.envmap import load_envmap
     from viewer.lightfit.cache import cache_path
 
     for what, data in (("not UTF-8", b'{"format": "\xe9"}'), ("truncated", good[: len(good) // 3]), ("empty", b""),
@@ -307,6 +316,75 @@ def make_cases(work: Path) -> list[Case]:
         o = extra[-1] if "-o" in extra else str(out / f"fit{next(counter)}.json")
         args = ["fit-lights", str(env), "--method", "median-cut", *extra] + ([] if "-o" in extra else ["-o", o])
         cases.append(Case("option", what, args, "error", o))
+
+    # ---------------------------------------------------------------- outputs that would replace inputs (a review's cases)
+    exr_map = work / "files" / "venice.exr"
+    write_exr(exr_map, load_envmap(env).pixels)
+    render("output over input", "the EXR beside -o is the map", sample, "--env", exr_map, "-n", "4", "--method", "median-cut")
+    cases[-1].args[-1] = cases[-1].output = str(exr_map.with_suffix(".png"))
+    inside = bundle("written_into")
+    cases.append(Case("output over input", "-o inside the scene bundle", ["render", str(inside), str(lights), "--size", "96",
+                                                                          "-o", str(inside / "depth.png")], "error", str(inside / "depth.png")))
+    photo_home = bundle("photo_home")
+    shutil.copy(photo, photo_home / "my_photo.jpg")
+    shutil.copy(mask, photo_home / "my_mask.png")
+    cases.append(Case("output over input", "infer -o the folder holding the photo", ["infer", str(photo_home / "my_photo.jpg"),
+                      "--mask", str(photo_home / "my_mask.png"), "--size", "64", "--max-size", "256", "-o", str(photo_home)],
+                      "error", str(photo_home)))
+    for what, plot in (("--plot the light file's path", None), ("--plot a .txt", "plot.txt"), ("--plot in /proc", "/proc/nope/p.png")):
+        o = str(out / f"fit{next(counter)}.json")
+        cases.append(Case("output over input", f"fit-lights {what}", ["fit-lights", str(env), "-n", "4", "--method", "median-cut",
+                                                                      "-o", o, "--plot", plot and str(out / plot) if plot and "/" not in plot else (plot or o)],
+                          "error", o))
+    for what, name in (("a 300-byte name", "a" * 300 + ".png"), ("a 240-byte name", "d" * 240 + ".png"),
+                       ("a newline in the name", "x\nrelight: error: fake.png")):
+        cases.append(Case("output over input", f"-o {what}", ["render", str(sample), str(lights), "--size", "96", "-o",
+                                                               str(out / name)], "error", str(out / name)))
+    sibling = out / "sibling"
+    (sibling / "x.exr").mkdir(parents=True, exist_ok=True)
+    cases.append(Case("output over input", "-o whose EXR is a folder", ["render", str(sample), str(lights), "--size", "96", "-o",
+                                                                         str(sibling / "x.png")], "error", str(sibling / "x.png")))
+    for what, extra in (("--fps 1e-9", ["--fps", "1e-9"]), ("--fps 1e9", ["--fps", "1e9"]), ("--frames 1e12", ["--frames", "1000000000000"]),
+                        ("--turn 1e300", ["--turn", "1e300"]), ("--turn nan", ["--turn", "nan"])):
+        render("option", what, sample, lights, "--frames", "2", *extra, suffix=".mp4") if "--frames" not in extra \
+            else render("option", what, sample, lights, *extra, suffix=".mp4")
+    render("option", "--terms 0 (named)", sample, lights, "--terms", "0")
+    render("option", "-n 5000", sample, "--env", env, "-n", "5000", "--method", "median-cut")
+    import sys as _sys
+
+    _sys.set_int_max_str_digits(0)
+    huge_int = json.loads(good)
+    huge_int["lights"][0]["direction"] = [10**400, 0, 0]
+    render("light file", "an integer of 400 digits", sample, write("bigint_lights.json", json.dumps(huge_int)))
+    np.save(work / "files" / "many.npy", np.tile(np.array([[0, 0, 1, 1, 1, 1, 1]], np.float32), (2000, 1)))
+    render("light file", "2000 lights", sample, work / "files" / "many.npy")
+    np.save(work / "files" / "strings.npy", np.array([["a"] * 7]))
+    render("light file", "a .npy of strings", sample, work / "files" / "strings.npy")
+    fifo = work / "files" / "fifo.json"
+    os.mkfifo(fifo)
+    render("saved look", "a named pipe", sample, lights, "--look", fifo)
+    zero = work / "files" / "zero.json"
+    os.symlink("/dev/zero", zero)
+    render("saved look", "a link to /dev/zero", sample, lights, "--look", zero)
+    for what, edit in (("camera width Inf", lambda m: m["camera"].update(width=float("inf"))),
+                       ("focal length 1e-300", lambda m: m["camera"].update(focal_mm=1e-300)),
+                       ("sensor 1e300", lambda m: m["camera"].update(sensor_mm=1e300)),
+                       ("a 300-byte map name", lambda m: m["maps"].update(albedo="a" * 300 + ".exr"))):
+        render("scene bundle", what, bundle(what.replace(" ", "_")[:20], edit), lights)
+    bright = np.full((32, 64, 3), 3e38, np.float32)
+    write_exr(work / "files" / "bright.exr", bright)
+    render("environment map", "every pixel 3e38", sample, "--env", work / "files" / "bright.exr", "-n", "4", "--method", "median-cut")
+    from viewer.resources import network_dir
+
+    for what, change in (("width -1", {"width": -1}), ("levels 0", {"levels": 0}), ("width 100000", {"width": 100000})):
+        nets = work / "networks" / what.replace(" ", "_")
+        shutil.copytree(network_dir(), nets)
+        card = json.loads((nets / "inverse.json").read_text())
+        card["model"].update(change)
+        (nets / "inverse.json").write_text(json.dumps(card))
+        o = str(out / f"bundle{next(counter)}")
+        cases.append(Case("network card", what, ["infer", str(photo), "--mask", str(mask), "--size", "64", "--max-size", "256",
+                                                  "--networks", str(nets), "-o", o], "error", o))
 
     # ---------------------------------------------------------------- photos (inference)
     jpg = photo.read_bytes()
@@ -392,7 +470,7 @@ def _judge(case: Case, proc, seconds: float, before: dict, work: Path) -> dict:
 
 def _inputs(case: Case) -> list[str]:
     """The files and folders a case reads (watched: they must come out unchanged)."""
-    return [a for a in case.args if a != case.output and os.path.sep in a and Path(a).exists()]
+    return [a for a in case.args if a != case.output and os.path.sep in a and _exists(a)]
 
 
 def run_case(case: Case, work: Path) -> dict:
