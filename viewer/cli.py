@@ -358,8 +358,8 @@ def cmd_view(args) -> int:
     look = _settings(args, DEMO_YAW if demo else 0.0)
     if args.record_frames < 1:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
-    if not (np.isfinite(args.fps) and args.fps > 0):
-        raise InputError(None, f"--fps must be a positive number, got {args.fps}")
+    if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
+        raise InputError(None, f"--fps must be in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], got {args.fps}")
     window = None
     if photo:
         from .app.window import Window
