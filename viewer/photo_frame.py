@@ -143,6 +143,9 @@ def read_photo(path, notes: list) -> np.ndarray:
     """The photo as (H, W, 3) uint8 sRGB, upright. Grayscale becomes RGB and alpha is dropped,
     each with a note."""
     photo = read_image_u8(path, "photo", notes)
+    if min(photo.shape[:2]) < MIN_PERSON_PX:
+        raise InputError(path, f"is {photo.shape[1]}x{photo.shape[0]} pixels: a photo of a person needs at least "
+                               f"{MIN_PERSON_PX} pixels a side")
     if photo.ndim == 2:
         notes.append("the photo is grayscale: used as RGB")
         photo = np.repeat(photo[..., None], 3, axis=-1)

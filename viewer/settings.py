@@ -65,6 +65,8 @@ class Look:
         _choice("tone map", self.tonemap, TONEMAPS)
         _choice("background", self.background, BACKGROUNDS)
         try:
+            if any(isinstance(c, (bool, np.bool_)) for c in self.background_color):
+                raise TypeError("booleans are not colours")
             color = np.asarray(self.background_color, dtype=np.float64)
         except (TypeError, ValueError):
             color = np.zeros(0)

@@ -396,6 +396,8 @@ def make_cases(work: Path) -> list[Case]:
     bomb = work / "files" / "bomb.png"
     Image.new("1", (40000, 40000)).save(bomb)  # 200 KB on disk, 1.6 G pixels claimed
     photos.append(("a 40000x40000 PNG", bomb))
+    Image.open(photo).resize((2000, 1)).save(work / "files" / "sliver.png")
+    photos.append(("a 2000x1 photo", work / "files" / "sliver.png"))
     for what, path in photos:
         o = str(out / f"bundle{next(counter)}")
         cases.append(Case("photo", what, ["infer", str(path), "--mask", str(mask), "--size", "64", "--max-size", "256", "-o", o],
