@@ -17,6 +17,16 @@ from .scene_resources import SceneResources
 INSPECT_VIEWS = {"albedo": 1, "normal": 2, "depth": 3, "specular": 4, "roughness": 5, "shadow": 6}
 
 
+def set_background(prog, look: Look, background: str, camera: Camera):
+    """The background's uniforms (shaders/envmap.glsl and the background modes) for ``look``: its
+    mode, colour, the map's turn and the camera the map is seen through."""
+    prog["background_mode"] = BACKGROUNDS[background]
+    prog["background_color"] = look.background_color
+    prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
+    prog["focal_center_px"] = camera.center
+    prog["focal_px"] = camera.focal_px
+
+
 class DisplayPass:
     """Owns the work-resolution display image (uint8 sRGB + alpha)."""
 
@@ -46,11 +56,7 @@ class DisplayPass:
         prog["hdr"] = 0
         prog["background_image"] = 1
         prog["environment"] = 2
-        prog["background_mode"] = BACKGROUNDS[background]
-        prog["background_color"] = look.background_color
-        prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
-        prog["focal_center_px"] = self.camera.center
-        prog["focal_px"] = self.camera.focal_px
+        set_background(prog, look, background, self.camera)
         if not hdr_output:
             prog["exposure"] = look.exposure_stops
             prog["tonemap_op"] = TONEMAPS[look.tonemap]

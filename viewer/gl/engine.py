@@ -234,11 +234,8 @@ class Engine(EngineOutputs):
     def set_view(self, view: str = "final", light: int = 0):
         """What the display image shows (``VIEWS``): the relit frame; the diffuse or specular shading
         alone; the albedo, normal, depth, specular or roughness map; or light ``light``'s shadow
-        (its visibility under the current shadow mode, soft when no shadows are shown)."""
-        if view not in VIEWS:
-            raise ValueError(f"view must be one of {', '.join(VIEWS)}, got {view!r}")
-        if view == "shadow" and not 0 <= light < len(self._lights):
-            raise ValueError(f"no light {light}: there are {len(self._lights)}")
+        (its visibility under the current shadow mode, soft when no shadows are shown). Checked
+        where every look is: ``Look`` (the view) and ``set_look`` (the light's index)."""
         self.set_look(self.look.replace(view=view, light=int(light) if view == "shadow" else self.look.light))
 
     def _drop_refined(self):

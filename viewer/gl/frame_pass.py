@@ -30,7 +30,8 @@ import numpy as np
 
 from ..camera import Camera
 from ..scene import FrameLayer
-from ..settings import BACKGROUNDS, TONEMAPS, Look
+from ..settings import TONEMAPS, Look
+from .display_pass import set_background
 from .kit import PassKit
 
 MAX_FILL_LOD = 4  # mip levels the frame composite may reach past the mask (16 work pixels)
@@ -67,11 +68,7 @@ class FrameBackgroundPass:
             environment.use(1)
             prog["photo"] = 0
             prog["environment"] = 1
-            prog["background_mode"] = BACKGROUNDS[background]
-            prog["background_color"] = look.background_color
-            prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
-            prog["focal_center_px"] = self.camera.center
-            prog["focal_px"] = self.camera.focal_px
+            set_background(prog, look, background, self.camera)
             kit.fullscreen(prog)
 
     def release(self):
