@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.lab.data.envmaps import KINDS, random_map, sky, studio, overcast
+from viewer.lab.data.envmaps import KINDS, interior, outdoor, random_map, sky, studio, overcast
 from viewer.envmap import pixel_directions, solid_angles
 from viewer.median_cut import median_cut_lights
 
@@ -18,9 +18,10 @@ def test_same_seed_same_map_bit_for_bit():
     assert {random_map(s, 32).kind for s in range(30)} == set(KINDS)
 
 
+@pytest.mark.parametrize("kind", [sky, outdoor])
 @pytest.mark.parametrize("seed", range(6))
-def test_sun_keeps_its_energy_and_place(seed):
-    m = sky(np.random.default_rng(seed), 128)
+def test_sun_keeps_its_energy_and_place(seed, kind):
+    m = kind(np.random.default_rng(seed), 128)
     sun = m.emitters[0]
     px = m.env.pixels.astype(np.float64)
     assert np.isfinite(px).all() and (px >= 0).all()
@@ -55,3 +56,24 @@ def test_studio_and_overcast():
     zenith, horizon = oc[0].mean(axis=0), oc[31].mean(axis=0)  # row 0: at the zenith; row 31: just above the horizon
     assert zenith / horizon == pytest.approx(np.full(3, 3.0), rel=0.06)  # CIE overcast: 3x brighter at the zenith
     assert oc[32:].max() < oc[31].min()  # the ground is dimmer than the sky
+
+
+def test_outdoor_skyline_and_interior_windows():
+    for seed in range(4):
+        m = outdoor(np.random.default_rng(seed), 128)
+        px = m.env.pixels
+        assert np.isfinite(px).all() and (px >= 0).all()
+        # the surroundings hide part of the sky just above the horizon: that band is not one gradient
+        band = px[56:63].mean(axis=-1)  # rows 56-62: elevations 5-17 degrees
+        assert band.std(axis=1).max() > 0.05 * band.mean()
+        room = interior(np.random.default_rng(seed), 128)
+        assert 1 <= len(room.emitters) <= 7 and np.isfinite(room.env.pixels).all()
+        lights = median_cut_lights(room.env, 8)
+        strongest = lights.direction[np.argmax(lights.intensity.sum(1))]
+        assert max(float(strongest @ e.direction) for e in room.emitters) > np.cos(np.radians(30))
+
+
+def test_suns_sit_low_more_often_than_high():
+    elevations = [np.degrees(np.arcsin(sky(np.random.default_rng(s), 32).emitters[0].direction[1])) for s in range(200)]
+    assert 3.0 <= min(elevations) and max(elevations) <= 75.0
+    assert np.median(elevations) < 30.0 and np.mean(np.array(elevations) < 15.0) > 0.25

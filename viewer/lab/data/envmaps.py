@@ -6,7 +6,15 @@
 - ``studio``: a dark room with two to four soft rectangular emitters (key, fill, rim) of random
   direction, size, colour temperature and strength;
 - ``overcast``: the CIE overcast sky, L(theta) = L_z (1 + 2 cos theta) / 3 above the horizon, over a
-  dim ground.
+  dim ground;
+- ``outdoor``: the sky and sun of ``sky`` behind a skyline of trees or buildings, over a textured
+  ground (grass, earth, paving): the cluttered, lit surroundings real photos are taken in;
+- ``interior``: a room of four textured walls, a floor and a ceiling, lit by one to three windows
+  (bright sky-coloured patches near the horizon) and up to four ceiling lamps.
+
+Suns sit low more often than not (elevation 3-75 degrees with a bias to the horizon): low and
+backlighting suns are where photos differ most from studio light. Maps turn by a random longitude
+in the dataset, so any sun or window is also behind the person in some lightings.
 
 Every map is a function of its seed alone (``numpy.random.default_rng(seed)``), in the project's
 frame and units (docs/conventions.md). Emitters are drawn with their exact energy: each texel's
@@ -22,8 +30,9 @@ import numpy as np
 
 from viewer.envmap import EnvMap, direction_to_uv, pixel_directions, solid_angles
 from viewer.imageio import srgb_to_linear
+from viewer.lab.data.materials import fbm
 
-KINDS = ("sky", "studio", "overcast")
+KINDS = ("sky", "studio", "overcast", "outdoor", "interior")
 SUPERSAMPLE = 4
 
 
@@ -102,20 +111,105 @@ def _temperature_rgb(kelvin: float) -> np.ndarray:
     return lin / max(lin[1], 1e-6)
 
 
-def sky(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
-    h, w = width // 2, width
-    dirs = pixel_directions(h, w)
+def _clear_sky(rng: np.random.Generator, dirs: np.ndarray):
+    """A clear sky gradient over a plain ground; returns the pixels and the sky's radiance level."""
     level = 10 ** rng.uniform(-0.5, 0.5)  # sky radiance scale
     zenith = level * np.array([0.25, 0.45, 1.0]) * rng.uniform(0.8, 1.2, 3)
     horizon = level * np.array([0.8, 0.9, 1.0]) * rng.uniform(0.9, 1.1, 3)
     ground = level * rng.uniform(0.05, 0.3) * rng.uniform(0.6, 1.0, 3)
-    pixels = _sky_gradient(dirs, zenith, horizon, ground)
+    return _sky_gradient(dirs, zenith, horizon, ground), level
+
+
+def _sun(rng: np.random.Generator, level: float) -> Emitter:
+    """A sun of 0.25-8 degrees, 10 to 1e5 times the sky's irradiance, low more often than high."""
     sky_irradiance = float(np.pi * level * 0.6)
-    elevation = np.radians(rng.uniform(3.0, 75.0))
-    sun = Emitter(_direction(rng.uniform(-np.pi, np.pi), elevation), np.radians(10 ** rng.uniform(np.log10(0.25), np.log10(8.0))),
-                  sky_irradiance * 10 ** rng.uniform(1.0, 5.0) * _temperature_rgb(rng.uniform(3000, 6500)))
+    elevation = np.radians(3.0 + 72.0 * rng.uniform() ** 1.7)
+    return Emitter(_direction(rng.uniform(-np.pi, np.pi), elevation), np.radians(10 ** rng.uniform(np.log10(0.25), np.log10(8.0))),
+                   sky_irradiance * 10 ** rng.uniform(1.0, 5.0) * _temperature_rgb(rng.uniform(3000, 6500)))
+
+
+def sky(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    h, w = width // 2, width
+    pixels, level = _clear_sky(rng, pixel_directions(h, w))
+    sun = _sun(rng, level)
     _draw(pixels, sun, _subtexel_directions(h, w))
     return ProceduralMap(EnvMap(pixels, source=None), "sky", (sun,))
+
+
+def _texture(dirs: np.ndarray, rng: np.random.Generator, color: np.ndarray, scale: float, contrast: float) -> np.ndarray:
+    """A colour ``color`` mottled by noise on the sphere (features of ``scale`` radians)."""
+    n = fbm(dirs, scale, int(rng.integers(1 << 30)), octaves=4)
+    tint = 1.0 + 0.15 * fbm(dirs, 2.0 * scale, int(rng.integers(1 << 30)), octaves=2)[..., None] * rng.uniform(-1, 1, 3)
+    return np.clip(color * tint * (1.0 + contrast * n)[..., None], 0.0, None)
+
+
+# display (sRGB) colours of the surroundings; each is jittered per map
+GROUNDS = ((0.30, 0.40, 0.18), (0.55, 0.50, 0.30), (0.40, 0.30, 0.22), (0.25, 0.25, 0.26), (0.55, 0.53, 0.50), (0.75, 0.68, 0.52))
+TREES = ((0.18, 0.28, 0.12), (0.25, 0.35, 0.15), (0.32, 0.32, 0.16), (0.20, 0.24, 0.18))
+FACADES = ((0.55, 0.30, 0.22), (0.60, 0.60, 0.58), (0.75, 0.65, 0.50), (0.22, 0.26, 0.32), (0.85, 0.85, 0.82))
+FLOORS = ((0.50, 0.35, 0.20), (0.35, 0.24, 0.15), (0.55, 0.55, 0.55), (0.30, 0.30, 0.34), (0.60, 0.50, 0.40))
+
+
+def _palette(rng: np.random.Generator, colours: tuple) -> np.ndarray:
+    """Linear RGB of one of ``colours`` (sRGB), jittered."""
+    c = np.array(colours[int(rng.integers(len(colours)))]) * rng.uniform(0.85, 1.15, 3)
+    return srgb_to_linear(np.clip(c, 0.0, 1.0)).astype(np.float64)
+
+
+def _skyline(rng: np.random.Generator, azimuth: np.ndarray):
+    """Elevation (radians) of a skyline at each azimuth and its colour: rolling tree crowns or
+    blocks of buildings."""
+    if rng.uniform() < 0.5:  # trees: smooth, bumpy crowns
+        ring = np.stack([np.cos(azimuth), np.sin(azimuth), np.zeros_like(azimuth)], axis=-1)
+        crowns = np.clip(0.7 + 1.2 * fbm(ring, 0.3, int(rng.integers(1 << 30)), octaves=4), 0.0, None)
+        return np.radians(rng.uniform(10.0, 35.0)) * crowns, _palette(rng, TREES)
+    edges = np.sort(rng.uniform(-np.pi, np.pi, int(rng.integers(8, 24))))  # buildings: flat roofs
+    heights = np.radians(rng.uniform(4.0, 45.0, len(edges)))
+    return heights[np.searchsorted(edges, azimuth) % len(edges)], _palette(rng, FACADES)
+
+
+def outdoor(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    h, w = width // 2, width
+    dirs = pixel_directions(h, w)
+    pixels, level = _clear_sky(rng, dirs)
+    elevation = np.arcsin(np.clip(dirs[..., 1], -1.0, 1.0))
+    azimuth = np.arctan2(dirs[..., 0], -dirs[..., 2])
+    lit = level * rng.uniform(0.5, 2.0)  # how brightly the surroundings are lit (sky + sun)
+    ground = _texture(dirs, rng, lit * _palette(rng, GROUNDS), rng.uniform(0.03, 0.2), 0.8)
+    top, colour = _skyline(rng, azimuth)
+    facade = _texture(dirs * np.array([1.0, 3.0, 1.0]), rng, lit * colour, rng.uniform(0.05, 0.25), 0.7)
+    below = elevation < top
+    pixels = np.where((elevation < 0)[..., None], ground, np.where(below[..., None], facade, pixels)).astype(np.float32)
+    sun = _sun(rng, level)
+    _draw(pixels, sun, _subtexel_directions(h, w))
+    return ProceduralMap(EnvMap(pixels, source=None), "outdoor", (sun,))
+
+
+def interior(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    h, w = width // 2, width
+    dirs = pixel_directions(h, w)
+    level = 10 ** rng.uniform(-1.5, -0.3)
+    wall = srgb_to_linear(np.clip(rng.uniform(0.55, 0.95) * rng.uniform(0.88, 1.05, 3), 0, 1)).astype(np.float64)  # near-neutral paint
+    azimuth = np.arctan2(dirs[..., 0], -dirs[..., 2]) + rng.uniform(0, np.pi / 2)
+    shade = rng.uniform(0.5, 1.3, 4)[np.floor(azimuth / (np.pi / 2)).astype(int) % 4]  # four walls, each lit its own way
+    walls = _texture(dirs, rng, level * wall, rng.uniform(0.05, 0.3), 0.3) * shade[..., None]
+    floor = _texture(dirs, rng, level * _palette(rng, FLOORS), rng.uniform(0.02, 0.1), 0.9)
+    ceiling = np.broadcast_to(1.3 * level * wall, dirs.shape)
+    y = dirs[..., 1:2]
+    pixels = np.where(y < -0.3, floor, np.where(y > 0.6, ceiling, walls)).astype(np.float32)
+    sub = _subtexel_directions(h, w)
+    emitters = []
+    for _ in range(int(rng.integers(1, 4))):  # windows: daylight, near the horizon
+        e = Emitter(_direction(rng.uniform(-np.pi, np.pi), np.radians(rng.uniform(0.0, 25.0))), np.radians(rng.uniform(8.0, 25.0)),
+                    10 ** rng.uniform(0.3, 1.5) * _temperature_rgb(rng.uniform(5500, 9000)), square=True)
+        _draw(pixels, e, sub)
+        emitters.append(e)
+    for _ in range(int(rng.integers(0, 5))):  # ceiling lamps: small and warm
+        e = Emitter(_direction(rng.uniform(-np.pi, np.pi), np.radians(rng.uniform(35.0, 85.0))), np.radians(rng.uniform(1.0, 5.0)),
+                    10 ** rng.uniform(-0.5, 1.0) * _temperature_rgb(rng.uniform(2700, 4000)))
+        _draw(pixels, e, sub)
+        emitters.append(e)
+    return ProceduralMap(EnvMap(pixels, source=None), "interior", tuple(emitters))
 
 
 def studio(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
@@ -152,4 +246,4 @@ def random_map(seed: int, width: int = 256, kinds=KINDS) -> ProceduralMap:
     """A procedural map of a kind drawn from ``kinds``, everything decided by ``seed``."""
     rng = np.random.default_rng([seed, 0x5EED])
     kind = kinds[int(rng.integers(len(kinds)))]
-    return {"sky": sky, "studio": studio, "overcast": overcast}[kind](rng, width)
+    return {"sky": sky, "studio": studio, "overcast": overcast, "outdoor": outdoor, "interior": interior}[kind](rng, width)

@@ -214,15 +214,16 @@ def rasterize(cam: Camera, pos: np.ndarray, nrm: np.ndarray, fields: np.ndarray,
 
 # how far each region stands off the skin (metres, before scaling), and whether the body's shape
 # under it is smoothed (cloth hides navel, nipples and the like)
-STANDOFF = {"shirt": 0.012, "trousers": 0.016, "belt": 0.018, "shoe": 0.010, "sole": 0.012, "hair": 0.007}
+STANDOFF = {"shirt": 0.012, "trousers": 0.016, "belt": 0.018, "shoe": 0.010, "sole": 0.012}  # hair: the outfit's hair_volume
 CLOTH = ("shirt", "trousers", "belt", "shoe", "sole")
 
 
 def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict, rest: np.ndarray,
           outfit: Outfit = SAMPLE_OUTFIT) -> np.ndarray:
-    """Give clothes and hair some thickness: smooth the body under the cloth (Taubin smoothing,
-    which does not shrink, along the normals only) and push each region off the skin along the normal by its STANDOFF, with
-    short ramps at the hems."""
+    """Give clothes and hair some thickness: smooth the body under the cloth and long hair (Taubin
+    smoothing, which does not shrink, along the normals only) and push each region off the skin
+    along the normal by its STANDOFF (hair by the outfit's hair volume), with short ramps at the
+    hems."""
     n = len(verts)
     edges = mesh_edges(faces)
     regions = classify(fields, heads, rest, outfit)
@@ -232,6 +233,9 @@ def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict,
         cloth[regions[name]] = 1.0
     for name, d in STANDOFF.items():
         off[regions[name]] = d
+    # hair stands off by the person's hair volume; long hair falling down the back lies over the top
+    off[regions["hair"]] = outfit.hair_volume + np.where(fields[regions["hair"], 5] > 0.5, 0.0, STANDOFF["shirt"])
+    cloth[regions["hair"] & (fields[:, 5] <= 0.5)] = 1.0
     for _ in range(3):  # soften the steps at region borders a little (ramps of ~1-2 cm)
         cloth = 0.5 * cloth + 0.5 * neighbour_mean(cloth, edges, n)
         off = 0.5 * off + 0.5 * neighbour_mean(off, edges, n)
@@ -246,12 +250,38 @@ def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict,
     return v + off[:, None] * vertex_normals(v, faces)
 
 
+def fold(pos: np.ndarray, faces: np.ndarray, normals: np.ndarray, fields: np.ndarray, heads: dict, rest: np.ndarray,
+         outfit: Outfit, scale: float, seed: int):
+    """Cloth folds and hair strands as a displacement along the normals of a finely subdivided
+    mesh: garments get ridges across the limbs and the body (noise stretched along the vertical of
+    the rest pose) with some crumpling, hair gets grooves that run down it. ``scale`` turns metres
+    into the mesh's units. Returns the displaced positions and their normals: the smooth normals
+    plus the change the displacement makes to the faceted ones, so the base mesh's facets do not
+    show."""
+    from viewer.lab.data.materials import fbm, value_noise
+
+    if outfit.folds <= 0.0:
+        return pos, normals
+    regions = classify(fields, heads, rest, outfit)
+    p = fields[:, 0:3]
+    garment = np.zeros(len(pos))
+    for name in ("shirt", "trousers"):
+        garment[regions[name]] = 1.0
+    ridges = 0.7 * fbm(p * np.array([1.0, 1.0, 3.0]), 0.09, seed, octaves=3) + 0.3 * fbm(p, 0.03, seed + 5, octaves=2)
+    strands = value_noise(p * np.array([1.0, 1.0, 0.12]), 0.005, seed + 9)
+    d = outfit.folds * (garment * ridges + 0.5 * regions["hair"] * strands)
+    moved = pos + (scale * d)[:, None] * normals
+    n = normals + vertex_normals(moved, faces) - vertex_normals(pos, faces)
+    return moved, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
 # ----------------------------------------------------------------------------------------------
 # Random people
 # ----------------------------------------------------------------------------------------------
 
-POSE_STYLES = ("relaxed", "arms_out", "crossed_legs", "stride", "hands_on_hips")
-POSE_STYLE_WEIGHTS = (0.35, 0.2, 0.15, 0.15, 0.15)
+POSE_STYLES = ("relaxed", "arms_out", "crossed_legs", "stride", "hands_on_hips", "walking", "arms_raised")
+POSE_STYLE_WEIGHTS = (0.25, 0.15, 0.1, 0.1, 0.1, 0.15, 0.15)
+RAISE = (-1.9, -0.8)  # about the back axis: anny's rest pose holds the arms ~48 degrees below horizontal
 
 
 def sample_phenotype(rng: np.random.Generator) -> dict:
@@ -266,11 +296,26 @@ def sample_pose(rng: np.random.Generator) -> tuple[str, dict]:
     x = the body's left, y = its back, z = up; about x, negative swings a hanging limb forward;
     about y, positive brings the left arm towards the body and the left leg across). Arms away from
     and against the body, bent elbows, crossed legs, a stride, hands on hips: the poses that cast
-    limb-on-body shadows."""
+    limb-on-body shadows. Walking swings each arm against its leg; arms raised lifts one arm or both
+    to between horizontal and overhead."""
     u = rng.uniform
     style = POSE_STYLES[int(rng.choice(len(POSE_STYLES), p=POSE_STYLE_WEIGHTS))]
     pose = {}
+    standing = "L" if rng.uniform() < 0.5 else "R"  # the leg carrying the weight (walking: the leg behind)
+    free = "R" if standing == "L" else "L"
+    fs = 1.0 if free == "L" else -1.0
+    raised = {"L", "R"} if u() < 0.4 else {("L", "R")[int(rng.integers(2))]}
     for side, sign in (("L", 1.0), ("R", -1.0)):
+        if style == "walking":
+            # the arm on the side of the leg in front swings back, the other forward
+            swing = u(0.15, 0.45) if side == free else u(-0.5, -0.2)
+            pose[f"upperarm01.{side}"] = (swing, sign * u(0.45, 0.7), 0.0)
+            pose[f"lowerarm01.{side}"] = (u(0.1, 0.7), 0.0, sign * u(0.0, 0.4))
+            continue
+        if style == "arms_raised" and side in raised:
+            pose[f"upperarm01.{side}"] = (u(-0.4, 0.2), sign * u(*RAISE), 0.0)
+            pose[f"lowerarm01.{side}"] = (u(0.0, 1.2), 0.0, sign * u(0.0, 0.5))
+            continue
         if style == "hands_on_hips":
             # elbows out to the side, forearms turned in towards the hips (about the back axis)
             pose[f"upperarm01.{side}"] = (u(0.1, 0.3), -sign * u(0.2, 0.35), 0.0)
@@ -282,12 +327,14 @@ def sample_pose(rng: np.random.Generator) -> tuple[str, dict]:
             swing, adduct, elbow = u(-0.35, 0.3), u(0.2, 0.68), u(0.05, 1.0)
         pose[f"upperarm01.{side}"] = (swing, sign * adduct, 0.0)
         pose[f"lowerarm01.{side}"] = (elbow, 0.0, sign * u(0.0, 0.5))
-    standing = "L" if rng.uniform() < 0.5 else "R"  # the leg carrying the weight
-    free = "R" if standing == "L" else "L"
-    fs = 1.0 if free == "L" else -1.0
     if style == "crossed_legs":
         pose[f"upperleg01.{free}"] = (u(-0.3, -0.15), fs * u(0.3, 0.42), 0.0)  # forward and across the other
         pose[f"lowerleg01.{free}"] = (u(0.05, 0.3), 0.0, 0.0)
+    elif style == "walking":  # mid-step: the free leg forward, the standing leg behind on its toes
+        pose[f"upperleg01.{free}"] = (u(-0.45, -0.2), 0.0, 0.0)
+        pose[f"lowerleg01.{free}"] = (u(0.05, 0.35), 0.0, 0.0)
+        pose[f"upperleg01.{standing}"] = (u(0.1, 0.35), 0.0, 0.0)
+        pose[f"lowerleg01.{standing}"] = (u(0.2, 0.6), 0.0, 0.0)
     elif style == "stride":
         pose[f"upperleg01.{free}"] = (u(-0.5, -0.25), -fs * u(0.0, 0.1), 0.0)
         pose[f"lowerleg01.{free}"] = (u(0.1, 0.5), 0.0, 0.0)

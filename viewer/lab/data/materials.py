@@ -75,6 +75,9 @@ class Outfit:
     belt: tuple | None = (0.07, 0.04, 0.025)  # None: no belt
     sleeve: float = 0.40  # where sleeves end along the arm: 0 shoulder, 0.5 elbow, 1 wrist (> 1: long)
     leg: float = 1.0  # how far the bottom reaches from the waist to the ankle (1: full length)
+    hair_volume: float = 0.007  # how far the hair stands off the scalp (metres)
+    hair_length: float = 0.0  # how far long hair falls down the back below the neck (metres; 0: short)
+    folds: float = 0.0  # amplitude of the cloth's folds and the hair's strands (metres; 0: smooth)
 
 
 SAMPLE_OUTFIT = Outfit()  # the bundled sample's figure: striped brick-red T-shirt, jeans, dark shoes
@@ -109,6 +112,15 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Ou
     is_head = w_head > 0.5
     is_eye = w_eye > 0.5
     is_hair = is_head & ~is_eye & (z > hairline + 0.005 * value_noise(p, 0.012, 13)) & ~ear
+    if outfit.hair_length > 0.0:
+        # long hair: the back of the neck and the ears covered, and a fall down the back whose hem
+        # is a little ragged
+        neck = heads["neck01"]
+        is_hair |= is_head & ~is_eye & ((ry > -0.02) | ear) & (z > eye_z - 0.55 * (head_top - eye_z) - 0.05)
+        hem = neck[2] - outfit.hair_length + 0.03 * value_noise(p, 0.03, 17)
+        fall = (w_arm < 0.5) & (w_head <= 0.5) & (y > neck[1] + 0.01) & (z > hem) & (np.abs(x) < 0.11 + 0.02 * value_noise(p, 0.04, 19))
+        is_hair |= fall
+        is_head = is_head | fall  # the fall is not cloth
 
     is_arm = (w_arm > 0.5) & ~is_head
     sleeve_end = outfit.sleeve + 0.01 * np.sin(40.0 * np.arctan2(y, x))  # a slightly wavy hem
@@ -223,9 +235,11 @@ CLOTH_KINDS = {"cotton": (0.3, (0.7, 0.9)), "denim": (0.2, (0.8, 0.9)), "satin":
 
 
 def _color(rng: np.random.Generator) -> tuple:
-    """A garment colour: random hue, saturation up to 0.85, display value 0.12 to 0.9 (sRGB), as
-    linear RGB."""
-    r, g, b = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.85), rng.uniform(0.12, 0.9))
+    """A garment colour, as linear RGB: a third of them near-neutral (black, grey, white; saturation
+    under 0.15), the rest of any hue and saturated (0.3 to 0.95, as dyed cloth is); display value
+    0.12 to 0.9 (sRGB)."""
+    saturation = rng.uniform(0.0, 0.15) if rng.uniform() < 0.33 else rng.uniform(0.3, 0.95)
+    r, g, b = colorsys.hsv_to_rgb(rng.uniform(), saturation, rng.uniform(0.12, 0.9))
     return tuple(float(v) for v in srgb_to_linear([r, g, b]))
 
 
@@ -239,7 +253,7 @@ def _garment(rng: np.random.Generator, kinds: tuple, patterns: tuple) -> Garment
 
 
 def sample_outfit(rng: np.random.Generator) -> Outfit:
-    """Skin over the human range, hair, eyes, a top (solid, stripes, dots or blotches), a bottom
+    """Skin over the human range, hair (short or long, flat or full), eyes, a top (solid, stripes, dots or blotches), a bottom
     (trousers or shorts) or a dress (the top's fabric down to the knee), shoes, sleeves from short
     to long, a belt or not; per-region specular and roughness (skin glossy, cotton and denim matte,
     satin and leather glossy)."""
@@ -261,4 +275,7 @@ def sample_outfit(rng: np.random.Generator) -> Outfit:
         belt=(_color(rng) if rng.uniform() < 0.5 and not dress else None),
         sleeve=float(rng.choice([0.15, 0.3, 0.45, 0.8, 1.1])),
         leg=float(rng.uniform(0.4, 0.6)) if dress else float(rng.choice([0.4, 0.55, 1.0, 1.0, 1.0])),
+        hair_volume=float(rng.uniform(0.005, 0.03)),
+        hair_length=float(rng.uniform(0.08, 0.35)) if rng.uniform() < 0.35 else 0.0,
+        folds=float(rng.uniform(0.001, 0.006)),
     )

@@ -17,7 +17,7 @@ import numpy as np
 from viewer.camera import Camera
 from viewer.scene import Scene
 from viewer.lab.data.geometry import subdivide, vertex_normals
-from viewer.lab.data.humans import build_body, dress, place_in_camera, rasterize, sample_phenotype, sample_pose
+from viewer.lab.data.humans import build_body, dress, fold, place_in_camera, rasterize, sample_phenotype, sample_pose
 from viewer.lab.data.materials import Outfit, make_materials, sample_outfit
 
 TURN_RANGE = (-60.0, 60.0)  # degrees the person is turned from facing the camera
@@ -61,9 +61,10 @@ def make_person(seed: int, size: int = 256) -> Person:
     verts, faces, fields, heads, rest = build_body(phenotype, pose)
     verts = dress(verts, faces, fields, heads, rest, outfit)
     cam = Camera(size, size)
-    pos, _, _ = place_in_camera(verts, cam, cam.distance, turn, fill)
+    pos, _, scale = place_in_camera(verts, cam, cam.distance, turn, fill)
     pos, faces, at = subdivide(pos, faces, {"normal": vertex_normals(pos, faces), "fields": fields}, SUBDIVISIONS)
     normals = at["normal"] / np.maximum(np.linalg.norm(at["normal"], axis=1, keepdims=True), 1e-12)
+    pos, normals = fold(pos, faces, normals, at["fields"], heads, rest, outfit, scale, int(seed) % (1 << 30))
     n = len(pos)
     albedo_v, spec_v, rough_v, _ = make_materials(at["fields"][:, None, :], np.ones((n, 1), bool), heads, rest, outfit)
     albedo_v, spec_v, rough_v = albedo_v[:, 0], spec_v[:, 0], rough_v[:, 0]
