@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from viewer.cli import main
+from viewer.errors import InputError
 from viewer.nets import depth as dn
 from viewer.nets import inverse as inv
 from viewer.nets.photo import photo_input
@@ -90,6 +91,24 @@ def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
     # a different network size in the same folder is refused with a clear error
     assert main(args[:-4] + ["--width", "16", "--batch", "2", "--epochs", "4"]) == 2
 
+
+
+def test_the_silhouette_prior_is_trained_recorded_and_read(tiny_dataset, tmp_path):
+    data, _ = tiny_dataset
+    assert main(["train", "depth", "--data", str(data), "--out", str(tmp_path), "--res", "64", "--levels", "3",
+                 "--width", "8", "--batch", "2", "--epochs", "1", "--silhouette"]) == 0
+    card = json.loads((tmp_path / "depth.json").read_text())
+    assert card["model"]["in_channels"] == 7 and card["model"]["inputs"] == ["photo", "mask", "silhouette"]
+    net = load_network(tmp_path / "depth.safetensors")
+    photo, mask = torch.rand(1, 3, 64, 64), torch.zeros(1, 1, 64, 64)
+    mask[..., 8:56, 20:44] = 1.0
+    depth = dn.predict(net, photo, mask, 4.0)  # the prediction builds the seven channels the card names
+    assert depth.shape == (1, 1, 64, 64) and torch.isfinite(depth).all()
+    # a card whose inputs do not add up to its channels is refused in one line
+    card["model"]["inputs"] = ["photo", "mask"]
+    (tmp_path / "depth.json").write_text(json.dumps(card))
+    with pytest.raises(InputError, match="inputs"):
+        load_network(tmp_path / "depth.safetensors")
 
 
 class _RunsCode:

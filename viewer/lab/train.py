@@ -26,7 +26,7 @@ from viewer.imageio import atomic_path, write_text
 from viewer.nets import depth as depth_net
 from viewer.nets import inverse as inverse_net
 from viewer.nets import refine as refine_net
-from viewer.nets.photo import exposure_scale, photo_input
+from viewer.nets.photo import exposure_scale, in_channels, photo_input
 from viewer.nets.unet import UNet
 
 
@@ -45,6 +45,7 @@ class TrainConfig:
     device: str = "cpu"
     seed: int = 0
     perceptual_weight: float = inverse_net.PERCEPTUAL_WEIGHT  # inverse: the Laplacian-pyramid loss's weight
+    silhouette: bool = False  # inverse and depth: the mask's silhouette prior as extra input channels
     val_every: int = 10  # every tenth person is a validation person
 
     def __post_init__(self):
@@ -73,12 +74,16 @@ class Task:
     name: str
     outputs: dict
     vectors: dict = {}
+    inputs: tuple | None = ("photo", "mask")  # None: the task's own input (refinement)
     in_channels = 4
     fields: tuple | None = None
     visibility: int | None = None
 
     def __init__(self, cfg: TrainConfig):
         self.cfg = cfg
+        if self.inputs is not None and cfg.silhouette:
+            self.inputs = (*self.inputs, "silhouette")
+            self.in_channels = in_channels(self.inputs)
 
 
 class DepthTask(Task):
@@ -87,7 +92,7 @@ class DepthTask(Task):
     fields = ("image", "mask", "depth")
 
     def loss(self, model, batch) -> dict:
-        x, _ = photo_input(batch["image"], batch["mask"], background=False)
+        x, _ = photo_input(batch["image"], batch["mask"], background=False, silhouette=self.cfg.silhouette)
         pred = torch.sigmoid(model(x)["depth"])
         target = depth_net.depth_target(batch["depth"], batch["mask"])
         losses = depth_net.depth_loss(pred, target, batch["mask"])
@@ -108,7 +113,7 @@ class InverseTask(Task):
 
     def loss(self, model, batch) -> dict:
         photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
-        x, scale = photo_input(photo, batch["mask"])
+        x, scale = photo_input(photo, batch["mask"], silhouette=self.cfg.silhouette)
         losses = inverse_net.inverse_loss(model(x), batch, scale, self.cfg.perceptual_weight,
                                           sigma_items=1 if model.training else 0)
         return losses
@@ -119,6 +124,7 @@ class RefineTask(Task):
 
     name = "refine"
     outputs = refine_net.OUTPUTS
+    inputs = None
     in_channels = refine_net.IN_CHANNELS
     visibility = refine_net.SHADOW_RESOLUTION
     fields = ("image", "mask", "normal", "depth", "diffuse_shadowed")
@@ -233,7 +239,8 @@ def train(cfg: TrainConfig, progress=None) -> dict:
     loader = torch.utils.data.DataLoader(subset, batch_size=cfg.batch, shuffle=sampler is None, sampler=sampler,
                                          drop_last=len(train_idx) > cfg.batch * world,
                                          generator=torch.Generator().manual_seed(cfg.seed))
-    model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels, task.vectors).to(device)
+    model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels, task.vectors,
+                 list(task.inputs) if task.inputs and cfg.silhouette else None).to(device)  # cards name inputs beyond photo and mask
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=(0.5, 0.999))
     steps = cfg.epochs * max(len(loader), 1)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=cfg.lr_min)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import torch
 
-from .photo import photo_input
+from .photo import photo_input, reads_silhouette
 
 DEPTH_RANGE = 1.0  # metres spanned by normalized depth 0..1 (a standing person is well under 1 m deep)
 SLOPE_WEIGHT = 0.01  # the paper's lambda_slope
@@ -23,7 +23,7 @@ GAP = 0.03 / DEPTH_RANGE  # normalized depth jump treated as a gap (viewer.mesh.
 def predict(model, photo: torch.Tensor, mask: torch.Tensor, distance: float) -> torch.Tensor:
     """Metric depth (B, 1, H, W) of the person in a linear photo (B, 3, H, W) with its mask, the
     mask's median at ``distance``."""
-    x, _ = photo_input(photo * mask, mask, background=False)
+    x, _ = photo_input(photo * mask, mask, background=False, silhouette=reads_silhouette(model))
     return metric_depth(torch.sigmoid(model(x)["depth"]), mask, distance)
 
 

@@ -33,7 +33,7 @@ from torch.nn import functional as F
 from ..lightfit.fit import fibonacci_sphere
 from ..median_cut import SIGMA_MAX
 from ..twin.brdf import diffuse_shading, specular_shading
-from .photo import photo_input
+from .photo import photo_input, reads_silhouette
 
 N_LIGHTS = 16
 PERCEPTUAL_WEIGHT = 0.1  # the paper's lambda_vgg, for the Laplacian-pyramid replacement
@@ -73,7 +73,7 @@ def predict(model, photo: torch.Tensor, mask: torch.Tensor):
     """``(maps, (direction, sigma, intensity), scale)`` of a linear photo (B, 3, H, W) with its
     background and its mask (B, 1, H, W): :func:`maps`, the lights with intensities in the photo's
     own linear units (the exposure undone), and the exposure ``scale`` (B, 1, 1, 1) the network saw."""
-    x, scale = photo_input(photo, mask)
+    x, scale = photo_input(photo, mask, silhouette=reads_silhouette(model))
     out = model(x)
     direction, sigma, intensity = light_tensors(out["lights"])
     return maps(out), (direction, sigma, intensity / scale.reshape(-1, 1, 1)), scale

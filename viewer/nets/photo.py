@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import torch
 
+from .silhouette import CHANNELS as SILHOUETTE_CHANNELS
+from .silhouette import silhouette_input
+
 EXPOSED_PERCENTILE = 0.99
 EXPOSED_LEVEL = 0.9
 
@@ -33,11 +36,28 @@ def linear_to_srgb(x: torch.Tensor) -> torch.Tensor:
     return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
 
 
-def photo_input(image: torch.Tensor, mask: torch.Tensor, background: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(x, scale)``: x (B, 4, H, W) the exposed sRGB photo and the mask; ``background=False``
+INPUTS = ("photo", "mask", "silhouette")  # what a network may read, in this order
+
+
+def in_channels(inputs) -> int:
+    """Input channels of a network reading ``inputs`` (names from :data:`INPUTS`)."""
+    return sum({"photo": 3, "mask": 1, "silhouette": SILHOUETTE_CHANNELS}[name] for name in inputs)
+
+
+def reads_silhouette(model) -> bool:
+    """Whether a network was trained with the silhouette prior (its card's ``inputs``; older cards
+    have none: photo and mask only)."""
+    return "silhouette" in model.config.get("inputs", ())
+
+
+def photo_input(image: torch.Tensor, mask: torch.Tensor, background: bool = True,
+                silhouette: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(x, scale)``: x (B, 4, H, W) the exposed sRGB photo and the mask, and with ``silhouette``
+    the mask's silhouette prior (B, 7, H, W; :mod:`viewer.nets.silhouette`); ``background=False``
     blacks out everything but the person (the depth network's input)."""
     scale = exposure_scale(image, mask)
     srgb = linear_to_srgb((image * scale).clamp(0.0, 1.0))
     if not background:
         srgb = srgb * mask
-    return torch.cat([srgb, mask], dim=1), scale
+    parts = [srgb, mask] + ([silhouette_input(mask)] if silhouette else [])
+    return torch.cat(parts, dim=1), scale

@@ -67,15 +67,18 @@ class VectorHead(nn.Module):
 
 class UNet(nn.Module):
     """``outputs``: decoder name -> output channels (images); ``vectors``: head name -> features
-    (vectors from the bottleneck). Input sides must be divisible by 2^(levels-1)."""
+    (vectors from the bottleneck); ``inputs``: names of what the input channels hold (recorded in
+    the card). Input sides must be divisible by 2^(levels-1)."""
 
     def __init__(self, in_channels: int, outputs: dict[str, int], width: int = 16, levels: int = 5,
-                 vectors: dict[str, int] | None = None):
+                 vectors: dict[str, int] | None = None, inputs: list[str] | None = None):
         super().__init__()
         vectors = dict(vectors or {})
         self.config = {"in_channels": in_channels, "outputs": dict(outputs), "width": width, "levels": levels}
         if vectors:
             self.config["vectors"] = vectors
+        if inputs:  # what the input channels are (viewer.nets.photo.INPUTS); absent: photo and mask
+            self.config["inputs"] = list(inputs)
         self.encoder = Encoder(in_channels, width, levels)
         self.decoders = nn.ModuleDict({name: Decoder(self.encoder.channels, c) for name, c in outputs.items()})
         self.heads = nn.ModuleDict({name: VectorHead(self.encoder.channels[-1], n) for name, n in vectors.items()})

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..imageio import read_json
+from .photo import INPUTS, in_channels
 from .unet import UNet
 
 
@@ -25,7 +26,10 @@ def load_network(path, device="cpu") -> UNet:
         if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 4096 for v in sizes) \
                 or not (isinstance(cfg["levels"], int) and 1 <= cfg["levels"] <= 8) or cfg["width"] > 256:
             raise ValueError("sizes out of range (channels and outputs 1-4096, width 1-256, levels 1-8)")
-        model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"))
+        inputs = cfg.get("inputs")
+        if inputs is not None and (not isinstance(inputs, list) or not set(inputs) <= set(INPUTS) or in_channels(inputs) != cfg["in_channels"]):
+            raise ValueError(f"inputs {inputs!r} are not {', '.join(INPUTS)} adding up to {cfg['in_channels']} channels")
+        model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"), inputs)
     except (ValueError, KeyError, TypeError, AttributeError, RuntimeError, IndexError) as exc:
         raise InputError(card_path, f"not a network card this program reads ({type(exc).__name__}: {exc})") from None
     try:
