@@ -87,3 +87,16 @@ def test_long_hair_falls_down_the_back_and_folds_stay_on_cloth():
     assert np.allclose(np.linalg.norm(n2, axis=1), 1.0)
     bent = np.degrees(np.arccos(np.clip((n2 * n).sum(1), -1, 1)))
     assert 2.0 < np.median(bent[regions["shirt"]]) < 30.0 and np.percentile(bent[regions["skin"] & (at["fields"][:, 5] > 0.5)], 90) < 1e-3  # (only the ring next to the hair turns)
+
+
+def test_preview_draws_people_and_maps(tmp_path, capsys):
+    from viewer.cli import main
+
+    assert main(["dataset", "preview", "--out", str(tmp_path), "--count", "1"]) == 0
+    import imageio.v3 as iio
+
+    for name in ("dataset_people.png", "procedural_envmaps.png"):
+        img = iio.imread(tmp_path / name)
+        assert img.ndim == 3 and img.shape[0] > 200 and img[..., :3].std() > 20  # a picture, not a blank
+    assert "wrote" in capsys.readouterr().out
+    assert main(["dataset", "preview", "--out", str(tmp_path), "--count", "0"]) == 2

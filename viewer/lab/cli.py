@@ -51,6 +51,16 @@ def cmd_dataset(args) -> int:
     return 0
 
 
+def cmd_dataset_preview(args) -> int:
+    from .data.preview import preview
+
+    if not 1 <= args.count <= 32:
+        raise InputError(None, f"--count must be 1 to 32, got {args.count}")
+    for path in preview(Path(args.out), args.seed, args.count):
+        print(f"wrote {path}")
+    return 0
+
+
 def cmd_train(args) -> int:
     from .train import TrainConfig, train
     from viewer.progress import StageBars
@@ -194,6 +204,11 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
     q.add_argument("--maps", help="folder of held-out maps (default $RELIGHT_DATA/hdri)")
     q.set_defaults(func=cmd_dataset)
+    q = dsub.add_parser("preview", help="pictures of what the generator makes: random people and procedural maps")
+    q.add_argument("--out", required=True, help="folder for dataset_people.png and procedural_envmaps.png")
+    q.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    q.add_argument("--count", type=int, default=8, help="people (default 8)")
+    q.set_defaults(func=cmd_dataset_preview)
 
     p = commands["train"] = argparse.ArgumentParser(prog="relight train", description="train a network on a dataset made by `relight dataset make`")
     p.add_argument("network", choices=("inverse", "depth", "refine"), help="which network")

@@ -102,18 +102,21 @@ def _relative_rmse(pred: np.ndarray, truth: np.ndarray, m: np.ndarray) -> dict:
 def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading: np.ndarray, network_lights) -> dict:
     """How well the input photo's own lights are known (what relighting divides out): its shadowed
     diffuse shading rebuilt on the TRUE geometry under the lights the product fits to the photo on
-    the predicted maps (viewer.photo_lighting, as ``relight infer`` does), and under the inverse
-    network's own guess, against the ray-traced shading of the photo's lighting."""
+    the predicted maps (viewer.photo_lighting, as ``relight infer`` does), under the inverse
+    network's own guess, and under the same fit made on the true maps (the fit's own floor: what
+    is left when the networks are perfect), against the ray-traced shading of the photo's lighting."""
     from viewer.photo_lighting import fit_mask, fit_photo_lights
 
-    eng = Engine(ctx, pred, EngineOptions())
-    try:
-        valid = fit_mask(pred, photo)
-        fitted, _ = fit_photo_lights(eng, photo, valid if valid.any() else pred.mask)
-    finally:
-        eng.release()
+    def fit(scene):
+        eng = Engine(ctx, scene, EngineOptions())
+        try:
+            valid = fit_mask(scene, photo)
+            return fit_photo_lights(eng, photo, valid if valid.any() else scene.mask)[0]
+        finally:
+            eng.release()
+
     out = {}
-    for name, lights in (("fitted", fitted), ("network", network_lights)):
+    for name, lights in (("fitted", fit(pred)), ("network", network_lights), ("fitted_true_maps", fit(truth))):
         img = _engine_images(ctx, truth, lights, [("soft", "diffuse_shading")], None)["soft", "diffuse_shading"]
         for k, v in _relative_rmse(img, shading, truth.mask).items():
             out[f"{name}_{k}"] = v
@@ -273,7 +276,8 @@ def table(result: dict) -> str:
         lines += ["", "The photo's own lights (its shadowed diffuse shading rebuilt on the true geometry; RMSE relative "
                       "to the mean, as is / after the best single scale): fitted to the photo "
                       f"{o['fitted_rmse_rel']['mean']:.3f} / {o['fitted_rmse_rel_scaled']['mean']:.3f}; the network's guess "
-                      f"{o['network_rmse_rel']['mean']:.3f} / {o['network_rmse_rel_scaled']['mean']:.3f}"]
+                      f"{o['network_rmse_rel']['mean']:.3f} / {o['network_rmse_rel_scaled']['mean']:.3f}; fitted on the true maps "
+                      f"(the fit's floor) {o['fitted_true_maps_rmse_rel']['mean']:.3f} / {o['fitted_true_maps_rmse_rel_scaled']['mean']:.3f}"]
     if "albedo_chroma" in m:
         c = m["albedo_chroma"]
         lines += ["", f"Albedo colour (brightness aside): chromaticity L1 {c['chroma_l1']['mean']:.4f}; saturation "
