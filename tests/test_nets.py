@@ -206,6 +206,8 @@ def test_held_out_evaluation_harness(tiny_dataset, tiny_networks, tmp_path):
     own = m["own_lights"]
     assert 0 <= own["fitted_rmse_rel_scaled"]["mean"] <= own["fitted_rmse_rel"]["mean"] + 1e-9
     assert own["fitted_rmse_rel"]["mean"] < own["network_rmse_rel"]["mean"]
+    # and the same fit on the true maps (its floor) does better still
+    assert own["fitted_true_maps_rmse_rel"]["mean"] < own["fitted_rmse_rel"]["mean"]
     assert 0 <= m["albedo_chroma"]["chroma_l1"]["mean"] < 2 and "own lights" in table(result)
 
 
