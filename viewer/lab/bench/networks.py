@@ -64,29 +64,38 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
 
 
 def _predict(nets, photo, mask) -> tuple[Scene, dict]:
-    """The predicted scene of a linear photo (3, H, W) with its background and its mask (1, H, W)."""
+    """The predicted scene of a linear photo (3, H, W) with its background and its mask (1, H, W),
+    as ``relight infer`` makes it: the networks run at their own resolution (``NETWORK_RES``; the
+    photo area-averaged down to it), and their maps, extended past the mask, are resampled
+    (bilinear) back to the photo's."""
     import torch
+    from torch.nn import functional as F
 
+    from viewer.inference import NETWORK_RES, extend
     from viewer.nets import depth as depth_net
     from viewer.nets import inverse as inverse_net
 
+    h, w = mask.shape[-2:]
+    cam = Camera(w, h)
     with torch.no_grad():
         photo, mask = photo[None], mask[None]
-        maps, (direction, sigma, intensity), _ = inverse_net.predict(nets["inverse"], photo, mask)
-        h, w = mask.shape[-2:]
-        cam = Camera(w, h)
-        depth = depth_net.predict(nets["depth"], photo, mask, cam.distance)
+        small, small_mask = photo, mask
+        if (h, w) != (NETWORK_RES, NETWORK_RES):
+            small = F.interpolate(photo, size=(NETWORK_RES, NETWORK_RES), mode="area")
+            small_mask = (F.interpolate(mask, size=(NETWORK_RES, NETWORK_RES), mode="area") > 0.5).to(mask.dtype)
+        maps, (direction, sigma, intensity), _ = inverse_net.predict(nets["inverse"], small, small_mask)
+        depth = depth_net.predict(nets["depth"], small, small_mask, cam.distance)
+        stack = torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
+        if (h, w) != (NETWORK_RES, NETWORK_RES):
+            stack = F.interpolate(extend(stack, small_mask), size=(h, w), mode="bilinear", align_corners=False)
     m = mask[0, 0].numpy() > 0.5
-
-    def hwc(t):
-        return t[0].permute(1, 2, 0).numpy().astype(np.float32)
-
-    normal = hwc(maps["normal"])
-    scene = Scene(albedo=np.where(m[..., None], hwc(maps["albedo"]), 0), specular=np.where(m, hwc(maps["specular"])[..., 0], 0),
-                  roughness=np.where(m, hwc(maps["roughness"])[..., 0], 0), normal=np.where(m[..., None], normal, 0),
-                  depth=np.where(m, np.maximum(hwc(depth)[..., 0], 0.1), cam.distance).astype(np.float32), mask=m, camera=cam)
+    work = stack[0].permute(1, 2, 0).numpy().astype(np.float32)
+    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
+    scene = Scene(albedo=np.where(m[..., None], np.clip(work[..., :3], 0, 1), 0), specular=np.where(m, np.clip(work[..., 3], 0, 1), 0),
+                  roughness=np.where(m, np.clip(work[..., 4], 0, 1), 0), normal=np.where(m[..., None], normal, 0),
+                  depth=np.where(m, np.maximum(work[..., 8], 0.1), cam.distance).astype(np.float32), mask=m, camera=cam)
     lights = AreaLights(direction[0].numpy(), sigma[0].numpy(), intensity[0].numpy())
-    return scene.validate(), {"albedo": scene.albedo, "normal": normal, "lights": lights}
+    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights}
 
 
 def _relative_rmse(pred: np.ndarray, truth: np.ndarray, m: np.ndarray) -> dict:
@@ -126,7 +135,7 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
 def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
                            limit: int | None = None, progress=None) -> dict:
     from viewer.lab.data.loader import RelightDataset
-    from viewer.inference import load_networks
+    from viewer.inference import NETWORK_RES, load_networks
     from viewer.resources import network_dir
     from viewer.nets.photo import exposure_scale
     from viewer.refinement import Refiner
@@ -206,7 +215,7 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
     summary = {name: _summarize(values) for name, values in rows.items()}
     result = {"machine": describe(ctx), "data": [str(d) for d in (data if isinstance(data, (list, tuple)) else [data])],
               "networks": str(networks_dir), "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
-              "resolution": int(ds[0]["image"].shape[-1]), "seconds": round(time.perf_counter() - start, 1), "metrics": summary}
+              "resolution": int(ds[0]["image"].shape[-1]), "network_resolution": NETWORK_RES, "seconds": round(time.perf_counter() - start, 1), "metrics": summary}
     if output:
         write_text(output, json.dumps(result, indent=1) + "\n")
     figure = figure or (Path(output).with_name("networks_heldout.png") if output else None)
