@@ -17,7 +17,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 NETWORKS = ("inverse", "depth", "refine")
-LIMIT_MB = 40.0
+LIMIT_MB = 45.0  # issue 18's budget for all weights
 WHAT = {
     "inverse": "photo with its background + mask -> normal; albedo, specular, roughness; 16 area lights",
     "depth": "person + mask -> depth (sigmoid, 1 m around the median)",
@@ -41,7 +41,9 @@ def main() -> int:
     if total > LIMIT_MB:
         raise SystemExit(f"the weights take {total:.1f} MB, over the {LIMIT_MB:.0f} MB budget")
     bench = json.loads(Path(args.bench).read_text()) if Path(args.bench).is_file() else None
-    (ROOT / "docs" / "model-card.md").write_text(model_card(cards, total, bench))
+    from viewer.imageio import write_text
+
+    write_text(ROOT / "docs" / "model-card.md", model_card(cards, total, bench))  # atomically
     print(f"shipped {', '.join(NETWORKS)} ({total:.1f} MB) to {dest}; wrote docs/model-card.md")
     return 0
 
@@ -55,7 +57,8 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
     for net, c in cards.items():
         size = (ROOT / "assets" / "networks" / f"{net}.safetensors").stat().st_size / 1e6
         last = c["history"][-1]
-        lines.append(f"| {net} | {WHAT[net]} | {c['parameters'] / 1e6:.2f} M (width {c['model']['width']}, "
+        what = WHAT[net] + (" (+ the mask's silhouette prior)" if "silhouette" in c["model"].get("inputs", ()) else "")
+        lines.append(f"| {net} | {what} | {c['parameters'] / 1e6:.2f} M (width {c['model']['width']}, "
                      f"{c['model']['levels']} levels) | {size:.1f} MB | {c['resolution']}^2 | {c.get('epochs_done', c['epochs'])} | "
                      f"{c['batch']} | "
                      f"{c['seconds'] / 60:.0f} min | {c['device']}, {c['torch_threads']} thread(s) x {c.get('processes', 1)} process(es) | "
@@ -66,8 +69,8 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
               f"- Training: {c['train_items']} (person, lighting) pairs; validation: {c['val_items']} pairs of other people",
               f"  (every tenth person). Folders: {', '.join(c['data'] if isinstance(c['data'], list) else [c['data']])}.",
               "- Synthetic people (anny bodies, procedural clothes, hair and skin) ray traced by Mitsuba 3 under",
-              "  procedural skies, studios and overcast maps (docs/dataset.md). No real photo and no held-out map was",
-              "  seen in training.",
+              "  procedural maps: skies, outdoor skylines, interiors, studios and overcast (docs/dataset.md). No real",
+              "  photo and no held-out map was seen in training.",
               "- Learning rate: cosine-annealed Adam (betas 0.5, 0.999) from "
               f"{c['lr'][0]:g} to {c['lr'][1]:g}; mirror and exposure augmentation."]
     for net in ("depth", "inverse"):
@@ -83,7 +86,8 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
 
         lines += ["", "## Held-out evaluation", "", table(bench)]
     lines += ["", "## Limits",
-              "- Trained on a few hundred synthetic images on a 2-core CPU: far less data and training than the paper",
+              f"- Trained on {cards['inverse']['train_items']} synthetic images, on {cards['inverse']['device']}: far less data and "
+              "training than the paper",
               "  (which trains at 1024^2 on a GPU). Expect soft, smoothed maps on real photos.",
               "- The camera is assumed (50 mm on a 36 mm sensor, person at 4 m, as in the paper); depth is relative.",
               "- No hair strands, loose clothes or accessories beyond the synthetic outfits; skin has no subsurface",
