@@ -108,7 +108,38 @@ def test_the_silhouette_prior_is_trained_recorded_and_read(tiny_dataset, tmp_pat
     card["model"]["inputs"] = ["photo", "mask"]
     (tmp_path / "depth.json").write_text(json.dumps(card))
     with pytest.raises(InputError, match="inputs"):
-        load_network(tmp_path / "depth.safetensors")
+        load_network(out / "depth.safetensors")
+
+
+def test_the_body_prior_experiment_trains_and_the_product_refuses_its_weights(tiny_dataset, tmp_path):
+    """The lab's body-prior experiment (lab/data/body_prior.py): the prior is made once per sample,
+    lines up with the person, trains, and weights that read it are refused by the product (which
+    has no body fit) in one line."""
+    import numpy as np
+
+    from viewer.lab.data.loader import RelightDataset, body_channels
+    from viewer.scene import load_scene
+
+    import shutil
+
+    data = tmp_path / "data"  # a copy: the priors are written into the samples
+    shutil.copytree(tiny_dataset[0], data)
+    sample = sorted((data / "samples").iterdir())[0]
+    body = body_channels(sample, 64)
+    assert (sample / "body_prior.npz").is_file() and np.array_equal(body, body_channels(sample, 64))  # made once, read back
+    person = load_scene(sample).mask
+    prior = body[..., 4] > 0.5
+    assert (person & prior).sum() / (person | prior).sum() > 0.4  # the same person, give or take the pose noise
+    assert np.allclose(np.linalg.norm(body[..., :3][prior], axis=-1), 1.0, atol=2e-3)
+    mirrored = RelightDataset(data, augment=True, seed=3, fields=("image", "mask", "body"))
+    assert all(torch.isfinite(mirrored[i]["body"]).all() for i in range(2))
+    out = tmp_path / "net"
+    assert main(["train", "depth", "--data", str(data), "--out", str(out), "--res", "64", "--levels", "3",
+                 "--width", "8", "--batch", "2", "--epochs", "1", "--body-prior"]) == 0
+    card = json.loads((out / "depth.json").read_text())
+    assert card["model"]["in_channels"] == 9 and card["model"]["inputs"] == ["photo", "mask", "body"]
+    with pytest.raises(InputError, match="inputs"):
+        load_network(out / "depth.safetensors")
 
 
 class _RunsCode:

@@ -22,12 +22,15 @@ import torch
 from torch.nn import functional as F
 
 from viewer.errors import InputError
+from viewer.lab.data.loader import FIELDS
 from viewer.imageio import atomic_path, write_text
 from viewer.nets import depth as depth_net
 from viewer.nets import inverse as inverse_net
 from viewer.nets import refine as refine_net
 from viewer.nets.photo import exposure_scale, in_channels, photo_input
 from viewer.nets.unet import UNet
+
+BODY_CHANNELS = 5  # the body prior's normal, depth and mask (viewer.lab.data.loader.body_channels)
 
 
 @dataclass
@@ -46,6 +49,7 @@ class TrainConfig:
     seed: int = 0
     perceptual_weight: float = inverse_net.PERCEPTUAL_WEIGHT  # inverse: the Laplacian-pyramid loss's weight
     silhouette: bool = False  # inverse and depth: the mask's silhouette prior as extra input channels
+    body_prior: bool = False  # inverse and depth: the dataset's body prior (lab/data/body_prior.py) as input channels
     val_every: int = 10  # every tenth person is a validation person
 
     def __post_init__(self):
@@ -84,6 +88,15 @@ class Task:
         if self.inputs is not None and cfg.silhouette:
             self.inputs = (*self.inputs, "silhouette")
             self.in_channels = in_channels(self.inputs)
+        if self.inputs is not None and cfg.body_prior:
+            # an experiment of the lab (what a fitted body would give): the product has no body
+            # fit, so it refuses weights that read one (viewer.nets.weights)
+            self.inputs = (*self.inputs, "body")
+            self.in_channels += BODY_CHANNELS
+            self.fields = (*(self.fields or FIELDS), "body")
+
+    def network_input(self, x: torch.Tensor, batch: dict) -> torch.Tensor:
+        return torch.cat([x, batch["body"]], dim=1) if self.cfg.body_prior else x
 
 
 class DepthTask(Task):
@@ -93,7 +106,7 @@ class DepthTask(Task):
 
     def loss(self, model, batch) -> dict:
         x, _ = photo_input(batch["image"], batch["mask"], background=False, silhouette=self.cfg.silhouette)
-        pred = torch.sigmoid(model(x)["depth"])
+        pred = torch.sigmoid(model(self.network_input(x, batch))["depth"])
         target = depth_net.depth_target(batch["depth"], batch["mask"])
         losses = depth_net.depth_loss(pred, target, batch["mask"])
         losses["metres"] = losses["l1"].detach() * depth_net.DEPTH_RANGE  # median-aligned L1, metres
@@ -114,7 +127,7 @@ class InverseTask(Task):
     def loss(self, model, batch) -> dict:
         photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
         x, scale = photo_input(photo, batch["mask"], silhouette=self.cfg.silhouette)
-        losses = inverse_net.inverse_loss(model(x), batch, scale, self.cfg.perceptual_weight,
+        losses = inverse_net.inverse_loss(model(self.network_input(x, batch)), batch, scale, self.cfg.perceptual_weight,
                                           sigma_items=1 if model.training else 0)
         return losses
 
@@ -240,7 +253,7 @@ def train(cfg: TrainConfig, progress=None) -> dict:
                                          drop_last=len(train_idx) > cfg.batch * world,
                                          generator=torch.Generator().manual_seed(cfg.seed))
     model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels, task.vectors,
-                 list(task.inputs) if task.inputs and cfg.silhouette else None).to(device)  # cards name inputs beyond photo and mask
+                 list(task.inputs) if task.inputs and (cfg.silhouette or cfg.body_prior) else None).to(device)  # cards name inputs beyond photo and mask
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=(0.5, 0.999))
     steps = cfg.epochs * max(len(loader), 1)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=cfg.lr_min)

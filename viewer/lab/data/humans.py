@@ -110,16 +110,19 @@ def build_body(phenotype: dict, pose: dict):
     return verts, faces, fields, heads, rest
 
 
-def place_in_camera(verts: np.ndarray, cam: Camera, distance: float, turn_deg: float, fill: float):
-    """Anny axes (x left, -y front, z up) -> camera space (x right, y up, z to the camera) with the
-    body facing the camera, turned ``turn_deg`` about the vertical, its bounding-box centre at depth
-    ``distance`` and scaled so that its projection spans ``fill`` of the image height, centred."""
+def placement(verts: np.ndarray, cam: Camera, distance: float, turn_deg: float, fill: float):
+    """The similarity that puts a body in the camera: (rotation r, scale s, centre c, translation t),
+    camera-space points ``s * (verts @ r.T - c) + t``. Anny axes (x left, -y front, z up) -> camera space (x right,
+    y up, z to the camera) with the body facing the camera, turned ``turn_deg`` about the vertical,
+    its bounding-box centre at depth ``distance`` and scaled so that its projection spans ``fill``
+    of the image height, centred."""
     to_cam = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # front (-y) -> +z
     a = np.radians(turn_deg)
     rot_y = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
     r = rot_y @ to_cam
     b = verts @ r.T
-    b = b - 0.5 * (b.min(axis=0) + b.max(axis=0))
+    centre = 0.5 * (b.min(axis=0) + b.max(axis=0))
+    b = b - centre
     f = cam.focal_px
     cx, cy = cam.center
     s = fill * cam.height * distance / (f * (b[:, 1].max() - b[:, 1].min()))
@@ -131,7 +134,13 @@ def place_in_camera(verts: np.ndarray, cam: Camera, distance: float, turn_deg: f
         s *= fill * cam.height / (v.max() - v.min())
         t[0] -= (0.5 * (u.min() + u.max()) - cx) * distance / f
         t[1] += (0.5 * (v.min() + v.max()) - cy) * distance / f
-    return s * b + t, r, s
+    return r, s, centre, t
+
+
+def place_in_camera(verts: np.ndarray, cam: Camera, distance: float, turn_deg: float, fill: float):
+    """``verts`` placed by :func:`placement`; returns (camera-space vertices, rotation, scale)."""
+    r, s, centre, t = placement(verts, cam, distance, turn_deg, fill)
+    return s * (verts @ r.T - centre) + t, r, s
 
 
 VERTEX_SHADER = """

@@ -5,7 +5,8 @@ Each item is one (person, lighting) pair, a dict of float32 tensors, images chan
 map seen through the camera behind them (:meth:`viewer.envmap.EnvMap.seen_through`; the photo is
 ``image + (1 - mask) * background``), ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
 ``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
-``diffuse_shadowed`` (3, H, W) and ``lights`` (N, 7): direction, sigma, RGB intensity (``fields``
+``diffuse_shadowed`` (3, H, W), ``body`` (5, H, W: a body prior, :func:`body_channels`, made on
+first use) and ``lights`` (N, 7): direction, sigma, RGB intensity (``fields``
 picks which images are read: a network that needs three of them reads three); with
 ``visibility=R``, also ``hard`` and ``soft`` (N, H, W): the GL engine's shadow-map and
 convolutional-shadow-map visibility of the true depth under those lights (R-texel shadow maps,
@@ -79,6 +80,7 @@ class RelightDataset(Dataset):
             "roughness": lambda: scene.roughness[..., None], "depth": lambda: scene.depth[..., None],
             "diffuse": lambda: read_exr(d / "diffuse.exr"), "specular_shading": lambda: read_exr(d / "specular.exr"),
             "diffuse_shadowed": lambda: read_exr(d / "diffuse_shadowed.exr"),
+            "body": lambda: body_channels(sample, scene.height),
         }
         item = {key: read[key]() for key in self.fields}
         if self.visibility:
@@ -93,6 +95,8 @@ class RelightDataset(Dataset):
                 item = {key: np.ascontiguousarray(v[:, ::-1]) for key, v in item.items()}
                 if "normal" in item:
                     item["normal"] = item["normal"] * np.array([-1.0, 1.0, 1.0], np.float32)
+                if "body" in item:  # its first channel is a normal's x
+                    item["body"] = item["body"] * np.array([-1.0, 1.0, 1.0, 1.0, 1.0], np.float32)
                 lights[:, 0] = -lights[:, 0]
             scale = np.float32(np.exp(self.rng.uniform(*np.log(EXPOSURE_RANGE))))
             for key in ("image", "background", "diffuse", "specular_shading", "diffuse_shadowed"):
@@ -102,6 +106,19 @@ class RelightDataset(Dataset):
         out = {key: torch.from_numpy(np.ascontiguousarray(np.moveaxis(np.asarray(v, np.float32), -1, 0))) for key, v in item.items()}
         out["lights"] = torch.from_numpy(lights.astype(np.float32))
         return out
+
+
+def body_channels(sample: Path, size: int) -> np.ndarray:
+    """(H, W, 5): the sample's body prior (:mod:`viewer.lab.data.body_prior`) as network input:
+    its normal, its depth about its median in ``DEPTH_RANGE`` units, and its mask (0 outside)."""
+    from viewer.lab.data.body_prior import cached_body_prior
+    from viewer.nets.depth import DEPTH_RANGE
+
+    seed = json.loads((Path(sample) / "sample.json").read_text())["seed"]
+    prior = cached_body_prior(sample, seed, size)
+    m = prior["mask"].astype(bool)
+    depth = np.where(m, (prior["depth"].astype(np.float32) - (np.median(prior["depth"][m]) if m.any() else 0.0)) / DEPTH_RANGE, 0.0)
+    return np.concatenate([prior["normal"].astype(np.float32), depth[..., None], m[..., None]], axis=-1).astype(np.float32)
 
 
 def cached_visibility(ctx, lighting_dir: Path, scene, lights, resolution: int = SHADOW_RESOLUTION) -> tuple[np.ndarray, np.ndarray]:

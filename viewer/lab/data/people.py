@@ -49,15 +49,20 @@ class Person:
                 "turn_degrees": self.turn, "outfit": asdict(self.outfit)}
 
 
-def make_person(seed: int, size: int = 256) -> Person:
-    """The person of ``seed`` in a ``size`` x ``size`` image; the same seed gives the same person
-    bit for bit."""
+def person_draws(seed: int) -> tuple[dict, str, dict, Outfit, float, float]:
+    """Everything random about the person of ``seed``: (phenotype, pose style, pose, outfit, turn
+    in degrees, fill of the image height)."""
     rng = np.random.default_rng([int(seed), 0xB0D1])
     phenotype = sample_phenotype(rng)
     style, pose = sample_pose(rng)
     outfit = sample_outfit(rng)
-    turn = float(rng.uniform(*TURN_RANGE))
-    fill = float(rng.uniform(*FILL_RANGE))
+    return phenotype, style, pose, outfit, float(rng.uniform(*TURN_RANGE)), float(rng.uniform(*FILL_RANGE))
+
+
+def make_person(seed: int, size: int = 256) -> Person:
+    """The person of ``seed`` in a ``size`` x ``size`` image; the same seed gives the same person
+    bit for bit."""
+    phenotype, style, pose, outfit, turn, fill = person_draws(seed)
     verts, faces, fields, heads, rest = build_body(phenotype, pose)
     verts = dress(verts, faces, fields, heads, rest, outfit)
     cam = Camera(size, size)
