@@ -108,7 +108,7 @@ def test_the_silhouette_prior_is_trained_recorded_and_read(tiny_dataset, tmp_pat
     card["model"]["inputs"] = ["photo", "mask"]
     (tmp_path / "depth.json").write_text(json.dumps(card))
     with pytest.raises(InputError, match="inputs"):
-        load_network(out / "depth.safetensors")
+        load_network(tmp_path / "depth.safetensors")
 
 
 def test_the_body_prior_experiment_trains_and_the_product_refuses_its_weights(tiny_dataset, tmp_path):
