@@ -281,3 +281,24 @@ def test_the_chroma_loss_sees_colour_not_brightness():
     c = chroma(hwc(washed), hwc(target), np.ones((16, 16), bool))
     assert c["chroma_l1"] > 0.05 and c["saturation_pred"] < 0.5 * c["saturation_true"]
     assert chroma(hwc(target) * 2, hwc(target), np.ones((16, 16), bool))["chroma_l1"] < 1e-9
+
+
+def test_a_network_reading_the_silhouette_corrects_the_prior_normal():
+    """With the silhouette prior the normal decoder adds a correction to the inflation's normal:
+    a decoder that outputs zero gives the prior itself, exact at the outline."""
+    from viewer.nets.photo import photo_input
+    from viewer.nets.silhouette import silhouette_maps
+
+    net = UNet(7, inv.OUTPUTS, width=8, levels=3, vectors=inv.vectors(), inputs=["photo", "mask", "silhouette"])
+    with torch.no_grad():
+        head = net.decoders["normal"].head
+        head.weight.zero_()
+        head.bias.zero_()
+    mask = torch.zeros(1, 1, 64, 64)
+    mask[..., 10:54, 20:44] = 1.0
+    maps, _, _ = inv.predict(net, torch.rand(1, 3, 64, 64), mask)
+    prior = torch.from_numpy(silhouette_maps(mask[0, 0].numpy() > 0.5)).permute(2, 0, 1)
+    inside = mask[0, 0] > 0.5
+    assert torch.allclose(maps["normal"][0, :2][:, inside], prior[:2][:, inside], atol=1e-5)
+    x, _ = photo_input(torch.rand(1, 3, 64, 64), mask, silhouette=True)
+    assert torch.allclose(inv.prior_normal(x).norm(dim=1), torch.ones(1, 64, 64), atol=1e-5)

@@ -128,7 +128,8 @@ class InverseTask(Task):
         photo = batch["image"] + (1.0 - batch["mask"]) * batch["background"]
         x, scale = photo_input(photo, batch["mask"], silhouette=self.cfg.silhouette)
         losses = inverse_net.inverse_loss(model(self.network_input(x, batch)), batch, scale, self.cfg.perceptual_weight,
-                                          sigma_items=1 if model.training else 0)
+                                          sigma_items=1 if model.training else 0,
+                                          base_normal=inverse_net.prior_normal(x) if self.cfg.silhouette else None)
         return losses
 
 

@@ -60,10 +60,12 @@ def light_tensors(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.
     return direction, sigma, intensity
 
 
-def maps(out: dict) -> dict[str, torch.Tensor]:
+def maps(out: dict, base_normal: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """The network's image outputs as maps: normal (B, 3, H, W) unit, albedo (B, 3, H, W),
-    specular and roughness (B, 1, H, W) in [0, 1]."""
-    n = out["normal"]
+    specular and roughness (B, 1, H, W) in [0, 1]. With ``base_normal`` (a network reading the
+    silhouette prior) the normal decoder's output is a correction added to the prior's normal, so
+    the network starts from it instead of learning to copy it."""
+    n = out["normal"] if base_normal is None else out["normal"] + base_normal
     m = torch.sigmoid(out["material"])
     return {"normal": n / n.norm(dim=1, keepdim=True).clamp_min(1e-6), "albedo": m[:, :3], "specular": m[:, 3:4],
             "roughness": m[:, 4:5]}
@@ -76,7 +78,15 @@ def predict(model, photo: torch.Tensor, mask: torch.Tensor):
     x, scale = photo_input(photo, mask, silhouette=reads_silhouette(model))
     out = model(x)
     direction, sigma, intensity = light_tensors(out["lights"])
-    return maps(out), (direction, sigma, intensity / scale.reshape(-1, 1, 1)), scale
+    base = prior_normal(x) if reads_silhouette(model) else None
+    return maps(out, base), (direction, sigma, intensity / scale.reshape(-1, 1, 1)), scale
+
+
+def prior_normal(x: torch.Tensor) -> torch.Tensor:
+    """(B, 3, H, W): the silhouette prior's inflation normal from a network input that holds it
+    (channels 4 and 5 after the photo and mask: :func:`viewer.nets.photo.photo_input`)."""
+    xy = x[:, 4:6]
+    return torch.cat([xy, (1.0 - (xy * xy).sum(dim=1, keepdim=True)).clamp_min(0.0).sqrt()], dim=1)
 
 
 def shading(normal, specular, roughness, direction, intensity) -> tuple[torch.Tensor, torch.Tensor]:
@@ -151,11 +161,12 @@ def sigma_loss(batch: dict, scale: torch.Tensor, direction, sigma, intensity, it
 
 
 def inverse_loss(out: dict, batch: dict, scale: torch.Tensor, perceptual_weight: float = PERCEPTUAL_WEIGHT,
-                 sigma_items: int = 1) -> dict[str, torch.Tensor]:
+                 sigma_items: int = 1, base_normal: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """Every Stage-1 loss term and their weighted total (see the module docstring). ``scale``: the
-    exposure of each input photo (:func:`viewer.nets.photo.photo_input`)."""
+    exposure of each input photo (:func:`viewer.nets.photo.photo_input`); ``base_normal``: the
+    silhouette prior's normal, when the network reads it (:func:`maps`)."""
     mask = batch["mask"]
-    pred = maps(out)
+    pred = maps(out, base_normal)
     direction, sigma, intensity = light_tensors(out["lights"])
     s_diff, s_spec = shading(pred["normal"], pred["specular"], pred["roughness"], direction, intensity)
     t_diff, t_spec = scale * batch["diffuse"], scale * batch["specular_shading"]
