@@ -135,6 +135,24 @@ def cmd_bench(args) -> int:
                                             output=output, limit=args.limit,
                                             progress=bars)
         print(table(result))
+    elif args.what == "bodyfit":
+        from .bench.body_fit import run_body_fit_benchmark
+        from viewer.progress import StageBars
+
+        if not args.data:
+            raise InputError(None, "bench bodyfit needs --data: a dataset made by relight dataset make")
+        with StageBars(prefix="fitting: ") as bars:
+            result = run_body_fit_benchmark(args.data[0], limit=args.limit or 12, output=output, progress=bars)
+        s = result["summary"]
+        d = s["depth_l1_cm"]
+
+        def num(v, unit=""):
+            return "-" if v is None else f"{v:.2f}{unit}"
+
+        print(f"{s['landmarks_found']}/{s['people']} people found by MediaPipe; depth L1 (median-aligned): fitted body "
+              f"{num(d['fitted'], ' cm')}, the experiment's prior {num(d['experiment_prior'], ' cm')}, a flat figure "
+              f"{num(d['flat'], ' cm')}; mask IoU {num(s['iou']['fitted'])} (prior {num(s['iou']['experiment_prior'])}); "
+              f"reprojection {num(s['reprojection_px'], ' px')}; {num(s['seconds_per_fit'], ' s')} per fit; wrote {output}")
     elif args.what == "report":
         from .bench.report import run_report
 
@@ -231,7 +249,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.set_defaults(func=cmd_train)
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness"),
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness",
+                                    "bodyfit"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -239,7 +258,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check); "
                         "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
                         "mask IoU, times; --data adds held-out pairs); robustness: the bad-input campaign (hostile files and options "
-                        "against the real CLI: how many cases end cleanly)")
+                        "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
+                        "a dataset's photos, as a depth prior (--data, --limit people)")
     p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
@@ -249,9 +269,10 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
     p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default $RELIGHT_DATA/hdri)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
-    p.add_argument("--data", nargs="+", help="networks, report, photos: held-out dataset directory (networks: or several)")
+    p.add_argument("--data", nargs="+", help="networks, report, photos, bodyfit: dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
-    p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs")
+    p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs; "
+                   "bodyfit: people (default 12)")
     p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "
                    "photos: the folder (default out/report/, with --quick out/report-quick/; out/bench-photos/). "
                    "The committed figures are refreshed only when asked: -o docs/bench_<what>.json, or -o docs")
