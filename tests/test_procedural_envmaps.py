@@ -77,3 +77,11 @@ def test_suns_sit_low_more_often_than_high():
     elevations = [np.degrees(np.arcsin(sky(np.random.default_rng(s), 32).emitters[0].direction[1])) for s in range(200)]
     assert 3.0 <= min(elevations) and max(elevations) <= 75.0
     assert np.median(elevations) < 30.0 and np.mean(np.array(elevations) < 15.0) > 0.25
+
+
+def test_the_outdoor_sun_is_never_behind_the_skyline():
+    for seed in range(60):  # before the rule, 22 of 60 suns were drawn on a facade or a tree
+        m = outdoor(np.random.default_rng(seed), 64)
+        d = m.emitters[0].direction
+        azimuth = np.arctan2(d[0], -d[2])
+        assert np.arcsin(d[1]) - m.emitters[0].radius >= m.skyline(np.array([azimuth]))[0]

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,14 +34,25 @@ def main() -> int:
     args = parser.parse_args()
     run, dest = Path(args.run), ROOT / "assets" / "networks"
     dest.mkdir(parents=True, exist_ok=True)
-    cards = {}
-    for net in NETWORKS:
-        for suffix in (".safetensors", ".json"):
-            shutil.copyfile(run / f"{net}{suffix}", dest / f"{net}{suffix}")
-        cards[net] = json.loads((dest / f"{net}.json").read_text())
-    total = sum((dest / f"{n}.safetensors").stat().st_size for n in NETWORKS) / 1e6
+    total = sum((run / f"{n}.safetensors").stat().st_size for n in NETWORKS) / 1e6
     if total > LIMIT_MB:
         raise SystemExit(f"the weights take {total:.1f} MB, over the {LIMIT_MB:.0f} MB budget")
+    from viewer.errors import InputError
+    from viewer.nets.weights import load_network
+
+    with tempfile.TemporaryDirectory(dir=dest) as staging:  # nothing replaced until all of them load
+        staging = Path(staging)
+        for net in NETWORKS:
+            for suffix in (".safetensors", ".json"):
+                shutil.copyfile(run / f"{net}{suffix}", staging / f"{net}{suffix}")
+            try:
+                load_network(staging / f"{net}.safetensors")  # what the product will read
+            except InputError as exc:
+                raise SystemExit(f"not shipped: {exc}") from None
+        for net in NETWORKS:
+            for suffix in (".safetensors", ".json"):
+                os.replace(staging / f"{net}{suffix}", dest / f"{net}{suffix}")
+    cards = {net: json.loads((dest / f"{net}.json").read_text()) for net in NETWORKS}
     bench = json.loads(Path(args.bench).read_text()) if Path(args.bench).is_file() else None
     from viewer.imageio import write_text
 
@@ -69,8 +82,7 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
               f"- Training: {c['train_items']} (person, lighting) pairs; validation: {c['val_items']} pairs of other people",
               f"  (every tenth person). Folders: {', '.join(c['data'] if isinstance(c['data'], list) else [c['data']])}.",
               "- Synthetic people (anny bodies, procedural clothes, hair and skin) ray traced by Mitsuba 3 under",
-              "  procedural maps: skies, outdoor skylines, interiors, studios and overcast (docs/dataset.md). No real",
-              "  photo and no held-out map was seen in training.",
+              "  procedural maps (docs/dataset.md). No real photo and no held-out map was seen in training.",
               "- Learning rate: cosine-annealed Adam (betas 0.5, 0.999) from "
               f"{c['lr'][0]:g} to {c['lr'][1]:g}; mirror and exposure augmentation."]
     for net in ("depth", "inverse"):

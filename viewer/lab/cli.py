@@ -139,8 +139,10 @@ def cmd_bench(args) -> int:
         from .bench.body_fit import run_body_fit_benchmark
         from viewer.progress import StageBars
 
-        if not args.data:
-            raise InputError(None, "bench bodyfit needs --data: a dataset made by relight dataset make")
+        if not args.data or len(args.data) > 1:
+            raise InputError(None, "bench bodyfit needs --data and one dataset made by relight dataset make")
+        if args.limit is not None and args.limit < 1:
+            raise InputError(None, f"--limit must be at least 1, got {args.limit}")
         with StageBars(prefix="fitting: ") as bars:
             result = run_body_fit_benchmark(args.data[0], limit=args.limit or 12, output=output, progress=bars)
         s = result["summary"]

@@ -55,6 +55,8 @@ class TrainConfig:
     def __post_init__(self):
         if self.task not in TASKS:
             raise InputError(None, f"unknown network {self.task!r}; one of {', '.join(TASKS)}")
+        if self.task == "refine" and (self.silhouette or self.body_prior):
+            raise InputError(None, "--silhouette and --body-prior are for the inverse and depth networks, not refine")
         if self.epochs < 1 or self.batch < 1 or not self.lr > 0 or self.res % 2 ** (self.levels - 1):
             raise InputError(None, f"epochs and batch must be >= 1, lr > 0, and --res a multiple of {2 ** (self.levels - 1)}")
 
@@ -63,7 +65,7 @@ def _resize(batch: dict, res: int) -> dict:
     out = {}
     for key, value in batch.items():
         if value.ndim == 4 and value.shape[-1] != res:
-            mode = "nearest" if key in ("mask", "depth", "normal", "hard") else "area"
+            mode = "nearest" if key in ("mask", "depth", "normal", "hard", "body") else "area"
             out[key] = F.interpolate(value, size=(res, res), mode=mode)
         else:
             out[key] = value

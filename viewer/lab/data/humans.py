@@ -262,7 +262,7 @@ def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict,
 def fold(pos: np.ndarray, faces: np.ndarray, normals: np.ndarray, fields: np.ndarray, heads: dict, rest: np.ndarray,
          outfit: Outfit, scale: float, seed: int):
     """Cloth folds and hair strands as a displacement along the normals of a finely subdivided
-    mesh: garments get ridges across the limbs and the body (noise stretched along the vertical of
+    mesh: garments get ridges across the limbs and the body (noise compressed along the vertical of
     the rest pose) with some crumpling, hair gets grooves that run down it. ``scale`` turns metres
     into the mesh's units. Returns the displaced positions and their normals: the smooth normals
     plus the change the displacement makes to the faceted ones, so the base mesh's facets do not

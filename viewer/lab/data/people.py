@@ -40,13 +40,15 @@ class Person:
     pose_style: str
     pose: dict
     turn: float
+    fill: float
 
     def meta(self) -> dict:
         """What the person was made from (JSON-ready)."""
         from dataclasses import asdict
 
         return {"seed": self.seed, "phenotype": self.phenotype, "pose_style": self.pose_style, "pose": self.pose,
-                "turn_degrees": self.turn, "outfit": asdict(self.outfit)}
+                "turn_degrees": self.turn, "fill": self.fill,
+                "outfit": asdict(self.outfit)}
 
 
 def person_draws(seed: int) -> tuple[dict, str, dict, Outfit, float, float]:
@@ -82,4 +84,4 @@ def make_person(seed: int, size: int = 256) -> Person:
                   normal=normal, depth=depth.astype(np.float32), mask=mask, camera=cam).validate()
     return Person(int(seed), scene, pos.astype(np.float32), faces.astype(np.int32), normals.astype(np.float32),
                   albedo_v.astype(np.float32), spec_v.astype(np.float32), rough_v.astype(np.float32), outfit,
-                  phenotype, style, pose, turn)
+                  phenotype, style, pose, turn, fill)
