@@ -13,7 +13,7 @@ from viewer.resources import asset_dir
 
 @pytest.fixture(scope="module")
 def truth():
-    person = make_person(3, 96)
+    person = make_person(2, 96)  # solid clothes: enough pixels of uniform material for the identities below
     env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
     r = render_person(person, env, yaw=180.0, spp=1024)
     d, s = unshadowed_shading(person.scene, env, yaw=180.0)
@@ -34,7 +34,7 @@ def test_components_add_up(truth):
     m = person.scene.mask & (r["coverage"] > 0.999) & _uniform_material(a)
     assert m.sum() > 300
     recon = a * r["diffuse_shadowed"] + r["specular_shadowed"]
-    assert np.abs(recon - r["full"])[m].sum() / r["full"][m].sum() < 0.005  # measured 0.09 %
+    assert np.abs(recon - r["full"])[m].sum() / r["full"][m].sum() < 0.005  # measured 0.13 %
     # where the diffuse lobe is not shadowed the render is albedo x diffuse + specular (the
     # unshadowed terms), per pixel to a few % in the median; the tail is specular light whose
     # mirror direction another body part blocks (measured: the unshadowed specular is up to 25 %
