@@ -17,10 +17,10 @@ for f in $(ls "$DATA"/samples/*/sample.json | head -n "${N:-150}"); do ln -s "$(
 echo "subset: $(ls "$SUB/samples" | wc -l) people"
 # the body priors first (anny), so that no run pays for making them
 "$HERE/.venv/bin/python" -c "
-import json, pathlib, sys
+import pathlib, sys
 from viewer.lab.data.body_prior import cached_body_prior
 for s in sorted(pathlib.Path(sys.argv[1], 'samples').iterdir()):
-    cached_body_prior(s, json.loads((s / 'sample.json').read_text())['seed'], 256)
+    cached_body_prior(s, 256)
 " "$SUB" > "$OUT/ab_body_priors.log" 2>&1
 echo "body priors made"
 COMMON="--data $SUB --res 128 --width 8 --levels 5 --batch 4 --epochs ${E:-5} --seed 0"

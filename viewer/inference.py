@@ -104,6 +104,27 @@ def to_work_frame(stack, f: Framing, work_size: tuple[int, int], work_scale: flo
     return out[0].permute(1, 2, 0).cpu().numpy()
 
 
+def map_stack(maps: dict, depth):
+    """(B, 9, H, W): the networks' maps (:func:`viewer.nets.inverse.maps`) and metric depth, in
+    the channel order :func:`scene_maps` reads."""
+    import torch
+
+    return torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
+
+
+def scene_maps(work: np.ndarray, mask: np.ndarray, distance: float) -> dict:
+    """A scene's albedo, specular, roughness, normal and depth from a resampled :func:`map_stack`
+    (H, W, 9): clipped to their ranges, normals made unit, zero outside ``mask`` (depth: the
+    camera's ``distance``, and at least 0.1 m inside)."""
+    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
+    inside = mask[..., None]
+    return {"albedo": np.where(inside, np.clip(work[..., :3], 0, 1), 0).astype(np.float32),
+            "specular": np.where(mask, np.clip(work[..., 3], 0, 1), 0).astype(np.float32),
+            "roughness": np.where(mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
+            "normal": np.where(inside, normal, 0).astype(np.float32),
+            "depth": np.where(mask, np.maximum(work[..., 8], 0.1), distance).astype(np.float32)}
+
+
 def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """Area resize of ``image`` weighted by ``weight`` (what lies outside the person does not
     darken its edge)."""
@@ -238,22 +259,13 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         stage("inverse rendering")
         depth = depth_net.predict(nets["depth"], linear, m, cam.distance)
         stage("depth")
-        stack = torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
-        work = to_work_frame(extend(stack, m).cpu().double(), f, sizes.work, s).astype(np.float32)
-    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
-    inside = work_mask[..., None]
-    network_albedo = np.where(inside, np.clip(work[..., :3], 0, 1), 0).astype(np.float32)
+        work = to_work_frame(extend(map_stack(maps, depth), m).cpu().double(), f, sizes.work, s).astype(np.float32)
     frame_linear = srgb_to_linear(frame_photo.astype(np.float32) / 255.0)
     # upsampled from the maps extended past the mask, not from the zeroed ones: zeros mixed in at
     # the outline would darken the matte's edge (frame pixels whose work pixel is outside the mask)
     frame_network_albedo = np.where(alpha[..., None] > 0, np.clip(resize(np.clip(work[..., :3], 0, 1), sizes.frame), 0, 1),
                                     0).astype(np.float32)
-    scene = Scene(albedo=network_albedo,
-                  specular=np.where(work_mask, np.clip(work[..., 3], 0, 1), 0).astype(np.float32),
-                  roughness=np.where(work_mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
-                  normal=np.where(inside, normal, 0).astype(np.float32),
-                  depth=np.where(work_mask, np.maximum(work[..., 8], 0.1), cam.distance).astype(np.float32),
-                  mask=work_mask, camera=cam,
+    scene = Scene(**scene_maps(work, work_mask, cam.distance), mask=work_mask, camera=cam,
                   frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear))
     scene.validate()
     stage("maps to the work frame")

@@ -75,11 +75,11 @@ def predict(model, photo: torch.Tensor, mask: torch.Tensor):
     """``(maps, (direction, sigma, intensity), scale)`` of a linear photo (B, 3, H, W) with its
     background and its mask (B, 1, H, W): :func:`maps`, the lights with intensities in the photo's
     own linear units (the exposure undone), and the exposure ``scale`` (B, 1, 1, 1) the network saw."""
-    x, scale = photo_input(photo, mask, silhouette=reads_silhouette(model))
+    silhouette = reads_silhouette(model)
+    x, scale = photo_input(photo, mask, silhouette=silhouette)
     out = model(x)
     direction, sigma, intensity = light_tensors(out["lights"])
-    base = prior_normal(x) if reads_silhouette(model) else None
-    return maps(out, base), (direction, sigma, intensity / scale.reshape(-1, 1, 1)), scale
+    return maps(out, prior_normal(x) if silhouette else None), (direction, sigma, intensity / scale.reshape(-1, 1, 1)), scale
 
 
 def prior_normal(x: torch.Tensor) -> torch.Tensor:

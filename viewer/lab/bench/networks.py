@@ -72,7 +72,7 @@ def _predict(nets, photo, mask) -> tuple[Scene, dict]:
     import torch
     from torch.nn import functional as F
 
-    from viewer.inference import NETWORK_RES, extend
+    from viewer.inference import NETWORK_RES, extend, map_stack, scene_maps
     from viewer.nets import depth as depth_net
     from viewer.nets import inverse as inverse_net
 
@@ -86,15 +86,11 @@ def _predict(nets, photo, mask) -> tuple[Scene, dict]:
             small_mask = (F.interpolate(mask, size=(NETWORK_RES, NETWORK_RES), mode="area") > 0.5).to(mask.dtype)
         maps, (direction, sigma, intensity), _ = inverse_net.predict(nets["inverse"], small, small_mask)
         depth = depth_net.predict(nets["depth"], small, small_mask, cam.distance)
-        stack = torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
+        stack = map_stack(maps, depth)
         if (h, w) != (NETWORK_RES, NETWORK_RES):
             stack = F.interpolate(extend(stack, small_mask), size=(h, w), mode="bilinear", align_corners=False)
     m = mask[0, 0].numpy() > 0.5
-    work = stack[0].permute(1, 2, 0).numpy().astype(np.float32)
-    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
-    scene = Scene(albedo=np.where(m[..., None], np.clip(work[..., :3], 0, 1), 0), specular=np.where(m, np.clip(work[..., 3], 0, 1), 0),
-                  roughness=np.where(m, np.clip(work[..., 4], 0, 1), 0), normal=np.where(m[..., None], normal, 0),
-                  depth=np.where(m, np.maximum(work[..., 8], 0.1), cam.distance).astype(np.float32), mask=m, camera=cam)
+    scene = Scene(**scene_maps(stack[0].permute(1, 2, 0).numpy().astype(np.float32), m, cam.distance), mask=m, camera=cam)
     lights = AreaLights(direction[0].numpy(), sigma[0].numpy(), intensity[0].numpy())
     return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights}
 

@@ -62,7 +62,7 @@ def fit_body(image: np.ndarray, visibility: np.ndarray, world: np.ndarray, cam: 
     import torch
 
     from viewer.lab.data.body_prior import AVERAGE
-    from viewer.lab.data.humans import body_model
+    from viewer.lab.data.humans import ANNY_TO_CAMERA, body_model, triangles
 
     model = body_model()
     labels = list(model.bone_labels)
@@ -74,7 +74,7 @@ def fit_body(image: np.ndarray, visibility: np.ndarray, world: np.ndarray, cam: 
     weight = torch.tensor(np.clip(visibility[mp], 0.0, 1.0), dtype=dtype)
     hips = [mp.index(23), mp.index(24)]
     posed = torch.tensor([labels.index(b) for b in POSED])
-    to_cam = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]], dtype=dtype)  # anny -> camera, facing it
+    to_cam = torch.tensor(ANNY_TO_CAMERA, dtype=dtype)
     f = float(cam.focal_px)
     cx, cy = (float(c) for c in cam.center)
     # start: the hips' centre where the landmarks put it, at the camera's distance, at anny's own scale
@@ -96,13 +96,13 @@ def fit_body(image: np.ndarray, visibility: np.ndarray, world: np.ndarray, cam: 
         # distance trade off in a photo, and a free distance lets the depth's range drift
         return out, rg, torch.exp(log_scale), torch.cat([shift, depth])
 
+    def project(points):  # camera space -> pixels (rows down)
+        return torch.stack([cx + f * points[:, 0] / -points[:, 2], cy - f * points[:, 1] / -points[:, 2]], 1)
+
     def loss_of(state):
         out, rg, scale, trans = forward(state)
         joints = out["bone_poses"][0, idx, :3, 3] @ rg.T
-        cam_joints = scale * joints + trans
-        u = cx + f * cam_joints[:, 0] / -cam_joints[:, 2]
-        v = cy - f * cam_joints[:, 1] / -cam_joints[:, 2]
-        reproj = (((torch.stack([u, v], 1) - target_2d) / cam.height) ** 2).sum(1)
+        reproj = (((project(scale * joints + trans) - target_2d) / cam.height) ** 2).sum(1)
         rel = joints - joints[hips].mean(0)
         world_err = ((rel - (target_3d - target_3d[hips].mean(0))) ** 2).sum(1)
         return (weight * (reproj + WORLD_WEIGHT * world_err)).sum() / weight.sum().clamp_min(1e-6) + REST_WEIGHT * (state[0] ** 2).sum()
@@ -120,12 +120,6 @@ def fit_body(image: np.ndarray, visibility: np.ndarray, world: np.ndarray, cam: 
     with torch.no_grad():
         out, rg, scale, trans = forward(state)
         verts = scale * (out["vertices"][0] @ rg.T) + trans
-        joints = scale * (out["bone_poses"][0, idx, :3, 3] @ rg.T) + trans
-        u = cx + f * joints[:, 0] / -joints[:, 2]
-        v = cy - f * joints[:, 1] / -joints[:, 2]
-        px = torch.sqrt(((torch.stack([u, v], 1) - target_2d) ** 2).sum(1))
-    faces = model.faces.numpy().astype(np.int64)
-    if faces.shape[1] != 3:
-        faces = model.get_triangular_faces().numpy().astype(np.int64)
-    return {"vertices": verts.numpy().astype(np.float64), "faces": faces,
+        px = (project(scale * (out["bone_poses"][0, idx, :3, 3] @ rg.T) + trans) - target_2d).norm(dim=1)
+    return {"vertices": verts.numpy().astype(np.float64), "faces": triangles(model),
             "reprojection_px": float((px * weight).sum() / weight.sum().clamp_min(1e-6))}

@@ -5,7 +5,7 @@ At inference a prior would come from anny posed to MediaPipe's landmarks: the ri
 landmarks' error, an average body shape, no clothes or hair. Here it is made the same way from
 what the dataset knows: the person's own pose with every joint's rotation perturbed
 (``POSE_NOISE`` radians per axis, about the error of single-image 3D pose estimates), an average
-body (anny's phenotype at 0.5), unclothed, placed by the dressed person's own placement, and
+body (:data:`AVERAGE`: anny's phenotype at 0.5, an adult's age), unclothed, placed by the dressed person's own placement, and
 rasterized into the sample's camera: depth, normal and mask (``body_prior.npz`` per sample).
 
 This is an upper bound on what a fitted body can give (its placement is exact); if the networks
@@ -54,9 +54,9 @@ def body_prior(seed: int, size: int, rng: np.random.Generator, meta: dict | None
     return {"depth": depth.astype(np.float32), "normal": normal, "mask": mask}
 
 
-def cached_body_prior(sample: Path, seed: int, size: int) -> dict:
-    """The prior of one dataset sample, made once and kept as ``body_prior.npz`` in it (made again
-    when the kept one has another size)."""
+def cached_body_prior(sample: Path, size: int) -> dict:
+    """The prior of one dataset sample (its person's seed from ``sample.json``), made once and kept
+    as ``body_prior.npz`` in it (made again when the kept one has another size)."""
     import json
 
     from viewer.imageio import atomic_path
@@ -67,10 +67,11 @@ def cached_body_prior(sample: Path, seed: int, size: int) -> dict:
             kept = {k: z[k] for k in ("depth", "normal", "mask")}
         if kept["depth"].shape == (size, size):
             return kept
+    seed = json.loads((Path(sample) / "sample.json").read_text())["seed"]
     meta = json.loads((Path(sample) / "meta.json").read_text())
     prior = body_prior(seed, size, np.random.default_rng([int(seed), 0xB0D7]), meta)
     with atomic_path(path) as tmp:  # a temporary name of this process's own: ranks may make it at once
         with open(tmp, "wb") as f:
             np.savez_compressed(f, depth=prior["depth"].astype(np.float16), normal=prior["normal"].astype(np.float16),
                                 mask=prior["mask"])
-    return cached_body_prior(sample, seed, size)
+    return cached_body_prior(sample, size)

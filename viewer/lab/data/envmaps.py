@@ -65,6 +65,11 @@ def _direction(azimuth: float, elevation: float) -> np.ndarray:
     return np.array([np.cos(elevation) * np.sin(azimuth), np.sin(elevation), -np.cos(elevation) * np.cos(azimuth)])
 
 
+def _azimuth(d: np.ndarray) -> np.ndarray:
+    """Azimuth (radians from -z, towards +x) of directions (..., 3): :func:`_direction`'s inverse."""
+    return np.arctan2(d[..., 0], -d[..., 2])
+
+
 def _subtexel_directions(h: int, w: int) -> np.ndarray:
     """(h, w, S*S, 3) directions of a regular S x S grid inside every texel: the texel centres of
     the map at S times the resolution, grouped by the texel they fall in."""
@@ -179,7 +184,7 @@ def outdoor(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
     dirs = pixel_directions(h, w)
     pixels, level = _clear_sky(rng, dirs)
     elevation = np.arcsin(np.clip(dirs[..., 1], -1.0, 1.0))
-    azimuth = np.arctan2(dirs[..., 0], -dirs[..., 2])
+    azimuth = _azimuth(dirs)
     lit = level * rng.uniform(0.5, 2.0)  # how brightly the surroundings are lit (sky + sun)
     ground = _texture(dirs, rng, lit * _palette(rng, GROUNDS), rng.uniform(0.03, 0.2), 0.8)
     skyline, colour = _skyline(rng)
@@ -189,7 +194,7 @@ def outdoor(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
     sun = _sun(rng, level)
     # a sun behind the skyline would still light the person in full: it stands just above it instead
     d = sun.direction
-    sun_azimuth = np.arctan2(d[0], -d[2])
+    sun_azimuth = float(_azimuth(d))
     lowest = float(skyline(np.array([sun_azimuth]))[0]) + sun.radius + np.radians(1.0)
     if np.arcsin(d[1]) < lowest:
         sun = Emitter(_direction(sun_azimuth, lowest), sun.radius, sun.energy)
@@ -202,7 +207,7 @@ def interior(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
     dirs = pixel_directions(h, w)
     level = 10 ** rng.uniform(-1.5, -0.3)
     wall = srgb_to_linear(np.clip(rng.uniform(0.55, 0.95) * rng.uniform(0.88, 1.05, 3), 0, 1)).astype(np.float64)  # near-neutral paint
-    azimuth = np.arctan2(dirs[..., 0], -dirs[..., 2]) + rng.uniform(0, np.pi / 2)
+    azimuth = _azimuth(dirs) + rng.uniform(0, np.pi / 2)
     shade = rng.uniform(0.5, 1.3, 4)[np.floor(azimuth / (np.pi / 2)).astype(int) % 4]  # four walls, each lit its own way
     walls = _texture(dirs, rng, level * wall, rng.uniform(0.05, 0.3), 0.3) * shade[..., None]
     floor = _texture(dirs, rng, level * _palette(rng, FLOORS), rng.uniform(0.02, 0.1), 0.9)

@@ -35,6 +35,12 @@ def body_model():
     return anny.Anny(topology="notoes", local_changes="default")  # feet without toes: shoes
 
 
+def triangles(model) -> np.ndarray:
+    """(F, 3) int64: the anny model's faces as triangles (its quads split when it has quads)."""
+    faces = model.faces.numpy().astype(np.int64)
+    return faces if faces.shape[1] == 3 else model.get_triangular_faces().numpy().astype(np.int64)
+
+
 def build_body(phenotype: dict, pose: dict):
     """Pose the anny body: ``phenotype`` (anny's phenotype values in [0, 1]) and ``pose`` (bone ->
     rotation vector, radians, anny's local axes). Returns posed and rest vertices (anny axes,
@@ -55,9 +61,7 @@ def build_body(phenotype: dict, pose: dict):
     verts = out["vertices"][0].numpy().astype(np.float64)
     rest = out["rest_vertices"][0].numpy().astype(np.float64)
     heads = {b: out["rest_bone_heads"][0, i].numpy().astype(np.float64) for i, b in enumerate(labels)}
-    faces = model.faces.numpy().astype(np.int64)
-    if faces.shape[1] != 3:
-        faces = model.get_triangular_faces().numpy().astype(np.int64)
+    faces = triangles(model)
 
     # skinning-weight sums of bone groups
     w = model.vertex_bone_weights.numpy().astype(np.float64)
@@ -110,16 +114,18 @@ def build_body(phenotype: dict, pose: dict):
     return verts, faces, fields, heads, rest
 
 
+ANNY_TO_CAMERA = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # facing the camera: front (-y) -> +z
+
+
 def placement(verts: np.ndarray, cam: Camera, distance: float, turn_deg: float, fill: float):
     """The similarity that puts a body in the camera: (rotation r, scale s, centre c, translation t),
     camera-space points ``s * (verts @ r.T - c) + t``. Anny axes (x left, -y front, z up) -> camera space (x right,
     y up, z to the camera) with the body facing the camera, turned ``turn_deg`` about the vertical,
     its bounding-box centre at depth ``distance`` and scaled so that its projection spans ``fill``
     of the image height, centred."""
-    to_cam = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # front (-y) -> +z
     a = np.radians(turn_deg)
     rot_y = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-    r = rot_y @ to_cam
+    r = rot_y @ ANNY_TO_CAMERA
     b = verts @ r.T
     centre = 0.5 * (b.min(axis=0) + b.max(axis=0))
     b = b - centre

@@ -114,8 +114,7 @@ def body_channels(sample: Path, size: int) -> np.ndarray:
     from viewer.lab.data.body_prior import cached_body_prior
     from viewer.nets.depth import DEPTH_RANGE
 
-    seed = json.loads((Path(sample) / "sample.json").read_text())["seed"]
-    prior = cached_body_prior(sample, seed, size)
+    prior = cached_body_prior(sample, size)
     m = prior["mask"].astype(bool)
     depth = np.where(m, (prior["depth"].astype(np.float32) - (np.median(prior["depth"][m]) if m.any() else 0.0)) / DEPTH_RANGE, 0.0)
     return np.concatenate([prior["normal"].astype(np.float32), depth[..., None], m[..., None]], axis=-1).astype(np.float32)

@@ -58,7 +58,6 @@ def preview(out_dir: Path, seed: int = 0, count: int = 8, size: int = 256) -> li
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from viewer.imageio import atomic_path
     from viewer.lab.data.envmaps import KINDS
 
     out_dir = Path(out_dir)
@@ -74,12 +73,7 @@ def preview(out_dir: Path, seed: int = 0, count: int = 8, size: int = 256) -> li
         ax.imshow(tiles)
         ax.set_title(caption, fontsize=8)
     fig.suptitle("random people (albedo, normal, normal under a key light)", fontsize=9)
-    fig.tight_layout()
-    path = out_dir / "dataset_people.png"
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    written.append(path)
+    written.append(_save(fig, out_dir / "dataset_people.png"))
 
     fig, axes = plt.subplots(len(KINDS), 2, figsize=(7.0, 1.9 * len(KINDS)), dpi=110)
     for row, kind in enumerate(KINDS):
@@ -88,10 +82,18 @@ def preview(out_dir: Path, seed: int = 0, count: int = 8, size: int = 256) -> li
             ax.imshow(map_tile(seed * 1000 + 17 * row + col, kind, 256))
             ax.set_title(kind if col == 0 else "", fontsize=8, loc="left")
             ax.axis("off")
+    written.append(_save(fig, out_dir / "procedural_envmaps.png"))
+    return written
+
+
+def _save(fig, path: Path) -> Path:
+    """Lay out ``fig``, write it as a PNG at ``path`` (atomically) and close it."""
+    import matplotlib.pyplot as plt
+
+    from viewer.imageio import atomic_path
+
     fig.tight_layout()
-    path = out_dir / "procedural_envmaps.png"
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
     plt.close(fig)
-    written.append(path)
-    return written
+    return path
