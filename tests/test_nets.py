@@ -90,6 +90,17 @@ def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
     assert out.shape == (1, 1, 64, 64) and torch.isfinite(out).all()
     # a different network size in the same folder is refused with a clear error
     assert main(args[:-4] + ["--width", "16", "--batch", "2", "--epochs", "4"]) == 2
+    # fine-tuning: a fresh run starts from these weights (its first validation is the last one's), and
+    # weights of another size are refused in one line
+    start = str(tmp_path / "depth.safetensors")
+    base = ["train", "depth", "--data", str(data), "--res", "64", "--levels", "3", "--batch", "2", "--epochs", "1", "--init", start]
+    assert main(base + ["--out", str(tmp_path / "tuned"), "--width", "8", "--lr", "1e-12"]) == 0
+    card = json.loads((tmp_path / "tuned" / "depth.json").read_text())
+    assert card["init"] == start
+    assert card["history"][0]["val"] == pytest.approx(history[-1]["val"], rel=1e-4)
+    capsys.readouterr()
+    assert main(base + ["--out", str(tmp_path / "other"), "--width", "16"]) == 2
+    assert "another network" in capsys.readouterr().err
 
 
 

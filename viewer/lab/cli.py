@@ -69,7 +69,8 @@ def cmd_train(args) -> int:
     cfg = TrainConfig(task=args.network, data=data if len(data) > 1 else data[0], out=Path(args.out), res=args.res,
                       epochs=args.epochs, batch=args.batch, lr=args.lr, width=args.width, levels=args.levels,
                       device=args.device, seed=args.seed, perceptual_weight=args.perceptual_weight,
-                      silhouette=args.silhouette, body_prior=args.body_prior)
+                      silhouette=args.silhouette, body_prior=args.body_prior,
+                      init=Path(args.init) if args.init else None)
     with StageBars(prefix=f"training {args.network}: ") as bars:
         card = train(cfg, progress=bars)
     if card is None:  # a torchrun worker other than rank 0: rank 0 reports
@@ -246,6 +247,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                    help="inverse and depth: read the mask's silhouette prior (inflation normals, distance to the outline) too")
     p.add_argument("--body-prior", action="store_true",
                    help="inverse and depth, an experiment: read the dataset's body prior too (the product cannot use such weights)")
+    p.add_argument("--init", metavar="WEIGHTS",
+                   help="fine-tune: start from these weights (e.g. assets/networks/inverse.safetensors) instead of at random")
     p.add_argument("--perceptual-weight", type=float, default=0.1,
                    help="inverse: weight of the Laplacian-pyramid loss that replaces VGG (default 0.1, the paper's)")
     p.set_defaults(func=cmd_train)

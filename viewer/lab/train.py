@@ -51,6 +51,7 @@ class TrainConfig:
     silhouette: bool = False  # inverse and depth: the mask's silhouette prior as extra input channels
     body_prior: bool = False  # inverse and depth: the dataset's body prior (lab/data/body_prior.py) as input channels
     val_every: int = 10  # every tenth person is a validation person
+    init: Path | None = None  # start from these weights (a .safetensors with its card) instead of at random
 
     def __post_init__(self):
         if self.task not in TASKS:
@@ -212,6 +213,17 @@ def _distributed(device: torch.device) -> tuple[int, int, torch.device]:
 CHECKPOINT_KEYS = ("config", "model_config", "model", "optimizer", "scheduler", "history", "epoch", "seconds")
 
 
+def _warm_start(model, path: Path, device):
+    """Fine-tuning: the weights of ``path`` (shipped or trained before) copied into ``model``, which
+    must have the same architecture and inputs."""
+    from viewer.nets.weights import load_network
+
+    start = load_network(path, device)
+    if start.config != model.config:
+        raise InputError(path, f"--init weights are another network ({start.config}) than the one asked for ({model.config})")
+    model.load_state_dict(start.state_dict())
+
+
 def load_checkpoint(path: Path, device) -> dict:
     """A training checkpoint, loaded with ``weights_only=True``: tensors and plain data only, so a
     crafted file cannot run code (it is refused with one line, as is a truncated or foreign one)."""
@@ -270,6 +282,8 @@ def train(cfg: TrainConfig, progress=None) -> dict:
         opt.load_state_dict(ckpt["optimizer"])
         sched.load_state_dict(ckpt["scheduler"])
         history, start_epoch, seconds = ckpt["history"], ckpt["epoch"] + 1, ckpt["seconds"]
+    elif cfg.init is not None:
+        _warm_start(model, Path(cfg.init), device)
     net = model
     if world > 1:
         net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
@@ -322,6 +336,8 @@ def _write_weights(model, cfg: TrainConfig, out: Path, device, world: int, n_tra
             "epochs": cfg.epochs, "epochs_done": len(history), "batch": cfg.batch, "processes": world,
             "lr": [cfg.lr, cfg.lr_min], "device": str(device), "torch_threads": torch.get_num_threads(),
             "seconds": round(seconds, 1), "history": history, "weights": weights.name}
+    if cfg.init is not None:
+        card["init"] = str(cfg.init)
     if cfg.task == "inverse":
         card["perceptual_weight"] = cfg.perceptual_weight
     write_text(out / f"{cfg.task}.json", json.dumps(card, indent=1) + "\n")
