@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 import torch
@@ -97,6 +98,16 @@ def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
     assert main(base + ["--out", str(tmp_path / "tuned"), "--width", "8", "--lr", "1e-12"]) == 0
     card = json.loads((tmp_path / "tuned" / "depth.json").read_text())
     assert card["init"] == start
+    assert [st["epochs"] for st in card["lineage"]] == [3] and card["lineage"][0]["weights"] == start
+    # the model card adds the stages up
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("ship_networks", Path(__file__).parents[1] / "tools" / "ship_networks.py")
+    ship = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ship)
+    shipped = {net: json.loads((ship.ROOT / "assets" / "networks" / f"{net}.json").read_text()) for net in ship.NETWORKS}
+    text = ship.model_card({**shipped, "depth": card}, 20.0, None)
+    assert "| 1 (after 3) |" in text and "depth: 3 epochs on 2 pairs" in text
     assert card["history"][0]["val"] == pytest.approx(history[-1]["val"], rel=1e-4)
     capsys.readouterr()
     assert main(base + ["--out", str(tmp_path / "other"), "--width", "16"]) == 2

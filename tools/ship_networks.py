@@ -38,13 +38,17 @@ def main() -> int:
     if total > LIMIT_MB:
         raise SystemExit(f"the weights take {total:.1f} MB, over the {LIMIT_MB:.0f} MB budget")
     from viewer.errors import InputError
+    from viewer.lab.train import lineage
     from viewer.nets.weights import load_network
 
     with tempfile.TemporaryDirectory(dir=dest) as staging:  # nothing replaced until all of them load
         staging = Path(staging)
         for net in NETWORKS:
-            for suffix in (".safetensors", ".json"):
-                shutil.copyfile(run / f"{net}{suffix}", staging / f"{net}{suffix}")
+            shutil.copyfile(run / f"{net}.safetensors", staging / f"{net}.safetensors")
+            card = json.loads((run / f"{net}.json").read_text())
+            if card.get("init") and "lineage" not in card:  # trained before cards kept their stages
+                card["lineage"] = lineage(Path(card["init"]))  # read now: shipping replaces the old weights
+            (staging / f"{net}.json").write_text(json.dumps(card, indent=1) + "\n")
             try:
                 load_network(staging / f"{net}.safetensors")  # what the product will read
             except InputError as exc:
@@ -71,10 +75,13 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
         size = (ROOT / "assets" / "networks" / f"{net}.safetensors").stat().st_size / 1e6
         last = c["history"][-1]
         what = WHAT[net] + (" (+ the mask's silhouette prior)" if "silhouette" in c["model"].get("inputs", ()) else "")
+        before = c.get("lineage", [])
+        epochs = str(c.get("epochs_done", c["epochs"])) + (f" (after {' + '.join(str(st['epochs']) for st in before)})" if before else "")
+        minutes = (c["seconds"] + sum(st["seconds"] or 0 for st in before)) / 60
         lines.append(f"| {net} | {what} | {c['parameters'] / 1e6:.2f} M (width {c['model']['width']}, "
-                     f"{c['model']['levels']} levels) | {size:.1f} MB | {c['resolution']}^2 | {c.get('epochs_done', c['epochs'])} | "
+                     f"{c['model']['levels']} levels) | {size:.1f} MB | {c['resolution']}^2 | {epochs} | "
                      f"{c['batch']} | "
-                     f"{c['seconds'] / 60:.0f} min | {c['device']}, {c['torch_threads']} thread(s) x {c.get('processes', 1)} process(es) | "
+                     f"{minutes:.0f} min | {c['device']}, {c['torch_threads']} thread(s) x {c.get('processes', 1)} process(es) | "
                      f"{last['val']:.4f} |")
     c = cards["inverse"]
     lines += ["", f"All weights: {total_mb:.1f} MB (budget {LIMIT_MB:.0f} MB), float32 safetensors.", "",
@@ -85,6 +92,15 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
               "  procedural maps (docs/dataset.md). No real photo and no held-out map was seen in training.",
               "- Learning rate: cosine-annealed Adam (betas 0.5, 0.999) from "
               f"{c['lr'][0]:g} to {c['lr'][1]:g}; mirror and exposure augmentation."]
+    staged = [net for net in cards if cards[net].get("lineage")]
+    if staged:
+        lines += ["- Fine-tuned: each stage started from the weights of the one before (`relight train --init`); "
+                  "epochs and time above add up all stages, newest last:"]
+        for net in staged:
+            stages = [*reversed(cards[net]["lineage"]), {**cards[net], "epochs": cards[net].get("epochs_done")}]
+            lines.append(f"  - {net}: " + "; then ".join(
+                f"{st['epochs']} epochs on {st['train_items']} pairs ({', '.join(st['data'] if isinstance(st['data'], list) else [st['data']])}), "
+                f"lr {st['lr'][0]:g} to {st['lr'][1]:g}, {(st['seconds'] or 0) / 60:.0f} min" for st in stages) + ".")
     for net in ("depth", "inverse"):
         last = cards[net]["history"][-1]
         if net == "depth":

@@ -213,6 +213,21 @@ def _distributed(device: torch.device) -> tuple[int, int, torch.device]:
 CHECKPOINT_KEYS = ("config", "model_config", "model", "optimizer", "scheduler", "history", "epoch", "seconds")
 
 
+def lineage(weights: Path, depth: int = 0) -> list[dict]:
+    """The training stages behind ``weights``, newest first, read from the card beside each: the
+    card's own run, then the weights it was fine-tuned from (``init``), and so on. A card missing on
+    the way ends the list (its weights were made elsewhere)."""
+    card_path = Path(weights).with_suffix(".json")
+    if depth > 16 or not card_path.is_file():
+        return []
+    card = json.loads(card_path.read_text())
+    stage = {"weights": str(weights), "data": card.get("data"), "train_items": card.get("train_items"),
+             "epochs": card.get("epochs_done", card.get("epochs")), "lr": card.get("lr"), "seconds": card.get("seconds")}
+    if "lineage" in card:  # written at training time: already complete
+        return [stage, *card["lineage"]]
+    return [stage, *(lineage(Path(card["init"]), depth + 1) if card.get("init") else [])]
+
+
 def _warm_start(model, path: Path, device):
     """Fine-tuning: the weights of ``path`` (shipped or trained before) copied into ``model``, which
     must have the same architecture and inputs."""
@@ -338,6 +353,7 @@ def _write_weights(model, cfg: TrainConfig, out: Path, device, world: int, n_tra
             "seconds": round(seconds, 1), "history": history, "weights": weights.name}
     if cfg.init is not None:
         card["init"] = str(cfg.init)
+        card["lineage"] = lineage(Path(cfg.init))  # the stages before this one, kept if those files go
     if cfg.task == "inverse":
         card["perceptual_weight"] = cfg.perceptual_weight
     write_text(out / f"{cfg.task}.json", json.dumps(card, indent=1) + "\n")
