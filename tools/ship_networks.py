@@ -38,6 +38,7 @@ def main() -> int:
     if total > LIMIT_MB:
         raise SystemExit(f"the weights take {total:.1f} MB, over the {LIMIT_MB:.0f} MB budget")
     from viewer.errors import InputError
+    from viewer.imageio import write_text
     from viewer.lab.train import lineage
     from viewer.nets.weights import load_network
 
@@ -47,7 +48,10 @@ def main() -> int:
             shutil.copyfile(run / f"{net}.safetensors", staging / f"{net}.safetensors")
             card = json.loads((run / f"{net}.json").read_text())
             if card.get("init") and "lineage" not in card:  # trained before cards kept their stages
-                card["lineage"] = lineage(Path(card["init"]))  # read now: shipping replaces the old weights
+                # read now, before shipping replaces the weights it started from, and kept in the run's
+                # card too, so that shipping the run again does not read the new weights as its own past
+                card["lineage"] = lineage(Path(card["init"]))
+                write_text(run / f"{net}.json", json.dumps(card, indent=1) + "\n")
             (staging / f"{net}.json").write_text(json.dumps(card, indent=1) + "\n")
             try:
                 load_network(staging / f"{net}.safetensors")  # what the product will read
@@ -58,8 +62,6 @@ def main() -> int:
                 os.replace(staging / f"{net}{suffix}", dest / f"{net}{suffix}")
     cards = {net: json.loads((dest / f"{net}.json").read_text()) for net in NETWORKS}
     bench = json.loads(Path(args.bench).read_text()) if Path(args.bench).is_file() else None
-    from viewer.imageio import write_text
-
     write_text(ROOT / "docs" / "model-card.md", model_card(cards, total, bench))  # atomically
     print(f"shipped {', '.join(NETWORKS)} ({total:.1f} MB) to {dest}; wrote docs/model-card.md")
     return 0
@@ -99,7 +101,7 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
         for net in staged:
             stages = [*reversed(cards[net]["lineage"]), {**cards[net], "epochs": cards[net].get("epochs_done")}]
             lines.append(f"  - {net}: " + "; then ".join(
-                f"{st['epochs']} epochs on {st['train_items']} pairs ({', '.join(st['data'] if isinstance(st['data'], list) else [st['data']])}), "
+                f"{st['epochs']} epoch{'' if st['epochs'] == 1 else 's'} on {st['train_items']} pairs ({', '.join(st['data'] if isinstance(st['data'], list) else [st['data']])}), "
                 f"lr {st['lr'][0]:g} to {st['lr'][1]:g}, {(st['seconds'] or 0) / 60:.0f} min" for st in stages) + ".")
     for net in ("depth", "inverse"):
         last = cards[net]["history"][-1]
