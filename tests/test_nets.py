@@ -109,6 +109,12 @@ def test_train_resume_and_load(tiny_dataset, tmp_path, capsys):
     text = ship.model_card({**shipped, "depth": card}, 20.0, None)
     assert "| 1 (after 3) |" in text and "depth: 3 epochs on 2 pairs" in text
     assert card["history"][0]["val"] == pytest.approx(history[-1]["val"], rel=1e-4)
+    # the stages are read when the run starts: weights replaced later (shipping) do not change them
+    replaced = json.loads((tmp_path / "depth.json").read_text())
+    (tmp_path / "depth.json").write_text(json.dumps({**replaced, "epochs_done": 99, "init": None}))
+    assert main(base[:-4] + ["--epochs", "2", "--init", start, "--out", str(tmp_path / "tuned"), "--width", "8", "--lr", "1e-12"]) == 0
+    assert [st["epochs"] for st in json.loads((tmp_path / "tuned" / "depth.json").read_text())["lineage"]] == [3]
+    (tmp_path / "depth.json").write_text(json.dumps(replaced))
     capsys.readouterr()
     assert main(base + ["--out", str(tmp_path / "other"), "--width", "16"]) == 2
     assert "another network" in capsys.readouterr().err

@@ -39,20 +39,13 @@ def main() -> int:
         raise SystemExit(f"the weights take {total:.1f} MB, over the {LIMIT_MB:.0f} MB budget")
     from viewer.errors import InputError
     from viewer.imageio import write_text
-    from viewer.lab.train import lineage
     from viewer.nets.weights import load_network
 
     with tempfile.TemporaryDirectory(dir=dest) as staging:  # nothing replaced until all of them load
         staging = Path(staging)
         for net in NETWORKS:
-            shutil.copyfile(run / f"{net}.safetensors", staging / f"{net}.safetensors")
-            card = json.loads((run / f"{net}.json").read_text())
-            if card.get("init") and "lineage" not in card:  # trained before cards kept their stages
-                # read now, before shipping replaces the weights it started from, and kept in the run's
-                # card too, so that shipping the run again does not read the new weights as its own past
-                card["lineage"] = lineage(Path(card["init"]))
-                write_text(run / f"{net}.json", json.dumps(card, indent=1) + "\n")
-            (staging / f"{net}.json").write_text(json.dumps(card, indent=1) + "\n")
+            for suffix in (".safetensors", ".json"):
+                shutil.copyfile(run / f"{net}{suffix}", staging / f"{net}{suffix}")
             try:
                 load_network(staging / f"{net}.safetensors")  # what the product will read
             except InputError as exc:
@@ -68,6 +61,8 @@ def main() -> int:
 
 
 def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
+    from viewer.lab.train import training_stage
+
     lines = ["# Model card: the shipped networks", "",
              "Written by `tools/ship_networks.py` from the training cards in `assets/networks/*.json` and the held-out",
              "evaluation `docs/bench_networks.json`. Method and losses: [networks.md](networks.md).", "",
@@ -99,7 +94,7 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
         lines += ["- Fine-tuned: each stage started from the weights of the one before (`relight train --init`); "
                   "epochs and time above add up all stages, newest last:"]
         for net in staged:
-            stages = [*reversed(cards[net]["lineage"]), {**cards[net], "epochs": cards[net].get("epochs_done")}]
+            stages = [*reversed(cards[net]["lineage"]), training_stage(cards[net])]
             lines.append(f"  - {net}: " + "; then ".join(
                 f"{st['epochs']} epoch{'' if st['epochs'] == 1 else 's'} on {st['train_items']} pairs ({', '.join(st['data'] if isinstance(st['data'], list) else [st['data']])}), "
                 f"lr {st['lr'][0]:g} to {st['lr'][1]:g}, {(st['seconds'] or 0) / 60:.0f} min" for st in stages) + ".")

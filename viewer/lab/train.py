@@ -23,7 +23,7 @@ from torch.nn import functional as F
 
 from viewer.errors import InputError
 from viewer.lab.data.loader import FIELDS
-from viewer.imageio import atomic_path, write_text
+from viewer.imageio import atomic_path, read_json, write_text
 from viewer.nets import depth as depth_net
 from viewer.nets import inverse as inverse_net
 from viewer.nets import refine as refine_net
@@ -213,6 +213,13 @@ def _distributed(device: torch.device) -> tuple[int, int, torch.device]:
 CHECKPOINT_KEYS = ("config", "model_config", "model", "optimizer", "scheduler", "history", "epoch", "seconds")
 
 
+def training_stage(card: dict, weights=None) -> dict:
+    """What a model card (``<net>.json``) says of the run that made its weights: data, pairs,
+    epochs, learning rate and time."""
+    return {"weights": None if weights is None else str(weights), "data": card.get("data"), "train_items": card.get("train_items"),
+            "epochs": card.get("epochs_done", card.get("epochs")), "lr": card.get("lr"), "seconds": card.get("seconds")}
+
+
 def lineage(weights: Path, depth: int = 0) -> list[dict]:
     """The training stages behind ``weights``, newest first, read from the card beside each: the
     card's own run, then the weights it was fine-tuned from (``init``), and so on. A card missing on
@@ -220,12 +227,10 @@ def lineage(weights: Path, depth: int = 0) -> list[dict]:
     card_path = Path(weights).with_suffix(".json")
     if depth > 16 or not card_path.is_file():
         return []
-    card = json.loads(card_path.read_text())
-    stage = {"weights": str(weights), "data": card.get("data"), "train_items": card.get("train_items"),
-             "epochs": card.get("epochs_done", card.get("epochs")), "lr": card.get("lr"), "seconds": card.get("seconds")}
+    card = read_json(card_path, "network card")
     if "lineage" in card:  # written at training time: already complete
-        return [stage, *card["lineage"]]
-    return [stage, *(lineage(Path(card["init"]), depth + 1) if card.get("init") else [])]
+        return [training_stage(card, weights), *card["lineage"]]
+    return [training_stage(card, weights), *(lineage(Path(card["init"]), depth + 1) if card.get("init") else [])]
 
 
 def _warm_start(model, path: Path, device):
@@ -297,8 +302,13 @@ def train(cfg: TrainConfig, progress=None) -> dict:
         opt.load_state_dict(ckpt["optimizer"])
         sched.load_state_dict(ckpt["scheduler"])
         history, start_epoch, seconds = ckpt["history"], ckpt["epoch"] + 1, ckpt["seconds"]
+        # the stages before this run, as read when it started (checkpoints older than that key: read now)
+        stages = ckpt["lineage"] if "lineage" in ckpt else lineage(Path(cfg.init)) if cfg.init is not None else []
     elif cfg.init is not None:
         _warm_start(model, Path(cfg.init), device)
+        stages = lineage(Path(cfg.init))  # read once: the weights it started from may be replaced later
+    else:
+        stages = []
     net = model
     if world > 1:
         net = torch.nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
@@ -325,11 +335,12 @@ def train(cfg: TrainConfig, progress=None) -> dict:
         seconds += time.perf_counter() - t0
         history.append({"epoch": epoch + 1, "train": float(np.mean(losses)) if losses else None, **val,
                         "lr": sched.get_last_lr()[0], "seconds": round(seconds, 1)})
-        _atomic_save({"config": {**asdict(cfg), "data": _data_text(cfg.data), "out": str(cfg.out)}, "model_config": model.config,
+        _atomic_save({"config": {**asdict(cfg), "data": _data_text(cfg.data), "out": str(cfg.out),
+                                 "init": None if cfg.init is None else str(cfg.init)}, "model_config": model.config,
                       "model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
-                      "history": history, "epoch": epoch, "seconds": seconds}, ckpt_path)
+                      "history": history, "epoch": epoch, "seconds": seconds, "lineage": stages}, ckpt_path)
         _plot(history, out / f"{cfg.task}_loss.png", cfg.task)
-        card = _write_weights(model, cfg, out, device, world, len(train_idx), len(val_idx), seconds, history)
+        card = _write_weights(model, cfg, out, device, world, len(train_idx), len(val_idx), seconds, history, stages)
     if world > 1:
         torch.distributed.barrier()
     if card is None and rank == 0:  # nothing left to train (a finished run resumed): the card on disk
@@ -338,7 +349,7 @@ def train(cfg: TrainConfig, progress=None) -> dict:
 
 
 def _write_weights(model, cfg: TrainConfig, out: Path, device, world: int, n_train: int, n_val: int, seconds: float,
-                   history: list) -> dict:
+                   history: list, stages: list) -> dict:
     """The weights as safetensors and their JSON card (written after every epoch)."""
     from safetensors.torch import save_file
 
@@ -353,7 +364,7 @@ def _write_weights(model, cfg: TrainConfig, out: Path, device, world: int, n_tra
             "seconds": round(seconds, 1), "history": history, "weights": weights.name}
     if cfg.init is not None:
         card["init"] = str(cfg.init)
-        card["lineage"] = lineage(Path(cfg.init))  # the stages before this one, kept if those files go
+        card["lineage"] = stages  # the stages before this one, kept if those files go
     if cfg.task == "inverse":
         card["perceptual_weight"] = cfg.perceptual_weight
     write_text(out / f"{cfg.task}.json", json.dumps(card, indent=1) + "\n")
