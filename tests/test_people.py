@@ -100,3 +100,82 @@ def test_preview_draws_people_and_maps(tmp_path, capsys):
         assert img.ndim == 3 and img.shape[0] > 200 and img[..., :3].std() > 20  # a picture, not a blank
     assert "wrote" in capsys.readouterr().out
     assert main(["dataset", "preview", "--out", str(tmp_path), "--count", "0"]) == 2
+
+
+def test_sitting_and_accessories_leave_the_rest_of_a_person_as_it_was():
+    from viewer.lab.data.people import person_draws
+
+    styles, bags = [], []
+    for seed in range(200):
+        phenotype, style, pose, outfit, turn, fill = person_draws(seed)
+        rng = np.random.default_rng([seed, 0xB0D1])  # the first stream, as before accessories existed
+        assert phenotype == sample_phenotype(rng)
+        first_style, first_pose = sample_pose(rng)
+        assert replace(outfit, accessories=SAMPLE_OUTFIT.accessories) == sample_outfit(rng)
+        assert style == first_style or style == "sitting"
+        styles.append(style)
+        bags.append(outfit.accessories.bag)
+        if style == "sitting":
+            assert outfit.accessories.bag is None  # no bag in the lap
+    assert 10 <= styles.count("sitting") <= 35
+    assert 15 <= bags.count("crossbody") <= 50 and 8 <= bags.count("backpack") <= 35
+
+
+def test_a_sitting_person_sits():
+    from viewer.lab.data.people import person_draws
+
+    seed = next(s for s in range(100) if person_draws(s)[1] == "sitting")
+    phenotype, _, pose, *_ = person_draws(seed)
+    verts, faces, fields, heads, rest = build_body(phenotype, pose)
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        foot = verts[(fields[:, 7] > 0.5) & (sign * rest[:, 0] > 0)].mean(axis=0)
+        knee = verts[np.argmin(np.linalg.norm(rest - heads[f"lowerleg01.{side}"], axis=1))]
+        hip = verts[np.argmin(np.linalg.norm(rest - heads[f"upperleg01.{side}"], axis=1))]
+        assert knee[1] < hip[1] - 0.3  # the thigh reaches forward (anny's -y) ...
+        assert abs(knee[2] - hip[2]) < 0.2  # ... about level
+        assert foot[2] < knee[2] - 0.3 and abs(foot[1] - knee[1]) < 0.25  # the shin hangs down
+
+
+def test_a_bag_hangs_on_the_body_and_its_strap_crosses_the_shirt(people):
+    from viewer.lab.data.accessories import bag_mesh
+    from viewer.lab.data.geometry import signed_volume
+
+    p = people[1]  # seed 1 carries a crossbody bag
+    a = p.outfit.accessories
+    assert a.bag == "crossbody"
+    bag_verts = 2562  # the rounded box: an icosphere of level 4
+    bag = p.vertices[-bag_verts:]
+    body = p.vertices[:-bag_verts]
+    assert signed_volume(bag.astype(np.float64), p.faces[-5120:] - (len(p.vertices) - bag_verts)) > 0.0  # outward
+    # on the body: its nearest body vertex within a few centimetres, its centre outside the body's hull at the hip
+    gap = np.min(np.linalg.norm(body[::7, None, :] - bag[None, ::11, :], axis=-1))
+    height = np.ptp(body[:, 1])
+    assert gap < 0.03 * height
+    assert np.ptp(bag[:, 1]) == pytest.approx(0.18 / 1.7 * height, rel=0.35)  # 18 cm high on a person of ~1.7 m
+    # the bag and its strap show in the G-buffers in the bag's colour
+    colour = np.array(a.bag_color)
+    near = np.linalg.norm(p.scene.albedo - colour, axis=-1) < 0.08
+    assert (near & p.scene.mask).sum() >= 10
+    assert bag_mesh(replace(a, bag=None), p.vertices, p.normals, np.zeros((len(p.vertices), 8)), {}, 1.0) is None
+
+
+def test_worn_accessories_are_bands_where_they_belong():
+    from viewer.lab.data.materials import Accessories
+
+    neutral = dict(gender=0.5, age=0.8, muscle=0.5, weight=0.5, height=0.5, proportions=0.5)
+    verts, faces, fields, heads, rest = build_body(neutral, {})
+    _, _, at = subdivide(verts, faces, {"fields": fields}, 2)  # as fine as the people's meshes
+    fields = at["fields"]
+    worn = replace(SAMPLE_OUTFIT, accessories=Accessories(bag="backpack", watch=(0.6, 0.6, 0.6), necklace=(0.8, 0.55, 0.22),
+                                                          cap=(0.1, 0.1, 0.5)))
+    bare, r = classify(fields, heads, rest, SAMPLE_OUTFIT), classify(fields, heads, rest, worn)
+    for name in ("strap", "watch", "necklace", "cap"):
+        assert r[name].sum() > 20 and not bare[name].any()
+        for other in ("skin", "hair", "shirt"):
+            assert not (r[name] & r[other]).any()
+    p = fields[:, 0:3]
+    assert (p[r["watch"], 0] > heads["lowerarm01.L"][0]).all()  # the left forearm, past the elbow
+    assert np.linalg.norm(p[r["watch"]] - heads["wrist.L"], axis=1).max() < 0.08
+    assert (np.abs(p[r["necklace"], 2] - heads["neck01"][2]) < 0.12).all()
+    assert (p[r["cap"], 2] > heads["eye.L"][2]).all() and (bare["hair"] & r["cap"]).sum() > 0.5 * r["cap"].sum()
+    assert (p[r["strap"], 2] > heads["spine01"][2] - 0.1).all()  # backpack straps: over the shoulders

@@ -229,8 +229,10 @@ def rasterize(cam: Camera, pos: np.ndarray, nrm: np.ndarray, fields: np.ndarray,
 
 # how far each region stands off the skin (metres, before scaling), and whether the body's shape
 # under it is smoothed (cloth hides navel, nipples and the like)
-STANDOFF = {"shirt": 0.012, "trousers": 0.016, "belt": 0.018, "shoe": 0.010, "sole": 0.012}  # hair: the outfit's hair_volume
-CLOTH = ("shirt", "trousers", "belt", "shoe", "sole")
+STANDOFF = {"shirt": 0.012, "trousers": 0.016, "belt": 0.018, "shoe": 0.010, "sole": 0.012,
+            "strap": 0.016, "watch": 0.008, "necklace": 0.003}  # hair: the outfit's hair_volume; cap: above the hair
+CAP = 0.008  # how far a knit cap stands off the hair
+CLOTH = ("shirt", "trousers", "belt", "shoe", "sole", "strap", "watch")
 
 
 def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict, rest: np.ndarray,
@@ -251,6 +253,7 @@ def dress(verts: np.ndarray, faces: np.ndarray, fields: np.ndarray, heads: dict,
     # hair stands off by the person's hair volume; long hair falling down the back lies over the top
     off[regions["hair"]] = outfit.hair_volume + np.where(fields[regions["hair"], 5] > 0.5, 0.0, STANDOFF["shirt"])
     cloth[regions["hair"] & (fields[:, 5] <= 0.5)] = 1.0
+    off[regions["cap"]] = outfit.hair_volume + CAP
     for _ in range(3):  # soften the steps at region borders a little (ramps of ~1-2 cm)
         cloth = 0.5 * cloth + 0.5 * neighbour_mean(cloth, edges, n)
         off = 0.5 * off + 0.5 * neighbour_mean(off, edges, n)
@@ -297,6 +300,21 @@ def fold(pos: np.ndarray, faces: np.ndarray, normals: np.ndarray, fields: np.nda
 POSE_STYLES = ("relaxed", "arms_out", "crossed_legs", "stride", "hands_on_hips", "walking", "arms_raised")
 POSE_STYLE_WEIGHTS = (0.25, 0.15, 0.1, 0.1, 0.1, 0.15, 0.15)
 RAISE = (-1.9, -0.8)  # about the back axis: anny's rest pose holds the arms ~48 degrees below horizontal
+
+
+def seat(pose: dict, rng: np.random.Generator) -> dict:
+    """``pose`` sitting: thighs forward to about horizontal, knees bent so that the shins are near
+    vertical, feet a little apart, the back upright or leaning a little forward; the arms keep their pose. The
+    seat itself is not modelled (only the person is in the mask, as in a photo's matte)."""
+    u = rng.uniform
+    seated = dict(pose)
+    spread = u(0.0, 0.1)
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        flex = u(1.3, 1.6)
+        seated[f"upperleg01.{side}"] = (-flex, -sign * spread, 0.0)
+        seated[f"lowerleg01.{side}"] = (flex + u(-0.2, 0.25), 0.0, 0.0)  # the shin near vertical
+    seated["spine01"] = (u(-0.25, 0.0), u(-0.04, 0.04), u(-0.1, 0.1))
+    return {k: tuple(float(x) for x in v) for k, v in seated.items()}
 
 
 def sample_phenotype(rng: np.random.Generator) -> dict:

@@ -59,6 +59,20 @@ class Garment:
 
 
 @dataclass(frozen=True)
+class Accessories:
+    """What a person wears or carries besides the outfit (:mod:`viewer.lab.data.accessories` draws
+    them and builds the bag's mesh). Colours are linear RGB; None: not worn."""
+    bag: str | None = None  # "crossbody" (on the hip, its strap over the other shoulder) or "backpack"
+    bag_side: float = 1.0  # crossbody: the hip it hangs at (+1 the body's left, -1 its right)
+    bag_color: tuple = (0.05, 0.035, 0.025)
+    bag_specular: float = 0.5
+    bag_roughness: float = 0.4
+    watch: tuple | None = None  # the band, on the left wrist
+    necklace: tuple | None = None  # a thin metal chain
+    cap: tuple | None = None  # a knit cap
+
+
+@dataclass(frozen=True)
 class Outfit:
     """Everything a person's materials depend on besides the geometry."""
     skin: tuple = (0.52, 0.33, 0.25)
@@ -78,6 +92,7 @@ class Outfit:
     hair_volume: float = 0.007  # how far the hair stands off the scalp (metres)
     hair_length: float = 0.0  # how far long hair falls down the back below the neck (metres; 0: short)
     folds: float = 0.0  # amplitude of the cloth's folds and the hair's strands (metres; 0: smooth)
+    accessories: Accessories = Accessories()
 
 
 SAMPLE_OUTFIT = Outfit()  # the bundled sample's figure: striped brick-red T-shirt, jeans, dark shoes
@@ -85,6 +100,9 @@ EYE = ((0.50, 0.46, 0.42), 0.6, 0.15)  # sclera
 PUPIL = ((0.02, 0.02, 0.02), 0.6, 0.15)
 SOLE = (0.3, 0.6)  # specular, roughness
 BELT = (0.45, 0.4)
+STRAP = (0.45, 0.45)  # specular, roughness of bag straps (webbing or leather)
+METAL = (1.0, 0.2)  # of a watch band and a necklace
+KNIT = (0.25, 0.9)  # of a knit cap
 
 
 def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Outfit = SAMPLE_OUTFIT) -> dict:
@@ -135,6 +153,11 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Ou
     is_trousers = legs & ~is_belt & ~is_leg_skin
     is_shirt = ~(is_head | is_arm_skin | is_sole | is_shoe | is_belt | is_trousers | is_leg_skin)
     is_skin = (is_head & ~is_hair & ~is_eye) | is_arm_skin | is_leg_skin
+    strap, watch, necklace, cap = _accessory_regions(p, w_arm, t_arm, is_head & ~is_eye, ry, heads, eye_z, head_top, z_hip,
+                                                     outfit.accessories)
+    strap &= is_shirt
+    watch &= ~strap
+    is_shirt, is_skin, is_hair = is_shirt & ~strap & ~watch & ~necklace, is_skin & ~watch & ~necklace & ~cap, is_hair & ~cap
     cheeks = is_skin & is_head & (np.abs(z - (eye_z - 0.035)) < 0.025) & (ry < -0.06)
     # on the eyeballs: cosine of the angle from the eye's forward (-y) axis
     d_eye = np.stack([p - heads[f"eye.{side}"] for side in ("L", "R")])
@@ -143,7 +166,43 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Ou
     iris = is_eye & (gaze > np.cos(np.radians(38.0)))
     pupil = is_eye & (gaze > np.cos(np.radians(16.0)))
     return dict(iris=iris, pupil=pupil, shirt=is_shirt, trousers=is_trousers, belt=is_belt, skin=is_skin, cheeks=cheeks,
-                hair=is_hair, shoe=is_shoe, sole=is_sole, eye=is_eye, hair_noise=hair_noise)
+                hair=is_hair, shoe=is_shoe, sole=is_sole, eye=is_eye, hair_noise=hair_noise,
+                strap=strap, watch=watch, necklace=necklace, cap=cap)
+
+
+def _accessory_regions(p, w_arm, t_arm, head, ry, heads, eye_z, head_top, z_hip, a: Accessories):
+    """Bands of the body's surface (rest positions ``p``) under the accessories that are not meshes
+    of their own: bag straps, the watch, the necklace and the cap."""
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    none = np.zeros(p.shape[:-1], bool)
+    strap, watch, necklace, cap = none, none, none, none
+    shoulder_x, shoulder_z = abs(heads["upperarm01.L"][0]), heads["shoulder01.L"][2]
+    if a.bag == "crossbody":
+        # a sash from the top of the other shoulder to the bag's hip, seen alike from the front and
+        # the back: 4 cm wide, within 2 cm of the segment in the (x, z) plane
+        s = a.bag_side
+        a0, a1 = np.array([-s * 0.6 * shoulder_x, shoulder_z + 0.04]), np.array([s * 0.85 * shoulder_x, z_hip + 0.07])
+        d = a1 - a0
+        q = np.stack([x, z], axis=-1) - a0
+        t = np.clip((q @ d) / (d @ d), 0.0, 1.0)
+        strap = (w_arm < 0.5) & (np.linalg.norm(q - t[..., None] * d, axis=-1) < 0.02)
+    elif a.bag == "backpack":
+        # a strap over each shoulder, down the chest to the armpit
+        z_chest = heads["spine01"][2] - 0.08
+        strap = (w_arm < 0.5) & (np.abs(np.abs(x) - 0.6 * shoulder_x) < 0.02) & (z > z_chest)
+    if a.watch is not None:  # 2 cm above the left wrist
+        watch = (w_arm > 0.5) & (x > 0.0) & (t_arm > 0.91) & (t_arm < 0.965)
+    if a.necklace is not None:
+        # a chain round the base of the neck that hangs lower in front
+        neck = heads["neck01"]
+        front = np.clip(-(y - neck[1]) / 0.07, 0.0, 1.0)
+        chain_z = neck[2] - 0.035 - 0.06 * front**2
+        radius = np.hypot(x - neck[0], y - neck[1])
+        necklace = (w_arm < 0.5) & (np.abs(z - chain_z) < 0.005) & (radius < 0.075 + 0.04 * front)
+    if a.cap is not None:  # over the top of the head, lower at the back, the ears bare
+        line = np.maximum(eye_z + 0.40 * (head_top - eye_z) - 0.35 * np.clip(ry + 0.04, 0.0, None), eye_z + 0.1 * (head_top - eye_z))
+        cap = head & (z > line) & ~((np.abs(x) > 0.062) & (ry > -0.045) & (ry < 0.025) & (z < eye_z + 0.035))
+    return strap, watch, necklace, cap
 
 
 def _pattern(g: Garment, p: np.ndarray, seed: int) -> np.ndarray:
@@ -205,13 +264,21 @@ def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts
     paint(is_eye, *EYE)
     paint(r["iris"], o.iris, EYE[1], EYE[2])
     paint(r["pupil"], *PUPIL)
+    a = o.accessories
+    paint(r["strap"], a.bag_color, *STRAP, 1.0 + 0.1 * fbm(p, 0.02, 25))
+    if a.watch is not None:
+        paint(r["watch"], a.watch, *METAL)
+    if a.necklace is not None:
+        paint(r["necklace"], a.necklace, *METAL)
+    if a.cap is not None:
+        paint(r["cap"], a.cap, *KNIT, 1.0 + 0.15 * value_noise(p * np.array([1.0, 1.0, 0.3]), 0.004, 27))
 
     albedo = np.where(mask[..., None], np.clip(albedo, 0.0, 1.0), 0.0).astype(np.float32)
     spec = np.where(mask, spec, 0.0).astype(np.float32)
     rough = np.where(mask, rough, 0.0).astype(np.float32)
     regions = {
         "shirt": is_shirt, "trousers": is_trousers, "belt": is_belt, "skin": is_skin, "hair": is_hair,
-        "shoes": is_shoe | is_sole, "eyes": is_eye,
+        "shoes": is_shoe | is_sole, "eyes": is_eye, "accessories": r["strap"] | r["watch"] | r["necklace"] | r["cap"],
     }
     return albedo, spec, rough, regions
 

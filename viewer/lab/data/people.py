@@ -10,19 +10,21 @@ face (its first vertex's), the G-buffer interpolates it across a one-triangle ba
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from viewer.camera import Camera
 from viewer.scene import Scene
 from viewer.lab.data.geometry import subdivide, vertex_normals
-from viewer.lab.data.humans import build_body, dress, fold, place_in_camera, rasterize, sample_phenotype, sample_pose
+from viewer.lab.data.accessories import bag_mesh, sample_accessories
+from viewer.lab.data.humans import build_body, dress, fold, place_in_camera, rasterize, sample_phenotype, sample_pose, seat
 from viewer.lab.data.materials import Outfit, make_materials, sample_outfit
 
 TURN_RANGE = (-60.0, 60.0)  # degrees the person is turned from facing the camera
 FILL_RANGE = (0.8, 0.92)  # of the image height the figure spans (a full body, as in the paper)
 SUBDIVISIONS = 2
+SITTING = 0.1  # of the people sit
 
 
 @dataclass(frozen=True)
@@ -53,12 +55,18 @@ class Person:
 
 def person_draws(seed: int) -> tuple[dict, str, dict, Outfit, float, float]:
     """Everything random about the person of ``seed``: (phenotype, pose style, pose, outfit, turn
-    in degrees, fill of the image height)."""
+    in degrees, fill of the image height). Sitting (``SITTING`` of the people) and the accessories
+    come from a second stream, so the rest of a seed's person is the one earlier datasets hold."""
     rng = np.random.default_rng([int(seed), 0xB0D1])
     phenotype = sample_phenotype(rng)
     style, pose = sample_pose(rng)
     outfit = sample_outfit(rng)
-    return phenotype, style, pose, outfit, float(rng.uniform(*TURN_RANGE)), float(rng.uniform(*FILL_RANGE))
+    turn, fill = float(rng.uniform(*TURN_RANGE)), float(rng.uniform(*FILL_RANGE))
+    extra = np.random.default_rng([int(seed), 0xACCE])
+    if extra.uniform() < SITTING:
+        style, pose = "sitting", seat(pose, extra)
+    outfit = replace(outfit, accessories=sample_accessories(extra, seated=style == "sitting"))
+    return phenotype, style, pose, outfit, turn, fill
 
 
 def make_person(seed: int, size: int = 256) -> Person:
@@ -75,6 +83,12 @@ def make_person(seed: int, size: int = 256) -> Person:
     n = len(pos)
     albedo_v, spec_v, rough_v, _ = make_materials(at["fields"][:, None, :], np.ones((n, 1), bool), heads, rest, outfit)
     albedo_v, spec_v, rough_v = albedo_v[:, 0], spec_v[:, 0], rough_v[:, 0]
+    bag = bag_mesh(outfit.accessories, pos, normals, at["fields"], heads, scale)
+    if bag is not None:  # a mesh of its own, after the body's
+        faces = np.concatenate([faces, bag[1] + n])
+        pos, normals, albedo_v, spec_v, rough_v = (np.concatenate([x, y]) for x, y in zip((pos, normals, albedo_v, spec_v, rough_v),
+                                                                                       (bag[0], bag[2], bag[3], bag[4], bag[5])))
+        n = len(pos)
     material = np.concatenate([albedo_v, rough_v[:, None], spec_v[:, None], np.zeros((n, 3))], axis=1)
     depth, normal, mask, attrs = rasterize(cam, pos, normals, material, faces)
     m = mask[..., None]
