@@ -40,7 +40,11 @@ def person_tiles(seed: int, size: int) -> tuple[np.ndarray, str]:
     tiles = np.concatenate([img[r0:r1, c0:c1] for img in (_srgb8(s.albedo), (normal * 255 + 0.5).astype(np.uint8), _srgb8(lit))],
                            axis=1)
     o = p.outfit
+    a = o.accessories
+    worn = [a.bag] if a.bag else []
+    worn += [name for name, v in (("watch", a.watch), ("necklace", a.necklace), ("cap", a.cap)) if v is not None]
     caption = f"{p.pose_style.replace('_', ' ')}; {'long' if o.hair_length else 'short'} hair; top: {o.top.pattern}"
+    caption += f"; {', '.join(worn)}" if worn else ""
     return tiles, caption
 
 
