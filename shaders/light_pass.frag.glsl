@@ -1,5 +1,5 @@
 // Four area lights per pass, at every camera pixel of the mask's bounding box: soft visibility
-// (CSM), hard visibility (shadow map) and Lambert / Disney shading per unit intensity, written as
+// (contact-hardening soft shadows with SOFT_PCSS, else the paper's CSM), hard visibility (shadow map) and Lambert / Disney shading per unit intensity, written as
 // (V_soft, V_hard, S_diff, S_spec) to the four planes of the light atlas (light i: plane i % 4, in
 // the tile of group i / 4). The composite multiplies by the light's RGB intensity and the albedo.
 // Where a light is below the surface's horizon (n.l <= 0) both shading terms vanish, so the shadow
@@ -7,8 +7,12 @@
 // tests altogether (visibility 1, no shadow map needed). Sharing the pixel's fetches between four lights
 // and drawing a quarter as often is what the batching buys.
 #include "brdf.glsl"
-#include "csm.glsl"
 #include "shadow_test.glsl"
+#ifdef SOFT_PCSS
+#include "pcss.glsl"
+#else
+#include "csm.glsl"
+#endif
 
 uniform sampler2D positions;   // camera-space points (xyz) and roughness (w)
 uniform sampler2D normals;     // unit normals (xyz; zero outside the mask) and specular (w)
@@ -21,6 +25,8 @@ uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma 
                                // 2: hard and CSM; 3: shading only (visibility 1)
 uniform float csm_offset;
 uniform float csm_clamp;
+uniform float light_alpha[4];  // contact-hardening soft shadows: each light's angular sigma (radians)
+uniform float shadow_window;   // metres a shadow map spans (the same for every light)
 uniform ivec2 tile_origin;     // this group's tile in the light atlas
 uniform ivec2 box_origin;      // the mask's bounding box in the image
 layout(location = 0) out vec4 result0;
@@ -35,8 +41,15 @@ vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p,
     float v_soft = 1.0;
     if (light_mode[j] != 3) {
         vec3 uvd = receiver_uvd(light_frame[j], p, n);
-        v_hard = hard_visibility(shadow_map, uvd, receiver_bias(n, l, depth_scale[j]));
+        float bias = receiver_bias(n, l, depth_scale[j]);
+        v_hard = hard_visibility(shadow_map, uvd, bias);
+#ifdef SOFT_PCSS
+        v_soft = light_mode[j] == 1 ? v_hard
+            : pcss_visibility(shadow_map, uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias, light_alpha[j],
+                              shadow_window, depth_scale[j], v_hard);
+#else
         v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
+#endif
     }
 #ifdef SPECULAR
     float s_spec = disney_specular_shading(n, l, specular, roughness);

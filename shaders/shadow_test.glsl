@@ -21,9 +21,13 @@ float receiver_bias(vec3 n, vec3 l, float depth_scale) {
     return hard_threshold + slope_bias_texels * texel_world * t / depth_scale;
 }
 
-float hard_visibility(sampler2D shadow_map, vec3 uvd, float bias) {
+// The shadow map's depth in the texel containing uv (clamped to the map).
+float shadow_depth(sampler2D shadow_map, vec2 uv) {
     ivec2 size = textureSize(shadow_map, 0);
-    ivec2 texel = clamp(ivec2(floor(uvd.xy * vec2(size))), ivec2(0), size - 1);
-    float z = texelFetch(shadow_map, texel, 0).r;
-    return (uvd.z - bias <= z) ? 1.0 : 0.0;
+    ivec2 texel = clamp(ivec2(floor(uv * vec2(size))), ivec2(0), size - 1);
+    return texelFetch(shadow_map, texel, 0).r;
+}
+
+float hard_visibility(sampler2D shadow_map, vec3 uvd, float bias) {
+    return (uvd.z - bias <= shadow_depth(shadow_map, uvd.xy)) ? 1.0 : 0.0;
 }

@@ -63,3 +63,25 @@ def test_image_parity(both):
     a, b = gl["hdr"][m], tw.image.numpy()[m]
     rel = np.abs(a - b).sum() / np.abs(b).sum()
     assert rel < 1e-4, rel
+
+
+def test_contact_hardening_parity(ctx):
+    """Contact-hardening soft shadows (shaders/pcss.glsl against viewer/twin/pcss.py): the same taps
+    on the same shadow maps; a receiver can differ by whole taps (1/16) where a tap lands on a texel
+    boundary in one and not the other, which is rare."""
+    scene = load_scene(sample_scene_dir())
+    lights = bench_lights(16)
+    eng = Engine(ctx, scene, EngineOptions(soft="pcss", hard_sigma=0.0, skip_threshold=0.0))
+    eng.set_lights(lights)
+    eng.render()
+    gl = np.stack([eng.read_light(i)["visibility_soft"] for i in range(len(lights))])
+    step = eng.shadow_step
+    eng.release()
+    with torch.no_grad():
+        tw = twin_render(scene, lights, shadow_step=step, soft="pcss").soft_visibility.numpy()
+    lit = np.stack([scene.mask & ((scene.normal @ l) > 0) for l in lights.direction])
+    diff = np.abs(gl - tw)[lit]
+    assert diff.mean() < 1e-3 and (diff > 0.07).mean() < 1e-3
+    assert 0.05 < (gl[lit] < 0.99).mean() < 0.95  # not all lit: there is something to compare
+    partial = (gl[lit] > 0.05) & (gl[lit] < 0.95)
+    assert partial.mean() > 0.01  # and penumbrae

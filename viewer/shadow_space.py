@@ -34,6 +34,13 @@ HARD_SHADOW_THRESHOLD = 0.005  # normalised depth, the paper's hard-test thresho
 NORMAL_OFFSET_TEXELS = 1.5  # receivers are pushed along their normal by this many texels
 SLOPE_BIAS_TEXELS = 1.0  # extra depth bias: texels times tan(angle between normal and light)
 MAX_SLOPE = 20.0  # tan of the angle is clamped here (grazing light)
+# Contact-hardening soft shadows (shaders/pcss.glsl): a light's sigma read as an angle. The fitted
+# sigma is the blur of the light-fitting scene; the penumbra of a light of angular sigma alpha is
+# alpha x the blocker-receiver distance. ANGULAR_SIGMA (radians per sigma unit) is the factor that
+# fits the ray-traced area-light shadows of held-out people best (docs/engine.md).
+ANGULAR_SIGMA = 1.0 / 51.2
+PCSS_TAPS = 16
+PCSS_SEARCH = 0.25  # the blocker search covers blocker-receiver distances up to this many shadow-map windows
 
 
 @dataclass(frozen=True)
@@ -181,3 +188,13 @@ def csm_empty_basis(empty_depth: float, terms: int) -> np.ndarray:
     for k, ck in enumerate(c):
         out[k // 2, 2 * (k % 2):2 * (k % 2) + 2] = (np.cos(ck * empty_depth), np.sin(ck * empty_depth))
     return out
+
+
+@lru_cache(maxsize=None)
+def pcss_taps(count: int = PCSS_TAPS) -> np.ndarray:
+    """(count, 2) offsets of unit Gaussian sigma: a Vogel spiral (golden-angle turns) whose radii
+    are the Gaussian's radial quantiles, so ``count`` taps sample the Gaussian evenly."""
+    i = np.arange(count) + 0.5
+    radius = np.sqrt(-2.0 * np.log(1.0 - i / count))
+    angle = i * math.pi * (3.0 - math.sqrt(5.0))
+    return np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)

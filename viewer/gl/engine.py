@@ -8,7 +8,8 @@ these declarations):
     1 ShadowMapPass      inputs: direction              (shadow_passes.py)
     2 CsmBasisPass       inputs: shadow_map, sigma
     3 PrefilterPass      inputs: csm_basis
-    4 LightShadingPass   inputs: direction, shadow_map, prefilter; four lights per pass (light_pass.py)
+    4 LightShadingPass   inputs: direction, shadow_map, prefilter (CSM) or sigma (contact-hardening soft
+                         shadows, which skip 2 and 3); four lights per pass (light_pass.py)
   for the frame
     5 CompositePass      inputs: light_pass, intensity, activity, visibility, refined_visibility, terms
     6 DisplayPass        inputs: composite (mask's box); display, view, environment (whole image)
@@ -79,7 +80,7 @@ class Engine(EngineOutputs):
         self.prefilter_pass = PrefilterPass(kit, o.shadow_resolution, o.terms)
         self.atlas = LightAtlas(kit, res.mask_box, max_size, scene.source)
         self.refined = RefinedVisibility(kit, res.mask_box)
-        self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular)
+        self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular, o.soft)
         self.composite_pass = CompositePass(kit, res, (scene.width, scene.height), frame_shading=scene.frame is not None)
         self.inspect_pass = InspectPass(kit, res, (scene.width, scene.height))
         if scene.frame is None:
@@ -317,7 +318,8 @@ class Engine(EngineOutputs):
             if "shadow_map" in l.stale and need[id(l)] in (PASS_HARD, PASS_SOFT):
                 self.shadow_map_pass.run(l)
                 self._ran(self.shadow_map_pass, [l])
-        to_filter = [l for l in active if "csm_basis" in l.stale and need[id(l)] == PASS_SOFT]
+        # CSM's basis and pre-filter; contact-hardening soft shadows read the shadow map itself
+        to_filter = [l for l in active if "csm_basis" in l.stale and need[id(l)] == PASS_SOFT and self.options.soft == "csm"]
         for l in to_filter:
             self.csm_basis_pass.run(l)
         self._ran(self.csm_basis_pass, to_filter)

@@ -1,5 +1,5 @@
 """4. The light pass (light_pass.frag.glsl): at every camera pixel of the mask's box, four lights at
-once, each light's soft visibility (CSM), hard visibility (shadow test), and Lambert and Disney
+once, each light's soft visibility (CSM, or contact-hardening soft shadows), hard visibility (shadow test), and Lambert and Disney
 specular shading per unit intensity, into the light atlas. Also the refined visibility the
 refinement network gives for the same lights (the 'refined' shadow mode), kept beside the atlas."""
 
@@ -89,16 +89,19 @@ class LightShadingPass:
     (0 nothing, 1 hard visibility only, 2 hard and CSM, 3 unit visibility)."""
 
     name = "light_pass"
-    inputs = ("direction", "shadow_map", "prefilter")  # and the mode the shown visibility needs (Engine._needed_pass)
 
-    def __init__(self, kit: PassKit, scene: SceneResources, atlas: LightAtlas, resolution: int, terms: int, specular: bool):
+    def __init__(self, kit: PassKit, scene: SceneResources, atlas: LightAtlas, resolution: int, terms: int, specular: bool,
+                 soft: str = "csm"):
         self.kit, self.scene, self.atlas = kit, scene, atlas
-        self.resolution, self.terms, self.specular = resolution, terms, specular
+        self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
+        # and the mode the shown visibility needs (Engine._needed_pass); contact-hardening soft
+        # shadows read sigma here, CSM through its pre-filtered basis
+        self.inputs = ("direction", "shadow_map", "sigma") if soft == "pcss" else ("direction", "shadow_map", "prefilter")
 
     def run(self, group: list[Light], modes: list[int]):
         kit, sc = self.kit, self.scene
-        defines = {"TERMS": self.terms}
+        defines = {"SOFT_PCSS": None} if self.soft == "pcss" else {"TERMS": self.terms}
         if self.specular:
             defines["SPECULAR"] = None
         prog = kit.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", **defines)
@@ -110,17 +113,20 @@ class LightShadingPass:
             frames = np.zeros((LIGHTS_PER_PASS, 4, 4), "f4")
             dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
             scales = np.ones(LIGHTS_PER_PASS, "f4")
+            alphas = np.zeros(LIGHTS_PER_PASS, "f4")
             fallback = sc.positions  # any texture: slots without a light never read it
             for j in range(LIGHTS_PER_PASS):
                 l = group[j] if j < len(group) else None
                 used = l is not None and modes[j] in (PASS_HARD, PASS_SOFT)
                 (l.shadow_map if used else fallback).use(2 + j)
-                (l.filtered if used and modes[j] == PASS_SOFT else fallback).use(6 + j)
                 prog[f"shadow_map{j}"] = 2 + j
-                prog[f"filtered_basis{j}"] = 6 + j
+                if self.soft == "csm":
+                    (l.filtered if used and modes[j] == PASS_SOFT else fallback).use(6 + j)
+                    prog[f"filtered_basis{j}"] = 6 + j
                 if used:
                     frames[j] = l.frame.matrix().T
                     scales[j] = l.frame.depth_scale()
+                    alphas[j] = l.sigma * ss.ANGULAR_SIGMA
                 if l is not None:
                     dirs[j] = l.frame.direction
             prog["light_frame"].write(frames.tobytes())
@@ -132,8 +138,14 @@ class LightShadingPass:
             prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS
             prog["slope_bias_texels"] = ss.SLOPE_BIAS_TEXELS
             prog["max_slope"] = ss.MAX_SLOPE
-            prog["csm_offset"] = self.csm_offset
-            prog["csm_clamp"] = self.csm_clamp
+            if self.soft == "pcss":
+                prog["light_alpha"].write(alphas.tobytes())
+                prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
+                prog["pcss_taps"].write(ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes())
+                prog["pcss_search"] = ss.PCSS_SEARCH
+            else:
+                prog["csm_offset"] = self.csm_offset
+                prog["csm_clamp"] = self.csm_clamp
             x, y, bw, bh = sc.mask_box
             prog["tile_origin"] = group[0].tile
             prog["box_origin"] = (x, y)

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from ..errors import InputError
 from .prefilter import METHODS
 
+SOFT_METHODS = ("csm", "pcss")
+
 
 @dataclass(frozen=True)
 class EngineOptions:
@@ -15,6 +17,8 @@ class EngineOptions:
     # 3 per 512 image pixels: ~1.5 cm triangles on the sample, 1.8 % error, see docs/engine.md)
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
+    soft: str = "csm"  # soft shadows: "csm" (the paper's convolutional shadow maps, pre-filtered as ``prefilter``)
+    # or "pcss" (contact-hardening: the penumbra grows with the blocker-receiver distance, shaders/pcss.glsl)
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
     skip_threshold: float = 1e-5  # lights whose upper bound is below this fraction of the diffuse level are skipped
     leave_out: bool = True  # skip what the scene does not need (dark lights, soft filtering at sigma ~ 0, specular
@@ -29,6 +33,8 @@ class EngineOptions:
             raise InputError(None, f"CSM terms must be in [2, 16], got {self.terms}")
         if self.shadow_step < 0:
             raise InputError(None, f"shadow step must be >= 0 (0 = auto), got {self.shadow_step}")
+        if self.soft not in SOFT_METHODS:
+            raise InputError(None, f"soft shadows must be one of {', '.join(SOFT_METHODS)}, got {self.soft!r}")
         if self.prefilter not in METHODS:
             raise InputError(None, f"prefilter must be one of {', '.join(METHODS)}, got {self.prefilter!r}")
         if not (self.hard_sigma >= 0 and 0 <= self.skip_threshold < 1):

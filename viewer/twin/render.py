@@ -25,7 +25,7 @@ import torch
 from ..lights import AreaLights
 from ..mesh import DepthMesh, caster_points, depth_mesh, resolve_step
 from ..scene import Scene
-from . import csm
+from . import csm, pcss
 from .brdf import diffuse_shading, specular_shading
 from .shadow_map import shadow_maps
 from .shadow_space import light_frames, receiver_coordinates
@@ -130,12 +130,13 @@ def _default_device(scene, lights) -> torch.device:
 
 
 def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, shadow_step: int = 0,
-           terms: int = 4, device=None) -> Rendering:
+           terms: int = 4, device=None, soft: str = "csm") -> Rendering:
     """Relight ``scene`` under area ``lights`` (see :func:`as_light_tensors` for the accepted forms).
 
     ``shadow_resolution`` R of the per-light shadow maps, ``shadow_step`` decimation of the depth
     mesh they rasterize (ignored for a prepared :class:`SceneTensors`), ``terms`` Fourier terms M of
-    the convolutional shadow map. ``device`` defaults to the prepared scene's, else to the light
+    the convolutional shadow map; ``soft`` the soft shadows ("csm", or "pcss": contact-hardening,
+    :mod:`viewer.twin.pcss`). ``device`` defaults to the prepared scene's, else to the light
     tensors', else torch's default device (a prepared scene stays on its own device). Directions
     need not be unit: they are normalised here.
     """
@@ -149,7 +150,10 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
     depth = shadow_maps(st.mesh, frames, shadow_resolution)
     u, v, d, bias = receiver_coordinates(st.points, st.normal, frames, shadow_resolution)
     hard = csm.hard_visibility(depth, u, v, d, bias)
-    soft = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
+    if soft == "pcss":
+        soft = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal), hard)
+    else:
+        soft = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
 
     diffuse = diffuse_shading(st.normal, direction)  # (N, P)
     specular = specular_shading(st.normal, direction, st.specular, st.roughness)

@@ -1,0 +1,55 @@
+// Contact-hardening soft shadows on the hard shadow map: percentage-closer soft shadows (Fernando
+// 2005) with the area light's angular size. A blocker search over the light's footprint at a fixed
+// distance finds the mean gap between the receiver and its blockers (normalised depth); the
+// penumbra is then a Gaussian of alpha * gap metres (alpha: the light's angular sigma, radians),
+// sampled by percentage-closer filtering. Both steps use the same PCSS_TAPS Gaussian-distributed
+// offsets (a Vogel spiral of Gaussian radii, unit sigma) and compare each tap against the
+// receiver's tangent plane, so a sloped lit surface does not shadow itself. No blocker: lit; a
+// penumbra under half a texel: the hard test. Needs shadow_test.glsl. Mirrored by
+// viewer/twin/pcss.py; the taps and constants are viewer.shadow_space's.
+#define PCSS_TAPS 16
+
+uniform vec2 pcss_taps[PCSS_TAPS];
+uniform float pcss_search;  // blocker-receiver distance the search covers, in shadow-map windows
+
+// Normalised depth per unit of shadow-map uv along the receiver's tangent plane (n: its normal,
+// l: the light direction); the slope is clamped at max_slope as the hard test's bias is.
+vec2 receiver_gradient(mat4 frame, vec3 n, vec3 l, float max_slope) {
+    vec3 r0 = vec3(frame[0][0], frame[1][0], frame[2][0]);  // right / (2 r)
+    vec3 r1 = vec3(frame[0][1], frame[1][1], frame[2][1]);  // up / (2 r)
+    vec3 r2 = vec3(frame[0][2], frame[1][2], frame[2][2]);  // -l / depth_scale
+    float s = length(r0);
+    float k = length(r2);
+    vec2 g = vec2(dot(n, r0), dot(n, r1)) * k / (s * s * max(dot(n, l), 1.0 / max_slope));
+    float limit = max_slope * k / s;
+    float m = length(g);
+    return m > limit ? g * (limit / m) : g;
+}
+
+// Soft visibility of the receiver uvd (hard-test bias ``bias``, hard visibility ``hard``) for a
+// light of angular sigma ``alpha`` whose shadow map spans ``window`` metres, ``depth_scale``
+// metres per unit of normalised depth.
+float pcss_visibility(sampler2D shadow_map, vec3 uvd, vec2 gradient, float bias, float alpha, float window,
+                      float depth_scale, float hard) {
+    float search = alpha * pcss_search;  // uv
+    float gap = 0.0;
+    float blockers = 0.0;
+    for (int i = 0; i < PCSS_TAPS; ++i) {
+        vec2 o = pcss_taps[i] * search;
+        float receiver = uvd.z + dot(gradient, o) - bias;
+        float z = shadow_depth(shadow_map, uvd.xy + o);
+        if (z < receiver) {
+            gap += receiver - z;
+            blockers += 1.0;
+        }
+    }
+    if (blockers == 0.0) return 1.0;
+    float width = alpha * (gap / blockers) * depth_scale / window;  // the penumbra's sigma, uv
+    if (width * float(textureSize(shadow_map, 0).x) < 0.5) return hard;
+    float lit = 0.0;
+    for (int i = 0; i < PCSS_TAPS; ++i) {
+        vec2 o = pcss_taps[i] * width;
+        lit += (uvd.z + dot(gradient, o) - bias <= shadow_depth(shadow_map, uvd.xy + o)) ? 1.0 : 0.0;
+    }
+    return lit / float(PCSS_TAPS);
+}

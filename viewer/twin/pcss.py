@@ -1,0 +1,70 @@
+"""Contact-hardening soft shadows: torch twin of ``shaders/pcss.glsl``, batched over lights.
+
+Percentage-closer soft shadows on the hard shadow map, with the light's sigma read as an angle
+(alpha = sigma x :data:`viewer.shadow_space.ANGULAR_SIGMA` radians):
+
+1. blocker search: the :func:`viewer.shadow_space.pcss_taps` offsets scaled to alpha x PCSS_SEARCH
+   shadow-map windows; a tap is a blocker when its depth is nearer than the receiver's tangent
+   plane there (minus the hard test's bias); the gap is the mean of (plane - depth) over blockers;
+2. no blocker: visibility 1; else the penumbra's sigma is alpha x gap x depth scale metres; under
+   half a texel the hard visibility is used, else the fraction of the same taps, scaled to the
+   penumbra, that pass the tangent-plane test.
+
+Texel lookups are the hard test's (the texel containing the point, clamp-to-edge). Not
+differentiable in sigma (the tests are steps); the light fitting keeps using the CSM twin.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from .. import shadow_space as rule
+from .shadow_space import LightFrames
+
+
+def receiver_gradient(frames: LightFrames, normals: torch.Tensor) -> torch.Tensor:
+    """(N, P, 2): normalised depth per unit of shadow-map (u, v) along each receiver's tangent plane,
+    its slope clamped at MAX_SLOPE (shaders/pcss.glsl's ``receiver_gradient``)."""
+    window = 2.0 * frames.radius
+    scale = frames.depth_scale()[:, None, None]
+    cos = (frames.direction @ normals.T).clamp(min=1.0 / rule.MAX_SLOPE)  # (N, P)
+    g = torch.stack([frames.right @ normals.T, frames.up @ normals.T], dim=-1) * window / (scale * cos[..., None])
+    limit = rule.MAX_SLOPE * window / scale
+    m = g.norm(dim=-1, keepdim=True)
+    return torch.where(m > limit, g * (limit / m.clamp(min=1e-30)), g)
+
+
+def _depth_at(depth: torch.Tensor, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    n, res = depth.shape[0], depth.shape[-1]
+    j = torch.floor(u * res).clamp(0, res - 1).long()
+    i = torch.floor(v * res).clamp(0, res - 1).long()
+    return depth.reshape(n, -1).gather(1, i * res + j)
+
+
+def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrames, u: torch.Tensor, v: torch.Tensor,
+                    d: torch.Tensor, bias: torch.Tensor, gradient: torch.Tensor, hard: torch.Tensor) -> torch.Tensor:
+    """Soft visibility (N, P) of receivers (u, v, d), hard-test ``bias`` and ``hard`` visibility, each
+    (N, P), with tangent-plane ``gradient`` (N, P, 2), in shadow maps ``depth`` (N, R, R) of lights
+    with ``sigma`` (N,) (256-px units)."""
+    res = depth.shape[-1]
+    taps = torch.as_tensor(rule.pcss_taps(rule.PCSS_TAPS), dtype=d.dtype, device=d.device)
+    window = 2.0 * frames.radius
+    alpha = (sigma.to(d.dtype) * rule.ANGULAR_SIGMA)[:, None]  # (N, 1)
+    search = alpha * rule.PCSS_SEARCH
+    gap = torch.zeros_like(d)
+    blockers = torch.zeros_like(d)
+    for o in taps:
+        du, dv = o[0] * search, o[1] * search
+        receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
+        z = _depth_at(depth, u + du, v + dv)
+        hit = z < receiver
+        gap = gap + torch.where(hit, receiver - z, torch.zeros_like(z))
+        blockers = blockers + hit.to(d.dtype)
+    width = alpha * (gap / blockers.clamp(min=1.0)) * frames.depth_scale()[:, None] / window  # uv
+    lit = torch.zeros_like(d)
+    for o in taps:
+        du, dv = o[0] * width, o[1] * width
+        receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
+        lit = lit + (receiver <= _depth_at(depth, u + du, v + dv)).to(d.dtype)
+    soft = torch.where(width * res < 0.5, hard, lit / len(taps))
+    return torch.where(blockers == 0, torch.ones_like(d), soft)
