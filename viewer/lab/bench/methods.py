@@ -1,9 +1,9 @@
 """The methods ``relight bench report`` compares, each rendering a scene under a lighting and timed
 on the same machine in the same run.
 
-- ``engine``: the GL engine (area lights, shadow maps, convolutional shadow maps) at one setting of
-  its knobs: number of lights, shadow-map resolution, mesh decimation, Fourier terms M, prefilter,
-  and the leave-out policy;
+- ``engine``: the GL engine (area lights, shadow maps, soft shadows) at one setting of its knobs:
+  number of lights, shadow-map resolution, mesh decimation, the soft shadows (the paper's CSM with
+  its Fourier terms M and prefilter, or contact-hardening PCSS), and the leave-out policy;
 - ``directional`` (baseline): the same N fitted lights as directional lights with hard shadows only
   (sigma 0: shadow maps, no convolutional shadow maps);
 - ``sh`` (baseline): second-order spherical-harmonics lighting of the turned map, no shadows, no
@@ -40,15 +40,17 @@ class Method:
     prefilter: str = "pyramid"
     leave_out: bool = True
     sigma_scale: float = 1.0  # the fitted sigmas times this (how much softness the scenes want)
+    soft: str = "csm"  # the soft shadows: "csm" (terms and prefilter apply) or "pcss" (contact-hardening)
 
     @staticmethod
     def from_preset(preset) -> "Method":
         o = preset.options
-        return Method("engine", preset.lights, o.shadow_resolution, o.shadow_step, o.terms, o.prefilter, o.leave_out)
+        return Method("engine", preset.lights, o.shadow_resolution, o.shadow_step, o.terms, o.prefilter, o.leave_out,
+                      soft=o.soft)
 
     def options(self) -> EngineOptions:
         return EngineOptions(shadow_resolution=self.shadow_resolution, shadow_step=self.shadow_step, terms=self.terms,
-                             prefilter=self.prefilter, leave_out=self.leave_out)
+                             prefilter=self.prefilter, leave_out=self.leave_out, soft=self.soft)
 
     @property
     def uses_lights(self) -> bool:
@@ -61,7 +63,8 @@ class Method:
         if self.kind == "directional":
             return f"{self.lights} directional, hard shadows (SM {self.shadow_resolution})"
         step = "auto" if self.shadow_step == 0 else str(self.shadow_step)
-        text = f"N={self.lights} SM {self.shadow_resolution} step {step} M={self.terms} {self.prefilter}"
+        soft = "PCSS" if self.soft == "pcss" else f"M={self.terms} {self.prefilter}"
+        text = f"N={self.lights} SM {self.shadow_resolution} step {step} {soft}"
         if not self.leave_out:
             text += " leave-out off"
         if self.sigma_scale != 1.0:
@@ -114,7 +117,7 @@ class Renderer:
 
             with torch.no_grad():
                 out = twin_render(self._twin_scene, self._lights(lights), shadow_resolution=self.method.shadow_resolution,
-                                  terms=self.method.terms)
+                                  terms=self.method.terms, soft=self.method.soft)
             return out.image.numpy().astype(np.float32)
         self.engine.set_lights(self._lights(lights))
         self.engine.render()
@@ -157,6 +160,11 @@ def sweep(quick: bool, presets) -> list[Method]:
     methods += [replace(base, shadow_step=s) for s in ((1, 4) if quick else (1, 2, 4, 6))]
     methods += [replace(base, leave_out=False)]
     methods += [replace(base, sigma_scale=k) for k in ((0.5,) if quick else (0.25, 0.5))]  # 0 is the directional baseline
+    # both soft-shadow methods at every N (against the directional baseline at the same N), and
+    # whether the contact-hardening penumbrae are sized right (its sigma read as an angle, x 0.5 and x 2)
+    for soft in ("csm", "pcss"):
+        methods += [replace(base, soft=soft, lights=n) for n in counts]
+    methods += [replace(base, soft="pcss", sigma_scale=k) for k in ((2.0,) if quick else (0.5, 2.0))]
     if not quick:  # corners: cheap and expensive combinations the one-knob sweep does not reach
         for n in (8, 16, 32):
             methods += [replace(base, lights=n, shadow_resolution=256, terms=2),
