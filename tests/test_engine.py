@@ -287,6 +287,7 @@ def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene):
     ({"terms": 1}, "terms"),
     ({"shadow_step": -1}, "shadow step"),
     ({"prefilter": "box"}, "prefilter"),
+    ({"soft": "vsm"}, "soft shadows"),
 ])
 def test_bad_options_are_clear_errors(options, message):
     from viewer.errors import InputError
@@ -504,3 +505,21 @@ def test_a_map_wider_than_the_textures_is_averaged_down_not_black():
     assert small.shape == (64 // 5, 130 // 5, 3)  # factor 5: the smallest that fits 32 texels
     np.testing.assert_allclose(small[1, 2], px[5:10, 10:15].mean(axis=(0, 1)), rtol=1e-5)
     assert fit_environment(px, 130) is px
+
+
+def test_contact_hardening_cache_rules(ctx, scene):
+    """Contact-hardening soft shadows read the shadow map itself: no CSM basis or pre-filter ever
+    runs, and a sigma edit redoes the light pass alone."""
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 6.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
+    eng = Engine(ctx, scene, EngineOptions(soft="pcss"))
+    eng.set_lights(lights)
+    eng.render()
+    assert eng.counters.get("csm_basis", 0) == 0 and eng.counters.get("prefilter", 0) == 0
+    start = dict(eng.counters)
+    eng.set_lights(lights.with_sigma(1, 9.0))
+    eng.render()
+    assert {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)} == {
+        "light_pass": 1, "composite": 1, "display": 1}
+    soft = eng.read_light(1)["visibility_soft"]
+    assert np.isfinite(soft).all() and 0.0 <= soft.min() and soft.max() <= 1.0
+    eng.release()
