@@ -198,3 +198,19 @@ def pcss_taps(count: int = PCSS_TAPS) -> np.ndarray:
     radius = np.sqrt(-2.0 * np.log(1.0 - i / count))
     angle = i * math.pi * (3.0 - math.sqrt(5.0))
     return np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)
+
+
+def pcss_search_block(sigma: float, resolution: int) -> int:
+    """Texels per side of the blocks of the minimum-depth map a light's blocker search reads first
+    (a power of two, at most the map): more than twice the search's reach (its farthest tap's
+    offset along u or v) plus a texel, so the four blocks at the reach's corners hold every tap."""
+    reach = pcss_reach() * float(sigma) * ANGULAR_SIGMA * PCSS_SEARCH * resolution  # texels
+    block = 1
+    while block < 2.0 * reach + 2.0 and block < resolution:  # the taps' texels then span <= 2 blocks
+        block *= 2
+    return block
+
+
+def pcss_reach() -> float:
+    """The largest |component| of the PCSS taps (unit sigma)."""
+    return float(np.abs(pcss_taps(PCSS_TAPS)).max())

@@ -95,9 +95,9 @@ class LightShadingPass:
         self.kit, self.scene, self.atlas = kit, scene, atlas
         self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
-        # and the mode the shown visibility needs (Engine._needed_pass); contact-hardening soft
-        # shadows read sigma here, CSM through its pre-filtered basis
-        self.inputs = ("direction", "shadow_map", "sigma") if soft == "pcss" else ("direction", "shadow_map", "prefilter")
+        # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
+        # the CSM's pre-filtered basis, or the contact-hardening blocker search's minimum map
+        self.inputs = ("direction", "shadow_map", "blocker_min") if soft == "pcss" else ("direction", "shadow_map", "prefilter")
 
     def run(self, group: list[Light], modes: list[int]):
         kit, sc = self.kit, self.scene
@@ -114,15 +114,21 @@ class LightShadingPass:
             dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
             scales = np.ones(LIGHTS_PER_PASS, "f4")
             alphas = np.zeros(LIGHTS_PER_PASS, "f4")
+            blocks = np.ones(LIGHTS_PER_PASS, "i4")
             fallback = sc.positions  # any texture: slots without a light never read it
             for j in range(LIGHTS_PER_PASS):
                 l = group[j] if j < len(group) else None
                 used = l is not None and modes[j] in (PASS_HARD, PASS_SOFT)
                 (l.shadow_map if used else fallback).use(2 + j)
                 prog[f"shadow_map{j}"] = 2 + j
+                soft = used and modes[j] == PASS_SOFT
                 if self.soft == "csm":
-                    (l.filtered if used and modes[j] == PASS_SOFT else fallback).use(6 + j)
+                    (l.filtered if soft else fallback).use(6 + j)
                     prog[f"filtered_basis{j}"] = 6 + j
+                else:
+                    (l.blocker_min if soft else fallback).use(6 + j)
+                    prog[f"min_depth{j}"] = 6 + j
+                    blocks[j] = l.blocker_block if soft else 1
                 if used:
                     frames[j] = l.frame.matrix().T
                     scales[j] = l.frame.depth_scale()
@@ -143,6 +149,8 @@ class LightShadingPass:
                 prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
                 prog["pcss_taps"].write(ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes())
                 prog["pcss_search"] = ss.PCSS_SEARCH
+                prog["pcss_reach"] = ss.pcss_reach()
+                prog["min_block"].write(blocks.tobytes())
             else:
                 prog["csm_offset"] = self.csm_offset
                 prog["csm_clamp"] = self.csm_clamp
