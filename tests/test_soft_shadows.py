@@ -73,3 +73,21 @@ def test_csm_is_too_soft_near_contact(widths):
     # (measured 12.4 pixels against 5.7), what the contact-hardening method fixes (4.0)
     assert widths["csm"][0] > 1.6 * widths["truth"][0]
     assert abs(widths["pcss"][0] - widths["truth"][0]) < abs(widths["csm"][0] - widths["truth"][0])
+
+
+def test_extreme_lights_stay_finite_and_bounded(ctx):
+    """Sigma 0, tiny and the largest allowed, a grazing and a below-horizon light: visibility in [0, 1]."""
+    from viewer.lights import MAX_SIGMA
+
+    scene = plane_and_box(48)
+    grazing = np.array([np.cos(np.radians(2.0)), 0.0, np.sin(np.radians(2.0))])
+    dirs = np.array([LIGHT, LIGHT, LIGHT, grazing, [0.0, 0.3, -1.0]], np.float32)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    eng = Engine(ctx, scene, EngineOptions(soft="pcss", shadow_step=1))
+    eng.set_lights(AreaLights(dirs, [0.0, 1e-3, MAX_SIGMA, 10.0, 10.0], np.ones((5, 3), np.float32)))
+    eng.render()
+    for i in range(5):
+        v = eng.read_light(i)["visibility_soft"]
+        assert np.isfinite(v).all() and v.min() >= 0.0 and v.max() <= 1.0
+    assert np.isfinite(eng.read_hdr()).all()
+    eng.release()
