@@ -14,17 +14,14 @@ uniform float pcss_search;  // blocker-receiver distance the search covers, in s
 uniform float pcss_reach;   // the taps' largest |offset| along u or v (unit sigma)
 
 // Normalised depth per unit of shadow-map uv along the receiver's tangent plane (n: its normal,
-// l: the light direction); the slope is clamped at max_slope as the hard test's bias is.
+// l: the light direction); n.l is floored at 1 / max_slope, which bounds the slope as the hard
+// test's bias is bounded.
 vec2 receiver_gradient(mat4 frame, vec3 n, vec3 l, float max_slope) {
     vec3 r0 = vec3(frame[0][0], frame[1][0], frame[2][0]);  // right / (2 r)
     vec3 r1 = vec3(frame[0][1], frame[1][1], frame[2][1]);  // up / (2 r)
     vec3 r2 = vec3(frame[0][2], frame[1][2], frame[2][2]);  // -l / depth_scale
     float s = length(r0);
-    float k = length(r2);
-    vec2 g = vec2(dot(n, r0), dot(n, r1)) * k / (s * s * max(dot(n, l), 1.0 / max_slope));
-    float limit = max_slope * k / s;
-    float m = length(g);
-    return m > limit ? g * (limit / m) : g;
+    return vec2(dot(n, r0), dot(n, r1)) * length(r2) / (s * s * max(dot(n, l), 1.0 / max_slope));
 }
 
 // Soft visibility of the receiver uvd (hard-test bias ``bias``, hard visibility ``hard``) for a

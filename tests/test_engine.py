@@ -247,9 +247,10 @@ def test_weak_light_on_a_mirror_highlight_is_not_skipped(ctx):
     full.release()
 
 
-def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene):
+@pytest.mark.parametrize("soft", ["csm", "pcss"])
+def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene, soft):
     """Cache rules under light-count changes, skip/unskip, sigma crossing hard_sigma and pyramid
-    levels, and visibility modes: every frame equals a fresh engine's."""
+    levels (CSM) or blocker-map sizes (PCSS), and visibility modes: every frame equals a fresh engine's."""
     d = unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0], [0.1, 0.9, 0.5], [0.6, -0.1, 0.8]])
     base = AreaLights(d, [3.0, 6.0, 0.0, 12.0], [[1, 1, 1], [0.5, 0.4, 0.3], [0.2, 0.2, 0.2], [0.3, 0.3, 0.3]])
     steps = [
@@ -262,7 +263,7 @@ def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene):
         ("set", base.rotated(30.0).with_sigma(3, 1.5)),
         ("vis", "soft"),
     ]
-    eng = make_engine(ctx, scene)
+    eng = make_engine(ctx, scene, soft=soft)
     vis = "soft"
     for kind, value in steps:
         if kind == "set":
@@ -272,7 +273,7 @@ def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene):
             vis = value
             eng.set_visibility(value)
         eng.render()
-        fresh = make_engine(ctx, scene)
+        fresh = make_engine(ctx, scene, soft=soft)
         fresh.set_lights(lights)
         fresh.set_visibility(vis)
         fresh.render()
@@ -522,4 +523,13 @@ def test_contact_hardening_cache_rules(ctx, scene):
         "blocker_min": 1, "light_pass": 1, "composite": 1, "display": 1}
     soft = eng.read_light(1)["visibility_soft"]
     assert np.isfinite(soft).all() and 0.0 <= soft.min() and soft.max() <= 1.0
+    eng.release()
+
+
+def test_refined_shadows_need_the_csm(ctx, scene):
+    from viewer.errors import InputError
+
+    eng = make_engine(ctx, scene, soft="pcss")
+    with pytest.raises(InputError, match="refined shadows need the CSM"):
+        eng.set_visibility("refined")
     eng.release()

@@ -24,14 +24,11 @@ from .shadow_space import LightFrames
 
 def receiver_gradient(frames: LightFrames, normals: torch.Tensor) -> torch.Tensor:
     """(N, P, 2): normalised depth per unit of shadow-map (u, v) along each receiver's tangent plane,
-    its slope clamped at MAX_SLOPE (shaders/pcss.glsl's ``receiver_gradient``)."""
+    n.l floored at 1 / MAX_SLOPE (shaders/pcss.glsl's ``receiver_gradient``)."""
     window = 2.0 * frames.radius
     scale = frames.depth_scale()[:, None, None]
     cos = (frames.direction @ normals.T).clamp(min=1.0 / rule.MAX_SLOPE)  # (N, P)
-    g = torch.stack([frames.right @ normals.T, frames.up @ normals.T], dim=-1) * window / (scale * cos[..., None])
-    limit = rule.MAX_SLOPE * window / scale
-    m = g.norm(dim=-1, keepdim=True)
-    return torch.where(m > limit, g * (limit / m.clamp(min=1e-30)), g)
+    return torch.stack([frames.right @ normals.T, frames.up @ normals.T], dim=-1) * window / (scale * cos[..., None])
 
 
 def _depth_at(depth: torch.Tensor, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:

@@ -150,6 +150,8 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
     depth = shadow_maps(st.mesh, frames, shadow_resolution)
     u, v, d, bias = receiver_coordinates(st.points, st.normal, frames, shadow_resolution)
     hard = csm.hard_visibility(depth, u, v, d, bias)
+    if soft not in ("csm", "pcss"):
+        raise ValueError(f"soft shadows must be 'csm' or 'pcss', got {soft!r}")
     if soft == "pcss":
         soft = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal), hard)
     else:

@@ -42,6 +42,11 @@ class Method:
     sigma_scale: float = 1.0  # the fitted sigmas times this (how much softness the scenes want)
     soft: str = "csm"  # the soft shadows: "csm" (terms and prefilter apply) or "pcss" (contact-hardening)
 
+    def __post_init__(self):
+        if self.soft == "pcss":  # terms and prefilter mean nothing there: one PCSS setting, one label
+            object.__setattr__(self, "terms", 4)
+            object.__setattr__(self, "prefilter", "pyramid")
+
     @staticmethod
     def from_preset(preset) -> "Method":
         o = preset.options
