@@ -36,10 +36,11 @@ SLOPE_BIAS_TEXELS = 1.0  # extra depth bias: texels times tan(angle between norm
 MAX_SLOPE = 20.0  # tan of the angle is clamped here (grazing light)
 # Contact-hardening soft shadows (shaders/pcss.glsl): a light's sigma read as an angle. The fitted
 # sigma is the blur of the light-fitting scene; the penumbra of a light of angular sigma alpha is
-# alpha x the blocker-receiver distance. ANGULAR_SIGMA (radians per sigma unit) is the factor that
-# fits the ray-traced area-light shadows of held-out people best (docs/engine.md).
+# alpha x the blocker-receiver distance. ANGULAR_SIGMA (radians per sigma unit) was the best of four
+# factors against ray-traced shadows of held-out people (docs/engine.md says how it was measured).
 ANGULAR_SIGMA = 1.0 / 51.2
 PCSS_TAPS = 16
+SOFT_METHODS = ("csm", "pcss")  # the soft shadows: the paper's convolutional shadow maps, or contact-hardening
 PCSS_SEARCH = 0.25  # the blocker search covers blocker-receiver distances up to this many shadow-map windows
 
 

@@ -5,9 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import InputError
+from ..shadow_space import SOFT_METHODS
 from .prefilter import METHODS
-
-SOFT_METHODS = ("csm", "pcss")
 
 
 @dataclass(frozen=True)

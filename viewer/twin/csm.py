@@ -133,12 +133,17 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, u: torch.Tensor, v
     return reconstruct_visibility(sample_bilinear(filtered, u, v), d, terms)
 
 
+def shadow_depth(depth: torch.Tensor, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """(N, P): the depth of shadow maps (N, R, R) in the texel containing each (u, v) (clamped to
+    the map), as shaders/shadow_test.glsl's ``shadow_depth``."""
+    n, res = depth.shape[0], depth.shape[-1]
+    j = torch.floor(u * res).clamp(0, res - 1).long()
+    i = torch.floor(v * res).clamp(0, res - 1).long()
+    return depth.reshape(n, -1).gather(1, i * res + j)
+
+
 def hard_visibility(depth: torch.Tensor, u: torch.Tensor, v: torch.Tensor, d: torch.Tensor,
                     bias: torch.Tensor) -> torch.Tensor:
     """Hard shadow-map visibility (N, P), 1 lit / 0 shadowed: the texel containing (u, v) (clamped
     to the map) is compared with the receiver, lit when d - bias <= z."""
-    n, res = depth.shape[0], depth.shape[-1]
-    j = torch.floor(u * res).clamp(0, res - 1).long()
-    i = torch.floor(v * res).clamp(0, res - 1).long()
-    z = depth.reshape(n, -1).gather(1, i * res + j)
-    return (d - bias <= z).to(depth.dtype)
+    return (d - bias <= shadow_depth(depth, u, v)).to(depth.dtype)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import torch
 
 from .. import shadow_space as rule
+from .csm import shadow_depth
 from .shadow_space import LightFrames
 
 
@@ -29,13 +30,6 @@ def receiver_gradient(frames: LightFrames, normals: torch.Tensor) -> torch.Tenso
     scale = frames.depth_scale()[:, None, None]
     cos = (frames.direction @ normals.T).clamp(min=1.0 / rule.MAX_SLOPE)  # (N, P)
     return torch.stack([frames.right @ normals.T, frames.up @ normals.T], dim=-1) * window / (scale * cos[..., None])
-
-
-def _depth_at(depth: torch.Tensor, u: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    n, res = depth.shape[0], depth.shape[-1]
-    j = torch.floor(u * res).clamp(0, res - 1).long()
-    i = torch.floor(v * res).clamp(0, res - 1).long()
-    return depth.reshape(n, -1).gather(1, i * res + j)
 
 
 def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrames, u: torch.Tensor, v: torch.Tensor,
@@ -53,7 +47,7 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
     for o in taps:
         du, dv = o[0] * search, o[1] * search
         receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
-        z = _depth_at(depth, u + du, v + dv)
+        z = shadow_depth(depth, u + du, v + dv)
         hit = z < receiver
         gap = gap + torch.where(hit, receiver - z, torch.zeros_like(z))
         blockers = blockers + hit.to(d.dtype)
@@ -62,6 +56,6 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
     for o in taps:
         du, dv = o[0] * width, o[1] * width
         receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
-        lit = lit + (receiver <= _depth_at(depth, u + du, v + dv)).to(d.dtype)
+        lit = lit + (receiver <= shadow_depth(depth, u + du, v + dv)).to(d.dtype)
     soft = torch.where(width * res < 0.5, hard, lit / len(taps))
     return torch.where(blockers == 0, torch.ones_like(d), soft)

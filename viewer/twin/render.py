@@ -25,6 +25,7 @@ import torch
 from ..lights import AreaLights
 from ..mesh import DepthMesh, caster_points, depth_mesh, resolve_step
 from ..scene import Scene
+from .. import shadow_space as rule
 from . import csm, pcss
 from .brdf import diffuse_shading, specular_shading
 from .shadow_map import shadow_maps
@@ -150,21 +151,21 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
     depth = shadow_maps(st.mesh, frames, shadow_resolution)
     u, v, d, bias = receiver_coordinates(st.points, st.normal, frames, shadow_resolution)
     hard = csm.hard_visibility(depth, u, v, d, bias)
-    if soft not in ("csm", "pcss"):
-        raise ValueError(f"soft shadows must be 'csm' or 'pcss', got {soft!r}")
+    if soft not in rule.SOFT_METHODS:
+        raise ValueError(f"soft shadows must be one of {', '.join(rule.SOFT_METHODS)}, got {soft!r}")
     if soft == "pcss":
-        soft = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal), hard)
+        visibility = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal), hard)
     else:
-        soft = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
+        visibility = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
 
     diffuse = diffuse_shading(st.normal, direction)  # (N, P)
     specular = specular_shading(st.normal, direction, st.specular, st.roughness)
-    radiance = torch.einsum("np,nc,pc->pc", soft * diffuse, lt.intensity, st.albedo) + torch.einsum(
-        "np,nc->pc", soft * specular, lt.intensity)
+    radiance = torch.einsum("np,nc,pc->pc", visibility * diffuse, lt.intensity, st.albedo) + torch.einsum(
+        "np,nc->pc", visibility * specular, lt.intensity)
     return Rendering(
         shadow_maps=depth,
         hard_visibility=st.to_image(hard),
-        soft_visibility=st.to_image(soft),
+        soft_visibility=st.to_image(visibility),
         diffuse=st.to_image(diffuse),
         specular=st.to_image(specular),
         image=st.to_image(radiance.T).permute(1, 2, 0),

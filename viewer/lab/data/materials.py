@@ -153,7 +153,7 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Ou
     is_trousers = legs & ~is_belt & ~is_leg_skin
     is_shirt = ~(is_head | is_arm_skin | is_sole | is_shoe | is_belt | is_trousers | is_leg_skin)
     is_skin = (is_head & ~is_hair & ~is_eye) | is_arm_skin | is_leg_skin
-    strap, watch, necklace, cap = _accessory_regions(p, w_arm, t_arm, is_head & ~is_eye, ry, heads, eye_z, head_top, z_hip,
+    strap, watch, necklace, cap = _accessory_regions(p, w_arm, t_arm, is_head & ~is_eye, ear, ry, heads, eye_z, head_top, z_hip,
                                                      outfit.accessories)
     strap &= is_shirt
     watch &= ~strap
@@ -170,9 +170,9 @@ def classify(fields: np.ndarray, heads: dict, rest_verts: np.ndarray, outfit: Ou
                 strap=strap, watch=watch, necklace=necklace, cap=cap)
 
 
-def _accessory_regions(p, w_arm, t_arm, head, ry, heads, eye_z, head_top, z_hip, a: Accessories):
+def _accessory_regions(p, w_arm, t_arm, head, ear, ry, heads, eye_z, head_top, z_hip, a: Accessories):
     """Bands of the body's surface (rest positions ``p``) under the accessories that are not meshes
-    of their own: bag straps, the watch, the necklace and the cap."""
+    of their own: bag straps, the watch, the necklace and the cap (``ear``: classify's ears, left bare)."""
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
     none = np.zeros(p.shape[:-1], bool)
     strap, watch, necklace, cap = none, none, none, none
@@ -201,7 +201,7 @@ def _accessory_regions(p, w_arm, t_arm, head, ry, heads, eye_z, head_top, z_hip,
         necklace = (w_arm < 0.5) & (np.abs(z - chain_z) < 0.005) & (radius < 0.075 + 0.04 * front)
     if a.cap is not None:  # over the top of the head, lower at the back, the ears bare
         line = np.maximum(eye_z + 0.40 * (head_top - eye_z) - 0.35 * np.clip(ry + 0.04, 0.0, None), eye_z + 0.1 * (head_top - eye_z))
-        cap = head & (z > line) & ~((np.abs(x) > 0.062) & (ry > -0.045) & (ry < 0.025) & (z < eye_z + 0.035))
+        cap = head & (z > line) & ~ear
     return strap, watch, necklace, cap
 
 
@@ -265,7 +265,8 @@ def make_materials(fields: np.ndarray, mask: np.ndarray, heads: dict, rest_verts
     paint(r["iris"], o.iris, EYE[1], EYE[2])
     paint(r["pupil"], *PUPIL)
     a = o.accessories
-    paint(r["strap"], a.bag_color, *STRAP, 1.0 + 0.1 * fbm(p, 0.02, 25))
+    if a.bag is not None:
+        paint(r["strap"], a.bag_color, *STRAP, 1.0 + 0.1 * fbm(p, 0.02, 25))
     if a.watch is not None:
         paint(r["watch"], a.watch, *METAL)
     if a.necklace is not None:
