@@ -1,6 +1,7 @@
 // Shared BRDF: Lambert diffuse and the Disney principled specular lobe (GGX), per unit light
-// intensity, the light treated as directional (the paper, Stage 1). Included by every pass that
-// shades; mirrored by viewer/twin/brdf.py. View vector (0, 0, 1) as in the paper.
+// intensity, the light treated as directional (the paper, Stage 1) except that its angular size
+// widens the specular lobe (below). Included by every pass that shades; mirrored by
+// viewer/twin/brdf.py. View vector (0, 0, 1) as in the paper.
 // PI, MIN_ALPHA and SPECULAR_SCALE are #defines generated from viewer/constants.py.
 
 float lambert_shading(vec3 n, vec3 l) {
@@ -12,8 +13,19 @@ float smith_g1(float x, float a2) {
     return 1.0 / (x + sqrt(a2 + x * x - a2 * x * x));
 }
 
-// n.l * F * D * G for the Disney specular lobe with F0 = SPECULAR_SCALE * specular, alpha = roughness^2.
-float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness) {
+// GGX alpha of a lobe lit by a light of angular (Gaussian) sigma light_angle, in radians: the
+// half vector spreads by half the light's angle, whose slope variance adds to the lobe's
+// (alpha^2 ~ 2 x slope variance), so alpha'^2 = alpha^2 + light_angle^2 / 2. The roughness
+// widening of Karis 2013 for sphere lights, in the variance form; D stays normalised, so the
+// highlight keeps its energy and loses its peak. Capped at 1 (a fully rough lobe).
+float widened_alpha(float roughness, float light_angle) {
+    float alpha = max(roughness * roughness, MIN_ALPHA);
+    return min(sqrt(alpha * alpha + 0.5 * light_angle * light_angle), 1.0);
+}
+
+// n.l * F * D * G for the Disney specular lobe with F0 = SPECULAR_SCALE * specular, alpha = roughness^2
+// widened by the light's angular size (widened_alpha).
+float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness, float light_angle) {
     const vec3 v = vec3(0.0, 0.0, 1.0);
     float nl = dot(n, l);
     float nv = dot(n, v);
@@ -21,7 +33,7 @@ float disney_specular_shading(vec3 n, vec3 l, float specular, float roughness) {
     vec3 h = normalize(l + v);
     float nh = max(dot(n, h), 0.0);
     float lh = max(dot(l, h), 0.0);
-    float alpha = max(roughness * roughness, MIN_ALPHA);
+    float alpha = widened_alpha(roughness, light_angle);
     float a2 = alpha * alpha;
     float f0 = SPECULAR_SCALE * specular;
     float m = 1.0 - lh;

@@ -27,7 +27,7 @@ uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma 
                                // 2: hard and CSM; 3: shading only (visibility 1)
 uniform float csm_offset;
 uniform float csm_clamp;
-uniform float light_alpha[4];  // contact-hardening soft shadows: each light's angular sigma (radians)
+uniform float light_alpha[4];  // each light's angular sigma (radians): contact-hardening penumbrae, specular widening
 uniform float shadow_window;   // metres a shadow map spans (the same for every light)
 uniform ivec2 tile_origin;     // this group's tile in the light atlas
 uniform ivec2 box_origin;      // the mask's bounding box in the image
@@ -55,7 +55,7 @@ vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, sampler
 #endif
     }
 #ifdef SPECULAR
-    float s_spec = disney_specular_shading(n, l, specular, roughness);
+    float s_spec = disney_specular_shading(n, l, specular, roughness, light_alpha[j]);
 #else
     float s_spec = 0.0;
 #endif

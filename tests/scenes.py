@@ -30,3 +30,29 @@ def plane_and_box(size: int = 96, box: bool = True, albedo: float = 0.5, specula
         mask=np.ones((size, size), bool),
         camera=cam,
     ).validate()
+
+
+def sphere(size: int = 96, radius: float = 0.3, distance: float = 4.0, focal_mm: float = 200.0, albedo: float = 0.5,
+           specular: float = 0.5, roughness: float = 0.5) -> Scene:
+    """A sphere of ``radius`` metres ``distance`` metres in front of a long-lens camera (nearly
+    orthographic, as the engine's fixed view vector assumes), with exact depth and normals; the mask
+    is the sphere's disc."""
+    cam = Camera(size, size, focal_mm=focal_mm, distance=distance)
+    d = cam.view_directions()  # unit rays from the camera at the origin
+    centre = np.array([0.0, 0.0, -distance])
+    b = d @ centre
+    disc = b * b - (distance * distance - radius * radius)
+    mask = disc > 0.0
+    t = np.where(mask, b - np.sqrt(np.maximum(disc, 0.0)), distance)
+    points = d * t[..., None]
+    normal = np.where(mask[..., None], (points - centre) / radius, 0.0).astype(np.float32)
+    depth = np.where(mask, -points[..., 2], distance + radius).astype(np.float32)
+    return Scene(
+        albedo=np.full((size, size, 3), albedo, np.float32),
+        specular=np.full((size, size), specular, np.float32),
+        roughness=np.full((size, size), roughness, np.float32),
+        normal=normal,
+        depth=depth,
+        mask=mask,
+        camera=cam,
+    ).validate()

@@ -489,7 +489,8 @@ def test_passes_declare_what_makes_them_stale(ctx, scene):
         for what in (*p.inputs, *getattr(p, "whole_inputs", ())):
             readers.setdefault(what, set()).add(p.name)
     assert readers["direction"] == {"shadow_map", "light_pass"}
-    assert readers["sigma"] == {"csm_basis", "blocker_min"}  # the blocker search's map: contact-hardening only
+    # the blocker search's map: contact-hardening only; the light pass: sigma widens the specular lobe
+    assert readers["sigma"] == {"csm_basis", "blocker_min", "light_pass"} and scene.has_specular
     assert readers["shadow_map"] == {"csm_basis", "blocker_min", "light_pass"} and readers["csm_basis"] == {"prefilter"}
     assert readers["prefilter"] == {"light_pass"} and readers["light_pass"] == {"composite"}
     assert readers["intensity"] == {"composite"} and readers["display"] == {"display"}

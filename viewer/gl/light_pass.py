@@ -98,6 +98,8 @@ class LightShadingPass:
         # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
         # the CSM's pre-filtered basis, or the contact-hardening blocker search's minimum map
         self.inputs = ("direction", "shadow_map", "blocker_min") if soft == "pcss" else ("direction", "shadow_map", "prefilter")
+        if specular:  # a light's angular size widens its specular lobe (brdf.glsl's widened_alpha)
+            self.inputs += ("sigma",)
 
     def run(self, group: list[Light], modes: list[int]):
         kit, sc = self.kit, self.scene
@@ -132,9 +134,9 @@ class LightShadingPass:
                 if used:
                     frames[j] = l.frame.matrix().T
                     scales[j] = l.frame.depth_scale()
-                    alphas[j] = l.sigma * ss.ANGULAR_SIGMA
                 if l is not None:
                     dirs[j] = l.frame.direction
+                    alphas[j] = l.sigma * ss.ANGULAR_SIGMA
             prog["light_frame"].write(frames.tobytes())
             prog["light_dir"].write(dirs.tobytes())
             prog["depth_scale"].write(scales.tobytes())
@@ -144,8 +146,9 @@ class LightShadingPass:
             prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS
             prog["slope_bias_texels"] = ss.SLOPE_BIAS_TEXELS
             prog["max_slope"] = ss.MAX_SLOPE
-            if self.soft == "pcss":
+            if "light_alpha" in prog:  # absent when neither PCSS nor the specular code reads it
                 prog["light_alpha"].write(alphas.tobytes())
+            if self.soft == "pcss":
                 prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
                 prog["pcss_taps"].write(ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes())
                 prog["pcss_search"] = ss.PCSS_SEARCH

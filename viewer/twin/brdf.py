@@ -34,11 +34,23 @@ def _smith_g1(x: torch.Tensor, a2: torch.Tensor) -> torch.Tensor:
     return 1.0 / (x + torch.sqrt(a2 + x * x - a2 * x * x))
 
 
+def widened_alpha(roughness: torch.Tensor, light_angle: torch.Tensor | None) -> torch.Tensor:
+    """GGX alpha ``max(roughness^2, MIN_ALPHA)`` widened by each light's angular sigma (radians, (N,)):
+    ``min(sqrt(alpha^2 + light_angle^2 / 2), 1)``, (N, ...) (shaders/brdf.glsl says why); (1, ...)
+    without ``light_angle`` (point lights)."""
+    alpha = (roughness * roughness).clamp(min=MIN_ALPHA).unsqueeze(0)
+    if light_angle is None:
+        return alpha
+    angle = light_angle.to(alpha.dtype).reshape(-1, *([1] * roughness.dim()))
+    return torch.sqrt(alpha * alpha + 0.5 * angle * angle).clamp(max=1.0)
+
+
 def specular_shading(normal: torch.Tensor, light_dir: torch.Tensor, specular: torch.Tensor,
-                     roughness: torch.Tensor) -> torch.Tensor:
+                     roughness: torch.Tensor, light_angle: torch.Tensor | None = None) -> torch.Tensor:
     """Disney principled specular per unit intensity, ``n.l F D G``: (N, ...).
 
-    ``F0 = 0.08 specular``, Schlick Fresnel on l.h, ``alpha = max(roughness^2, 1e-3)``, GGX D,
+    ``F0 = 0.08 specular``, Schlick Fresnel on l.h, ``alpha = max(roughness^2, 1e-3)`` widened by
+    the lights' angular sigmas ``light_angle`` (N,) where given (:func:`widened_alpha`), GGX D,
     Smith ``G = G1(n.l) G1(n.v)``, view vector v = (0, 0, 1). ``specular`` and ``roughness`` have
     the normals' batch shape. As in ``shaders/brdf.glsl`` the lobe is zero where n.l <= 0, n.v <= 0
     or specular <= 0 (a matte pixel has no specular, not even Schlick's grazing term), and n.h, l.h
@@ -53,8 +65,8 @@ def specular_shading(normal: torch.Tensor, light_dir: torch.Tensor, specular: to
     h = lv * torch.rsqrt((lv * lv).sum(dim=1, keepdim=True).clamp(min=1e-12))
     nh = _cosines(normal, h).clamp(min=0.0)
     lh = (l * h).sum(dim=1).clamp(min=0.0).reshape(-1, *([1] * (normal.dim() - 1)))
-    alpha = (roughness * roughness).clamp(min=MIN_ALPHA)
-    a2 = (alpha * alpha).unsqueeze(0)
+    alpha = widened_alpha(roughness, light_angle)
+    a2 = alpha * alpha
     f0 = (SPECULAR_SCALE * specular).unsqueeze(0)
     fresnel = f0 + (1.0 - f0) * (1.0 - lh) ** 5
     t = nh * nh * (a2 - 1.0) + 1.0

@@ -2,14 +2,15 @@
 
 For every area light l (direction, sigma, RGB intensity I_l): a hard shadow map of the depth mesh
 and its convolutional shadow map give the hard and soft visibility of each masked pixel; Lambert
-and Disney specular shading treat the light as directional; the HDR image is the paper's composite
+and Disney specular shading treat the light as directional, its angular size widening the specular
+lobe (brdf.widened_alpha); the HDR image is the paper's composite
 
     HDR = sum_l V_l I_l (A S_diff_l + S_spec_l)
 
 with the soft visibility V_l, zero outside the mask (docs/conventions.md).
 
 Gradients: the image is differentiable with respect to every light's intensity, sigma (through the
-CSM pre-filter) and direction (through the shading). The shadow maps and receiver coordinates use
+CSM pre-filter and the specular widening) and direction (through the shading). The shadow maps and receiver coordinates use
 the detached direction: the occluders' silhouettes in a rasterized shadow map do not move with the
 light under autograd, so a gradient through the receivers alone would point the wrong way (the
 paper likewise detaches direction and intensity when it learns sigma).
@@ -159,7 +160,7 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
         visibility = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
 
     diffuse = diffuse_shading(st.normal, direction)  # (N, P)
-    specular = specular_shading(st.normal, direction, st.specular, st.roughness)
+    specular = specular_shading(st.normal, direction, st.specular, st.roughness, lt.sigma * rule.ANGULAR_SIGMA)
     radiance = torch.einsum("np,nc,pc->pc", visibility * diffuse, lt.intensity, st.albedo) + torch.einsum(
         "np,nc->pc", visibility * specular, lt.intensity)
     return Rendering(
