@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes import plane_and_box
+from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
 from viewer.gl.prefilter import blur_plan
 from viewer.lights import AreaLights
@@ -118,7 +118,7 @@ def test_soft_filter_skip_matches_full_computation(ctx, scene):
     sigma = EngineOptions().hard_sigma * 0.99
     out = {}
     for hs in (EngineOptions().hard_sigma, 0.0):
-        eng = make_engine(ctx, scene, hard_sigma=hs)
+        eng = make_engine(ctx, scene, hard_sigma=hs, soft="csm")
         eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
         eng.render()
         out[hs] = (eng.read_hdr(), eng.counters["prefilter"])
@@ -165,7 +165,7 @@ def test_pyramid_kernel_bounded():
 def test_cache_rules(ctx, scene):
     lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0], [0.1, 0.9, 0.5]]), [3.0, 6.0, 0.0],
                         [[1, 1, 1], [0.5, 0.4, 0.3], [0.2, 0.2, 0.2]])
-    eng = make_engine(ctx, scene)
+    eng = make_engine(ctx, scene, soft="csm")
     eng.set_lights(lights)
     eng.render()
     c = dict(eng.counters)
@@ -308,7 +308,7 @@ def test_extreme_exposure_saturates_instead_of_going_black(ctx, scene):
 
 
 def test_filtered_basis_is_readable_and_bounded(ctx, scene):
-    eng = make_engine(ctx, scene)
+    eng = make_engine(ctx, scene, soft="csm")
     eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0], [0.1, 0.2, 1.0]]), [6.0, 0.0], [[1, 1, 1], [1, 1, 1]]))
     eng.render()
     basis = eng.read_filtered_basis(0)
@@ -340,7 +340,7 @@ def test_shadow_modes_do_only_the_work_they_show(ctx, scene):
     """Hard shadows skip the CSM filtering, no shadows skip the shadow maps too; switching back to
     soft shadows computes what was skipped and gives exactly the soft-only engine's image."""
     lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 6.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
-    eng = make_engine(ctx, scene)
+    eng = make_engine(ctx, scene, soft="csm")
     eng.set_visibility("none")
     eng.set_lights(lights)
     eng.render()
@@ -355,7 +355,7 @@ def test_shadow_modes_do_only_the_work_they_show(ctx, scene):
     eng.render()
     assert eng.counters["shadow_map"] == 2 and eng.counters["csm_basis"] == 2
     soft = eng.read_hdr()
-    ref = make_engine(ctx, scene)
+    ref = make_engine(ctx, scene, soft="csm")
     ref.set_lights(lights.rotated(15.0))
     ref.render()
     np.testing.assert_array_equal(soft, ref.read_hdr())
@@ -433,7 +433,7 @@ def test_leave_out_off_does_all_the_work_for_the_same_image(ctx):
                         [[1, 1, 1], [0, 0, 0], [2, 2, 2]])
     out = {}
     for leave_out in (True, False):
-        eng = make_engine(ctx, sc, leave_out=leave_out)
+        eng = make_engine(ctx, sc, leave_out=leave_out, soft="csm")
         eng.set_lights(lights)
         eng.render()
         specular = any("SPECULAR" in dict(k[2]) for k in used_programs(eng, "light_pass.frag.glsl"))
@@ -483,7 +483,7 @@ def test_frame_cache_rules(ctx, scene):
 def test_passes_declare_what_makes_them_stale(ctx, scene):
     """The cache table of docs/engine.md is the passes' own declarations: each change names the
     inputs it touches, and the passes that read them (directly or through a pass they read) run."""
-    eng = make_engine(ctx, scene)
+    eng = make_engine(ctx, scene, soft="csm")  # the paper's CSM: the longest chain of passes
     readers = {}
     for p in (*eng._light_passes, *eng._frame_passes):
         for what in (*p.inputs, *getattr(p, "whole_inputs", ())):
@@ -527,10 +527,20 @@ def test_contact_hardening_cache_rules(ctx, scene):
     eng.release()
 
 
-def test_refined_shadows_need_the_csm(ctx, scene):
-    from viewer.errors import InputError
-
-    eng = make_engine(ctx, scene, soft="pcss")
-    with pytest.raises(InputError, match="refined shadows need the CSM"):
-        eng.set_visibility("refined")
+def test_refined_shadows_read_the_default_soft_shadows(ctx, scene):
+    """The refinement network's visibility replaces the (PCSS) soft visibility in the composite:
+    all zeros gives a black person, all ones the unshadowed image."""
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 6.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
+    eng = make_engine(ctx, scene)
+    assert eng.options.soft == "pcss"
+    eng.set_lights(lights)
+    eng.set_visibility("none")
+    eng.render()
+    unshadowed = eng.read_hdr()
+    eng.set_visibility("refined")
+    shape = (2, scene.height, scene.width)
+    for value, expected in ((0.0, np.zeros_like(unshadowed)), (1.0, unshadowed)):
+        eng.set_refined_visibility(np.full(shape, value, np.float32))
+        eng.render()
+        np.testing.assert_allclose(eng.read_hdr(), expected, atol=1e-4 * float(unshadowed.max()))
     eng.release()

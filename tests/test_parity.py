@@ -23,7 +23,7 @@ from viewer.twin import render as twin_render
 def both(ctx):
     scene = load_scene(sample_scene_dir())
     lights = bench_lights(16)
-    opts = EngineOptions(prefilter="exact", hard_sigma=0.0, skip_threshold=0.0)
+    opts = EngineOptions(soft="csm", prefilter="exact", hard_sigma=0.0, skip_threshold=0.0)
     eng = Engine(ctx, scene, opts)
     eng.set_lights(lights)
     eng.render()
@@ -31,7 +31,8 @@ def both(ctx):
     step = eng.shadow_step
     eng.release()
     with torch.no_grad():
-        tw = twin_render(scene, lights, shadow_resolution=opts.shadow_resolution, shadow_step=step, terms=opts.terms)
+        tw = twin_render(scene, lights, shadow_resolution=opts.shadow_resolution, shadow_step=step, terms=opts.terms,
+                         soft=opts.soft)
     return scene, lights, gl, tw
 
 

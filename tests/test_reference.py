@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes import plane_and_box
+from viewer.lab.scenes import plane_and_box
 from viewer.lab.data.reference import envmap_emitter, mitsuba, render_bundle_reference
 from viewer.envmap import EnvMap, load_envmap, pixel_directions
 from viewer.gl import Engine, EngineOptions

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from scenes import plane_and_box
+from viewer.lab.scenes import plane_and_box
 from viewer.errors import InputError
 from viewer.imageio import read_exr, write_exr, write_png
 from viewer.mesh import depth_mesh

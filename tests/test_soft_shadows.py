@@ -7,55 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes import plane_and_box
-from viewer.envmap import EnvMap, pixel_directions
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import AreaLights
-from viewer.shadow_space import ANGULAR_SIGMA
-
-LIGHT = np.array([1.0, 0.3, 0.8]) / np.linalg.norm([1.0, 0.3, 0.8])
-SIGMA = 7.0  # 256-px units: an angular sigma of SIGMA * ANGULAR_SIGMA radians (~8 degrees)
-HEIGHTS = (0.15, 0.6)  # metres between the box's face and the plane
-SIZE = 128
-
-
-def gaussian_light(alpha: float, width: int = 1024) -> EnvMap:
-    """A map black but for a light of angular Gaussian sigma ``alpha`` (radians) towards LIGHT."""
-    d = pixel_directions(width // 2, width)
-    angle = np.arccos(np.clip(d @ LIGHT, -1.0, 1.0))
-    return EnvMap((np.exp(-0.5 * (angle / alpha) ** 2)[..., None] * np.ones(3)).astype(np.float32))
-
-
-def penumbra(visibility: np.ndarray, box: np.ndarray) -> float:
-    """Mean width (pixels) of the partial shadow on the plane beside the box, along the rows of the
-    middle half of the box (the light comes from the right: the shadow falls to the left; the
-    box's outline is left out, where pixels see both the plane and the box's side)."""
-    rows = np.nonzero(box.any(axis=1))[0]
-    left = np.nonzero(box.any(axis=0))[0].min()
-    middle = rows[len(rows) // 4: 3 * len(rows) // 4]
-    v = visibility[middle, : left - 1]
-    return float(((v > 0.15) & (v < 0.85)).sum(axis=1).mean())
+from viewer.lab.bench.contact import LIGHT, ContactConfig, penumbra_widths
+from viewer.lab.scenes import plane_and_box
 
 
 @pytest.fixture(scope="module")
 def widths(ctx):
-    from viewer.lab.data.reference import render_bundle_reference
-
-    out = {"pcss": [], "csm": [], "truth": []}
-    for h in HEIGHTS:
-        scene = plane_and_box(SIZE, box_depth=4.0 - h, box_half=0.3, specular=0.0, albedo=1.0)
-        on_plane = scene.depth > 4.0 - 1e-3
-        box = ~on_plane
-        for soft in ("pcss", "csm"):
-            eng = Engine(ctx, scene, EngineOptions(soft=soft, shadow_step=1))
-            eng.set_lights(AreaLights(LIGHT[None].astype(np.float32), [SIGMA], [[1.0, 1.0, 1.0]]))
-            eng.render()
-            out[soft].append(penumbra(eng.read_light(0)["visibility_soft"], box))
-            eng.release()
-        y = render_bundle_reference(scene, gaussian_light(SIGMA * ANGULAR_SIGMA), spp=512,
-                                    images=("diffuse_shadowed",))["diffuse_shadowed"].mean(axis=-1)
-        out["truth"].append(penumbra(y / np.median(y[on_plane]), box))  # most of the plane is lit
-    return out
+    """Penumbra widths (pixels) at 0.15 and 0.6 m between blocker and receiver: PCSS, CSM, Mitsuba."""
+    return penumbra_widths(ctx, ContactConfig(heights=(0.15, 0.6)), methods=("pcss", "csm"))
 
 
 def test_penumbra_widens_with_the_distance_to_the_blocker(widths):

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes import sphere
+from viewer.lab.scenes import sphere
 from viewer.envmap import EnvMap, pixel_directions
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import AreaLights

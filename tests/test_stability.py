@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes import plane_and_box
+from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import AreaLights
 

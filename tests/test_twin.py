@@ -9,7 +9,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from scenes import plane_and_box
+from viewer.lab.scenes import plane_and_box
 from viewer import shadow_space
 from viewer.camera import Camera
 from viewer.lights import AreaLights

@@ -14,7 +14,7 @@ import sys, numpy as np
 sys.path.insert(0, sys.argv[1])
 import imgui_bundle  # sets PYGLFW_LIBRARY to its own libglfw, which has the null platform
 import glfw, moderngl
-from scenes import plane_and_box
+from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import AreaLights
 glfw.init_hint(glfw.PLATFORM, glfw.PLATFORM_NULL)
@@ -38,7 +38,7 @@ glfw.terminate()
 
 
 def test_engine_in_glfw_context_matches_headless(ctx, tmp_path):
-    from scenes import plane_and_box
+    from viewer.lab.scenes import plane_and_box
     from viewer.gl import Engine, EngineOptions
     from viewer.lights import AreaLights
 

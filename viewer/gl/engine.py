@@ -202,8 +202,6 @@ class Engine(EngineOutputs):
             raise InputError(None, "this scene bundle has no background image (background.png)")
         if look.view == "shadow" and not look.light < len(self._lights):
             raise InputError(None, f"no light {look.light}: there are {len(self._lights)}")
-        if look.shadows == "refined" and self.options.soft != "csm":
-            raise InputError(None, "refined shadows need the CSM soft shadows (the refinement network was trained on them)")
         self._set_look(look)
 
     def _set_look(self, look: Look):

@@ -16,8 +16,9 @@ class EngineOptions:
     # 3 per 512 image pixels: ~1.5 cm triangles on the sample, 1.8 % error, see docs/engine.md)
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
-    soft: str = "csm"  # soft shadows: "csm" (the paper's convolutional shadow maps, pre-filtered as ``prefilter``)
-    # or "pcss" (contact-hardening: the penumbra grows with the blocker-receiver distance, shaders/pcss.glsl)
+    soft: str = "pcss"  # soft shadows: "pcss" (contact-hardening: the penumbra grows with the blocker-receiver
+    # distance, shaders/pcss.glsl; lower error than CSM and hard shadows, docs/results.md) or "csm" (the paper's
+    # convolutional shadow maps with ``terms`` and ``prefilter``)
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
     skip_threshold: float = 1e-5  # lights whose upper bound is below this fraction of the diffuse level are skipped
     leave_out: bool = True  # skip what the scene does not need (dark lights, soft filtering at sigma ~ 0, specular

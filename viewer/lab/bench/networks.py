@@ -40,26 +40,33 @@ from viewer.lights import AreaLights, load_lights
 from viewer.scene import Scene, load_scene
 from viewer.lab.bench.metrics import chroma, metrics, srgb
 
-SHADOW_MODES = {"SM": "hard", "CSM": "soft", "refined": "refined"}
+# label: (the engine's shadow mode, its soft-shadow method); refined reads the hard and soft visibility
+SHADOW_MODES = {"SM": ("hard", "csm"), "CSM": ("soft", "csm"), "PCSS": ("soft", "pcss"),
+                "refined_CSM": ("refined", "csm"), "refined": ("refined", "pcss")}  # refined: the product's default
 
 
 def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
-    """{(shadow mode, view): HDR (H, W, 3)} from one engine for the scene (refined: the refinement
-    network on the engine's own visibility)."""
+    """{(shadow-mode label, view): HDR (H, W, 3)} for the scene, ``wanted`` a list of (label of
+    :data:`SHADOW_MODES`, view); one engine per soft-shadow method (refined: the refinement network
+    on that engine's own visibility)."""
     from viewer.render import render_frame
     from viewer.settings import Look
 
-    eng = Engine(ctx, scene, EngineOptions())
     out = {}
-    try:
-        eng.set_lights(lights)
-        for mode, view in wanted:
-            eng.set_visibility(mode)
-            eng.set_view(view)
-            render_frame(eng, Look(shadows=mode), refiner)
-            out[mode, view] = eng.read_hdr()[..., :3].copy()
-    finally:
-        eng.release()
+    for soft in dict.fromkeys(SHADOW_MODES[label][1] for label, _ in wanted):
+        eng = Engine(ctx, scene, EngineOptions(soft=soft))
+        try:
+            eng.set_lights(lights)
+            for label, view in wanted:
+                mode, method = SHADOW_MODES[label]
+                if method != soft:
+                    continue
+                eng.set_visibility(mode)
+                eng.set_view(view)
+                render_frame(eng, Look(shadows=mode), refiner)
+                out[label, view] = eng.read_hdr()[..., :3].copy()
+        finally:
+            eng.release()
     return out
 
 
@@ -123,7 +130,7 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
 
     out = {}
     for name, lights in (("fitted", fit(pred)), ("network", network_lights), ("fitted_true_maps", fit(truth))):
-        img = _engine_images(ctx, truth, lights, [("soft", "diffuse_shading")], None)["soft", "diffuse_shading"]
+        img = _engine_images(ctx, truth, lights, [("CSM", "diffuse_shading")], None)["CSM", "diffuse_shading"]
         for k, v in _relative_rmse(img, shading, truth.mask).items():
             out[f"{name}_{k}"] = v
     return out
@@ -185,18 +192,18 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
         full_t = target["image"].permute(1, 2, 0).numpy()
         s = float(exposure_scale(target["image"][None], target["mask"][None]))
         y_diff = target["diffuse_shadowed"].permute(1, 2, 0).numpy() * s
-        modes = list(SHADOW_MODES.values())
-        true_img = _engine_images(ctx, truth, lights, [(mode, "diffuse_shading") for mode in modes] + [("refined", "final")], refiner)
-        pred_img = _engine_images(ctx, pred, lights, [(mode, v) for mode in modes for v in ("diffuse_shading", "final")]
+        true_img = _engine_images(ctx, truth, lights, [(label, "diffuse_shading") for label in SHADOW_MODES]
+                                  + [("refined", "final")], refiner)
+        pred_img = _engine_images(ctx, pred, lights, [(label, v) for label in SHADOW_MODES for v in ("diffuse_shading", "final")]
                                   + [("refined", "specular_shading")], refiner)
-        for label, mode in SHADOW_MODES.items():
-            add(f"shading_true_geometry_{label}", metrics(s * true_img[mode, "diffuse_shading"], y_diff, m))
-            add(f"shading_{label}", metrics(s * pred_img[mode, "diffuse_shading"], y_diff, m))
+        for label in SHADOW_MODES:
+            add(f"shading_true_geometry_{label}", metrics(s * true_img[label, "diffuse_shading"], y_diff, m))
+            add(f"shading_{label}", metrics(s * pred_img[label, "diffuse_shading"], y_diff, m))
         spec_t = s * read_exr(d / "specular_shadowed.exr")
         add("specular_shading", metrics(s * pred_img["refined", "specular_shading"], spec_t, m))
         relit = {}
-        for label, mode in SHADOW_MODES.items():
-            relit[label] = s * pred_img[mode, "final"]
+        for label in SHADOW_MODES:
+            relit[label] = s * pred_img[label, "final"]
             add(f"relit_{label}", metrics(relit[label], s * full_t, m, flip=True))
         add("relit_true_maps_refined", metrics(s * true_img["refined", "final"], s * full_t, m, flip=True))
         lighting = json.loads((d / "lighting.json").read_text())
@@ -263,7 +270,8 @@ TABLES = (
      tuple((f"shading_true_geometry_{k}", k) for k in SHADOW_MODES), ("rmse", "ssim")),
     ("Shading with shadows, predicted geometry", tuple((f"shading_{k}", k) for k in SHADOW_MODES), ("rmse", "ssim")),
     ("Specular shading (predicted maps, refined shadows)", (("specular_shading", "specular shading"),), ("rmse", "ssim")),
-    ("Relit image", (("relit_refined", "ours, refined"), ("relit_CSM", "ours, CSM"), ("relit_SM", "ours, SM"),
+    ("Relit image", (("relit_refined", "ours, refined (from PCSS)"), ("relit_refined_CSM", "ours, refined from CSM (the paper's)"),
+                     ("relit_PCSS", "ours, PCSS"), ("relit_CSM", "ours, CSM"), ("relit_SM", "ours, SM"),
                      ("relit_SH_baseline", "SH order 2, no shadows (baseline)"),
                      ("relit_true_maps_refined", "true maps, refined (renderer alone)")), ("rmse", "ssim", "flip")),
 )

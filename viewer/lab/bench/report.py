@@ -37,12 +37,14 @@ from viewer.progress import StageBars
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.lightfit.cache import cache_dir
 from viewer.lab.bench.cases import REFERENCE_VERSION, Case, Lighting, MapStore, find_maps, heldout_cases, interior, photo_case, reference, sample_case, scene_hash
+from viewer.lab.bench.contact import ContactConfig, contact_errors, penumbra_widths
 from viewer.lab.bench.methods import Method, Renderer, sweep
 
 INTERACTIVE_MS = 90.0  # interactive preset: full frame within this (>= 10 fps with margin)
 FINAL_MS = 1000.0  # final preset: full frame within this
 ROWS_VERSION = 1  # bump when the error rows change meaning in this module (masks, exposure); code elsewhere is hashed
 BALANCED_SLACK = 0.05
+QUICK_CONTACT = ContactConfig(heights=(0.05, 0.3), size=64, spp=64)
 REFERENCE = "reference (Mitsuba)"  # the reference's picture among the examples  # balanced preset: error within this fraction of the 64-light setting's
 
 
@@ -276,7 +278,71 @@ def targets(summaries: list[dict], presets, n64_label: str) -> dict:
                                       "met": balanced["rmse"] < min(s["rmse"] for s in (rivals or family))}
     out["interactive_fps"] = {"full_ms": interactive["full_ms"], "fps": 1000.0 / interactive["full_ms"],
                               "met": interactive["full_ms"] <= 100.0}
+    out.update(soft_shadow_targets(summaries, balanced))
     return out
+
+
+def soft_shadow_targets(summaries: list[dict], balanced: dict) -> dict:
+    """Issue 19's targets: the default soft shadows at N = 16 at least 5 % below hard shadows at the
+    same N; no slower than the fastest hard-shadow setting of the same error; and at every time
+    budget the best setting that uses lights (engine or directional) uses area lights."""
+    n = balanced["method"]["lights"]
+    hard = next(s for s in summaries if s["method"]["kind"] == "directional" and s["method"]["lights"] == n)
+    out = {"soft_vs_hard": {"lights": n, "soft_rmse": balanced["rmse"], "hard_rmse": hard["rmse"],
+                            "gain": 1.0 - balanced["rmse"] / hard["rmse"]}}
+    out["soft_vs_hard"]["met"] = out["soft_vs_hard"]["gain"] >= 0.05
+    as_good = [s for s in summaries if s["method"]["kind"] == "directional" and s["rmse"] <= balanced["rmse"]]
+    fastest = min(as_good, key=lambda s: s["full_ms"]) if as_good else None
+    out["soft_vs_hard_equal_error"] = {
+        "soft_ms": balanced["full_ms"], "hard": fastest["label"] if fastest else None,
+        "hard_ms": fastest["full_ms"] if fastest else None,
+        "met": fastest is None or balanced["full_ms"] <= fastest["full_ms"]}
+    lit = [s for s in summaries if s["method"]["kind"] in ("engine", "directional")]
+    front = [s for s, on in zip(lit, pareto([(s["full_ms"], s["rmse"]) for s in lit])) if on]
+    out["front_uses_area_lights"] = {"front": [s["label"] for s in sorted(front, key=lambda s: s["full_ms"])],
+                                     "hard_on_front": [s["label"] for s in front if s["method"]["kind"] == "directional"
+                                                       or s["method"]["sigma_scale"] == 0.0]}
+    out["front_uses_area_lights"]["met"] = not out["front_uses_area_lights"]["hard_on_front"]
+    return out
+
+
+def _low_sun(case: Case, lights, count: int) -> Lighting:
+    """The case's lighting whose brightest light is lowest above the horizon (a low sun: long shadows)."""
+    def elevation(lighting):
+        ls = lights[lighting.map_name, count].rotated(lighting.yaw)
+        d = ls.direction[int(np.argmax(ls.intensity.sum(axis=1)))]
+        return d[1] if d[1] > 0.0 else np.inf  # camera space: +y is up
+    return min(case.lightings, key=elevation)
+
+
+def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced: Method) -> dict:
+    """Hard, CSM, PCSS and the ray-traced reference, side by side on the mask's box: the sample scene
+    (its first lighting) and the held-out person (else the last case) under its lowest sun."""
+    from viewer.lab.bench.metrics import srgb
+
+    held = [c for c in cases if c.group == "held-out"] or cases[-1:]
+    picks = [(cases[0], cases[0].lightings[0]), (held[0], _low_sun(held[0], lights, balanced.lights))]
+    methods = {"hard shadows": replace(balanced, kind="directional"), "CSM (the paper's)": replace(balanced, soft="csm"),
+               "PCSS (contact-hardening)": replace(balanced, soft="pcss")}
+    rows, titles = [], []
+    for case, lighting in picks:
+        ref = reference(case.scene, scene_hash(case.scene), maps, lighting, config.spp)
+        s = _exposure(ref, interior(case.scene.mask))
+        rows_in, cols_in = np.nonzero(case.scene.mask.any(axis=1))[0], np.nonzero(case.scene.mask.any(axis=0))[0]
+        y, h = max(rows_in[0] - 4, 0), rows_in[-1] - rows_in[0] + 9
+        x, w = max(cols_in[0] - 4, 0), cols_in[-1] - cols_in[0] + 9
+        row = {}
+        for label, method in methods.items():
+            renderer = Renderer(ctx, method, case.scene)
+            try:
+                img = renderer.image(lights[lighting.map_name, method.lights].rotated(lighting.yaw))
+            finally:
+                renderer.release()
+            row[label] = srgb(np.clip(s * img, 0.0, 1.0))[y:y + h, x:x + w]
+        row["ray-traced (Mitsuba)"] = srgb(np.clip(s * ref, 0.0, 1.0))[y:y + h, x:x + w]
+        rows.append(row)
+        titles.append(f"{case.name}, {lighting.map_name} at yaw {lighting.yaw:g}")
+    return {"rows": rows, "titles": titles, "lights": balanced.lights}
 
 
 def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
@@ -328,7 +394,8 @@ def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
 def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> dict:
     from viewer.gl import create_headless_context
     from viewer.presets import PRESETS
-    from viewer.lab.bench.report_doc import EXAMPLES_FIGURE, write_examples, write_figures, write_markdown
+    from viewer.lab.bench.report_doc import (COMPARISON_FIGURE, CONTACT_FIGURE, EXAMPLES_FIGURE, write_comparison,
+                                             write_contact_figure, write_examples, write_figures, write_markdown)
 
     config = QUICK if quick else FULL
     out_dir = Path(out_dir or ("out/report-quick" if quick else "out/report"))
@@ -353,6 +420,10 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
         timing_names = names[:: max(len(names) // config.timing_maps, 1)][: config.timing_maps]
         times = _timings(ctx, cases[0].scene, methods, maps, lights, timing_names, config, progress)
         temporal = _temporal(ctx, config, maps, lights, PRESETS, progress)
+        progress("penumbra width at contact (box over a plane)", 0, 1)
+        contact = penumbra_widths(ctx, QUICK_CONTACT if quick else ContactConfig())
+        progress("penumbra width at contact (box over a plane)", 1, 1)
+        comparison = _soft_shadow_comparison(ctx, cases, maps, lights, config, balanced)
     summaries = _summaries(methods, rows, times)
     for s, on in zip(summaries, pareto([(s["full_ms"], s["rmse"]) for s in summaries])):
         s["pareto"] = on
@@ -367,6 +438,8 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
         "presets": {name: {"label": Method.from_preset(p).label, "lights": p.lights, "rule": p.rule} for name, p in PRESETS.items()},
         "rule_picks": choose_presets(summaries, n64), "n64": n64,
         "targets": targets(summaries, PRESETS, n64),
+        "contact": {**contact, "errors": contact_errors(contact)},
+        "comparison": comparison["titles"],
     }
     result["seconds"] = round(time.perf_counter() - start, 1)
     result = json.loads(json.dumps(result))  # the pages read what the JSON holds (string keys)
@@ -377,5 +450,7 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
     pictures = {name: examples[label] for name, label in shown.items() if examples.get(label) is not None}
     write_examples(pictures, f"{first.name}, {first.lightings[0].map_name} at yaw {first.lightings[0].yaw:g}",
                    out_dir / EXAMPLES_FIGURE)
+    write_comparison(comparison, out_dir / COMPARISON_FIGURE)
+    write_contact_figure(result["contact"], out_dir / CONTACT_FIGURE)
     write_markdown(result, out_dir / "results.md")
     return result

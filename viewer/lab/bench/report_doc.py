@@ -13,6 +13,8 @@ KIND_STYLE = {"engine": ("tab:blue", "o"), "directional": ("tab:orange", "s"), "
 ERROR_FIGURE = "results_error_vs_time.png"
 TEMPORAL_FIGURE = "results_drmse.png"
 EXAMPLES_FIGURE = "results_examples.png"
+COMPARISON_FIGURE = "results_soft_shadows.png"
+CONTACT_FIGURE = "results_contact.png"
 
 
 def _preset_of(result: dict) -> dict:
@@ -92,6 +94,67 @@ def write_examples(images: dict, title: str, path: Path):
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
+
+
+def write_comparison(comparison: dict, path: Path):
+    """Rows of (hard, CSM, PCSS, ray-traced) crops, one row per lighting."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = comparison["rows"]
+    cols = list(rows[0])
+    fig, axes = plt.subplots(len(rows), len(cols), figsize=(2.9 * len(cols), 4.4 * len(rows)), squeeze=False)
+    for r, (row, title) in enumerate(zip(rows, comparison["titles"])):
+        for c, label in enumerate(cols):
+            ax = axes[r][c]
+            ax.imshow(np.clip(row[label], 0, 1))
+            ax.set_title(label if c else f"{title}\n{label}", fontsize=8)
+            ax.axis("off")
+    fig.suptitle(f"{comparison['lights']} fitted lights: hard shadows, the paper's CSM, contact-hardening PCSS, "
+                 "and the ray-traced reference of the same depth mesh", fontsize=9)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+
+
+CONTACT_STYLE = {"truth": ("k", "o", "ray-traced (Mitsuba)"), "pcss": ("tab:blue", "s", "PCSS (contact-hardening)"),
+                 "csm": ("tab:red", "^", "CSM (the paper's)"), "hard": ("tab:orange", "D", "hard shadow map")}
+
+
+def write_contact_figure(contact: dict, path: Path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.2, 4.2))
+    heights = [100.0 * h for h in contact["heights"]]
+    for key, (color, marker, label) in CONTACT_STYLE.items():
+        ax.plot(heights, [w * contact["pixel_mm"] / 10.0 for w in contact[key]], color=color, marker=marker, label=label)
+    ax.set_xlabel("blocker-receiver distance (cm)")
+    ax.set_ylabel("penumbra width on the plane (cm)")
+    ax.set_title(f"A box over a plane, one Gaussian light of {contact['angle_deg']:.1f} deg (sigma {contact['sigma']:g})",
+                 fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+
+
+def _contact_lines(contact: dict) -> list[str]:
+    px = contact["pixel_mm"] / 10.0
+    lines = ["| method | " + " | ".join(f"{100 * h:g} cm" for h in contact["heights"]) + " | mean abs. error | error at the lowest |",
+             "|---|" + "---|" * (len(contact["heights"]) + 2)]
+    for key, (_, _, label) in CONTACT_STYLE.items():
+        err = contact["errors"].get(key)
+        tail = f" | {err['mean_abs_px'] * px:.1f} cm | {err['lowest_abs_px'] * px:.1f} cm |" if err else " | - | - |"
+        lines.append(f"| {label} | " + " | ".join(f"{w * px:.1f}" for w in contact[key]) + tail)
+    return lines
 
 
 def _f(x, digits=4):
@@ -216,6 +279,19 @@ def write_markdown(result: dict, path: Path):
         f"{mark(bdir['met'])}.",
         f"- Interactive at >= 10 frames per second at 512^2: full frame {fps['full_ms']:.0f} ms ({fps['fps']:.1f} fps) "
         f"at {config['sample_size']}^2: {mark(fps['met'])}.",
+        f"- Soft shadows at N = {t['soft_vs_hard']['lights']} at least 5 % below hard shadows at the same N: RMSE "
+        f"{_f(t['soft_vs_hard']['soft_rmse'])} against {_f(t['soft_vs_hard']['hard_rmse'])} "
+        f"({100 * t['soft_vs_hard']['gain']:.1f} % lower): {mark(t['soft_vs_hard']['met'])}.",
+        "- Soft shadows no slower than hard shadows of the same error: "
+        + (f"the fastest hard-shadow setting at least as accurate, {t['soft_vs_hard_equal_error']['hard']}, takes "
+           f"{t['soft_vs_hard_equal_error']['hard_ms']:.0f} ms against {t['soft_vs_hard_equal_error']['soft_ms']:.0f} ms"
+           if t["soft_vs_hard_equal_error"]["hard"] else "no hard-shadow setting reaches the balanced error")
+        + f": {mark(t['soft_vs_hard_equal_error']['met'])}.",
+        "- At every time budget the best setting with lights uses area lights (the Pareto front of the engine and "
+        "directional settings): "
+        + (f"hard shadows on the front: {', '.join(t['front_uses_area_lights']['hard_on_front'])}"
+           if t["front_uses_area_lights"]["hard_on_front"] else "no hard-shadow setting is on it")
+        + f": {mark(t['front_uses_area_lights']['met'])}.",
         "",
         f"![error against time]({ERROR_FIGURE})",
         "",
@@ -235,6 +311,19 @@ def write_markdown(result: dict, path: Path):
         "| N | " + " | ".join(f"{name}: full frame | " + " | ".join(f"{name}: {g}" for g in groups) for name, _ in SOFT_HARD) + " |",
         "|---|" + "---|" * (len(SOFT_HARD) * (1 + len(groups))),
         *_soft_hard_rows(result, groups),
+        "",
+        f"![hard, CSM, PCSS and ray-traced]({COMPARISON_FIGURE})",
+        "",
+        "## Penumbra width at contact",
+        "",
+        "A square box face (60 cm) at several heights over a plane, one Gaussian light from the side; the width of the "
+        "partial shadow (visibility between 0.15 and 0.85) on the plane beside the box, mean over the middle half of the "
+        f"box's rows, in cm ({result['contact']['pixel_mm']:.1f} mm per pixel). Ray-traced: Mitsuba's shadowed diffuse of a "
+        "map that is black but for that light (viewer/lab/bench/contact.py).",
+        "",
+        *_contact_lines(result["contact"]),
+        "",
+        f"![penumbra width at contact]({CONTACT_FIGURE})",
         "",
         "## Every setting, fastest first",
         "",
