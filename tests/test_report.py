@@ -41,6 +41,25 @@ def test_preset_rules_pick_from_measurements():
                      "final": replace(base, lights=64).label}
 
 
+def test_soft_shadow_targets():
+    """Issue 19's targets from the summaries: soft >= 5 % below hard at the same N, no slower than
+    the fastest hard setting of the same error, and no hard setting on the front of lit settings."""
+    from viewer.lab.bench.report import soft_shadow_targets
+
+    base = Method()
+    hard = [_summary(replace(base, kind="directional", lights=n), ms, e) for n, ms, e in ((8, 40, 0.070), (16, 70, 0.066),
+                                                                                      (64, 300, 0.060))]
+    soft = _summary(base, 90, 0.061)
+    rows = hard + [soft, _summary(replace(base, lights=8), 50, 0.064), _summary(Method("sh"), 5, 0.2)]
+    t = soft_shadow_targets(rows, soft)
+    assert t["soft_vs_hard"]["hard_rmse"] == 0.066 and t["soft_vs_hard"]["met"]  # 7.6 % lower
+    assert t["soft_vs_hard_equal_error"]["hard_ms"] == 300 and t["soft_vs_hard_equal_error"]["met"]
+    # 40 ms: nothing lit is faster; 0.060: nothing is more accurate (the SH baseline has no lights: not on this front)
+    assert t["front_uses_area_lights"]["hard_on_front"] == [hard[0]["label"], hard[2]["label"]]
+    assert not t["front_uses_area_lights"]["met"]
+    assert soft_shadow_targets(rows[1:2] + rows[3:], soft)["front_uses_area_lights"]["met"]
+
+
 def test_balanced_preset_is_the_default():
     assert DEFAULT_PRESET == "balanced" and PRESETS["balanced"].options == EngineOptions()
     from viewer.cli import _engine_options, _lights_count, build_parser
@@ -50,6 +69,9 @@ def test_balanced_preset_is_the_default():
     assert _engine_options(args) == replace(PRESETS["interactive"].options, terms=8)
     args = build_parser().parse_args(["view"])
     assert _lights_count(args) == PRESETS["balanced"].lights and _engine_options(args) == EngineOptions()
+    assert EngineOptions().soft == "pcss"  # the contact-hardening soft shadows; the paper's CSM on request
+    args = build_parser().parse_args(["render", "scene", "--soft", "csm", "--terms", "8"])
+    assert _engine_options(args) == replace(EngineOptions(), soft="csm", terms=8)
 
 
 @pytest.fixture(scope="module")

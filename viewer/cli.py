@@ -27,7 +27,7 @@ def _engine_options(args):
 
     from .presets import DEFAULT_PRESET, preset
 
-    given = {k: getattr(args, k) for k in ("shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
+    given = {k: getattr(args, k) for k in ("soft", "shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
     try:
         return replace(preset(args.preset or DEFAULT_PRESET).options, **given)
     except InputError as exc:  # name the option
@@ -53,14 +53,17 @@ def _light_count_option(n: int) -> int:
 
 def _add_engine_args(p):
     from .presets import DEFAULT_PRESET, PRESETS
+    from .shadow_space import SOFT_METHODS
 
     p.add_argument("--preset", choices=tuple(PRESETS),
                    help=f"quality preset: lights and engine options from docs/results.md (default {DEFAULT_PRESET}); "
                         "the options below override its values")
+    p.add_argument("--soft", choices=SOFT_METHODS,
+                   help="soft shadows: contact-hardening (pcss, the presets') or the paper's convolutional shadow maps (csm)")
     p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
     p.add_argument("--shadow-step", type=int, help="depth-mesh decimation for shadow maps (0 = auto, the presets' choice)")
-    p.add_argument("--terms", type=int, help="CSM Fourier terms M, 2M basis maps (preset's; balanced 4)")
-    p.add_argument("--prefilter", choices=("pyramid", "exact"), help="CSM pre-filtering (preset's; balanced pyramid)")
+    p.add_argument("--terms", type=int, help="with --soft csm: Fourier terms M, 2M basis maps (default 4)")
+    p.add_argument("--prefilter", choices=("pyramid", "exact"), help="with --soft csm: pre-filtering (default pyramid)")
 
 
 def _exposure(text: str):
@@ -92,8 +95,8 @@ def _add_view_args(p, yaw_default=0.0):
                    help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
                         "the photo's own size up to this)")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
-                   help="shadows (default soft) from the convolutional shadow map (soft), the refinement network (refined), "
-                        "the shadow map (hard) or none")
+                   help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
+                        "(refined), the shadow map (hard) or none")
 
 
 def _writable(path, folder: bool = False) -> Path:

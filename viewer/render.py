@@ -184,7 +184,7 @@ def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
         from .photo_frame import resize
 
         tiles[-1] = resize(final.astype(np.float32), (m.shape[1], m.shape[0]))
-    names = ["albedo", "normal", "depth", "specular", "soft shadows (CSM)", "hard shadows (shadow map)",
+    names = ["albedo", "normal", "depth", "specular", "soft shadows", "hard shadows (shadow map)",
              "shading, no shadows", "final"]
     tiles = [_label(t, name) for t, name in zip(tiles, names)]
     top = np.concatenate(tiles[:4], axis=1)

@@ -49,7 +49,7 @@ class Look:
     tonemap: str = "aces"
     background: str = "environment"  # environment | photo | color | transparent
     background_color: tuple = (0.18, 0.18, 0.18)  # linear RGB of the "color" background
-    shadows: str = "soft"  # soft (CSM) | refined (network) | hard (shadow map) | none
+    shadows: str = "soft"  # soft (EngineOptions.soft: PCSS or CSM) | refined (network) | hard (shadow map) | none
     diffuse: bool = True  # the diffuse term shown
     specular: bool = True  # the specular term shown
     view: str = "final"  # VIEWS

@@ -2,8 +2,8 @@
 
 The *final* engine renders at the bundle's resolution with the chosen options; the *preview*
 engine renders the same scene resampled to ``PREVIEW_SIZE`` pixels (shadow maps of
-``PREVIEW_SHADOW_RESOLUTION``, hard shadows in place of soft ones: filtering 16 convolutional
-shadow maps costs more than everything else at that size; a photo's frame, which carries the
+``PREVIEW_SHADOW_RESOLUTION``, hard shadows in place of soft ones: filtering the soft shadows of 16
+lights costs more than everything else at that size; a photo's frame, which carries the
 photo's detail, is kept at up to ``PREVIEW_FRAME_SIZE`` pixels) and is used only while the lighting is
 being dragged, so a drag stays interactive; when the drag stops the final engine renders the same state, so what stays on screen is
 always the full-quality frame of the current state. Each frame shown is one complete engine render
@@ -27,7 +27,7 @@ from ..settings import Look
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
 PREVIEW_FRAME_SIZE = 1024  # a photo's frame during a drag: the photo's detail stays, at a quarter of 2048^2's pixels
-SHADOW_MODES = {"convolutional (soft)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
+SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
     "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
     "albedo": "albedo", "normal": "normal", "depth": "depth", "specular": "specular", "roughness": "roughness",

@@ -1,5 +1,7 @@
 """``relight bench engine``: per-pass GL engine times for full recompute (rotation), sigma change
-and intensity change, at several output sizes and light counts, and the torch twin on the same frame.
+and intensity change, at several output sizes and light counts, and the torch twin on the same frame;
+both soft-shadow methods (the default contact-hardening PCSS and the paper's CSM) at 512^2 and 16
+lights; the cost of a sigma change against sigma; and how much the sigma slider changes the image.
 
 Times are wall-clock medians over repeats with ``ctx.finish()`` around each pass (GL timer queries
 are meaningless on llvmpipe). Results go to stdout and a JSON file.
@@ -91,7 +93,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
         scene = resample_scene(base, size)
         options = EngineOptions(shadow_step=resolve_step(0, scene), profile=True)
         report["options"][str(size)] = {"shadow_resolution": options.shadow_resolution, "shadow_step": options.shadow_step,
-                                        "terms": options.terms, "prefilter": options.prefilter}
+                                        "soft": options.soft, "terms": options.terms, "prefilter": options.prefilter}
         for n in light_counts:
             lights = bench_lights(n)
             engine = Engine(ctx, scene, options)
@@ -106,7 +108,9 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
             twin_ms = f"{run['twin_full_ms']:8.0f}" if twin else f"{'-':>8}"
             print(f"{size:>5} {n:>6} {res['full']['total_ms']:8.1f} {res['sigma']['total_ms']:9.1f} "
                   f"{res['intensity']['total_ms']:9.1f} {twin_ms}  {passes}")
+    report["soft_methods"] = _soft_methods(ctx, base, repeats)
     report["sigma_sweep"] = _sigma_sweep(ctx, base, repeats)
+    report["slider"] = _slider_effect(ctx, base)
     if output:
         path = Path(output)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -116,11 +120,54 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
 
 
 SWEEP_SIGMAS = (0.5, 2.0, 8.0, 20.0, 50.0)
+SOFT_SETTINGS = {"pcss": {"soft": "pcss"}, "csm": {"soft": "csm"}}  # label: EngineOptions fields
+SLIDER = (1.5, 27.0)  # the brightest light's sigma at the two ends of the measured slider range
+
+
+def _soft_methods(ctx, scene, repeats: int, lights_count: int = 16) -> dict:
+    """Full, sigma and intensity frame times at 512^2 (the sample) for each soft-shadow method, in one run."""
+    from viewer.gl import Engine, EngineOptions
+
+    lights = bench_lights(lights_count)
+    out = {}
+    print(f"soft-shadow methods, {scene.width}^2, {lights_count} lights (ms): full / sigma / intensity")
+    for label, fields in SOFT_SETTINGS.items():
+        engine = Engine(ctx, scene, EngineOptions(**fields, profile=True))
+        res = _time_engine(engine, ctx, lights, repeats)
+        engine.release()
+        out[label] = res
+        print(f"{label:>7} {res['full']['total_ms']:8.1f} {res['sigma']['total_ms']:8.1f} {res['intensity']['total_ms']:8.1f}  "
+              + " ".join(f"{k}={v:.1f}" for k, v in res["full"]["passes_ms"].items()))
+    return out
+
+
+def _slider_effect(ctx, scene) -> dict:
+    """How much the displayed image (8-bit grey levels, inside the mask) changes when the brightest
+    of 16 lights goes from sigma SLIDER[0] to SLIDER[1], for each soft-shadow method."""
+    from viewer.gl import Engine, EngineOptions
+
+    lights = bench_lights(16)
+    k = int(np.argmax(lights.intensity.sum(axis=1)))
+    out = {"sigmas": list(SLIDER), "light": k}
+    print(f"sigma slider {SLIDER[0]:g} -> {SLIDER[1]:g} on the brightest light: mean / 99th percentile |change| "
+          "(grey levels in the mask), pixels changed by more than 2")
+    for label, fields in SOFT_SETTINGS.items():
+        engine = Engine(ctx, scene, EngineOptions(**fields))
+        shown = []
+        for sigma in SLIDER:
+            engine.set_lights(lights.with_sigma(k, sigma))
+            engine.render()
+            shown.append(engine.read_display().astype(np.float64))  # uint8 sRGB
+        engine.release()
+        d = np.abs(shown[1] - shown[0])[scene.mask]
+        out[label] = {"mean": float(d.mean()), "p99": float(np.percentile(d, 99)), "changed_over_2": float((d.max(axis=-1) > 2).mean())}
+        print(f"{label:>7} {out[label]['mean']:.2f} / {out[label]['p99']:.1f}, {100 * out[label]['changed_over_2']:.1f} %")
+    return out
 
 
 def _sigma_sweep(ctx, scene, repeats: int) -> dict:
-    """Time of one light's sigma change (pre-filter + light pass + composite) against sigma, for the
-    pyramid and the exact Gaussian: the pyramid's cost must not grow with sigma."""
+    """Time of one light's sigma change against sigma: the CSM with the pyramid and the exact
+    Gaussian pre-filter (the pyramid's cost must not grow with sigma), and PCSS."""
     from viewer.gl import Engine, EngineOptions
 
     lights = bench_lights(16).rotated(180.0)
@@ -128,8 +175,9 @@ def _sigma_sweep(ctx, scene, repeats: int) -> dict:
     sweep = {}
     print("sigma change of one light (ms), 512^2, 16 lights:")
     print(f"{'sigma':>7} " + " ".join(f"{s:>8}" for s in SWEEP_SIGMAS))
-    for method in ("pyramid", "exact"):
-        engine = Engine(ctx, scene, EngineOptions(prefilter=method))
+    for method, fields in (("pyramid", {"soft": "csm", "prefilter": "pyramid"}), ("exact", {"soft": "csm", "prefilter": "exact"}),
+                           ("pcss", {"soft": "pcss"})):
+        engine = Engine(ctx, scene, EngineOptions(**fields))
         engine.set_lights(lights)
         engine.render()
         row = []
@@ -153,6 +201,6 @@ def _time_twin(scene, lights: AreaLights, options, repeats: int = 2) -> float:
         for _ in range(repeats):
             t0 = time.perf_counter()
             twin_render(scene, lights, shadow_resolution=options.shadow_resolution, shadow_step=options.shadow_step,
-                        terms=options.terms)
+                        terms=options.terms, soft=options.soft)
             times.append(time.perf_counter() - t0)
     return _median_ms(times)

@@ -40,7 +40,7 @@ class Method:
     prefilter: str = "pyramid"
     leave_out: bool = True
     sigma_scale: float = 1.0  # the fitted sigmas times this (how much softness the scenes want)
-    soft: str = "csm"  # the soft shadows: "csm" (terms and prefilter apply) or "pcss" (contact-hardening)
+    soft: str = "pcss"  # the soft shadows: "pcss" (contact-hardening, the default) or "csm" (terms and prefilter apply)
 
     def __post_init__(self):
         if self.soft == "pcss":  # terms and prefilter mean nothing there: one PCSS setting, one label
@@ -126,7 +126,7 @@ class Renderer:
             return out.image.numpy().astype(np.float32)
         self.engine.set_lights(self._lights(lights))
         self.engine.render()
-        return self.engine.read_hdr()[..., :3].copy()
+        return self.engine.read_work_hdr().copy()  # the maps' resolution, as the reference (a photo's frame is larger)
 
     def times(self, lights: AreaLights | None, env, repeats: int) -> tuple[list[float], list[float]]:
         """(full frame seconds, update seconds) measured ``repeats`` times each under this lighting."""

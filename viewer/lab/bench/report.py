@@ -316,33 +316,38 @@ def _low_sun(case: Case, lights, count: int) -> Lighting:
 
 
 def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced: Method) -> dict:
-    """Hard, CSM, PCSS and the ray-traced reference, side by side on the mask's box: the sample scene
-    (its first lighting) and the held-out person (else the last case) under its lowest sun."""
+    """Hard, CSM, PCSS and the ray-traced reference, side by side on the mask's box, with each
+    method's absolute error (linear, after the report's exposure): the sample scene (its first
+    lighting) and the held-out person (else the last case) under its lowest sun."""
     from viewer.lab.bench.metrics import srgb
 
     held = [c for c in cases if c.group == "held-out"] or cases[-1:]
     picks = [(cases[0], cases[0].lightings[0]), (held[0], _low_sun(held[0], lights, balanced.lights))]
     methods = {"hard shadows": replace(balanced, kind="directional"), "CSM (the paper's)": replace(balanced, soft="csm"),
                "PCSS (contact-hardening)": replace(balanced, soft="pcss")}
-    rows, titles = [], []
+    rows, error_rows, titles = [], [], []
     for case, lighting in picks:
         ref = reference(case.scene, scene_hash(case.scene), maps, lighting, config.spp)
         s = _exposure(ref, interior(case.scene.mask))
         rows_in, cols_in = np.nonzero(case.scene.mask.any(axis=1))[0], np.nonzero(case.scene.mask.any(axis=0))[0]
         y, h = max(rows_in[0] - 4, 0), rows_in[-1] - rows_in[0] + 9
         x, w = max(cols_in[0] - 4, 0), cols_in[-1] - cols_in[0] + 9
-        row = {}
+        row, errors = {}, {}
+        truth = np.clip(s * ref, 0.0, 1.0)[y:y + h, x:x + w]
         for label, method in methods.items():
             renderer = Renderer(ctx, method, case.scene)
             try:
                 img = renderer.image(lights[lighting.map_name, method.lights].rotated(lighting.yaw))
             finally:
                 renderer.release()
-            row[label] = srgb(np.clip(s * img, 0.0, 1.0))[y:y + h, x:x + w]
-        row["ray-traced (Mitsuba)"] = srgb(np.clip(s * ref, 0.0, 1.0))[y:y + h, x:x + w]
+            shown = np.clip(s * img, 0.0, 1.0)[y:y + h, x:x + w]
+            row[label] = srgb(shown)
+            errors[label] = np.abs(shown - truth).mean(axis=-1)  # where each method's error sits
+        row["ray-traced (Mitsuba)"] = srgb(truth)
         rows.append(row)
+        error_rows.append(errors)
         titles.append(f"{case.name}, {lighting.map_name} at yaw {lighting.yaw:g}")
-    return {"rows": rows, "titles": titles, "lights": balanced.lights}
+    return {"rows": rows, "errors": error_rows, "titles": titles, "lights": balanced.lights}
 
 
 def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:

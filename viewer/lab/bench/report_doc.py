@@ -105,13 +105,19 @@ def write_comparison(comparison: dict, path: Path):
 
     rows = comparison["rows"]
     cols = list(rows[0])
-    fig, axes = plt.subplots(len(rows), len(cols), figsize=(2.9 * len(cols), 4.4 * len(rows)), squeeze=False)
-    for r, (row, title) in enumerate(zip(rows, comparison["titles"])):
+    fig, axes = plt.subplots(2 * len(rows), len(cols), figsize=(2.9 * len(cols), 8.4 * len(rows)), squeeze=False)
+    for r, (row, errors, title) in enumerate(zip(rows, comparison["errors"], comparison["titles"])):
+        top = max(float(np.percentile(e, 99.5)) for e in errors.values()) or 1.0
         for c, label in enumerate(cols):
-            ax = axes[r][c]
+            ax = axes[2 * r][c]
             ax.imshow(np.clip(row[label], 0, 1))
             ax.set_title(label if c else f"{title}\n{label}", fontsize=8)
             ax.axis("off")
+            ax = axes[2 * r + 1][c]
+            ax.axis("off")
+            if label in errors:
+                ax.imshow(errors[label], cmap="magma", vmin=0.0, vmax=top)
+                ax.set_title(f"|error|, mean {errors[label].mean():.4f}", fontsize=8)
     fig.suptitle(f"{comparison['lights']} fitted lights: hard shadows, the paper's CSM, contact-hardening PCSS, "
                  "and the ray-traced reference of the same depth mesh", fontsize=9)
     fig.tight_layout()
