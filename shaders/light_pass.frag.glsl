@@ -18,8 +18,6 @@ uniform sampler2D positions;   // camera-space points (xyz) and roughness (w)
 uniform sampler2D normals;     // unit normals (xyz; zero outside the mask) and specular (w)
 uniform sampler2D shadow_map0, shadow_map1, shadow_map2, shadow_map3;
 uniform sampler2D filtered_basis0, filtered_basis1, filtered_basis2, filtered_basis3;  // CSM
-uniform sampler2D min_depth0, min_depth1, min_depth2, min_depth3;  // contact-hardening: blocks' nearest depth
-uniform int min_block[4];      // texels per block of those
 uniform mat4 light_frame[4];
 uniform vec3 light_dir[4];
 uniform float depth_scale[4];
@@ -36,7 +34,7 @@ layout(location = 1) out vec4 result1;
 layout(location = 2) out vec4 result2;
 layout(location = 3) out vec4 result3;
 
-vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, sampler2D min_depth, vec3 p, vec3 n, float specular,
+vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p, vec3 n, float specular,
                   float roughness) {
     vec3 l = light_dir[j];
     if (light_mode[j] == 0 || dot(n, l) <= 0.0) return vec4(0.0);  // also every pixel outside the mask
@@ -48,7 +46,7 @@ vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, sampler
         v_hard = hard_visibility(shadow_map, uvd, bias);
 #ifdef SOFT_PCSS
         v_soft = light_mode[j] == 1 ? v_hard
-            : pcss_visibility(shadow_map, min_depth, min_block[j], uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias,
+            : pcss_visibility(shadow_map, uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias,
                               light_alpha[j], shadow_window, depth_scale[j], v_hard);
 #else
         v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
@@ -70,8 +68,8 @@ void main() {
         return;
     }
     vec4 pm = texelFetch(positions, px, 0);
-    result0 = light_result(0, shadow_map0, filtered_basis0, min_depth0, pm.xyz, ns.xyz, ns.w, pm.w);
-    result1 = light_result(1, shadow_map1, filtered_basis1, min_depth1, pm.xyz, ns.xyz, ns.w, pm.w);
-    result2 = light_result(2, shadow_map2, filtered_basis2, min_depth2, pm.xyz, ns.xyz, ns.w, pm.w);
-    result3 = light_result(3, shadow_map3, filtered_basis3, min_depth3, pm.xyz, ns.xyz, ns.w, pm.w);
+    result0 = light_result(0, shadow_map0, filtered_basis0, pm.xyz, ns.xyz, ns.w, pm.w);
+    result1 = light_result(1, shadow_map1, filtered_basis1, pm.xyz, ns.xyz, ns.w, pm.w);
+    result2 = light_result(2, shadow_map2, filtered_basis2, pm.xyz, ns.xyz, ns.w, pm.w);
+    result3 = light_result(3, shadow_map3, filtered_basis3, pm.xyz, ns.xyz, ns.w, pm.w);
 }

@@ -489,9 +489,9 @@ def test_passes_declare_what_makes_them_stale(ctx, scene):
         for what in (*p.inputs, *getattr(p, "whole_inputs", ())):
             readers.setdefault(what, set()).add(p.name)
     assert readers["direction"] == {"shadow_map", "light_pass"}
-    # the blocker search's map: contact-hardening only; the light pass: sigma widens the specular lobe
-    assert readers["sigma"] == {"csm_basis", "blocker_min", "light_pass"} and scene.has_specular
-    assert readers["shadow_map"] == {"csm_basis", "blocker_min", "light_pass"} and readers["csm_basis"] == {"prefilter"}
+    # the light pass reads sigma too: it widens the specular lobe
+    assert readers["sigma"] == {"csm_basis", "light_pass"} and scene.has_specular
+    assert readers["shadow_map"] == {"csm_basis", "light_pass"} and readers["csm_basis"] == {"prefilter"}
     assert readers["prefilter"] == {"light_pass"} and readers["light_pass"] == {"composite"}
     assert readers["intensity"] == {"composite"} and readers["display"] == {"display"}
     assert readers["composite"] == {"display"}
@@ -511,7 +511,7 @@ def test_a_map_wider_than_the_textures_is_averaged_down_not_black():
 
 def test_contact_hardening_cache_rules(ctx, scene):
     """Contact-hardening soft shadows read the shadow map itself: no CSM basis or pre-filter ever
-    runs, and a sigma edit redoes the light's minimum-depth map and the light pass alone."""
+    runs, and a sigma edit redoes the light pass alone (then the composite)."""
     lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 6.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
     eng = Engine(ctx, scene, EngineOptions(soft="pcss"))
     eng.set_lights(lights)
@@ -521,7 +521,7 @@ def test_contact_hardening_cache_rules(ctx, scene):
     eng.set_lights(lights.with_sigma(1, 9.0))
     eng.render()
     assert {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)} == {
-        "blocker_min": 1, "light_pass": 1, "composite": 1, "display": 1}
+        "light_pass": 1, "composite": 1, "display": 1}
     soft = eng.read_light(1)["visibility_soft"]
     assert np.isfinite(soft).all() and 0.0 <= soft.min() and soft.max() <= 1.0
     eng.release()

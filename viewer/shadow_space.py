@@ -34,12 +34,14 @@ HARD_SHADOW_THRESHOLD = 0.005  # normalised depth, the paper's hard-test thresho
 NORMAL_OFFSET_TEXELS = 1.5  # receivers are pushed along their normal by this many texels
 SLOPE_BIAS_TEXELS = 1.0  # extra depth bias: texels times tan(angle between normal and light)
 MAX_SLOPE = 20.0  # tan of the angle is clamped here (grazing light)
-# Contact-hardening soft shadows (shaders/pcss.glsl): a light's sigma read as an angle. The fitted
-# sigma is the blur of the light-fitting scene; the penumbra of a light of angular sigma alpha is
-# alpha x the blocker-receiver distance. ANGULAR_SIGMA (radians per sigma unit) was the best of four
-# factors against ray-traced shadows of held-out people (docs/engine.md says how it was measured).
-ANGULAR_SIGMA = 1.0 / 51.2
-PCSS_TAPS = 16
+# A light's sigma read as an angle (contact-hardening penumbrae, shaders/pcss.glsl; specular widening,
+# shaders/brdf.glsl). The fitted sigma is the blur of the light-fitting scene; the penumbra of a
+# light of angular sigma alpha is alpha x the blocker-receiver distance. ANGULAR_SIGMA (radians per
+# sigma unit) is a twin study's best factor (1/51.2) times 1.5, the best of the report's x 0.25 to
+# x 3 on RMSE with FLIP and the full-geometry truth (docs/engine.md says how both were measured).
+ANGULAR_SIGMA = 1.5 / 51.2
+PCSS_TAPS = 16  # the penumbra filter's taps
+PCSS_SEARCH_TAPS = 8  # the blocker search's (every lit receiver takes them: half the filter's, docs/engine.md)
 SOFT_METHODS = ("csm", "pcss")  # the soft shadows: the paper's convolutional shadow maps, or contact-hardening
 PCSS_SEARCH = 0.25  # the blocker search covers blocker-receiver distances up to this many shadow-map windows
 
@@ -199,19 +201,3 @@ def pcss_taps(count: int = PCSS_TAPS) -> np.ndarray:
     radius = np.sqrt(-2.0 * np.log(1.0 - i / count))
     angle = i * math.pi * (3.0 - math.sqrt(5.0))
     return np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)
-
-
-def pcss_search_block(sigma: float, resolution: int) -> int:
-    """Texels per side of the blocks of the minimum-depth map a light's blocker search reads first
-    (a power of two, at most the map): more than twice the search's reach (its farthest tap's
-    offset along u or v) plus a texel, so the four blocks at the reach's corners hold every tap."""
-    reach = pcss_reach() * float(sigma) * ANGULAR_SIGMA * PCSS_SEARCH * resolution  # texels
-    block = 1
-    while block < 2.0 * reach + 2.0 and block < resolution:  # the taps' texels then span <= 2 blocks
-        block *= 2
-    return block
-
-
-def pcss_reach() -> float:
-    """The largest |component| of the PCSS taps (unit sigma)."""
-    return float(np.abs(pcss_taps(PCSS_TAPS)).max())

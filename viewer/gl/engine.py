@@ -8,8 +8,7 @@ these declarations):
     1 ShadowMapPass      inputs: direction              (shadow_passes.py)
     2 CsmBasisPass       inputs: shadow_map, sigma
     3 PrefilterPass      inputs: csm_basis
-    2' BlockerMinPass    inputs: shadow_map, sigma   (contact-hardening soft shadows, in place of 2 and 3)
-    4 LightShadingPass   inputs: direction, shadow_map, prefilter (CSM) or blocker_min; four lights per
+    4 LightShadingPass   inputs: direction, shadow_map, prefilter (CSM) or sigma (PCSS: no 2 and 3); four lights per
                          pass (light_pass.py)
   for the frame
     5 CompositePass      inputs: light_pass, intensity, activity, visibility, refined_visibility, terms
@@ -49,7 +48,7 @@ from .options import EngineOptions
 from .outputs import EngineOutputs, in_context
 from .programs import shared_programs
 from .scene_resources import SceneResources
-from .shadow_passes import BlockerMinPass, CsmBasisPass, PrefilterPass, ShadowMapPass
+from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
 DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color")
@@ -79,7 +78,6 @@ class Engine(EngineOutputs):
         self.shadow_map_pass = ShadowMapPass(kit, res, o.shadow_resolution)
         self.csm_basis_pass = CsmBasisPass(kit, o.shadow_resolution, o.terms, o.prefilter)
         self.prefilter_pass = PrefilterPass(kit, o.shadow_resolution, o.terms)
-        self.blocker_min_pass = BlockerMinPass(kit, o.shadow_resolution)
         self.atlas = LightAtlas(kit, res.mask_box, max_size, scene.source)
         self.refined = RefinedVisibility(kit, res.mask_box)
         self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular, o.soft)
@@ -92,7 +90,7 @@ class Engine(EngineOutputs):
             self.frame_background = FrameBackgroundPass(kit, scene.frame, scene.camera)
             self.frame_mipmaps = FrameMipmapsPass(kit)
             self.display_pass = FrameCompositePass(kit, scene.frame)
-        self._light_passes = (self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.blocker_min_pass, self.light_pass)
+        self._light_passes = (self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.light_pass)
         self._frame_passes = [p for p in (self.composite_pass, self.frame_mipmaps, self.frame_background, self.display_pass) if p]
         self._stale = {p.name: "all" for p in self._frame_passes}  # None, "box" (the mask's / matte's) or "all"
 
@@ -329,10 +327,6 @@ class Engine(EngineOutputs):
             for l in to_filter:
                 self.prefilter_pass.run_axis(l, axis)
         self._ran(self.prefilter_pass, to_filter)
-        to_search = [l for l in active if "blocker_min" in l.stale and need[id(l)] == PASS_SOFT and self.options.soft == "pcss"]
-        for l in to_search:
-            self.blocker_min_pass.run(l)
-        self._ran(self.blocker_min_pass, to_search)
         for g in range(0, len(self._lights), LIGHTS_PER_PASS):
             group = self._lights[g:g + LIGHTS_PER_PASS]
             if any(l.active and ("light_pass" in l.stale or l.pass_mode != need[id(l)]) for l in group):

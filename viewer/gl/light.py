@@ -15,7 +15,7 @@ from .prefilter import BlurPlan
 
 # light-pass modes per light (shaders/light_pass.frag.glsl): what the light atlas holds for it
 PASS_OFF, PASS_HARD, PASS_SOFT, PASS_UNSHADOWED = 0, 1, 2, 3
-PER_LIGHT_PASSES = ("shadow_map", "csm_basis", "prefilter", "blocker_min", "light_pass")
+PER_LIGHT_PASSES = ("shadow_map", "csm_basis", "prefilter", "light_pass")
 
 
 @dataclass
@@ -36,8 +36,6 @@ class Light:
     shadow_fbo: moderngl.Framebuffer | None = None
     plan: BlurPlan | None = None  # how its basis is pre-filtered (from sigma)
     filtered: moderngl.Texture | None = None  # pre-filtered basis atlas (one of ``work``)
-    blocker_min: moderngl.Texture | None = None  # contact-hardening: the shadow map's minimum over blocks
-    blocker_block: int = 1  # texels per side of those blocks
     work: dict = field(default_factory=dict)  # intermediate atlases: slot -> (texture, framebuffer)
 
     def ensure_shadow_map(self, kit: PassKit, resolution: int, depth: moderngl.Renderbuffer):

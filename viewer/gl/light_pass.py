@@ -96,14 +96,16 @@ class LightShadingPass:
         self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
         # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
-        # the CSM's pre-filtered basis, or the contact-hardening blocker search's minimum map
-        self.inputs = ("direction", "shadow_map", "blocker_min") if soft == "pcss" else ("direction", "shadow_map", "prefilter")
-        if specular:  # a light's angular size widens its specular lobe (brdf.glsl's widened_alpha)
+        # the CSM's pre-filtered basis, or directly: the contact-hardening penumbrae and, with
+        # specular, the light's angular size widening its lobe (brdf.glsl's widened_alpha)
+        self.inputs = ("direction", "shadow_map", "prefilter") if soft == "csm" else ("direction", "shadow_map", "sigma")
+        if specular and "sigma" not in self.inputs:
             self.inputs += ("sigma",)
 
     def run(self, group: list[Light], modes: list[int]):
         kit, sc = self.kit, self.scene
-        defines = {"SOFT_PCSS": None} if self.soft == "pcss" else {"TERMS": self.terms}
+        defines = ({"SOFT_PCSS": None, "PCSS_TAPS": ss.PCSS_TAPS, "PCSS_SEARCH_TAPS": ss.PCSS_SEARCH_TAPS}
+                   if self.soft == "pcss" else {"TERMS": self.terms})
         if self.specular:
             defines["SPECULAR"] = None
         prog = kit.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", **defines)
@@ -116,7 +118,6 @@ class LightShadingPass:
             dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
             scales = np.ones(LIGHTS_PER_PASS, "f4")
             alphas = np.zeros(LIGHTS_PER_PASS, "f4")
-            blocks = np.ones(LIGHTS_PER_PASS, "i4")
             fallback = sc.positions  # any texture: slots without a light never read it
             for j in range(LIGHTS_PER_PASS):
                 l = group[j] if j < len(group) else None
@@ -127,10 +128,6 @@ class LightShadingPass:
                 if self.soft == "csm":
                     (l.filtered if soft else fallback).use(6 + j)
                     prog[f"filtered_basis{j}"] = 6 + j
-                else:
-                    (l.blocker_min if soft else fallback).use(6 + j)
-                    prog[f"min_depth{j}"] = 6 + j
-                    blocks[j] = l.blocker_block if soft else 1
                 if used:
                     frames[j] = l.frame.matrix().T
                     scales[j] = l.frame.depth_scale()
@@ -151,9 +148,8 @@ class LightShadingPass:
             if self.soft == "pcss":
                 prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
                 prog["pcss_taps"].write(ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes())
+                prog["pcss_search_taps"].write(ss.pcss_taps(ss.PCSS_SEARCH_TAPS).astype("f4").tobytes())
                 prog["pcss_search"] = ss.PCSS_SEARCH
-                prog["pcss_reach"] = ss.pcss_reach()
-                prog["min_block"].write(blocks.tobytes())
             else:
                 prog["csm_offset"] = self.csm_offset
                 prog["csm_clamp"] = self.csm_clamp

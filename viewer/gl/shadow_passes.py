@@ -121,40 +121,6 @@ class CsmBasisPass:
                 footprint_pass(kit, l, reduced_fbo, n, self.n_tex, self.terms, 1, reduce)
 
 
-class BlockerMinPass:
-    """2'. Contact-hardening soft shadows only (in place of 2 and 3): the shadow map's minimum depth
-    over blocks of the light's search block (shadow_space.pcss_search_block), by min_reduce.frag.glsl
-    in stages of up to MAX_FACTOR x MAX_FACTOR, kept as the light's ``blocker_min``. The light pass
-    reads it before any tap (pcss.glsl)."""
-
-    name = "blocker_min"
-    inputs = ("shadow_map", "sigma")
-    MAX_FACTOR = 8
-
-    def __init__(self, kit: PassKit, resolution: int):
-        self.kit, self.resolution = kit, resolution
-
-    def run(self, l: Light):
-        kit = self.kit
-        block = l.blocker_block = ss.pcss_search_block(l.sigma, self.resolution)
-        source, size, done, stage = l.shadow_map, self.resolution, 1, 0
-        with kit.timed(self.name):
-            prog = kit.programs.get("fullscreen.vert.glsl", "min_reduce.frag.glsl")
-            while done < block:
-                factor = min(self.MAX_FACTOR, block // done)
-                size = max(size // factor, 1)
-                tex, fbo = l.work_atlas(kit, (size, size), f"min{stage}")
-                source.use(0)
-                prog["source"] = 0
-                prog["factor"] = factor
-                fbo.scissor = None
-                fbo.viewport = (0, 0, size, size)
-                fbo.use()
-                kit.fullscreen(prog)
-                source, done, stage = tex, done * factor, stage + 1
-        l.blocker_min = source
-
-
 class PrefilterPass:
     """3. The separable Gaussian of the residual sigma over the basis atlas (gaussian_blur.frag.glsl,
     horizontal into the light's "temp" atlas, vertical into its "filtered" one)."""

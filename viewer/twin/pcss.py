@@ -3,11 +3,11 @@
 Percentage-closer soft shadows on the hard shadow map, with the light's sigma read as an angle
 (alpha = sigma x :data:`viewer.shadow_space.ANGULAR_SIGMA` radians):
 
-1. blocker search: the :func:`viewer.shadow_space.pcss_taps` offsets scaled to alpha x PCSS_SEARCH
-   shadow-map windows; a tap is a blocker when its depth is nearer than the receiver's tangent
+1. blocker search: PCSS_SEARCH_TAPS :func:`viewer.shadow_space.pcss_taps` offsets scaled to alpha x
+   PCSS_SEARCH shadow-map windows; a tap is a blocker when its depth is nearer than the receiver's tangent
    plane there (minus the hard test's bias); the gap is the mean of (plane - depth) over blockers;
 2. no blocker: visibility 1; else the penumbra's sigma is alpha x gap x depth scale metres; under
-   half a texel the hard visibility is used, else the fraction of the same taps, scaled to the
+   half a texel the hard visibility is used, else the fraction of PCSS_TAPS taps, scaled to the
    penumbra, that pass the tangent-plane test.
 
 Texel lookups are the hard test's (the texel containing the point, clamp-to-edge). Not
@@ -39,12 +39,13 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
     with ``sigma`` (N,) (256-px units)."""
     res = depth.shape[-1]
     taps = torch.as_tensor(rule.pcss_taps(rule.PCSS_TAPS), dtype=d.dtype, device=d.device)
+    search_taps = torch.as_tensor(rule.pcss_taps(rule.PCSS_SEARCH_TAPS), dtype=d.dtype, device=d.device)
     window = 2.0 * frames.radius
     alpha = (sigma.to(d.dtype) * rule.ANGULAR_SIGMA)[:, None]  # (N, 1)
     search = alpha * rule.PCSS_SEARCH
     gap = torch.zeros_like(d)
     blockers = torch.zeros_like(d)
-    for o in taps:
+    for o in search_taps:
         du, dv = o[0] * search, o[1] * search
         receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
         z = shadow_depth(depth, u + du, v + dv)

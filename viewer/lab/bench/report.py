@@ -38,7 +38,8 @@ from viewer.resources import asset_dir, sample_scene_dir
 from viewer.lightfit.cache import cache_dir
 from viewer.lab.bench.cases import REFERENCE_VERSION, Case, Lighting, MapStore, find_maps, heldout_cases, interior, photo_case, reference, sample_case, scene_hash
 from viewer.lab.bench.contact import ContactConfig, contact_errors, penumbra_widths
-from viewer.lab.bench.methods import Method, Renderer, sweep
+from viewer.lab.bench.methods import Method, Renderer
+from viewer.lab.bench.sweep import sweep
 
 INTERACTIVE_MS = 90.0  # interactive preset: full frame within this (>= 10 fps with margin)
 FINAL_MS = 1000.0  # final preset: full frame within this
@@ -317,12 +318,12 @@ def _low_sun(case: Case, lights, count: int) -> Lighting:
 
 def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced: Method) -> dict:
     """Hard, CSM, PCSS and the ray-traced reference, side by side on the mask's box, with each
-    method's absolute error (linear, after the report's exposure): the sample scene (its first
-    lighting) and the held-out person (else the last case) under its lowest sun."""
+    method's absolute error (linear, after the report's exposure): the sample scene and the first
+    held-out person (else the last case), each under its lowest sun."""
     from viewer.lab.bench.metrics import srgb
 
     held = [c for c in cases if c.group == "held-out"] or cases[-1:]
-    picks = [(cases[0], cases[0].lightings[0]), (held[0], _low_sun(held[0], lights, balanced.lights))]
+    picks = [(case, _low_sun(case, lights, balanced.lights)) for case in (cases[0], held[0])]
     methods = {"hard shadows": replace(balanced, kind="directional"), "CSM (the paper's)": replace(balanced, soft="csm"),
                "PCSS (contact-hardening)": replace(balanced, soft="pcss")}
     rows, error_rows, titles = [], [], []
