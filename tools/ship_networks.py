@@ -23,7 +23,7 @@ LIMIT_MB = 45.0  # issue 18's budget for all weights
 WHAT = {
     "inverse": "photo with its background + mask -> normal; albedo, specular, roughness; 16 area lights",
     "depth": "person + mask -> depth (sigmoid, 1 m around the median)",
-    "refine": "per light: hard and CSM visibility, sigma, depth -> visibility",
+    "refine": "per light: hard and soft visibility (trained on CSM; the product feeds it PCSS), sigma, depth -> visibility",
 }
 
 

@@ -311,8 +311,8 @@ def write_markdown(result: dict, path: Path):
         "",
         "Same fitted lights, same engine; *CSM* is the paper's convolutional shadow maps, *PCSS* the contact-hardening "
         "soft shadows (docs/engine.md), *hard* sets every sigma to 0 (shadow maps only). RMSE / FLIP per group. "
-        "The knob `sigma_scale` above (the fitted sigmas times 0.25 or 0.5) shows whether less softness helps the CSM; "
-        "PCSS with its sigmas x 0.5 and x 2 (in *Every setting*) shows whether its penumbrae are sized right.",
+        "The knob `sigma_scale` above (the fitted sigmas times 0.25 to 3, for the balanced soft shadows) shows whether "
+        "the penumbrae are sized right; *Every setting* has the CSM with its sigmas x 0.5 and with M = 8 terms.",
         "",
         "| N | " + " | ".join(f"{name}: full frame | " + " | ".join(f"{name}: {g}" for g in groups) for name, _ in SOFT_HARD) + " |",
         "|---|" + "---|" * (len(SOFT_HARD) * (1 + len(groups))),
