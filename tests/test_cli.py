@@ -99,6 +99,21 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "cached 4 lights" in res.stdout
     assert read_exr(tmp_path / "r.exr").max() > 0.05
+    # without -o the light file goes beside the map, where the viewer looks for it (not into the
+    # working folder); a stage of the fit that ran is one line on a log (stderr is not a terminal)
+    import shutil
+
+    from viewer.app.jobs import sidecar_lights
+
+    (tmp_path / "maps").mkdir()
+    (tmp_path / "work").mkdir()
+    mine = shutil.copyfile(env, tmp_path / "maps" / env.name)
+    res = subprocess.run([sys.executable, "-m", "viewer.cli", "fit-lights", str(mine), "-n", "4", "--refit"],
+                         capture_output=True, text=True, env=environ, cwd=tmp_path / "work")
+    assert res.returncode == 0, res.stderr
+    assert not any((tmp_path / "work").iterdir()) and f"-> {mine.with_suffix('.lights.json')}" in res.stdout
+    assert sidecar_lights(mine, 4, "fast") is not None
+    assert "fitting 4 lights to" in res.stderr and " in " in res.stderr.splitlines()[-1]
 
 
 def test_fit_lights_bad_maps_give_one_line_errors(tmp_path):

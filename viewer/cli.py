@@ -99,6 +99,15 @@ def _add_view_args(p, yaw_default=0.0):
                         "(refined), the shadow map (hard) or none")
 
 
+def _beside_the_map(map_path: Path) -> Path | None:
+    """``MAP.lights.json`` beside the map (what the viewer reads for that map) when its folder is
+    writable, else None (the lights then stay in the fitting cache)."""
+    import os
+
+    folder = map_path.parent
+    return map_path.with_suffix(".lights.json") if os.access(folder, os.W_OK | os.X_OK) else None
+
+
 def _writable(path, folder: bool = False) -> Path:
     """``path`` if the program can write it (its folder made when missing), checked before any work
     is done: else one line naming it. ``folder``: the path is itself a folder to write into."""
@@ -450,24 +459,29 @@ def cmd_fit_lights(args) -> int:
     from .envmap import load_envmap
     from .lightfit.cache import write_atomic
 
-    out = Path(args.output)
-    if out.suffix.lower() != ".json":
+    out = Path(args.output) if args.output else _beside_the_map(Path(args.map))
+    if out is not None and out.suffix.lower() != ".json":
         raise InputError(out, "the light file is JSON: give a .json output path")
-    _writable(out)
+    if out is not None:
+        _writable(out)
     if args.plot:
         if Path(args.plot).suffix.lower() != ".png":
             raise InputError(args.plot, "the plot is a PNG: give a .png path")
         _writable(args.plot)
         if Path(args.plot).resolve() == out.resolve():
             raise InputError(args.plot, "is the light file's path too: give the plot its own")
-    _not_an_input([out] + ([args.plot] if args.plot else []), [args.map])
+    _not_an_input([p for p in (out, args.plot) if p], [args.map])
     env = load_envmap(args.map, repair=args.repair)
     start = time.perf_counter()
     lights, cached = _fitted_lights(env, _light_count_option(args.n), args.method, refit=args.refit)
     seconds = time.perf_counter() - start
-    write_atomic(out, lights, {"source": Path(args.map).name, "method": args.method, "n": args.n})
     how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
-    print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
+    if out is None:
+        print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache (the map's folder is not "
+              "writable; -o writes a light file)")
+    else:
+        write_atomic(out, lights, {"source": Path(args.map).name, "method": args.method, "n": args.n})
+        print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
     _warn_if_dark(lights, args.map)
     if args.plot:
         from .lightfit.plot import plot_lights
@@ -550,7 +564,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")
     p.add_argument("map", help="equirectangular environment map (.hdr or .exr)")
     p.add_argument("-n", type=int, default=16, help="number of area lights (default 16)")
-    p.add_argument("-o", "--output", default="lights.json", help="light file to write (default lights.json)")
+    p.add_argument("-o", "--output", help="light file to write (default MAP.lights.json beside the map, which the viewer "
+                                          "reads for that map; the fitting cache only where the map's folder is read-only)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help="fast (the default): median cut + short refinement; paper: the paper's optimization; "
                         "median-cut: initialization only")
