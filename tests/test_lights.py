@@ -55,3 +55,24 @@ def test_bad_light_files_are_named(tmp_path, edit, message):
     with pytest.raises(InputError) as err:
         load_lights(path)
     assert "bad.json" in str(err.value) and message in str(err.value)
+
+
+def test_facing_yaw_turns_the_brightest_light_to_the_camera():
+    from viewer.cli import _first_look, build_parser
+    from viewer.lights import AreaLights, facing_yaw
+    from viewer.settings import Look
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        d = rng.normal(size=(6, 3))
+        lights = AreaLights(d / np.linalg.norm(d, axis=1, keepdims=True), rng.uniform(0, 10, 6), rng.uniform(0, 5, (6, 3)))
+        k = int(np.argmax(lights.intensity.sum(axis=1)))
+        x, y, z = lights.rotated(facing_yaw(lights)).direction[k]
+        assert abs(x) < 1e-5 and z > 0.0 and y == pytest.approx(lights.direction[k, 1], abs=1e-6)
+    dark = AreaLights(np.array([[0.0, 0.0, -1.0]]), [1.0], [[0.0, 0.0, 0.0]])
+    assert facing_yaw(dark) == 0.0
+    # the viewer's first look: facing, unless a yaw was asked for
+    behind = AreaLights(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), [1.0, 1.0], [[5.0, 5.0, 5.0], [1.0, 1.0, 1.0]])
+    parser = build_parser()
+    assert abs(_first_look(parser.parse_args(["view"]), Look(), behind).yaw) == pytest.approx(180.0)
+    assert _first_look(parser.parse_args(["view", "--yaw", "30"]), Look(yaw=30.0), behind).yaw == 30.0

@@ -15,17 +15,20 @@ import numpy as np
 import pytest
 
 from viewer.lab.bench.viewer import x_display
-from viewer.cli import DEMO_LIGHTS, DEMO_YAW
+from viewer.cli import DEMO_LIGHTS
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.metrics import detail_kept
 from viewer.imageio import read_exr, read_png
-from viewer.lights import load_lights
+from viewer.lights import facing_yaw, load_lights
 from viewer.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import Look
 from viewer.video import partial_path, read_video
+
+# the viewer opens with the brightest light turned toward the camera (no --yaw given)
+FIRST_YAW = facing_yaw(load_lights(asset_dir() / DEMO_LIGHTS))
 
 SIZE = 256
 RELIGHT = [sys.executable, "-m", "viewer.cli"]
@@ -142,16 +145,16 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     x, y, w, h = s["image_rect"]
     v.drag(int(x + w * 0.4), int(y + h * 0.5), 60, 0)
     # 0.5 degrees per pixel; dragging right turns the map (and its lights) to the right
-    s = v.wait_for(lambda s: abs(s["look"]["yaw"] - (DEMO_YAW - 30.0)) < 1e-6, 30)
+    s = v.wait_for(lambda s: abs(s["look"]["yaw"] - (FIRST_YAW - 30.0)) < 1e-6, 30)
     second = v.save()
     a, b = read_exr(first.with_suffix(".exr")), read_exr(second.with_suffix(".exr"))
-    assert rel_l1(a, render_hdr(headless, DEMO_YAW)) < 1e-3
-    assert rel_l1(b, render_hdr(headless, DEMO_YAW - 30.0)) < 1e-3
+    assert rel_l1(a, render_hdr(headless, FIRST_YAW)) < 1e-3
+    assert rel_l1(b, render_hdr(headless, FIRST_YAW - 30.0)) < 1e-3
     assert rel_l1(b, a) > 0.05  # the picture changed: highlights and shadows moved with the lights
     # the saved lights are the rotated ones the frame was rendered with
     saved = json.loads(second.with_suffix(".json").read_text())
-    assert saved["look"]["yaw"] == pytest.approx(DEMO_YAW - 30.0)
-    lights = headless[1].rotated(DEMO_YAW - 30.0)
+    assert saved["look"]["yaw"] == pytest.approx(FIRST_YAW - 30.0)
+    lights = headless[1].rotated(FIRST_YAW - 30.0)
     np.testing.assert_allclose([l["direction"] for l in saved["lights"]["lights"]], lights.direction, atol=1e-5)
     # the panel's frame-time record saw preview frames during the drag and a full frame after it
     kinds = [k for _, k in v.state()["frames"]]
@@ -198,12 +201,12 @@ def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
     shot = v.save()
     shown = read_exr(shot.with_suffix(".exr"))
     softer = base.with_sigma(k, new)
-    assert rel_l1(shown, render_hdr(headless, DEMO_YAW, softer)) < 1e-3
-    assert rel_l1(shown, render_hdr(headless, DEMO_YAW)) > 1e-3
+    assert rel_l1(shown, render_hdr(headless, FIRST_YAW, softer)) < 1e-3
+    assert rel_l1(shown, render_hdr(headless, FIRST_YAW)) > 1e-3
 
     def penumbra(lights):
         """Pixels facing the light (away from its terminator) that are partly shadowed."""
-        render_hdr(headless, DEMO_YAW, lights)
+        render_hdr(headless, FIRST_YAW, lights)
         out = engine.read_light(k)
         facing = out["diffuse"] > 0.05
         vis = out["visibility_soft"][facing]
@@ -221,13 +224,13 @@ def test_record_a_turn(viewer_factory, headless):
     assert frames.shape == (12, SIZE, SIZE, 3) and fps == pytest.approx(30.0)
     # the first frame is the current view (H.264 is lossy: compare loosely)
     scene, base, engine = headless
-    render_hdr(headless, DEMO_YAW)
+    render_hdr(headless, FIRST_YAW)
     first = engine.read_display().astype(np.float32)
     assert np.abs(frames[0].astype(np.float32) - first).mean() < 3.0
     # and the turn is a turn: the last frame is 330 degrees on
-    render_hdr(headless, DEMO_YAW + 330.0)
+    render_hdr(headless, FIRST_YAW + 330.0)
     assert np.abs(frames[-1].astype(np.float32) - engine.read_display()).mean() < 3.0
-    assert v.state()["look"]["yaw"] == pytest.approx(DEMO_YAW)  # back where the user was
+    assert v.state()["look"]["yaw"] == pytest.approx(FIRST_YAW)  # back where the user was
     # L records what the user does until L again: frames timed by the wall clock
     v.xdotool("key", "l")
     s = v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 3, 60)

@@ -366,8 +366,7 @@ def cmd_view(args) -> int:
     if args.mask and not photo:
         raise InputError(args.scene, "--mask needs a photo: relight view PHOTO [--mask MASK]")
     env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
-    demo = args.scene is None and args.envmap is None and args.lights is None
-    look = _settings(args, DEMO_YAW if demo else 0.0)
+    look = _settings(args)  # its yaw: _first_look, once the lights are known
     if args.record_frames < 1:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
     if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
@@ -399,6 +398,7 @@ def cmd_view(args) -> int:
         if window is not None:
             window.release()
         raise
+    look = _first_look(args, look, lights)
     from .app import ViewerConfig, run_viewer
 
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
@@ -409,6 +409,16 @@ def cmd_view(args) -> int:
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset,
                           window=window)
     return run_viewer(config)
+
+
+def _first_look(args, look, lights):
+    """The viewer's first look: the brightest light turned to the camera's side (a photo must not
+    open lit from behind) unless a yaw was given (``--yaw``, or a saved ``--look``)."""
+    from .lights import facing_yaw
+
+    if args.yaw is not None or getattr(args, "look", None):
+        return look
+    return look.replace(yaw=facing_yaw(lights))
 
 
 def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
@@ -533,7 +543,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
                    "options below override its values")
-    p.add_argument("--yaw", "--rotate", dest="yaw", type=float, help="initial rotation of the lighting, degrees")
+    p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
+                   help="initial rotation of the lighting, degrees (default: the brightest light turned toward the camera)")
     p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
     p.add_argument("--exposure", type=_exposure,
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")

@@ -129,6 +129,18 @@ class AreaLights:
         return write_text(path, json.dumps(data, indent=2) + "\n")
 
 
+def facing_yaw(lights: AreaLights) -> float:
+    """The yaw (degrees, :func:`rotation_matrix`'s) that turns the brightest light to the camera's
+    side (azimuth 0: between the person and the viewer), so a first frame is lit from the front.
+    0 for lights without intensity or a brightest light straight above or below."""
+    if len(lights) == 0 or not np.any(lights.intensity > 0):
+        return 0.0
+    x, _, z = lights.direction[int(np.argmax(lights.intensity.sum(axis=1)))]
+    if abs(x) < 1e-6 and abs(z) < 1e-6:
+        return 0.0
+    return float(-np.degrees(np.arctan2(x, z)))
+
+
 def rotation_matrix(yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> np.ndarray:
     """3x3 rotation: yaw about +y (right-handed), then tilt about +x."""
     a, b = np.radians(yaw_deg), np.radians(tilt_deg)
