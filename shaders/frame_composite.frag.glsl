@@ -7,12 +7,16 @@
 // over the cached background, exposure, tone map and sRGB as the work display does.
 // output_mode 0 writes the display image; 1 the person's HDR and matte; 2 the HDR composited over
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG.
+// Before / after (display only): left of compare_x pixels the original photo as it was, with a
+// two-pixel white line at the split.
 #include "filled_sample.glsl"
 #include "tonemap.glsl"
 uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution
 uniform sampler2D shading_diffuse;     // work resolution, premultiplied by the mask, mipmapped
 uniform sampler2D shading_specular;
 uniform sampler2D background;          // linear, frame resolution (frame_background.frag.glsl)
+uniform sampler2D photo;               // the original photo, linear, frame resolution
+uniform float compare_x;               // display: pixels from the left showing the photo (0: none)
 uniform vec2 frame_to_uv;              // 1 / frame size: the work images span the same field of view
 uniform int max_lod;
 uniform vec2 term_weights;             // (diffuse, specular): 1 shown, 0 left out
@@ -38,6 +42,9 @@ void main() {
         color = transparent ? vec4(fg * aa.a, aa.a) : vec4(mix(bg, fg, aa.a), 1.0);
         return;
     }
+    float x = float(px.x) + 0.5;
+    if (compare_x > 0.0 && abs(x - compare_x) < 1.0) { color = vec4(1.0); return; }
+    if (x < compare_x) { color = vec4(linear_to_srgb(texelFetch(photo, px, 0).rgb), 1.0); return; }
     float scale = exp2(exposure);
     vec3 front = tonemap(fg * scale, tonemap_op);
     if (transparent) { color = vec4(linear_to_srgb(front), aa.a); return; }

@@ -480,6 +480,36 @@ def test_frame_cache_rules(ctx, scene):
     eng.release()
 
 
+def test_before_and_after_shows_the_photo_left_of_the_split(ctx, scene):
+    """look.compare: the display shows the original photo (as it was: sRGB of its linear values)
+    left of the split, a white line at it, and the relit frame right of it; the HDR outputs are
+    unchanged, and the split costs one frame composite."""
+    from dataclasses import replace
+
+    from viewer.scene import FrameLayer
+
+    up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
+    photo = up(scene.albedo) * 0.5
+    sc = replace(scene, frame=FrameLayer(albedo=up(scene.albedo), alpha=up(scene.mask.astype(np.float32)), photo=photo))
+    eng = make_engine(ctx, sc)
+    eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0]]), [3.0], [[2, 2, 2]]))
+    eng.render()
+    after, hdr = eng.read_display().astype(int), eng.read_hdr()
+    start = dict(eng.counters)
+    eng.set_display(compare=0.25)
+    eng.render()
+    assert {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)} == {"frame_composite": 1}
+    split = eng.read_display().astype(int)
+    w = split.shape[1]
+    srgb = np.where(photo <= 0.0031308, 12.92 * photo, 1.055 * np.power(np.maximum(photo, 0.0031308), 1 / 2.4) - 0.055)
+    assert np.abs(split[:, : w // 4 - 1] - np.rint(255 * srgb[:, : w // 4 - 1])).max() <= 1
+    assert (split[:, w // 4 - 1: w // 4 + 1] == 255).all()
+    np.testing.assert_array_equal(split[:, w // 4 + 1:], after[:, w // 4 + 1:])
+    assert np.abs(split[:, : w // 4 - 1] - after[:, : w // 4 - 1]).mean() > 5  # the photo is not the relit frame
+    np.testing.assert_array_equal(eng.read_hdr(), hdr)
+    eng.release()
+
+
 def test_passes_declare_what_makes_them_stale(ctx, scene):
     """The cache table of docs/engine.md is the passes' own declarations: each change names the
     inputs it touches, and the passes that read them (directly or through a pass they read) run."""

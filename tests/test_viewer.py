@@ -183,6 +183,15 @@ def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_
     hand = read_png(photo.with_suffix(".mask.png")) > 0.5
     hand = hand if hand.ndim == 2 else hand[..., 0]
     assert 0.7 < detail_kept(shot, read_png(photo), hand) < 1.3  # the photo's own detail, in its own place
+    # before / after: B shows the original photo left of the middle, B again the relit frame alone
+    v.xdotool("key", "b")
+    v.wait_for(lambda s: s["look"]["compare"] == 0.5)
+    split = read_png(v.save())
+    original = read_png(photo)
+    assert np.abs(split[:, :330] - original[:, :330]).mean() < 2.0 / 255  # the photo as it was
+    assert np.abs(split[:, 345:] - shot[:, 345:]).mean() < 1e-6  # the relit frame beside it
+    v.xdotool("key", "b")
+    v.wait_for(lambda s: s["look"]["compare"] == 0.0)
     assert v.quit() == 0
 
 

@@ -56,6 +56,7 @@ class Look:
     light: int = 0  # the selected light (its shadow in the "shadow" view)
     intensity: float = 1.0  # scales every light
     preset: str = "balanced"  # quality preset (viewer.presets)
+    compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
@@ -82,6 +83,7 @@ class Look:
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
         _finite("intensity", self.intensity, 0.0, MAX_INTENSITY)
         _choice("preset", self.preset, PRESET_NAMES)
+        _finite("compare", self.compare, 0.0, 1.0, " (the share of the frame showing the photo)")
 
     @property
     def environment_rotation(self) -> np.ndarray:

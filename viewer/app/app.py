@@ -83,6 +83,7 @@ class ViewerApp:
         self.job: LightJob | None = None
         self.recording = None
         self.message = ""
+        self.last_compare = 0.5  # where B puts the before / after split
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
         self.frame_count = 0
@@ -163,6 +164,8 @@ class ViewerApp:
             self.view = replace(self.view, zoom=1.0, pan=(0.0, 0.0))
         if imgui.is_key_pressed(imgui.Key._0, False):
             self.session.update(yaw=0.0, tilt=0.0)
+        if imgui.is_key_pressed(imgui.Key.b, False):
+            self.toggle_compare()
         if imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
             self.window.close()
 
@@ -232,6 +235,17 @@ class ViewerApp:
             return
         self.error = ""
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
+
+    def toggle_compare(self):
+        """Before / after: the original photo left of a split (at the last position, half the frame
+        at first), or the relit frame alone again."""
+        if self.session.scene.frame is None:
+            self.message = "before / after needs a photo: this scene has no original to show"
+            return
+        look = self.session.look
+        if look.compare > 0.0:
+            self.last_compare = look.compare
+        self.session.update(compare=0.0 if look.compare > 0.0 else self.last_compare)
 
     def set_preset(self, name: str):
         """A quality preset: its engine options now, its number of lights refitted (cached) when the

@@ -12,6 +12,7 @@ F                   fit the image (reset zoom and pan)
 S                   save the frame: PNG, HDR EXR and the lights as JSON
 R                   record a 360 degree turn of the lighting (R again stops)
 L                   record what you do, live (L again stops)
+B                   before / after: the original photo left of a split (a photo's scene)
 Q / Esc             quit"""
 
 MAX_AREA = (1000, 860)  # largest image area the window opens with (pixels)

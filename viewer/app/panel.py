@@ -75,6 +75,12 @@ def _lighting(app):
     _remember(app, "intensity")
     if changed:
         s.update(intensity=intensity)
+    if s.scene.frame is not None:  # before / after: the original photo left of the split (B toggles)
+        changed, compare = imgui.slider_float("before | after", s.look.compare, 0.0, 1.0,
+                                              "photo %.2f" if s.look.compare > 0.0 else "off")
+        _remember(app, "compare")
+        if changed:
+            s.update(compare=compare)
 
 
 def _shading(app):

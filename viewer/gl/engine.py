@@ -51,7 +51,7 @@ from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
-DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color")
+DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color", "compare")
 BACKGROUND_FIELDS = ("yaw", "tilt", "background", "background_color")  # what the frame background shows
 
 
@@ -89,7 +89,7 @@ class Engine(EngineOutputs):
         else:
             self.frame_background = FrameBackgroundPass(kit, scene.frame, scene.camera)
             self.frame_mipmaps = FrameMipmapsPass(kit)
-            self.display_pass = FrameCompositePass(kit, scene.frame)
+            self.display_pass = FrameCompositePass(kit, scene.frame, self.frame_background.photo)
         self._light_passes = (self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.light_pass)
         self._frame_passes = [p for p in (self.composite_pass, self.frame_mipmaps, self.frame_background, self.display_pass) if p]
         self._stale = {p.name: "all" for p in self._frame_passes}  # None, "box" (the mask's / matte's) or "all"
@@ -218,11 +218,11 @@ class Engine(EngineOutputs):
 
     def set_display(self, **changes):
         """Change the look's display fields (``exposure``, ``tonemap``, ``background``,
-        ``background_color``, ``yaw``, ``tilt``); only the display is redone."""
+        ``background_color``, ``yaw``, ``tilt``, ``compare``: before / after); only the display is redone."""
         self.set_look(self.look.replace(**changes))
 
     def set_visibility(self, mode: str):
-        """Which visibility the composite uses: 'soft' (CSM), 'hard' (shadow map), 'none', or
+        """Which visibility the composite uses: 'soft' (EngineOptions.soft), 'hard' (shadow map), 'none', or
         'refined' (the refinement network's, see ``set_refined_visibility``; soft until it is set)."""
         if mode not in VISIBILITY_MODES:
             raise ValueError(f"visibility must be one of {', '.join(VISIBILITY_MODES)}, got {mode!r}")

@@ -100,8 +100,8 @@ class FrameCompositePass:
     inputs = ("composite",)  # redrawn over the matte's box only
     whole_inputs = ("display", "view", "environment")  # redrawn over the whole frame
 
-    def __init__(self, kit: PassKit, frame: FrameLayer):
-        self.kit = kit
+    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture):
+        self.kit, self.photo = kit, photo  # the photo (FrameBackgroundPass's): the "before" of look.compare
         size = self.size = (frame.width, frame.height)
         albedo_alpha = np.dstack([frame.albedo, frame.alpha]).astype(np.float16)
         self.albedo_alpha = kit.texture(size, 4, albedo_alpha.tobytes(), dtype="f2")
@@ -127,10 +127,13 @@ class FrameCompositePass:
         shading[0].use(1)
         shading[1].use(2)
         background.use(3)
+        self.photo.use(4)
         prog["frame_albedo_alpha"] = 0
         prog["shading_diffuse"] = 1
         prog["shading_specular"] = 2
         prog["background"] = 3
+        prog["photo"] = 4
+        prog["compare_x"] = look.compare * self.size[0] if output_mode == OUTPUT_DISPLAY else 0.0
         prog["frame_to_uv"] = (1.0 / self.size[0], 1.0 / self.size[1])
         prog["max_lod"] = MAX_FILL_LOD
         diffuse, specular, unit_albedo = terms
