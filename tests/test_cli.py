@@ -112,7 +112,7 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
                          capture_output=True, text=True, env=environ, cwd=tmp_path / "work")
     assert res.returncode == 0, res.stderr
     assert not any((tmp_path / "work").iterdir()) and f"-> {mine.with_suffix('.lights.json')}" in res.stdout
-    assert sidecar_lights(mine, 4, "fast") is not None
+    assert sidecar_lights(mine, 4, "instant") is not None  # the default method wrote it
     assert "fitting 4 lights to" in res.stderr and " in " in res.stderr.splitlines()[-1]
 
 

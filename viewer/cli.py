@@ -578,7 +578,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="light file to write (default MAP.lights.json beside the map, which the viewer "
                                           "reads for that map; the fitting cache only where the map's folder is read-only)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
-                   help="fast (the default): median cut + short refinement; paper: the paper's optimization; "
+                   help="instant (the default, ~1 s): median cut + short refinement on small views; fast: the same on "
+                        "the full views (~17 s); paper: the paper's optimization; "
                         "median-cut: initialization only")
     p.add_argument("--plot", help="also draw the lights on the map into this PNG")
     p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..imageio import write_exr, write_png, write_text
+from ..lightfit.methods import DEFAULT_METHOD
 from ..lights import AreaLights
 from ..render import photo_exposure
 from ..scene import Scene
@@ -39,7 +40,7 @@ class ViewerConfig:
     lights: AreaLights
     environment: np.ndarray | None
     env_path: Path | None
-    method: str = "fast"
+    method: str = DEFAULT_METHOD
     options: object = None  # EngineOptions
     look: Look = field(default_factory=Look)
     out_dir: Path = Path("relight-captures")

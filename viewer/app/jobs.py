@@ -18,7 +18,10 @@ from ..lights import AreaLights, load_lights
 
 def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
     """Lights shipped beside a map (``<map>.lights.json``, as the bundled maps have) when they were
-    fitted for the same count and method."""
+    fitted for the same count, by the method asked or one at least as accurate
+    (:func:`viewer.lightfit.methods.serves`)."""
+    from ..lightfit.methods import serves
+
     side = Path(env_path).with_suffix(".lights.json")
     if not side.is_file():
         return None
@@ -26,7 +29,7 @@ def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
         fit = read_json(side, "light file").get("fit") or {}
     except (InputError, AttributeError):
         return None
-    if fit.get("n") != n or fit.get("method") != method:
+    if fit.get("n") != n or not serves(str(fit.get("method")), method):
         return None
     try:
         return load_lights(side)

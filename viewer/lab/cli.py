@@ -202,8 +202,10 @@ def cmd_bench(args) -> int:
     else:
         from .bench.lights import COUNTS, run_lights_benchmark
 
+        from viewer.lightfit.methods import METHODS
+
         run_lights_benchmark(maps_dir=shared_folder(args.maps, "hdri", "--maps"), counts=args.counts or COUNTS,
-                             output=output)
+                             methods=tuple(args.methods or METHODS), output=output)
     return 0
 
 
@@ -274,6 +276,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
     p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default $RELIGHT_DATA/hdri)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
+    p.add_argument("--methods", nargs="+", choices=("instant", "fast", "paper", "median-cut"),
+                   help="lights: fitting methods (default all)")
     p.add_argument("--data", nargs="+", help="networks, report, photos, bodyfit: dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
     p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs; "

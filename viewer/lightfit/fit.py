@@ -1,11 +1,15 @@
 """Fitting N area lights to an environment map: the paper's optimization and a fast default.
 
-Three methods (error against run time in docs/lights.md, from ``relight bench lights``):
+Four methods (error against run time in docs/lights.md, from ``relight bench lights``):
 
 ``median-cut``
     Initialization only: :func:`viewer.median_cut.median_cut_lights` (directions and intensities
     straight from the map, sigma from each region's angular spread).
-``fast`` (the default)
+``instant`` (the default)
+    ``fast`` on small views (a 32-pixel sphere, a 48-pixel plane, 64-texel shadow maps, 512 map
+    samples) with ``INSTANT_STEPS`` Adam steps and one sweep over the 9 sigmas of ``INSTANT_TABLE``:
+    about a second per map, so the viewer and the command line never make the user wait on a fit.
+``fast``
     Median cut, then a short Step 2 (``FAST_STEPS`` Adam steps on directions and log-intensities,
     learning rate cosine-annealed to 0, the paper's diffuse + specular sRGB L1 loss) and a sigma
     search on the paper's Step 3 loss: each light's sigma is chosen by
@@ -51,6 +55,12 @@ from .problem import FitSettings, Problem, VisibilityTable, build_problem, repor
 
 FAST_STEPS = 300
 FAST_LR = 0.15
+# instant: the fast method's steps on small views (1.0 s median per 1k map at N = 16 on 2 cores,
+# docs/lights.md), so a new map is lit while the user waits
+INSTANT_SETTINGS = FitSettings(sphere_resolution=32, plane_resolution=48, shadow_resolution=64, samples=512)
+INSTANT_STEPS = 150
+INSTANT_TABLE = (0.0, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0)
+INSTANT_SWEEPS = 1
 # sigmas at which the soft shadows of fixed-direction lights are tabulated for Step 3: the paper's
 # method interpolates linearly between them, the fast method searches them
 SIGMA_TABLE = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 12.0, 14.0, 16.0,
@@ -82,6 +92,11 @@ def fit_lights(env: EnvMap, n: int, method: str = DEFAULT_METHOD, settings: FitS
         return AreaLights(fibonacci_sphere(n), np.zeros(n), np.zeros((n, 3)))
     if method == "median-cut":
         return median_cut_lights(env, n)
+    if method == "instant":  # its own small views, whatever was passed
+        problem = build_problem(env, INSTANT_SETTINGS, progress)
+        direction, intensity = _refine_fast(problem, median_cut_lights(env, n), progress, INSTANT_STEPS)
+        sigma = _sigma_search(problem, direction, intensity, progress, INSTANT_TABLE, INSTANT_SWEEPS)
+        return AreaLights(direction, sigma, intensity * problem.scale).validate(env.source)
     if problem is None:
         problem = build_problem(env, settings, progress)
     if method == "fast":
@@ -168,29 +183,31 @@ class Step3Target:
 
 
 # ---------------------------------------------------------------- fast
-def _refine_fast(problem: Problem, start: AreaLights, progress):
-    """Short Step 2 from a good start: Adam on directions and log-intensities."""
+def _refine_fast(problem: Problem, start: AreaLights, progress, steps: int = FAST_STEPS):
+    """Short Step 2 from a good start: ``steps`` Adam steps on directions and log-intensities."""
     direction = torch.tensor(start.direction, dtype=torch.float32, requires_grad=True)
     base = torch.as_tensor(start.intensity, dtype=torch.float32) / problem.scale
     floor = 1e-6 * float(base.sum(dim=1).max())  # lights without energy may grow from a small seed
     log_int = torch.log(base.clamp(min=floor)).requires_grad_(True)
     opt = torch.optim.Adam([direction, log_int], lr=FAST_LR, betas=(0.5, 0.999))
-    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=FAST_STEPS, eta_min=0.0)
-    for step in range(FAST_STEPS):
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=0.0)
+    for step in range(steps):
         opt.zero_grad()
         loss = step2_loss(problem, _unit(direction), torch.exp(log_int))
         loss.backward()
         opt.step()
         sched.step()
-        report(progress, "directions", step + 1, FAST_STEPS)
+        report(progress, "directions", step + 1, steps)
     with torch.no_grad():
         return _unit(direction).numpy().astype(np.float64), torch.exp(log_int).numpy().astype(np.float64)
 
 
-def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray, progress) -> np.ndarray:
-    """Coordinate descent of each light's sigma over SIGMA_TABLE on the Step 3 loss."""
-    table = _visibility_table(problem, direction, progress)
-    n, k, g_count = len(direction), len(problem.rotations), len(SIGMA_TABLE)
+def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray, progress, sigmas=SIGMA_TABLE,
+                  sweeps: int = SIGMA_SWEEPS) -> np.ndarray:
+    """Coordinate descent (``sweeps`` over the lights) of each light's sigma over ``sigmas`` on the
+    Step 3 loss."""
+    table = _visibility_table(problem, direction, progress, sigmas)
+    n, k, g_count = len(direction), len(problem.rotations), len(sigmas)
     inten = torch.as_tensor(intensity, dtype=torch.float32)
     target = Step3Target.of(problem)
     diffuse = table.views.diffuse
@@ -201,7 +218,7 @@ def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray
         choice = [g_count // 2] * n
         total = sum(contrib[choice[l], l] for l in range(n))
         best = float(target.loss(problem, total))
-        for sweep in range(SIGMA_SWEEPS):
+        for sweep in range(sweeps):
             for l in range(n):
                 without = total - contrib[choice[l], l]
                 for g in range(g_count):
@@ -211,17 +228,17 @@ def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray
                     if loss < best:
                         best, choice[l] = loss, g
                 total = without + contrib[choice[l], l]
-                report(progress, "sigma", sweep * n + l + 1, SIGMA_SWEEPS * n)
-    return np.array([SIGMA_TABLE[g] for g in choice])
+                report(progress, "sigma", sweep * n + l + 1, sweeps * n)
+    return np.array([sigmas[g] for g in choice])
 
 
-def _visibility_table(problem: Problem, direction: np.ndarray, progress) -> VisibilityTable:
-    """Soft shadows of fixed-direction lights on the sphere-on-plane views at every sigma of SIGMA_TABLE."""
+def _visibility_table(problem: Problem, direction: np.ndarray, progress, sigmas=SIGMA_TABLE) -> VisibilityTable:
+    """Soft shadows of fixed-direction lights on the sphere-on-plane views at every sigma of ``sigmas``."""
     s = problem.settings
     report(progress, "shadows", 0, 2)
     views = shadowed_views(problem.plane, direction, problem.rotations, s.shadow_resolution, s.terms)
     report(progress, "shadows", 1, 2)
-    table = VisibilityTable.of(views, SIGMA_TABLE)
+    table = VisibilityTable.of(views, sigmas)
     report(progress, "shadows", 2, 2)
     return table
 
