@@ -140,8 +140,11 @@ def rel_l1(a, b):
 
 def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     v = viewer_factory()
+    tops = lambda s: {name: rect[1] for name, rect in s["widgets"].items()}  # noqa: E731
+    before = tops(v.state())
     first = v.save()
     s = v.state()
+    assert s["message"].startswith("saved") and tops(s) == before  # a message moves no widget down
     x, y, w, h = s["image_rect"]
     v.drag(int(x + w * 0.4), int(y + h * 0.5), 60, 0)
     # 0.5 degrees per pixel; dragging right turns the map (and its lights) to the right

@@ -1,19 +1,23 @@
-"""The side panel (imgui): lighting, per-light sigma sliders, shading, views, map, recording,
-frame time, keys. Draws and applies the user's changes to the app's state."""
+"""The side panel (imgui): lighting, per-light size sliders (sigma shown as the light's angular
+size in degrees), shading, views, map, recording, frame time, keys. Draws and applies the user's changes to the app's state."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from imgui_bundle import imgui, implot
 
 from ..presets import PRESETS
 from ..settings import VIEWS
+from ..shadow_space import ANGULAR_SIGMA
 from .interaction import exposed
 from .layout import KEYS_HELP, PANEL_WIDTH
 from .session import PREVIEW_SIZE, SHADOW_MODES, VIEW_NAMES
 
 MAX_LIGHTS = 64
 SIGMA_MAX = 30.0  # slider range (256-px units; the fitted lights use 0 to 20)
+DEG_PER_SIGMA = math.degrees(ANGULAR_SIGMA)  # the slider shows a light's size: its angular sigma in degrees
 
 
 def _remember(app, name: str):
@@ -45,13 +49,20 @@ def draw_panel(app):
 
 
 def _status(app):
+    """Messages and the fitting's progress in a box of fixed height, so a message never moves the
+    widgets below it (a click meant for one would land on another)."""
+    height = 2 * imgui.get_text_line_height_with_spacing() + imgui.get_frame_height_with_spacing()
+    imgui.begin_child("status", imgui.ImVec2(0, height), 0, imgui.WindowFlags_.no_scrollbar)
     if app.error:
+        imgui.push_text_wrap_pos(0.0)
         imgui.text_colored(imgui.ImVec4(1, 0.4, 0.3, 1), app.error)
+        imgui.pop_text_wrap_pos()
     elif app.message:
         imgui.text_wrapped(app.message)
     job = app.job
     if job is not None:
         imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), f"{job.path.name}: {job.stage}")
+    imgui.end_child()
 
 
 def _lighting(app):
@@ -137,6 +148,7 @@ def _lights(app):
     lum = lights.intensity @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     peak = float(lights.intensity.max()) if n else 1.0
     total = float(lum.sum()) or 1.0
+    imgui.text_disabled("       #  azim  elev   size (angular sigma)")
     imgui.begin_child("lights", imgui.ImVec2(0, 210), imgui.ChildFlags_.borders)
     for i in np.argsort(-lum, kind="stable"):
         i = int(i)
@@ -144,19 +156,23 @@ def _lights(app):
         d = lights.direction[i]
         az, el = np.degrees(np.arctan2(d[0], d[2])), np.degrees(np.arcsin(np.clip(d[1], -1, 1)))
         imgui.color_button("##c", _swatch(lights.intensity[i], peak), 0, imgui.ImVec2(18, 18))
-        if imgui.is_item_hovered():
-            imgui.set_tooltip(f"light {i}: intensity {lights.intensity[i].round(3).tolist()}, "
-                              f"{100 * lum[i] / total:.1f} % of the total; azimuth {az:+.0f}, elevation {el:+.0f} deg")
+        if imgui.is_item_hovered():  # short lines: the panel is at the window's right edge
+            r, g, b = (f"{c:.3g}" for c in lights.intensity[i])
+            imgui.set_tooltip(f"light {i}: {100 * lum[i] / total:.1f} % of the light\n"
+                              f"azimuth {az:+.0f}, elevation {el:+.0f} deg\n"
+                              f"size {s.sigma[i] * DEG_PER_SIGMA:.1f} deg (sigma {s.sigma[i]:.2f})\n"
+                              f"intensity (RGB) {r} / {g} / {b}")
         imgui.same_line()
         selected = s.look.view == "shadow" and s.look.light == i
         if imgui.selectable(f"{i:2d} {az:+4.0f} {el:+3.0f}", selected, 0, imgui.ImVec2(92, 0))[0]:
             s.update(view="shadow", light=i) if not selected else s.update(view="final")
         imgui.same_line()
         imgui.set_next_item_width(-1)
-        changed, sigma = imgui.slider_float("##sigma", float(s.sigma[i]), 0.0, SIGMA_MAX, "sigma %.2f")
+        changed, size = imgui.slider_float("##sigma", float(s.sigma[i]) * DEG_PER_SIGMA, 0.0, SIGMA_MAX * DEG_PER_SIGMA,
+                                           "%.1f deg")
         _remember(app, f"sigma {i}")
         if changed:
-            s.set_sigma(i, sigma)
+            s.set_sigma(i, size / DEG_PER_SIGMA)
         imgui.pop_id()
     imgui.end_child()
     imgui.text_disabled("click a light to see its shadow; sorted by brightness")
