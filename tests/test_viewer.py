@@ -228,6 +228,42 @@ def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
     assert v.quit() == 0
 
 
+def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path):
+    """The panel's "use rig" button adds the key light (fixed to the camera, rendered with the map's
+    lights); Ctrl+Z and Ctrl+Y undo and redo it; a saved rig opens again with --rig; a bad rig
+    file is one line naming it."""
+    v = viewer_factory()
+    s = v.state()
+    n = s["n_lights"]
+    x0, y0, x1, y1 = s["widgets"]["use rig"]
+    before = read_png(v.save())
+    v.xdotool("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2))
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    s = v.wait_for(lambda s: len(s["placed"]) == 1, 30)
+    assert s["placed"][0]["azimuth"] == 45.0
+    shot = v.save()
+    saved = json.loads(shot.with_suffix(".json").read_text())
+    assert len(saved["lights"]["lights"]) == n + 1 and saved["rig"] == s["placed"]
+    changed = np.abs(read_png(shot) - before).max(axis=-1) > 4 / 255
+    assert changed.mean() > 0.05  # the key light shows on the person (a fifth of the image here)
+    v.xdotool("key", "ctrl+z")
+    v.wait_for(lambda s: s["placed"] == [], 30)
+    v.xdotool("key", "ctrl+y")
+    v.wait_for(lambda s: len(s["placed"]) == 1, 30)
+    rig = tmp_path / "rig.json"
+    rig.write_text(json.dumps({"format": "relight-rig", "lights": saved["rig"]}))
+    assert v.quit() == 0
+    v.state_path.unlink()  # the next viewer writes the same state file
+    again = viewer_factory("--rig", str(rig))
+    again.wait_for(lambda s: s["placed"] == saved["rig"], 30)
+    assert again.quit() == 0
+    rig.write_text('{"format": "relight-rig", "lights": [{"kelvin": 20}]}')
+    res = subprocess.run([*RELIGHT, "view", "--rig", str(rig)], capture_output=True, text=True,
+                         env={**os.environ, "DISPLAY": v.display})
+    assert res.returncode == 2 and str(rig) in res.stderr and "kelvin" in res.stderr and "Traceback" not in res.stderr
+
+
 def test_record_a_turn(viewer_factory, headless):
     v = viewer_factory("--record-frames", "12")
     v.xdotool("key", "r")

@@ -369,6 +369,9 @@ def cmd_view(args) -> int:
     look = _settings(args)  # its yaw: _first_look, once the lights are known
     if args.record_frames < 1:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
+    from .placed_lights import load_rig
+
+    rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
     if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
         raise InputError(None, f"--fps must be in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], got {args.fps}")
     window = None
@@ -407,7 +410,7 @@ def cmd_view(args) -> int:
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset,
-                          window=window)
+                          window=window, rig=rig)
     return run_viewer(config)
 
 
@@ -541,6 +544,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("-n", "--lights-count", type=int, help="lights fitted to the map (default: the preset's, balanced 16; cached)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.add_argument("--rig", help="placed lights to start with: a rig saved from the viewer's panel (JSON)")
     p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
                    "options below override its values")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float,

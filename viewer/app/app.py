@@ -11,7 +11,7 @@ import signal
 import sys
 import time
 from collections import deque
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +50,7 @@ class ViewerConfig:
     bundled_maps: tuple = ()
     preset: str = "balanced"  # the quality preset the options came from (viewer/presets.py)
     window: object = None  # a window already open (a photo's inference ran in its context), else one is made
+    rig: tuple = ()  # placed lights to start with (viewer.placed_lights; relight view --rig)
 
 
 class ViewerApp:
@@ -70,6 +71,7 @@ class ViewerApp:
         self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
         self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look)
+        self.session.set_placed(config.rig, record=False)
         self.session.wake = self.window.wake
         self.env_path = config.env_path
         self.n_lights = len(config.lights)
@@ -85,6 +87,7 @@ class ViewerApp:
         self.recording = None
         self.message = ""
         self.last_compare = 0.5  # where B puts the before / after split
+        self.rig_choice = 0  # the rig the panel's combo shows
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
         self.frame_count = 0
@@ -167,6 +170,10 @@ class ViewerApp:
             self.session.update(yaw=0.0, tilt=0.0)
         if imgui.is_key_pressed(imgui.Key.b, False):
             self.toggle_compare()
+        if io.key_ctrl and imgui.is_key_pressed(imgui.Key.z, False):
+            self.message = "undone" if self.session.undo() else "nothing to undo"
+        if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
+            self.message = "redone" if self.session.redo() else "nothing to redo"
         if imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
             self.window.close()
 
@@ -194,7 +201,8 @@ class ViewerApp:
         png = write_png(stem.with_suffix(".png"), eng.read_display().astype(np.float32) / 255.0)
         write_exr(stem.with_suffix(".exr"), eng.read_output_hdr()[..., :3])
         state = {"look": self._look_json(), "map": str(self.env_path) if self.env_path else None, "preset": self.preset}
-        state["lights"] = self.session.rotated_lights().to_json()
+        state["lights"] = self.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
+        state["rig"] = [asdict(p) for p in self.session.placed]
         write_text(stem.with_suffix(".json"), json.dumps(state, indent=2) + "\n")
         self.captures.append(str(png))
         self.message = f"saved {png.name} (+ .exr, .json)"
@@ -236,6 +244,23 @@ class ViewerApp:
             return
         self.error = ""
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
+
+    def placed_level(self) -> float:
+        """A placed light's default intensity: a quarter of the map's lights' total (1 without any)."""
+        total = float((self.session.base_lights.intensity @ np.array([0.2126, 0.7152, 0.0722], np.float32)).sum())
+        return 0.25 * total if total > 0.0 else 1.0
+
+    def save_rig(self):
+        from ..placed_lights import save_rig
+
+        try:
+            self.config.out_dir.mkdir(parents=True, exist_ok=True)
+            path = save_rig(self._capture_stem().with_name(f"rig-{time.strftime('%Y%m%d-%H%M%S')}.json"),
+                            self.session.placed)
+        except OSError as exc:
+            self._report("saving the rig failed", exc)
+            return
+        self.message = f"saved the rig: {path.name} (relight view --rig {path.name})"
 
     def toggle_compare(self):
         """Before / after: the original photo left of a split (at the last position, half the frame
@@ -358,6 +383,7 @@ class ViewerApp:
         state = {
             "look": self._look_json(),
             "sigma": [float(v) for v in self.session.sigma],
+            "placed": [asdict(p) for p in self.session.placed],
             "n_lights": len(self.session.sigma),
             "preset": self.preset,
             "map": str(self.env_path) if self.env_path else None,

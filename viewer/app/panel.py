@@ -4,10 +4,12 @@ size in degrees), shading, views, map, recording, frame time, keys. Draws and ap
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from imgui_bundle import imgui, implot
 
+from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, kelvin_to_rgb, rig
 from ..presets import PRESETS
 from ..settings import VIEWS
 from ..shadow_space import ANGULAR_SIGMA
@@ -40,6 +42,7 @@ def draw_panel(app):
     _lighting(app)
     _shading(app)
     _lights(app)
+    _placed(app)
     _map(app)
     _record(app)
     _frame_time(app)
@@ -176,6 +179,62 @@ def _lights(app):
         imgui.pop_id()
     imgui.end_child()
     imgui.text_disabled("click a light to see its shadow; sorted by brightness")
+
+
+def _placed(app):
+    """The user's own lights: a rig, add, edit (direction, size, intensity, colour temperature),
+    delete, undo and redo, save the rig."""
+    s = app.session
+    if not imgui.collapsing_header(f"Your lights ({len(s.placed)})", imgui.TreeNodeFlags_.default_open):
+        return
+    level = app.placed_level()
+    names = list(RIGS)
+    imgui.set_next_item_width(140)
+    _, app.rig_choice = imgui.combo("##rig", app.rig_choice, names)
+    imgui.same_line()
+    if imgui.button("use rig"):
+        s.set_placed(rig(names[app.rig_choice], level))
+    _remember(app, "use rig")
+    imgui.same_line()
+    if imgui.button("add light"):
+        s.set_placed(s.placed + (PlacedLight(intensity=level),))
+    _remember(app, "add light")
+    if imgui.button("undo (Ctrl+Z)"):
+        s.undo()
+    imgui.same_line()
+    if imgui.button("redo (Ctrl+Y)"):
+        s.redo()
+    imgui.same_line()
+    if imgui.button("save rig") and s.placed:
+        app.save_rig()
+    placed = list(s.placed)
+    for j, p in enumerate(placed):
+        imgui.push_id(f"placed{j}")
+        imgui.separator()
+        imgui.color_button("##c", _swatch(kelvin_to_rgb(p.kelvin), 2.0), 0, imgui.ImVec2(18, 18))
+        imgui.same_line()
+        imgui.text(f"light {len(s.base_lights) + j}")
+        imgui.same_line()
+        if imgui.small_button("delete"):
+            s.set_placed(placed[:j] + placed[j + 1:])
+            imgui.pop_id()
+            break
+        edits = {}
+        for name, low, high, fmt, flags in (("azimuth", -180.0, 180.0, "azimuth %+.0f deg", 0),
+                                            ("elevation", -90.0, 90.0, "elevation %+.0f deg", 0),
+                                            ("size", 0.0, MAX_SIZE, "size %.1f deg", 0),
+                                            ("intensity", 0.0, 8.0 * level, "intensity %.3g", imgui.SliderFlags_.logarithmic),
+                                            ("kelvin", 1500.0, 12000.0, "%.0f K", 0)):
+            changed, value = imgui.slider_float(f"##{name}", getattr(p, name), low, high, fmt, flags)
+            _remember(app, f"placed {j} {name}")
+            if imgui.is_item_activated():  # one undo step per drag of a slider
+                s.history.record(s.placed)
+            if changed:
+                edits[name] = value
+        if edits:
+            placed[j] = replace(p, **edits)
+            s.set_placed(placed, record=False)
+        imgui.pop_id()
 
 
 def _map(app):

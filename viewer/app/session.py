@@ -18,6 +18,7 @@ import numpy as np
 
 from ..gl import Engine, EngineOptions
 from ..lights import AreaLights
+from ..placed_lights import History, PlacedLight, to_area_lights
 from ..render import effective_background
 from ..scene import Scene
 from ..photo_frame import scaled_size
@@ -46,6 +47,8 @@ class Session:
         self.environment = environment
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
+        self.placed: tuple[PlacedLight, ...] = ()  # the user's own lights, fixed to the camera (viewer.placed_lights)
+        self.history = History()
         self.look = (look or Look()).fitted(len(lights))
         self._set_environment(self.final)
         self.wake = lambda: None  # called when background work finishes (the window's wake)
@@ -62,6 +65,37 @@ class Session:
     def rotated_lights(self) -> AreaLights:
         return self.lights.rotated(self.look.yaw, self.look.tilt)
 
+    def rendered_lights(self) -> AreaLights:
+        """The map's lights turned by the look, then the placed lights (fixed to the camera); the
+        look's intensity scales both."""
+        env, own = self.rotated_lights(), to_area_lights(self.placed)
+        return AreaLights(np.concatenate([env.direction, own.direction]), np.concatenate([env.sigma, own.sigma]),
+                          np.concatenate([env.intensity, own.intensity * np.float32(self.look.intensity)]))
+
+    def set_placed(self, placed, record: bool = True):
+        """The user's lights (a rig, an added, moved or deleted light); ``record``: undo brings back
+        the ones before."""
+        placed = tuple(placed)
+        if placed == self.placed:
+            return
+        if record:
+            self.history.record(self.placed)
+        self.placed = placed
+        if self.look.light >= len(self.base_lights) + len(placed):
+            self.look = replace(self.look, light=0, view="final" if self.look.view == "shadow" else self.look.view)
+
+    def undo(self) -> bool:
+        before = self.history.undo(self.placed)
+        if before is not None:
+            self.set_placed(before, record=False)
+        return before is not None
+
+    def redo(self) -> bool:
+        after = self.history.redo(self.placed)
+        if after is not None:
+            self.set_placed(after, record=False)
+        return after is not None
+
     def set_lights(self, lights: AreaLights, environment: np.ndarray | None = None):
         """New lights (a refit, or another map with its pixels): the sliders start from their sigmas."""
         self.base_lights = lights
@@ -70,7 +104,7 @@ class Session:
             self.environment = environment
             for eng in self._engines():
                 self._set_environment(eng)
-        if self.look.light >= len(lights):
+        if self.look.light >= len(lights) + len(self.placed):
             self.look = replace(self.look, light=0, view="final" if self.look.view == "shadow" else self.look.view)
 
     def set_options(self, options: EngineOptions):
@@ -116,7 +150,7 @@ class Session:
         ``display`` texture is the frame to show)."""
         eng = self.preview if preview else self.final
         lk = self.look
-        eng.set_lights(self.rotated_lights())
+        eng.set_lights(self.rendered_lights())
         eng.set_look(replace(lk, background=effective_background(lk, self.scene, self.environment is not None),
                              shadows="hard" if preview and lk.shadows in ("soft", "refined") else lk.shadows))
         eng.render()

@@ -1,0 +1,87 @@
+"""The user's own lights (viewer/placed_lights.py): directions, colour temperature, rigs as JSON,
+undo and redo, and how a session renders them with the map's lights."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from viewer.errors import InputError
+from viewer.placed_lights import (History, PlacedLight, kelvin_to_rgb, load_rig, rig, save_rig, to_area_lights)
+from viewer.shadow_space import ANGULAR_SIGMA
+
+
+def test_directions_follow_the_light_table():
+    assert np.allclose(PlacedLight(0.0, 0.0).direction, [0, 0, 1])  # on the camera's side
+    assert np.allclose(PlacedLight(90.0, 0.0).direction, [1, 0, 0])  # the image's right
+    assert np.allclose(PlacedLight(0.0, 90.0).direction, [0, 1, 0], atol=1e-12)
+    p = PlacedLight.aimed([-0.3, 0.5, -0.8], size=4.0)
+    assert np.allclose(p.direction, np.array([-0.3, 0.5, -0.8]) / np.linalg.norm([-0.3, 0.5, -0.8]))
+
+
+def test_colour_temperature():
+    warm, daylight, cold = kelvin_to_rgb(2700.0), kelvin_to_rgb(6500.0), kelvin_to_rgb(10000.0)
+    for c in (warm, daylight, cold):
+        assert c @ [0.2126, 0.7152, 0.0722] == pytest.approx(1.0) and (c >= 0).all()
+    assert warm[0] > warm[1] > warm[2] and cold[2] > cold[1] and cold[2] > cold[0]
+    assert np.abs(daylight - 1.0).max() < 0.06  # a 6500 K black body is nearly D65 white
+
+
+def test_area_lights_of_placed_lights():
+    lights = to_area_lights([PlacedLight(30.0, 20.0, 6.0, 2.0, 5000.0)])
+    assert lights.sigma[0] == pytest.approx(math.radians(6.0) / ANGULAR_SIGMA)
+    assert lights.intensity[0] @ [0.2126, 0.7152, 0.0722] == pytest.approx(2.0, rel=1e-5)
+    assert len(to_area_lights([])) == 0
+
+
+def test_rigs_save_load_and_refuse_bad_files(tmp_path):
+    three = rig("three-point", 4.0)
+    assert len(three) == 3 and three[0].intensity == 4.0 and three[1].intensity == pytest.approx(1.4)
+    path = save_rig(tmp_path / "rig.json", three)
+    assert load_rig(path) == three
+    bad = tmp_path / "bad.json"
+    for content, message in (('{"format": "relight-lights", "lights": []}', "not a rig"),
+                             ('{"format": "relight-rig", "lights": [{"azimuth": 10, "kelvin": 50}]}', "kelvin"),
+                             ('{"format": "relight-rig", "lights": [{"azimuth": 10, "colour": 1}]}', "light 0"),
+                             ("not json", "rig")):
+        bad.write_text(content)
+        with pytest.raises(InputError, match=message) as info:
+            load_rig(bad)
+        assert str(bad) in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(InputError, match="unknown rig"):
+        rig("spotlight", 1.0)
+
+
+def test_history_undo_and_redo():
+    h, a, b, c = History(), (), (PlacedLight(),), (PlacedLight(), PlacedLight(10.0))
+    h.record(a)
+    h.record(b)  # now at c
+    assert h.undo(c) == b and h.undo(b) == a and h.undo(a) is None
+    assert h.redo(a) == b and h.redo(b) == c and h.redo(c) is None
+    h.undo(c)
+    h.record(b)  # a new change drops the redo stack
+    assert h.redo(b) is None
+
+
+def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
+    from viewer.app.session import Session
+    from viewer.lab.scenes import plane_and_box
+    from viewer.lights import AreaLights
+
+    scene = plane_and_box(48)
+    env = AreaLights(np.array([[0.0, 0.6, 0.8]]), [2.0], [[1.0, 1.0, 1.0]])
+    s = Session(ctx, scene, env, None)
+    s.set_placed(rig("key and fill", 1.0))
+    s.update(yaw=90.0)
+    lights = s.rendered_lights()
+    assert len(lights) == 3
+    assert np.allclose(lights.direction[1:], [p.direction for p in s.placed], atol=1e-6)  # not turned with the map
+    assert not np.allclose(lights.direction[0], env.direction[0])  # the map's light turned
+    eng = s.render()
+    assert len(eng.lights) == 3 and eng.read_hdr().max() > 0
+    assert s.undo() and s.placed == () and s.redo() and len(s.placed) == 2
+    s.release()
+    json.dumps([p.__dict__ for p in s.placed])  # plain values: the state file takes them
