@@ -85,3 +85,13 @@ def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
     assert s.undo() and s.placed == () and s.redo() and len(s.placed) == 2
     s.release()
     json.dumps([p.__dict__ for p in s.placed])  # plain values: the state file takes them
+
+
+def test_image_pixel_under_the_cursor():
+    from viewer.app.interaction import image_pixel
+
+    rect = (100.0, 50.0, 200.0, 400.0)  # the image drawn 200 x 400 at (100, 50)
+    assert image_pixel((100.0, 50.0), rect, (64, 128)) == (0, 0)
+    assert image_pixel((299.9, 449.9), rect, (64, 128)) == (63, 127)
+    assert image_pixel((200.0, 250.0), rect, (64, 128)) == (32, 64)
+    assert image_pixel((99.0, 60.0), rect, (64, 128)) is None and image_pixel((150.0, 450.0), rect, (64, 128)) is None

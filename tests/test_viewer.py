@@ -228,10 +228,10 @@ def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
     assert v.quit() == 0
 
 
-def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path):
+def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, headless):
     """The panel's "use rig" button adds the key light (fixed to the camera, rendered with the map's
-    lights); Ctrl+Z and Ctrl+Y undo and redo it; a saved rig opens again with --rig; a bad rig
-    file is one line naming it."""
+    lights); Ctrl+Z and Ctrl+Y undo and redo it; "aim" then a click on the person turns it to face
+    that point head-on; a saved rig opens again with --rig; a bad rig file is one line naming it."""
     v = viewer_factory()
     s = v.state()
     n = s["n_lights"]
@@ -250,7 +250,24 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path):
     v.xdotool("key", "ctrl+z")
     v.wait_for(lambda s: s["placed"] == [], 30)
     v.xdotool("key", "ctrl+y")
-    v.wait_for(lambda s: len(s["placed"]) == 1, 30)
+    s = v.wait_for(lambda s: len(s["placed"]) == 1, 30)
+    # aim: the light then faces the clicked point of the person head-on (its direction: the normal there)
+    x0, y0, x1, y1 = s["widgets"]["placed 0 aim"]
+    v.xdotool("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2))
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    v.wait_for(lambda s: s["message"].startswith("click on the person"), 30)
+    scene = headless[0]
+    ix, iy, iw, ih = s["image_rect"]
+    col, row = next((c, r) for r in range(scene.height // 3, scene.height) for c in (scene.width // 2,) if scene.mask[r, c])
+    v.xdotool("mousemove", int(ix + (col + 0.5) * iw / scene.width), int(iy + (row + 0.5) * ih / scene.height))
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    s = v.wait_for(lambda s: "aimed" in s["message"], 30)
+    from viewer.placed_lights import PlacedLight
+
+    got = PlacedLight(**s["placed"][0]).direction
+    assert s["message"].endswith(f"{col}, {row}") and np.dot(got, scene.normal[row, col]) > 0.999
     rig = tmp_path / "rig.json"
     rig.write_text(json.dumps({"format": "relight-rig", "lights": saved["rig"]}))
     assert v.quit() == 0

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..imageio import write_exr, write_png, write_text
 from ..lightfit.methods import DEFAULT_METHOD
+from ..placed_lights import PlacedLight
 from ..lights import AreaLights
 from ..render import photo_exposure
 from ..scene import Scene
@@ -88,6 +89,7 @@ class ViewerApp:
         self.message = ""
         self.last_compare = 0.5  # where B puts the before / after split
         self.rig_choice = 0  # the rig the panel's combo shows
+        self.aiming: int | None = None  # the placed light the next click on the person aims
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
         self.frame_count = 0
@@ -128,7 +130,9 @@ class ViewerApp:
         over_image = ax <= mx < ax + aw and ay <= my < ay + ah and not io.want_capture_mouse
         recording_turn = isinstance(self.recording, TurntableRecording)
         now = time.perf_counter()
-        if imgui.is_mouse_clicked(0) and over_image and not recording_turn:
+        if self.aiming is not None and imgui.is_mouse_clicked(0) and over_image:
+            self.aim_at(mx - ax, my - ay)
+        elif imgui.is_mouse_clicked(0) and over_image and not recording_turn:
             self.dragging = True
             self._drag_applied = (0.0, 0.0)
         if self.dragging:
@@ -244,6 +248,21 @@ class ViewerApp:
             return
         self.error = ""
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
+
+    def aim_at(self, x: float, y: float):
+        """Turn the placed light being aimed so that it faces the person's surface under the image
+        point (x, y) head-on (its direction: the normal there)."""
+        j, self.aiming = self.aiming, None
+        sc, s = self.session.scene, self.session
+        px = ix.image_pixel((x, y), self.image_rect(), (sc.width, sc.height))
+        if px is None or j >= len(s.placed) or not sc.mask[px[1], px[0]]:
+            self.message = "not aimed: click on the person"
+            return
+        p = s.placed[j]
+        placed = list(s.placed)
+        placed[j] = PlacedLight.aimed(sc.normal[px[1], px[0]], size=p.size, intensity=p.intensity, kelvin=p.kelvin)
+        s.set_placed(placed)
+        self.message = f"light {len(s.base_lights) + j} aimed at the person's pixel {px[0]}, {px[1]}"
 
     def placed_level(self) -> float:
         """A placed light's default intensity: a quarter of the map's lights' total (1 without any)."""

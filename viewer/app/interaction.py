@@ -68,3 +68,13 @@ def image_rect(image_size, area_size, zoom: float = 1.0, pan=(0.0, 0.0)) -> tupl
     s = fit * zoom
     w, h = iw * s, ih * s
     return (aw - w) / 2.0 + pan[0], (ah - h) / 2.0 + pan[1], w, h
+
+
+def image_pixel(point, rect, size) -> tuple[int, int] | None:
+    """The (column, row) of an image of ``size`` (width, height) pixels under a window ``point``,
+    the image drawn at ``rect`` (x, y, width, height); None outside it."""
+    x, y, w, h = rect
+    u, v = (point[0] - x) / w, (point[1] - y) / h
+    if not (0.0 <= u < 1.0 and 0.0 <= v < 1.0):
+        return None
+    return min(int(u * size[0]), size[0] - 1), min(int(v * size[1]), size[1] - 1)

@@ -215,6 +215,11 @@ def _placed(app):
         imgui.same_line()
         imgui.text(f"light {len(s.base_lights) + j}")
         imgui.same_line()
+        if imgui.small_button("aim"):
+            app.aiming = j
+            app.message = f"click on the person: light {len(s.base_lights) + j} will face that point"
+        _remember(app, f"placed {j} aim")
+        imgui.same_line()
         if imgui.small_button("delete"):
             s.set_placed(placed[:j] + placed[j + 1:])
             imgui.pop_id()
