@@ -12,7 +12,7 @@ from viewer.app import interaction as ix
 from viewer.cli import main
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.imageio import read_png
+from viewer.imageio import read_exr, read_png
 from viewer.lights import load_lights
 from viewer.render import apply_settings, render_turntable, turntable_yaws
 from viewer.resources import asset_dir, sample_scene_dir
@@ -177,3 +177,25 @@ def test_the_temporal_benchmarks_turn_renders(ctx, monkeypatch):
     frames, ms = temporal._turn(ctx, scene, load_lights(asset_dir() / "envmaps" / "venice_sunset_256.lights.json"),
                                 EngineOptions(shadow_resolution=128), "soft")
     assert frames.shape == (4, 64, 64, 3) and ms > 0 and frames.std(axis=0).mean() > 1e-3  # the light turns
+
+
+def test_render_with_a_rig_adds_its_lights_fixed_to_the_camera(tmp_path, capsys):
+    """relight render --rig: the placed lights light the person as well as the map's, and a turn of
+    the map leaves them where they are; a bad rig is one line naming it."""
+    from viewer.placed_lights import rig, save_rig
+
+    path = save_rig(tmp_path / "rig.json", rig("rim", 2.0))
+    base = [str(sample_scene_dir()), str(LIGHTS), "--env", str(MAP), "--size", "128"]
+    assert main(["render", *base, "--out", str(tmp_path / "plain.png")]) == 0
+    assert main(["render", *base, "--rig", str(path), "--out", str(tmp_path / "rim.png")]) == 0
+    plain, rim = read_exr(tmp_path / "plain.exr"), read_exr(tmp_path / "rim.exr")
+    assert (rim >= plain - 1e-4).all() and (rim - plain).max() > 0.05  # light added, none taken away
+    assert main(["render", *base, "--rig", str(path), "--yaw", "90", "--out", str(tmp_path / "turned.png")]) == 0
+    assert main(["render", *base, "--yaw", "90", "--out", str(tmp_path / "turned_plain.png")]) == 0
+    added = read_exr(tmp_path / "turned.exr") - read_exr(tmp_path / "turned_plain.exr")
+    np.testing.assert_allclose(added, rim - plain, atol=2e-3)  # the rim light did not turn with the map
+    (tmp_path / "bad.json").write_text("[1, 2]")
+    capsys.readouterr()
+    assert main(["render", *base, "--rig", str(tmp_path / "bad.json"), "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert "not a rig" in err and str(tmp_path / "bad.json") in err and "Traceback" not in err

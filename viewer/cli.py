@@ -242,6 +242,13 @@ def _read_look(path):
     return Look.from_json(data.get("look", data) if isinstance(data, dict) else data, where=path)
 
 
+def _rig_lights(args):
+    """The placed lights of ``--rig`` as area lights (fixed to the camera), or None."""
+    from .placed_lights import load_rig, to_area_lights
+
+    return to_area_lights(load_rig(args.rig)) if getattr(args, "rig", None) else None
+
+
 def _render(scene_path, lights_path, envmap_path, out_dir, name, args, look) -> list[Path]:
     from .gl import Engine, create_headless_context
     from .render import render_to_files
@@ -249,7 +256,7 @@ def _render(scene_path, lights_path, envmap_path, out_dir, name, args, look) -> 
     scene, lights, env = _prepare(scene_path, lights_path, envmap_path, args)
     engine = Engine(create_headless_context(), scene, _engine_options(args))
     try:
-        return render_to_files(engine, scene, lights, out_dir, name, look, environment=env)
+        return render_to_files(engine, scene, lights, out_dir, name, look, environment=env, fixed=_rig_lights(args))
     finally:
         engine.release()
 
@@ -345,7 +352,8 @@ def cmd_render(args) -> int:
     try:
         with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
             width, height = render_turntable(engine, scene, lights, out, look, frames, fps=args.fps, turn=args.turn,
-                                             environment=env, progress=lambda done, total: bar.update(1))
+                                             environment=env, progress=lambda done, total: bar.update(1),
+                                             fixed=_rig_lights(args))
     finally:
         engine.release()
     seconds = time.perf_counter() - start
@@ -530,6 +538,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
     p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
+    p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
     _add_engine_args(p)
     _add_view_args(p)
     p.set_defaults(func=cmd_render)

@@ -96,6 +96,11 @@ class AreaLights:
     def scaled(self, factor) -> "AreaLights":
         return AreaLights(self.direction, self.sigma, self.intensity * np.asarray(factor, dtype=np.float32))
 
+    def followed_by(self, other: "AreaLights") -> "AreaLights":
+        """These lights, then ``other``'s."""
+        return AreaLights(np.concatenate([self.direction, other.direction]), np.concatenate([self.sigma, other.sigma]),
+                          np.concatenate([self.intensity, other.intensity]))
+
     def to_array(self) -> np.ndarray:
         """(N, 7) float32: direction xyz, sigma, RGB intensity (the paper's layout)."""
         return np.concatenate([self.direction, self.sigma[:, None], self.intensity], axis=1).astype(np.float32)

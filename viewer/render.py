@@ -58,11 +58,15 @@ def effective_background(settings: Look, scene: Scene, has_environment: bool) ->
     return background
 
 
-def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has_environment: bool):
-    """Set the engine's lights (rotated by yaw / tilt, the environment background with them),
-    shadow mode and display; the caller renders."""
-    engine.set_lights(lights.rotated(settings.yaw, settings.tilt).scaled(settings.intensity))
-    engine.set_look(replace(settings.fitted(len(lights)), background=effective_background(settings, scene, has_environment)))
+def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has_environment: bool,
+                   fixed: AreaLights | None = None):
+    """Set the engine's lights (rotated by yaw / tilt, the environment background with them; then
+    the ``fixed`` ones, placed lights that do not turn), shadow mode and display; the caller renders."""
+    turned = lights.rotated(settings.yaw, settings.tilt)
+    if fixed is not None:
+        turned = turned.followed_by(fixed)
+    engine.set_lights(turned.scaled(settings.intensity))
+    engine.set_look(replace(settings.fitted(len(turned)), background=effective_background(settings, scene, has_environment)))
 
 
 def resolve_exposure(engine, scene: Scene, settings: Look) -> Look:
@@ -88,14 +92,15 @@ def render_frame(engine, settings: Look, refiner=None):
 
 
 def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
-                    environment: np.ndarray | None = None, passes: bool = True) -> list[Path]:
-    """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``."""
+                    environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None) -> list[Path]:
+    """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``
+    (``fixed``: placed lights, see :func:`apply_settings`)."""
     out_dir = Path(out_dir)
     if environment is not None:
         engine.set_environment(environment)
-    apply_settings(engine, scene, lights, settings, environment is not None)
+    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
     settings = resolve_exposure(engine, scene, settings)
-    apply_settings(engine, scene, lights, settings, environment is not None)
+    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
     render_frame(engine, settings)
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
@@ -119,7 +124,7 @@ def turntable_yaws(start: float, turn: float, frames: int) -> np.ndarray:
 
 def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: Look, frames: int,
                      fps: float = 30.0, turn: float = 360.0, environment: np.ndarray | None = None,
-                     progress=None) -> tuple[int, int]:
+                     progress=None, fixed: AreaLights | None = None) -> tuple[int, int]:
     """A relit video of the lighting turning about the vertical axis (``frames`` frames over
     ``turn`` degrees, starting at ``settings.yaw``) written to ``path`` (H.264 MP4).
     ``progress(done, total)`` is called after every frame. Returns the video's (width, height)."""
@@ -130,12 +135,12 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
     if environment is not None:
         engine.set_environment(environment)
     refiner = None
-    apply_settings(engine, scene, lights, settings, environment is not None)
+    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
     settings = resolve_exposure(engine, scene, settings)  # one exposure for the whole turn
     width, height = engine.output_size
     with VideoWriter(path, width, height, fps=fps) as video:
         for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
-            apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None)
+            apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None, fixed)
             refiner = render_frame(engine, settings, refiner)
             video.write(engine.read_display())
             if progress is not None:

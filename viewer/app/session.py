@@ -68,9 +68,7 @@ class Session:
     def rendered_lights(self) -> AreaLights:
         """The map's lights turned by the look, then the placed lights (fixed to the camera); the
         look's intensity scales both."""
-        env, own = self.rotated_lights(), to_area_lights(self.placed)
-        return AreaLights(np.concatenate([env.direction, own.direction]), np.concatenate([env.sigma, own.sigma]),
-                          np.concatenate([env.intensity, own.intensity * np.float32(self.look.intensity)]))
+        return self.rotated_lights().followed_by(to_area_lights(self.placed).scaled(self.look.intensity))
 
     def set_placed(self, placed, record: bool = True):
         """The user's lights (a rig, an added, moved or deleted light); ``record``: undo brings back
