@@ -281,6 +281,66 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, hea
     assert res.returncode == 2 and str(rig) in res.stderr and "kelvin" in res.stderr and "Traceback" not in res.stderr
 
 
+DROP_SCRIPT = r"""
+import json, sys, threading, time
+from pathlib import Path
+from viewer.app import ViewerConfig
+from viewer.app.app import ViewerApp
+from viewer.envmap import load_envmap
+from viewer.lights import load_lights
+from viewer.resources import asset_dir, sample_scene_dir
+from viewer.scene import load_scene
+from viewer.scene_ops import resample_scene
+
+tmp, dropped = Path(sys.argv[1]), sys.argv[2:]
+maps = asset_dir() / "envmaps"
+config = ViewerConfig(scene=resample_scene(load_scene(sample_scene_dir()), 128),
+                      lights=load_lights(maps / "immenstadter_horn_256.lights.json"),
+                      environment=load_envmap(maps / "immenstadter_horn_256.hdr").pixels,
+                      env_path=maps / "immenstadter_horn_256.hdr", out_dir=tmp / "captures", state_file=tmp / "state.json")
+app = ViewerApp(config)
+app.window.on_drop(app.window.handle, dropped)  # what GLFW calls when files are dropped on the window
+
+
+def close_when_switched():
+    end = time.monotonic() + 120
+    while time.monotonic() < end:
+        try:
+            state = json.loads((tmp / "state.json").read_text())
+            if state["map"] == dropped[0] and not state["fitting"] and state["placed"]:
+                break
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.1)
+    app.window.close()
+    app.window.wake()
+
+
+threading.Thread(target=close_when_switched, daemon=True).start()
+sys.exit(app.run())
+"""
+
+
+def test_files_dropped_on_the_window_open_a_map_and_a_rig(display, tmp_path):
+    """The GLFW drop callback with real files: a map is fitted and switched to, a rig's lights are
+    placed, and a photo gets one line saying how to open it."""
+    import shutil
+
+    from viewer.placed_lights import rig, save_rig
+
+    new_map = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", tmp_path / "dropped.hdr")  # no light file
+    rig_file = save_rig(tmp_path / "rig.json", rig("key and fill", 1.0))
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    res = subprocess.run([sys.executable, "-c", DROP_SCRIPT, str(tmp_path), str(new_map), str(rig_file), str(photo)],
+                         env={**os.environ, "DISPLAY": display, "RELIGHT_CACHE": str(tmp_path / "cache")},
+                         capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr[-2000:]
+    state = json.loads((tmp_path / "state.json").read_text())
+    assert state["map"] == str(new_map) and state["n_lights"] == 16
+    assert len(state["placed"]) == 2 and state["placed"][1]["azimuth"] == -50.0
+    assert str(photo) in state["error"] and "relight view" in state["error"]
+
+
 def test_record_a_turn(viewer_factory, headless):
     v = viewer_factory("--record-frames", "12")
     v.xdotool("key", "r")

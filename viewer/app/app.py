@@ -249,6 +249,27 @@ class ViewerApp:
         self.error = ""
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
 
+    def open_file(self, path: Path):
+        """A file dropped on the window: an environment map (its lights fitted on a thread, the map
+        and its lights switched together when ready) or a rig of placed lights; anything else is
+        one line saying what the window opens."""
+        from ..errors import InputError
+        from ..placed_lights import load_rig
+
+        suffix = path.suffix.lower()
+        if suffix in (".hdr", ".exr"):
+            self.open_map(path)
+        elif suffix == ".json":
+            try:
+                self.session.set_placed(load_rig(path))
+            except InputError as exc:
+                self.error = str(exc)
+                return
+            self.message = f"{len(self.session.placed)} placed lights from {path.name}"
+        else:
+            self.error = (f"{path}: the window opens environment maps (.hdr, .exr) and rigs (.json); "
+                          "open a photo or a bundle with relight view PATH")
+
     def aim_at(self, x: float, y: float):
         """Turn the placed light being aimed so that it faces the person's surface under the image
         point (x, y) head-on (its direction: the normal there)."""
@@ -367,6 +388,8 @@ class ViewerApp:
                 start = time.perf_counter()
                 w.begin_frame()
                 self._input()
+                for path in w.take_dropped():
+                    self.open_file(Path(path))
                 draw_panel(self)
                 self._poll_job()
                 self.session.poll_refinement()

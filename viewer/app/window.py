@@ -45,12 +45,23 @@ class Window:
         # a window manager, it may never get); hovering and dragging should not depend on focus.
         io = imgui.get_io()
         glfw.set_cursor_pos_callback(self.handle, lambda _w, x, y: io.add_mouse_pos_event(float(x), float(y)))
+        self.dropped: list[str] = []  # files dropped on the window, taken by the app's next frame
+        glfw.set_drop_callback(self.handle, self.on_drop)
         glfw.focus_window(self.handle)
         self._programs = shared_programs(self.ctx)  # the engines drawing into this window use the same
         self._sampler = self.ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
         self._vao = None
 
     # ------------------------------------------------------------------ loop
+    def on_drop(self, _handle, paths):
+        """GLFW's drop callback: the paths of the files dropped on the window."""
+        self.dropped.extend(str(p) for p in paths)
+        self.wake()
+
+    def take_dropped(self) -> list[str]:
+        paths, self.dropped = self.dropped, []
+        return paths
+
     @property
     def should_close(self) -> bool:
         return bool(glfw.window_should_close(self.handle))
