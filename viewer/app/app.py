@@ -373,7 +373,9 @@ class ViewerApp:
             if rec.finished:
                 self._finish_recording()
             return eng, "record"
-        return eng, ("idle" if not worked else ("drag" if preview else "update"))
+        if not worked:  # "load": nothing to redraw while lights are fitted on their thread
+            return eng, "load" if self.job is not None else "idle"
+        return eng, "drag" if preview else "update"
 
     def run(self) -> int:
         from .panel import draw_panel
@@ -453,4 +455,7 @@ class ViewerApp:
 
 
 def run_viewer(config: ViewerConfig) -> int:
+    # background work (light fits, refinement) runs on threads: hand the GIL over every 0.5 ms, not
+    # 5, so a frame of the window waits little behind the work's Python steps
+    sys.setswitchinterval(0.0005)
     return ViewerApp(config).run()

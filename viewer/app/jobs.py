@@ -124,8 +124,17 @@ class LightJob(ThreadJob):
         lights = sidecar_lights(self.path, self.n, self.method)
         how = "bundled"
         if lights is None:
+            import torch
+
+            # one torch thread while fitting: the other core stays with the window's frames
+            # (llvmpipe and the UI); measured by relight bench viewer (docs/viewer.md)
+            threads = torch.get_num_threads()
+            torch.set_num_threads(1)
             self.stage = "fitting"
-            lights, cached = lights_for_map(env, self.n, self.method, progress=self._progress)
+            try:
+                lights, cached = lights_for_map(env, self.n, self.method, progress=self._progress)
+            finally:
+                torch.set_num_threads(threads)
             how = "cached" if cached else "fitted"
         return LightsResult(env, lights, how)
 

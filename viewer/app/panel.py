@@ -141,6 +141,7 @@ def _lights(app):
         return
     imgui.set_next_item_width(140)
     changed, count = imgui.slider_int("number of lights", app.n_lights, 1, MAX_LIGHTS)
+    _remember(app, "number of lights")
     if changed:
         app.n_lights = count
     if imgui.is_item_deactivated_after_edit() and app.n_lights != n and app.env_path is not None:
