@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from viewer.lab.scenes import sphere
-from viewer.envmap import EnvMap, pixel_directions
+from viewer.lab.bench.contact import gaussian_light
 from viewer.gl import Engine, EngineOptions
 from viewer.lights import AreaLights
 from viewer.shadow_space import ANGULAR_SIGMA
@@ -22,9 +22,7 @@ def test_the_light_size_widens_the_highlight_as_the_ray_tracer_does(ctx, roughne
     from viewer.lab.data.reference import render_bundle_reference
 
     scene = sphere(96, albedo=0.0, specular=1.0, roughness=roughness)  # specular only
-    d = pixel_directions(512, 1024)
-    blob = np.exp(-0.5 * (np.arccos(np.clip(d @ LIGHT, -1.0, 1.0)) / angle) ** 2)
-    env = EnvMap((blob[..., None] * np.ones(3)).astype(np.float32))
+    env = gaussian_light(angle, 1024, LIGHT)
     truth = render_bundle_reference(scene, env, spp=256, images=("full",))["full"].mean(axis=-1)[scene.mask]
     intensity = env.energy().astype(np.float32)  # the light's intensity: the map's integral
     error, peak, total = {}, {}, {}

@@ -96,6 +96,11 @@ class AreaLights:
     def scaled(self, factor) -> "AreaLights":
         return AreaLights(self.direction, self.sigma, self.intensity * np.asarray(factor, dtype=np.float32))
 
+    @property
+    def brightest(self) -> int:
+        """The index of the light with the largest RGB intensity sum."""
+        return int(np.argmax(self.intensity.sum(axis=1)))
+
     def followed_by(self, other: "AreaLights") -> "AreaLights":
         """These lights, then ``other``'s."""
         return AreaLights(np.concatenate([self.direction, other.direction]), np.concatenate([self.sigma, other.sigma]),
@@ -140,7 +145,7 @@ def facing_yaw(lights: AreaLights) -> float:
     0 for lights without intensity or a brightest light straight above or below."""
     if len(lights) == 0 or not np.any(lights.intensity > 0):
         return 0.0
-    x, _, z = lights.direction[int(np.argmax(lights.intensity.sum(axis=1)))]
+    x, _, z = lights.direction[lights.brightest]
     if abs(x) < 1e-6 and abs(z) < 1e-6:
         return 0.0
     return float(-np.degrees(np.arctan2(x, z)))

@@ -26,6 +26,7 @@ import numpy as np
 from .errors import InputError
 from .imageio import read_json, write_text
 from .lights import AreaLights
+from .median_cut import LUMINANCE
 from .shadow_space import ANGULAR_SIGMA
 
 FORMAT = "relight-rig"
@@ -34,7 +35,6 @@ MAX_SIZE = 60.0  # degrees of angular sigma: a light a third of the sky wide (si
 # linear sRGB from CIE XYZ (D65)
 XYZ_TO_RGB = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560],
                        [0.0556434, -0.2040259, 1.0572252]])
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
 @dataclass(frozen=True)

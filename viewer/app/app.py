@@ -20,6 +20,7 @@ from ..imageio import write_exr, write_png, write_text
 from ..lightfit.methods import DEFAULT_METHOD
 from ..placed_lights import PlacedLight
 from ..lights import AreaLights
+from ..median_cut import LUMINANCE
 from ..render import photo_exposure
 from ..scene import Scene
 from ..settings import AUTO, Look
@@ -287,7 +288,7 @@ class ViewerApp:
 
     def placed_level(self) -> float:
         """A placed light's default intensity: a quarter of the map's lights' total (1 without any)."""
-        total = float((self.session.base_lights.intensity @ np.array([0.2126, 0.7152, 0.0722], np.float32)).sum())
+        total = float((self.session.base_lights.intensity @ LUMINANCE).sum())
         return 0.25 * total if total > 0.0 else 1.0
 
     def save_rig(self):

@@ -79,8 +79,7 @@ class Session:
         if record:
             self.history.record(self.placed)
         self.placed = placed
-        if self.look.light >= len(self.base_lights) + len(placed):
-            self.look = replace(self.look, light=0, view="final" if self.look.view == "shadow" else self.look.view)
+        self.look = self.look.fitted(len(self.base_lights) + len(placed))
 
     def undo(self) -> bool:
         before = self.history.undo(self.placed)
@@ -102,8 +101,7 @@ class Session:
             self.environment = environment
             for eng in self._engines():
                 self._set_environment(eng)
-        if self.look.light >= len(lights) + len(self.placed):
-            self.look = replace(self.look, light=0, view="final" if self.look.view == "shadow" else self.look.view)
+        self.look = self.look.fitted(len(lights) + len(self.placed))
 
     def set_options(self, options: EngineOptions):
         """New engine options (a quality preset): the engines are made again; the next render

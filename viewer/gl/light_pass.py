@@ -101,6 +101,9 @@ class LightShadingPass:
         self.inputs = ("direction", "shadow_map", "prefilter") if soft == "csm" else ("direction", "shadow_map", "sigma")
         if specular and "sigma" not in self.inputs:
             self.inputs += ("sigma",)
+        # the contact-hardening taps (unit Gaussian offsets), the same for every pass
+        self.pcss_taps = ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes()
+        self.pcss_search_taps = ss.pcss_taps(ss.PCSS_SEARCH_TAPS).astype("f4").tobytes()
 
     def run(self, group: list[Light], modes: list[int]):
         kit, sc = self.kit, self.scene
@@ -147,8 +150,8 @@ class LightShadingPass:
                 prog["light_alpha"].write(alphas.tobytes())
             if self.soft == "pcss":
                 prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
-                prog["pcss_taps"].write(ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes())
-                prog["pcss_search_taps"].write(ss.pcss_taps(ss.PCSS_SEARCH_TAPS).astype("f4").tobytes())
+                prog["pcss_taps"].write(self.pcss_taps)
+                prog["pcss_search_taps"].write(self.pcss_search_taps)
                 prog["pcss_search"] = ss.PCSS_SEARCH
             else:
                 prog["csm_offset"] = self.csm_offset

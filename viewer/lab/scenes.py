@@ -21,15 +21,7 @@ def plane_and_box(size: int = 96, box: bool = True, albedo: float = 0.5, specula
         depth[inside] = box_depth
     normal = np.zeros((size, size, 3), np.float32)
     normal[..., 2] = 1.0
-    return Scene(
-        albedo=np.full((size, size, 3), albedo, np.float32),
-        specular=np.full((size, size), specular, np.float32),
-        roughness=np.full((size, size), roughness, np.float32),
-        normal=normal,
-        depth=depth,
-        mask=np.ones((size, size), bool),
-        camera=cam,
-    ).validate()
+    return _uniform_scene(cam, depth, normal, np.ones((size, size), bool), albedo, specular, roughness)
 
 
 def sphere(size: int = 96, radius: float = 0.3, distance: float = 4.0, focal_mm: float = 200.0, albedo: float = 0.5,
@@ -47,10 +39,16 @@ def sphere(size: int = 96, radius: float = 0.3, distance: float = 4.0, focal_mm:
     points = d * t[..., None]
     normal = np.where(mask[..., None], (points - centre) / radius, 0.0).astype(np.float32)
     depth = np.where(mask, -points[..., 2], distance + radius).astype(np.float32)
+    return _uniform_scene(cam, depth, normal, mask, albedo, specular, roughness)
+
+
+def _uniform_scene(cam: Camera, depth, normal, mask, albedo: float, specular: float, roughness: float) -> Scene:
+    """A validated bundle of this geometry with the same material everywhere."""
+    h, w = depth.shape
     return Scene(
-        albedo=np.full((size, size, 3), albedo, np.float32),
-        specular=np.full((size, size), specular, np.float32),
-        roughness=np.full((size, size), roughness, np.float32),
+        albedo=np.full((h, w, 3), albedo, np.float32),
+        specular=np.full((h, w), specular, np.float32),
+        roughness=np.full((h, w), roughness, np.float32),
         normal=normal,
         depth=depth,
         mask=mask,

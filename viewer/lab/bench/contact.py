@@ -32,10 +32,11 @@ class ContactConfig:
     spp: int = 512  # reference samples per pixel
 
 
-def gaussian_light(alpha: float, width: int = 1024) -> EnvMap:
-    """A map black but for a light of angular Gaussian sigma ``alpha`` (radians) towards LIGHT."""
+def gaussian_light(alpha: float, width: int = 1024, direction=LIGHT) -> EnvMap:
+    """A map black but for a light of angular Gaussian sigma ``alpha`` (radians) towards ``direction``
+    (unit)."""
     d = pixel_directions(width // 2, width)
-    angle = np.arccos(np.clip(d @ LIGHT, -1.0, 1.0))
+    angle = np.arccos(np.clip(d @ np.asarray(direction), -1.0, 1.0))
     return EnvMap((np.exp(-0.5 * (angle / alpha) ** 2)[..., None] * np.ones(3)).astype(np.float32))
 
 

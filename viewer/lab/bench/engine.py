@@ -147,7 +147,7 @@ def _slider_effect(ctx, scene) -> dict:
     from viewer.gl import Engine, EngineOptions
 
     lights = bench_lights(16)
-    k = int(np.argmax(lights.intensity.sum(axis=1)))
+    k = lights.brightest
     out = {"sigmas": list(SLIDER), "light": k}
     print(f"sigma slider {SLIDER[0]:g} -> {SLIDER[1]:g} on the brightest light: mean / 99th percentile |change| "
           "(grey levels in the mask), pixels changed by more than 2")

@@ -311,7 +311,7 @@ def _low_sun(case: Case, lights, count: int) -> Lighting:
     """The case's lighting whose brightest light is lowest above the horizon (a low sun: long shadows)."""
     def elevation(lighting):
         ls = lights[lighting.map_name, count].rotated(lighting.yaw)
-        d = ls.direction[int(np.argmax(ls.intensity.sum(axis=1)))]
+        d = ls.direction[ls.brightest]
         return d[1] if d[1] > 0.0 else np.inf  # camera space: +y is up
     return min(case.lightings, key=elevation)
 
@@ -321,6 +321,7 @@ def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced
     method's absolute error (linear, after the report's exposure): the sample scene and the first
     held-out person (else the last case), each under its lowest sun."""
     from viewer.lab.bench.metrics import srgb
+    from viewer.photo_frame import person_box
 
     held = [c for c in cases if c.group == "held-out"] or cases[-1:]
     picks = [(case, _low_sun(case, lights, balanced.lights)) for case in (cases[0], held[0])]
@@ -330,9 +331,8 @@ def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced
     for case, lighting in picks:
         ref = reference(case.scene, scene_hash(case.scene), maps, lighting, config.spp)
         s = _exposure(ref, interior(case.scene.mask))
-        rows_in, cols_in = np.nonzero(case.scene.mask.any(axis=1))[0], np.nonzero(case.scene.mask.any(axis=0))[0]
-        y, h = max(rows_in[0] - 4, 0), rows_in[-1] - rows_in[0] + 9
-        x, w = max(cols_in[0] - 4, 0), cols_in[-1] - cols_in[0] + 9
+        top, left, height, width = person_box(case.scene.mask)
+        y, h, x, w = max(top - 4, 0), height + 8, max(left - 4, 0), width + 8
         row, errors = {}, {}
         truth = np.clip(s * ref, 0.0, 1.0)[y:y + h, x:x + w]
         for label, method in methods.items():
