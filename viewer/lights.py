@@ -139,6 +139,13 @@ class AreaLights:
         return write_text(path, json.dumps(data, indent=2) + "\n")
 
 
+def azimuth_elevation(direction) -> tuple[float, float]:
+    """Degrees of a direction towards a light (camera space): azimuth about the vertical axis, 0 on
+    the camera's side and +90 the image's right; elevation above the horizon."""
+    x, y, z = np.asarray(direction, dtype=np.float64) / max(float(np.linalg.norm(direction)), 1e-12)
+    return float(np.degrees(np.arctan2(x, z))), float(np.degrees(np.arcsin(np.clip(y, -1.0, 1.0))))
+
+
 def facing_yaw(lights: AreaLights) -> float:
     """The yaw (degrees, :func:`rotation_matrix`'s) that turns the brightest light to the camera's
     side (azimuth 0: between the person and the viewer), so a first frame is lit from the front.

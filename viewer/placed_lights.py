@@ -25,7 +25,7 @@ import numpy as np
 
 from .errors import InputError
 from .imageio import read_json, write_text
-from .lights import AreaLights
+from .lights import AreaLights, azimuth_elevation
 from .median_cut import LUMINANCE
 from .shadow_space import ANGULAR_SIGMA
 
@@ -62,9 +62,8 @@ class PlacedLight:
     @staticmethod
     def aimed(direction, **fields_) -> "PlacedLight":
         """A light from the direction towards it (the azimuth and elevation of the light table)."""
-        x, y, z = np.asarray(direction, dtype=np.float64) / max(float(np.linalg.norm(direction)), 1e-12)
-        return PlacedLight(azimuth=math.degrees(math.atan2(x, z)), elevation=math.degrees(math.asin(max(-1.0, min(1.0, y)))),
-                           **fields_)
+        azimuth, elevation = azimuth_elevation(direction)
+        return PlacedLight(azimuth=azimuth, elevation=elevation, **fields_)
 
 
 def kelvin_to_rgb(kelvin: float) -> np.ndarray:

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 from imgui_bundle import imgui, implot
 
+from ..lights import azimuth_elevation
 from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, kelvin_to_rgb, rig
 from ..presets import PRESETS
 from ..settings import VIEWS
@@ -157,8 +158,7 @@ def _lights(app):
     for i in np.argsort(-lum, kind="stable"):
         i = int(i)
         imgui.push_id(str(i))
-        d = lights.direction[i]
-        az, el = np.degrees(np.arctan2(d[0], d[2])), np.degrees(np.arcsin(np.clip(d[1], -1, 1)))
+        az, el = azimuth_elevation(lights.direction[i])
         imgui.color_button("##c", _swatch(lights.intensity[i], peak), 0, imgui.ImVec2(18, 18))
         if imgui.is_item_hovered():  # short lines: the panel is at the window's right edge
             r, g, b = (f"{c:.3g}" for c in lights.intensity[i])
