@@ -2,7 +2,8 @@
 // (the rotated environment map seen through the camera, the photo's own background, a colour, or
 // none: transparent, the composite's alpha kept). With HDR_OUTPUT the same composite is written in
 // linear HDR instead (before exposure and tone map; transparent: premultiplied RGB and alpha), the
-// EXR that goes with a display PNG.
+// EXR that goes with a display PNG. With ground, the background is darkened by the person's shadow
+// on the ground (ground_shadow.frag.glsl: the share of the ground's light the person takes away).
 #include "tonemap.glsl"
 #include "envmap.glsl"
 uniform sampler2D hdr;
@@ -15,6 +16,8 @@ uniform vec2 focal_center_px;         // principal point (pixels)
 uniform float focal_px;
 uniform float exposure;               // stops
 uniform int tonemap_op;
+uniform sampler2D ground_occlusion;   // half resolution, bilinear
+uniform bool ground;
 layout(location = 0) out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
@@ -27,6 +30,9 @@ void main() {
         bg = texelFetch(background_image, px, 0).rgb;
     } else if (background_mode == 2) {
         bg = environment_seen(environment, environment_rotation, vec2(px) + 0.5, focal_center_px, focal_px);
+    }
+    if (ground && c.a < 1.0) {
+        bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) / vec2(textureSize(hdr, 0))).rgb, 0.0, 1.0);
     }
 #ifdef HDR_OUTPUT
     color = background_mode == 3 ? vec4(c.rgb * c.a, c.a) : vec4(mix(bg, c.rgb, c.a), 1.0);

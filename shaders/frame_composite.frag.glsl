@@ -8,7 +8,8 @@
 // output_mode 0 writes the display image; 1 the person's HDR and matte; 2 the HDR composited over
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG.
 // Before / after (display only): left of compare_x pixels the original photo as it was, with a
-// two-pixel white line at the split.
+// two-pixel white line at the split. With ground, the background is darkened by the person's
+// shadow on the ground (ground_shadow.frag.glsl, work images' field of view, bilinear).
 #include "filled_sample.glsl"
 #include "tonemap.glsl"
 uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution
@@ -25,6 +26,8 @@ uniform bool transparent;
 uniform float exposure;                // stops
 uniform int tonemap_op;
 uniform int output_mode;
+uniform sampler2D ground_occlusion;
+uniform bool ground;
 layout(location = 0) out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
@@ -38,6 +41,9 @@ void main() {
     }
     if (output_mode == 1) { color = vec4(fg, aa.a); return; }
     vec3 bg = aa.a >= 1.0 ? vec3(0.0) : texelFetch(background, px, 0).rgb;
+    if (ground && aa.a < 1.0) {
+        bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) * frame_to_uv).rgb, 0.0, 1.0);
+    }
     if (output_mode == 2) {
         color = transparent ? vec4(fg * aa.a, aa.a) : vec4(mix(bg, fg, aa.a), 1.0);
         return;

@@ -13,20 +13,12 @@
 #else
 #include "csm.glsl"
 #endif
+#include "light_visibility.glsl"
 
 uniform sampler2D positions;   // camera-space points (xyz) and roughness (w)
 uniform sampler2D normals;     // unit normals (xyz; zero outside the mask) and specular (w)
 uniform sampler2D shadow_map0, shadow_map1, shadow_map2, shadow_map3;
 uniform sampler2D filtered_basis0, filtered_basis1, filtered_basis2, filtered_basis3;  // CSM
-uniform mat4 light_frame[4];
-uniform vec3 light_dir[4];
-uniform float depth_scale[4];
-uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma ~ 0, or soft not shown);
-                               // 2: hard and CSM; 3: shading only (visibility 1)
-uniform float csm_offset;
-uniform float csm_clamp;
-uniform float light_alpha[4];  // each light's angular sigma (radians): contact-hardening penumbrae, specular widening
-uniform float shadow_window;   // metres a shadow map spans (the same for every light)
 uniform ivec2 tile_origin;     // this group's tile in the light atlas
 uniform ivec2 box_origin;      // the mask's bounding box in the image
 layout(location = 0) out vec4 result0;
@@ -38,26 +30,13 @@ vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p,
                   float roughness) {
     vec3 l = light_dir[j];
     if (light_mode[j] == 0 || dot(n, l) <= 0.0) return vec4(0.0);  // also every pixel outside the mask
-    float v_hard = 1.0;
-    float v_soft = 1.0;
-    if (light_mode[j] != 3) {
-        vec3 uvd = receiver_uvd(light_frame[j], p, n);
-        float bias = receiver_bias(n, l, depth_scale[j]);
-        v_hard = hard_visibility(shadow_map, uvd, bias);
-#ifdef SOFT_PCSS
-        v_soft = light_mode[j] == 1 ? v_hard
-            : pcss_visibility(shadow_map, uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias,
-                              light_alpha[j], shadow_window, depth_scale[j], v_hard);
-#else
-        v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
-#endif
-    }
+    vec2 v = light_visibility(j, shadow_map, filtered_basis, p, n);
 #ifdef SPECULAR
     float s_spec = disney_specular_shading(n, l, specular, roughness, light_alpha[j]);
 #else
     float s_spec = 0.0;
 #endif
-    return vec4(v_soft, v_hard, lambert_shading(n, l), s_spec);
+    return vec4(v.x, v.y, lambert_shading(n, l), s_spec);
 }
 
 void main() {

@@ -522,9 +522,9 @@ def test_passes_declare_what_makes_them_stale(ctx, scene):
     # the light pass reads sigma too: it widens the specular lobe
     assert readers["sigma"] == {"csm_basis", "light_pass"} and scene.has_specular
     assert readers["shadow_map"] == {"csm_basis", "light_pass"} and readers["csm_basis"] == {"prefilter"}
-    assert readers["prefilter"] == {"light_pass"} and readers["light_pass"] == {"composite"}
-    assert readers["intensity"] == {"composite"} and readers["display"] == {"display"}
-    assert readers["composite"] == {"display"}
+    assert readers["prefilter"] == {"light_pass"} and readers["light_pass"] == {"composite", "ground_shadow"}
+    assert readers["intensity"] == {"composite", "ground_shadow"} and readers["display"] == {"display"}
+    assert readers["composite"] == {"display"} and readers["ground_shadow"] == {"display"}
     eng.release()
 
 

@@ -57,6 +57,7 @@ class Look:
     intensity: float = 1.0  # scales every light
     preset: str = "balanced"  # quality preset (viewer.presets)
     compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
+    ground: bool = False  # the person's shadow on a ground plane at the feet, over the background (a shadow catcher)
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
@@ -75,7 +76,7 @@ class Look:
             raise InputError(None, f"background colour must be three finite values >= 0, got {self.background_color!r}")
         object.__setattr__(self, "background_color", tuple(float(c) for c in color))
         _choice("shadows", self.shadows, VISIBILITY_MODES)
-        for name in ("diffuse", "specular"):
+        for name in ("diffuse", "specular", "ground"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise InputError(None, f"{name} must be true or false, got {getattr(self, name)!r}")
         _choice("view", self.view, VIEWS)

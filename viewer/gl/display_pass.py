@@ -32,10 +32,10 @@ class DisplayPass:
 
     name = "display"
     inputs = ("composite",)  # redrawn over the mask's box only
-    whole_inputs = ("display", "view", "environment")  # redrawn over the whole image
+    whole_inputs = ("display", "view", "environment", "ground", "ground_shadow")  # redrawn over the whole image
 
-    def __init__(self, kit: PassKit, scene: SceneResources, size, camera: Camera):
-        self.kit, self.scene, self.camera = kit, scene, camera
+    def __init__(self, kit: PassKit, scene: SceneResources, size, camera: Camera, ground: moderngl.Texture):
+        self.kit, self.scene, self.camera, self.ground = kit, scene, camera, ground  # ground: GroundShadowPass's
         self.image = kit.texture(size, 4, dtype="f1")
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
 
@@ -53,9 +53,12 @@ class DisplayPass:
         hdr.use(0)
         sc.background.use(1)
         sc.environment.use(2)
+        self.ground.use(3)
         prog["hdr"] = 0
         prog["background_image"] = 1
         prog["environment"] = 2
+        prog["ground_occlusion"] = 3
+        prog["ground"] = look.ground
         set_background(prog, look, background, self.camera)
         if not hdr_output:
             prog["exposure"] = look.exposure_stops

@@ -18,6 +18,9 @@ these declarations):
       FrameMipmapsPass     inputs: composite, view
     8 FrameCompositePass   inputs: composite (matte's box); display, view, environment (whole frame)
   the inspection views (InspectPass) draw in place of 6 / 8.
+  with Look.ground (ground_pass.py), before 6 / 8
+    9 GroundShadowPass   inputs: light_pass, intensity, activity, ground, visibility; 6 and 8 redraw the
+                         whole image when it ran
 
 Reading results back is the other half of the interface (outputs.py, a mixin). When a pass runs,
 what it made counts as changed in turn (``_changed``), which is how a new direction
@@ -41,6 +44,7 @@ from .composite_pass import CompositePass
 from .context import make_current
 from .display_pass import INSPECT_VIEWS, DisplayPass, InspectPass
 from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
+from .ground_pass import GroundShadowPass
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light
 from .light_pass import LIGHTS_PER_PASS, LightAtlas, LightShadingPass, RefinedVisibility
@@ -83,15 +87,18 @@ class Engine(EngineOutputs):
         self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular, o.soft)
         self.composite_pass = CompositePass(kit, res, (scene.width, scene.height), frame_shading=scene.frame is not None)
         self.inspect_pass = InspectPass(kit, res, (scene.width, scene.height))
+        self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera)
+        ground = self.ground_pass.texture
         if scene.frame is None:
             self.frame_background = self.frame_mipmaps = None
-            self.display_pass = DisplayPass(kit, res, (scene.width, scene.height), scene.camera)
+            self.display_pass = DisplayPass(kit, res, (scene.width, scene.height), scene.camera, ground)
         else:
             self.frame_background = FrameBackgroundPass(kit, scene.frame, scene.camera)
             self.frame_mipmaps = FrameMipmapsPass(kit)
-            self.display_pass = FrameCompositePass(kit, scene.frame, self.frame_background.photo)
+            self.display_pass = FrameCompositePass(kit, scene.frame, self.frame_background.photo, ground)
         self._light_passes = (self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.light_pass)
-        self._frame_passes = [p for p in (self.composite_pass, self.frame_mipmaps, self.frame_background, self.display_pass) if p]
+        self._frame_passes = [p for p in (self.composite_pass, self.ground_pass, self.frame_mipmaps, self.frame_background,
+                                          self.display_pass) if p]
         self._stale = {p.name: "all" for p in self._frame_passes}  # None, "box" (the mask's / matte's) or "all"
 
     # ------------------------------------------------------------------ change tracking
@@ -205,6 +212,8 @@ class Engine(EngineOutputs):
     def _set_look(self, look: Look):
         old, terms = self.look, self._composite_terms()
         self.look = look
+        if look.ground != old.ground:
+            self._changed("ground")
         if look.shadows != old.shadows:
             self._changed("visibility")  # lights whose light pass lacks what the mode needs redo it in render()
         if self._composite_terms() != terms:
@@ -340,6 +349,9 @@ class Engine(EngineOutputs):
         if self._stale["composite"]:
             self.composite_pass.run(self._lights, self.atlas, self.refined, self.look.shadows, self._composite_terms())
             self._ran(self.composite_pass)
+        if self.look.ground and self._stale["ground_shadow"]:  # left out (and stale) while not shown
+            self.ground_pass.run(self._lights, self.look.shadows)
+            self._ran(self.ground_pass)
         if self._stale[self.display_pass.name]:
             self._draw_display(whole=self._stale[self.display_pass.name] == "all")
             self._stale[self.display_pass.name] = None
@@ -389,6 +401,6 @@ class Engine(EngineOutputs):
             l.release()
         self._lights = []
         for owner in (self.atlas, self.refined, self.display_pass, self.frame_background, self.composite_pass,
-                      self.shadow_map_pass, self.resources, self.kit):
+                      self.ground_pass, self.shadow_map_pass, self.resources, self.kit):
             if owner is not None:
                 owner.release()

@@ -98,10 +98,11 @@ class FrameCompositePass:
 
     name = "frame_composite"
     inputs = ("composite",)  # redrawn over the matte's box only
-    whole_inputs = ("display", "view", "environment")  # redrawn over the whole frame
+    whole_inputs = ("display", "view", "environment", "ground", "ground_shadow")  # redrawn over the whole frame
 
-    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture):
+    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture, ground: moderngl.Texture):
         self.kit, self.photo = kit, photo  # the photo (FrameBackgroundPass's): the "before" of look.compare
+        self.ground = ground  # GroundShadowPass's: the background's darkening by the person's shadow
         size = self.size = (frame.width, frame.height)
         albedo_alpha = np.dstack([frame.albedo, frame.alpha]).astype(np.float16)
         self.albedo_alpha = kit.texture(size, 4, albedo_alpha.tobytes(), dtype="f2")
@@ -128,6 +129,9 @@ class FrameCompositePass:
         shading[1].use(2)
         background.use(3)
         self.photo.use(4)
+        self.ground.use(5)
+        prog["ground_occlusion"] = 5
+        prog["ground"] = look.ground
         prog["frame_albedo_alpha"] = 0
         prog["shading_diffuse"] = 1
         prog["shading_specular"] = 2

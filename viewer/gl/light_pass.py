@@ -105,10 +105,58 @@ class LightShadingPass:
         self.pcss_taps = ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes()
         self.pcss_search_taps = ss.pcss_taps(ss.PCSS_SEARCH_TAPS).astype("f4").tobytes()
 
+    @property
+    def defines(self) -> dict:
+        """The shader defines of the visibility this engine uses (shared with the ground shadow pass)."""
+        return ({"SOFT_PCSS": None, "PCSS_TAPS": ss.PCSS_TAPS, "PCSS_SEARCH_TAPS": ss.PCSS_SEARCH_TAPS}
+                if self.soft == "pcss" else {"TERMS": self.terms})
+
+    def bind_lights(self, prog, group: list[Light], modes: list[int], fallback):
+        """light_visibility.glsl's uniforms and textures for a group of up to four lights (shadow
+        maps on units 2-5, CSM bases on 6-9; ``fallback``: any texture, for slots that never read theirs)."""
+        frames = np.zeros((LIGHTS_PER_PASS, 4, 4), "f4")
+        dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
+        scales = np.ones(LIGHTS_PER_PASS, "f4")
+        alphas = np.zeros(LIGHTS_PER_PASS, "f4")
+        for j in range(LIGHTS_PER_PASS):
+            l = group[j] if j < len(group) else None
+            used = l is not None and modes[j] in (PASS_HARD, PASS_SOFT)
+            (l.shadow_map if used else fallback).use(2 + j)
+            prog[f"shadow_map{j}"] = 2 + j
+            soft = used and modes[j] == PASS_SOFT
+            if self.soft == "csm":
+                (l.filtered if soft else fallback).use(6 + j)
+                prog[f"filtered_basis{j}"] = 6 + j
+            if used:
+                frames[j] = l.frame.matrix().T
+                scales[j] = l.frame.depth_scale()
+            if l is not None:
+                dirs[j] = l.frame.direction
+                alphas[j] = l.sigma * ss.ANGULAR_SIGMA
+        prog["light_frame"].write(frames.tobytes())
+        prog["light_dir"].write(dirs.tobytes())
+        prog["depth_scale"].write(scales.tobytes())
+        prog["light_mode"].write(np.array(list(modes) + [0] * (LIGHTS_PER_PASS - len(modes)), "i4").tobytes())
+        prog["texel_world"] = group[0].frame.texel_world(self.resolution)
+        prog["hard_threshold"] = ss.HARD_SHADOW_THRESHOLD
+        prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS
+        prog["slope_bias_texels"] = ss.SLOPE_BIAS_TEXELS
+        prog["max_slope"] = ss.MAX_SLOPE
+        prog["empty_depth"] = group[0].frame.empty_depth
+        if "light_alpha" in prog:  # absent when neither PCSS nor the specular code reads it
+            prog["light_alpha"].write(alphas.tobytes())
+        if self.soft == "pcss":
+            prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
+            prog["pcss_taps"].write(self.pcss_taps)
+            prog["pcss_search_taps"].write(self.pcss_search_taps)
+            prog["pcss_search"] = ss.PCSS_SEARCH
+        else:
+            prog["csm_offset"] = self.csm_offset
+            prog["csm_clamp"] = self.csm_clamp
+
     def run(self, group: list[Light], modes: list[int]):
         kit, sc = self.kit, self.scene
-        defines = ({"SOFT_PCSS": None, "PCSS_TAPS": ss.PCSS_TAPS, "PCSS_SEARCH_TAPS": ss.PCSS_SEARCH_TAPS}
-                   if self.soft == "pcss" else {"TERMS": self.terms})
+        defines = self.defines
         if self.specular:
             defines["SPECULAR"] = None
         prog = kit.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", **defines)
@@ -117,45 +165,7 @@ class LightShadingPass:
             sc.normals.use(1)
             prog["positions"] = 0
             prog["normals"] = 1
-            frames = np.zeros((LIGHTS_PER_PASS, 4, 4), "f4")
-            dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
-            scales = np.ones(LIGHTS_PER_PASS, "f4")
-            alphas = np.zeros(LIGHTS_PER_PASS, "f4")
-            fallback = sc.positions  # any texture: slots without a light never read it
-            for j in range(LIGHTS_PER_PASS):
-                l = group[j] if j < len(group) else None
-                used = l is not None and modes[j] in (PASS_HARD, PASS_SOFT)
-                (l.shadow_map if used else fallback).use(2 + j)
-                prog[f"shadow_map{j}"] = 2 + j
-                soft = used and modes[j] == PASS_SOFT
-                if self.soft == "csm":
-                    (l.filtered if soft else fallback).use(6 + j)
-                    prog[f"filtered_basis{j}"] = 6 + j
-                if used:
-                    frames[j] = l.frame.matrix().T
-                    scales[j] = l.frame.depth_scale()
-                if l is not None:
-                    dirs[j] = l.frame.direction
-                    alphas[j] = l.sigma * ss.ANGULAR_SIGMA
-            prog["light_frame"].write(frames.tobytes())
-            prog["light_dir"].write(dirs.tobytes())
-            prog["depth_scale"].write(scales.tobytes())
-            prog["light_mode"].write(np.array(list(modes) + [0] * (LIGHTS_PER_PASS - len(modes)), "i4").tobytes())
-            prog["texel_world"] = group[0].frame.texel_world(self.resolution)
-            prog["hard_threshold"] = ss.HARD_SHADOW_THRESHOLD
-            prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS
-            prog["slope_bias_texels"] = ss.SLOPE_BIAS_TEXELS
-            prog["max_slope"] = ss.MAX_SLOPE
-            if "light_alpha" in prog:  # absent when neither PCSS nor the specular code reads it
-                prog["light_alpha"].write(alphas.tobytes())
-            if self.soft == "pcss":
-                prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
-                prog["pcss_taps"].write(self.pcss_taps)
-                prog["pcss_search_taps"].write(self.pcss_search_taps)
-                prog["pcss_search"] = ss.PCSS_SEARCH
-            else:
-                prog["csm_offset"] = self.csm_offset
-                prog["csm_clamp"] = self.csm_clamp
+            self.bind_lights(prog, group, modes, sc.positions)
             x, y, bw, bh = sc.mask_box
             prog["tile_origin"] = group[0].tile
             prog["box_origin"] = (x, y)

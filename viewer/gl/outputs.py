@@ -35,6 +35,12 @@ class EngineOutputs:
         frame layer (the inspection views too), else at the maps'."""
         return self.display_pass.image
 
+    @in_context
+    def read_ground_shadow(self) -> np.ndarray:
+        """(h, w, 3) float32 at half the maps' resolution: the share of the ground plane's light the
+        person takes away (``Look.ground``; zero until the ground is shown)."""
+        return self.ground_pass.read()
+
     @property
     def output_size(self) -> tuple[int, int]:
         """(width, height) of :attr:`display` and :meth:`read_hdr`."""

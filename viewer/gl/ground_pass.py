@@ -1,0 +1,80 @@
+"""9. The ground shadow (ground_shadow.frag.glsl): the person's shadow on a ground plane at the
+feet, a shadow catcher lit by the same lights, at half the work resolution (the shadow of a
+person on the ground is soft; the display samples it bilinearly). What it holds, per pixel, is
+the share of the plane's light the person takes away (RGB); the display and frame composite
+multiply the background by one minus it (``Look.ground``). The plane: level with the camera's
+horizon at the lowest point of the person's mesh. Runs only while the ground is shown."""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from .kit import PassKit
+from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
+from .light_pass import LIGHTS_PER_PASS, LightShadingPass
+from .scene_resources import SceneResources
+
+
+class GroundShadowPass:
+    name = "ground_shadow"
+    # what the lights' visibility and weights are made of (the light pass's output covers their
+    # direction, shadow map, sigma and mode)
+    inputs = ("light_pass", "intensity", "activity", "ground", "visibility")
+
+    def __init__(self, kit: PassKit, scene: SceneResources, light_pass: LightShadingPass, camera):
+        self.kit, self.scene, self.light_pass = kit, scene, light_pass
+        w, h = max(camera.width // 2, 1), max(camera.height // 2, 1)
+        self.size = (w, h)
+        self.center = (w / 2.0, h / 2.0)
+        self.focal_px = camera.focal_px * w / camera.width
+        points = scene.caster_points
+        self.ground_y = float(points[:, 1].min()) if len(points) else 0.0  # the feet (camera space, y up)
+        self.texture = kit.texture(self.size, 4, linear=True)
+        self.fbo = kit.ctx.framebuffer(color_attachments=[self.texture])
+
+    @property
+    def below_camera(self) -> bool:
+        """A plane the camera looks down on (the person's lowest point under the eye)."""
+        return self.ground_y < 0.0
+
+    def run(self, lights: list[Light], shadows: str):
+        """``shadows``: the look's shadow mode (none: no shadow on the ground either)."""
+        kit = self.kit
+        with kit.timed(self.name):
+            self.fbo.use()
+            self.fbo.clear(0.0, 0.0, 0.0, 0.0)
+            intensity = np.array([l.intensity for l in lights], np.float64).reshape(-1, 3)
+            up = np.array([max(float(l.direction[1]), 0.0) for l in lights])
+            e0 = (intensity * up[:, None]).sum(axis=0)  # the plane's unshadowed irradiance (RGB)
+            if shadows == "none" or not self.below_camera or not np.any(e0 > 0.0):
+                return
+            share = np.where(e0 > 0.0, intensity * up[:, None] / np.where(e0 > 0.0, e0, 1.0), 0.0).astype("f4")
+            prog = kit.programs.get("fullscreen.vert.glsl", "ground_shadow.frag.glsl", **self.light_pass.defines)
+            prog["ground_y"] = self.ground_y
+            prog["focal_center_px"] = self.center
+            prog["focal_px"] = self.focal_px
+            kit.ctx.enable(moderngl.BLEND)
+            kit.ctx.blend_func = moderngl.ONE, moderngl.ONE
+            try:
+                for g in range(0, len(lights), LIGHTS_PER_PASS):
+                    group = lights[g:g + LIGHTS_PER_PASS]
+                    modes = [l.pass_mode if l.active else PASS_OFF for l in group]
+                    if not any(m in (PASS_HARD, PASS_SOFT) for m in modes):
+                        continue  # no shadows from these lights (or none shown)
+                    self.light_pass.bind_lights(prog, group, modes, self.scene.positions)
+                    block = np.zeros((LIGHTS_PER_PASS, 3), "f4")
+                    block[:len(group)] = share[g:g + len(group)]
+                    prog["light_share"].write(block.tobytes())
+                    kit.fullscreen(prog)
+            finally:
+                kit.ctx.disable(moderngl.BLEND)
+                kit.ctx.blend_func = moderngl.DEFAULT_BLENDING
+
+    def read(self) -> np.ndarray:
+        """(h, w, 3) float32: the share of the ground's light the person takes away."""
+        return self.kit.read(self.texture, 4)[..., :3]
+
+    def release(self):
+        self.fbo.release()
+        self.texture.release()
