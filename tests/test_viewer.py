@@ -297,17 +297,19 @@ maps = asset_dir() / "envmaps"
 config = ViewerConfig(scene=resample_scene(load_scene(sample_scene_dir()), 128),
                       lights=load_lights(maps / "immenstadter_horn_256.lights.json"),
                       environment=load_envmap(maps / "immenstadter_horn_256.hdr").pixels,
-                      env_path=maps / "immenstadter_horn_256.hdr", out_dir=tmp / "captures", state_file=tmp / "state.json")
+                      env_path=maps / "immenstadter_horn_256.hdr", out_dir=tmp / "captures", state_file=tmp / "state.json",
+                      max_size=256)
 app = ViewerApp(config)
 app.window.on_drop(app.window.handle, dropped)  # what GLFW calls when files are dropped on the window
 
 
 def close_when_switched():
-    end = time.monotonic() + 120
+    end = time.monotonic() + 150
     while time.monotonic() < end:
         try:
             state = json.loads((tmp / "state.json").read_text())
-            if state["map"] == dropped[0] and not state["fitting"] and state["placed"]:
+            if state["map"] == dropped[0] and not state["fitting"] and state["placed"] and state["opening"] is None \
+                    and state["scene_size"] != [128, 128]:
                 break
         except (OSError, ValueError, KeyError):
             pass
@@ -321,9 +323,57 @@ sys.exit(app.run())
 """
 
 
-def test_files_dropped_on_the_window_open_a_map_and_a_rig(display, tmp_path):
+def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factory, headless):
+    """A click on the map's thumbnail on a light's dot (the brightest away from the seam) adds a
+    light from that direction; "aim" then another click turns it; G shows the shadow on the ground (the person's
+    pixels stay); a scene bundle typed into the panel's browser opens."""
+    from viewer.app.thumbnail import MapThumbnail
+    from viewer.placed_lights import PlacedLight
+
+    v = viewer_factory()
+
+    def click(name, fx=0.5, fy=0.5):
+        x0, y0, x1, y1 = v.state()["widgets"][name]
+        v.xdotool("mousemove", int(x0 + fx * (x1 - x0)), int(y0 + fy * (y1 - y0)))
+        time.sleep(0.2)
+        v.xdotool("click", 1)
+
+    s = v.state()
+    lights = load_lights(asset_dir() / DEMO_LIGHTS).rotated(s["look"]["yaw"], s["look"]["tilt"])
+    uv = MapThumbnail.points(lights.direction)
+    inner = np.nonzero((uv[:, 0] > 0.15) & (uv[:, 0] < 0.85) & (uv[:, 1] > 0.1) & (uv[:, 1] < 0.9))[0]
+    k = inner[np.argmax(lights.intensity[inner].sum(axis=1))]
+    sun, (u, w) = lights.direction[k], uv[k]
+    click("thumbnail", u, w)
+    s = v.wait_for(lambda s: len(s["placed"]) == 1, 30)
+    assert "added at" in s["message"]
+    assert np.degrees(np.arccos(np.clip(PlacedLight(**s["placed"][0]).direction @ sun, -1, 1))) < 2.0
+    click("placed 0 aim")
+    v.wait_for(lambda s: s["message"].startswith("click on the person or the map"), 30)
+    click("thumbnail", 0.5, 0.9)  # behind the person, low
+    s = v.wait_for(lambda s: "aimed at" in s["message"], 30)
+    assert len(s["placed"]) == 1 and s["placed"][0]["elevation"] < -60
+    before = read_png(v.save())
+    v.xdotool("key", "g")
+    v.wait_for(lambda s: s["look"]["ground"], 30)
+    after = read_png(v.save())
+    mask = headless[0].mask
+    changed = np.abs(after - before).max(axis=-1) > 4 / 255
+    assert changed[~mask].sum() > 100 and not changed[mask].any()
+    click("open a file")
+    v.wait_for(lambda s: "browser path" in s["widgets"], 30)
+    click("browser path")
+    v.xdotool("type", str(sample_scene_dir()))
+    click("browser open")
+    s = v.wait_for(lambda s: s["message"].startswith("opened"), 60)
+    assert "a scene bundle" in s["message"] and s["scene_size"] == [512, 512]
+    assert v.quit() == 0
+
+
+def test_files_dropped_on_the_window_open_a_map_a_rig_and_a_photo(display, tmp_path):
     """The GLFW drop callback with real files: a map is fitted and switched to, a rig's lights are
-    placed, and a photo gets one line saying how to open it."""
+    placed, a photo is inferred in a child process (the window drawing meanwhile) and becomes the
+    person shown, and a file of another kind gets one line saying what opens."""
     import shutil
 
     from viewer.placed_lights import rig, save_rig
@@ -331,14 +381,19 @@ def test_files_dropped_on_the_window_open_a_map_and_a_rig(display, tmp_path):
     new_map = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", tmp_path / "dropped.hdr")  # no light file
     rig_file = save_rig(tmp_path / "rig.json", rig("key and fill", 1.0))
     photo = asset_dir() / "photos" / "underpass.jpg"
-    res = subprocess.run([sys.executable, "-c", DROP_SCRIPT, str(tmp_path), str(new_map), str(rig_file), str(photo)],
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not an image")
+    res = subprocess.run([sys.executable, "-c", DROP_SCRIPT, str(tmp_path), str(new_map), str(rig_file), str(photo), str(notes)],
                          env={**os.environ, "DISPLAY": display, "RELIGHT_CACHE": str(tmp_path / "cache")},
-                         capture_output=True, text=True, timeout=180)
+                         capture_output=True, text=True, timeout=240)
     assert res.returncode == 0, res.stderr[-2000:]
     state = json.loads((tmp_path / "state.json").read_text())
     assert state["map"] == str(new_map) and state["n_lights"] == 16
     assert len(state["placed"]) == 2 and state["placed"][1]["azimuth"] == -50.0
-    assert str(photo) in state["error"] and "relight view" in state["error"]
+    assert state["scene_size"] == [170, 256] and "opened underpass.jpg (inferred now" in res.stdout
+    assert str(notes) in state["error"] and "scene bundles" in state["error"]
+    frames = [ms for ms, kind in state["frames"] if kind == "load"]
+    assert len(frames) > 10  # the window kept drawing while the photo was inferred and the map fitted
 
 
 def test_record_a_turn(viewer_factory, headless):

@@ -13,6 +13,7 @@ from .errors import InputError
 from .video import partial_path as video_partial
 from .lightfit import DEFAULT_METHOD, METHODS
 from .resources import asset_dir, sample_scene_dir
+from .scene_ops import load_sized_scene
 
 COMMAND_GROUP = "relight.commands"
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
@@ -94,6 +95,8 @@ def _add_view_args(p, yaw_default=0.0):
     p.add_argument("--max-size", type=int, default=2048,
                    help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
                         "the photo's own size up to this)")
+    p.add_argument("--ground", action="store_const", const=True,
+                   help="the person's shadow on a level ground at the feet, over the background (a shadow catcher)")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
                    help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
                         "(refined), the shadow map (hard) or none")
@@ -164,34 +167,12 @@ def _fitted_lights(env, n, method, refit=False):
     return lights, cached
 
 
-def _load_scene(path, size: int | None, max_size: int | None = None):
-    """The scene bundle, its maps resampled to ``size`` pixels on the longer side when given
-    (``--size``), its frame capped to ``max_size`` (``--max-size``)."""
-    from .photo_frame import scaled_size
-    from .scene import load_scene
-    from .scene_ops import resample_scene
-
-    scene = load_scene(path)
-    if size is not None:
-        if not 16 <= size <= 8192:
-            raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
-        scene = resample_scene(scene, size, keep_frame=True)
-    if max_size is not None:
-        if not 16 <= max_size <= 16384:
-            raise InputError(None, f"--max-size must be within [16, 16384] pixels, got {max_size}")
-        if scene.frame is not None and max(scene.output_size) > max_size:
-            scene.frame = scene.frame.resized(scaled_size(scene.output_size, max_size))
-        elif scene.frame is None and max(scene.output_size) > max_size:
-            scene = resample_scene(scene, max_size)
-    return scene
-
-
 def _prepare(scene_path, lights_path, envmap_path, args):
     """Scene (resampled to ``--size``), lights (a file, or fitted to the map) and map pixels."""
     from .envmap import load_envmap
     from .lights import load_lights
 
-    scene = _load_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
+    scene = load_sized_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
     if lights_path is not None:
         lights = load_lights(lights_path)
@@ -213,7 +194,8 @@ def _warn_if_dark(lights, source):
 
 # the look's fields and the options that set them (each default None: given or not)
 _LOOK_OPTIONS = (("yaw", "yaw"), ("tilt", "tilt"), ("exposure", "exposure"), ("tonemap", "tonemap"),
-                 ("background", "background"), ("shadows", "visibility"), ("preset", "preset"))
+                 ("background", "background"), ("shadows", "visibility"), ("preset", "preset"),
+                 ("ground", "ground"))
 
 
 def _settings(args, yaw_default: float = 0.0):
@@ -289,7 +271,7 @@ def cmd_demo(args) -> int:
     infer(photo, None, out / "photo_bundle", max_size=args.max_size, ctx=ctx)
     print(f"inferred the scene bundle of {DEMO_PHOTO} (automatic mask) in {time.perf_counter() - t0:.1f} s: "
           f"{out / 'photo_bundle'}")
-    scene = _load_scene(out / "photo_bundle", None, args.max_size)
+    scene = load_sized_scene(out / "photo_bundle", None, args.max_size)
     engine = Engine(ctx, scene, _engine_options(args))
     pictures = [resize(read_photo(photo, []), scene.output_size).astype(np.float32) / 255.0]  # upright, the output's size
     settings = replace(look, shadows="refined", background="environment")
@@ -395,7 +377,7 @@ def cmd_view(args) -> int:
             window.release()
             raise
     try:
-        scene = _load_scene(scene_path, args.size, args.max_size)
+        scene = load_sized_scene(scene_path, args.size, args.max_size)
         env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
         if args.lights:
             lights = load_lights(args.lights)
@@ -418,7 +400,7 @@ def cmd_view(args) -> int:
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset,
-                          window=window, rig=rig)
+                          window=window, rig=rig, max_size=args.max_size, device=args.device)
     return run_viewer(config)
 
 
@@ -561,6 +543,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
     p.add_argument("--exposure", type=_exposure,
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
+    p.add_argument("--ground", action="store_const", const=True,
+                   help="the person's shadow on a level ground at the feet, over the background (a shadow catcher)")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
     p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")

@@ -45,10 +45,18 @@ SUFFIXES = (".hdr", ".exr")
 
 def pixel_directions(h: int, w: int) -> np.ndarray:
     """(h, w, 3) float64 unit direction of every texel centre of a w x h map (module convention)."""
-    phi = 2.0 * np.pi * (np.arange(w) + 0.5) / w - np.pi
-    lam = 0.5 * np.pi - np.pi * (np.arange(h) + 0.5) / h
-    cl, sl = np.cos(lam)[:, None], np.sin(lam)[:, None]
-    return np.stack(np.broadcast_arrays(cl * np.sin(phi), sl, -cl * np.cos(phi)), axis=-1)
+    u, v = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
+    return uv_to_direction(np.stack([u, v], axis=-1))
+
+
+def uv_to_direction(uv) -> np.ndarray:
+    """(..., 2) normalized map coordinates (u / W, v / H; v from the top) to (..., 3) float64 unit
+    directions (the module convention: u = 1/2 looks along -z, the top row is +y)."""
+    uv = np.asarray(uv, dtype=np.float64)
+    phi = 2.0 * np.pi * uv[..., 0] - np.pi
+    lam = 0.5 * np.pi - np.pi * uv[..., 1]
+    cl = np.cos(lam)
+    return np.stack([cl * np.sin(phi), np.sin(lam), -cl * np.cos(phi)], axis=-1)
 
 
 def direction_to_uv(dirs) -> np.ndarray:

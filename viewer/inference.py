@@ -38,6 +38,9 @@ from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, outp
 from .resources import network_dir
 
 NETWORK_RES = 256
+# the stages infer() reports to its progress callback, in order
+STAGES = ("read", "mask", "load networks", "inverse rendering", "depth", "maps to the work frame",
+          "fit the photo's lights", "render the photo's shading", "detail", "write")
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
 PIPELINE = "frame-2"  # bundles cached by an older pipeline are inferred again

@@ -6,7 +6,28 @@ from __future__ import annotations
 import numpy as np
 
 from .camera import Camera
-from .scene import Scene
+from .errors import InputError
+from .scene import Scene, load_scene
+
+
+def load_sized_scene(path, size: int | None = None, max_size: int | None = None) -> Scene:
+    """The scene bundle at ``path``, its maps resampled to ``size`` pixels on the longer side when
+    given (``--size``), its frame capped to ``max_size`` (``--max-size``)."""
+    from .photo_frame import scaled_size
+
+    scene = load_scene(path)
+    if size is not None:
+        if not 16 <= size <= 8192:
+            raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
+        scene = resample_scene(scene, size, keep_frame=True)
+    if max_size is not None:
+        if not 16 <= max_size <= 16384:
+            raise InputError(None, f"--max-size must be within [16, 16384] pixels, got {max_size}")
+        if scene.frame is not None and max(scene.output_size) > max_size:
+            scene.frame = scene.frame.resized(scaled_size(scene.output_size, max_size))
+        elif scene.frame is None and max(scene.output_size) > max_size:
+            scene = resample_scene(scene, max_size)
+    return scene
 
 
 def resample_scene(scene: Scene, size: int, keep_frame: bool = False) -> Scene:

@@ -19,13 +19,13 @@ import numpy as np
 from ..imageio import write_exr, write_png, write_text
 from ..lightfit.methods import DEFAULT_METHOD
 from ..placed_lights import PlacedLight
-from ..lights import AreaLights
+from ..lights import AreaLights, facing_yaw
 from ..median_cut import LUMINANCE
 from ..render import photo_exposure
-from ..scene import Scene
+from ..scene import PHOTO_SUFFIXES, Scene
 from ..settings import AUTO, Look
 from . import interaction as ix
-from .jobs import LightJob
+from .jobs import LightJob, SceneJob
 from .layout import PANEL_WIDTH, image_area_size
 from .recording import LiveRecording, TurntableRecording
 from .session import Session
@@ -34,6 +34,7 @@ STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full 
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
 JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
 FRAME_HISTORY = 600
+OPENS = (".hdr", ".exr", ".json", *PHOTO_SUFFIXES)  # what the window opens (and a bundle's folder)
 
 
 @dataclass
@@ -53,11 +54,14 @@ class ViewerConfig:
     preset: str = "balanced"  # the quality preset the options came from (viewer/presets.py)
     window: object = None  # a window already open (a photo's inference ran in its context), else one is made
     rig: tuple = ()  # placed lights to start with (viewer.placed_lights; relight view --rig)
+    max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
+    device: str = "cpu"  # ... and where its inference runs (relight view --device)
 
 
 class ViewerApp:
     def __init__(self, config: ViewerConfig):
         from .files import FileBrowser
+        from .thumbnail import MapThumbnail
         from .window import Window
 
         self.config = config
@@ -86,6 +90,7 @@ class ViewerApp:
         self.panning = False
         self.last_motion = 0.0
         self.job: LightJob | None = None
+        self.scene_job: SceneJob | None = None
         self.recording = None
         self.message = ""
         self.last_compare = 0.5  # where B puts the before / after split
@@ -95,12 +100,14 @@ class ViewerApp:
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
         self.frame_count = 0
         self.widgets: dict = {}
+        self.panel_height = 0.0  # the panel's content, drawn or not (the first frame fits the window to it)
         self.captures: list[str] = []
         self.videos: list[str] = []
         self._state_text = ""
         self._state_time = 0.0
         self._capture_index = 0
-        self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd())
+        self.thumbnail = MapThumbnail(self.window.ctx)
+        self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd(), OPENS)
         self.show_browser = False
 
     def _apply_auto_exposure(self):
@@ -175,6 +182,8 @@ class ViewerApp:
             self.session.update(yaw=0.0, tilt=0.0)
         if imgui.is_key_pressed(imgui.Key.b, False):
             self.toggle_compare()
+        if imgui.is_key_pressed(imgui.Key.g, False):
+            self.session.update(ground=not self.session.look.ground)
         if io.key_ctrl and imgui.is_key_pressed(imgui.Key.z, False):
             self.message = "undone" if self.session.undo() else "nothing to undo"
         if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
@@ -250,15 +259,31 @@ class ViewerApp:
         self.error = ""
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
 
+    def open_scene(self, path: Path):
+        """Another person: a photo (inferred in a child process, or from the cache) or a scene
+        bundle, read on a thread; the window shows it when its maps are ready (:meth:`_poll_scene_job`)."""
+        if self.scene_job is not None:
+            self.message = f"still opening {self.scene_job.path.name}"
+            return
+        self.error = ""
+        self.scene_job = SceneJob(path, self.config.max_size, self.config.device, wake=self.window.wake)
+
     def open_file(self, path: Path):
-        """A file dropped on the window: an environment map (its lights fitted on a thread, the map
-        and its lights switched together when ready) or a rig of placed lights; anything else is
-        one line saying what the window opens."""
+        """A file dropped on the window or chosen in its browser: a photo or a scene bundle (its
+        folder or its scene.json) becomes the person shown; an environment map is fitted and
+        switched to with its lights; a rig's lights are placed. Anything else is one line saying
+        what the window opens."""
         from ..errors import InputError
         from ..placed_lights import load_rig
 
         suffix = path.suffix.lower()
-        if suffix in (".hdr", ".exr"):
+        if path.is_dir() and (path / "scene.json").is_file():
+            self.open_scene(path)
+        elif path.name == "scene.json":
+            self.open_scene(path.parent)
+        elif suffix in PHOTO_SUFFIXES:
+            self.open_scene(path)
+        elif suffix in (".hdr", ".exr"):
             self.open_map(path)
         elif suffix == ".json":
             try:
@@ -268,23 +293,35 @@ class ViewerApp:
                 return
             self.message = f"{len(self.session.placed)} placed lights from {path.name}"
         else:
-            self.error = (f"{path}: the window opens environment maps (.hdr, .exr) and rigs (.json); "
-                          "open a photo or a bundle with relight view PATH")
+            self.error = (f"{path}: the window opens photos ({', '.join(PHOTO_SUFFIXES)}), scene bundles (a folder "
+                          "with scene.json), environment maps (.hdr, .exr) and rigs (.json)")
 
     def aim_at(self, x: float, y: float):
-        """Turn the placed light being aimed so that it faces the person's surface under the image
+        """Aim the placed light being aimed so that it faces the person's surface under the image
         point (x, y) head-on (its direction: the normal there)."""
-        j, self.aiming = self.aiming, None
-        sc, s = self.session.scene, self.session
+        sc = self.session.scene
         px = ix.image_pixel((x, y), self.image_rect(), (sc.width, sc.height))
-        if px is None or j >= len(s.placed) or not sc.mask[px[1], px[0]]:
+        if px is None or not sc.mask[px[1], px[0]]:
+            self.aiming = None
             self.message = "not aimed: click on the person"
             return
-        p = s.placed[j]
+        self.aim_direction(sc.normal[px[1], px[0]], f"the person's pixel {px[0]}, {px[1]}")
+
+    def aim_direction(self, direction, where: str = "the map's point clicked"):
+        """The placed light being aimed turned to come from ``direction`` (camera space); with none
+        being aimed, a new light from there."""
+        s = self.session
+        j, self.aiming = self.aiming, None
         placed = list(s.placed)
-        placed[j] = PlacedLight.aimed(sc.normal[px[1], px[0]], size=p.size, intensity=p.intensity, kelvin=p.kelvin)
+        if j is None or j >= len(placed):
+            placed.append(PlacedLight.aimed(direction, intensity=self.placed_level()))
+            j, verb = len(placed) - 1, "added at"
+        else:
+            p = placed[j]
+            placed[j] = PlacedLight.aimed(direction, size=p.size, intensity=p.intensity, kelvin=p.kelvin)
+            verb = "aimed at"
         s.set_placed(placed)
-        self.message = f"light {len(s.base_lights) + j} aimed at the person's pixel {px[0]}, {px[1]}"
+        self.message = f"light {len(s.base_lights) + j} {verb} {where}"
 
     def placed_level(self) -> float:
         """A placed light's default intensity: a quarter of the map's lights' total (1 without any)."""
@@ -327,6 +364,27 @@ class ViewerApp:
             self.open_map(self.env_path, p.lights)
         self.message = f"preset {name}: {p.summary}"
 
+    def _poll_scene_job(self):
+        job = self.scene_job
+        if job is None or not job.done:
+            return
+        self.scene_job = None
+        if job.error:
+            self.error = job.error
+            print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
+            return
+        res = job.result
+        self.session.set_scene(res.scene)
+        self.session.update(yaw=facing_yaw(self.session.lights))  # its first frame faces the brightest light
+        self.view = ix.ViewState()
+        if self.auto_exposure and self.session.look.exposure == self._auto_value:
+            self._apply_auto_exposure()
+        self.window.set_title(f"relight - {res.path.name}")
+        how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",
+               "bundle": "a scene bundle"}[res.how]
+        self.message = f"opened {res.path.name} ({how}): {res.scene.output_size[0]}x{res.scene.output_size[1]}"
+        print(self.message, flush=True)
+
     def _poll_job(self):
         job = self.job
         if job is None or not job.done:
@@ -344,6 +402,15 @@ class ViewerApp:
             self._apply_auto_exposure()
         self.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
         print(self.message, flush=True)
+
+    def _fit_panel(self):
+        """A window taller than the panel's content where the screen has room: nothing is cut off
+        and no scrolling is needed at first (a smaller screen keeps the panel's scroll bar)."""
+        w, h = self.window.size
+        need = int(np.ceil(self.panel_height))
+        screen = self.window.screen_height()
+        if need > h and screen is not None:
+            self.window.resize(w, min(need, max(screen - 40, h)))
 
     # ------------------------------------------------------------------ frame
     def _render(self) -> tuple[object, str]:
@@ -374,8 +441,8 @@ class ViewerApp:
             if rec.finished:
                 self._finish_recording()
             return eng, "record"
-        if not worked:  # "load": nothing to redraw while lights are fitted on their thread
-            return eng, "load" if self.job is not None else "idle"
+        if not worked:  # "load": nothing to redraw while lights are fitted or a scene opened off this thread
+            return eng, "load" if self.job is not None or self.scene_job is not None else "idle"
         return eng, "drag" if preview else "update"
 
     def run(self) -> int:
@@ -386,7 +453,7 @@ class ViewerApp:
         try:
             while not w.should_close:
                 busy = self.dragging or self.panning or self.recording is not None
-                waiting = self.job is not None or self.session.refining
+                waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = time.perf_counter()
                 w.begin_frame()
@@ -394,7 +461,10 @@ class ViewerApp:
                 for path in w.take_dropped():
                     self.open_file(Path(path))
                 draw_panel(self)
+                if self.frame_count == 0:
+                    self._fit_panel()
                 self._poll_job()
+                self._poll_scene_job()
                 self.session.poll_refinement()
                 eng, kind = self._render()
                 w.draw_image(eng.display, self.image_rect(), self.image_area())
@@ -408,9 +478,11 @@ class ViewerApp:
                     self._finish_recording(stopped=True)
                 self._write_state(force=True)
             finally:
-                if self.job is not None:
-                    self.job.stop()  # a light fit in progress ends at its next step
+                for job in (self.job, self.scene_job):
+                    if job is not None:
+                        job.stop()  # a light fit ends at its next step, an inference at once
                 self.session.release()
+                self.thumbnail.release()
                 w.release()
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
@@ -433,9 +505,13 @@ class ViewerApp:
             "preset": self.preset,
             "map": str(self.env_path) if self.env_path else None,
             "image_rect": list(self.image_rect()),
+            "window_size": list(self.window.size),
+            "panel_height": self.panel_height,
             "widgets": self.widgets,
             "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "path": str(rec.path)},
             "fitting": self.job is not None,
+            "opening": None if self.scene_job is None else str(self.scene_job.path),
+            "scene_size": list(self.session.scene.output_size),
             "refined": self.session.final.refined_current,
             "refine_error": self.session.refine_error,
             "captures": self.captures,

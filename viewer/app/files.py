@@ -1,10 +1,15 @@
-"""A small file browser drawn in the panel (works on any machine: no system dialog needed)."""
+"""A small file browser drawn in the panel (works on any machine: no system dialog needed). A scene
+bundle's folder (one holding scene.json) is listed as something to open, not to enter."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from imgui_bundle import imgui
+
+
+def is_bundle(path: Path) -> bool:
+    return path.is_dir() and (path / "scene.json").is_file()
 
 
 class FileBrowser:
@@ -20,28 +25,32 @@ class FileBrowser:
             return []
         return [p for p in items if not p.name.startswith(".") and (p.is_dir() or p.suffix.lower() in self.suffixes)]
 
-    def draw(self) -> Path | None:
-        """Draw the browser; returns a file the user chose this frame."""
+    def draw(self, remember=lambda name: None) -> Path | None:
+        """Draw the browser; returns a file (or a bundle's folder) the user chose this frame.
+        ``remember(name)`` is called after the path field and its button (scripts click them)."""
         chosen = None
         imgui.text_wrapped(str(self.dir))
         imgui.begin_child("files", imgui.ImVec2(0, 140), imgui.ChildFlags_.borders)
         if imgui.selectable("..", False)[0]:
             self.dir = self.dir.parent
         for entry in self._entries():
-            label = f"[{entry.name}]" if entry.is_dir() else entry.name
+            bundle = is_bundle(entry)
+            label = f"{entry.name} (scene bundle)" if bundle else f"[{entry.name}]" if entry.is_dir() else entry.name
             if imgui.selectable(label, False)[0]:
-                if entry.is_dir():
+                if entry.is_dir() and not bundle:
                     self.dir = entry
                 else:
                     chosen = entry
         imgui.end_child()
         imgui.set_next_item_width(-60)
         _, self.path_text = imgui.input_text("##path", self.path_text)
+        remember("path")
         imgui.same_line()
         if imgui.button("Open") and self.path_text.strip():
             p = Path(self.path_text.strip()).expanduser()
-            if p.is_dir():
+            if p.is_dir() and not is_bundle(p):
                 self.dir = p.resolve()
             else:
                 chosen = p
+        remember("open")
         return chosen

@@ -1,10 +1,16 @@
-"""Work off the window's thread: light fitting (the window keeps drawing, with a progress bar,
+"""Work off the window's thread: opening a photo or a scene bundle (a photo's inference in its own
+process, :mod:`viewer.app.photo_process`; the window shows the new scene when its maps are read),
+light fitting (the window keeps drawing, with a progress bar,
 while a map's lights are fitted, then swaps in the new map and its lights together) and the shadow
 refinement network (run on the visibility the engine read back; its result is used only if the
 lights have not moved since)."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -137,6 +143,86 @@ class LightJob(ThreadJob):
                 torch.set_num_threads(threads)
             how = "cached" if cached else "fitted"
         return LightsResult(env, lights, how)
+
+    def failure(self, exc: Exception) -> str:
+        return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"
+
+
+@dataclass
+class SceneResult:
+    scene: object  # viewer.scene.Scene
+    path: Path  # what was opened: a photo or a bundle
+    how: str  # "inferred", "cached" or "bundle"
+
+
+class SceneJob(ThreadJob):
+    """Open a photo (its bundle inferred in a niced child process, or found in the cache) or a scene
+    bundle, and read its maps (``max_size``: the frame's longer side, as ``relight view
+    --max-size``); ``result`` is a :class:`SceneResult`."""
+
+    thread_name = "open-scene"
+
+    def __init__(self, path, max_size: int, device: str = "cpu", wake=lambda: None):
+        from ..scene import PHOTO_SUFFIXES
+
+        self.path = Path(path)
+        self.photo = self.path.suffix.lower() in PHOTO_SUFFIXES
+        self.max_size = max_size
+        self.device = device
+        self.stage = "starting the inference" if self.photo else "reading the maps"
+        self.fraction = 0.0
+        self._process: subprocess.Popen | None = None
+        super().__init__(wake)
+
+    def stop(self, timeout: float = 60.0) -> bool:
+        proc = self._process
+        if proc is not None and proc.poll() is None:
+            proc.kill()  # the inference ends now; its bundle is written atomically or not at all
+        return super().stop(timeout)
+
+    def _infer(self) -> tuple[Path, bool]:
+        from ..inference import STAGES
+
+        cmd = [sys.executable, "-m", "viewer.app.photo_process", str(self.path), "--max-size", str(self.max_size),
+               "--device", self.device]
+        root = str(Path(__file__).resolve().parents[2])  # the package's parent: found whatever the current folder
+        env = dict(os.environ)
+        env["PYTHONPATH"] = root + (":" + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        self._process = proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                                env=env)
+        said = {}
+        done = 0
+        for line in proc.stdout:
+            self.check_cancelled()
+            try:
+                msg = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a library's own print
+            if not isinstance(msg, dict):
+                continue
+            said = msg
+            if "stage" in said:
+                done += 1
+                self.stage = f"{said['stage']} done ({done} of {len(STAGES)})"
+                self.fraction = done / (len(STAGES) + 1)
+        proc.wait()
+        self.check_cancelled()
+        if "bundle" in said:
+            return Path(said["bundle"]), bool(said.get("cached"))
+        if "error" in said:
+            raise InputError(None, str(said["error"]))  # already names the file
+        raise InputError(self.path, f"the inference ended without a bundle (exit status {proc.returncode})")
+
+    def work(self) -> SceneResult:
+        from ..scene_ops import load_sized_scene
+
+        bundle, how = self.path, "bundle"
+        if self.photo:
+            bundle, cached = self._infer()
+            how = "cached" if cached else "inferred"
+            self.stage = "reading the maps"
+        scene = load_sized_scene(bundle, None, self.max_size)
+        return SceneResult(scene, self.path, how)
 
     def failure(self, exc: Exception) -> str:
         return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"

@@ -37,18 +37,22 @@ def draw_panel(app):
     w, h = app.window.size
     imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0))
     imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, h))
-    flags = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+    # the scroll bar's place always kept: widths that do not depend on whether the panel scrolls (a
+    # scroll bar coming and going would change the thumbnail's height, and so whether it scrolls)
+    flags = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+             | imgui.WindowFlags_.always_vertical_scrollbar)
     imgui.begin("relight", None, flags)
     _status(app)
     _lighting(app)
+    _map(app)
+    _placed(app)
     _shading(app)
     _lights(app)
-    _placed(app)
-    _map(app)
     _record(app)
     _frame_time(app)
     if imgui.collapsing_header("Keys and mouse"):
         imgui.text_unformatted(KEYS_HELP)
+    app.panel_height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
     imgui.end()
 
 
@@ -63,7 +67,7 @@ def _status(app):
         imgui.pop_text_wrap_pos()
     elif app.message:
         imgui.text_wrapped(app.message)
-    job = app.job
+    job = app.scene_job or app.job  # one bar: the person being opened first, else the map being fitted
     if job is not None:
         imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), f"{job.path.name}: {job.stage}")
     imgui.end_child()
@@ -96,6 +100,12 @@ def _lighting(app):
         _remember(app, "compare")
         if changed:
             s.update(compare=compare)
+    changed, ground = imgui.checkbox("shadow on the ground (G)", s.look.ground)
+    _remember(app, "ground")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("the person's shadow on a level ground at the feet, over the background")
+    if changed:
+        s.update(ground=ground)
 
 
 def _shading(app):
@@ -154,7 +164,7 @@ def _lights(app):
     peak = float(lights.intensity.max()) if n else 1.0
     total = float(lum.sum()) or 1.0
     imgui.text_disabled("       #  azim  elev   size (angular sigma)")
-    imgui.begin_child("lights", imgui.ImVec2(0, 210), imgui.ChildFlags_.borders)
+    imgui.begin_child("lights", imgui.ImVec2(0, 165), imgui.ChildFlags_.borders)
     for i in np.argsort(-lum, kind="stable"):
         i = int(i)
         imgui.push_id(str(i))
@@ -218,7 +228,7 @@ def _placed(app):
         imgui.same_line()
         if imgui.small_button("aim"):
             app.aiming = j
-            app.message = f"click on the person: light {len(s.base_lights) + j} will face that point"
+            app.message = f"click on the person or the map: light {len(s.base_lights) + j} will face that point"
         _remember(app, f"placed {j} aim")
         imgui.same_line()
         if imgui.small_button("delete"):
@@ -226,11 +236,15 @@ def _placed(app):
             imgui.pop_id()
             break
         edits = {}
-        for name, low, high, fmt, flags in (("azimuth", -180.0, 180.0, "azimuth %+.0f deg", 0),
-                                            ("elevation", -90.0, 90.0, "elevation %+.0f deg", 0),
-                                            ("size", 0.0, MAX_SIZE, "size %.1f deg", 0),
-                                            ("intensity", 0.0, 8.0 * level, "intensity %.3g", imgui.SliderFlags_.logarithmic),
-                                            ("kelvin", 1500.0, 12000.0, "%.0f K", 0)):
+        half = (imgui.get_content_region_avail().x - imgui.get_style().item_spacing.x) / 2
+        for k, (name, low, high, fmt, flags) in enumerate((
+                ("azimuth", -180.0, 180.0, "azimuth %+.0f deg", 0), ("elevation", -90.0, 90.0, "elevation %+.0f deg", 0),
+                ("size", 0.0, MAX_SIZE, "size %.1f deg", 0),
+                ("intensity", 0.0, 8.0 * level, "intensity %.3g", imgui.SliderFlags_.logarithmic),
+                ("kelvin", 1500.0, 12000.0, "%.0f K", 0))):
+            if k % 2:
+                imgui.same_line()  # two sliders a row: the panel stays short with several lights
+            imgui.set_next_item_width(half)
             changed, value = imgui.slider_float(f"##{name}", getattr(p, name), low, high, fmt, flags)
             _remember(app, f"placed {j} {name}")
             if imgui.is_item_activated():  # one undo step per drag of a slider
@@ -256,11 +270,47 @@ def _map(app):
                 app.open_map(maps[i])
         imgui.end_combo()
     _remember(app, "map")
+    _thumbnail(app)
     changed, app.show_browser = imgui.checkbox("open a file...", app.show_browser)
+    _remember(app, "open a file")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("a photo, a scene bundle, an environment map or a rig (or drop one on the window)")
     if app.show_browser:
-        chosen = app.browser.draw()
+        chosen = app.browser.draw(lambda name: _remember(app, f"browser {name}"))
         if chosen is not None:
-            app.open_map(chosen)
+            app.open_file(chosen)
+
+
+def _thumbnail(app):
+    """The map as its light arrives now, a dot on each light (hollow: the map's; filled and
+    numbered: yours). A click aims the light being aimed there, or adds a light there."""
+    s = app.session
+    if s.environment is None:
+        return
+    look = s.look
+    tex = app.thumbnail.update(s.environment, look.yaw, look.tilt)
+    width = imgui.get_content_region_avail().x
+    size = imgui.ImVec2(width, width / 2)
+    imgui.image(imgui.ImTextureRef(tex.glo), size)
+    _remember(app, "thumbnail")
+    lo = imgui.get_item_rect_min()
+    if imgui.is_item_clicked(0):
+        mouse = imgui.get_io().mouse_pos
+        app.aim_direction(app.thumbnail.direction_at((mouse.x - lo.x) / size.x, (mouse.y - lo.y) / size.y))
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("the map as it lights the person now\nmiddle: behind the person; edges: the camera's side\n"
+                          "click: aim the light being aimed here, or add one here")
+    draw = imgui.get_window_draw_list()
+    ring = imgui.get_color_u32(imgui.ImVec4(1.0, 1.0, 1.0, 0.9))
+    for u, v in app.thumbnail.points(s.rotated_lights().direction):
+        draw.add_circle(imgui.ImVec2(lo.x + u * size.x, lo.y + v * size.y), 4.0, ring)
+    first = len(s.base_lights)
+    for j, ((u, v), p) in enumerate(zip(app.thumbnail.points([p.direction for p in s.placed]), s.placed)):
+        c = _swatch(kelvin_to_rgb(p.kelvin), 2.0)
+        centre = imgui.ImVec2(lo.x + u * size.x, lo.y + v * size.y)
+        draw.add_circle_filled(centre, 5.0, imgui.get_color_u32(c))
+        draw.add_circle(centre, 5.0, imgui.get_color_u32(imgui.ImVec4(0.0, 0.0, 0.0, 1.0)))
+        draw.add_text(imgui.ImVec2(centre.x + 6.0, centre.y - 7.0), ring, str(first + j))
 
 
 def _record(app):
@@ -292,7 +342,7 @@ def _record(app):
 
 
 def _frame_time(app):
-    if not imgui.collapsing_header("Frame time", imgui.TreeNodeFlags_.default_open):
+    if not imgui.collapsing_header("Frame time"):
         return
     frames = list(app.frames)[-240:]
     if not frames:

@@ -103,6 +103,17 @@ class Session:
                 self._set_environment(eng)
         self.look = self.look.fitted(len(lights) + len(self.placed))
 
+    def set_scene(self, scene: Scene):
+        """Another person (a photo or bundle opened in the window): new engines for it; the lights,
+        placed lights and look stay (a scene without a photo has no before / after)."""
+        self.release()
+        self.scene = scene
+        self.final = Engine(self.ctx, scene, self.options)
+        self._set_environment(self.final)
+        self.refine_job = None
+        if scene.frame is None:
+            self.look = replace(self.look, compare=0.0)
+
     def set_options(self, options: EngineOptions):
         """New engine options (a quality preset): the engines are made again; the next render
         brings them up to the current state."""

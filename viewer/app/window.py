@@ -119,6 +119,19 @@ class Window:
         self.ctx.scissor = None
         self.ctx.viewport = (0, 0, fw, fh)
 
+    def screen_height(self) -> int | None:
+        """The height of the primary monitor's work area (without panels and docks), or None."""
+        monitor = glfw.get_primary_monitor()
+        if not monitor:
+            return None
+        try:
+            return int(glfw.get_monitor_workarea(monitor)[3])
+        except (AttributeError, glfw.GLFWError):
+            return None
+
+    def set_title(self, title: str):
+        glfw.set_window_title(self.handle, title)
+
     def resize(self, width: int, height: int):
         glfw.set_window_size(self.handle, int(width), int(height))
 

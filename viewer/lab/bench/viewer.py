@@ -1,9 +1,10 @@
 """Frame times of the real viewer window: ``relight view`` in a subprocess on an X display (an
 Xvfb started here when there is none), driven by xdotool like a person: a drag across the image
 (preview frames), the full-quality frame when the mouse stops, clicks on a sigma slider, idle
-frames, and the UI's frames while a new number of lights is fitted on a thread (a map's load:
-the instant fit, the cache emptied first). Frame times are the viewer's own (events to swap,
-from its state file)."""
+frames, the UI's frames while a new number of lights is fitted on a thread (the instant fit, the
+cache emptied first), then while a new map and a new photo load, each typed into the panel's file
+browser (the map's lights fitted, the photo inferred in its child process), and the frame that
+shows each. Frame times are the viewer's own (events to swap, from its state file)."""
 
 from __future__ import annotations
 
@@ -62,8 +63,25 @@ def _wait(state_path: Path, predicate, proc, timeout=180.0) -> dict:
     raise RuntimeError("the viewer did not get ready in time")
 
 
-def measure_size(size: int, display: str, workdir: Path) -> dict:
-    env = {**os.environ, "DISPLAY": display, "RELIGHT_CACHE": str(workdir / f"cache_{size}")}  # the refit fits
+def _frames_since(state: dict, count: int) -> list:
+    """The (ms, kind) of the frames drawn since frame ``count`` (the state keeps the latest ones)."""
+    frames = state["frames"]
+    first = state["frame_count"] - len(frames)
+    return frames[max(count - first, 0):]
+
+
+def _load_figures(frames: list) -> dict:
+    """The UI frames while something loaded, and the frame that showed it (the first update after)."""
+    load = [ms for ms, kind in frames if kind == "load"]
+    last = max((i for i, (_, kind) in enumerate(frames) if kind == "load"), default=-1)
+    shown = next((ms for ms, kind in frames[last + 1:] if kind == "update"), None)
+    return {"frames": len(load), "ms_max": max(load) if load else None,
+            "ms_median": float(np.median(load)) if load else None, "shown_ms": shown}
+
+
+def measure_size(size: int, display: str, workdir: Path, new_map: Path, photo: Path) -> dict:
+    # an empty cache per size (lights; bundles go beside it): the refit fits, the photo is inferred
+    env = {**os.environ, "DISPLAY": display, "RELIGHT_CACHE": str(workdir / f"cache_{size}" / "lights")}
     state_path = workdir / f"state_{size}.json"
     proc = subprocess.Popen([sys.executable, "-m", "viewer.cli", "view", "--size", str(size), "--state-file", str(state_path),
                              "--out-dir", str(workdir)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -99,13 +117,34 @@ def measure_size(size: int, display: str, workdir: Path) -> dict:
         xdo("key", "Return")
         _wait(state_path, lambda s: s["n_lights"] == 12 and not s["fitting"], proc)
         time.sleep(1.0)
+        s = json.loads(state_path.read_text())
+        refit_frames = s["frames"]
+
+        def click(name):
+            x0, y0, x1, y1 = json.loads(state_path.read_text())["widgets"][name]
+            xdo("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2), "click", 1)
+            time.sleep(0.3)
+
+        def open_in_browser(path: Path, done) -> list:
+            start = json.loads(state_path.read_text())["frame_count"]
+            click("browser path")
+            xdo("key", "ctrl+a", "type", str(path))
+            click("browser open")
+            time.sleep(0.5)
+            _wait(state_path, done, proc, timeout=300)
+            time.sleep(1.0)
+            return _frames_since(json.loads(state_path.read_text()), start)
+
+        click("open a file")
+        _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
+        map_frames = open_in_browser(new_map, lambda s: s["map"] == str(new_map) and not s["fitting"])
+        photo_frames = open_in_browser(photo, lambda s: s["opening"] is None and s["message"].startswith("opened"))
         xdo("key", "q")
         proc.wait(60)
-        s = json.loads(state_path.read_text())
     finally:
         if proc.poll() is None:
             proc.kill()
-    frames = s["frames"]
+    frames = refit_frames
     kinds = [k for _, k in frames]
     ms = np.array([m for m, _ in frames])
     drag = ms[[k == "drag" for k in kinds]]
@@ -131,23 +170,37 @@ def measure_size(size: int, display: str, workdir: Path) -> dict:
 
 
 def run_viewer_benchmark(sizes=(512, 1024), output="out/bench_viewer.json") -> dict:
+    import shutil
+
     from viewer.gl.context import create_headless_context, describe
+    from viewer.resources import asset_dir
 
     renderer = describe(create_headless_context())
     runs = []
     with x_display() as display, tempfile.TemporaryDirectory() as tmp:
         for size in sizes:
-            r = measure_size(size, display, Path(tmp))
+            # a map without a light file and a photo without a bundle: fitted and inferred while measured
+            work = Path(tmp) / f"inputs_{size}"
+            work.mkdir()
+            new_map = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", work / "new_map.hdr")
+            photo = shutil.copyfile(asset_dir() / "photos" / "underpass.jpg", work / "new_photo.jpg")
+            r = measure_size(size, display, Path(tmp), new_map, photo)
             runs.append(r)
             print(f"{size}^2: drag {r['drag_ms_median']:.0f} ms median ({r['drag_fps']:.1f} fps, p90 "
                   f"{r['drag_ms_p90']:.0f} ms, {r['drag_frames']} frames); full frame when the mouse stops "
                   f"{r['converge_ms']:.0f} ms; sigma slider {r['sigma_ms_median']:.0f} ms; idle {r['idle_ms_median']:.0f} ms; "
                   f"while 12 lights are fitted: {r['load_frames']} UI frames, longest {r['load_ms_max'] or 0:.0f} ms",
                   flush=True)
+            for what in ("new_map", "new_photo"):
+                f = r[what]
+                print(f"  {what.replace('_', ' ')} opened from the panel: {f['frames']} UI frames while it loaded, longest "
+                      f"{f['ms_max'] or 0:.0f} ms; the frame that shows it {f['shown_ms'] or 0:.0f} ms", flush=True)
     result = {"machine": {"renderer": renderer, "cpu": platform.machine(), "cores": os.cpu_count(),
                           "python": platform.python_version()},
               "method": "relight view under X (Xvfb when no DISPLAY), driven by xdotool; frame time = events to "
-                        "buffer swap, as the viewer records it; 16 lights of the bundled map",
+                        "buffer swap, as the viewer records it; 16 lights of the bundled map; new_map / new_photo: "
+                        "typed into the panel's file browser (assets' venice_sunset_256.hdr without its light file, "
+                        "assets/photos/underpass.jpg without a bundle, caches empty)",
               "runs": runs}
     path = Path(output)
     path.parent.mkdir(parents=True, exist_ok=True)
