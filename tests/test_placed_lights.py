@@ -95,3 +95,24 @@ def test_image_pixel_under_the_cursor():
     assert image_pixel((299.9, 449.9), rect, (64, 128)) == (63, 127)
     assert image_pixel((200.0, 250.0), rect, (64, 128)) == (32, 64)
     assert image_pixel((99.0, 60.0), rect, (64, 128)) is None and image_pixel((150.0, 450.0), rect, (64, 128)) is None
+
+
+def test_the_map_thumbnail_maps_points_and_directions_both_ways():
+    """The thumbnail's point of a light and the light aimed from that point agree under any turn of
+    the lighting, and the point shows what the map turned by the yaw shows there."""
+    from viewer.app.thumbnail import MapThumbnail
+    from viewer.envmap import EnvMap
+
+    rng = np.random.default_rng(5)
+    d = rng.normal(size=(50, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    for yaw, tilt in ((0.0, 0.0), (37.0, 0.0), (-120.0, 25.0)):
+        uv = MapThumbnail.points(d, yaw, tilt)
+        assert uv.min() >= 0.0 and uv.max() <= 1.0
+        back = np.array([MapThumbnail.direction_at(u, v, yaw, tilt) for u, v in uv])
+        np.testing.assert_allclose(back, d, atol=1e-9)
+    # with no tilt the picture (the map shifted by uv_range) is EnvMap.rotated(yaw)
+    env = EnvMap(rng.random((8, 16, 3)).astype(np.float32))
+    (u0, _), _ = MapThumbnail.uv_range(90.0)
+    column = int(round(u0 * 16))
+    np.testing.assert_array_equal(np.roll(env.pixels, -column, axis=1), env.rotated(90.0).pixels)

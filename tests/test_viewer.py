@@ -339,8 +339,9 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
         v.xdotool("click", 1)
 
     s = v.state()
+    assert s["panel_height"] <= s["window_size"][1]  # the window opens tall enough for the whole panel (1200-px screen)
     lights = load_lights(asset_dir() / DEMO_LIGHTS).rotated(s["look"]["yaw"], s["look"]["tilt"])
-    uv = MapThumbnail.points(lights.direction)
+    uv = MapThumbnail.points(lights.direction, s["look"]["yaw"], s["look"]["tilt"])
     inner = np.nonzero((uv[:, 0] > 0.15) & (uv[:, 0] < 0.85) & (uv[:, 1] > 0.1) & (uv[:, 1] < 0.9))[0]
     k = inner[np.argmax(lights.intensity[inner].sum(axis=1))]
     sun, (u, w) = lights.direction[k], uv[k]

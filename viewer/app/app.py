@@ -98,6 +98,7 @@ class ViewerApp:
         self.aiming: int | None = None  # the placed light the next click on the person aims
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
+        self._switched = False  # this frame applied a finished job (a new map's lights, a new person)
         self.frame_count = 0
         self.widgets: dict = {}
         self.panel_height = 0.0  # the panel's content, drawn or not (the first frame fits the window to it)
@@ -266,6 +267,7 @@ class ViewerApp:
             self.message = f"still opening {self.scene_job.path.name}"
             return
         self.error = ""
+        self.message = f"opening {path.name}; the window stays live meanwhile"
         self.scene_job = SceneJob(path, self.config.max_size, self.config.device, wake=self.window.wake)
 
     def open_file(self, path: Path):
@@ -374,6 +376,7 @@ class ViewerApp:
             print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
             return
         res = job.result
+        self._switched = True
         self.session.set_scene(res.scene)
         self.session.update(yaw=facing_yaw(self.session.lights))  # its first frame faces the brightest light
         self.view = ix.ViewState()
@@ -395,6 +398,7 @@ class ViewerApp:
             print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
             return
         res = job.result
+        self._switched = True
         self.session.set_lights(res.lights, environment=res.env.pixels)
         self.env_path = job.path
         self.n_lights = len(res.lights)
@@ -441,6 +445,9 @@ class ViewerApp:
             if rec.finished:
                 self._finish_recording()
             return eng, "record"
+        if self._switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
+            self._switched = False
+            return eng, "switch"
         if not worked:  # "load": nothing to redraw while lights are fitted or a scene opened off this thread
             return eng, "load" if self.job is not None or self.scene_job is not None else "idle"
         return eng, "drag" if preview else "update"
@@ -532,7 +539,8 @@ class ViewerApp:
 
 
 def run_viewer(config: ViewerConfig) -> int:
-    # background work (light fits, refinement) runs on threads: hand the GIL over every 0.5 ms, not
-    # 5, so a frame of the window waits little behind the work's Python steps
+    # background work runs on threads (reading a scene's maps, the refinement network; light fits and
+    # a photo's inference run in child processes, their threads only read them): hand the GIL over
+    # every 0.5 ms, not 5, so a frame of the window waits little behind the work's Python steps
     sys.setswitchinterval(0.0005)
     return ViewerApp(config).run()

@@ -1,7 +1,7 @@
-"""Work off the window's thread: opening a photo or a scene bundle (a photo's inference in its own
-process, :mod:`viewer.app.photo_process`; the window shows the new scene when its maps are read),
-light fitting (the window keeps drawing, with a progress bar,
-while a map's lights are fitted, then swaps in the new map and its lights together) and the shadow
+"""Work off the window's thread: opening a photo or a scene bundle (a photo's inference in a child
+process, :mod:`viewer.app.child`; the window shows the new scene when its maps are read), light
+fitting (in a child process too: the window keeps drawing, with a progress bar, while a map's
+lights are fitted, then swaps in the new map and its lights together) and the shadow
 refinement network (run on the visibility the engine read back; its result is used only if the
 lights have not moved since)."""
 
@@ -15,6 +15,8 @@ import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from ..envmap import EnvMap, load_envmap
 from ..errors import InputError
@@ -104,9 +106,52 @@ class ThreadJob(ABC):
             self._wake()
 
 
-class LightJob(ThreadJob):
-    """Load ``path`` and get its ``n`` lights (beside the map, from the cache, or fitted) on a
-    thread; ``result`` is a :class:`LightsResult`."""
+class ChildJob(ThreadJob):
+    """A job whose heavy part runs in a child process (:mod:`viewer.app.child`), read line by line
+    on the job's thread; :meth:`stop` ends the child at once."""
+
+    def __init__(self, wake=lambda: None):
+        self._process: subprocess.Popen | None = None
+        super().__init__(wake)
+
+    def stop(self, timeout: float = 60.0) -> bool:
+        proc = self._process
+        if proc is not None and proc.poll() is None:
+            proc.kill()  # what it writes (a bundle, a cache entry) appears whole or not at all
+        return super().stop(timeout)
+
+    def run_child(self, args: list[str], on_stage) -> dict:
+        """Run ``python -m viewer.app.child ARGS``; ``on_stage(message)`` for each progress line;
+        returns its result line; raises InputError with its error line."""
+        root = str(Path(__file__).resolve().parents[2])  # the package's parent: found whatever the current folder
+        env = dict(os.environ)
+        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        self._process = proc = subprocess.Popen([sys.executable, "-m", "viewer.app.child", *args], stdout=subprocess.PIPE,
+                                                stderr=subprocess.DEVNULL, text=True, env=env)
+        said: dict = {}
+        for line in proc.stdout:
+            self.check_cancelled()
+            try:
+                msg = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # a library's own print
+            if not isinstance(msg, dict):
+                continue
+            said = msg
+            if "stage" in said:
+                on_stage(said)
+        proc.wait()
+        self.check_cancelled()
+        if "error" in said:
+            raise InputError(None, str(said["error"]))  # already names the file
+        if "stage" in said or not said:
+            raise InputError(args[1], f"the work ended without a result (exit status {proc.returncode})")
+        return said
+
+
+class LightJob(ChildJob):
+    """Load ``path`` and get its ``n`` lights (beside the map, from the cache, or fitted in a child
+    process) on a thread; ``result`` is a :class:`LightsResult`."""
 
     thread_name = "light-fit"
 
@@ -118,31 +163,27 @@ class LightJob(ThreadJob):
         self.fraction = 0.0
         super().__init__(wake)
 
-    def _progress(self, stage: str, done: int, total: int):
-        self.check_cancelled()
-        self.stage = stage
-        self.fraction = done / max(total, 1)
+    def _stage(self, said: dict):
+        self.stage = str(said["stage"])
+        self.fraction = float(said.get("done", 0)) / max(float(said.get("total", 1)), 1.0)
 
     def work(self) -> LightsResult:
-        from ..lightfit import lights_for_map
+        from ..lightfit import cache_path
 
         env = load_envmap(self.path)
         lights = sidecar_lights(self.path, self.n, self.method)
-        how = "bundled"
-        if lights is None:
-            import torch
-
-            # one torch thread while fitting: the other core stays with the window's frames
-            # (llvmpipe and the UI); measured by relight bench viewer (docs/viewer.md)
-            threads = torch.get_num_threads()
-            torch.set_num_threads(1)
-            self.stage = "fitting"
+        if lights is not None:
+            return LightsResult(env, lights, "bundled")
+        cached = cache_path(env, self.n, self.method)
+        if cached.is_file():
             try:
-                lights, cached = lights_for_map(env, self.n, self.method, progress=self._progress)
-            finally:
-                torch.set_num_threads(threads)
-            how = "cached" if cached else "fitted"
-        return LightsResult(env, lights, how)
+                return LightsResult(env, load_lights(cached), "cached")
+            except InputError:
+                pass  # a corrupt entry: the child fits again (and warns)
+        self.stage = "fitting"
+        said = self.run_child(["lights", str(self.path), "-n", str(self.n), "--method", self.method], self._stage)
+        lights = AreaLights.from_array(np.asarray(said["lights"], dtype=np.float32)).validate(self.path)
+        return LightsResult(env, lights, "cached" if said.get("cached") else "fitted")
 
     def failure(self, exc: Exception) -> str:
         return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"
@@ -155,7 +196,7 @@ class SceneResult:
     how: str  # "inferred", "cached" or "bundle"
 
 
-class SceneJob(ThreadJob):
+class SceneJob(ChildJob):
     """Open a photo (its bundle inferred in a niced child process, or found in the cache) or a scene
     bundle, and read its maps (``max_size``: the frame's longer side, as ``relight view
     --max-size``); ``result`` is a :class:`SceneResult`."""
@@ -171,55 +212,24 @@ class SceneJob(ThreadJob):
         self.device = device
         self.stage = "starting the inference" if self.photo else "reading the maps"
         self.fraction = 0.0
-        self._process: subprocess.Popen | None = None
+        self._done = 0
         super().__init__(wake)
 
-    def stop(self, timeout: float = 60.0) -> bool:
-        proc = self._process
-        if proc is not None and proc.poll() is None:
-            proc.kill()  # the inference ends now; its bundle is written atomically or not at all
-        return super().stop(timeout)
-
-    def _infer(self) -> tuple[Path, bool]:
+    def _stage(self, said: dict):
         from ..inference import STAGES
 
-        cmd = [sys.executable, "-m", "viewer.app.photo_process", str(self.path), "--max-size", str(self.max_size),
-               "--device", self.device]
-        root = str(Path(__file__).resolve().parents[2])  # the package's parent: found whatever the current folder
-        env = dict(os.environ)
-        env["PYTHONPATH"] = root + (":" + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        self._process = proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                                                env=env)
-        said = {}
-        done = 0
-        for line in proc.stdout:
-            self.check_cancelled()
-            try:
-                msg = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a library's own print
-            if not isinstance(msg, dict):
-                continue
-            said = msg
-            if "stage" in said:
-                done += 1
-                self.stage = f"{said['stage']} done ({done} of {len(STAGES)})"
-                self.fraction = done / (len(STAGES) + 1)
-        proc.wait()
-        self.check_cancelled()
-        if "bundle" in said:
-            return Path(said["bundle"]), bool(said.get("cached"))
-        if "error" in said:
-            raise InputError(None, str(said["error"]))  # already names the file
-        raise InputError(self.path, f"the inference ended without a bundle (exit status {proc.returncode})")
+        self._done += 1
+        self.stage = f"{said['stage']} done ({self._done} of {len(STAGES)})"
+        self.fraction = self._done / (len(STAGES) + 1)
 
     def work(self) -> SceneResult:
         from ..scene_ops import load_sized_scene
 
         bundle, how = self.path, "bundle"
         if self.photo:
-            bundle, cached = self._infer()
-            how = "cached" if cached else "inferred"
+            said = self.run_child(["photo", str(self.path), "--max-size", str(self.max_size), "--device", self.device],
+                                  self._stage)
+            bundle, how = Path(said["bundle"]), "cached" if said.get("cached") else "inferred"
             self.stage = "reading the maps"
         scene = load_sized_scene(bundle, None, self.max_size)
         return SceneResult(scene, self.path, how)

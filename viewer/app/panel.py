@@ -287,25 +287,27 @@ def _thumbnail(app):
     s = app.session
     if s.environment is None:
         return
-    look = s.look
-    tex = app.thumbnail.update(s.environment, look.yaw, look.tilt)
+    yaw, tilt = s.look.yaw, s.look.tilt
+    thumb = app.thumbnail
+    tex = thumb.update(s.environment)
     width = imgui.get_content_region_avail().x
     size = imgui.ImVec2(width, width / 2)
-    imgui.image(imgui.ImTextureRef(tex.glo), size)
+    uv0, uv1 = thumb.uv_range(yaw)
+    imgui.image(imgui.ImTextureRef(tex.glo), size, imgui.ImVec2(*uv0), imgui.ImVec2(*uv1))
     _remember(app, "thumbnail")
     lo = imgui.get_item_rect_min()
     if imgui.is_item_clicked(0):
         mouse = imgui.get_io().mouse_pos
-        app.aim_direction(app.thumbnail.direction_at((mouse.x - lo.x) / size.x, (mouse.y - lo.y) / size.y))
+        app.aim_direction(thumb.direction_at((mouse.x - lo.x) / size.x, (mouse.y - lo.y) / size.y, yaw, tilt))
     if imgui.is_item_hovered():
         imgui.set_tooltip("the map as it lights the person now\nmiddle: behind the person; edges: the camera's side\n"
                           "click: aim the light being aimed here, or add one here")
     draw = imgui.get_window_draw_list()
     ring = imgui.get_color_u32(imgui.ImVec4(1.0, 1.0, 1.0, 0.9))
-    for u, v in app.thumbnail.points(s.rotated_lights().direction):
+    for u, v in thumb.points(s.rotated_lights().direction, yaw, tilt):
         draw.add_circle(imgui.ImVec2(lo.x + u * size.x, lo.y + v * size.y), 4.0, ring)
     first = len(s.base_lights)
-    for j, ((u, v), p) in enumerate(zip(app.thumbnail.points([p.direction for p in s.placed]), s.placed)):
+    for j, ((u, v), p) in enumerate(zip(thumb.points([p.direction for p in s.placed], yaw, tilt), s.placed)):
         c = _swatch(kelvin_to_rgb(p.kelvin), 2.0)
         centre = imgui.ImVec2(lo.x + u * size.x, lo.y + v * size.y)
         draw.add_circle_filled(centre, 5.0, imgui.get_color_u32(c))

@@ -1,6 +1,13 @@
-"""The environment map's thumbnail in the panel: the map as its light arrives now (turned by the
-look's yaw and tilt), with a dot on every light (the map's and the user's). A click on it is a
-direction towards a light (:meth:`MapThumbnail.direction_at`)."""
+"""The environment map's thumbnail in the panel: the map as its light arrives now, with a dot on
+every light (the map's and the user's). A click on it is a direction towards a light
+(:meth:`MapThumbnail.direction_at`).
+
+The picture is tone-mapped once per map; the lighting's yaw turns it by shifting the texture's u
+(wrapping), which costs nothing per frame while the user drags. Points are placed by the same
+mapping: a camera-space direction d is the map's direction R^T d (R: the look's yaw and tilt), drawn
+at that map point shifted by the yaw, so picture, dots and clicks agree under any tilt (the
+picture is the map turned by the yaw alone).
+"""
 
 from __future__ import annotations
 
@@ -8,57 +15,63 @@ import numpy as np
 
 from ..envmap import EnvMap, direction_to_uv, uv_to_direction
 from ..imageio import linear_to_srgb
+from ..lights import rotation_matrix
 from ..median_cut import LUMINANCE
 
 WIDTH = 256  # texels across (height: half)
 
 
-def thumbnail_pixels(env: EnvMap, yaw: float, tilt: float) -> np.ndarray:
-    """(WIDTH / 2, WIDTH, 3) uint8 display sRGB of ``env`` (already at most WIDTH wide) turned by
-    (yaw, tilt): its median luminance to mid grey, then Reinhard's x / (1 + x), so a sun 1e5 times
-    the sky is a bright disc, not the whole picture."""
-    pixels = env.rotated(yaw, tilt).pixels.astype(np.float64)
-    lum = np.nan_to_num(pixels @ LUMINANCE, nan=0.0, posinf=0.0)
+def thumbnail_pixels(env: EnvMap) -> np.ndarray:
+    """(H, W, 3) uint8 display sRGB of ``env``: its median luminance to mid grey, then Reinhard's
+    x / (1 + x), so a sun 1e5 times the sky is a bright disc, not the whole picture."""
+    pixels = np.nan_to_num(env.pixels.astype(np.float64), nan=0.0, posinf=0.0)
+    lum = pixels @ LUMINANCE
     mid = float(np.median(lum[lum > 0])) if np.any(lum > 0) else 1.0
-    x = np.clip(np.nan_to_num(pixels, nan=0.0, posinf=0.0) * (0.18 / mid), 0.0, None)
+    x = np.clip(pixels * (0.18 / mid), 0.0, None)
     return (np.clip(linear_to_srgb(x / (1.0 + x)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
 class MapThumbnail:
-    """The GL texture the panel draws, made again only when the map or the look's turn changes."""
+    """The GL texture the panel draws (made again only for a new map) and the thumbnail's mapping
+    between its points and camera-space directions under a look's (yaw, tilt)."""
 
     def __init__(self, ctx):
         self.ctx = ctx
         self.texture = None
-        self._key = None
-        self._small: tuple[int, EnvMap] | None = None  # (id of the full map's pixels, it downsampled)
+        self._source = None  # id of the map's pixels the texture shows
 
-    def update(self, environment: np.ndarray, yaw: float, tilt: float):
-        key = (id(environment), yaw, tilt)
-        if key == self._key:
+    def update(self, environment: np.ndarray):
+        if self._source == id(environment):
             return self.texture
-        if self._small is None or self._small[0] != id(environment):
-            self._small = (id(environment), EnvMap(environment).downsampled(WIDTH))
-        small = self._small[1]
-        pixels = thumbnail_pixels(small, yaw, tilt)
+        pixels = thumbnail_pixels(EnvMap(environment).downsampled(WIDTH))
         h, w = pixels.shape[:2]
-        if self.texture is None or self.texture.size != (w, h):
-            if self.texture is not None:
-                self.texture.release()
-            self.texture = self.ctx.texture((w, h), 3, dtype="f1")
-        self.texture.write(np.ascontiguousarray(pixels).tobytes())
-        self._key = key
+        if self.texture is not None:
+            self.texture.release()
+        self.texture = self.ctx.texture((w, h), 3, np.ascontiguousarray(pixels).tobytes(), dtype="f1")
+        self.texture.repeat_x = True  # the yaw's shift wraps around
+        self._source = id(environment)
         return self.texture
 
     @staticmethod
-    def direction_at(u: float, v: float) -> np.ndarray:
-        """The direction towards the light arriving through the thumbnail's point (u, v) in [0, 1]."""
-        return uv_to_direction((min(max(u, 0.0), 1.0), min(max(v, 0.0), 1.0)))
+    def uv_range(yaw: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The texture's (uv0, uv1) that show the map turned by ``yaw`` (EnvMap.rotated's shift)."""
+        shift = yaw / 360.0
+        return (shift, 0.0), (1.0 + shift, 1.0)
 
     @staticmethod
-    def points(directions: np.ndarray) -> np.ndarray:
-        """(N, 2) thumbnail coordinates in [0, 1] of directions towards lights."""
-        return direction_to_uv(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+    def direction_at(u: float, v: float, yaw: float, tilt: float) -> np.ndarray:
+        """The camera-space direction towards the light arriving through the thumbnail's point
+        (u, v) in [0, 1]."""
+        world = uv_to_direction((u + yaw / 360.0, min(max(v, 0.0), 1.0)))
+        return rotation_matrix(yaw, tilt) @ world
+
+    @staticmethod
+    def points(directions, yaw: float, tilt: float) -> np.ndarray:
+        """(N, 2) thumbnail points in [0, 1] of camera-space directions towards lights."""
+        world = np.asarray(directions, dtype=np.float64).reshape(-1, 3) @ rotation_matrix(yaw, tilt)
+        uv = direction_to_uv(world)
+        uv[:, 0] = np.mod(uv[:, 0] - yaw / 360.0, 1.0)
+        return uv
 
     def release(self):
         if self.texture is not None:

@@ -50,6 +50,7 @@ def x_display(private: bool = False):
 
 def _wait(state_path: Path, predicate, proc, timeout=180.0) -> dict:
     end = time.monotonic() + timeout
+    s = {}
     while time.monotonic() < end:
         if proc.poll() is not None:
             raise RuntimeError(f"the viewer exited ({proc.returncode}): {proc.stderr.read()[-1500:]}")
@@ -60,7 +61,8 @@ def _wait(state_path: Path, predicate, proc, timeout=180.0) -> dict:
         except (OSError, json.JSONDecodeError):
             pass
         time.sleep(0.1)
-    raise RuntimeError("the viewer did not get ready in time")
+    raise RuntimeError(f"the viewer did not get ready in time (its message: {s.get('message')!r}, "
+                       f"error: {s.get('error')!r})")
 
 
 def _frames_since(state: dict, count: int) -> list:
@@ -71,10 +73,9 @@ def _frames_since(state: dict, count: int) -> list:
 
 
 def _load_figures(frames: list) -> dict:
-    """The UI frames while something loaded, and the frame that showed it (the first update after)."""
+    """The UI frames while something loaded, and the frame that showed it (the viewer's "switch")."""
     load = [ms for ms, kind in frames if kind == "load"]
-    last = max((i for i, (_, kind) in enumerate(frames) if kind == "load"), default=-1)
-    shown = next((ms for ms, kind in frames[last + 1:] if kind == "update"), None)
+    shown = next((ms for ms, kind in frames if kind == "switch"), None)
     return {"frames": len(load), "ms_max": max(load) if load else None,
             "ms_median": float(np.median(load)) if load else None, "shown_ms": shown}
 
@@ -128,7 +129,13 @@ def measure_size(size: int, display: str, workdir: Path, new_map: Path, photo: P
         def open_in_browser(path: Path, done) -> list:
             start = json.loads(state_path.read_text())["frame_count"]
             click("browser path")
-            xdo("key", "ctrl+a", "type", str(path))
+            time.sleep(0.5)  # the field takes the keys from the frame after the click (slow at 1024^2)
+            xdo("key", "ctrl+a")
+            time.sleep(0.3)
+            xdo("key", "BackSpace")
+            time.sleep(0.3)
+            xdo("type", str(path))
+            time.sleep(0.3)
             click("browser open")
             time.sleep(0.5)
             _wait(state_path, done, proc, timeout=300)
@@ -166,6 +173,8 @@ def measure_size(size: int, display: str, workdir: Path, new_map: Path, photo: P
         "load_frames": int(load.size),
         "load_ms_max": float(load.max()) if load.size else None,
         "load_ms_median": float(np.median(load)) if load.size else None,
+        "new_map": _load_figures(map_frames),
+        "new_photo": _load_figures(photo_frames),
     }
 
 
