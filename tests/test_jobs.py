@@ -1,0 +1,49 @@
+"""The window's background jobs without a window: a photo, a bundle and a map each end with a
+result or with one line naming the file (the child process's error, never a traceback)."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+
+from viewer.app.jobs import LightJob, SceneJob
+from viewer.resources import asset_dir, sample_scene_dir
+
+
+def finished(job, timeout=240.0):
+    job._thread.join(timeout)
+    assert job.done
+    return job
+
+
+def test_a_bad_photo_and_a_bad_bundle_are_one_line_each(tmp_path):
+    bad = tmp_path / "holiday.jpg"
+    bad.write_text("not a jpeg")
+    job = finished(SceneJob(bad, 256))
+    assert job.result is None and job.error.startswith(str(bad)) and "cannot read the photo" in job.error
+    assert "\n" not in job.error and "Traceback" not in job.error
+    broken = shutil.copytree(sample_scene_dir(), tmp_path / "bundle")
+    (broken / "scene.json").write_text("{")
+    job = finished(SceneJob(broken, 256))
+    assert job.result is None and str(broken / "scene.json") in job.error
+
+
+def test_a_bundle_opens_at_the_size_asked(tmp_path):
+    job = finished(SceneJob(sample_scene_dir(), 256))
+    assert job.error is None and job.result.how == "bundle" and max(job.result.scene.output_size) <= 256
+
+
+def test_a_map_is_fitted_in_the_child_and_cached(tmp_path, monkeypatch):
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
+    new_map = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", tmp_path / "sunset.hdr")
+    job = finished(LightJob(new_map, 8, "instant"))
+    assert job.error is None and job.result.how == "fitted" and len(job.result.lights) == 8
+    assert np.all(np.isfinite(job.result.lights.intensity)) and job.result.lights.intensity.sum() > 0
+    again = finished(LightJob(new_map, 8, "instant"))
+    assert again.result.how == "cached"
+    np.testing.assert_array_equal(again.result.lights.direction, job.result.lights.direction)
+    broken = tmp_path / "broken.hdr"
+    broken.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n")
+    job = finished(LightJob(broken, 8, "instant"))
+    assert job.result is None and job.error.startswith(str(broken))
