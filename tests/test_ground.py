@@ -113,3 +113,17 @@ def test_a_photo_frame_and_its_exr_carry_the_ground_shadow(ctx, person):
     assert np.array_equal(d1[matte], d0[matte])
     assert ((d0 - d1).max(axis=-1) > 8)[~matte].sum() > 200
     assert np.all(h1 <= h0 + 1e-6) and (h0 - h1).max() > 0.1  # the EXR: the photo's background darkened
+
+
+def test_the_ground_shadow_against_mitsuba(tmp_path):
+    """relight bench ground at a small size: the ray-traced ground under a low sun and under the
+    bundled map; contact-hardening soft shadows are closer to it than hard ones, within bounds."""
+    from viewer.lab.bench.ground import run_ground_benchmark
+
+    rows = run_ground_benchmark(str(tmp_path / "ground.json"), size=128, spp=32, repeats=1)["rows"]
+    err = {(r["lighting"], r["method"]): r["mae"] for r in rows}
+    for lighting, bound in (("low sun", 0.2), ("mountain map", 0.06)):
+        assert err[(lighting, "pcss")] < err[(lighting, "hard")]
+        assert err[(lighting, "pcss")] < bound
+    assert all(r["shadow_pixels_truth"] > 50 and r["shadow_pixels_engine"] > 50 for r in rows)
+    assert (tmp_path / "ground.json").is_file()

@@ -121,6 +121,10 @@ def cmd_bench(args) -> int:
         from .bench.viewer import run_viewer_benchmark
 
         run_viewer_benchmark(sizes=args.sizes, output=output)
+    elif args.what == "ground":
+        from .bench.ground import run_ground_benchmark
+
+        run_ground_benchmark(output=output, repeats=args.repeats)
     elif args.what == "temporal":
         from .bench.temporal import run_temporal_benchmark
 
@@ -257,7 +261,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness",
-                                    "bodyfit"),
+                                    "bodyfit", "ground"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -266,7 +270,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
                         "mask IoU, times; --data adds held-out pairs); robustness: the bad-input campaign (hostile files and options "
                         "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
-                        "a dataset's photos, as a depth prior (--data, --limit people)")
+                        "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
+                        "ground against Mitsuba (error and the ground pass's time per shadow method)")
     p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")

@@ -1,0 +1,130 @@
+"""The person's shadow on the ground against a ray tracer (``relight bench ground``).
+
+The sample person's depth mesh stands on a white diffuse plane at its lowest point (the plane the
+engine's ground pass assumes); Mitsuba renders the plane's shadowed diffuse with the person and
+without it under the same map, and their ratio on the plane is the share of the ground's light left
+(truth). The engine's ``1 - read_ground_shadow()`` is that share as the display uses it. Errors are
+the mean absolute difference over the plane's pixels the person does not cover, within the region
+either puts in shadow (ratio below 0.98), for each shadow method; times are the ground pass's own
+(``EngineOptions.profile``), median of repeats. Two lightings: one Gaussian area light (a low sun,
+where the engine's light is the map's light exactly) and the bundled mountain map (the engine with
+its 16 fitted area lights, the truth with the whole map).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer.envmap import EnvMap, load_envmap
+from viewer.gl import Engine, EngineOptions
+from viewer.lights import AreaLights, load_lights
+from viewer.resources import asset_dir, sample_scene_dir
+from viewer.scene import load_scene
+from viewer.scene_ops import resample_scene
+from viewer.settings import Look
+from viewer.shadow_space import ANGULAR_SIGMA
+from viewer.lab.bench.contact import gaussian_light
+
+SUN = np.array([0.6, 0.45, 0.66]) / np.linalg.norm([0.6, 0.45, 0.66])  # low, from the right and in front
+SUN_SIGMA = 3.0  # 256-px units (~5 degrees)
+METHODS = ("hard", "csm", "pcss")
+IN_SHADOW = 0.98
+
+
+def plane_ratio(scene, env: EnvMap, ground_y: float, spp: int) -> tuple[np.ndarray, np.ndarray]:
+    """(ratio (H, W), plane (H, W) bool): the plane's shadowed diffuse with the person over without
+    it, and where the plane is seen uncovered by the person."""
+    from viewer.lab.data.reference import bundle_mesh, camera_sensor, direct_scene, envmap_emitter, mi_mesh, mitsuba
+
+    mi = mitsuba()
+    white = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}})
+    far = 200.0
+    quad = np.array([[-far, ground_y, 1.0], [far, ground_y, 1.0], [far, ground_y, -far], [-far, ground_y, -far]])
+    up = np.tile([0.0, 1.0, 0.0], (4, 1))
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    m = bundle_mesh(scene)
+    images = []
+    for with_person in (True, False):
+        items = direct_scene(camera_sensor(mi, scene, spp), envmap_emitter(mi, env))
+        items["ground"] = mi_mesh(mi, "ground", quad, up, faces, white)
+        if with_person:
+            items["person"] = mi_mesh(mi, "person", m.vertices, m.normals, m.triangles, white)
+        images.append(np.array(mi.render(mi.load_dict(items), spp=spp), dtype=np.float32)[..., :3].mean(axis=-1))
+    shadowed, open_ground = images
+    plane = (open_ground > 1e-6) & ~scene.mask
+    return np.where(plane, shadowed / np.maximum(open_ground, 1e-12), 1.0), plane
+
+
+def engine_ratio(ctx, scene, lights: AreaLights, method: str, repeats: int) -> tuple[np.ndarray, float, float]:
+    """(the engine's share of the ground's light left (H, W) at the work resolution, ground pass
+    ms median, ground_y)."""
+    import cv2
+
+    eng = Engine(ctx, scene, EngineOptions(soft="csm" if method == "hard" else method, profile=True))
+    try:
+        eng.set_lights(lights)
+        look = Look(background="color", shadows="hard" if method == "hard" else "soft", ground=True)
+        eng.set_look(look)
+        eng.render()
+        occ = eng.read_ground_shadow().mean(axis=-1)
+        times = []
+        for _ in range(repeats):  # the ground alone: off and on again redoes only the ground pass and the display
+            eng.set_look(look.replace(ground=False))
+            eng.render()
+            eng.kit.timings.clear()
+            eng.set_look(look)
+            eng.render()
+            times.append(1000.0 * sum(eng.timings["ground_shadow"]))
+        ground_y = eng.ground_pass.ground_y
+    finally:
+        eng.release()
+    left = 1.0 - cv2.resize(occ, (scene.width, scene.height), interpolation=cv2.INTER_LINEAR)
+    return left, float(np.median(times)), ground_y
+
+
+def run_ground_benchmark(output: str, size: int = 256, spp: int = 256, repeats: int = 7) -> dict:
+    from viewer.gl import create_headless_context
+    from viewer.gl.context import describe
+
+    ctx = create_headless_context()
+    scene = resample_scene(load_scene(sample_scene_dir()), size)
+    maps = asset_dir() / "envmaps"
+    cases = {
+        "low sun": (gaussian_light(SUN_SIGMA * ANGULAR_SIGMA, direction=SUN),
+                    AreaLights(SUN[None].astype(np.float32), [SUN_SIGMA], [[1.0, 1.0, 1.0]])),
+        "mountain map": (load_envmap(maps / "immenstadter_horn_256.hdr"), load_lights(maps / "immenstadter_horn_256.lights.json")),
+    }
+    rows = []
+    for name, (env, lights) in cases.items():
+        results = {m: engine_ratio(ctx, scene, lights, m, repeats) for m in METHODS}
+        ground_y = results["pcss"][2]
+        t0 = time.perf_counter()
+        truth, plane = plane_ratio(scene, env, ground_y, spp)
+        seconds = time.perf_counter() - t0
+        for method, (left, ms, _) in results.items():
+            region = plane & ((truth < IN_SHADOW) | (left < IN_SHADOW))
+            err = float(np.abs(left - truth)[region].mean()) if region.any() else 0.0
+            rows.append({"lighting": name, "method": method, "mae": err, "ground_pass_ms": ms,
+                         "shadow_pixels_truth": int((plane & (truth < IN_SHADOW)).sum()),
+                         "shadow_pixels_engine": int((plane & (left < IN_SHADOW)).sum()),
+                         "darkest_truth": float(truth[plane].min()), "darkest_engine": float(left[plane].min()),
+                         "reference_seconds": round(seconds, 1)})
+            print(f"{name}, {method}: mean |error| {err:.3f} of the ground's light over the shadow; ground pass "
+                  f"{ms:.1f} ms; darkest {left[plane].min():.2f} (truth {truth[plane].min():.2f})", flush=True)
+    out = {"machine": describe(ctx), "size": size, "spp": spp, "repeats": repeats,
+           "method": "the sample person's depth mesh on a white plane at its lowest point; truth: Mitsuba's shadowed "
+                     "diffuse of the plane with the person over without (direct light, the whole map); engine: "
+                     "1 - read_ground_shadow(), bilinear to the work size; error: mean |difference| over plane pixels "
+                     "uncovered by the person where either is below 0.98; time: the ground pass (profile), median",
+           "rows": rows}
+    path = Path(output)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(out, indent=1) + "\n")
+    tmp.replace(path)
+    print(f"wrote {path}")
+    return out
