@@ -47,23 +47,3 @@ def test_a_map_is_fitted_in_the_child_and_cached(tmp_path, monkeypatch):
     broken.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n")
     job = finished(LightJob(broken, 8, "instant"))
     assert job.result is None and job.error.startswith(str(broken))
-
-
-def test_a_photo_with_a_mask_beside_it_uses_that_mask(tmp_path, monkeypatch):
-    """``<stem>.mask.png`` beside a photo is its hand-made mask: the window's inference uses it (the
-    bundle records it) instead of the automatic one."""
-    import json
-
-    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
-    from PIL import Image
-
-    photo = tmp_path / "person.jpg"
-    Image.open(asset_dir() / "photos" / "underpass.jpg").resize((170, 256)).save(photo)
-    mask = np.zeros((256, 170), np.uint8)
-    mask[40:240, 50:120] = 255
-    Image.fromarray(mask).save(tmp_path / "person.mask.png")
-    job = finished(SceneJob(photo, 256))
-    assert job.error is None and job.mask == tmp_path / "person.mask.png"
-    bundles = list((tmp_path / "cache" / "bundles").iterdir())
-    record = json.loads((bundles[0] / "inference.json").read_text())
-    assert record["mask"] == str(tmp_path / "person.mask.png")

@@ -385,8 +385,6 @@ class ViewerApp:
         self.window.set_title(f"relight - {res.path.name}")
         how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",
                "bundle": "a scene bundle"}[res.how]
-        if job.mask is not None:
-            how += f", with the mask {job.mask.name}"
         self.message = f"opened {res.path.name} ({how}): {res.scene.output_size[0]}x{res.scene.output_size[1]}"
         print(self.message, flush=True)
 

@@ -1,4 +1,4 @@
-"""The window's long work in a child process: ``python -m viewer.app.child photo PHOTO [--mask MASK] --max-size N``
+"""The window's long work in a child process: ``python -m viewer.app.child photo PHOTO --max-size N``
 writes (or finds in the cache) the photo's scene bundle; ``python -m viewer.app.child lights MAP -n N
 --method M`` fits (or finds in the cache) a map's lights. Each reports on standard output, one JSON
 object a line: ``{"stage": NAME}`` (a photo: as each stage of :data:`viewer.inference.STAGES` ends)
@@ -26,7 +26,7 @@ def _say(**fields):
 def _photo(args):
     from ..inference import cached_bundle
 
-    bundle, cached = cached_bundle(args.photo, args.mask, max_size=args.max_size, device=args.device,
+    bundle, cached = cached_bundle(args.photo, None, max_size=args.max_size, device=args.device,
                                    progress=lambda stage: _say(stage=stage))
     _say(bundle=str(bundle), cached=cached)
 
@@ -45,7 +45,6 @@ def main(argv=None) -> int:
     sub = p.add_subparsers(dest="what", required=True)
     photo = sub.add_parser("photo")
     photo.add_argument("photo")
-    photo.add_argument("--mask")
     photo.add_argument("--max-size", type=int, required=True)
     photo.add_argument("--device", default="cpu")
     photo.set_defaults(func=_photo, source="photo")

@@ -197,9 +197,8 @@ class SceneResult:
 
 
 class SceneJob(ChildJob):
-    """Open a photo (its bundle inferred in a niced child process, or found in the cache; with the
-    hand-made mask beside it, ``<stem>.mask.png``, when there is one, else the automatic one) or a
-    scene bundle, and read its maps (``max_size``: the frame's longer side, as ``relight view
+    """Open a photo (its bundle inferred in a niced child process, or found in the cache) or a scene
+    bundle, and read its maps (``max_size``: the frame's longer side, as ``relight view
     --max-size``); ``result`` is a :class:`SceneResult`."""
 
     thread_name = "open-scene"
@@ -209,8 +208,6 @@ class SceneJob(ChildJob):
 
         self.path = Path(path)
         self.photo = self.path.suffix.lower() in PHOTO_SUFFIXES
-        beside = self.path.with_name(f"{self.path.stem}.mask.png")
-        self.mask = beside if self.photo and beside.is_file() else None
         self.max_size = max_size
         self.device = device
         self.stage = "starting the inference" if self.photo else "reading the maps"
@@ -230,8 +227,7 @@ class SceneJob(ChildJob):
 
         bundle, how = self.path, "bundle"
         if self.photo:
-            mask = ["--mask", str(self.mask)] if self.mask is not None else []
-            said = self.run_child(["photo", str(self.path), *mask, "--max-size", str(self.max_size), "--device", self.device],
+            said = self.run_child(["photo", str(self.path), "--max-size", str(self.max_size), "--device", self.device],
                                   self._stage)
             bundle, how = Path(said["bundle"]), "cached" if said.get("cached") else "inferred"
             self.stage = "reading the maps"
