@@ -258,6 +258,7 @@ class ViewerApp:
             self.message = "still fitting the previous map"
             return
         self.error = ""
+        self.message = f"lights for {Path(path).name}; the window stays live meanwhile"
         self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
 
     def open_scene(self, path: Path):
@@ -372,7 +373,7 @@ class ViewerApp:
             return
         self.scene_job = None
         if job.error:
-            self.error = job.error
+            self.error, self.message = job.error, ""
             print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
             return
         res = job.result
@@ -394,7 +395,7 @@ class ViewerApp:
             return
         self.job = None
         if job.error:
-            self.error = job.error
+            self.error, self.message = job.error, ""
             print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
             return
         res = job.result

@@ -43,10 +43,12 @@ class FileBrowser:
                     chosen = entry
         imgui.end_child()
         imgui.set_next_item_width(-60)
-        _, self.path_text = imgui.input_text("##path", self.path_text)
+        # a click selects the whole path, so what is typed replaces it; Enter opens it
+        flags = imgui.InputTextFlags_.auto_select_all | imgui.InputTextFlags_.enter_returns_true
+        entered, self.path_text = imgui.input_text("##path", self.path_text, flags)
         remember("path")
         imgui.same_line()
-        if imgui.button("Open") and self.path_text.strip():
+        if (imgui.button("Open") or entered) and self.path_text.strip():
             p = Path(self.path_text.strip()).expanduser()
             if p.is_dir() and not is_bundle(p):
                 self.dir = p.resolve()

@@ -68,8 +68,8 @@ def _status(app):
     elif app.message:
         imgui.text_wrapped(app.message)
     job = app.scene_job or app.job  # one bar: the person being opened first, else the map being fitted
-    if job is not None:
-        imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), f"{job.path.name}: {job.stage}")
+    if job is not None:  # the file's name is in the message above; the bar names the stage (a long label is cut)
+        imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), job.stage)
     imgui.end_child()
 
 
@@ -204,7 +204,10 @@ def _placed(app):
     _, app.rig_choice = imgui.combo("##rig", app.rig_choice, names)
     imgui.same_line()
     if imgui.button("use rig"):
+        replaced = len(s.placed)
         s.set_placed(rig(names[app.rig_choice], level))
+        app.message = (f"rig {names[app.rig_choice]}: {len(s.placed)} lights"
+                       + (f" in place of your {replaced} (Ctrl+Z brings them back)" if replaced else ""))
     _remember(app, "use rig")
     imgui.same_line()
     if imgui.button("add light"):
@@ -224,7 +227,7 @@ def _placed(app):
         imgui.separator()
         imgui.color_button("##c", _swatch(kelvin_to_rgb(p.kelvin), 2.0), 0, imgui.ImVec2(18, 18))
         imgui.same_line()
-        imgui.text(f"light {len(s.base_lights) + j}")
+        imgui.text(f"yours {j + 1} (light {len(s.base_lights) + j})")
         imgui.same_line()
         if imgui.small_button("aim"):
             app.aiming = j
