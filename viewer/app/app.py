@@ -381,6 +381,10 @@ class ViewerApp:
         self.session.set_scene(res.scene)
         self.session.update(yaw=facing_yaw(self.session.lights))  # its first frame faces the brightest light
         self.view = ix.ViewState()
+        area_w, area_h = image_area_size(res.scene.output_size)  # a wider photo widens the window (never narrows it)
+        w, h = self.window.size
+        if area_w + PANEL_WIDTH > w or area_h > h:
+            self.window.resize(max(w, area_w + PANEL_WIDTH), max(h, area_h))
         if self.auto_exposure and self.session.look.exposure == self._auto_value:
             self._apply_auto_exposure()
         self.window.set_title(f"relight - {res.path.name}")
