@@ -7,7 +7,8 @@ import shutil
 
 import numpy as np
 
-from viewer.app.jobs import LightJob, SceneJob
+from viewer.app.jobs import ChildWorker, LightJob, SceneJob
+from viewer.errors import InputError
 from viewer.resources import asset_dir, sample_scene_dir
 
 
@@ -47,3 +48,32 @@ def test_a_map_is_fitted_in_the_child_and_cached(tmp_path, monkeypatch):
     broken.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n")
     job = finished(LightJob(broken, 8, "instant"))
     assert job.result is None and job.error.startswith(str(broken))
+
+
+def test_one_worker_serves_the_window_s_jobs_one_after_another(tmp_path, monkeypatch):
+    """The window's worker is one child for every fit (torch imported once): after a bad request
+    the same child fits the next map; a stopped job kills it, and the next job starts a new one."""
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
+    worker = ChildWorker()
+    try:
+        good = shutil.copyfile(asset_dir() / "envmaps" / "studio_small_03_256.hdr", tmp_path / "studio.hdr")
+        job = finished(LightJob(good, 4, "instant", worker=worker))
+        assert job.error is None and job.result.how == "fitted"
+        pid = worker._proc.pid
+        try:
+            worker.request({"what": "lights", "map": str(tmp_path / "missing.hdr"), "n": 4, "method": "instant"},
+                           None, lambda said: None, lambda: None)
+        except InputError as exc:
+            assert "missing.hdr" in str(exc)
+        else:
+            raise AssertionError("a missing map gave no error")
+        job = finished(LightJob(shutil.copyfile(good, tmp_path / "again.hdr"), 5, "instant", worker=worker))
+        assert job.error is None and job.result.how == "fitted" and worker._proc.pid == pid
+        other = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", tmp_path / "sunset.hdr")
+        job = LightJob(other, 4, "instant", worker=worker)
+        assert job.stop(60.0) and job.result is None and job.error is None  # stopped: no result, no error
+        job = finished(LightJob(other, 4, "instant", worker=worker))
+        assert job.result.how == "fitted" and worker._proc.pid != pid
+    finally:
+        worker.close()
+    assert worker._proc is None

@@ -25,7 +25,7 @@ from ..render import photo_exposure
 from ..scene import PHOTO_SUFFIXES, Scene
 from ..settings import AUTO, Look
 from . import interaction as ix
-from .jobs import LightJob, SceneJob
+from .jobs import ChildWorker, LightJob, SceneJob
 from .layout import PANEL_WIDTH, image_area_size
 from .recording import LiveRecording, TurntableRecording
 from .session import Session
@@ -91,6 +91,8 @@ class ViewerApp:
         self.last_motion = 0.0
         self.job: LightJob | None = None
         self.scene_job: SceneJob | None = None
+        # the child processes that fit maps and infer photos, started on first use and kept (torch loads once)
+        self.workers = {"lights": ChildWorker(), "photo": ChildWorker()}
         self.recording = None
         self.message = ""
         self.last_compare = 0.5  # where B puts the before / after split
@@ -259,7 +261,8 @@ class ViewerApp:
             return
         self.error = ""
         self.message = f"lights for {Path(path).name}; the window stays live meanwhile"
-        self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake)
+        self.job = LightJob(path, n or self.n_lights, self.config.method, wake=self.window.wake,
+                            worker=self.workers["lights"])
 
     def open_scene(self, path: Path):
         """Another person: a photo (inferred in a child process, or from the cache) or a scene
@@ -269,7 +272,8 @@ class ViewerApp:
             return
         self.error = ""
         self.message = f"opening {path.name}; the window stays live meanwhile"
-        self.scene_job = SceneJob(path, self.config.max_size, self.config.device, wake=self.window.wake)
+        self.scene_job = SceneJob(path, self.config.max_size, self.config.device, wake=self.window.wake,
+                                  worker=self.workers["photo"])
 
     def open_file(self, path: Path):
         """A file dropped on the window or chosen in its browser: a photo or a scene bundle (its
@@ -492,7 +496,9 @@ class ViewerApp:
             finally:
                 for job in (self.job, self.scene_job):
                     if job is not None:
-                        job.stop()  # a light fit ends at its next step, an inference at once
+                        job.stop()  # a fit or an inference ends at once (its child is killed)
+                for worker in self.workers.values():
+                    worker.close()
                 self.session.release()
                 self.thumbnail.release()
                 w.release()

@@ -106,47 +106,98 @@ class ThreadJob(ABC):
             self._wake()
 
 
-class ChildJob(ThreadJob):
-    """A job whose heavy part runs in a child process (:mod:`viewer.app.child`), read line by line
-    on the job's thread; :meth:`stop` ends the child at once."""
+class ChildWorker:
+    """One long-lived child process (:mod:`viewer.app.child`), started on the first request and
+    kept for the next ones (torch is imported once); one request at a time. :meth:`kill` ends a
+    request at once (the next request starts a new child); :meth:`close` ends the child."""
 
-    def __init__(self, wake=lambda: None):
-        self._process: subprocess.Popen | None = None
-        super().__init__(wake)
+    def __init__(self):
+        self._proc: subprocess.Popen | None = None
+        self._lock = threading.Lock()
 
-    def stop(self, timeout: float = 60.0) -> bool:
-        proc = self._process
-        if proc is not None and proc.poll() is None:
-            proc.kill()  # what it writes (a bundle, a cache entry) appears whole or not at all
-        return super().stop(timeout)
-
-    def run_child(self, args: list[str], on_stage) -> dict:
-        """Run ``python -m viewer.app.child ARGS``; ``on_stage(message)`` for each progress line;
-        returns its result line; raises InputError with its error line."""
+    def _start(self) -> subprocess.Popen:
         root = str(Path(__file__).resolve().parents[2])  # the package's parent: found whatever the current folder
         env = dict(os.environ)
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        self._process = proc = subprocess.Popen([sys.executable, "-m", "viewer.app.child", *args], stdout=subprocess.PIPE,
-                                                stderr=subprocess.DEVNULL, text=True, env=env)
-        said: dict = {}
-        for line in proc.stdout:
-            self.check_cancelled()
+        self._proc = subprocess.Popen([sys.executable, "-m", "viewer.app.child"], stdin=subprocess.PIPE,
+                                      stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
+        return self._proc
+
+    def request(self, req: dict, source, on_stage, check_cancelled) -> dict:
+        """Send ``req``; ``on_stage(message)`` for each progress line; returns the result line;
+        raises InputError with the error line (or naming ``source`` when the child died)."""
+        with self._lock:
+            proc = self._proc if self._proc is not None and self._proc.poll() is None else self._start()
             try:
-                msg = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a library's own print
-            if not isinstance(msg, dict):
-                continue
-            said = msg
-            if "stage" in said:
-                on_stage(said)
-        proc.wait()
-        self.check_cancelled()
-        if "error" in said:
-            raise InputError(None, str(said["error"]))  # already names the file
-        if "stage" in said or not said:
-            raise InputError(args[1], f"the work ended without a result (exit status {proc.returncode})")
-        return said
+                proc.stdin.write(json.dumps(req) + "\n")
+                proc.stdin.flush()
+            except OSError:  # it died between requests: once more with a new one
+                proc = self._start()
+                proc.stdin.write(json.dumps(req) + "\n")
+                proc.stdin.flush()
+            for line in proc.stdout:
+                check_cancelled()
+                try:
+                    msg = json.loads(line)
+                except json.JSONDecodeError:
+                    continue  # a library's own print
+                if not isinstance(msg, dict):
+                    continue
+                if "stage" in msg:
+                    on_stage(msg)
+                elif "error" in msg:
+                    raise InputError(None, str(msg["error"]))  # already names the file
+                else:
+                    return msg
+            check_cancelled()
+            code = proc.wait()
+            self._proc = None
+            raise InputError(source, f"the work ended without a result (exit status {code})")
+
+    def kill(self):
+        proc = self._proc
+        if proc is not None and proc.poll() is None:
+            proc.kill()  # what it writes (a bundle, a cache entry) appears whole or not at all
+
+    def close(self):
+        """End the child: its input closed, killed if it does not end within two seconds."""
+        proc = self._proc
+        self._proc = None
+        if proc is None:
+            return
+        try:
+            proc.stdin.close()
+            proc.wait(2.0)
+        except (OSError, subprocess.TimeoutExpired):
+            proc.kill()
+            proc.wait()
+
+
+class ChildJob(ThreadJob):
+    """A job whose heavy part is a request to a :class:`ChildWorker` (the window's, kept between
+    jobs; without one, a worker of its own, closed when the job ends), read on the job's thread;
+    :meth:`stop` ends the request at once."""
+
+    def __init__(self, wake=lambda: None, worker: ChildWorker | None = None):
+        self._own = worker is None
+        self.worker = worker if worker is not None else ChildWorker()
+        super().__init__(wake)
+
+    def _run(self):
+        try:
+            super()._run()
+        finally:
+            if self._own:
+                self.worker.close()
+
+    def stop(self, timeout: float = 60.0) -> bool:
+        if not self.done:
+            self._cancel.set()
+            self.worker.kill()
+        return super().stop(timeout)
+
+    def run_child(self, req: dict, source, on_stage) -> dict:
+        return self.worker.request(req, source, on_stage, self.check_cancelled)
 
 
 class LightJob(ChildJob):
@@ -155,13 +206,13 @@ class LightJob(ChildJob):
 
     thread_name = "light-fit"
 
-    def __init__(self, path, n: int, method: str, wake=lambda: None):
+    def __init__(self, path, n: int, method: str, wake=lambda: None, worker: ChildWorker | None = None):
         self.path = Path(path)
         self.n = n
         self.method = method
         self.stage = "loading the map"
         self.fraction = 0.0
-        super().__init__(wake)
+        super().__init__(wake, worker)
 
     def _stage(self, said: dict):
         self.stage = str(said["stage"])
@@ -181,7 +232,8 @@ class LightJob(ChildJob):
             except InputError:
                 pass  # a corrupt entry: the child fits again (and warns)
         self.stage = "fitting"
-        said = self.run_child(["lights", str(self.path), "-n", str(self.n), "--method", self.method], self._stage)
+        said = self.run_child({"what": "lights", "map": str(self.path), "n": self.n, "method": self.method}, self.path,
+                              self._stage)
         lights = AreaLights.from_array(np.asarray(said["lights"], dtype=np.float32)).validate(self.path)
         return LightsResult(env, lights, "cached" if said.get("cached") else "fitted")
 
@@ -203,7 +255,7 @@ class SceneJob(ChildJob):
 
     thread_name = "open-scene"
 
-    def __init__(self, path, max_size: int, device: str = "cpu", wake=lambda: None):
+    def __init__(self, path, max_size: int, device: str = "cpu", wake=lambda: None, worker: ChildWorker | None = None):
         from ..scene import PHOTO_SUFFIXES
 
         self.path = Path(path)
@@ -213,7 +265,7 @@ class SceneJob(ChildJob):
         self.stage = "starting the inference" if self.photo else "reading the maps"
         self.fraction = 0.0
         self._done = 0
-        super().__init__(wake)
+        super().__init__(wake, worker)
 
     def _stage(self, said: dict):
         from ..inference import STAGES
@@ -227,8 +279,8 @@ class SceneJob(ChildJob):
 
         bundle, how = self.path, "bundle"
         if self.photo:
-            said = self.run_child(["photo", str(self.path), "--max-size", str(self.max_size), "--device", self.device],
-                                  self._stage)
+            said = self.run_child({"what": "photo", "photo": str(self.path), "max_size": self.max_size,
+                                   "device": self.device}, self.path, self._stage)
             bundle, how = Path(said["bundle"]), "cached" if said.get("cached") else "inferred"
             self.stage = "reading the maps"
         scene = load_sized_scene(bundle, None, self.max_size)
