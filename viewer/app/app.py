@@ -282,9 +282,10 @@ class ViewerApp:
         what the window opens."""
         from ..errors import InputError
         from ..placed_lights import load_rig
+        from .files import is_bundle
 
         suffix = path.suffix.lower()
-        if path.is_dir() and (path / "scene.json").is_file():
+        if is_bundle(path):
             self.open_scene(path)
         elif path.name == "scene.json":
             self.open_scene(path.parent)
@@ -371,17 +372,30 @@ class ViewerApp:
             self.open_map(self.env_path, p.lights)
         self.message = f"preset {name}: {p.summary}"
 
-    def _poll_scene_job(self):
-        job = self.scene_job
+    def _finished(self, attr: str):
+        """The job in ``self.<attr>`` once it has ended (the attribute emptied): its result, or None
+        (still running, none, or failed: its error shown and printed)."""
+        job = getattr(self, attr)
         if job is None or not job.done:
-            return
-        self.scene_job = None
+            return None
+        setattr(self, attr, None)
         if job.error:
             self.error, self.message = job.error, ""
             print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
+            return None
+        self._switched = True
+        return job
+
+    def _exposed_again(self):
+        """After new lights or a new person: auto exposure, unless the user has set one since."""
+        if self.auto_exposure and self.session.look.exposure == self._auto_value:
+            self._apply_auto_exposure()
+
+    def _poll_scene_job(self):
+        job = self._finished("scene_job")
+        if job is None:
             return
         res = job.result
-        self._switched = True
         self.session.set_scene(res.scene)
         self.session.update(yaw=facing_yaw(self.session.lights))  # its first frame faces the brightest light
         self.view = ix.ViewState()
@@ -389,8 +403,7 @@ class ViewerApp:
         w, h = self.window.size
         if area_w + PANEL_WIDTH > w or area_h > h:
             self.window.resize(max(w, area_w + PANEL_WIDTH), max(h, area_h))
-        if self.auto_exposure and self.session.look.exposure == self._auto_value:
-            self._apply_auto_exposure()
+        self._exposed_again()
         self.window.set_title(f"relight - {res.path.name}")
         how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",
                "bundle": "a scene bundle"}[res.how]
@@ -398,21 +411,14 @@ class ViewerApp:
         print(self.message, flush=True)
 
     def _poll_job(self):
-        job = self.job
-        if job is None or not job.done:
-            return
-        self.job = None
-        if job.error:
-            self.error, self.message = job.error, ""
-            print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
+        job = self._finished("job")
+        if job is None:
             return
         res = job.result
-        self._switched = True
         self.session.set_lights(res.lights, environment=res.env.pixels)
         self.env_path = job.path
         self.n_lights = len(res.lights)
-        if self.auto_exposure and self.session.look.exposure == self._auto_value:
-            self._apply_auto_exposure()
+        self._exposed_again()
         self.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
         print(self.message, flush=True)
 
@@ -544,9 +550,7 @@ class ViewerApp:
         self._state_text, self._state_time = text, now
         state["frame_count"] = self.frame_count
         state["frames"] = [[round(ms, 3), kind] for ms, kind in self.frames]
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(json.dumps(state))
-        os.replace(tmp, path)
+        write_text(path, json.dumps(state))
 
 
 def run_viewer(config: ViewerConfig) -> int:

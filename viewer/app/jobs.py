@@ -123,18 +123,21 @@ class ChildWorker:
                                       stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
         return self._proc
 
+    @staticmethod
+    def _send(proc: subprocess.Popen, req: dict):
+        proc.stdin.write(json.dumps(req) + "\n")
+        proc.stdin.flush()
+
     def request(self, req: dict, source, on_stage, check_cancelled) -> dict:
         """Send ``req``; ``on_stage(message)`` for each progress line; returns the result line;
         raises InputError with the error line (or naming ``source`` when the child died)."""
         with self._lock:
             proc = self._proc if self._proc is not None and self._proc.poll() is None else self._start()
             try:
-                proc.stdin.write(json.dumps(req) + "\n")
-                proc.stdin.flush()
+                self._send(proc, req)
             except OSError:  # it died between requests: once more with a new one
                 proc = self._start()
-                proc.stdin.write(json.dumps(req) + "\n")
-                proc.stdin.flush()
+                self._send(proc, req)
             for line in proc.stdout:
                 check_cancelled()
                 try:
@@ -199,6 +202,9 @@ class ChildJob(ThreadJob):
     def run_child(self, req: dict, source, on_stage) -> dict:
         return self.worker.request(req, source, on_stage, self.check_cancelled)
 
+    def failure(self, exc: Exception) -> str:
+        return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"
+
 
 class LightJob(ChildJob):
     """Load ``path`` and get its ``n`` lights (beside the map, from the cache, or fitted in a child
@@ -219,26 +225,20 @@ class LightJob(ChildJob):
         self.fraction = float(said.get("done", 0)) / max(float(said.get("total", 1)), 1.0)
 
     def work(self) -> LightsResult:
-        from ..lightfit import cache_path
+        from ..lightfit.cache import cached_lights
 
         env = load_envmap(self.path)
         lights = sidecar_lights(self.path, self.n, self.method)
         if lights is not None:
             return LightsResult(env, lights, "bundled")
-        cached = cache_path(env, self.n, self.method)
-        if cached.is_file():
-            try:
-                return LightsResult(env, load_lights(cached), "cached")
-            except InputError:
-                pass  # a corrupt entry: the child fits again (and warns)
+        lights = cached_lights(env, self.n, self.method)  # a corrupt entry: warned, and the child fits again
+        if lights is not None:
+            return LightsResult(env, lights, "cached")
         self.stage = "fitting"
         said = self.run_child({"what": "lights", "map": str(self.path), "n": self.n, "method": self.method}, self.path,
                               self._stage)
         lights = AreaLights.from_array(np.asarray(said["lights"], dtype=np.float32)).validate(self.path)
         return LightsResult(env, lights, "cached" if said.get("cached") else "fitted")
-
-    def failure(self, exc: Exception) -> str:
-        return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"
 
 
 @dataclass
@@ -285,9 +285,6 @@ class SceneJob(ChildJob):
             self.stage = "reading the maps"
         scene = load_sized_scene(bundle, None, self.max_size)
         return SceneResult(scene, self.path, how)
-
-    def failure(self, exc: Exception) -> str:
-        return str(exc) if isinstance(exc, InputError) else f"{self.path}: {type(exc).__name__}: {exc}"
 
 
 class RefineJob(ThreadJob):

@@ -10,6 +10,7 @@ import numpy as np
 from imgui_bundle import imgui, implot
 
 from ..lights import azimuth_elevation
+from ..median_cut import LUMINANCE
 from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, kelvin_to_rgb, rig
 from ..presets import PRESETS
 from ..settings import VIEWS
@@ -160,7 +161,7 @@ def _lights(app):
     if app.env_path is None:
         imgui.text_disabled("(no map to refit: lights came from a file)")
     lights = s.rotated_lights()
-    lum = lights.intensity @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lum = lights.intensity @ LUMINANCE
     peak = float(lights.intensity.max()) if n else 1.0
     total = float(lum.sum()) or 1.0
     imgui.text_disabled("       #  azim  elev   size (angular sigma)")

@@ -45,6 +45,18 @@ def cache_path(env: EnvMap, n: int, method: str, directory=None) -> Path:
     return Path(directory or cache_dir()) / f"{map_hash(env)}-n{n}-{method}-v{FIT_VERSION}.json"
 
 
+def cached_lights(env: EnvMap, n: int, method: str, directory=None) -> AreaLights | None:
+    """The lights of ``env`` in the cache, or None (none there, or a corrupt entry: warned)."""
+    path = cache_path(env, n, method, directory)
+    if not path.is_file():
+        return None
+    try:
+        return load_lights(path)
+    except InputError as exc:
+        warnings.warn(f"ignoring a corrupt cache entry ({exc}); fitting again", stacklevel=3)
+        return None
+
+
 def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, directory=None, progress=None,
                    refit: bool = False) -> tuple[AreaLights, bool]:
     """The fitted lights of ``env`` and whether they came from the cache (else they are fitted now)."""
@@ -55,11 +67,9 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
     usable = not path.exists() or path.is_file()
     if not usable:
         warnings.warn(f"{path}: the cache entry is not a file; fitting without the cache (remove it to cache again)", stacklevel=2)
-    if path.is_file() and not refit:
-        try:
-            return load_lights(path), True
-        except InputError as exc:
-            warnings.warn(f"ignoring a corrupt cache entry ({exc}); fitting again", stacklevel=2)
+    cached = None if refit else cached_lights(env, n, method, directory)
+    if cached is not None:
+        return cached, True
     from .fit import fit_lights  # torch: imported only when fitting
 
     start = time.perf_counter()

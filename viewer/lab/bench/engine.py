@@ -12,10 +12,10 @@ from __future__ import annotations
 import json
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
 
+from viewer.imageio import write_text
 from viewer.lights import AreaLights
 from viewer.mesh import resolve_step
 from viewer.resources import asset_dir, sample_scene_dir
@@ -112,9 +112,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
     report["sigma_sweep"] = _sigma_sweep(ctx, base, repeats)
     report["slider"] = _slider_effect(ctx, base)
     if output:
-        path = Path(output)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(report, indent=2) + "\n")
+        path = write_text(output, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return report
 

@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 
 from viewer.envmap import EnvMap, load_envmap
 from viewer.gl import Engine, EngineOptions
+from viewer.imageio import write_text
 from viewer.lights import AreaLights, load_lights
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
@@ -75,7 +75,7 @@ def engine_ratio(ctx, scene, lights: AreaLights, method: str, repeats: int) -> t
         for _ in range(repeats):  # the ground alone: off and on again redoes only the ground pass and the display
             eng.set_look(look.replace(ground=False))
             eng.render()
-            eng.kit.timings.clear()
+            eng.timings.clear()
             eng.set_look(look)
             eng.render()
             times.append(1000.0 * sum(eng.timings["ground_shadow"]))
@@ -121,10 +121,6 @@ def run_ground_benchmark(output: str, size: int = 256, spp: int = 256, repeats: 
                      "1 - read_ground_shadow(), bilinear to the work size; error: mean |difference| over plane pixels "
                      "uncovered by the person where either is below 0.98; time: the ground pass (profile), median",
            "rows": rows}
-    path = Path(output)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(out, indent=1) + "\n")
-    tmp.replace(path)
+    path = write_text(output, json.dumps(out, indent=1) + "\n")
     print(f"wrote {path}")
     return out

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.imageio import write_text
+
 DRAG_SECONDS = 4.0
 DRAG_STEP_PX = 3  # per motion event
 DRAG_EVENT_SECONDS = 0.02
@@ -211,8 +213,6 @@ def run_viewer_benchmark(sizes=(512, 1024), output="out/bench_viewer.json") -> d
                         "typed into the panel's file browser (assets' venice_sunset_256.hdr without its light file, "
                         "assets/photos/underpass.jpg without a bundle, caches empty)",
               "runs": runs}
-    path = Path(output)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(result, indent=1) + "\n")
+    path = write_text(output, json.dumps(result, indent=1) + "\n")
     print(f"wrote {path}")
     return result
