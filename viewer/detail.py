@@ -75,25 +75,6 @@ def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.nd
     return out.reshape(image.shape).astype(np.float32, copy=False)
 
 
-def foreground_colours(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
-    """The person's own colours on the matte's soft edge: a fringe pixel mixes the person F with
-    the background B as ``I = a F + (1 - a) B``; B is estimated by spreading the clear background
-    (a < 0.05) inwards (a mask-normalized Gaussian of ``sigma`` pixels), and F solved for, so that
-    the old background does not glow around the relit person. Where the matte is wrong (a soft
-    matte over a solid limb) that solution overshoots, so F is kept between the pixel's own colour
-    and the person's nearby solid colour (a >= 0.99, spread outwards the same way). Pixels with
-    a >= 0.99 are kept."""
-    fringe = (alpha > 0.0) & (alpha < 0.99)
-    clear, solid = alpha < 0.05, alpha >= 0.99
-    if not (fringe.any() and clear.any() and solid.any()):
-        return photo
-    background = masked_lowpass(photo, clear, sigma)
-    person = masked_lowpass(photo, solid, sigma)
-    a = np.maximum(alpha, 0.25)[..., None]  # below a quarter, F is too uncertain: leaned on B's estimate
-    fg = np.clip((photo - (1.0 - a) * background) / a, np.minimum(photo, person), np.maximum(photo, person))
-    return np.where(fringe[..., None], fg, photo).astype(np.float32)
-
-
 def highpass_ratio(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
     """photo / low-pass(photo) per channel inside the matte (1 outside), bounded by MAX_RATIO."""
     low = masked_lowpass(photo, alpha > 0.5, sigma)

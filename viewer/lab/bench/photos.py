@@ -91,8 +91,8 @@ def _with_detail(result: dict, label: str) -> "object":
         albedo = np.where(sc.mask[..., None], resize(result["network_albedo_frame"], (sc.width, sc.height)), 0)
         return replace(sc, albedo=np.clip(albedo, 0, 1).astype(np.float32), frame=None).validate()
     method, shared = VARIANTS[label]
-    return with_detail(sc, result["network_albedo_frame"], result["shading"], result["record"]["framing"]["side"], method,
-                       shared)[0]
+    return with_detail(sc, result["network_albedo_frame"], result["shading"], result["record"]["framing"]["side"],
+                       result["foreground"], method, shared)[0]
 
 
 def _render(engine, scene, lights, settings, env_pixels, frame_size) -> tuple[np.ndarray, np.ndarray]:
