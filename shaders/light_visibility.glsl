@@ -28,7 +28,7 @@ vec2 light_visibility(int j, sampler2D shadow_map, sampler2D filtered_basis, vec
 #ifdef SOFT_PCSS
     float v_soft = light_mode[j] == 1 ? v_hard
         : pcss_visibility(shadow_map, uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias,
-                          light_alpha[j], shadow_window, depth_scale[j], v_hard);
+                          light_alpha[j], shadow_window, depth_scale[j]);
 #else
     float v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
 #endif

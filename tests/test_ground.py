@@ -1,6 +1,8 @@
-"""The ground shadow (Look.ground, viewer/gl/ground_pass.py): the person's shadow on a level ground
-at the feet darkens the background where the person blocks the light, and only there; it runs
-only while shown and only when the lights change."""
+"""The ground shadow (Look.ground, viewer/gl/ground_pass.py, viewer/ground.py): the person's shadow
+on the ground at the feet darkens the background where the person blocks the light, and only
+there; it runs only while shown and only when the lights change; the plane goes through the feet,
+each foot darkens the ground it stands on, and the shadow is on by default when the feet are in
+the frame and the map is behind the person."""
 
 from __future__ import annotations
 
@@ -9,10 +11,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from viewer.camera import Camera
 from viewer.gl import Engine, EngineOptions
+from viewer.ground import MAX_TILT, contacts, ground_plane
 from viewer.lights import AreaLights
 from viewer.resources import sample_scene_dir
-from viewer.scene import FrameLayer, load_scene
+from viewer.scene import FrameLayer, Scene, load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import Look
 
@@ -127,3 +131,95 @@ def test_the_ground_shadow_against_mitsuba(tmp_path):
         assert err[(lighting, "pcss")] < bound
     assert all(r["shadow_pixels_truth"] > 50 and r["shadow_pixels_engine"] > 50 for r in rows)
     assert (tmp_path / "ground.json").is_file()
+    contact = {(r["lighting"], r["method"]): r for r in rows}
+    for lighting, bound in (("low sun", 0.06), ("mountain map", 0.12), ("studio map", 0.08)):
+        row = contact[(lighting, "pcss")]
+        assert row["contact_mae"] < bound, (lighting, row["contact_mae"])
+
+
+def test_the_feet_are_found_where_the_person_ends_above_the_frame(person):
+    feet = contacts(person.mask)
+    assert 1 <= len(feet) <= 2
+    bottom = np.nonzero(person.mask.any(axis=1))[0].max()
+    assert all(y == bottom or y > bottom - 0.05 * person.height for _, y in feet)
+    cut = person.mask.copy()
+    cut[bottom - 10:] = person.mask[bottom - 10]  # the person cut off by the frame's bottom edge
+    cut[-1] = cut[bottom - 10]
+    assert contacts(cut) == [] and contacts(np.zeros_like(cut)) == []
+
+
+def _two_feet(front_depth: float, back_depth: float):
+    """A synthetic person: a body over two feet blobs, the right one lower in the image and nearer."""
+    h, w = 120, 80
+    mask = np.zeros((h, w), bool)
+    mask[10:90, 25:55] = True
+    mask[90:110, 28:38] = True  # left foot, bottom row 109
+    mask[90:114, 44:54] = True  # right foot, bottom row 113
+    depth = np.full((h, w), 4.0, np.float32)
+    depth[:, :40] = back_depth
+    depth[:, 40:] = front_depth
+    normal = np.zeros((h, w, 3), np.float32)
+    normal[mask, 2] = 1.0
+    return Scene(albedo=np.where(mask[..., None], np.float32(0.5), np.zeros((h, w, 3), np.float32)), specular=np.zeros((h, w), np.float32),
+                 roughness=np.full((h, w), 0.5, np.float32), normal=normal, depth=depth, mask=mask,
+                 camera=Camera(w, h)).validate()
+
+
+def test_the_plane_goes_through_both_feet():
+    scene = _two_feet(3.9, 4.05)
+    plane = ground_plane(scene)
+    assert plane.feet and len(plane.contacts) == 2
+    heights = plane.contacts @ plane.normal - plane.offset
+    assert np.abs(heights).max() < 1e-4  # both soles on the plane
+    tilt = np.degrees(np.arccos(plane.normal[1]))
+    assert 0.0 < tilt <= MAX_TILT and plane.below_camera
+    steep = ground_plane(_two_feet(2.0, 6.0))  # depths that would tilt it past MAX_TILT: level at the lower foot
+    assert np.allclose(steep.normal, [0.0, 1.0, 0.0]) and np.isclose(steep.offset, steep.contacts[:, 1].min())
+
+
+def test_each_foot_darkens_the_ground_it_stands_on(ctx, person):
+    """Under a sky of 16 lights, the feet's contact points darken the ground beside them beyond
+    what the shadow maps alone do (the occlusion at contact their bias leaves out)."""
+    from viewer.lightfit.fit import fibonacci_sphere
+
+    dirs = fibonacci_sphere(32)
+    dirs = dirs[dirs[:, 1] > 0.1][:16]
+    sky = AreaLights(dirs, np.full(len(dirs), 6.0), np.full((len(dirs), 3), 0.2))
+    occlusion = {}
+    for with_contact in (True, False):
+        eng = Engine(ctx, person, EngineOptions(shadow_resolution=256))
+        if not with_contact:
+            eng.ground_pass.plane = replace(eng.ground_pass.plane, contact_points=np.zeros((0, 4), np.float32))
+        eng.set_lights(sky)
+        eng.set_look(Look(background="color", ground=True))
+        eng.render()
+        occlusion[with_contact] = eng.read_ground_shadow().mean(axis=-1)
+        eng.release()
+    extra = occlusion[True] - occlusion[False]
+    x, y = contacts(person.mask)[0]
+    i, j = np.unravel_index(np.argmax(extra), extra.shape)
+    assert extra.max() > 0.05 and abs(i - y // 2) <= 4 and abs(j - x // 2) <= 8  # at the foot
+    assert extra.min() > -1e-6  # it only adds shadow
+    far = np.ones(extra.shape, bool)
+    far[max(y // 2 - 12, 0):, max(x // 2 - 20, 0):x // 2 + 20] = False
+    assert np.abs(extra[far]).max() < 1e-4
+
+
+def test_the_ground_shows_by_default_when_the_feet_are_in_the_frame(ctx, person):
+    eng = Engine(ctx, person, EngineOptions(shadow_resolution=256))
+    eng.set_lights(sun_and_sky())
+    assert eng.feet
+    for background, ground, shown in (("environment", "auto", True), ("color", "auto", False),
+                                      ("environment", False, False), ("color", True, True)):
+        eng.set_look(Look(background=background, ground=ground))
+        assert eng.ground_shown == shown, (background, ground)
+    eng.release()
+    cut = replace(person, mask=person.mask.copy())
+    bottom = np.nonzero(cut.mask.any(axis=1))[0].max()
+    cut.mask[bottom:] = cut.mask[bottom]  # the feet cut off by the frame's bottom edge
+    eng = Engine(ctx, cut, EngineOptions(shadow_resolution=256))
+    eng.set_look(Look(background="environment"))
+    assert not eng.feet and not eng.ground_shown
+    eng.release()
+    with pytest.raises(Exception, match="ground must be true or false"):
+        Look(ground="sometimes")

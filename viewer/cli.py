@@ -95,8 +95,11 @@ def _add_view_args(p, yaw_default=0.0):
     p.add_argument("--max-size", type=int, default=2048,
                    help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
                         "the photo's own size up to this)")
-    p.add_argument("--ground", action="store_const", const=True,
-                   help="the person's shadow on a level ground at the feet, over the background (a shadow catcher)")
+    ground = p.add_mutually_exclusive_group()
+    ground.add_argument("--ground", action="store_const", const=True,
+                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
+                             "by default shown when the feet are in the frame and the map is behind the person")
+    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
                    help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
                         "(refined), the shadow map (hard) or none")
@@ -543,8 +546,11 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
     p.add_argument("--exposure", type=_exposure,
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
-    p.add_argument("--ground", action="store_const", const=True,
-                   help="the person's shadow on a level ground at the feet, over the background (a shadow catcher)")
+    ground = p.add_mutually_exclusive_group()
+    ground.add_argument("--ground", action="store_const", const=True,
+                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
+                             "by default shown when the feet are in the frame and the map is behind the person")
+    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
     p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")

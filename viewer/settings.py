@@ -57,7 +57,8 @@ class Look:
     intensity: float = 1.0  # scales every light
     preset: str = "balanced"  # quality preset (viewer.presets)
     compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
-    ground: bool = False  # the person's shadow on a ground plane at the feet, over the background (a shadow catcher)
+    ground: bool | str = AUTO  # the person's shadow on a ground plane at the feet, over the background (a shadow
+    # catcher); "auto": shown when the feet are in the frame and the map is behind the person (ground_shown)
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
@@ -77,8 +78,9 @@ class Look:
         object.__setattr__(self, "background_color", tuple(float(c) for c in color))
         _choice("shadows", self.shadows, VISIBILITY_MODES)
         for name in ("diffuse", "specular", "ground"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise InputError(None, f"{name} must be true or false, got {getattr(self, name)!r}")
+            if not isinstance(getattr(self, name), (bool, np.bool_)) and not (name == "ground" and self.ground == AUTO):
+                raise InputError(None, f"{name} must be true or false{' (or auto)' if name == 'ground' else ''}, "
+                                       f"got {getattr(self, name)!r}")
         _choice("view", self.view, VIEWS)
         if isinstance(self.light, bool) or not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
@@ -90,6 +92,11 @@ class Look:
     def environment_rotation(self) -> np.ndarray:
         """3x3: camera directions to the turned map's directions (the background's lookup)."""
         return rotation_matrix(self.yaw, self.tilt).T
+
+    def ground_shown(self, feet: bool, background: str) -> bool:
+        """Whether the ground shadow shows: as set, or ("auto") when the person's ``feet`` are in
+        the frame and the ``background`` shown is the environment map."""
+        return bool(self.ground) if self.ground != AUTO else bool(feet and background == "environment")
 
     @property
     def exposure_stops(self) -> float:

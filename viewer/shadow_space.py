@@ -44,6 +44,10 @@ PCSS_TAPS = 16  # the penumbra filter's taps
 PCSS_SEARCH_TAPS = 8  # the blocker search's (every lit receiver takes them: half the filter's, docs/engine.md)
 SOFT_METHODS = ("csm", "pcss")  # the soft shadows: the paper's convolutional shadow maps, or contact-hardening
 PCSS_SEARCH = 0.25  # the blocker search covers blocker-receiver distances up to this many shadow-map windows
+# The penumbra's sigma is at least this many shadow-map texels: a sharp shadow's edge is filtered over
+# about two texels instead of stepping from texel to texel (a staircase that the output frame, several
+# pixels per work pixel, shows as blocks; docs/engine.md measures it)
+PCSS_MIN_TEXELS = 0.75
 
 
 @dataclass(frozen=True)

@@ -186,7 +186,7 @@ class ViewerApp:
         if imgui.is_key_pressed(imgui.Key.b, False):
             self.toggle_compare()
         if imgui.is_key_pressed(imgui.Key.g, False):
-            self.session.update(ground=not self.session.look.ground)
+            self.session.update(ground=not self.session.ground_shown)
         if io.key_ctrl and imgui.is_key_pressed(imgui.Key.z, False):
             self.message = "undone" if self.session.undo() else "nothing to undo"
         if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):

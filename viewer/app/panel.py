@@ -101,10 +101,11 @@ def _lighting(app):
         _remember(app, "compare")
         if changed:
             s.update(compare=compare)
-    changed, ground = imgui.checkbox("shadow on the ground (G)", s.look.ground)
+    changed, ground = imgui.checkbox("shadow on the ground (G)", s.ground_shown)
     _remember(app, "ground")
     if imgui.is_item_hovered():
-        imgui.set_tooltip("the person's shadow on a level ground at the feet, over the background")
+        imgui.set_tooltip("the person's shadow on the ground at the feet, over the background\n"
+                          "(on by default when the feet are in the frame and the map is behind)")
     if changed:
         s.update(ground=ground)
 

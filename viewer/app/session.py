@@ -131,6 +131,11 @@ class Session:
     def update(self, **changes):
         self.look = replace(self.look, **changes)
 
+    @property
+    def ground_shown(self) -> bool:
+        """Whether the ground shadow shows (the look's "auto" resolved for this scene and background)."""
+        return self.look.ground_shown(self.final.feet, effective_background(self.look, self.scene, self.environment is not None))
+
     # ------------------------------------------------------------------ engines
     def _engines(self):
         return [e for e in (self.final, self._preview) if e is not None]

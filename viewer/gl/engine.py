@@ -44,6 +44,7 @@ from .composite_pass import CompositePass
 from .context import make_current
 from .display_pass import INSPECT_VIEWS, DisplayPass, InspectPass
 from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
+from ..ground import ground_plane
 from .ground_pass import GroundShadowPass
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light
@@ -87,7 +88,7 @@ class Engine(EngineOutputs):
         self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular, o.soft)
         self.composite_pass = CompositePass(kit, res, (scene.width, scene.height), frame_shading=scene.frame is not None)
         self.inspect_pass = InspectPass(kit, res, (scene.width, scene.height))
-        self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera)
+        self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera, ground_plane(scene))
         ground = self.ground_pass.texture
         if scene.frame is None:
             self.frame_background = self.frame_mipmaps = None
@@ -209,10 +210,20 @@ class Engine(EngineOutputs):
             raise InputError(None, f"no light {look.light}: there are {len(self._lights)}")
         self._set_look(look)
 
+    @property
+    def feet(self) -> bool:
+        """Whether the person's feet are in the frame (viewer.ground)."""
+        return self.ground_pass.plane.feet
+
+    @property
+    def ground_shown(self) -> bool:
+        """Whether the look shows the ground shadow (``Look.ground``, "auto" resolved for this scene)."""
+        return self.look.ground_shown(self.feet, self.look.background)
+
     def _set_look(self, look: Look):
-        old, terms = self.look, self._composite_terms()
+        old, terms, shown = self.look, self._composite_terms(), self.ground_shown
         self.look = look
-        if look.ground != old.ground:
+        if self.ground_shown != shown:
             self._changed("ground")
         if look.shadows != old.shadows:
             self._changed("visibility")  # lights whose light pass lacks what the mode needs redo it in render()
@@ -349,7 +360,7 @@ class Engine(EngineOutputs):
         if self._stale["composite"]:
             self.composite_pass.run(self._lights, self.atlas, self.refined, self.look.shadows, self._composite_terms())
             self._ran(self.composite_pass)
-        if self.look.ground and self._stale["ground_shadow"]:  # left out (and stale) while not shown
+        if self.ground_shown and self._stale["ground_shadow"]:  # left out (and stale) while not shown
             self.ground_pass.run(self._lights, self.look.shadows)
             self._ran(self.ground_pass)
         if self._stale[self.display_pass.name]:
@@ -366,7 +377,7 @@ class Engine(EngineOutputs):
         self._changed(p.name, lights)
 
     def _draw_display(self, whole: bool):
-        look, dp = self.look, self.display_pass
+        look, dp = self.look.replace(ground=self.ground_shown), self.display_pass
         if look.view in INSPECT_VIEWS:
             light = self._lights[look.light] if look.view == "shadow" else None
             self.inspect_pass.run(dp.fbo, look.view, light, self.atlas, look.shadows)
@@ -388,8 +399,9 @@ class Engine(EngineOutputs):
 
     def _frame_read(self, terms, output_mode: int) -> np.ndarray:
         self._frame_ready()
-        return self.display_pass.read(self.composite_pass.shading, self.frame_background.image, terms, self.look,
-                                      self.look.background == "transparent", output_mode)
+        return self.display_pass.read(self.composite_pass.shading, self.frame_background.image, terms,
+                                      self.look.replace(ground=self.ground_shown), self.look.background == "transparent",
+                                      output_mode)
 
     def light_active(self, index: int) -> bool:
         return self._lights[index].active

@@ -1,15 +1,17 @@
-"""9. The ground shadow (ground_shadow.frag.glsl): the person's shadow on a ground plane at the
-feet, a shadow catcher lit by the same lights, at half the work resolution (the shadow of a
-person on the ground is soft; the display samples it bilinearly). What it holds, per pixel, is
-the share of the plane's light the person takes away (RGB); the display and frame composite
-multiply the background by one minus it (``Look.ground``). The plane: level with the camera's
-horizon at the lowest point of the person's mesh. Runs only while the ground is shown."""
+"""9. The ground shadow (ground_shadow.frag.glsl): the person's shadow on the ground plane at the
+feet (:mod:`viewer.ground`: through the feet's contacts, or level at the person's lowest point), a
+shadow catcher lit by the same lights, at half the work resolution (the shadow of a person on the
+ground is soft; the display samples it bilinearly), with each foot's contact shadow. What it
+holds, per pixel, is the share of the plane's light the person takes away (RGB); the display and
+frame composite multiply the background by one minus it (``Look.ground``). Runs only while the
+ground is shown."""
 
 from __future__ import annotations
 
 import moderngl
 import numpy as np
 
+from ..ground import CONTACT_BOUND, MAX_CONTACT_POINTS, GroundPlane, contact_spread
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from .light_pass import LIGHTS_PER_PASS, LightShadingPass
@@ -22,21 +24,20 @@ class GroundShadowPass:
     # direction, shadow map, sigma and mode)
     inputs = ("light_pass", "intensity", "activity", "ground", "visibility")
 
-    def __init__(self, kit: PassKit, scene: SceneResources, light_pass: LightShadingPass, camera):
+    def __init__(self, kit: PassKit, scene: SceneResources, light_pass: LightShadingPass, camera, plane: GroundPlane):
         self.kit, self.scene, self.light_pass = kit, scene, light_pass
         w, h = max(camera.width // 2, 1), max(camera.height // 2, 1)
         self.size = (w, h)
         self.center = (w / 2.0, h / 2.0)
         self.focal_px = camera.focal_px * w / camera.width
-        points = scene.caster_points
-        self.ground_y = float(points[:, 1].min()) if len(points) else 0.0  # the feet (camera space, y up)
+        self.plane = plane
+        # where the contact points can darken the plane: within CONTACT_BOUND of them
+        pts = plane.contact_points[:, :3].astype(np.float64)
+        centre = pts.mean(axis=0) if len(pts) else np.zeros(3)
+        radius = float(np.linalg.norm(pts - centre, axis=1).max()) + CONTACT_BOUND if len(pts) else 0.0
+        self.contact_bound = (*(float(v) for v in centre), radius)
         self.texture = kit.texture(self.size, 4, linear=True)
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.texture])
-
-    @property
-    def below_camera(self) -> bool:
-        """A plane the camera looks down on (the person's lowest point under the eye)."""
-        return self.ground_y < 0.0
 
     def run(self, lights: list[Light], shadows: str):
         """``shadows``: the look's shadow mode (none: no shadow on the ground either)."""
@@ -45,15 +46,23 @@ class GroundShadowPass:
             self.fbo.use()
             self.fbo.clear(0.0, 0.0, 0.0, 0.0)
             intensity = np.array([l.intensity for l in lights], np.float64).reshape(-1, 3)
-            up = np.array([max(float(l.direction[1]), 0.0) for l in lights])
+            up = np.array([max(float(np.dot(l.direction, self.plane.normal)), 0.0) for l in lights])
             e0 = (intensity * up[:, None]).sum(axis=0)  # the plane's unshadowed irradiance (RGB)
-            if shadows == "none" or not self.below_camera or not np.any(e0 > 0.0):
+            if shadows == "none" or not self.plane.below_camera or not np.any(e0 > 0.0):
                 return
             share = np.where(e0 > 0.0, intensity * up[:, None] / np.where(e0 > 0.0, e0, 1.0), 0.0).astype("f4")
-            prog = kit.programs.get("fullscreen.vert.glsl", "ground_shadow.frag.glsl", **self.light_pass.defines)
-            prog["ground_y"] = self.ground_y
+            prog = kit.programs.get("fullscreen.vert.glsl", "ground_shadow.frag.glsl", **self.light_pass.defines,
+                                    MAX_CONTACT_POINTS=MAX_CONTACT_POINTS)
+            prog["ground_normal"] = tuple(float(v) for v in self.plane.normal)
+            prog["ground_offset"] = self.plane.offset
             prog["focal_center_px"] = self.center
             prog["focal_px"] = self.focal_px
+            points = np.zeros((MAX_CONTACT_POINTS, 4), "f4")
+            points[:len(self.plane.contact_points)] = self.plane.contact_points
+            prog["contact_points"].write(points.tobytes())
+            prog["contact_count"] = len(self.plane.contact_points)
+            prog["contact_spread"] = contact_spread(len(lights))
+            prog["contact_bound"] = self.contact_bound
             kit.ctx.enable(moderngl.BLEND)
             kit.ctx.blend_func = moderngl.ONE, moderngl.ONE
             try:

@@ -150,6 +150,7 @@ class LightShadingPass:
             prog["pcss_taps"].write(self.pcss_taps)
             prog["pcss_search_taps"].write(self.pcss_search_taps)
             prog["pcss_search"] = ss.PCSS_SEARCH
+            prog["pcss_min_texels"] = ss.PCSS_MIN_TEXELS
         else:
             prog["csm_offset"] = self.csm_offset
             prog["csm_clamp"] = self.csm_clamp

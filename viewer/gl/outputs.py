@@ -93,7 +93,8 @@ class EngineOutputs:
         background: the EXR that goes with the display PNG."""
         if self.frame_background is not None:
             return self._frame_read(self._composite_terms(), OUTPUT_COMPOSITED_HDR)
-        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.look, self.look.background)
+        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.look.replace(ground=self.ground_shown),
+                                                 self.look.background)
 
     @in_context
     def read_light(self, index: int) -> dict:

@@ -128,6 +128,14 @@ def cmd_bench(args) -> int:
                                      repeats=args.repeats, progress=lambda what: print(f"  measured {what}", flush=True))
         print(table(result))
         print(f"wrote {output}")
+    elif args.what == "upsample":
+        from .bench.upsample import run_upsample_benchmark, table
+
+        out_dir = Path(args.output or "out/bench-upsample")
+        result = run_upsample_benchmark(shared_folder(args.photos, "photos", "--photos"), out_dir, repeats=args.repeats,
+                                        progress=lambda what: print(f"  measured {what}", flush=True))
+        print(table(result))
+        print(f"wrote {out_dir / 'upsample.json'}, {out_dir / 'upsample.jpg'}")
     elif args.what == "ground":
         from .bench.ground import run_ground_benchmark
 
@@ -268,7 +276,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness",
-                                    "bodyfit", "ground", "matte"),
+                                    "bodyfit", "ground", "matte", "upsample"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -279,8 +287,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
                         "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
                         "ground against Mitsuba (error and the ground pass's time per shadow method); matte: the person's matte "
-                        "against the hand-made masks (--photos), every step and matting solver, quality and time")
-    p.add_argument("--photos", help="photos, matte: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
+                        "against the hand-made masks (--photos), every step and matting solver, quality and time; upsample: "
+                        "the work shading brought to the frame (guided, bilinear) against a work frame as large as the frame")
+    p.add_argument("--photos", help="photos, matte, upsample: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])

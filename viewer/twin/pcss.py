@@ -6,8 +6,8 @@ Percentage-closer soft shadows on the hard shadow map, with the light's sigma re
 1. blocker search: PCSS_SEARCH_TAPS :func:`viewer.shadow_space.pcss_taps` offsets scaled to alpha x
    PCSS_SEARCH shadow-map windows; a tap is a blocker when its depth is nearer than the receiver's tangent
    plane there (minus the hard test's bias); the gap is the mean of (plane - depth) over blockers;
-2. no blocker: visibility 1; else the penumbra's sigma is alpha x gap x depth scale metres; under
-   half a texel the hard visibility is used, else the fraction of PCSS_TAPS taps, scaled to the
+2. no blocker: visibility 1; else the penumbra's sigma is alpha x gap x depth scale metres, at
+   least PCSS_MIN_TEXELS texels, and the visibility the fraction of PCSS_TAPS taps, scaled to the
    penumbra, that pass the tangent-plane test.
 
 Texel lookups are the hard test's (the texel containing the point, clamp-to-edge). Not
@@ -33,10 +33,10 @@ def receiver_gradient(frames: LightFrames, normals: torch.Tensor) -> torch.Tenso
 
 
 def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrames, u: torch.Tensor, v: torch.Tensor,
-                    d: torch.Tensor, bias: torch.Tensor, gradient: torch.Tensor, hard: torch.Tensor) -> torch.Tensor:
-    """Soft visibility (N, P) of receivers (u, v, d), hard-test ``bias`` and ``hard`` visibility, each
-    (N, P), with tangent-plane ``gradient`` (N, P, 2), in shadow maps ``depth`` (N, R, R) of lights
-    with ``sigma`` (N,) (256-px units)."""
+                    d: torch.Tensor, bias: torch.Tensor, gradient: torch.Tensor) -> torch.Tensor:
+    """Soft visibility (N, P) of receivers (u, v, d) and hard-test ``bias``, each (N, P), with
+    tangent-plane ``gradient`` (N, P, 2), in shadow maps ``depth`` (N, R, R) of lights with
+    ``sigma`` (N,) (256-px units)."""
     res = depth.shape[-1]
     taps = torch.as_tensor(rule.pcss_taps(rule.PCSS_TAPS), dtype=d.dtype, device=d.device)
     search_taps = torch.as_tensor(rule.pcss_taps(rule.PCSS_SEARCH_TAPS), dtype=d.dtype, device=d.device)
@@ -52,11 +52,11 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
         hit = z < receiver
         gap = gap + torch.where(hit, receiver - z, torch.zeros_like(z))
         blockers = blockers + hit.to(d.dtype)
-    width = alpha * (gap / blockers.clamp(min=1.0)) * frames.depth_scale()[:, None] / window  # uv
+    width = (alpha * (gap / blockers.clamp(min=1.0)) * frames.depth_scale()[:, None] / window).clamp(
+        min=rule.PCSS_MIN_TEXELS / res)  # uv
     lit = torch.zeros_like(d)
     for o in taps:
         du, dv = o[0] * width, o[1] * width
         receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
         lit = lit + (receiver <= shadow_depth(depth, u + du, v + dv)).to(d.dtype)
-    soft = torch.where(width * res < 0.5, hard, lit / len(taps))
-    return torch.where(blockers == 0, torch.ones_like(d), soft)
+    return torch.where(blockers == 0, torch.ones_like(d), lit / len(taps))

@@ -155,7 +155,7 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
     if soft not in rule.SOFT_METHODS:
         raise ValueError(f"soft shadows must be one of {', '.join(rule.SOFT_METHODS)}, got {soft!r}")
     if soft == "pcss":
-        visibility = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal), hard)
+        visibility = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal))
     else:
         visibility = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
 
