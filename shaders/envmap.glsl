@@ -8,9 +8,30 @@ vec2 direction_to_equirect(vec3 d) {
     return vec2((phi + PI) / (2.0 * PI), (0.5 * PI - lam) / PI);
 }
 
+// A cubic B-spline lookup from four bilinear ones (Sigg and Hadwiger 2005): a magnified map shows
+// no texel's square and no bilinear cross, wherever the window is larger than the map.
+vec3 bicubic(sampler2D image, vec2 uv) {
+    vec2 size = vec2(textureSize(image, 0));
+    vec2 p = uv * size - 0.5;
+    vec2 f = fract(p);
+    vec2 f2 = f * f, f3 = f2 * f;
+    vec2 w0 = (1.0 - 3.0 * f + 3.0 * f2 - f3) / 6.0;
+    vec2 w1 = (4.0 - 6.0 * f2 + 3.0 * f3) / 6.0;
+    vec2 w2 = (1.0 + 3.0 * f + 3.0 * f2 - 3.0 * f3) / 6.0;
+    vec2 w3 = f3 / 6.0;
+    vec2 g0 = w0 + w1, g1 = w2 + w3;
+    vec2 c = floor(p) + 0.5;
+    vec2 t0 = (c - 1.0 + w1 / g0) / size, t1 = (c + 1.0 + w3 / g1) / size;
+    return g0.y * (g0.x * textureLod(image, vec2(t0.x, t0.y), 0.0).rgb + g1.x * textureLod(image, vec2(t1.x, t0.y), 0.0).rgb)
+         + g1.y * (g0.x * textureLod(image, vec2(t0.x, t1.y), 0.0).rgb + g1.x * textureLod(image, vec2(t1.x, t1.y), 0.0).rgb);
+}
+
 // The environment as a perspective camera sees it at pixel position q (pixels, row 0 at the top),
-// turned by rotation (camera-space view direction -> map direction).
+// turned by rotation (camera-space view direction -> map direction): bicubic where a pixel is
+// smaller than a texel, else the mipmap level of the pixel's footprint (no aliasing of a large map).
 vec3 environment_seen(sampler2D environment, mat3 rotation, vec2 q, vec2 center, float focal) {
     vec3 view = normalize(vec3((q.x - center.x) / focal, -(q.y - center.y) / focal, -1.0));
-    return textureLod(environment, direction_to_equirect(rotation * view), 0.0).rgb;
+    vec2 uv = direction_to_equirect(rotation * view);
+    float texels_per_pixel = float(textureSize(environment, 0).x) / (2.0 * PI * focal);
+    return texels_per_pixel <= 1.0 ? bicubic(environment, uv) : textureLod(environment, uv, log2(texels_per_pixel)).rgb;
 }

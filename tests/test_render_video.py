@@ -185,7 +185,7 @@ def test_render_with_a_rig_adds_its_lights_fixed_to_the_camera(tmp_path, capsys)
     from viewer.placed_lights import rig, save_rig
 
     path = save_rig(tmp_path / "rig.json", rig("rim", 2.0))
-    base = [str(sample_scene_dir()), str(LIGHTS), "--env", str(MAP), "--size", "128"]
+    base = [str(sample_scene_dir()), str(LIGHTS), "--env", str(MAP), "--size", "128", "--no-ground"]
     assert main(["render", *base, "--out", str(tmp_path / "plain.png")]) == 0
     assert main(["render", *base, "--rig", str(path), "--out", str(tmp_path / "rim.png")]) == 0
     plain, rim = read_exr(tmp_path / "plain.exr"), read_exr(tmp_path / "rim.exr")

@@ -325,8 +325,9 @@ sys.exit(app.run())
 
 def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factory, headless):
     """A click on the map's thumbnail on a light's dot (the brightest away from the seam) adds a
-    light from that direction; "aim" then another click turns it; G shows the shadow on the ground (the person's
-    pixels stay); a scene bundle typed into the panel's browser opens."""
+    light from that direction; "aim" then another click turns it; G hides the shadow on the ground, shown by
+    default since the feet are in the frame (the person's pixels stay); a scene bundle typed into the panel's
+    browser opens."""
     from viewer.app.thumbnail import MapThumbnail
     from viewer.placed_lights import PlacedLight
 
@@ -356,7 +357,7 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     assert len(s["placed"]) == 1 and s["placed"][0]["elevation"] < -60
     before = read_png(v.save())
     v.xdotool("key", "g")
-    v.wait_for(lambda s: s["look"]["ground"], 30)
+    v.wait_for(lambda s: s["look"]["ground"] is False, 30)
     after = read_png(v.save())
     mask = headless[0].mask
     changed = np.abs(after - before).max(axis=-1) > 4 / 255

@@ -67,15 +67,16 @@ def _add_engine_args(p):
     p.add_argument("--prefilter", choices=("pyramid", "exact"), help="with --soft csm: pre-filtering (default pyramid)")
 
 
-def _exposure(text: str):
-    """--exposure: "auto" (a photo keeps its own brightness) or a number of stops."""
-    if text.strip().lower() == "auto":
-        return "auto"
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a number of stops, got {text!r}") from None
-    return value  # its range is the look's to check (viewer.settings.Look)
+def _auto_or(unit: str):
+    """An option's parser: "auto" or a number of ``unit`` (its range is the look's to check, viewer.settings.Look)."""
+    def parse(text: str):
+        if text.strip().lower() == "auto":
+            return "auto"
+        try:
+            return float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected 'auto' or a number of {unit}, got {text!r}") from None
+    return parse
 
 
 def _add_view_args(p, yaw_default=0.0):
@@ -85,13 +86,16 @@ def _add_view_args(p, yaw_default=0.0):
                    help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
                         "a video starts there")
     p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
-    p.add_argument("--exposure", type=_exposure,
+    p.add_argument("--exposure", type=_auto_or("stops"),
                    help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
                         "(0 stops for a scene without a photo)")
     p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), help="tone curve (default aces)")
     p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
                    help="behind the person: the environment map seen through the photo's camera (default), the "
                         "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
+    p.add_argument("--backdrop-blur", type=_auto_or("degrees"),
+                   help="the map behind the person blurred like a defocused background, degrees, or auto (default): "
+                        "as much as the photo's own background is (0 for a scene without a photo)")
     p.add_argument("--max-size", type=int, default=2048,
                    help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
                         "the photo's own size up to this)")
@@ -198,7 +202,7 @@ def _warn_if_dark(lights, source):
 # the look's fields and the options that set them (each default None: given or not)
 _LOOK_OPTIONS = (("yaw", "yaw"), ("tilt", "tilt"), ("exposure", "exposure"), ("tonemap", "tonemap"),
                  ("background", "background"), ("shadows", "visibility"), ("preset", "preset"),
-                 ("ground", "ground"))
+                 ("ground", "ground"), ("backdrop_blur", "backdrop_blur"))
 
 
 def _settings(args, yaw_default: float = 0.0):
@@ -544,13 +548,15 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
                    help="initial rotation of the lighting, degrees (default: the brightest light turned toward the camera)")
     p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
-    p.add_argument("--exposure", type=_exposure,
+    p.add_argument("--exposure", type=_auto_or("stops"),
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
     ground = p.add_mutually_exclusive_group()
     ground.add_argument("--ground", action="store_const", const=True,
                         help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
                              "by default shown when the feet are in the frame and the map is behind the person")
     ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    p.add_argument("--backdrop-blur", type=_auto_or("degrees"),
+                   help="the map behind the person blurred, degrees, or auto (default): as the photo's own background")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
     p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from . import detail as detail_mod
+from .backdrop import photo_blur
 from .errors import InputError
 from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
@@ -271,8 +272,10 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     # the outline would darken the matte's edge (frame pixels whose work pixel is outside the mask)
     frame_network_albedo = np.where(alpha[..., None] > 0, np.clip(resize(np.clip(work[..., :3], 0, 1), sizes.frame), 0, 1),
                                     0).astype(np.float32)
+    blur_px = photo_blur(frame_photo, alpha)  # the photo's own background defocus: the backdrop's "auto" blur
     scene = Scene(**scene_maps(work, work_mask, cam.distance), mask=work_mask, camera=cam,
-                  frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear))
+                  frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear,
+                                   background_blur=blur_px * s / cam.focal_px))
     scene.validate()
     stage("maps to the work frame")
 
@@ -305,7 +308,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
               "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
               "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
-              "matte": matte.record, "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
+              "matte": matte.record, "background_blur": {"pixels": round(blur_px, 3),
+                                                         "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
+              "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
     result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}
     if keep_intermediate:
         result.update(network_albedo_frame=frame_network_albedo, shading=(diffuse, specular), target=target,

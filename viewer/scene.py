@@ -60,6 +60,7 @@ class FrameLayer:
     albedo: np.ndarray  # (Hf, Wf, 3) linear, [0, 1]
     alpha: np.ndarray  # (Hf, Wf) [0, 1]
     photo: np.ndarray  # (Hf, Wf, 3) linear
+    background_blur: float = 0.0  # radians: the photo's own background defocus, a Gaussian's sigma (viewer.backdrop)
 
     @property
     def height(self) -> int:
@@ -76,7 +77,7 @@ class FrameLayer:
         if size == (self.width, self.height):
             return self
         return FrameLayer(albedo=np.clip(resize(self.albedo, size), 0, 1), alpha=np.clip(resize(self.alpha, size), 0, 1),
-                          photo=np.maximum(resize(self.photo, size), 0))
+                          photo=np.maximum(resize(self.photo, size), 0), background_blur=self.background_blur)
 
     def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> "FrameLayer":
         def file(name):
@@ -97,6 +98,11 @@ class FrameLayer:
             if name != "photo" and (lo < -1e-3 or hi > 1 + 1e-3):
                 raise InputError(file(name), f"values must lie in [0, 1], found [{lo:.4g}, {hi:.4g}]")
             setattr(self, name, np.ascontiguousarray(np.clip(arr, 0.0, None if name == "photo" else 1.0)))
+        blur = self.background_blur
+        if isinstance(blur, bool) or not isinstance(blur, (int, float)) or not 0.0 <= float(blur) <= 1.0:
+            raise InputError(base / "scene.json" if base is not None else "scene.json",
+                             f"frame background_blur must be an angle in [0, 1] radians, got {blur!r}")
+        self.background_blur = float(blur)
         mw, mh = maps_size
         if abs(w * mh / mw - h) > ASPECT_TOLERANCE_PX * max(1.0, h / mh):
             raise InputError(file("alpha"), f"the frame {w}x{h} does not have the aspect of the maps ({mw}x{mh})")
@@ -301,7 +307,7 @@ def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
     alpha = read_png(path / files["alpha"])
     albedo = read_exr(path / files["albedo"])
     frame = FrameLayer(albedo=albedo[..., :3] if albedo.ndim == 3 else albedo, alpha=alpha if alpha.ndim == 2 else alpha[..., 0],
-                       photo=srgb_to_linear(photo[..., :3]))
+                       photo=srgb_to_linear(photo[..., :3]), background_blur=entry.get("background_blur", 0.0))
     size = (entry.get("width"), entry.get("height"))
     if size != (frame.width, frame.height):
         raise InputError(meta_path, f"frame is {size[0]}x{size[1]} but {files['alpha']} is {frame.width}x{frame.height}")
@@ -342,6 +348,7 @@ def save_scene(scene: Scene, path) -> Path:
     }
     if frame is not None:
         meta["frame"] = {"width": frame.width, "height": frame.height, "maps": dict(FRAME_FILES),
-                         "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage"}}
+                         "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage"},
+                         "background_blur": frame.background_blur}
     write_text(path / "scene.json", json.dumps(meta, indent=2) + "\n")
     return path

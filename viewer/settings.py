@@ -19,6 +19,7 @@ from .errors import InputError
 from .lights import rotation_matrix
 
 AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.render.photo_exposure)
+MAX_BACKDROP_BLUR = 30.0  # degrees (viewer.backdrop.MAX_BLUR)
 EXPOSURE_LIMIT = 40.0  # stops either way
 TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
 BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2, "transparent": 3}
@@ -59,6 +60,8 @@ class Look:
     compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
     ground: bool | str = AUTO  # the person's shadow on a ground plane at the feet, over the background (a shadow
     # catcher); "auto": shown when the feet are in the frame and the map is behind the person (ground_shown)
+    backdrop_blur: float | str = AUTO  # degrees: the map behind the person blurred like a defocused background;
+    # "auto": as much as the photo's own background is (viewer.backdrop), 0 for a scene without a photo
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
@@ -81,6 +84,8 @@ class Look:
             if not isinstance(getattr(self, name), (bool, np.bool_)) and not (name == "ground" and self.ground == AUTO):
                 raise InputError(None, f"{name} must be true or false{' (or auto)' if name == 'ground' else ''}, "
                                        f"got {getattr(self, name)!r}")
+        if self.backdrop_blur != AUTO:
+            _finite("backdrop blur", self.backdrop_blur, 0.0, MAX_BACKDROP_BLUR, " degrees (or auto)")
         _choice("view", self.view, VIEWS)
         if isinstance(self.light, bool) or not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")

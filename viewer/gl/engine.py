@@ -35,16 +35,17 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from ..backdrop import blurred_map
 from ..errors import InputError
+from ..ground import ground_plane
 from ..lights import AreaLights
 from ..scene import Scene
-from ..settings import VIEWS, VISIBILITY_MODES, Look
+from ..settings import AUTO, VIEWS, VISIBILITY_MODES, Look
 from .. import shadow_space as ss
 from .composite_pass import CompositePass
 from .context import make_current
 from .display_pass import INSPECT_VIEWS, DisplayPass, InspectPass
 from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
-from ..ground import ground_plane
 from .ground_pass import GroundShadowPass
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light
@@ -76,6 +77,7 @@ class Engine(EngineOutputs):
         res = self.resources = SceneResources(kit, scene, o.shadow_step)
         self.shadow_step = res.shadow_step
         self._lights: list[Light] = []
+        self._environment, self._uploaded_sigma = None, None  # the map as given; the backdrop blur it was uploaded with
         # the engine's first look: no background until one is set
         self.look = Look(background="color", background_color=(0.0, 0.0, 0.0))
         self._specular = scene.has_specular or not o.leave_out
@@ -223,6 +225,8 @@ class Engine(EngineOutputs):
     def _set_look(self, look: Look):
         old, terms, shown = self.look, self._composite_terms(), self.ground_shown
         self.look = look
+        if self._environment is not None and self.backdrop_sigma != self._uploaded_sigma:
+            self._upload_environment()
         if self.ground_shown != shown:
             self._changed("ground")
         if look.shadows != old.shadows:
@@ -299,8 +303,25 @@ class Engine(EngineOutputs):
 
     @in_context
     def set_environment(self, pixels: np.ndarray):
-        """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background."""
-        self.resources.set_environment(pixels)
+        """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background
+        (blurred by the look's backdrop blur)."""
+        self._environment = np.asarray(pixels, dtype=np.float32)
+        self._upload_environment()
+
+    @property
+    def backdrop_sigma(self) -> float:
+        """The backdrop's blur (radians): the look's, or ("auto") the photo's own background defocus."""
+        blur = self.look.backdrop_blur
+        if blur == AUTO:
+            return self.scene.frame.background_blur if self.scene.frame is not None else 0.0
+        return float(np.radians(blur))
+
+    def _upload_environment(self):
+        if self._environment is None:
+            return
+        sigma = self.backdrop_sigma
+        self.resources.set_environment(blurred_map(self._environment, sigma))
+        self._uploaded_sigma = sigma
         self._changed("environment")
 
     # ------------------------------------------------------------------ scheduling

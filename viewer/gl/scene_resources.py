@@ -5,6 +5,7 @@ scene never changes in an engine's life; only the environment map is replaced.""
 
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 
 from ..mesh import caster_points, depth_mesh, resolve_step
@@ -69,6 +70,8 @@ class SceneResources:
         self.environment.release()
         data = np.dstack([pixels, np.ones((h, w), np.float32)]).astype("f4")
         self.environment = self.kit.texture((w, h), 4, data.tobytes(), linear=True, repeat=True)
+        self.environment.build_mipmaps()  # environment_seen reads a minified map's level
+        self.environment.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
 
     def release(self):
         for tex in (self.positions, self.normals, self.albedo, self.background, self.environment):
