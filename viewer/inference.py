@@ -27,12 +27,13 @@ from __future__ import annotations
 import json
 import shutil
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from . import detail as detail_mod
+from . import gloss
 from .backdrop import photo_blur
 from .errors import InputError
 from .matting import automatic_matte, mask_matte
@@ -226,13 +227,19 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     frame = output_frame((w, h), max_size)
     frame_photo = resize(photo, frame)
     stage("read")
+    from .segmentation import find_person
+
     if mask_path is not None:
         matte = mask_matte(frame_photo, np.clip(resize(read_mask(mask_path, (h, w), notes), frame), 0.0, 1.0))
         mask_source = str(mask_path)
+        try:  # the pose's landmarks still tell the face's skin (viewer.gloss); a mask needs no person found
+            landmarks = find_person(frame_photo, photo_path).landmarks
+        except InputError:
+            landmarks = {}
     else:
-        from .segmentation import find_person
-
-        matte = automatic_matte(frame_photo, find_person(frame_photo, photo_path, notes))
+        found = find_person(frame_photo, photo_path, notes)
+        matte = automatic_matte(frame_photo, found)
+        landmarks = found.landmarks
         mask_source = "automatic (MediaPipe pose segmentation, matted: viewer.matting)"
     alpha = matte.alpha
     person = alpha > 0.5
@@ -276,6 +283,12 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     scene = Scene(**scene_maps(work, work_mask, cam.distance), mask=work_mask, camera=cam,
                   frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear,
                                    background_blur=blur_px * s / cam.focal_px))
+    skin = gloss.skin(matte.foreground, alpha, landmarks)  # skin keeps the network's sheen, the rest is matte
+    if skin is not None:
+        scene = replace(scene, roughness=np.where(work_mask, gloss.matte_roughness(
+            scene.roughness, mask_normalized_resize(skin[..., None], alpha, sizes.work)[..., 0]), 0).astype(np.float32))
+    gloss_record = {"skin_share": float((skin[person] > 0.5).mean()) if skin is not None else None,
+                    "matte_roughness": gloss.MATTE_ROUGHNESS if skin is not None else None}
     scene.validate()
     stage("maps to the work frame")
 
@@ -308,7 +321,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
               "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
               "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
-              "matte": matte.record, "background_blur": {"pixels": round(blur_px, 3),
+              "matte": matte.record, "gloss": gloss_record, "background_blur": {"pixels": round(blur_px, 3),
                                                          "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
               "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
     result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}
@@ -324,7 +337,6 @@ def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarr
     the person, in its maps; the detail step's statistics). ``shading`` = (D_old, S_old) at the
     frame, ``framing_side`` the networks' square in frame pixels, ``foreground`` the matte's
     foreground colours (linear, the frame's size): the photo's colour wherever it enters the person."""
-    from dataclasses import replace
 
     frame = scene.frame
     albedo, stats = detail_mod.detail_albedo(method, foreground, frame.alpha, network_albedo_frame, shading,

@@ -1,0 +1,61 @@
+"""How shiny each region of the person may be: skin keeps the networks' sheen, the rest is matte.
+
+On real photos the inverse-rendering network's roughness is nearly uniform (about 0.55, GGX alpha
+0.3 on everything, its guess when unsure), and with Disney's F0 of 0.035 that lobe turns dark cloth
+into glossy latex under a low sun, where the diffuse term of a dark albedo is small and the
+specular's Fresnel large. Cloth is rough (the training data's cotton and denim 0.7 to 0.9), so a
+class prior decides: the photo's skin, told by its colour against the face's (the pose landmarks'
+face polygon: a Gaussian of the skin's log-chromaticity there; nothing much darker than the face),
+keeps the network's roughness; the rest is made at least ``MATTE_ROUGHNESS``. Hair and leather lose their moving highlight with it
+(the photo's own highlights stay in the detail albedo). Without a face (a photo the pose model does
+not find, a synthetic scene), nothing changes. docs/photos.md shows dark cloth under a low sun
+before and after, and measures the prior on held-out pairs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)
+SKIN_DISTANCE = 3.0  # Mahalanobis distance in the skin's log-chromaticity where skin turns to not skin
+MIN_FACE_PIXELS = 50  # fewer face pixels than this: no skin model
+SKIN_DARKEST = 0.2  # of the face's median luminance: darker is not skin (black cloth's chromaticity is noise)
+FACE = tuple(range(11))  # MediaPipe's face landmarks (nose, eyes, ears, mouth)
+
+
+def _log_chroma(rgb: np.ndarray) -> np.ndarray:
+    rgb = np.maximum(np.asarray(rgb, np.float64), 1e-4)
+    return np.stack([np.log(rgb[..., 0] / rgb[..., 1]), np.log(rgb[..., 2] / rgb[..., 1])], axis=-1)
+
+
+def skin(foreground: np.ndarray, alpha: np.ndarray, landmarks: dict) -> np.ndarray | None:
+    """(H, W) float32 in [0, 1]: how much each pixel of the person looks like the skin of its face
+    (1 at the face's own colour, 0 beyond ``SKIN_DISTANCE``); None without a face to learn from."""
+    import cv2
+
+    h, w = alpha.shape
+    pts = [(x * w, y * h) for i, (x, y) in landmarks.items() if i in FACE]
+    if len(pts) < 3:
+        return None
+    face = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(face, [cv2.convexHull(np.round(pts).astype(np.int32))], 1)
+    sample = (face > 0) & (alpha > 0.9)
+    if sample.sum() < MIN_FACE_PIXELS:
+        return None
+    chroma = _log_chroma(foreground)
+    c = chroma[sample]
+    centre = np.median(c, axis=0)
+    spread = np.cov((c - centre).T) + np.eye(2) * 1e-3
+    d = chroma - centre
+    distance = np.sqrt(np.einsum("...i,ij,...j->...", d, np.linalg.inv(spread), d))
+    luminance = np.asarray(foreground, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    lit = luminance >= SKIN_DARKEST * np.median(luminance[sample])  # a dark pixel's chromaticity is noise
+    return (np.clip(1.0 - distance / SKIN_DISTANCE, 0.0, 1.0) * lit * (alpha > 0)).astype(np.float32)
+
+
+def matte_roughness(roughness: np.ndarray, skin_share: np.ndarray | None) -> np.ndarray:
+    """The roughness map with what is not skin at least ``MATTE_ROUGHNESS`` (unchanged without a skin map)."""
+    if skin_share is None:
+        return roughness
+    floor = MATTE_ROUGHNESS * (1.0 - skin_share)
+    return np.maximum(roughness, floor).astype(np.float32)
