@@ -52,3 +52,24 @@ def test_extreme_lights_stay_finite_and_bounded(ctx):
         assert np.isfinite(v).all() and v.min() >= 0.0 and v.max() <= 1.0
     assert np.isfinite(eng.read_hdr()).all()
     eng.release()
+
+
+def test_a_sharp_shadows_edge_is_filtered_not_a_staircase(ctx):
+    """A small light's shadow of the box on the plane: with the penumbra at least PCSS_MIN_TEXELS
+    shadow-map texels wide, the edge has intermediate values and no jump from lit to shadowed
+    between neighbours (the staircase a work pixel then shows as a block in a larger output);
+    the hard test keeps its binary edge."""
+    from viewer import shadow_space
+
+    scene = plane_and_box(96)
+    eng = Engine(ctx, scene, EngineOptions(soft="pcss", shadow_step=1, shadow_resolution=128))
+    eng.set_lights(AreaLights(np.array([LIGHT], np.float32), [0.2], np.ones((1, 3), np.float32)))
+    eng.render()
+    out = eng.read_light(0)
+    soft, hard = out["visibility_soft"], out["visibility_hard"]
+    eng.release()
+    assert set(np.unique(hard)) <= {0.0, 1.0}
+    partial = (soft > 0.05) & (soft < 0.95)
+    assert partial.sum() >= 0.5 * (np.abs(np.diff(hard, axis=1)) > 0.5).sum()  # the edge is soft all along
+    assert max(np.abs(np.diff(soft, axis=0)).max(), np.abs(np.diff(soft, axis=1)).max()) < 0.95
+    assert shadow_space.PCSS_MIN_TEXELS > 0

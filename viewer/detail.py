@@ -10,7 +10,9 @@ photo's detail comes in through ``A_frame``, made once at inference by one of:
   low-pass (a mask-normalized Gaussian of about one network pixel);
 - ``quotient``: the photo divided by its own shading: ``Q = (photo - S_old) / D_old`` with D_old,
   S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo_lighting`),
-  upsampled exactly as the frame composite upsamples the new ones. Under new lights the output is
+  upsampled exactly as the frame composite upsamples the new ones, D_old's colour low-passed
+  (``smooth_colour``: the photo's light changes colour slowly; at the outline the networks'
+  normals would tint the edge). Under new lights the output is
   then the photo times D_new / D_old, the quotient image, with the old highlights taken out.
   Where D_old is dark (below ``DARK`` of its mean over the person) the quotient is noise over a
   small number: there it fades to ``highpass``. The subtraction of the old highlights never
@@ -42,6 +44,7 @@ MAX_RATIO = 4.0  # bound of the high-frequency ratio (a speck of glare over a da
 LOWPASS_SHRINK = 2.0  # a low-pass of sigma s runs on the image shrunk by s / this (at least 2 pixels of sigma remain)
 SHARED_SCALE = 0.25  # network pixels: the scale at which the quotient is compared with the network's albedo
 BRIGHT_SHARE = 0.5  # of a coarse excess of brightness over the network's albedo, the share (log) left to the light
+LIGHT_COLOUR_SCALE = 3.0  # network pixels: the colour of the photo's shading is low-passed at this scale (smooth_colour)
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:
@@ -75,6 +78,15 @@ def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.nd
     return out.reshape(image.shape).astype(np.float32, copy=False)
 
 
+def smooth_colour(shading: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
+    """``shading`` (H, W, 3) with its own luminance per pixel and the colour of its low-pass (a
+    Gaussian of ``sigma`` pixels over ``weight``): the photo's light changes colour slowly over the
+    person, and where the networks' normals are least sure (the outline, turned away from the
+    camera) a colour of the shading's own would tint the quotient's edge."""
+    low = masked_lowpass(shading, weight, sigma)
+    return (luminance(shading)[..., None] * low / np.maximum(luminance(low), 1e-12)[..., None]).astype(np.float32)
+
+
 def highpass_ratio(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
     """photo / low-pass(photo) per channel inside the matte (1 outside), bounded by MAX_RATIO."""
     low = masked_lowpass(photo, alpha > 0.5, sigma)
@@ -106,6 +118,7 @@ def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_alb
                 raise ValueError("the quotient needs the photo's own shading")
             diffuse, specular = shading
             person = alpha > 0.5
+            diffuse = smooth_colour(diffuse, person, LIGHT_COLOUR_SCALE * lowpass_sigma)
             mean = diffuse[person].mean(axis=0) if person.any() else np.ones(3, np.float32)
             floor = np.maximum(DARK * mean, 1e-12).astype(np.float32)
             lit = photo - np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)

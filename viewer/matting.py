@@ -29,6 +29,8 @@ the trimap's core, its outline softened by step 2. Either way step 3 gives the c
 
 from __future__ import annotations
 
+import contextlib
+import io
 import time
 from dataclasses import dataclass
 
@@ -359,7 +361,8 @@ def edge_alpha(photo: np.ndarray, person: np.ndarray, half_width: float, holes: 
     tri = known[box]
     if (tri == 0).any() and (tri == 1).any():
         image = np.clip(photo[box].astype(np.float64) / 255.0, 0.0, 1.0)
-        alpha[box] = np.clip(solve(image, tri), 0.0, 1.0)
+        with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints its preconditioner's retries
+            alpha[box] = np.clip(solve(image, tri), 0.0, 1.0)
     return alpha
 
 
@@ -382,24 +385,30 @@ def foreground_colours(linear: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return out
 
 
-def automatic_matte(photo: np.ndarray, person) -> Matte:
-    """The matte of ``photo`` (H, W, 3) uint8 sRGB from the pose model's :class:`viewer.segmentation.Person`."""
-    from .imageio import srgb_to_linear
+def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, float]:
+    """Steps 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
+    decided by colour; the background's holes in it; the soft edge's half-width, pixels)."""
     from .photo_frame import resize, scaled_size
 
-    t0 = time.perf_counter()
     h, w = photo.shape[:2]
     height = person_height(person.segmentation > 0.5)
     size = (w, h) if height <= SOLVE_HEIGHT else scaled_size((w, h), int(round(max(w, h) * SOLVE_HEIGHT / height)))
     tri = trimap(resize(person.segmentation, size), person.landmarks)
     small = resize(photo, size).astype(np.float32) / 255.0
     models = colour_models(small, tri.samples, tri.sure_background, ~tri.sure_background, MODEL_RADIUS * tri.height)
-    decided = decide_band(small, tri, models)
-    t1 = time.perf_counter()
-    person_mask = resize(decided.astype(np.float32), (w, h)) > 0.5
+    decided = resize(decide_band(small, tri, models).astype(np.float32), (w, h)) > 0.5
     half_width = max(MIN_EDGE, EDGE * height)
-    holes = background_holes(photo.astype(np.float32) / 255.0, person_mask, models, HOLE_DEPTH * half_width)
-    alpha = edge_alpha(photo, person_mask, half_width, holes)
+    return decided, background_holes(photo.astype(np.float32) / 255.0, decided, models, HOLE_DEPTH * half_width), half_width
+
+
+def automatic_matte(photo: np.ndarray, person) -> Matte:
+    """The matte of ``photo`` (H, W, 3) uint8 sRGB from the pose model's :class:`viewer.segmentation.Person`."""
+    from .imageio import srgb_to_linear
+
+    t0 = time.perf_counter()
+    decided, holes, half_width = decided_outline(photo, person)
+    t1 = time.perf_counter()
+    alpha = edge_alpha(photo, decided, half_width, holes)
     t2 = time.perf_counter()
     foreground = foreground_colours(srgb_to_linear(photo.astype(np.float32) / 255.0), alpha)
     t3 = time.perf_counter()

@@ -93,6 +93,14 @@ def photos_table(result: dict) -> str:
                      f"{mask.get('mean_abs_percent', float('nan')):.2f} %; the photo's lighting "
                      f"explains it to {ex['fitted']['psnr_db']:.1f} dB / SSIM {ex['fitted']['ssim']:.3f} "
                      f"(the network's guess {ex['network']['psnr_db']:.1f} dB); inference {row['inference_seconds_total']:.1f} s")
+        matte = row.get("matte", {})
+        if "spill" in matte:
+            pink = matte["backdrop"]
+            lines.append(f"  matte in the output: spill {matte['spill']:.3f} px, cut {matte['cut']:.3f} px, bleed "
+                         f"{matte['bleed']:.3f}; on a pink backdrop: kept {pink['kept']:.3f} px, spill {pink['spill']:.3f}, "
+                         f"cut {pink['cut']:.3f}, bleed {pink['bleed']:.3f}; matte {sum(row['matte_seconds'].values()):.2f} s")
+        elif matte:
+            lines.append(f"  matte in the output: bleed {matte['bleed']:.3f}")
         for method, m in row["methods"].items():
             kept = ", ".join(f"{v:.2f}" for v in m["detail_kept"].values())
             lines.append(f"  {method:>17}: detail kept {kept} (mean {m['detail_kept_mean']:.2f}); light moved {m['light_moved']:.2f}"

@@ -6,7 +6,8 @@ only), at the output frame (the photo capped at 2048 px), and for the same perso
 plain pink backdrop by that mask (:func:`viewer.lab.bench.metrics.on_backdrop`):
 
 - the pose model's segmentation alone (thresholded at 0.5);
-- the band decided by colour (:func:`viewer.matting.decide_band`), with no soft edge;
+- the band decided by colour and the background's holes (:func:`viewer.matting.decided_outline`),
+  with no soft edge;
 - the soft edge solved by each of pymatting's alpha solvers (closed-form, KNN, large-kernel,
   random-walk, learning-based) at several band widths, with the foreground colours;
 
@@ -66,17 +67,13 @@ def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges,
     row: dict = {"frame": [w, h], "person_height": height, "find_person_seconds": round(t_find, 3)}
     seg = (person.segmentation > 0.5).astype(np.float32)
     row["segmentation"] = _scores(seg, linear, linear, hand, photo, backdrop)
-    size = (w, h) if height <= matting.SOLVE_HEIGHT else \
-        (int(round(w * matting.SOLVE_HEIGHT / height)), int(round(h * matting.SOLVE_HEIGHT / height)))
-    small = resize(photo, size).astype(np.float32) / 255.0
-    decided, t_band = _timed(lambda: matting.decide_band(small, resize(person.segmentation, size), person.landmarks), repeats)
-    person_mask = resize(decided.astype(np.float32), (w, h)) > 0.5
-    row["band"] = {**_scores(person_mask.astype(np.float32), linear, linear, hand, photo, backdrop), "seconds": t_band}
+    (decided, holes, half), t_band = _timed(lambda: matting.decided_outline(photo, person), repeats)
+    row["band"] = {**_scores((decided & ~holes).astype(np.float32), linear, linear, hand, photo, backdrop), "seconds": t_band}
     row["edges"] = []
     for solver in solvers:
         for edge in edges:
             half = max(matting.MIN_EDGE, edge * height)
-            alpha, t_edge = _timed(lambda: matting.edge_alpha(photo, person_mask, half, _solver(solver)), repeats)
+            alpha, t_edge = _timed(lambda: matting.edge_alpha(photo, decided, half, holes, _solver(solver)), repeats)
             fg, t_fg = _timed(lambda: matting.foreground_colours(linear, alpha), repeats)
             row["edges"].append({"solver": solver, "edge": edge, "half_width_px": round(half, 2),
                                  **_scores(alpha, fg, linear, hand, photo, backdrop),

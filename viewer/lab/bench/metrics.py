@@ -101,6 +101,7 @@ BLEED_INTERIOR = (10.0, 30.0)  # the person's local interior colour comes from h
 BLEED_BACKGROUND = 15.0  # the photo's local background colour comes from this far outside
 BLEED_SIGMA = 15.0  # pixels: the window of the local colours
 KEPT_DELTA_E = 12.0  # CIE76: a pixel this close to the backdrop colour is the backdrop
+BLEED_DARKEST = 0.02  # of the person's median luminance: darker pixels have no chromaticity to judge
 
 
 def outline(mask: np.ndarray) -> np.ndarray:
@@ -145,8 +146,9 @@ def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
     chromaticity (rg of linear RGB) is nearer the photo's local background (within
     ``BLEED_BACKGROUND`` pixels outside) than the person's local interior (``BLEED_INTERIOR``
     pixels inside, in ``person``'s colours), minus the same share in the control band
-    ``BLEED_CONTROL`` (what a person's own colours score). ``person``: the relit person's colour
-    (not premultiplied), ``photo`` the photo, both linear at the same size."""
+    ``BLEED_CONTROL`` (what a person's own colours score); pixels darker than ``BLEED_DARKEST`` of
+    the person's median have no chromaticity to judge and are left out. ``person``: the relit
+    person's colour (not premultiplied), ``photo`` the photo, both linear at the same size."""
     from viewer.matting import distances
 
     inside, outside = distances(alpha >= 0.5)
@@ -154,7 +156,9 @@ def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
     background = _local_mean(cb, (outside > 0) & (outside <= BLEED_BACKGROUND), BLEED_SIGMA)
     interior = _local_mean(cp, (inside > BLEED_INTERIOR[0]) & (inside <= BLEED_INTERIOR[1]), BLEED_SIGMA)
     nearer = np.linalg.norm(cp - background, axis=-1) < np.linalg.norm(cp - interior, axis=-1)
-    lit = np.asarray(person, np.float32)[..., :3].sum(-1) > 1e-4
+    luminance = np.asarray(person, np.float32)[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    person_pixels = inside > 0
+    lit = luminance > BLEED_DARKEST * float(np.median(luminance[person_pixels])) if person_pixels.any() else luminance > 0
     band = (inside > 0) & (inside <= BLEED_BAND) & lit
     control = (inside > BLEED_CONTROL[0]) & (inside <= BLEED_CONTROL[1]) & lit
     if not band.any() or not control.any():

@@ -5,6 +5,11 @@ For each photo of ``--photos`` (default the two shared ones), with the automatic
 - **mask**: the automatic matte's IoU and mean absolute difference against the hand-made mask
   beside the photo (``<stem>.mask.png``, evaluation only), the share of the photo in its soft
   band, and its time;
+- **the matte in the output** (issue 30): the person rendered with a transparent background
+  under a neutral (white, uniform) map, as ``relight render --background transparent`` writes it:
+  spill and cut of its alpha against the hand-made mask, bleed of its colours at the edge
+  (:mod:`viewer.lab.bench.metrics`), and the same person composited on a plain pink backdrop by
+  the hand-made mask, inferred again: the share of pink kept;
 - **the photo's own lighting** before any detail step: the render of the network's maps under the
   lights fitted to the photo, against the photo's low-pass over the person (PSNR and SSIM, display
   sRGB), next to the same for the lights the inverse-rendering network guessed;
@@ -132,22 +137,19 @@ def _median_ms(fn, repeats: int = 5) -> float:
 
 def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, dict]:
     """Every measurement of one photo, and its pictures for the figures."""
-    from viewer.segmentation import person_matte
-
     row: dict = {"photo": path.name}
     notes: list = []
     photo = read_photo(path, notes)
     reference = path.with_name(path.stem + ".mask.png")
-    if reference.is_file():
-        t0 = time.perf_counter()
-        matte = person_matte(resize(photo, (photo.shape[1], photo.shape[0])), path)
-        seconds = round(time.perf_counter() - t0, 3)
-        hand = read_reference_mask(reference)
-        # mean |alpha - hand-made mask| (%) also counts a soft band too wide; soft band: 2 % < alpha < 98 %
-        row["mask"] = {"iou": mask_iou(matte, hand), "mean_abs_percent": float(np.abs(matte - hand).mean() * 100),
-                       "soft_band_percent": float(((matte > 0.02) & (matte < 0.98)).mean() * 100), "seconds": seconds}
     t0 = time.perf_counter()
     result = infer_scene(path, None, networks=nets, ctx=ctx, keep_intermediate=True)
+    if reference.is_file():
+        matte = result["scene"].frame.alpha
+        hand = resize(read_reference_mask(reference).astype(np.float32), (matte.shape[1], matte.shape[0])) > 0.5
+        # mean |alpha - hand-made mask| (%) also counts a soft band too wide; soft band: 2 % < alpha < 98 %
+        row["mask"] = {"iou": mask_iou(matte, hand), "mean_abs_percent": float(np.abs(matte - hand).mean() * 100),
+                       "soft_band_percent": float(((matte > 0.02) & (matte < 0.98)).mean() * 100),
+                       "seconds": result["stages"].times["mask"]}
     row["inference_seconds"] = dict(result["stages"].times)
     row["inference_seconds_total"] = round(time.perf_counter() - t0, 3)
     rec = result["record"]
@@ -170,6 +172,12 @@ def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, di
     photo_frame = resize(photo, frame_size).astype(np.float32) / 255.0
     matte = scene.frame.alpha > 0.5
     pictures = {"photo": photo_frame, "matte": matte}
+    row["matte"] = _matte_in_output(path, photo, frame_size, ctx, nets, result, reference)
+    row["matte_seconds"] = result["record"]["matte"]["seconds"]
+    row["background_blur"] = result["record"]["background_blur"]
+    row["gloss"] = result["record"]["gloss"]
+    if progress is not None:
+        progress(f"{path.name}: the matte in the output")
     row["methods"] = {}
     settings = Look(exposure="auto", shadows="soft", background="environment")
     for method in (BEFORE, *methods):
@@ -195,6 +203,59 @@ def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, di
         if progress is not None:
             progress(f"{path.name}: {method}")
     return row, pictures
+
+
+def neutral_lights() -> AreaLights:
+    """16 equal lights over the sphere: a uniform white map, whose light has no colour nor direction."""
+    from viewer.lightfit.fit import fibonacci_sphere
+
+    dirs = fibonacci_sphere(16).astype(np.float32)
+    return AreaLights(dirs, np.full(16, 12.0, np.float32), np.full((16, 3), 1.0 / 16, np.float32))
+
+
+def transparent_render(ctx, scene, specular: bool = True) -> np.ndarray:
+    """(H, W, 4): the relit person under :func:`neutral_lights` over a transparent background, as
+    the EXR of ``relight render --background transparent`` holds it, its colour divided by the
+    matte (linear HDR, not premultiplied) and the matte; ``specular`` False: the diffuse term alone
+    (the person's own colours lit, without the white sheen a uniform sky puts on every outline)."""
+    eng = Engine(ctx, scene, EngineOptions())
+    try:
+        look = Look(exposure=0.0, background="transparent", ground=False, specular=specular)
+        apply_settings(eng, scene, neutral_lights(), look, False)
+        eng.render()
+        hdr = eng.read_output_hdr()
+        alpha = hdr[..., 3:]
+        return np.concatenate([hdr[..., :3] / np.maximum(alpha, 1e-6), alpha], axis=-1)
+    finally:
+        eng.release()
+
+
+def _matte_in_output(path: Path, photo: np.ndarray, frame_size, ctx, nets, result: dict, reference: Path) -> dict:
+    """Spill, cut and bleed of the output's matte and colours; kept on a pink backdrop."""
+    from viewer.imageio import srgb_to_linear
+    from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
+    from viewer.photo_frame import read_mask
+
+    rgba = transparent_render(ctx, result["scene"])
+    linear_photo = srgb_to_linear(resize(photo, frame_size).astype(np.float32) / 255.0)
+    diffuse = transparent_render(ctx, result["scene"], specular=False)
+    out = {"bleed": bleed(diffuse[..., :3], diffuse[..., 3], linear_photo),
+           "bleed_with_specular": bleed(rgba[..., :3], rgba[..., 3], linear_photo)}
+    if not reference.is_file():
+        return out
+    hand = np.clip(resize(read_mask(reference, photo.shape[:2], []), frame_size), 0, 1)
+    out.update(spill_cut(rgba[..., 3], hand))
+    pink = on_backdrop(resize(photo, frame_size), hand)
+    with tempfile.TemporaryDirectory() as tmp:
+        backdrop_path = Path(tmp) / f"{path.stem}-pink.png"
+        from PIL import Image
+
+        Image.fromarray(pink).save(backdrop_path)
+        on_pink = infer_scene(backdrop_path, networks=nets, ctx=ctx)["scene"]
+    pink_rgba = transparent_render(ctx, on_pink)
+    out["backdrop"] = {"kept": kept_backdrop(pink_rgba[..., 3], pink, hand), **spill_cut(pink_rgba[..., 3], hand),
+                       "bleed": bleed(pink_rgba[..., :3], pink_rgba[..., 3], srgb_to_linear(pink.astype(np.float32) / 255.0))}
+    return out
 
 
 def _own_lights(eng, scene, lights) -> dict:
