@@ -3,9 +3,10 @@ the darkest cloth and the feet of each person, the crops placed from the photo a
 model's landmarks and the matte), so any photo and any pair of renders can be compared.
 
 Each argument group is a photo, then its renders to compare, each ``LABEL=IMAGE`` (PNG at the
-photo's output frame, as ``relight render`` writes it). Run from the project root::
+photo's output frame, as ``relight render`` writes it); ``--parts`` picks some of the crops. Run
+from the project root::
 
-    .venv/bin/python -m tools.crops_figure OUT.jpg PHOTO before=A.png now=B.png [PHOTO before=C.png now=D.png ...]
+    .venv/bin/python -m tools.crops_figure OUT.jpg [--parts "dark cloth,feet"] PHOTO before=A.png now=B.png [PHOTO ...]
 
 docs/photos.md shows its figures (the "before" renders from the product of the previous issue).
 """
@@ -34,8 +35,8 @@ def crop_boxes(photo: np.ndarray) -> dict:
     side = max(int(CROP * person_height(alpha > 0.5)), 32)
     lm = {i: (x * w, y * h) for i, (x, y) in person.landmarks.items()}
 
-    def around(x, y):
-        return (int(np.clip(y - side / 2, 0, h - side)), int(np.clip(x - side / 2, 0, w - side)), side)
+    def around(x, y, size=side):
+        return (int(np.clip(y - size / 2, 0, h - size)), int(np.clip(x - size / 2, 0, w - size)), size)
 
     boxes = {}
     ear = max((i for i in (7, 8) if i in lm), key=lambda i: abs(lm[i][0] - lm.get(0, (w / 2, 0))[0]), default=None)
@@ -58,12 +59,13 @@ def crop_boxes(photo: np.ndarray) -> dict:
     y, x = np.unravel_index(np.argmin(mean), mean.shape)
     boxes["dark cloth"] = around(x, y)
     feet = [lm[i] for i in (29, 30, 31, 32) if i in lm]
-    if feet:
-        boxes["feet"] = around(np.mean([p[0] for p in feet]), np.mean([p[1] for p in feet]) - 0.2 * side)
+    if feet:  # twice as large, down to the ground under the soles
+        size = min(2 * side, h, w)
+        boxes["feet"] = around(np.mean([p[0] for p in feet]), max(p[1] for p in feet) + 0.1 * size, size)
     return boxes
 
 
-def figure(groups: list, out: Path, tile: int = 300) -> Path:
+def figure(groups: list, out: Path, tile: int = 300, parts=PARTS) -> Path:
     """Rows of (photo, {label: image}): per photo and part, the crop of each render side by side."""
     from viewer.imageio import read_png, write_jpeg
     from viewer.photo_frame import read_photo, resize, output_frame
@@ -76,7 +78,7 @@ def figure(groups: list, out: Path, tile: int = 300) -> Path:
         photo = resize(photo, frame)
         boxes = crop_boxes(photo)
         images = {label: read_png(path)[..., :3] for label, path in renders.items()}
-        for part in PARTS:
+        for part in parts:
             if part not in boxes:
                 continue
             top, left, side = boxes[part]
@@ -94,15 +96,18 @@ def main(argv: list) -> int:
     if len(argv) < 3:
         print(__doc__)
         return 2
-    groups, current = [], None
-    for arg in argv[1:]:
+    groups, current, parts = [], None, PARTS
+    rest = argv[1:]
+    if rest[:1] == ["--parts"]:
+        parts, rest = tuple(p.strip() for p in rest[1].split(",")), rest[2:]
+    for arg in rest:
         if "=" in arg:
             label, path = arg.split("=", 1)
             current[1][label] = path
         else:
             current = (arg, {})
             groups.append(current)
-    print(f"wrote {figure(groups, Path(argv[0]))}")
+    print(f"wrote {figure(groups, Path(argv[0]), parts=parts)}")
     return 0
 
 

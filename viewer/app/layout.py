@@ -13,7 +13,7 @@ S                   save the frame: PNG, HDR EXR and the lights as JSON
 R                   record a 360 degree turn of the lighting (R again stops)
 L                   record what you do, live (L again stops)
 B                   before / after: the original photo left of a split (a photo's scene)
-G                   the person's shadow on the ground, on or off
+G                   the person's shadow on the ground, on or off (on when the feet show)
 Ctrl+Z / Ctrl+Y     undo / redo a change of your lights
 Q / Esc             quit"""
 
