@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .matting import FACE
+
 MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)
 SKIN_DISTANCE = 3.0  # Mahalanobis distance in the skin's log-chromaticity where skin turns to not skin
 MIN_FACE_PIXELS = 50  # fewer face pixels than this: no skin model
 SKIN_DARKEST = 0.2  # of the face's median luminance: darker is not skin (black cloth's chromaticity is noise)
-FACE = tuple(range(11))  # MediaPipe's face landmarks (nose, eyes, ears, mouth)
 
 
 def _log_chroma(rgb: np.ndarray) -> np.ndarray:

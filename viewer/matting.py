@@ -7,14 +7,16 @@ So the matte is decided from the photo, in three steps (docs/photos.md measures 
 
 1. **The wide band, decided by colour** (:func:`decide_band`). A trimap from the segmentation:
    the person for sure deeper than ``CORE`` of the person's height inside it (except where limbs,
-   hair and body meet: ``GAPS``), or on the pose's bones; the background for sure farther than
-   ``OUTER`` outside it. The band between holds the gaps between limbs, and is labelled person or background by a minimum cut
+   hair and body meet: ``GAPS``); the background for sure farther than ``OUTER`` outside it. The
+   band between holds the gaps between limbs, and is labelled person or background by a minimum cut
    (SciPy's ``maximum_flow``, a maintained solver) of a GrabCut-like energy: local colour models
    (Gaussians of the sure person and of the sure background within ``MODEL_RADIUS``), trusted
    only as far as the two models differ (their Bhattacharyya overlap: where hair and a dark shop
    window look alike, the segmentation decides), the segmentation as a prior, and a
    contrast-sensitive smoothness that puts the outline on the photo's edges. Solved at a size
-   where the person is ``SOLVE_HEIGHT`` pixels tall.
+   where the person is ``SOLVE_HEIGHT`` pixels tall; then, at the frame's resolution, pixels of
+   the person whose colour is the local background's beyond doubt are punched out
+   (:func:`background_holes`: slivers between the thighs, too thin for the band's resolution).
 2. **The soft edge** (:func:`edge_alpha`): a narrow trimap (``EDGE`` of the person's height either
    side of that outline) solved at the frame's resolution by closed-form matting
    (``pymatting``), chosen against KNN, large-kernel, random-walk and learning-based alpha by
@@ -38,7 +40,7 @@ import numpy as np
 
 CORE = 0.02  # of the person's height: deeper than this inside the segmentation is the person for sure
 OUTER = 0.012  # of the person's height: farther than this outside it is the background for sure
-BONE = 0.01  # the pose's bones, drawn this thick (of the person's height), are the person for sure
+BONE = 0.01  # the pose's bones, drawn this thick (of the person's height), are sampled for the person's colours
 MODEL_RADIUS = 0.03  # local colour models: the Gaussian window's sigma, of the person's height
 MODEL_REG = 5e-4  # added to the colour covariances (colours in [0, 1])
 COLOUR_CLIP = 10.0  # the colour log-likelihood ratio is bounded to this (nats)
@@ -49,13 +51,13 @@ EDGE = 0.004  # half-width of the soft edge's band, of the person's height (8 px
 MIN_EDGE = 1.5  # pixels
 FLOW_SCALE = 256  # capacities are integers: costs times this
 HOLE_DEPTH = 1.0  # holes are punched deeper than this many soft-edge half-widths inside the person
-HOLE = 9.0  # nats: a gap's pixel this much likelier the local background's colour than the person's is background
+HOLE = 9.0  # nats: a pixel of the person this much likelier the local background's colour than its own is background
 # The pose model's bones (MediaPipe's POSE_CONNECTIONS without the fingers, 17-22, which it guesses)
 BONES = ((0, 1), (0, 4), (1, 2), (2, 3), (3, 7), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12), (11, 13), (11, 23),
          (12, 14), (12, 24), (13, 15), (14, 16), (23, 24), (23, 25), (24, 26), (25, 27), (26, 28), (27, 29),
          (27, 31), (28, 30), (28, 32), (29, 31), (30, 32))
 TORSO = (11, 12, 24, 23)
-FACE = tuple(range(11))
+FACE = tuple(range(11))  # MediaPipe's face landmarks (nose, eyes, ears, mouth)
 # Where limbs, hair and body meet, the segmentation fills the gaps between them (the background
 # seen between an arm and the body, between the legs, between hair and shoulder): these polygons
 # of landmarks are never the person for sure, whatever their depth inside the segmentation

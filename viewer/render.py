@@ -91,17 +91,25 @@ def render_frame(engine, settings: Look, refiner=None):
     return refiner
 
 
-def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
-                    environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None) -> list[Path]:
-    """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``
-    (``fixed``: placed lights, see :func:`apply_settings`)."""
-    out_dir = Path(out_dir)
+def render_look(engine, scene: Scene, lights: AreaLights, settings: Look, environment: np.ndarray | None = None,
+                fixed: AreaLights | None = None, refiner=None) -> tuple[Look, object]:
+    """Render ``scene`` under ``lights`` (the map's, turned; the ``fixed`` placed lights) with the
+    look ``settings``, the map ``environment`` behind (None: none given); returns (the look with an
+    "auto" exposure resolved, the refiner :func:`render_frame` used)."""
     if environment is not None:
         engine.set_environment(environment)
     apply_settings(engine, scene, lights, settings, environment is not None, fixed)
     settings = resolve_exposure(engine, scene, settings)
     apply_settings(engine, scene, lights, settings, environment is not None, fixed)
-    render_frame(engine, settings)
+    return settings, render_frame(engine, settings, refiner)
+
+
+def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
+                    environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None) -> list[Path]:
+    """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``
+    (``fixed``: placed lights, see :func:`apply_settings`)."""
+    out_dir = Path(out_dir)
+    settings, _ = render_look(engine, scene, lights, settings, environment, fixed)
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
     hdr = engine.read_output_hdr()

@@ -51,7 +51,6 @@ def plane_ratio(scene, env: EnvMap, plane: GroundPlane, spp: int) -> tuple[np.nd
     depth = np.cross(side, n)  # along the view axis, on the plane
     centre = n * plane.offset
     quad = np.array([centre + far * (a * side + b * depth) for a, b in ((-1, 1), (1, 1), (1, -1), (-1, -1))])
-    quad = np.where(np.isfinite(quad), quad, 0.0)
     up = np.tile(n, (4, 1))
     faces = np.array([[0, 1, 2], [0, 2, 3]])
     m = bundle_mesh(scene)

@@ -47,7 +47,7 @@ from viewer.inference import infer_scene, load_networks, with_detail
 from viewer.lightfit import lights_for_map
 from viewer.lights import AreaLights
 from viewer.photo_frame import read_photo, resize
-from viewer.render import apply_settings, resolve_exposure
+from viewer.render import apply_settings, render_look
 from viewer.settings import Look
 from viewer.lab.bench.metrics import detail_kept, light_moved, metrics
 
@@ -103,12 +103,7 @@ def _with_detail(result: dict, label: str) -> "object":
 def _render(engine, scene, lights, settings, env_pixels, frame_size) -> tuple[np.ndarray, np.ndarray]:
     """(display (H, W, 3) in [0, 1], person HDR (H, W, 3)) at the frame's size (a scene without a
     frame layer renders at its maps' size and is upsampled, as its output would be shown)."""
-    if env_pixels is not None:
-        engine.set_environment(env_pixels)
-    apply_settings(engine, scene, lights, settings, env_pixels is not None)
-    settings = resolve_exposure(engine, scene, settings)
-    apply_settings(engine, scene, lights, settings, env_pixels is not None)
-    engine.render()
+    render_look(engine, scene, lights, settings, env_pixels)
     display = engine.read_display().astype(np.float32) / 255.0
     hdr = engine.read_hdr()
     return resize(display, frame_size), resize(hdr, frame_size)

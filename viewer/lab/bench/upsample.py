@@ -35,7 +35,7 @@ from viewer.lightfit import lights_for_map
 from viewer.lights import AreaLights
 from viewer.photo_frame import WORK_PERSON
 from viewer.placed_lights import PlacedLight, to_area_lights
-from viewer.render import apply_settings, render_frame, resolve_exposure
+from viewer.render import render_look
 from viewer.resources import asset_dir
 from viewer.settings import Look
 
@@ -62,12 +62,7 @@ def render(engine, scene, lighting, shadows: str, exposure=None) -> tuple[np.nda
     """(display RGBA (H, W, 4) in [0, 1], the exposure used) of ``scene`` under ``lighting``."""
     env, lights, fixed, yaw = lighting
     look = Look(exposure="auto" if exposure is None else exposure, shadows=shadows, yaw=yaw, background="transparent")
-    if env is not None:
-        engine.set_environment(env)
-    apply_settings(engine, scene, lights, look, env is not None, fixed)
-    look = resolve_exposure(engine, scene, look)
-    apply_settings(engine, scene, lights, look, env is not None, fixed)
-    render_frame(engine, look)
+    look, _ = render_look(engine, scene, lights, look, env, fixed)
     return engine.read_display_rgba().astype(np.float32) / 255.0, look.exposure_stops
 
 
