@@ -12,7 +12,6 @@ uniform float csm_offset;
 uniform float csm_clamp;
 uniform float light_alpha[4];  // each light's angular sigma (radians): contact-hardening penumbrae, specular widening
 uniform float shadow_window;   // metres a shadow map spans (the same for every light)
-uniform float empty_depth;     // normalised depth of texels no triangle covers (the same for every light)
 
 // (soft, hard) visibility of light j at p, a receiver with unit normal n facing the light
 // (n.l > 0); 1 in mode 3.

@@ -6,7 +6,9 @@
 // edge is filtered, not a staircase of texels). Both steps use Gaussian-distributed offsets (Vogel
 // spirals of Gaussian radii, unit sigma: PCSS_SEARCH_TAPS for the search, PCSS_TAPS for the
 // filter) and compare each tap against the receiver's tangent plane, so a sloped lit surface does
-// not shadow itself. No blocker: lit. Needs shadow_test.glsl. Mirrored by viewer/twin/pcss.py; the taps and constants are viewer.shadow_space's.
+// not shadow itself; a texel no triangle covers (empty_depth) is never a blocker, however far the
+// tangent plane of a grazing receiver (the ground under a low sun) reaches. No blocker: lit. Needs
+// shadow_test.glsl. Mirrored by viewer/twin/pcss.py; the taps and constants are viewer.shadow_space's.
 #if !defined(PCSS_TAPS) || !defined(PCSS_SEARCH_TAPS)
 #error PCSS_TAPS and PCSS_SEARCH_TAPS are defined by the engine (viewer.shadow_space)
 #endif
@@ -39,7 +41,7 @@ float pcss_visibility(sampler2D shadow_map, vec3 uvd, vec2 gradient, float bias,
         vec2 o = pcss_search_taps[i] * search;
         float receiver = uvd.z + dot(gradient, o) - bias;
         float z = shadow_depth(shadow_map, uvd.xy + o);
-        if (z < receiver) {
+        if (z < receiver && z < empty_depth) {
             gap += receiver - z;
             blockers += 1.0;
         }
@@ -50,7 +52,8 @@ float pcss_visibility(sampler2D shadow_map, vec3 uvd, vec2 gradient, float bias,
     float lit = 0.0;
     for (int i = 0; i < PCSS_TAPS; ++i) {
         vec2 o = pcss_taps[i] * width;
-        lit += (uvd.z + dot(gradient, o) - bias <= shadow_depth(shadow_map, uvd.xy + o)) ? 1.0 : 0.0;
+        float z = shadow_depth(shadow_map, uvd.xy + o);
+        lit += (uvd.z + dot(gradient, o) - bias <= z || z >= empty_depth) ? 1.0 : 0.0;
     }
     return lit / float(PCSS_TAPS);
 }

@@ -7,6 +7,7 @@ uniform float hard_threshold;
 uniform float normal_offset_texels;
 uniform float slope_bias_texels;
 uniform float max_slope;
+uniform float empty_depth;     // normalised depth of texels no triangle covers (the same for every light)
 
 // frame: camera space -> (u, v, z, 1), z = normalised depth (0 at the light)
 vec3 receiver_uvd(mat4 frame, vec3 p, vec3 n) {

@@ -73,6 +73,8 @@ def _mediapipe(photo_path):
 def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -> Person:
     """The person in ``photo`` (H, W, 3) uint8 sRGB; the largest when there are several (with a
     note). Raises :class:`InputError` naming ``photo_path`` when no person is found."""
+    import cv2
+
     from .photo_frame import resize, scaled_size
 
     notes = notes if notes is not None else []
@@ -102,6 +104,12 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
     segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
     if not (segmentation > 0.5).any():
         raise InputError(photo_path, "no person found in the photo; give the person's mask with --mask")
+    if everyone is not None and not any("people in the photo" in n or "left out" in n for n in notes):
+        # people standing together are one part of the selfie model's mask: count what the pose model's person leaves
+        person = cv2.dilate((seg > 0.5).astype(np.uint8), np.ones((15, 15), np.uint8)) > 0
+        others = (np.asarray(everyone) > 0.5) & ~person
+        if others.sum() >= OTHER_PERSON_FRACTION * max(int((seg > 0.5).sum()), 1):
+            notes.append("other people or objects in the photo are left out: relighting the most prominent person")
     return Person(segmentation.astype(np.float32), landmarks)
 
 

@@ -5,7 +5,8 @@ Percentage-closer soft shadows on the hard shadow map, with the light's sigma re
 
 1. blocker search: PCSS_SEARCH_TAPS :func:`viewer.shadow_space.pcss_taps` offsets scaled to alpha x
    PCSS_SEARCH shadow-map windows; a tap is a blocker when its depth is nearer than the receiver's tangent
-   plane there (minus the hard test's bias); the gap is the mean of (plane - depth) over blockers;
+   plane there (minus the hard test's bias) and its texel is not empty (``empty_depth``); the gap is the
+   mean of (plane - depth) over blockers;
 2. no blocker: visibility 1; else the penumbra's sigma is alpha x gap x depth scale metres, at
    least PCSS_MIN_TEXELS texels, and the visibility the fraction of PCSS_TAPS taps, scaled to the
    penumbra, that pass the tangent-plane test.
@@ -49,7 +50,7 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
         du, dv = o[0] * search, o[1] * search
         receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
         z = shadow_depth(depth, u + du, v + dv)
-        hit = z < receiver
+        hit = (z < receiver) & (z < frames.empty_depth)  # an empty texel is never a blocker
         gap = gap + torch.where(hit, receiver - z, torch.zeros_like(z))
         blockers = blockers + hit.to(d.dtype)
     width = (alpha * (gap / blockers.clamp(min=1.0)) * frames.depth_scale()[:, None] / window).clamp(
@@ -58,5 +59,6 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
     for o in taps:
         du, dv = o[0] * width, o[1] * width
         receiver = d + gradient[..., 0] * du + gradient[..., 1] * dv - bias
-        lit = lit + (receiver <= shadow_depth(depth, u + du, v + dv)).to(d.dtype)
+        z = shadow_depth(depth, u + du, v + dv)
+        lit = lit + ((receiver <= z) | (z >= frames.empty_depth)).to(d.dtype)
     return torch.where(blockers == 0, torch.ones_like(d), lit / len(taps))
