@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .matting import FACE
+from .matting import face_mask
 
 MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)
 SKIN_DISTANCE = 3.0  # Mahalanobis distance in the skin's log-chromaticity where skin turns to not skin
@@ -32,15 +32,11 @@ def _log_chroma(rgb: np.ndarray) -> np.ndarray:
 def skin(foreground: np.ndarray, alpha: np.ndarray, landmarks: dict) -> np.ndarray | None:
     """(H, W) float32 in [0, 1]: how much each pixel of the person looks like the skin of its face
     (1 at the face's own colour, 0 beyond ``SKIN_DISTANCE``); None without a face to learn from."""
-    import cv2
-
     h, w = alpha.shape
-    pts = [(x * w, y * h) for i, (x, y) in landmarks.items() if i in FACE]
-    if len(pts) < 3:
+    face = face_mask(landmarks, (w, h))
+    if face is None:
         return None
-    face = np.zeros((h, w), np.uint8)
-    cv2.fillPoly(face, [cv2.convexHull(np.round(pts).astype(np.int32))], 1)
-    sample = (face > 0) & (alpha > 0.9)
+    sample = face & (alpha > 0.9)
     if sample.sum() < MIN_FACE_PIXELS:
         return None
     chroma = _log_chroma(foreground)

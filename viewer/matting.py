@@ -97,9 +97,21 @@ def bones_mask(landmarks: dict, size: tuple[int, int], thickness: int) -> np.nda
             cv2.line(out, pts[a], pts[b], 1, max(1, thickness))
     if all(i in pts for i in TORSO):
         cv2.fillPoly(out, [np.array([pts[i] for i in TORSO], np.int32)], 1)
-    face = [pts[i] for i in FACE if i in pts]
-    if len(face) >= 3:
-        cv2.fillPoly(out, [cv2.convexHull(np.array(face, np.int32))], 1)
+    face = face_mask(landmarks, size)
+    return (out > 0) | face if face is not None else out > 0
+
+
+def face_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
+    """(H, W) bool: the convex hull of the pose's face landmarks (``FACE``) at ``size`` = (w, h);
+    None when fewer than three of them are seen."""
+    import cv2
+
+    w, h = size
+    face = [(int(round(x * w)), int(round(y * h))) for i, (x, y) in landmarks.items() if i in FACE]
+    if len(face) < 3:
+        return None
+    out = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(out, [cv2.convexHull(np.array(face, np.int32))], 1)
     return out > 0
 
 
