@@ -32,10 +32,10 @@ layout(location = 0) out vec4 occlusion;
 
 // The share of light j (unit direction l, angular sigma alpha) that the contact points hide from p.
 float contact_occlusion(vec3 p, vec3 l, float alpha) {
+    if (distance(p, contact_bound.xyz) > contact_bound.w) return 0.0;
     float s2 = max(max(alpha, contact_spread), 1e-2);
     s2 *= s2;
     float hidden = 0.0;
-    if (distance(p, contact_bound.xyz) > contact_bound.w) return 0.0;
     for (int i = 0; i < contact_count; ++i) {
         vec3 v = contact_points[i].xyz - p;
         float d2 = dot(v, v) + 1e-8;

@@ -123,15 +123,16 @@ def ground_plane(scene) -> GroundPlane:
         normal, offset = _level(found[0, 1])
     else:
         normal, offset = _level(float(inside[:, 1].min()) if len(inside) else 0.0)
-    return GroundPlane(normal, offset, found.astype(np.float32), _contact_points(scene, points, found, normal, offset))
+    return GroundPlane(normal, offset, found.astype(np.float32), _contact_points(scene, inside, found, normal, offset))
 
 
-def _contact_points(scene, points: np.ndarray, found: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
-    """(m, 4): the person's points within CONTACT_HEIGHT above the plane and CONTACT_REACH of a
-    contact, thinned to MAX_CONTACT_POINTS, each with the area of the pixels it stands for."""
+def _contact_points(scene, inside: np.ndarray, found: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
+    """(m, 4): of the person's points ``inside`` (n, 3), those within CONTACT_HEIGHT above the
+    plane and CONTACT_REACH of a contact, thinned to MAX_CONTACT_POINTS, each with the area of the
+    pixels it stands for."""
     if not len(found):
         return np.zeros((0, 4), np.float32)
-    p = points[scene.mask].astype(np.float64)
+    p = inside.astype(np.float64)
     height = p @ normal - offset
     near = (height <= CONTACT_HEIGHT) & (np.min(np.linalg.norm(p[:, None] - found[None], axis=-1), axis=1) <= CONTACT_REACH)
     p = p[near]
