@@ -31,20 +31,20 @@ def photo_blur(photo: np.ndarray, alpha: np.ndarray) -> float:
     strongest edges of the re-blur estimate; 0 when it has too few edges to tell."""
     import cv2
 
-    grey = cv2.GaussianBlur(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0, (0, 0), PRESMOOTH)
     person = alpha > 0.5
     rows = np.flatnonzero(person.any(axis=1))
     if rows.size == 0:
         return 0.0
     far = cv2.distanceTransform((~person).astype(np.uint8), cv2.DIST_L2, 5) > 0.05 * (rows[-1] - rows[0] + 1)
     far[(rows[0] + rows[-1]) // 2:] = False  # the ground near the feet is in focus: look above
+    if not far.any():
+        return 0.0
 
     def gradient(x):
         return np.hypot(cv2.Sobel(x, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(x, cv2.CV_32F, 0, 1, ksize=3))
 
+    grey = cv2.GaussianBlur(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0, (0, 0), PRESMOOTH)
     g1, g2 = gradient(grey), gradient(cv2.GaussianBlur(grey, (0, 0), REBLUR))
-    if not far.any():
-        return 0.0
     strong = g1 >= max(float(np.percentile(g1[far], EDGE_PERCENTILE)), 1e-3)
     edges = far & strong & (g1 == cv2.dilate(g1, np.ones((3, 3), np.uint8))) & (g2 > 1e-4)
     ratio = g1[edges] / g2[edges]
