@@ -80,10 +80,11 @@ class Look:
             raise InputError(None, f"background colour must be three finite values >= 0, got {self.background_color!r}")
         object.__setattr__(self, "background_color", tuple(float(c) for c in color))
         _choice("shadows", self.shadows, VISIBILITY_MODES)
-        for name in ("diffuse", "specular", "ground"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)) and not (name == "ground" and self.ground == AUTO):
-                raise InputError(None, f"{name} must be true or false{' (or auto)' if name == 'ground' else ''}, "
-                                       f"got {getattr(self, name)!r}")
+        for name in ("diffuse", "specular"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise InputError(None, f"{name} must be true or false, got {getattr(self, name)!r}")
+        if not isinstance(self.ground, (bool, np.bool_)) and self.ground != AUTO:
+            raise InputError(None, f"ground must be true or false (or auto), got {self.ground!r}")
         if self.backdrop_blur != AUTO:
             _finite("backdrop blur", self.backdrop_blur, 0.0, MAX_BACKDROP_BLUR, " degrees (or auto)")
         _choice("view", self.view, VIEWS)
