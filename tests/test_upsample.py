@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer import shadow_space
 from viewer.gl import Engine, EngineOptions
 from viewer.inference import infer_scene
 from viewer.lab.bench.upsample import _gradient, lightings, render
@@ -18,9 +17,9 @@ from viewer.resources import asset_dir
 TOLERANCE = 0.035
 
 
-def _errors(ctx, scene, reference, lighting, exposure_of):
+def _errors(ctx, scene, options, lighting, exposure_of):
     ref, exposure = exposure_of
-    eng = Engine(ctx, scene, EngineOptions())
+    eng = Engine(ctx, scene, options)
     img, _ = render(eng, scene, lighting, "soft", exposure)
     eng.release()
     both = (ref[..., 3] > 0.5) & (img[..., 3] > 0.5)
@@ -35,16 +34,13 @@ def test_the_upsampled_shading_stays_near_the_full_size_one(ctx):
     reference = infer_scene(photo, ctx=ctx, size=4096, max_size=512)["scene"]
     assert (reference.width, reference.height) == reference.output_size and scene.width < reference.width / 2
     key = lightings()["key light"]
-    saved, errors = shadow_space.PCSS_MIN_TEXELS, {}
-    try:
-        for edge in (0.0, saved):
-            shadow_space.PCSS_MIN_TEXELS = edge
-            eng = Engine(ctx, reference, EngineOptions())
-            ref = render(eng, reference, key, "soft")
-            eng.release()
-            errors[edge] = _errors(ctx, scene, reference, key, ref)
-    finally:
-        shadow_space.PCSS_MIN_TEXELS = saved
-    rmse, gradient = errors[saved]
+    default, errors = EngineOptions().pcss_min_texels, {}
+    for edge in (0.0, default):
+        options = EngineOptions(pcss_min_texels=edge)
+        eng = Engine(ctx, reference, options)
+        ref = render(eng, reference, key, "soft")
+        eng.release()
+        errors[edge] = _errors(ctx, scene, options, key, ref)
+    rmse, gradient = errors[default]
     assert rmse < TOLERANCE and gradient < TOLERANCE, errors
     assert gradient <= errors[0.0][1]  # the filtered edge: no staircase for the upsampling to enlarge

@@ -87,7 +87,8 @@ class Engine(EngineOutputs):
         self.prefilter_pass = PrefilterPass(kit, o.shadow_resolution, o.terms)
         self.atlas = LightAtlas(kit, res.mask_box, max_size, scene.source)
         self.refined = RefinedVisibility(kit, res.mask_box)
-        self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular, o.soft)
+        self.light_pass = LightShadingPass(kit, res, self.atlas, o.shadow_resolution, o.terms, self._specular, o.soft,
+                                           o.pcss_min_texels)
         self.composite_pass = CompositePass(kit, res, (scene.width, scene.height), frame_shading=scene.frame is not None)
         self.inspect_pass = InspectPass(kit, res, (scene.width, scene.height))
         self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera, ground_plane(scene))

@@ -91,9 +91,10 @@ class LightShadingPass:
     name = "light_pass"
 
     def __init__(self, kit: PassKit, scene: SceneResources, atlas: LightAtlas, resolution: int, terms: int, specular: bool,
-                 soft: str = "csm"):
+                 soft: str = "csm", pcss_min_texels: float = ss.PCSS_MIN_TEXELS):
         self.kit, self.scene, self.atlas = kit, scene, atlas
         self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
+        self.pcss_min_texels = pcss_min_texels
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
         # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
         # the CSM's pre-filtered basis, or directly: the contact-hardening penumbrae and, with
@@ -150,7 +151,7 @@ class LightShadingPass:
             prog["pcss_taps"].write(self.pcss_taps)
             prog["pcss_search_taps"].write(self.pcss_search_taps)
             prog["pcss_search"] = ss.PCSS_SEARCH
-            prog["pcss_min_texels"] = ss.PCSS_MIN_TEXELS
+            prog["pcss_min_texels"] = self.pcss_min_texels
         else:
             prog["csm_offset"] = self.csm_offset
             prog["csm_clamp"] = self.csm_clamp

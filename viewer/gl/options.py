@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import InputError
-from ..shadow_space import SOFT_METHODS
+from ..shadow_space import PCSS_MIN_TEXELS, SOFT_METHODS
 from .prefilter import METHODS
 
 
@@ -20,6 +20,8 @@ class EngineOptions:
     # distance, shaders/pcss.glsl; lower error than CSM and hard shadows, docs/results.md) or "csm" (the paper's
     # convolutional shadow maps with ``terms`` and ``prefilter``)
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
+    pcss_min_texels: float = PCSS_MIN_TEXELS  # with soft "pcss": the penumbra's smallest sigma, shadow-map texels
+    # (0: a sharp shadow's edge steps from texel to texel; relight bench upsample measures both)
     skip_threshold: float = 1e-5  # lights whose upper bound is below this fraction of the diffuse level are skipped
     leave_out: bool = True  # skip what the scene does not need (dark lights, soft filtering at sigma ~ 0, specular
     # work on a matte scene); False does all of it, for measuring what the policy saves (relight bench report)
@@ -39,3 +41,5 @@ class EngineOptions:
             raise InputError(None, f"prefilter must be one of {', '.join(METHODS)}, got {self.prefilter!r}")
         if not (self.hard_sigma >= 0 and 0 <= self.skip_threshold < 1):
             raise InputError(None, "hard_sigma must be >= 0 and skip_threshold in [0, 1)")
+        if not 0 <= self.pcss_min_texels <= 64:
+            raise InputError(None, f"the penumbra's smallest sigma must be in [0, 64] texels, got {self.pcss_min_texels}")

@@ -7,8 +7,8 @@ upsamples to the output frame) and once with the work frame as large as the outp
 reference: nothing upsampled). Each is relit under two lightings (a bundled map turned to light the
 person from the side, and a small key light over a dim sky, whose sharp shadow edges show blocks
 first) in the hard and the default soft shadow mode, with the penumbra's smallest width
-(:data:`viewer.shadow_space.PCSS_MIN_TEXELS`) at 0 (before: a sharp shadow's edge stepped from
-shadow-map texel to texel) and at its value now, and compared with the reference (with the same
+(``EngineOptions.pcss_min_texels``) at 0 (before: a sharp shadow's edge stepped from shadow-map
+texel to texel) and at its default now, and compared with the reference (with the same
 setting: what the upsampling loses) over the person:
 RMSE of the display image (sRGB, [0, 1]) and of its gradients (a staircase shows as gradient error
 along the shadow's edge). The time of a full frame at the output frame (the lighting turned) and
@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer import shadow_space
 from viewer.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
@@ -43,7 +42,7 @@ MAP = "venice_sunset_256"  # a bundled map, turned so its sun lights the person 
 KEY = PlacedLight(azimuth=60.0, elevation=35.0, size=1.0, intensity=6.0)  # a hard key light
 SIZES = (384, WORK_PERSON, 768, 1024)
 SHADOWS = ("soft", "hard")
-EDGES = (0.0, shadow_space.PCSS_MIN_TEXELS)  # the penumbra's smallest sigma (texels): before, now
+EDGES = (0.0, EngineOptions().pcss_min_texels)  # the penumbra's smallest sigma (texels): before, now (the default)
 
 
 def _gradient(image: np.ndarray) -> np.ndarray:
@@ -99,47 +98,44 @@ def run_upsample_benchmark(photos, output_dir="out/bench-upsample", sizes=SIZES,
     result: dict = {"machine": describe(ctx), "default_size": WORK_PERSON, "photos": []}
     crops = []
     start = time.perf_counter()
-    saved = shadow_space.PCSS_MIN_TEXELS
-    try:
-        for path in paths:
-            reference = infer_scene(path, networks=nets, ctx=ctx, size=4096)["scene"]
-            row: dict = {"photo": path.name, "frame": list(reference.output_size), "sizes": []}
-            refs = {}  # each edge setting against the reference with the same setting: what upsampling loses
-            engine = Engine(ctx, reference, EngineOptions())
+    for path in paths:
+        reference = infer_scene(path, networks=nets, ctx=ctx, size=4096)["scene"]
+        row: dict = {"photo": path.name, "frame": list(reference.output_size), "sizes": []}
+        refs = {}  # each edge setting against the reference with the same setting: what upsampling loses
+        for edge in EDGES:
+            engine = Engine(ctx, reference, EngineOptions(pcss_min_texels=edge))
             try:
-                for edge in EDGES:
-                    shadow_space.PCSS_MIN_TEXELS = edge
-                    for name, lighting in lit.items():
-                        for shadows in SHADOWS:
-                            refs[edge, name, shadows] = render(engine, reference, lighting, shadows)
+                for name, lighting in lit.items():
+                    for shadows in SHADOWS:
+                        refs[edge, name, shadows] = render(engine, reference, lighting, shadows)
             finally:
                 engine.release()
-            for size in sizes:
-                scene = infer_scene(path, networks=nets, ctx=ctx, size=size)["scene"]
-                entry: dict = {"size": size, "work": [scene.width, scene.height], "cases": []}
-                engine = Engine(ctx, scene, EngineOptions())
+        for size in sizes:
+            scene = infer_scene(path, networks=nets, ctx=ctx, size=size)["scene"]
+            entry: dict = {"size": size, "work": [scene.width, scene.height], "cases": []}
+            for edge in EDGES:
+                engine = Engine(ctx, scene, EngineOptions(pcss_min_texels=edge))
                 try:
-                    for (edge, name, shadows), (ref, exposure) in refs.items():
-                        shadow_space.PCSS_MIN_TEXELS = edge
-                        img, _ = render(engine, scene, lit[name], shadows, exposure)
-                        both = (ref[..., 3] > 0.5) & (img[..., 3] > 0.5)
-                        err = img[..., :3] - ref[..., :3]
-                        grad = _gradient(img[..., :3]) - _gradient(ref[..., :3])
-                        entry["cases"].append({"lighting": name, "shadows": shadows, "min_texels": edge,
-                                               "rmse": float(np.sqrt((err[both] ** 2).mean())),
-                                               "gradient_rmse": float(np.sqrt((grad[both[:-1, :-1]] ** 2).mean()))})
-                        if size == WORK_PERSON and name == "key light" and shadows == "soft":
-                            crops.append((path.name, edge, img, ref))
-                    shadow_space.PCSS_MIN_TEXELS = saved
-                    entry.update(_times(engine, lit["map"], repeats))
+                    for name, lighting in lit.items():
+                        for shadows in SHADOWS:
+                            ref, exposure = refs[edge, name, shadows]
+                            img, _ = render(engine, scene, lighting, shadows, exposure)
+                            both = (ref[..., 3] > 0.5) & (img[..., 3] > 0.5)
+                            err = img[..., :3] - ref[..., :3]
+                            grad = _gradient(img[..., :3]) - _gradient(ref[..., :3])
+                            entry["cases"].append({"lighting": name, "shadows": shadows, "min_texels": edge,
+                                                   "rmse": float(np.sqrt((err[both] ** 2).mean())),
+                                                   "gradient_rmse": float(np.sqrt((grad[both[:-1, :-1]] ** 2).mean()))})
+                            if size == WORK_PERSON and name == "key light" and shadows == "soft":
+                                crops.append((path.name, edge, img, ref))
+                    if edge == EngineOptions().pcss_min_texels:  # the times at the default
+                        entry.update(_times(engine, lit["map"], repeats))
                 finally:
                     engine.release()
-                row["sizes"].append(entry)
-                if progress is not None:
-                    progress(f"{path.name}: work size {size}")
-            result["photos"].append(row)
-    finally:
-        shadow_space.PCSS_MIN_TEXELS = saved
+            row["sizes"].append(entry)
+            if progress is not None:
+                progress(f"{path.name}: work size {size}")
+        result["photos"].append(row)
     result["seconds"] = round(time.perf_counter() - start, 1)
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)
