@@ -42,7 +42,7 @@ from viewer import detail as detail_mod
 from viewer.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
-from viewer.imageio import linear_to_srgb, write_jpeg, write_text
+from viewer.imageio import linear_to_srgb, write_jpeg, write_png, write_text
 from viewer.inference import infer_scene, load_networks, with_detail
 from viewer.lightfit import lights_for_map
 from viewer.lights import AreaLights
@@ -242,10 +242,7 @@ def _matte_in_output(path: Path, photo: np.ndarray, frame_size, ctx, nets, resul
     out.update(spill_cut(rgba[..., 3], hand))
     pink = on_backdrop(resize(photo, frame_size), hand)
     with tempfile.TemporaryDirectory() as tmp:
-        backdrop_path = Path(tmp) / f"{path.stem}-pink.png"
-        from PIL import Image
-
-        Image.fromarray(pink).save(backdrop_path)
+        backdrop_path = write_png(Path(tmp) / f"{path.stem}-pink.png", pink / 255.0)
         on_pink = infer_scene(backdrop_path, networks=nets, ctx=ctx)["scene"]
     pink_rgba = transparent_render(ctx, on_pink)
     out["backdrop"] = {"kept": kept_backdrop(pink_rgba[..., 3], pink, hand), **spill_cut(pink_rgba[..., 3], hand),
