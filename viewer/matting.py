@@ -400,7 +400,7 @@ def foreground_colours(linear: np.ndarray, alpha: np.ndarray) -> np.ndarray:
 
 
 def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, float]:
-    """Steps 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
+    """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
     decided by colour; the background's holes in it; the soft edge's half-width, pixels)."""
     from .photo_frame import resize, scaled_size
 
