@@ -74,3 +74,20 @@ def test_bad_arguments(tmp_path):
     with pytest.raises(InputError):
         DatasetConfig("x", 3, shard=(2, 2))
     assert main(["dataset", "make", "--out", str(tmp_path), "--count", "1", "--shard", "a/b"]) == 2
+
+
+def test_the_key_split_holds_the_same_people_under_key_lights(tiny_dataset, tmp_path):
+    """``--split key``: the people of the same seed (the same G-buffers), each lit by a key-light
+    map that is not turned, with the map's lights fitted; the person's images are not the map split's."""
+    out, _ = tiny_dataset
+    cfg = DatasetConfig(tmp_path, 3, res=64, spp=16, lightings=1, pool=2, split="key")
+    record = make_sample(cfg, 1, map_pool(cfg))
+    lighting = record["lightings"][0]
+    assert lighting["kind"] in ("key", "key_rim") and lighting["yaw"] == 0.0 and lighting["map"].startswith("key_0_")
+    for name in ("normal", "depth", "albedo"):
+        assert np.array_equal(read_exr(sample_dir(cfg, 1) / f"{name}.exr"), read_exr(out / "samples" / "000001" / f"{name}.exr"))
+    full = read_exr(sample_dir(cfg, 1) / "lighting_0" / "full.exr")
+    assert np.isfinite(full).all() and full.max() > 0
+    assert not np.array_equal(full, read_exr(out / "samples" / "000001" / "lighting_0" / "full.exr"))
+    lights = json.loads((sample_dir(cfg, 1) / "lighting_0" / "lights.json").read_text())["lights"]
+    assert len(lights) >= 1

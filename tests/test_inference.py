@@ -78,6 +78,11 @@ def test_a_real_photo_becomes_a_bundle_in_its_own_frame(landscape_bundle, ctx):
     saved = json.loads((out / "inference.json").read_text())
     assert saved["photo_size"] == [1950, 1302] and saved["seconds_total"] > 0
     assert saved["sizes"]["frame"] == [1950, 1302] and saved["photo_lighting"]["psnr_db"] > 18
+    # the face, fitted at its own resolution (viewer.face), is in the maps: its box on the person's head
+    fitted = saved["face"]["fitted"]
+    assert saved["face"]["faces_found"] == 1 and 80 < fitted["width_px"] < 200 and fitted["work_pixels"] > 500
+    left, top, width, height = fitted["box"]
+    assert scene.frame.alpha[int(top + height / 2), int(left + width / 2)] > 0.5
 
 
 def _own_lights_error(ctx, scene, lights):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.lab.data.envmaps import KINDS, interior, outdoor, random_map, sky, studio, overcast
+from viewer.lab.data.envmaps import KINDS, interior, key_light, outdoor, random_map, sky, studio, overcast
 from viewer.envmap import pixel_directions, solid_angles
 from viewer.median_cut import median_cut_lights
 
@@ -85,3 +85,30 @@ def test_the_outdoor_sun_is_never_behind_the_skyline():
         d = m.emitters[0].direction
         azimuth = np.arctan2(d[0], -d[2])
         assert np.arcsin(d[1]) - m.emitters[0].radius >= m.skyline(np.array([azimuth]))[0]
+
+
+def test_key_lights_stand_where_a_photographer_puts_them():
+    """The held-out key-light kind: a key 30-80 degrees off the camera's axis and 10-45 degrees up,
+    a rim behind on the other side in about half the maps, nothing else (no fill), energy exact."""
+    kinds = []
+    for seed in range(24):
+        m = key_light(np.random.default_rng(seed), 128)
+        kinds.append(m.kind)
+        key = m.emitters[0]
+        towards_camera = np.array([0.0, 0.0, 1.0])
+        flat = key.direction * [1, 0, 1] / np.linalg.norm(key.direction * [1, 0, 1])
+        assert 30 - 1e-6 <= np.degrees(np.arccos(flat @ towards_camera)) <= 80 + 1e-6
+        assert 10 - 1e-6 <= np.degrees(np.arcsin(key.direction[1])) <= 45 + 1e-6
+        px = m.env.pixels.astype(np.float64)
+        h, w = px.shape[:2]
+        d = pixel_directions(h, w)
+        near = np.zeros((h, w), bool)
+        for e in m.emitters:
+            near |= d @ e.direction >= np.cos(e.radius + 2 * np.pi / w * 2)
+        assert px[~near].max() == 0.0  # no fill
+        energy = (px * solid_angles(h, w)[:, None, None]).sum(axis=(0, 1))
+        assert energy == pytest.approx(sum(e.energy for e in m.emitters), rel=1e-4)
+        if m.kind == "key_rim":
+            rim = m.emitters[1]
+            assert rim.direction[2] < 0 and np.sign(rim.direction[0]) == -np.sign(key.direction[0])
+    assert 6 <= kinds.count("key_rim") <= 18 and kinds.count("key") + kinds.count("key_rim") == 24

@@ -13,7 +13,8 @@ photo's own lighting and the detail layer.
    photo's lights as the network guesses them) and the depth network at ``NETWORK_RES``;
 3. brings their maps to the work frame (the photo's field of view, the person about ``size``
    pixels: the resolution of the shadow work), extended a few pixels past the mask first, so that
-   resampling never mixes in what the networks say about the background;
+   resampling never mixes in what the networks say about the background; the face, fitted at its
+   own resolution (:mod:`viewer.face`), replaces their normals and depth where it is;
 4. fits the photo's own lights to the photo (:mod:`viewer.photo_lighting`) with the GL engine;
 5. makes the detail albedo at the frame's resolution (:mod:`viewer.detail`) from the photo and its
    shading under those lights, upsampled by the same frame composite that draws every relit frame;
@@ -36,6 +37,7 @@ from . import detail as detail_mod
 from . import gloss
 from .backdrop import photo_blur
 from .errors import InputError
+from .face import find_faces, with_face
 from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
                           resize)
@@ -43,11 +45,11 @@ from .resources import network_dir
 
 NETWORK_RES = 256
 # the stages infer() reports to its progress callback, in order
-STAGES = ("read", "mask", "load networks", "inverse rendering", "depth", "maps to the work frame",
+STAGES = ("read", "mask", "load networks", "inverse rendering", "depth", "maps to the work frame", "face",
           "fit the photo's lights", "render the photo's shading", "detail", "write")
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-3"  # bundles cached by an older pipeline are inferred again
+PIPELINE = "frame-4"  # bundles cached by an older pipeline are inferred again
 
 
 @dataclass(frozen=True)
@@ -291,6 +293,8 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
                     "matte_roughness": gloss.MATTE_ROUGHNESS if skin is not None else None}
     scene.validate()
     stage("maps to the work frame")
+    scene, face_record = with_face(scene, find_faces(frame_photo, alpha), s)
+    stage("face")
 
     own_ctx = ctx is None
     ctx = create_headless_context() if own_ctx else ctx
@@ -321,7 +325,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
               "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
               "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
-              "matte": matte.record, "gloss": gloss_record, "background_blur": {"pixels": round(blur_px, 3),
+              "matte": matte.record, "gloss": gloss_record, "face": face_record, "background_blur": {"pixels": round(blur_px, 3),
                                                          "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
               "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
     result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}

@@ -161,7 +161,7 @@ def cmd_bench(args) -> int:
         with StageBars(prefix="evaluating: ") as bars:
             result = run_networks_benchmark(args.data if len(args.data) > 1 else args.data[0], args.networks,
                                             output=output, limit=args.limit,
-                                            progress=bars)
+                                            progress=bars, face=not args.no_face)
         print(table(result))
     elif args.what == "bodyfit":
         from .bench.body_fit import run_body_fit_benchmark
@@ -249,8 +249,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     q.add_argument("--shard", default="0/1", help="make samples i, i+n, ... of the dataset (default 0/1: all)")
     q.add_argument("--spp", type=int, default=64, help="ray-tracing samples per pixel (default 64)")
     q.add_argument("--lightings", type=int, default=2, help="environment maps per person (default 2)")
-    q.add_argument("--split", choices=("train", "heldout"), default="train",
-                   help="train: procedural maps; heldout: the CC0 maps of --maps, never used for training")
+    q.add_argument("--split", choices=("train", "heldout", "key"), default="train",
+                   help="train: procedural maps; heldout: the CC0 maps of --maps, never used for training; "
+                        "key: key lights (one small light, a rim light in half), never used for training")
     q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
     q.add_argument("--maps", help="folder of held-out maps (default $RELIGHT_DATA/hdri)")
     q.set_defaults(func=cmd_dataset)
@@ -310,6 +311,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                    help="lights: fitting methods (default all)")
     p.add_argument("--data", nargs="+", help="networks, report, photos, bodyfit: dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
+    p.add_argument("--no-face", action="store_true", help="networks: the networks' maps alone, without the face "
+                   "fitted to the photo (viewer.face) that relight infer blends in")
     p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs; "
                    "bodyfit: people (default 12)")
     p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "

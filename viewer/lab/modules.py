@@ -23,7 +23,7 @@ GROUPS = (
     ("cli", ("viewer.cli",), "the relight command"),
     ("app", ("viewer.app",), "the viewer window: input, panel, session, jobs, recording"),
     ("output", ("viewer.render", "viewer.video", "viewer.temporal"), "headless frames, MP4, temporal metrics"),
-    ("inference", ("viewer.inference", "viewer.segmentation", "viewer.matting", "viewer.gloss", "viewer.photo_lighting", "viewer.detail",
+    ("inference", ("viewer.inference", "viewer.segmentation", "viewer.matting", "viewer.face", "viewer.gloss", "viewer.photo_lighting", "viewer.detail",
                    "viewer.refinement", "viewer.nets"), "photo to scene bundle: matte, the networks, refinement"),
     ("engine", ("viewer.gl", "viewer.presets", "viewer.backdrop"), "GL passes, programs, context; quality presets; the backdrop"),
     ("twin", ("viewer.twin",), "the engine in differentiable torch"),

@@ -70,14 +70,20 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
     return out
 
 
-def _predict(nets, photo, mask) -> tuple[Scene, dict]:
+def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     """The predicted scene of a linear photo (3, H, W) with its background and its mask (1, H, W),
     made much as ``relight infer`` makes it: the networks run at inference's resolution
     (``NETWORK_RES``; the photo area-averaged down to it in linear light, where inference resizes
     the 8-bit photo), and their maps, extended past the mask, are resampled (bilinear) back to the
-    photo's."""
+    photo's; with ``face``, the face fitted to the photo (exposed and in 8-bit sRGB, as a photo
+    is) is blended in (:mod:`viewer.face`). ``raw["face_region"]``: the fitted face's pixels
+    (None without one), found in both cases so that both are measured over the same pixels."""
     import torch
     from torch.nn import functional as F
+
+    from viewer import face as face_mod
+    from viewer.imageio import linear_to_srgb
+    from viewer.nets.photo import exposure_scale
 
     from viewer.inference import NETWORK_RES, extend, map_stack, scene_maps
     from viewer.nets import depth as depth_net
@@ -99,7 +105,36 @@ def _predict(nets, photo, mask) -> tuple[Scene, dict]:
     m = mask[0, 0].numpy() > 0.5
     scene = Scene(**scene_maps(stack[0].permute(1, 2, 0).numpy().astype(np.float32), m, cam.distance), mask=m, camera=cam)
     lights = AreaLights(direction[0].numpy(), sigma[0].numpy(), intensity[0].numpy())
-    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights}
+    exposed = float(exposure_scale(photo, mask)) * photo[0].permute(1, 2, 0).numpy()
+    faces = face_mod.find_faces((np.clip(linear_to_srgb(np.clip(exposed, 0, 1)), 0, 1) * 255).round().astype(np.uint8),
+                                mask[0, 0].numpy())
+    surface = face_mod.face_surface(faces[0], 1.0, m.shape, scene.depth, m, cam.focal_px) if faces else None
+    if face:
+        scene = face_mod.with_face(scene, faces, 1.0)[0]
+    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights,
+                              "face_region": surface.region if surface is not None else None}
+
+
+def _degrees(normal: np.ndarray, truth: np.ndarray, region: np.ndarray) -> float:
+    """The mean angle (degrees) between two normal maps over ``region``."""
+    return float(np.degrees(np.arccos(np.clip((normal * truth).sum(-1)[region], -1, 1))).mean())
+
+
+def _terminator(normal: np.ndarray, truth: np.ndarray, region: np.ndarray, lights) -> dict:
+    """Where the target's strongest light's attached shadow falls over ``region``: the share of its
+    pixels on the wrong side of the terminator (n . l > 0 with one normal map, <= 0 with the
+    other), and the share the truth has in attached shadow."""
+    l = lights.direction[int(np.argmax(lights.intensity.sum(axis=-1)))]
+    lit, lit_true = (normal[region] @ l) > 0, (truth[region] @ l) > 0
+    return {"wrong_side": float((lit != lit_true).mean()), "dark_true": float((~lit_true).mean())}
+
+
+def _depth_l1(depth: np.ndarray, truth: np.ndarray, region: np.ndarray) -> dict:
+    """Depth error over ``region`` after removing each map's median there, centimetres, and a flat
+    figure's (the truth's own spread about its median)."""
+    dp, dt = depth[region] - np.median(depth[region]), truth[region] - np.median(truth[region])
+    return {"rmse_cm": float(np.sqrt(np.mean((dp - dt) ** 2)) * 100), "l1_cm": float(np.abs(dp - dt).mean() * 100),
+            "flat_l1_cm": float(np.abs(dt).mean() * 100)}
 
 
 def _relative_rmse(pred: np.ndarray, truth: np.ndarray, m: np.ndarray) -> dict:
@@ -137,7 +172,7 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
 
 
 def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
-                           limit: int | None = None, progress=None) -> dict:
+                           limit: int | None = None, progress=None, face: bool = True) -> dict:
     from viewer.lab.data.loader import RelightDataset
     from viewer.inference import NETWORK_RES, load_networks
     from viewer.resources import network_dir
@@ -171,24 +206,27 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
         m = truth.mask
         photo = item["image"] + (1 - item["mask"]) * item["background"]
         t0 = time.perf_counter()
-        pred, raw = _predict(nets, photo, item["mask"])
+        pred, raw = _predict(nets, photo, item["mask"], face)
         add("seconds_networks", time.perf_counter() - t0)
         # materials and geometry
         add("albedo", metrics(pred.albedo, truth.albedo, m))
         add("albedo_chroma", chroma(pred.albedo, truth.albedo, m))
         add("specular", metrics(pred.specular[..., None], truth.specular[..., None], m))
         add("roughness", metrics(pred.roughness[..., None], truth.roughness[..., None], m))
-        add("normal", {**metrics(pred.normal, truth.normal, m, data_range=2.0),
-                       "degrees": float(np.degrees(np.arccos(np.clip((pred.normal * truth.normal).sum(-1)[m], -1, 1))).mean())})
-        dp, dt = pred.depth[m] - np.median(pred.depth[m]), truth.depth[m] - np.median(truth.depth[m])
-        add("depth", {"rmse_cm": float(np.sqrt(np.mean((dp - dt) ** 2)) * 100), "l1_cm": float(np.abs(dp - dt).mean() * 100),
-                      "flat_l1_cm": float(np.abs(dt).mean() * 100)})
+        add("normal", {**metrics(pred.normal, truth.normal, m, data_range=2.0), "degrees": _degrees(pred.normal, truth.normal, m)})
+        if raw["face_region"] is not None:
+            region = raw["face_region"] & m
+            add("normal_face", {"degrees": _degrees(pred.normal, truth.normal, region), "pixels": float(region.sum())})
+            add("depth_face", _depth_l1(pred.depth, truth.depth, region))
+        add("depth", _depth_l1(pred.depth, truth.depth, m))
         # the photo's own lighting, as the product estimates it
         add("own_lights", _own_lights_error(ctx, pred, truth, photo.permute(1, 2, 0).numpy(),
                                             item["diffuse_shadowed"].permute(1, 2, 0).numpy(), raw["lights"]))
         # the target lighting
         d = sample / f"lighting_{k_tgt}"
         lights = load_lights(d / "lights.json")
+        if raw["face_region"] is not None:
+            add("terminator_face", _terminator(pred.normal, truth.normal, raw["face_region"] & m, lights))
         full_t = target["image"].permute(1, 2, 0).numpy()
         s = float(exposure_scale(target["image"][None], target["mask"][None]))
         y_diff = target["diffuse_shadowed"].permute(1, 2, 0).numpy() * s
@@ -218,7 +256,7 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
             progress("held-out pairs", n + 1, len(pairs))
     summary = {name: _summarize(values) for name, values in rows.items()}
     result = {"machine": describe(ctx), "data": [str(d) for d in (data if isinstance(data, (list, tuple)) else [data])],
-              "networks": str(networks_dir), "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
+              "networks": str(networks_dir), "face": face, "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
               "resolution": int(ds[0]["image"].shape[-1]), "network_resolution": NETWORK_RES, "seconds": round(time.perf_counter() - start, 1), "metrics": summary}
     if output:
         write_text(output, json.dumps(result, indent=1) + "\n")
@@ -232,7 +270,7 @@ def _summarize(values: list) -> dict:
     """Mean, standard deviation and median over the pairs (the median: a few pairs with a sun's
     highlight dominate a mean of RMSEs)."""
     if isinstance(values[0], dict):
-        return {k: _summarize([v[k] for v in values]) for k in values[0]}
+        return {k: _summarize([v[k] for v in values]) for k in values[0]} | {"count": len(values)}
     return {"mean": float(np.mean(values)), "std": float(np.std(values)), "median": float(np.median(values))}
 
 
@@ -307,4 +345,14 @@ def table(result: dict) -> str:
     lines += ["", f"Depth (median-aligned): RMSE {d['rmse_cm']['mean']:.2f} cm, L1 {d['l1_cm']['mean']:.2f} cm "
               f"(a flat figure: {d['flat_l1_cm']['mean']:.2f} cm); normal angle {m['normal']['degrees']['mean']:.1f} deg; "
               f"networks {m['seconds_networks']['mean'] * 1000:.0f} ms per photo"]
+    if "normal_face" in m:
+        f, fd = m["normal_face"], m["depth_face"]
+        lines += ["", f"In the face region ({'the face fitted to the photo blended in' if result.get('face', True) else 'the networks alone'}; "
+                      f"{f['count']} of {result['pairs']} inputs with a face found, "
+                      f"{f['pixels']['mean']:.0f} pixels): normal angle {f['degrees']['mean']:.1f} deg (median "
+                      f"{f['degrees']['median']:.1f}); depth L1 {fd['l1_cm']['mean']:.2f} cm (a flat face: {fd['flat_l1_cm']['mean']:.2f} cm)"]
+    if "terminator_face" in m:
+        t = m["terminator_face"]
+        lines += [f"The strongest target light's terminator in the face region: {100 * t['wrong_side']['mean']:.1f} % of "
+                  f"its pixels on the wrong side ({100 * t['dark_true']['mean']:.1f} % in attached shadow in the truth)"]
     return "\n".join(lines)

@@ -15,8 +15,10 @@ Layout (all images EXR float32 unless noted; conventions as docs/scene-bundle.md
 
 Training samples light people with procedural maps (:mod:`.envmaps`) from a pool of ``pool``
 maps (default ``POOL``) made from the dataset seed; the held-out split uses the nine CC0 maps of
-the folder given (``--maps``, by default ``$RELIGHT_DATA/hdri``: the shared CC0 maps) only, and they never appear in training. Each lighting turns its map by a
-random longitude, as in the paper; the lights are fitted once per map (the cache of
+the folder given (``--maps``, by default ``$RELIGHT_DATA/hdri``: the shared CC0 maps) only, and they never appear in training. The ``key``
+split lights people with ``pool`` key-light maps (:func:`.envmaps.key_light`: one small light, and
+a rim light in half of them, no fill), which are not turned; made with the held-out split's seed it
+holds the same people. Every other lighting turns its map by a random longitude, as in the paper; the lights are fitted once per map (the cache of
 :mod:`viewer.lightfit`) and turned with it (fitting commutes with rotation, docs/lights.md).
 Everything is a function of (seed, index): a sample is reproduced bit for bit, and ``--shard i/n``
 takes indices i, i + n, ... so machines can share a dataset without talking to each other.
@@ -40,6 +42,8 @@ from viewer.lights import AreaLights, load_lights
 from viewer.scene import save_scene
 
 POOL = 32  # procedural training maps per dataset
+SPLITS = ("train", "heldout", "key")
+KEY_KINDS = ("key", "key_rim")
 MAP_WIDTH = 256
 N_LIGHTS = 16
 
@@ -54,7 +58,7 @@ class DatasetConfig:
     spp: int = 64
     lightings: int = 2  # maps per person
     pool: int = POOL  # procedural maps in the training pool
-    split: str = "train"  # train (procedural maps) | heldout (the CC0 maps)
+    split: str = "train"  # train (procedural maps) | heldout (the CC0 maps) | key (key lights, held out)
     held_out_dir: Path | None = None  # the held-out split's maps (the CLI's --maps)
 
     def __post_init__(self):
@@ -65,8 +69,8 @@ class DatasetConfig:
             raise InputError(None, "count, spp, lightings and pool must be >= 1 and res >= 32")
         if not 0 <= self.seed < 2**31:
             raise InputError(None, f"--seed must be in [0, 2^31), got {self.seed}")
-        if self.split not in ("train", "heldout"):
-            raise InputError(None, f"split must be train or heldout, got {self.split!r}")
+        if self.split not in SPLITS:
+            raise InputError(None, f"split must be one of {', '.join(SPLITS)}, got {self.split!r}")
         if self.split == "heldout" and self.held_out_dir is None:
             raise InputError(None, "the held-out split needs its folder of maps (--maps)")
 
@@ -90,7 +94,7 @@ def parse_shard(text: str) -> tuple[int, int]:
 def map_pool(cfg: DatasetConfig, progress=None) -> list[PoolMap]:
     """The maps of this split, each with its fitted lights (fitted once, kept in DIR/maps/)."""
     from viewer.lightfit import lights_for_map
-    from viewer.lab.data.envmaps import random_map
+    from viewer.lab.data.envmaps import key_light, random_map
 
     maps_dir = Path(cfg.out) / "maps"
     maps_dir.mkdir(parents=True, exist_ok=True)
@@ -99,6 +103,11 @@ def map_pool(cfg: DatasetConfig, progress=None) -> list[PoolMap]:
         for k in range(cfg.pool):
             m = random_map(cfg.seed * 1000 + k, MAP_WIDTH)
             made.append((f"procedural_{cfg.seed}_{k:03d}", m.kind, m.env))
+    elif cfg.split == "key":
+        made = []
+        for k in range(cfg.pool):
+            m = key_light(np.random.default_rng([cfg.seed * 1000 + k, 0x4B3E]), MAP_WIDTH)
+            made.append((f"key_{cfg.seed}_{k:03d}", m.kind, m.env))
     else:
         files = sorted(Path(cfg.held_out_dir).glob("*.hdr")) + sorted(Path(cfg.held_out_dir).glob("*.exr"))
         if not files:
@@ -144,6 +153,8 @@ def make_sample(cfg: DatasetConfig, index: int, pool: list[PoolMap]) -> dict:
     for k in range(cfg.lightings):
         pm = pool[int(rng.integers(len(pool)))]
         yaw = float(rng.uniform(0.0, 360.0))
+        if pm.kind in KEY_KINDS:
+            yaw = 0.0  # a key light stands where the photographer put it, relative to the camera
         r = render_person(person, pm.env, yaw=yaw, spp=cfg.spp, seed=(seed + k) % 2**32)  # Mitsuba's seed is 32-bit
         diffuse, specular = unshadowed_shading(person.scene, pm.env, yaw=yaw)
         d = out / f"lighting_{k}"

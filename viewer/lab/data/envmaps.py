@@ -13,6 +13,11 @@
 - ``interior``: a room of four textured walls, a floor and a ceiling, lit by one to three windows
   (bright sky-coloured patches near the horizon) and up to four ceiling lamps.
 
+Not in the training pool: ``key_light``, a held-out lighting kind that spherical harmonics cannot
+fake, as a photographer sets it: one small disc light (2-6 degrees across) at 30-80 degrees of
+azimuth from the camera and 10-45 degrees up, in black (no fill); in half of them a rim light behind
+the person on the other side (``key_rim``). Its maps are made facing the camera and are not turned.
+
 Suns sit low more often than not (elevation 3-75 degrees with a bias to the horizon): low and
 backlighting suns are where photos differ most from studio light. Maps turn by a random longitude
 in the dataset, so any sun or window is also behind the person in some lightings.
@@ -257,6 +262,24 @@ def overcast(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
     ground = lz * rng.uniform(0.05, 0.2) * rng.uniform(0.6, 1.0, 3)
     pixels = np.where(dirs[..., 1:2] >= 0, sky_l, ground).astype(np.float32)
     return ProceduralMap(EnvMap(pixels, source=None), "overcast", ())
+
+
+def key_light(rng: np.random.Generator, width: int = 256) -> ProceduralMap:
+    """One key light (and a rim light behind, half of the time) in black: module docstring."""
+    h, w = width // 2, width
+    pixels = np.zeros((h, w, 3), np.float32)
+    sub = _subtexel_directions(h, w)
+    side = 1.0 if rng.uniform() < 0.5 else -1.0
+    # azimuth pi faces the camera: the key stands 30-80 degrees off the camera's axis
+    key = Emitter(_direction(np.pi + side * np.radians(rng.uniform(30.0, 80.0)), np.radians(rng.uniform(10.0, 45.0))),
+                  np.radians(rng.uniform(1.0, 3.0)), 10 ** rng.uniform(0.0, 1.0) * _temperature_rgb(rng.uniform(3200, 6500)))
+    emitters = [key]
+    if rng.uniform() < 0.5:  # the rim: behind the person, on the other side
+        emitters.append(Emitter(_direction(side * np.radians(rng.uniform(20.0, 50.0)), np.radians(rng.uniform(10.0, 40.0))),
+                                np.radians(rng.uniform(1.0, 3.0)), key.energy * rng.uniform(0.5, 1.5)))
+    for e in emitters:
+        _draw(pixels, e, sub)
+    return ProceduralMap(EnvMap(pixels, source=None), "key_rim" if len(emitters) > 1 else "key", tuple(emitters))
 
 
 def random_map(seed: int, width: int = 256, kinds=KINDS) -> ProceduralMap:

@@ -1,0 +1,132 @@
+"""The face fitted at its own resolution (viewer.face): MediaPipe's face landmarks on real files
+(renders of held-out synthetic people written by `relight dataset make`, with their masks as alpha,
+and the bundled photo), rasterized into depth and normals and blended into a scene's maps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from viewer import face
+from viewer.camera import Camera
+from viewer.photo_frame import read_photo
+from viewer.scene import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+
+
+def _person(name):
+    """(RGB uint8, alpha float in [0, 1]) of tests/data/person_<name>.png."""
+    rgba = np.asarray(Image.open(DATA / f"person_{name}.png").convert("RGBA"))
+    return np.ascontiguousarray(rgba[..., :3]), rgba[..., 3].astype(np.float32) / 255.0
+
+
+def _scene(alpha, depth=4.0):
+    """A plain scene over the person's mask: normals facing the camera, depth ``depth``."""
+    h, w = alpha.shape
+    mask = alpha > 0.5
+    normal = np.zeros((h, w, 3), np.float32)
+    normal[mask] = (0.0, 0.0, 1.0)
+    return Scene(albedo=np.where(mask[..., None], np.float32(0.5), np.zeros(3, np.float32)).astype(np.float32), specular=np.full((h, w), 0.5, np.float32),
+                 roughness=np.full((h, w), 0.5, np.float32), normal=normal,
+                 depth=np.where(mask, depth, 4.0).astype(np.float32), mask=mask, camera=Camera(w, h)).validate()
+
+
+def _fitted_normal(name, mirror=False):
+    """The mean normal of the face fitted to person_<name>; ``mirror``: of its landmarks mirrored
+    left to right (the detector itself is not mirror-symmetric)."""
+    rgb, alpha = _person(name)
+    faces = face.find_faces(rgb, alpha)
+    assert len(faces) == 1
+    fit = faces[0]
+    if mirror:
+        w = alpha.shape[1]
+        fit = face.FaceLandmarks(fit.points * [-1, 1, 1] + [w, 0, 0], fit.box, fit.score)
+        alpha = np.ascontiguousarray(alpha[:, ::-1])
+    surface = face.face_surface(fit, 1.0, alpha.shape, np.full(alpha.shape, 4.0, np.float32), alpha > 0.5, 800.0)
+    return surface.normal[surface.weight > 0.5].mean(axis=0)
+
+
+def test_the_mesh_has_the_face_models_triangles():
+    tris = face.triangles()
+    assert tris.shape[1] == 3 and 852 <= len(tris) <= 860  # the canonical mesh's 852 and a few 3-cliques more
+    assert tris.min() == 0 and tris.max() == 467
+
+
+def test_a_front_face_is_fitted_and_faces_the_camera():
+    rgb, alpha = _person("front")
+    faces = face.find_faces(rgb, alpha)
+    assert len(faces) == 1 and faces[0].points.shape == (468, 3) and faces[0].score > 0.5
+    left, top, width, height = faces[0].box
+    assert 25 < faces[0].width < 60 and 60 < left + width / 2 < 130  # the head of the 192-pixel crop
+    n = _fitted_normal("front")
+    assert abs(n[0]) < 0.03 and n[2] > 0.8  # the face as a whole looks at the camera
+
+
+def test_a_turned_face_leans_its_normals_the_way_it_turns():
+    """person_turned looks to the image's left (three quarters): its fitted normals lean to -x, and
+    those of its landmarks mirrored to +x by as much (the axes' signs are right)."""
+    n, mirrored = _fitted_normal("turned"), _fitted_normal("turned", mirror=True)
+    assert n[0] < -0.04 and mirrored[0] > 0.04
+    assert abs(n[0] + mirrored[0]) < 0.03
+
+
+def test_a_profile_face_the_detector_misses_leaves_the_maps():
+    rgb, alpha = _person("profile")
+    faces = face.find_faces(rgb, alpha)
+    assert faces == []
+    scene = _scene(alpha)
+    out, record = face.with_face(scene, faces, 1.0)
+    assert out is scene and record == {"faces_found": 0, "fitted": None}
+
+
+def test_no_face_in_the_photo():
+    """The bundled photo's legs and feet: a person, no face."""
+    photo = read_photo(ROOT / "assets" / "photos" / "underpass.jpg", [])
+    legs = np.ascontiguousarray(photo[photo.shape[0] // 2:])
+    assert face.find_faces(legs, np.ones(legs.shape[:2], np.float32)) == []
+
+
+def test_of_several_faces_only_the_persons_are_kept():
+    """Two people side by side: with both in the matte both faces are found (largest first); with
+    one person's matte, only that person's face."""
+    (a, alpha_a), (b, alpha_b) = _person("front"), _person("turned")
+    both = np.ascontiguousarray(np.concatenate([a, b], axis=1))
+    two = face.find_faces(both, np.concatenate([alpha_a, alpha_b], axis=1))
+    assert len(two) == 2 and two[0].width >= two[1].width
+    one = face.find_faces(both, np.concatenate([np.zeros_like(alpha_a), alpha_b], axis=1))
+    assert len(one) == 1 and one[0].box[0] > a.shape[1]
+
+
+def test_the_blend_stays_bounded_and_local():
+    """The fitted face changes normals and depth only on the face, keeps normals unit and depth
+    finite and within a head's depth of the maps, and ramps in from the face's outline."""
+    rgb, alpha = _person("front")
+    scene = _scene(alpha)
+    out, record = face.with_face(scene, face.find_faces(rgb, alpha), 1.0)
+    assert record["faces_found"] == 1 and record["fitted"]["work_pixels"] > 300
+    changed = (np.abs(out.depth - scene.depth) > 1e-6) | (np.abs(out.normal - scene.normal).sum(-1) > 1e-6)
+    assert changed.any() and changed.sum() <= record["fitted"]["work_pixels"]
+    m = out.mask
+    assert np.allclose(np.linalg.norm(out.normal[m], axis=-1), 1.0, atol=1e-4)
+    assert np.isfinite(out.depth).all() and np.abs(out.depth - scene.depth).max() < 0.15
+    nose = face.find_faces(rgb, alpha)[0].points[1]  # landmark 1: the tip of the nose
+    assert out.depth[int(nose[1]), int(nose[0])] < 4.0  # in front of the face's median
+    surface = face.face_surface(face.find_faces(rgb, alpha)[0], 1.0, alpha.shape, scene.depth, m, scene.camera.focal_px)
+    assert surface.weight.min() >= 0.0 and surface.weight.max() == pytest.approx(1.0)
+    edge = surface.region & ~np.pad(surface.region, 1)[2:, 1:-1]  # the outline's lowest row of each column
+    assert surface.weight[edge].max() < 0.5
+
+
+def test_a_face_too_small_for_the_work_frame_is_left_out():
+    rgb, alpha = _person("front")
+    faces = face.find_faces(rgb, alpha)
+    scene = _scene(alpha)
+    small = face.MIN_FACE_WORK_PX / faces[0].width * 0.9  # the work frame at this scale of the photo
+    assert face.face_surface(faces[0], small, alpha.shape, scene.depth, scene.mask, scene.camera.focal_px) is None
+    out, record = face.with_face(scene, faces, small)
+    assert out is scene and "skipped" in record
