@@ -80,7 +80,7 @@ def test_a_profile_face_the_detector_misses_leaves_the_maps():
     faces = face.find_faces(rgb, alpha)
     assert faces == []
     scene = _scene(alpha)
-    out, record = face.with_face(scene, faces, 1.0)
+    out, record, _ = face.with_face(scene, faces, 1.0)
     assert out is scene and record == {"faces_found": 0, "fitted": None}
 
 
@@ -107,7 +107,7 @@ def test_the_blend_stays_bounded_and_local():
     finite and within a head's depth of the maps, and ramps in from the face's outline."""
     rgb, alpha = _person("front")
     scene = _scene(alpha)
-    out, record = face.with_face(scene, face.find_faces(rgb, alpha), 1.0)
+    out, record, _ = face.with_face(scene, face.find_faces(rgb, alpha), 1.0)
     assert record["faces_found"] == 1 and record["fitted"]["work_pixels"] > 300
     changed = (np.abs(out.depth - scene.depth) > 1e-6) | (np.abs(out.normal - scene.normal).sum(-1) > 1e-6)
     assert changed.any() and changed.sum() <= record["fitted"]["work_pixels"]
@@ -128,5 +128,41 @@ def test_a_face_too_small_for_the_work_frame_is_left_out():
     scene = _scene(alpha)
     small = face.MIN_FACE_WORK_PX / faces[0].width * 0.9  # the work frame at this scale of the photo
     assert face.face_surface(faces[0], small, alpha.shape, scene.depth, scene.mask, scene.camera.focal_px) is None
-    out, record = face.with_face(scene, faces, small)
+    out, record, _ = face.with_face(scene, faces, small)
     assert out is scene and "skipped" in record
+
+
+def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
+    """A sphere whose 'face' (a patch on its right) is lit from the right and the rest from the
+    left: weighted as inference weighs a face, the fitted lights explain the patch better than
+    unweighted, and the weights give the patch ``FIT_SHARE`` of the fit."""
+    from viewer.gl import Engine, EngineOptions
+    from viewer.lab.scenes import sphere
+    from viewer.lights import AreaLights
+    from viewer.photo_lighting import fit_photo_lights
+
+    scene = sphere(64, albedo=0.6, specular=0.0)
+    h, w = scene.mask.shape
+    yy, xx = np.mgrid[:h, :w]
+    patch = scene.mask & (xx > 0.62 * w) & (np.abs(yy - h / 2) < 0.12 * h)
+    engine = Engine(ctx, scene, EngineOptions())
+    try:
+        images = []
+        for x in (-0.8, 0.8):
+            direction = np.array([[x, 0.3, 0.5]], np.float32)
+            engine.set_lights(AreaLights(direction / np.linalg.norm(direction), np.full(1, 2.0, np.float32),
+                                         np.ones((1, 3), np.float32)))
+            images.append(engine.render().read_work_hdr()[..., :3].copy())
+        target = np.where(patch[..., None], images[1], images[0]).astype(np.float32)
+        surface = face.FaceSurface(scene.depth, scene.normal, patch.astype(np.float32), patch)
+        weight = face.light_fit_weight(surface, scene.mask)
+        assert weight[patch].sum() / weight[scene.mask].sum() == pytest.approx(face.FIT_SHARE, rel=1e-3)
+        errors = []
+        for wt in (None, weight):
+            lights, _ = fit_photo_lights(engine, target, scene.mask, weight=wt)
+            engine.set_lights(lights)
+            fitted = engine.render().read_work_hdr()[..., :3]
+            errors.append(float(np.abs(fitted[patch] - target[patch]).mean() / target[patch].mean()))
+    finally:
+        engine.release()
+    assert errors[1] < 0.7 * errors[0]

@@ -39,6 +39,7 @@ DETECT_CONFIDENCE = 0.5
 MESH_INPUT = 384  # pixels of the square crop (twice the detected box) the landmark model sees
 MIN_FACE_WORK_PX = 12  # a face narrower than this in the work frame has no form to add: left to the networks
 RAMP = 0.2  # of the face's width: the blend goes from the networks' maps to the face's over this
+FIT_SHARE = 0.25  # of the photo's light fit that the face's pixels count for
 
 
 @dataclass(frozen=True)
@@ -222,14 +223,29 @@ def blend(normal: np.ndarray, depth: np.ndarray, surface: FaceSurface) -> tuple[
 
 def with_face(scene, faces: list[FaceLandmarks], scale: float):
     """(``scene`` with the largest face's surface blended into its normal and depth maps, a record
-    for ``inference.json``); the scene unchanged when there is no usable face."""
+    for ``inference.json``, the :class:`FaceSurface` or None); the scene unchanged when there is no
+    usable face."""
     record = {"faces_found": len(faces), "fitted": None}
     if not faces:
-        return scene, record
+        return scene, record, None
     surface = face_surface(faces[0], scale, scene.mask.shape, scene.depth, scene.mask, scene.camera.focal_px)
     if surface is None:
         record["skipped"] = f"the face is under {MIN_FACE_WORK_PX} work pixels wide"
-        return scene, record
+        return scene, record, None
     normal, depth = blend(scene.normal, scene.depth, surface)
     record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
-    return replace(scene, normal=normal, depth=np.where(scene.mask, depth, scene.depth)).validate(), record
+    return replace(scene, normal=normal, depth=np.where(scene.mask, depth, scene.depth)).validate(), record, surface
+
+
+def light_fit_weight(surface: FaceSurface | None, valid: np.ndarray) -> np.ndarray | None:
+    """Per-pixel weights for fitting the photo's lights (:func:`viewer.photo_lighting.fit_photo_lights`):
+    the face, whose form is known best, counts ``FIT_SHARE`` of the fit however small it is in the
+    frame (the networks' flat normals elsewhere cannot tell a light from above from one in front)."""
+    if surface is None:
+        return None
+    face_px = float((surface.weight * valid).sum())
+    rest = float((valid & (surface.weight <= 0)).sum())
+    if face_px <= 0 or rest <= 0:
+        return None
+    boost = FIT_SHARE / (1.0 - FIT_SHARE) * rest / face_px
+    return (1.0 + max(boost - 1.0, 0.0) * surface.weight).astype(np.float32)

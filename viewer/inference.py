@@ -37,7 +37,7 @@ from . import detail as detail_mod
 from . import gloss
 from .backdrop import photo_blur
 from .errors import InputError
-from .face import find_faces, with_face
+from .face import find_faces, light_fit_weight, with_face
 from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
                           resize)
@@ -293,7 +293,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
                     "matte_roughness": gloss.MATTE_ROUGHNESS if skin is not None else None}
     scene.validate()
     stage("maps to the work frame")
-    scene, face_record = with_face(scene, find_faces(frame_photo, alpha), s)
+    scene, face_record, face_surface = with_face(scene, find_faces(frame_photo, alpha), s)
     stage("face")
 
     own_ctx = ctx is None
@@ -307,7 +307,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         valid = fit_mask(scene, resize(frame_linear, sizes.work))
         if not valid.any():
             valid = work_mask
-        lights, fit = fit_photo_lights(engine, target, valid)
+        lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
         stage("fit the photo's lights")
         engine.set_lights(lights)
         explained = engine.render().read_work_hdr()

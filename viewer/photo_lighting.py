@@ -90,15 +90,18 @@ def nnls_ridge(b: np.ndarray, t: np.ndarray, w: np.ndarray, ridge: float) -> np.
     return x
 
 
-def fit_photo_lights(engine, photo: np.ndarray, valid: np.ndarray, n: int = BASIS) -> tuple[AreaLights, dict]:
+def fit_photo_lights(engine, photo: np.ndarray, valid: np.ndarray, n: int = BASIS,
+                     weight: np.ndarray | None = None) -> tuple[AreaLights, dict]:
     """The photo's lights: ``engine`` renders the scene's maps (work frame); ``photo`` (H, W, 3)
     linear, the target (already low-passed to the maps' level of detail); ``valid`` the pixels
-    that count. Returns the lights (zero ones dropped) and a record of the fit."""
+    that count, ``weight`` (H, W) how much each counts (default: all alike). Returns the lights
+    (zero ones dropped) and a record of the fit."""
     t0 = time.perf_counter()
     rows, cols = np.nonzero(valid)
     if rows.size > MAX_SAMPLES:
         keep = np.linspace(0, rows.size - 1, MAX_SAMPLES).astype(int)
         rows, cols = rows[keep], cols[keep]
+    prior = np.ones(rows.size) if weight is None else np.asarray(weight, np.float64)[rows, cols]
     basis = basis_lights(n)
     b = basis_images(engine, basis, (rows, cols)).astype(np.float64)  # (K, P, 3)
     # the least squares must not fail on a stray non-finite texel (a degenerate normal or depth)
@@ -108,12 +111,12 @@ def fit_photo_lights(engine, photo: np.ndarray, valid: np.ndarray, n: int = BASI
     intensity = np.zeros((n, 3))
     for c in range(3):
         bc, tc = b[:, :, c].T, target[:, c]
-        w = np.ones_like(tc)
+        w = prior.copy()
         for _ in range(IRLS_STEPS):
             x = nnls_ridge(bc, tc, w, RIDGE)
             r = bc @ x - tc
             scale = 1.4826 * np.median(np.abs(r)) + 1e-12
-            w = np.minimum(1.0, HUBER * scale / np.maximum(np.abs(r), 1e-30))
+            w = prior * np.minimum(1.0, HUBER * scale / np.maximum(np.abs(r), 1e-30))
         intensity[:, c] = x
     model = np.einsum("kpc,kc->pc", b, intensity)
     keep = intensity.max(axis=1) > 1e-6 * max(float(intensity.max()), 1e-30)

@@ -109,9 +109,10 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     faces = face_mod.find_faces((np.clip(linear_to_srgb(np.clip(exposed, 0, 1)), 0, 1) * 255).round().astype(np.uint8),
                                 mask[0, 0].numpy())
     surface = face_mod.face_surface(faces[0], 1.0, m.shape, scene.depth, m, cam.focal_px) if faces else None
+    blended = None
     if face:
-        scene = face_mod.with_face(scene, faces, 1.0)[0]
-    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights,
+        scene, _, blended = face_mod.with_face(scene, faces, 1.0)
+    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights, "face_surface": blended,
                               "face_region": surface.region if surface is not None else None}
 
 
@@ -147,24 +148,28 @@ def _relative_rmse(pred: np.ndarray, truth: np.ndarray, m: np.ndarray) -> dict:
             "rmse_rel_scaled": float(np.sqrt(((k * p - t) ** 2).mean())) / level}
 
 
-def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading: np.ndarray, network_lights) -> dict:
+def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading: np.ndarray, network_lights,
+                      surface=None) -> dict:
     """How well the input photo's own lights are known (what relighting divides out): its shadowed
     diffuse shading rebuilt on the TRUE geometry under the lights the product fits to the photo on
     the predicted maps (viewer.photo_lighting, as ``relight infer`` does), under the inverse
     network's own guess, and under the same fit made on the true maps (the fit's own floor: what
-    is left when the networks are perfect), against the ray-traced shading of the photo's lighting."""
+    is left when the networks are perfect), against the ray-traced shading of the photo's lighting.
+    ``surface``: the face blended into ``pred`` (weighted in its fit as inference weighs it)."""
+    from viewer.face import light_fit_weight
     from viewer.photo_lighting import fit_mask, fit_photo_lights
 
-    def fit(scene):
+    def fit(scene, face=None):
         eng = Engine(ctx, scene, EngineOptions())
         try:
             valid = fit_mask(scene, photo)
-            return fit_photo_lights(eng, photo, valid if valid.any() else scene.mask)[0]
+            valid = valid if valid.any() else scene.mask
+            return fit_photo_lights(eng, photo, valid, weight=light_fit_weight(face, valid))[0]
         finally:
             eng.release()
 
     out = {}
-    for name, lights in (("fitted", fit(pred)), ("network", network_lights), ("fitted_true_maps", fit(truth))):
+    for name, lights in (("fitted", fit(pred, surface)), ("network", network_lights), ("fitted_true_maps", fit(truth))):
         img = _engine_images(ctx, truth, lights, [("CSM", "diffuse_shading")], None)["CSM", "diffuse_shading"]
         for k, v in _relative_rmse(img, shading, truth.mask).items():
             out[f"{name}_{k}"] = v
@@ -221,7 +226,8 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
         add("depth", _depth_l1(pred.depth, truth.depth, m))
         # the photo's own lighting, as the product estimates it
         add("own_lights", _own_lights_error(ctx, pred, truth, photo.permute(1, 2, 0).numpy(),
-                                            item["diffuse_shadowed"].permute(1, 2, 0).numpy(), raw["lights"]))
+                                            item["diffuse_shadowed"].permute(1, 2, 0).numpy(), raw["lights"],
+                                            raw["face_surface"]))
         # the target lighting
         d = sample / f"lighting_{k_tgt}"
         lights = load_lights(d / "lights.json")
