@@ -16,7 +16,10 @@ the shading under these lights, so they must reproduce the photo. They are fitte
    (a logo, a shadow from something outside the photo) does not pull the lights;
 3. pixels that cannot inform the fit are left out: the matte's edge, and clipped highlights
    (any channel at 98 % of white or above), where the photo no longer says how bright the light is.
-   Dark clothes stay in: their residuals are small in linear units, so they barely pull.
+   Dark clothes stay in: their residuals are small in linear units, so they barely pull. The
+   caller may weigh pixels: inference gives the face, fitted at its own resolution
+   (:mod:`viewer.face`), a quarter of the fit, since the networks' nearly flat normals elsewhere
+   cannot tell a light from above from one in front, and the face's form can.
 Lights that end with no intensity are dropped (leave out what contributes nothing).
 """
 
