@@ -166,3 +166,14 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
     finally:
         engine.release()
     assert errors[1] < 0.7 * errors[0]
+
+
+def test_a_face_too_dark_for_the_detector_is_found_equalized():
+    """The front render exposed 1/20 as bright (an underexposed photo): the detector finds nothing
+    in it as it is; the retry with its lightness equalized finds the face, at the same place."""
+    rgb, alpha = _person("front")
+    dark = (rgb.astype(np.float32) * 0.05).astype(np.uint8)
+    assert face._faces(dark, alpha) == []
+    found, reference = face.find_faces(dark, alpha), face.find_faces(rgb, alpha)
+    assert len(found) == 1
+    assert np.abs(found[0].points[:, :2] - reference[0].points[:, :2]).mean() < 2.0  # pixels
