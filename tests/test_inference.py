@@ -111,7 +111,10 @@ def test_relit_under_its_own_lights_the_output_is_the_photo(landscape, ctx):
                              lowpass_sigma=result["record"]["framing"]["side"] / NETWORK_RES, shared_scale=0.0)
     unshared = replace(sc, frame=replace(sc.frame, albedo=exact))
     assert _own_lights_error(ctx, unshared, lights) < 0.03
-    assert _own_lights_error(ctx, load_scene(out), lights) < 0.15
+    # 0.138 with the face unweighted in the light fit, 0.167 weighted (viewer.face.FIT_SHARE): the lights
+    # come closer to the truth (held-out: relit with detail 0.2590 -> 0.2550 RMSE), the body's residual
+    # that the shared correction takes grows
+    assert _own_lights_error(ctx, load_scene(out), lights) < 0.2
 
 
 def test_work_frame_mapping_follows_the_framing():

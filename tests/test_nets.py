@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -261,6 +262,10 @@ def test_held_out_evaluation_harness(tiny_dataset, tiny_networks, tmp_path):
     # the true maps through the renderer beat one-epoch networks
     assert m["relit_true_maps_refined"]["rmse"]["mean"] < m["relit_refined"]["rmse"]["mean"]
     assert "Relit image" in table(result)
+    per_pair = result["per_pair"]  # each pair's relit RMSE, ours and the baseline's
+    assert len(per_pair) == 3 and np.mean([p["relit_refined"] for p in per_pair]) == pytest.approx(m["relit_refined"]["rmse"]["mean"])
+    assert np.mean([p["relit_SH"] for p in per_pair]) == pytest.approx(m["relit_SH_baseline"]["rmse"]["mean"])
+    assert f"on {sum(p['relit_refined'] < p['relit_SH'] for p in per_pair)} of 3 pairs" in table(result)
     # the photo's own lights, fitted to the photo, explain its shading better than the one-epoch network's guess
     own = m["own_lights"]
     assert 0 <= own["fitted_rmse_rel_scaled"]["mean"] <= own["fitted_rmse_rel"]["mean"] + 1e-9

@@ -27,8 +27,9 @@ relative to the face (in the same units as x): a face surface, from a model trai
    the networks made without a step.
 
 Without a face on the person (turned away, in profile past what the detector finds, too small)
-nothing changes and the bundle's record says so. ``relight bench face`` measures the normals and
-depth in the face region against the truth on the held-out split (docs/networks.md).
+nothing changes and the bundle's record says so. ``relight bench networks`` measures the normals and
+depth in the face region against the truth on the held-out splits, with and without the face
+(``--no-face``; docs/networks.md).
 """
 
 from __future__ import annotations
@@ -250,7 +251,7 @@ def with_face(scene, faces: list[FaceLandmarks], scale: float):
         return scene, record, None
     surface = face_surface(faces[0], scale, scene.mask.shape, scene.depth, scene.mask, scene.camera.focal_px)
     if surface is None:
-        record["skipped"] = f"the face is under {MIN_FACE_WORK_PX} work pixels wide"
+        record["skipped"] = f"the face is under {MIN_FACE_WORK_PX} work pixels wide, or mostly off the person's mask"
         return scene, record, None
     normal, depth = blend(scene.normal, scene.depth, surface)
     record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
