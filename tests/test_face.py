@@ -67,6 +67,18 @@ def test_a_front_face_is_fitted_and_faces_the_camera():
     assert abs(n[0]) < 0.03 and n[2] > 0.8  # the face as a whole looks at the camera
 
 
+def test_the_face_normals_point_up_on_the_forehead_and_down_under_the_chin():
+    """Camera space has y up while image rows go down: the fitted forehead faces up, the chin's
+    underside and the nose's tip down (MediaPipe landmarks 10: forehead, 152: chin, 1: nose tip)."""
+    rgb, alpha = _person("front")
+    fit = face.find_faces(rgb, alpha)[0]
+    surface = face.face_surface(fit, 1.0, alpha.shape, np.full(alpha.shape, 4.0, np.float32), alpha > 0.5, 800.0)
+    def normal_at(i, dy=0):
+        x, y = fit.points[i, :2]
+        return surface.normal[int(y) + dy, int(x)]
+    assert normal_at(10, 2)[1] > 0.1 and normal_at(152, -2)[1] < -0.3 and normal_at(1)[2] > 0.3
+
+
 def test_a_turned_face_leans_its_normals_the_way_it_turns():
     """person_turned looks to the image's left (three quarters): its fitted normals lean to -x, and
     those of its landmarks mirrored to +x by as much (the axes' signs are right)."""
@@ -154,9 +166,11 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
                                          np.ones((1, 3), np.float32)))
             images.append(engine.render().read_work_hdr()[..., :3].copy())
         target = np.where(patch[..., None], images[1], images[0]).astype(np.float32)
-        surface = face.FaceSurface(scene.depth, scene.normal, patch.astype(np.float32), patch)
+        ramp = np.clip((np.minimum(xx - 0.62 * w, 0.12 * h - np.abs(yy - h / 2)) / 3.0), 0.0, 1.0) * patch  # 0 at its edge
+        surface = face.FaceSurface(scene.depth, scene.normal, ramp.astype(np.float32), patch)
         weight = face.light_fit_weight(surface, scene.mask)
-        assert weight[patch].sum() / weight[scene.mask].sum() == pytest.approx(face.FIT_SHARE, rel=1e-3)
+        assert weight[ramp > 0].sum() / weight[scene.mask].sum() == pytest.approx(face.FIT_SHARE, rel=1e-3)
+        assert weight.min() >= 1.0 and weight[~patch].max() == 1.0
         errors = []
         for wt in (None, weight):
             lights, _ = fit_photo_lights(engine, target, scene.mask, weight=wt)

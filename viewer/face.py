@@ -219,14 +219,15 @@ def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], dept
     normals = _vertex_normals(points, tris)
     z, n, covered = _rasterize(points, normals, tris, shape)
     region = covered & mask
-    if region.sum() < MIN_FACE_WORK_PX ** 2 / 4:
-        return None
+    if region.sum() < max(MIN_FACE_WORK_PX ** 2 / 4, 0.5 * covered.sum()):
+        return None  # too small, or mostly off the person's mask
     metres_per_px = float(np.median(depth[region])) / focal_px
     relative = (z - np.median(z[region])) * metres_per_px
     placed = np.where(region, float(np.median(depth[region])) + relative, depth)
     normal = np.stack([n[..., 0], -n[..., 1], -n[..., 2]], axis=-1)
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-    inside = cv2.distanceTransform(np.pad(covered, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1]
+    # the distance from the outline: 1 on the face's outermost pixels, which get weight 0
+    inside = cv2.distanceTransform(np.pad(covered, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1] - 1.0
     weight = np.clip(inside / max(RAMP * face.width * scale, 1.0), 0.0, 1.0) * region
     return FaceSurface(placed.astype(np.float32), np.where(region[..., None], normal, 0).astype(np.float32),
                        weight.astype(np.float32), region)
@@ -255,18 +256,20 @@ def with_face(scene, faces: list[FaceLandmarks], scale: float):
         return scene, record, None
     normal, depth = blend(scene.normal, scene.depth, surface)
     record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
-    return replace(scene, normal=normal, depth=np.where(scene.mask, depth, scene.depth)).validate(), record, surface
+    return replace(scene, normal=normal, depth=depth).validate(), record, surface
 
 
 def light_fit_weight(surface: FaceSurface | None, valid: np.ndarray) -> np.ndarray | None:
     """Per-pixel weights for fitting the photo's lights (:func:`viewer.photo_lighting.fit_photo_lights`):
-    the face, whose form is known best, counts ``FIT_SHARE`` of the fit however small it is in the
-    frame (the networks' flat normals elsewhere cannot tell a light from above from one in front)."""
+    the face, whose form is known best, counts ``FIT_SHARE`` of the fit over ``valid`` however small
+    it is in the frame (the networks' flat normals elsewhere cannot tell a light from above from one
+    in front). A face pixel of blend weight w weighs 1 + k w, k chosen for that share (never below 1)."""
     if surface is None:
         return None
-    face_px = float((surface.weight * valid).sum())
-    rest = float((valid & (surface.weight <= 0)).sum())
-    if face_px <= 0 or rest <= 0:
+    face = valid & (surface.weight > 0)
+    ramp = float(surface.weight[face].sum())
+    rest = float((valid & ~face).sum())
+    if ramp <= 0 or rest <= 0:
         return None
-    boost = FIT_SHARE / (1.0 - FIT_SHARE) * rest / face_px
-    return (1.0 + max(boost - 1.0, 0.0) * surface.weight).astype(np.float32)
+    k = max((FIT_SHARE / (1.0 - FIT_SHARE) * rest - float(face.sum())) / ramp, 0.0)
+    return (1.0 + k * surface.weight).astype(np.float32)
