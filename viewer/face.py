@@ -22,9 +22,9 @@ relative to the face (in the same units as x): a face surface, from a model trai
    space: x right, y up, z towards the camera). The relative depth is scaled to metres at the
    face's distance (weak perspective: a pixel at depth d spans d / focal metres).
 3. ``with_face``: inside the surface, the face's depth (its median put on the networks' median
-   over the same pixels) and normals replace the networks', with a weight that ramps from 0 at the
-   surface's outline to 1 at ``RAMP`` of the face's width inside it, so the face joins the head
-   the networks made without a step.
+   over the same pixels) and normals replace the networks', with a weight that ramps from the
+   surface's outline (a pixel's worth of ramp on its outermost pixels) to 1 at ``RAMP`` of the
+   face's width inside it, so the face joins the head the networks made without a step.
 
 Without a face on the person (turned away, in profile past what the detector finds, too small)
 nothing changes and the bundle's record says so. ``relight bench networks`` measures the normals and
@@ -226,8 +226,8 @@ def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], dept
     placed = np.where(region, float(np.median(depth[region])) + relative, depth)
     normal = np.stack([n[..., 0], -n[..., 1], -n[..., 2]], axis=-1)
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-    # the distance from the outline: 1 on the face's outermost pixels, which get weight 0
-    inside = cv2.distanceTransform(np.pad(covered, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1] - 1.0
+    # the distance from outside the face: 1 on its outermost pixels (a weight of 1 / (RAMP x width) there)
+    inside = cv2.distanceTransform(np.pad(covered, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1]
     weight = np.clip(inside / max(RAMP * face.width * scale, 1.0), 0.0, 1.0) * region
     return FaceSurface(placed.astype(np.float32), np.where(region[..., None], normal, 0).astype(np.float32),
                        weight.astype(np.float32), region)
