@@ -93,17 +93,6 @@ def triangles() -> np.ndarray:
     return np.array(sorted(found), dtype=np.int64)
 
 
-def _crop(photo: np.ndarray, cx: float, cy: float, side: int) -> tuple[np.ndarray, int, int]:
-    """The ``side``-pixel square of ``photo`` centred on (cx, cy), the photo's edge repeated where
-    it leaves the photo; with its top-left corner in the photo."""
-    x0, y0 = int(round(cx - side / 2.0)), int(round(cy - side / 2.0))
-    h, w = photo.shape[:2]
-    pad = ((max(0, -y0), max(0, y0 + side - h)), (max(0, -x0), max(0, x0 + side - w)), (0, 0))
-    padded = np.pad(photo, pad, mode="edge") if any(a or b for a, b in pad[:2]) else photo
-    t, l = y0 + pad[0][0], x0 + pad[1][0]
-    return np.ascontiguousarray(padded[t:t + side, l:l + side]), x0, y0
-
-
 def equalized(photo: np.ndarray) -> np.ndarray:
     """``photo`` (uint8 sRGB) with its lightness equalized locally (OpenCV's CLAHE on L*): the dark
     half of a face under a key light, where the detector sees no face, brought up to what it knows."""
@@ -125,17 +114,17 @@ def find_faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
 def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
     import cv2
 
-    from .photo_frame import resize, scaled_size
-    from .segmentation import _quiet_native_stderr
+    from .photo_frame import resize, scaled_size, square
+    from .segmentation import quiet_native_stderr
 
-    with _quiet_native_stderr():
+    with quiet_native_stderr():
         from mediapipe.python.solutions import face_detection, face_mesh
     h, w = photo.shape[:2]
     small = photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE))
-    with _quiet_native_stderr(), face_detection.FaceDetection(model_selection=1,
-                                                              min_detection_confidence=DETECT_CONFIDENCE) as model:
+    with quiet_native_stderr(), face_detection.FaceDetection(model_selection=1,
+                                                             min_detection_confidence=DETECT_CONFIDENCE) as model:
         detections = model.process(np.ascontiguousarray(small)).detections or []
-    faces = []
+    crops = []  # (detection's box, score, the square's corner and side) of the faces on the person
     for d in detections:
         b = d.location_data.relative_bounding_box
         box = (b.xmin * w, b.ymin * h, b.width * w, b.height * h)
@@ -143,16 +132,20 @@ def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
         if not (0 <= cx < w and 0 <= cy < h) or alpha[int(cy), int(cx)] <= 0.5:
             continue  # someone else's face, or one in the background
         side = max(int(round(2.0 * max(box[2], box[3]))), 8)
-        crop, x0, y0 = _crop(photo, cx, cy, side)
-        crop = cv2.resize(crop, (MESH_INPUT, MESH_INPUT),
-                          interpolation=cv2.INTER_AREA if side > MESH_INPUT else cv2.INTER_CUBIC)
-        with _quiet_native_stderr(), face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1) as model:
+        crops.append((box, float(d.score[0]), int(round(cx - side / 2.0)), int(round(cy - side / 2.0)), side))
+    if not crops:
+        return []
+    faces = []
+    with quiet_native_stderr(), face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1) as model:
+        for box, score, x0, y0, side in crops:
+            crop = cv2.resize(np.ascontiguousarray(square(photo, y0, x0, side, "edge")), (MESH_INPUT, MESH_INPUT),
+                              interpolation=cv2.INTER_AREA if side > MESH_INPUT else cv2.INTER_CUBIC)
             result = model.process(crop)
-        if not result.multi_face_landmarks:
-            continue
-        lm = np.array([(p.x, p.y, p.z) for p in result.multi_face_landmarks[0].landmark], np.float64)
-        points = np.stack([x0 + lm[:, 0] * side, y0 + lm[:, 1] * side, lm[:, 2] * side], axis=-1)
-        faces.append(FaceLandmarks(points, tuple(float(v) for v in box), float(d.score[0])))
+            if not result.multi_face_landmarks:
+                continue
+            lm = np.array([(p.x, p.y, p.z) for p in result.multi_face_landmarks[0].landmark], np.float64)
+            points = np.stack([x0 + lm[:, 0] * side, y0 + lm[:, 1] * side, lm[:, 2] * side], axis=-1)
+            faces.append(FaceLandmarks(points, tuple(float(v) for v in box), score))
     return sorted(faces, key=lambda f: -f.width)
 
 

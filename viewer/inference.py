@@ -40,7 +40,7 @@ from .errors import InputError
 from .face import find_faces, light_fit_weight, with_face
 from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
-                          resize)
+                          resize, square)
 from .resources import network_dir
 
 NETWORK_RES = 256
@@ -73,12 +73,7 @@ def framing(mask: np.ndarray) -> Framing:
 
 def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
     """The framing's square of ``image``; outside the photo: its edge repeated (``edge``) or zero."""
-    h, w = image.shape[:2]
-    pad = [(max(0, -f.top), max(0, f.top + f.side - h)), (max(0, -f.left), max(0, f.left + f.side - w))]
-    pad += [(0, 0)] * (image.ndim - 2)
-    padded = np.pad(image, pad, mode=mode) if any(a or b for a, b in pad[:2]) else image
-    t, l = f.top + pad[0][0], f.left + pad[1][0]
-    return padded[t:t + f.side, l:l + f.side]
+    return square(image, f.top, f.left, f.side, mode)
 
 
 def extend(values, mask, steps: int = 6):

@@ -181,6 +181,17 @@ def read_mask(path, photo_shape: tuple[int, int], notes: list) -> np.ndarray:
     return matte
 
 
+def square(image: np.ndarray, top: int, left: int, side: int, mode: str) -> np.ndarray:
+    """The ``side``-pixel square of ``image`` whose top-left corner is (``top``, ``left``) (either
+    may be negative); outside the image: its edge repeated (``edge``) or zero (``constant``)."""
+    h, w = image.shape[:2]
+    pad = [(max(0, -top), max(0, top + side - h)), (max(0, -left), max(0, left + side - w))]
+    pad += [(0, 0)] * (image.ndim - 2)
+    padded = np.pad(image, pad, mode=mode) if any(a or b for a, b in pad[:2]) else image
+    t, l = top + pad[0][0], left + pad[1][0]
+    return padded[t:t + side, l:l + side]
+
+
 def person_box(mask: np.ndarray) -> tuple[int, int, int, int]:
     """(top, left, height, width) of the mask's bounding box."""
     rows = np.flatnonzero(mask.any(axis=1))

@@ -42,7 +42,7 @@ class Person:
 
 
 @contextlib.contextmanager
-def _quiet_native_stderr():
+def quiet_native_stderr():
     """MediaPipe's C++ core logs to file descriptor 2 whatever Python asks; keep it off the
     user's terminal while the models run (Python exceptions still propagate)."""
     try:
@@ -62,7 +62,7 @@ def _quiet_native_stderr():
 
 def _mediapipe(photo_path):
     try:
-        with _quiet_native_stderr():
+        with quiet_native_stderr():
             from mediapipe.python.solutions import pose, selfie_segmentation
     except Exception as exc:
         raise InputError(photo_path, f"the automatic person mask needs MediaPipe ({exc}); run scripts/setup.sh, "
@@ -82,7 +82,7 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
     small = np.ascontiguousarray(photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE)))
     sh, sw = small.shape[:2]
     pose, selfie = _mediapipe(photo_path)
-    with _quiet_native_stderr():
+    with quiet_native_stderr():
         with selfie.SelfieSegmentation(model_selection=0) as model:
             everyone = model.process(small).segmentation_mask
     x0, y0, x1, y1 = 0, 0, sw, sh
@@ -92,7 +92,7 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
         mx, my = int(0.15 * bw) + 8, int(0.1 * bh) + 8
         x0, y0, x1, y1 = max(bx - mx, 0), max(by - my, 0), min(bx + bw + mx, sw), min(by + bh + my, sh)
         notes.append(f"{len(people)} people in the photo: relighting the largest")
-    with _quiet_native_stderr():
+    with quiet_native_stderr():
         with pose.Pose(static_image_mode=True, enable_segmentation=True, model_complexity=1) as model:
             result = model.process(np.ascontiguousarray(small[y0:y1, x0:x1]))
     if result.segmentation_mask is None or result.pose_landmarks is None:

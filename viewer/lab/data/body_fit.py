@@ -39,10 +39,10 @@ def landmarks(photo_srgb: np.ndarray):
     """(image (33, 2) in pixels, visibility (33,), world (33, 3) metres in camera axes: x right, y up,
     z towards the camera) of the most prominent person in an (H, W, 3) uint8 photo; None when
     MediaPipe finds nobody."""
-    from viewer.segmentation import _mediapipe, _quiet_native_stderr
+    from viewer.segmentation import _mediapipe, quiet_native_stderr
 
     pose, _ = _mediapipe(None)
-    with _quiet_native_stderr():
+    with quiet_native_stderr():
         with pose.Pose(static_image_mode=True, model_complexity=1) as model:
             result = model.process(np.ascontiguousarray(photo_srgb))
     if result.pose_landmarks is None or result.pose_world_landmarks is None:
