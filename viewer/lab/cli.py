@@ -297,7 +297,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
                         "ground against Mitsuba (error and the ground pass's time per shadow method); matte: the person's matte "
                         "against the hand-made masks (--photos), every step and matting solver, quality and time; upsample: "
-                        "the work shading brought to the frame (guided, bilinear) against a work frame as large as the frame")
+                        "the work shading brought to the frame (bilinear) against a work frame as large as the frame")
     p.add_argument("--photos", help="photos, matte, upsample: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")

@@ -108,11 +108,12 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     exposed = float(exposure_scale(photo, mask)) * photo[0].permute(1, 2, 0).numpy()
     faces = face_mod.find_faces((np.clip(linear_to_srgb(np.clip(exposed, 0, 1)), 0, 1) * 255).round().astype(np.uint8),
                                 mask[0, 0].numpy())
-    surface = face_mod.face_surface(faces[0], 1.0, m.shape, scene.depth, m, cam.focal_px) if faces else None
-    blended = None
     if face:
-        scene, _, blended = face_mod.with_face(scene, faces, 1.0)
-    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights, "face_surface": blended,
+        scene, _, surface = face_mod.with_face(scene, faces, 1.0)
+    else:
+        surface = face_mod.face_surface(faces[0], 1.0, m.shape, scene.depth, m, cam.focal_px) if faces else None
+    return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights,
+                              "face_surface": surface if face else None,
                               "face_region": surface.region if surface is not None else None}
 
 
