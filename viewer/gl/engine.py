@@ -223,6 +223,11 @@ class Engine(EngineOutputs):
         """Whether the look shows the ground shadow (``Look.ground``, "auto" resolved for this scene)."""
         return self.look.ground_shown(self.feet, self.look.background)
 
+    @property
+    def shown_look(self) -> Look:
+        """The look as the display draws it: its ground "auto" resolved (:attr:`ground_shown`)."""
+        return self.look.replace(ground=self.ground_shown)
+
     def _set_look(self, look: Look):
         old, terms, shown = self.look, self._composite_terms(), self.ground_shown
         self.look = look
@@ -399,7 +404,7 @@ class Engine(EngineOutputs):
         self._changed(p.name, lights)
 
     def _draw_display(self, whole: bool):
-        look, dp = self.look.replace(ground=self.ground_shown), self.display_pass
+        look, dp = self.shown_look, self.display_pass
         if look.view in INSPECT_VIEWS:
             light = self._lights[look.light] if look.view == "shadow" else None
             self.inspect_pass.run(dp.fbo, look.view, light, self.atlas, look.shadows)
@@ -422,7 +427,7 @@ class Engine(EngineOutputs):
     def _frame_read(self, terms, output_mode: int) -> np.ndarray:
         self._frame_ready()
         return self.display_pass.read(self.composite_pass.shading, self.frame_background.image, terms,
-                                      self.look.replace(ground=self.ground_shown), self.look.background == "transparent",
+                                      self.shown_look, self.look.background == "transparent",
                                       output_mode)
 
     def light_active(self, index: int) -> bool:

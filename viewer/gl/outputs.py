@@ -93,7 +93,7 @@ class EngineOutputs:
         background: the EXR that goes with the display PNG."""
         if self.frame_background is not None:
             return self._frame_read(self._composite_terms(), OUTPUT_COMPOSITED_HDR)
-        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.look.replace(ground=self.ground_shown),
+        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.shown_look,
                                                  self.look.background)
 
     @in_context
