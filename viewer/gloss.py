@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .detail import luminance
 from .matting import face_mask
 
 MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)
@@ -45,8 +46,8 @@ def skin(foreground: np.ndarray, alpha: np.ndarray, landmarks: dict) -> np.ndarr
     spread = np.cov((c - centre).T) + np.eye(2) * 1e-3
     d = chroma - centre
     distance = np.sqrt(np.einsum("...i,ij,...j->...", d, np.linalg.inv(spread), d))
-    luminance = np.asarray(foreground, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
-    lit = luminance >= SKIN_DARKEST * np.median(luminance[sample])  # a dark pixel's chromaticity is noise
+    brightness = luminance(np.asarray(foreground, np.float64))
+    lit = brightness >= SKIN_DARKEST * np.median(brightness[sample])  # a dark pixel's chromaticity is noise
     return (np.clip(1.0 - distance / SKIN_DISTANCE, 0.0, 1.0) * lit * (alpha > 0)).astype(np.float32)
 
 

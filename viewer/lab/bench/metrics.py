@@ -156,9 +156,9 @@ def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
     background = _local_mean(cb, (outside > 0) & (outside <= BLEED_BACKGROUND), BLEED_SIGMA)
     interior = _local_mean(cp, (inside > BLEED_INTERIOR[0]) & (inside <= BLEED_INTERIOR[1]), BLEED_SIGMA)
     nearer = np.linalg.norm(cp - background, axis=-1) < np.linalg.norm(cp - interior, axis=-1)
-    luminance = np.asarray(person, np.float32)[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    brightness = _luminance(person)
     person_pixels = inside > 0
-    lit = luminance > BLEED_DARKEST * float(np.median(luminance[person_pixels])) if person_pixels.any() else luminance > 0
+    lit = brightness > BLEED_DARKEST * float(np.median(brightness[person_pixels])) if person_pixels.any() else brightness > 0
     band = (inside > 0) & (inside <= BLEED_BAND) & lit
     control = (inside > BLEED_CONTROL[0]) & (inside <= BLEED_CONTROL[1]) & lit
     if not band.any() or not control.any():
