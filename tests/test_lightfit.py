@@ -256,3 +256,24 @@ def test_corrupt_cache_entry_is_refitted(tmp_path):
     assert not cached and len(lights) == 2
     assert any("corrupt" in str(w.message) for w in caught)
     assert load_lights(path).to_array().shape == (2, 7)
+
+
+@pytest.mark.parametrize("t_max, eta_min, steps", [(40, 0.0, 40), (5, 1e-3, 23)])  # annealed; periodic past t_max
+def test_cosine_adam_matches_torch_optim_step_for_step(t_max, eta_min, steps):
+    from viewer.lightfit.adam import CosineAdam
+
+    start = torch.randn(7, 3, generator=torch.Generator().manual_seed(1))
+    target = torch.randn(7, 3, generator=torch.Generator().manual_seed(2))
+    ours, theirs = start.clone().requires_grad_(True), start.clone().requires_grad_(True)
+    opt = CosineAdam([ours], lr=0.3, betas=(0.5, 0.999), t_max=t_max, eta_min=eta_min)
+    ref = torch.optim.Adam([theirs], lr=0.3, betas=(0.5, 0.999))
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(ref, T_max=t_max, eta_min=eta_min)
+    for _ in range(steps):
+        for p, o in ((ours, opt), (theirs, ref)):
+            o.zero_grad()
+            ((p - target) ** 4).sum().backward()
+            o.step()
+        sched.step()
+        assert opt.lr == pytest.approx(ref.param_groups[0]["lr"], rel=1e-9, abs=1e-12)
+    assert torch.allclose(ours, theirs, atol=1e-5)
+    assert not torch.allclose(ours, start, atol=1e-2)  # it moved

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cores import size_pools, work_threads
 from .errors import InputError
 from .video import partial_path as video_partial
 from .lightfit import DEFAULT_METHOD, METHODS
@@ -165,10 +166,11 @@ def _fitted_lights(env, n, method, refit=False):
     import warnings
 
     from .lightfit import lights_for_map
+    from .lightfit.methods import STAGE_SHARES
     from .progress import StageBars
 
     name = Path(env.source).name if env.source else "the map"
-    with StageBars(prefix=f"fitting {n} lights to {name}: ") as bars, warnings.catch_warnings():
+    with StageBars(prefix=f"fitting {n} lights to {name}: ", shares=STAGE_SHARES.get(method or DEFAULT_METHOD)) as bars, warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*the map is black")
         lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit)
     return lights, cached
@@ -440,9 +442,8 @@ def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
 
 
 def cmd_infer(args) -> int:
-    from .inference import infer, load_networks
-
-    from .inference import bundle_target
+    from .inference import STAGE_SHARES, bundle_target, infer, load_networks
+    from .progress import TimeLeft, time_left_words
 
     target = bundle_target(args.output)
     _writable(target.parent, folder=True)
@@ -451,9 +452,16 @@ def cmd_infer(args) -> int:
             raise InputError(args.output, f"holds the input {given}: the bundle written there would replace it; "
                                           "give another folder")
     t0 = time.perf_counter()
+    left = TimeLeft(STAGE_SHARES)
+
+    def said(stage):
+        left.update(stage, 1, 1)
+        words = time_left_words(left.seconds_left()) if left.fraction < 1.0 else ""
+        print(f"  {stage} done" + (f", {words}" if words else ""), flush=True)
+
     nets = load_networks(args.device, args.networks)
     record = infer(args.photo, args.mask, args.output, size=args.size, max_size=args.max_size, device=args.device,
-                   networks=nets, progress=lambda stage: print(f"  {stage} done", flush=True))
+                   networks=nets, progress=said)
     print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in record["seconds"].items()))
     for note in record["notes"]:
         print(f"note: {note}")
@@ -622,6 +630,7 @@ def main(argv=None) -> int:
         if argv and argv[0] in plugins:
             return plugins[argv[0]].load()(argv[1:])
         args = build_parser(plugins).parse_args(argv)
+        size_pools(work_threads())  # the cores idle now, not the machine's count (viewer/cores.py)
         return args.func(args)
     except InputError as exc:
         print(f"relight: error: {exc}", file=sys.stderr)

@@ -47,6 +47,7 @@ SOURCE = {"photo": "photo", "lights": "map"}  # the file an error names
 
 
 def serve(lines) -> None:
+    from ..cores import WINDOW_CORES, size_pools, work_threads
     from ..errors import InputError
 
     for line in lines:
@@ -56,6 +57,7 @@ def serve(lines) -> None:
         except (json.JSONDecodeError, KeyError, TypeError) as exc:
             _say(error=f"not a request the worker serves ({exc}): {line.strip()[:200]}")
             continue
+        size_pools(work_threads(reserve=WINDOW_CORES))  # the window's frames keep their core (viewer/cores.py)
         try:
             work(req)
         except InputError as exc:

@@ -218,11 +218,18 @@ class LightJob(ChildJob):
         self.method = method
         self.stage = "loading the map"
         self.fraction = 0.0
+        self._left = None  # the fit's time left, from its first step
         super().__init__(wake, worker)
 
     def _stage(self, said: dict):
-        self.stage = str(said["stage"])
-        self.fraction = float(said.get("done", 0)) / max(float(said.get("total", 1)), 1.0)
+        from ..lightfit.methods import STAGE_SHARES
+        from ..progress import TimeLeft, time_left_words
+
+        if self._left is None:
+            self._left = TimeLeft(STAGE_SHARES.get(self.method) or {str(said["stage"]): 1.0})
+        self.fraction = self._left.update(str(said["stage"]), int(said.get("done", 0)), int(said.get("total", 1)))
+        words = time_left_words(self._left.seconds_left())
+        self.stage = str(said["stage"]) + (f": {words}" if words else "")
 
     def work(self) -> LightsResult:
         from ..lightfit.cache import cached_lights
@@ -265,14 +272,20 @@ class SceneJob(ChildJob):
         self.stage = "starting the inference" if self.photo else "reading the maps"
         self.fraction = 0.0
         self._done = 0
+        from ..inference import STAGE_SHARES
+        from ..progress import TimeLeft
+
+        self._left = TimeLeft(STAGE_SHARES)
         super().__init__(wake, worker)
 
     def _stage(self, said: dict):
         from ..inference import STAGES
+        from ..progress import time_left_words
 
         self._done += 1
-        self.stage = f"{said['stage']} done ({self._done} of {len(STAGES)})"
-        self.fraction = self._done / (len(STAGES) + 1)
+        self.fraction = self._left.update(str(said["stage"]), 1, 1)
+        words = time_left_words(self._left.seconds_left())
+        self.stage = f"{said['stage']} done ({self._done} of {len(STAGES)})" + (f", {words}" if words else "")
 
     def work(self) -> SceneResult:
         from ..scene_ops import load_sized_scene

@@ -125,6 +125,10 @@ def cmd_bench(args) -> int:
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
                              output=output, twin=not args.no_twin)
+    elif args.what == "contention":
+        from .bench.contention import run_contention_benchmark, table
+
+        print(table(run_contention_benchmark(shared_folder(args.maps, "hdri", "--maps"), repeats=args.repeats, output=output)))
     elif args.what == "viewer":
         from .bench.viewer import run_viewer_benchmark
 
@@ -284,7 +288,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.set_defaults(func=cmd_train)
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "temporal", "networks", "photos", "robustness",
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos", "robustness",
                                     "bodyfit", "ground", "matte", "upsample"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "

@@ -50,6 +50,7 @@ from ..envmap import EnvMap
 from ..errors import InputError
 from ..lights import AreaLights
 from ..median_cut import SIGMA_MAX, median_cut_lights
+from .adam import CosineAdam
 from .methods import DEFAULT_METHOD, METHODS
 from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
 
@@ -189,14 +190,13 @@ def _refine_fast(problem: Problem, start: AreaLights, progress, steps: int = FAS
     base = torch.as_tensor(start.intensity, dtype=torch.float32) / problem.scale
     floor = 1e-6 * float(base.sum(dim=1).max())  # lights without energy may grow from a small seed
     log_int = torch.log(base.clamp(min=floor)).requires_grad_(True)
-    opt = torch.optim.Adam([direction, log_int], lr=FAST_LR, betas=(0.5, 0.999))
-    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=0.0)
+    opt = CosineAdam([direction, log_int], lr=FAST_LR, betas=(0.5, 0.999), t_max=steps)
+    report(progress, "directions", 0, steps)
     for step in range(steps):
         opt.zero_grad()
         loss = step2_loss(problem, _unit(direction), torch.exp(log_int))
         loss.backward()
         opt.step()
-        sched.step()
         report(progress, "directions", step + 1, steps)
     with torch.no_grad():
         return _unit(direction).numpy().astype(np.float64), torch.exp(log_int).numpy().astype(np.float64)
@@ -211,6 +211,7 @@ def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray
     inten = torch.as_tensor(intensity, dtype=torch.float32)
     target = Step3Target.of(problem)
     diffuse = table.views.diffuse
+    report(progress, "sigma", 0, sweeps * n)
     with torch.no_grad():
         # each light's shading under each grid sigma: (G, N, K, P, 3)
         weighted = (table.values * diffuse).reshape(g_count, k, n, -1)
@@ -244,9 +245,8 @@ def _visibility_table(problem: Problem, direction: np.ndarray, progress, sigmas=
 
 
 # ---------------------------------------------------------------- paper
-def _paper_schedule(params, lr=PAPER_LR):
-    opt = torch.optim.Adam(params, lr=lr, betas=(0.5, 0.999))
-    return opt, torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=PAPER_T_MAX, eta_min=PAPER_ETA_MIN)
+def _paper_optimizer(params, lr=PAPER_LR) -> CosineAdam:
+    return CosineAdam(params, lr=lr, betas=(0.5, 0.999), t_max=PAPER_T_MAX, eta_min=PAPER_ETA_MIN)
 
 
 def _inverse_softplus(y: float) -> float:
@@ -257,7 +257,7 @@ def _paper_step2(problem: Problem, n: int, progress):
     direction = torch.tensor(fibonacci_sphere(n), dtype=torch.float32, requires_grad=True)
     energy = float(problem.samples.energy().mean()) / problem.scale
     raw = torch.full((n, 3), _inverse_softplus(energy / n), dtype=torch.float32, requires_grad=True)
-    opt, sched = _paper_schedule([direction, raw])
+    opt = _paper_optimizer([direction, raw])
     best = (math.inf, None)
     for step in range(PAPER_STEP2):
         opt.zero_grad()
@@ -268,7 +268,6 @@ def _paper_step2(problem: Problem, n: int, progress):
             best = (loss.item(), (unit.detach().clone(), intensity.detach().clone()))
         loss.backward()
         opt.step()
-        sched.step()
         report(progress, "directions", step + 1, PAPER_STEP2)
     unit, intensity = best[1]
     return unit.numpy().astype(np.float64), intensity.numpy().astype(np.float64)
@@ -281,7 +280,7 @@ def _paper_step3(problem: Problem, direction: np.ndarray, intensity: np.ndarray,
     n = len(direction)
     start = math.log(PAPER_SIGMA_INIT / (SIGMA_MAX - PAPER_SIGMA_INIT))  # sigma = 20 sigmoid(s) starts at 10
     logit = torch.full((n,), start, requires_grad=True)
-    opt, sched = _paper_schedule([logit])
+    opt = _paper_optimizer([logit])
     best = (math.inf, None)
     for step in range(PAPER_STEP3):
         opt.zero_grad()
@@ -291,7 +290,6 @@ def _paper_step3(problem: Problem, direction: np.ndarray, intensity: np.ndarray,
             best = (loss.item(), sigma.detach().clone())
         loss.backward()
         opt.step()
-        sched.step()
         report(progress, "sigma", step + 1, PAPER_STEP3)
     return best[1].numpy().astype(np.float64)
 

@@ -68,6 +68,7 @@ class Problem:
 
 def build_problem(env: EnvMap, settings: FitSettings = FitSettings(), progress=None) -> Problem:
     """References of ``env`` on the fitting views (raises nothing for a black map: scale is then 0)."""
+    report(progress, "reference", 0, 2)
     samples = map_samples(env, settings.samples)
     sphere = sphere_view(settings.sphere_resolution)
     plane = plane_view("sphere", settings.plane_resolution)
