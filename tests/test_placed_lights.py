@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.placed_lights import (History, PlacedLight, kelvin_to_rgb, load_rig, rig, save_rig, to_area_lights)
+from viewer.placed_lights import (MIN_SEPARATION, History, PlacedLight, free_spot, kelvin_to_rgb, level, load_rig, rig,
+                                   save_rig, to_area_lights)
 from viewer.shadow_space import ANGULAR_SIGMA
 
 
@@ -85,6 +86,44 @@ def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
     assert s.undo() and s.placed == () and s.redo() and len(s.placed) == 2
     s.release()
     json.dumps([p.__dict__ for p in s.placed])  # plain values: the state file takes them
+
+
+def test_your_lights_keep_their_share_when_the_map_changes_and_their_own_intensity(ctx):
+    from viewer.app.session import Session
+    from viewer.lab.scenes import plane_and_box
+    from viewer.lights import AreaLights
+
+    bright = AreaLights(np.array([[0.0, 0.6, 0.8]]), [2.0], [[40.0, 40.0, 40.0]])
+    dim = AreaLights(np.array([[0.6, 0.6, 0.0], [0.0, 1.0, 0.0]]), [2.0, 4.0], [[0.3, 0.3, 0.3], [0.1, 0.1, 0.1]])
+    s = Session(ctx, plane_and_box(32), bright, None)
+    assert level(bright) == pytest.approx(10.0, rel=1e-5) and level(dim) == pytest.approx(0.1, rel=1e-5)
+    s.set_placed(rig("key", level(bright)))
+    s.set_placed(rig("key and rim", level(bright)))
+    s.set_lights(dim, new_map=True)  # a dusk map: the key keeps its share of the light, undo with it
+    assert s.placed[0].intensity == pytest.approx(level(dim), rel=1e-5)
+    assert s.undo() and s.placed[0].intensity == pytest.approx(level(dim), rel=1e-5)
+    s.keep_absolute = True
+    s.set_lights(bright, new_map=True)
+    assert s.placed[0].intensity == pytest.approx(level(dim), rel=1e-5)  # kept as it was
+    # the map's intensity and yours are two controls: the map's at 0 leaves your key lit
+    s.update(intensity=0.0, placed_intensity=2.0)
+    lights = s.rendered_lights()
+    assert np.all(lights.intensity[:1] == 0.0)
+    assert lights.intensity[1] @ [0.2126, 0.7152, 0.0722] == pytest.approx(2.0 * level(dim), rel=1e-4)
+    s.release()
+
+
+def test_new_lights_do_not_land_on_the_ones_already_placed():
+    placed = ()
+    for _ in range(8):
+        azimuth, elevation = free_spot(placed)
+        new = PlacedLight(azimuth, elevation)
+        for p in placed:
+            angle = np.degrees(np.arccos(np.clip(p.direction @ new.direction, -1.0, 1.0)))
+            assert angle >= MIN_SEPARATION
+        placed += (new,)
+    # a light the user moved near a spot: that spot is skipped
+    assert free_spot((PlacedLight(50.0, 25.0),)) == (-45.0, 30.0)
 
 
 def test_image_pixel_under_the_cursor():

@@ -400,7 +400,7 @@ def test_files_dropped_on_the_window_open_a_map_a_rig_and_a_photo(display, tmp_p
 
 def test_record_a_turn(viewer_factory, headless):
     v = viewer_factory("--record-frames", "12")
-    v.xdotool("key", "r")
+    v.xdotool("key", "t")
     s = v.wait_for(lambda s: len(s["videos"]) == 1, 120)
     frames, fps = read_video(s["videos"][0])
     assert frames.shape == (12, SIZE, SIZE, 3) and fps == pytest.approx(30.0)
@@ -413,21 +413,28 @@ def test_record_a_turn(viewer_factory, headless):
     render_hdr(headless, FIRST_YAW + 330.0)
     assert np.abs(frames[-1].astype(np.float32) - engine.read_display()).mean() < 3.0
     assert v.state()["look"]["yaw"] == pytest.approx(FIRST_YAW)  # back where the user was
-    # L records what the user does until L again: frames timed by the wall clock
-    v.xdotool("key", "l")
-    s = v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 3, 60)
+    # R records what the user does until R again, then renders it at the video's rate: the video
+    # lasts as long as the interaction did, however slow a full-quality frame is
+    v.xdotool("key", "r")
+    s = v.wait_for(lambda s: s["recording"] is not None and s["recording"]["capturing"], 60)
     x, y, w, h = s["image_rect"]
-    v.drag(int(x + w * 0.4), int(y + h * 0.5), 40, 0, steps=4)
-    v.xdotool("key", "l")
-    s = v.wait_for(lambda s: len(s["videos"]) == 2, 60)
-    live, _ = read_video(s["videos"][1])
-    assert len(live) >= 4 and np.abs(np.diff(live.astype(np.float32), axis=0)).mean(axis=(1, 2, 3)).max() > 1.0
+    v.drag(int(x + w * 0.4), int(y + h * 0.5), 120, 0, steps=12)
+    time.sleep(max(0.0, 2.0 - v.state()["recording"]["seconds"]))
+    v.xdotool("key", "r")
+    s = v.wait_for(lambda s: s["recording"] is not None and not s["recording"]["capturing"], 60)
+    captured = s["recording"]["total"] / 30.0
+    s = v.wait_for(lambda s: len(s["videos"]) == 2, 120)
+    live, fps = read_video(s["videos"][1])
+    assert captured >= 2.0 and len(live) == pytest.approx(captured * fps, abs=1)
+    change = np.abs(np.diff(live.astype(np.float32), axis=0)).mean(axis=(1, 2, 3))
+    assert change.max() > 1.0  # the drag turned the lighting in the video
+    assert v.state()["look"]["yaw"] == pytest.approx(s["look"]["yaw"])  # the user's own turn, after the rendering
     assert v.quit() == 0
 
 
 def test_sigterm_while_recording_finishes_the_video(viewer_factory):
     v = viewer_factory("--record-frames", "600")
-    v.xdotool("key", "r")
+    v.xdotool("key", "t")
     s = v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 5, 120)
     path = Path(s["recording"]["path"])
     v.proc.send_signal(signal.SIGTERM)
@@ -441,7 +448,7 @@ def test_sigterm_while_recording_finishes_the_video(viewer_factory):
 
 def test_a_killed_recording_is_still_playable(viewer_factory):
     v = viewer_factory("--record-frames", "600")
-    v.xdotool("key", "r")
+    v.xdotool("key", "t")
     v.wait_for(lambda s: s["recording"] is not None and s["recording"]["frames"] >= 75, 240)
     path = Path(v.state()["recording"]["path"])
     v.proc.send_signal(signal.SIGKILL)

@@ -7,7 +7,10 @@ Its fields are what a photographer sets:
 - ``elevation``: degrees above the horizon;
 - ``size``: its angular sigma in degrees; it sizes the penumbrae and widens the highlight, as
   ``sigma x ANGULAR_SIGMA`` does for the map's lights;
-- ``intensity``: its irradiance at normal incidence, in the map's units;
+- ``intensity``: its irradiance at normal incidence, in the map's units. A new light starts at the
+  map's :func:`level`; when the map changes, the viewer scales the placed lights by the ratio of
+  the two maps' levels (:func:`rescaled`), so a key tuned on a bright map keeps its share of the
+  light on a dim one (or keeps its absolute value, when the user asks);
 - ``kelvin``: its colour temperature.
 
 A rig is a list of placed lights. It is saved as JSON: ``{"format": "relight-rig", "lights": [...]}``.
@@ -89,11 +92,49 @@ def to_area_lights(placed) -> AreaLights:
                       np.stack([p.intensity * kelvin_to_rgb(p.kelvin) for p in placed]))
 
 
+def level(map_lights: AreaLights) -> float:
+    """A placed light's unit on a map: a quarter of the luminance total of the map's lights (1 for a
+    map without light)."""
+    total = float((np.asarray(map_lights.intensity, dtype=np.float64) @ LUMINANCE).sum()) if len(map_lights) else 0.0
+    return 0.25 * total if total > 0.0 and math.isfinite(total) else 1.0
+
+
+def rescaled(placed, factor: float) -> tuple[PlacedLight, ...]:
+    """The placed lights with their intensities times ``factor`` (kept in the allowed range)."""
+    return tuple(PlacedLight(p.azimuth, p.elevation, p.size, float(np.clip(p.intensity * factor, 0.0, 1e9)), p.kelvin)
+                 for p in placed)
+
+
+# where new lights go, in order: front left and right, front above, the two back corners, the sides
+SPOTS = ((45.0, 30.0), (-45.0, 30.0), (0.0, 50.0), (150.0, 30.0), (-150.0, 30.0), (90.0, 15.0), (-90.0, 15.0),
+         (0.0, 80.0))
+MIN_SEPARATION = 25.0  # degrees between a new light and the ones already placed
+
+
+def free_spot(placed) -> tuple[float, float]:
+    """(azimuth, elevation) for a new light: the first of :data:`SPOTS` at least
+    ``MIN_SEPARATION`` from every placed light, else the spot farthest from its nearest light."""
+    placed = list(placed)
+    if not placed:
+        return SPOTS[0]
+    have = np.stack([p.direction for p in placed])
+
+    def nearest(spot):
+        d = PlacedLight(spot[0], spot[1]).direction
+        return float(np.degrees(np.arccos(np.clip(have @ d, -1.0, 1.0))).min())
+
+    for spot in SPOTS:
+        if nearest(spot) >= MIN_SEPARATION:
+            return spot
+    return max(SPOTS, key=nearest)
+
+
 # the classic studio rigs, as fractions of a level (the key light's intensity)
 RIGS = {
     "key": (PlacedLight(45.0, 35.0, 5.0, 1.0, 5600.0),),
     "key and fill": (PlacedLight(45.0, 35.0, 5.0, 1.0, 5600.0), PlacedLight(-50.0, 10.0, 15.0, 0.35, 5600.0)),
     "rim": (PlacedLight(160.0, 25.0, 3.0, 1.2, 6500.0),),
+    "key and rim": (PlacedLight(45.0, 35.0, 5.0, 1.0, 5600.0), PlacedLight(-155.0, 30.0, 3.0, 1.0, 6500.0)),
     "three-point": (PlacedLight(45.0, 35.0, 5.0, 1.0, 5600.0), PlacedLight(-50.0, 10.0, 15.0, 0.35, 5600.0),
                     PlacedLight(-155.0, 30.0, 3.0, 0.8, 6500.0)),
 }
@@ -155,3 +196,8 @@ class History:
             return None
         self.undo_stack.append(current)
         return self.redo_stack.pop()
+
+    def rescale(self, factor: float):
+        """Every rig kept, its intensities times ``factor`` (the map changed: :func:`rescaled`)."""
+        self.undo_stack = [rescaled(r, factor) for r in self.undo_stack]
+        self.redo_stack = [rescaled(r, factor) for r in self.redo_stack]

@@ -62,10 +62,10 @@ def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has
                    fixed: AreaLights | None = None):
     """Set the engine's lights (rotated by yaw / tilt, the environment background with them; then
     the ``fixed`` ones, placed lights that do not turn), shadow mode and display; the caller renders."""
-    turned = lights.rotated(settings.yaw, settings.tilt)
+    turned = lights.rotated(settings.yaw, settings.tilt).scaled(settings.intensity)
     if fixed is not None:
-        turned = turned.followed_by(fixed)
-    engine.set_lights(turned.scaled(settings.intensity))
+        turned = turned.followed_by(fixed.scaled(settings.placed_intensity))
+    engine.set_lights(turned)
     engine.set_look(replace(settings.fitted(len(turned)), background=effective_background(settings, scene, has_environment)))
 
 

@@ -55,7 +55,8 @@ class Look:
     specular: bool = True  # the specular term shown
     view: str = "final"  # VIEWS
     light: int = 0  # the selected light (its shadow in the "shadow" view)
-    intensity: float = 1.0  # scales every light
+    intensity: float = 1.0  # scales the map's lights
+    placed_intensity: float = 1.0  # scales your lights (viewer.placed_lights), apart from the map's
     preset: str = "balanced"  # quality preset (viewer.presets)
     compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
     ground: bool | str = AUTO  # the person's shadow on a ground plane at the feet, over the background (a shadow
@@ -91,6 +92,7 @@ class Look:
         if isinstance(self.light, bool) or not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
         _finite("intensity", self.intensity, 0.0, MAX_INTENSITY)
+        _finite("your lights' intensity", self.placed_intensity, 0.0, MAX_INTENSITY)
         _choice("preset", self.preset, PRESET_NAMES)
         _finite("compare", self.compare, 0.0, 1.0, " (the share of the frame showing the photo)")
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..imageio import write_exr, write_png, write_text
 from ..lightfit.methods import DEFAULT_METHOD
-from ..placed_lights import PlacedLight
+from ..placed_lights import PlacedLight, level
 from ..lights import AreaLights, facing_yaw
 from ..median_cut import LUMINANCE
 from ..render import photo_exposure
@@ -27,7 +27,7 @@ from ..settings import AUTO, Look
 from . import interaction as ix
 from .jobs import ChildWorker, LightJob, SceneJob
 from .layout import PANEL_WIDTH, image_area_size
-from .recording import LiveRecording, TurntableRecording
+from .recording import InteractionRecording, TurntableRecording
 from .session import Session
 
 STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
@@ -139,7 +139,7 @@ class ViewerApp:
         mx, my = io.mouse_pos.x, io.mouse_pos.y
         ax, ay, aw, ah = self.image_area()
         over_image = ax <= mx < ax + aw and ay <= my < ay + ah and not io.want_capture_mouse
-        recording_turn = isinstance(self.recording, TurntableRecording)
+        recording_turn = self.replaying  # the lighting is the recording's, not the mouse's
         now = time.perf_counter()
         if self.aiming is not None and imgui.is_mouse_clicked(0) and over_image:
             self.aim_at(mx - ax, my - ay)
@@ -176,9 +176,9 @@ class ViewerApp:
         if imgui.is_key_pressed(imgui.Key.s, False):
             self.save_frame()
         if imgui.is_key_pressed(imgui.Key.r, False):
-            self.toggle_recording("turntable")
-        if imgui.is_key_pressed(imgui.Key.l, False):
             self.toggle_recording("live")
+        if imgui.is_key_pressed(imgui.Key.t, False):
+            self.toggle_recording("turntable")
         if imgui.is_key_pressed(imgui.Key.f, False):
             self.view = replace(self.view, zoom=1.0, pan=(0.0, 0.0))
         if imgui.is_key_pressed(imgui.Key._0, False):
@@ -225,8 +225,20 @@ class ViewerApp:
         self.message = f"saved {png.name} (+ .exr, .json)"
         print(f"saved {png} {stem.with_suffix('.exr')} {stem.with_suffix('.json')}", flush=True)
 
+    @property
+    def replaying(self) -> bool:
+        """Whether the recording, not the user, sets the lighting now: a turn, or a captured
+        interaction being rendered."""
+        rec = self.recording
+        return isinstance(rec, TurntableRecording) or (isinstance(rec, InteractionRecording) and not rec.capturing)
+
     def toggle_recording(self, kind: str):
-        if self.recording is not None:
+        rec = self.recording
+        if isinstance(rec, InteractionRecording) and rec.capturing:
+            rec.stop(self.session.look, self.session.placed, self.session.sigma)  # the capture ends: its frames are rendered from the next pass on
+            self.message = f"rendering {rec.total} frames of {rec.path.name}"
+            return
+        if rec is not None:
             self._finish_recording(stopped=True)
             return
         size = self.session.scene.output_size
@@ -235,16 +247,38 @@ class ViewerApp:
             if kind == "turntable":
                 self.recording = TurntableRecording(path, size, self.session.look.yaw, self.config.record_frames, self.config.fps)
             else:
-                self.recording = LiveRecording(path, size, self.config.fps)
+                self.recording = InteractionRecording(path, size, self.config.fps)
         except Exception as exc:
             self._report(f"cannot record to {path}", exc)
             return
         self.message = f"recording {path.name}"
 
+    def _apply_moment(self, m):
+        s = self.session
+        s.look = m.look.fitted(len(s.base_lights) + len(m.placed))
+        s.set_placed(m.placed, record=False)
+        if len(m.sigma) == len(s.sigma):  # the same map's lights (a refit meanwhile keeps the new sigmas)
+            s.sigma[:] = m.sigma
+
+    def _render_capture(self, rec: InteractionRecording):
+        """A quit during a capture: its frames rendered now (nothing else holds what the user did)."""
+        rec.stop(self.session.look, self.session.placed, self.session.sigma)
+        print(f"rendering the {rec.total} frames of {rec.path.name} before quitting", flush=True)
+        while not rec.finished:
+            self._apply_moment(rec.moment(rec.done))
+            self.session.render()
+            rec.add(self.session.final.read_display())
+
     def _finish_recording(self, stopped: bool = False):
         rec, self.recording = self.recording, None
         if isinstance(rec, TurntableRecording):
             self.session.update(yaw=rec.start_yaw)
+        if isinstance(rec, InteractionRecording):
+            try:
+                if rec.capturing:
+                    self._render_capture(rec)
+            finally:
+                self._apply_moment(rec.resume)  # back to where the user was
         try:
             path = rec.close()
         except Exception as exc:
@@ -332,9 +366,8 @@ class ViewerApp:
         self.message = f"light {len(s.base_lights) + j} {verb} {where}"
 
     def placed_level(self) -> float:
-        """A placed light's default intensity: a quarter of the map's lights' total (1 without any)."""
-        total = float((self.session.base_lights.intensity @ LUMINANCE).sum())
-        return 0.25 * total if total > 0.0 else 1.0
+        """A new placed light's intensity: the map's level (viewer.placed_lights.level)."""
+        return level(self.session.base_lights)
 
     def save_rig(self):
         from ..placed_lights import save_rig
@@ -415,7 +448,10 @@ class ViewerApp:
         if job is None:
             return
         res = job.result
-        self.session.set_lights(res.lights, environment=res.env.pixels)
+        new_map = job.path != self.env_path
+        self.session.set_lights(res.lights, environment=res.env.pixels, new_map=new_map)
+        if new_map:  # as the first map: its brightest light on the camera's side
+            self.session.update(yaw=facing_yaw(res.lights))
         self.env_path = job.path
         self.n_lights = len(res.lights)
         self._exposed_again()
@@ -438,13 +474,19 @@ class ViewerApp:
         rec = self.recording
         if isinstance(rec, TurntableRecording):
             s.update(yaw=rec.next_yaw())
+        if isinstance(rec, InteractionRecording):
+            if rec.capturing:
+                rec.capture(s.look, s.placed, s.sigma)
+            else:
+                self._apply_moment(rec.moment(rec.done))
+        capturing = isinstance(rec, InteractionRecording) and rec.capturing
         moving = self.dragging and time.perf_counter() - self.last_motion < STILL_SECONDS
-        preview = moving and rec is None
+        preview = moving and (rec is None or capturing)
         eng = s.preview if preview else s.final
         before = sum(eng.counters.values())
         s.render(preview=preview)
         worked = sum(eng.counters.values()) != before
-        if rec is not None:
+        if rec is not None and not capturing:
             try:
                 rec.add(eng.read_display())
             except Exception as exc:
@@ -452,6 +494,8 @@ class ViewerApp:
                 self.recording = None
                 if isinstance(rec, TurntableRecording):
                     s.update(yaw=rec.start_yaw)  # the lighting goes back to where the turn started
+                else:
+                    self._apply_moment(rec.resume)
                 try:
                     rec.close()  # releases the file; its error is the one just reported
                 except Exception:
@@ -532,7 +576,9 @@ class ViewerApp:
             "window_size": list(self.window.size),
             "panel_height": self.panel_height,
             "widgets": self.widgets,
-            "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "path": str(rec.path)},
+            "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "total": rec.total, "path": str(rec.path),
+                                                   "capturing": getattr(rec, "capturing", False),
+                                                   "seconds": getattr(rec, "seconds", None)},
             "fitting": self.job is not None,
             "opening": None if self.scene_job is None else str(self.scene_job.path),
             "scene_size": list(self.session.scene.output_size),

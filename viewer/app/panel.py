@@ -11,7 +11,7 @@ from imgui_bundle import imgui, implot
 
 from ..lights import azimuth_elevation
 from ..median_cut import LUMINANCE
-from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, kelvin_to_rgb, rig
+from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb, rig
 from ..presets import PRESETS
 from ..settings import VIEWS
 from ..shadow_space import ANGULAR_SIGMA
@@ -91,10 +91,16 @@ def _lighting(app):
     _remember(app, "exposure")
     if changed:
         s.look = exposed(s.look, exposure)
-    changed, intensity = imgui.slider_float("intensity", s.look.intensity, 0.0, 8.0, "x %.2f", imgui.SliderFlags_.logarithmic)
+    changed, intensity = imgui.slider_float("map", s.look.intensity, 0.0, 8.0, "map's lights x %.2f", imgui.SliderFlags_.logarithmic)
     _remember(app, "intensity")
     if changed:
         s.update(intensity=intensity)
+    if s.placed:
+        changed, placed = imgui.slider_float("yours", s.look.placed_intensity, 0.0, 8.0, "your lights x %.2f",
+                                             imgui.SliderFlags_.logarithmic)
+        _remember(app, "placed intensity")
+        if changed:
+            s.update(placed_intensity=placed)
     if s.scene.frame is not None:  # before / after: the original photo left of the split (B toggles)
         changed, compare = imgui.slider_float("before | after", s.look.compare, 0.0, 1.0,
                                               "photo %.2f" if s.look.compare > 0.0 else "off")
@@ -213,8 +219,15 @@ def _placed(app):
     _remember(app, "use rig")
     imgui.same_line()
     if imgui.button("add light"):
-        s.set_placed(s.placed + (PlacedLight(intensity=level),))
+        azimuth, elevation = free_spot(s.placed)  # not on top of a light already there
+        s.set_placed(s.placed + (PlacedLight(azimuth, elevation, intensity=level),))
     _remember(app, "add light")
+    imgui.same_line()
+    _, s.keep_absolute = imgui.checkbox("absolute", s.keep_absolute)
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("on: your lights keep their intensities when the map changes\n"
+                          "off: they keep their share of the light (scaled with the map's brightness)")
+    _remember(app, "keep absolute")
     if imgui.button("undo (Ctrl+Z)"):
         s.undo()
     imgui.same_line()
@@ -321,16 +334,20 @@ def _thumbnail(app):
 
 
 def _record(app):
+    from ..progress import time_left_words
+    from .recording import InteractionRecording
+
     if not imgui.collapsing_header("Record", imgui.TreeNodeFlags_.default_open):
         return
     rec = app.recording
     if rec is None:
-        if imgui.button("Record 360 turn (R)"):
-            app.toggle_recording("turntable")
+        if imgui.button("Record (R)"):
+            app.toggle_recording("live")
         _remember(app, "record")
         imgui.same_line()
-        if imgui.button("Record live (L)"):
-            app.toggle_recording("live")
+        if imgui.button("360 turn (T)"):
+            app.toggle_recording("turntable")
+        _remember(app, "record turn")
         imgui.same_line()
         if imgui.button("Save frame (S)"):
             app.save_frame()
@@ -338,13 +355,17 @@ def _record(app):
         changed, frames = imgui.slider_int("turn frames", app.config.record_frames, 12, 720)
         if changed:
             app.config.record_frames = frames
+    elif isinstance(rec, InteractionRecording) and rec.capturing:
+        imgui.text(f"recording what you do: {rec.seconds:.1f} s")
+        if imgui.button("Stop and render (R)"):
+            app.toggle_recording(rec.kind)
+        _remember(app, "record")
     else:
-        if rec.fraction is not None:
-            imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{rec.done} / {rec.total} frames")
-        else:
-            imgui.text(f"recording live: {rec.done} frames")
+        left = time_left_words(rec.time_left.seconds_left())
+        imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{rec.done} / {rec.total} frames" + (f", {left}" if left else ""))
         if imgui.button("Stop"):
             app.toggle_recording(rec.kind)
+        _remember(app, "record")
     imgui.text_disabled(f"to {app.config.out_dir}/")
 
 

@@ -3,8 +3,8 @@ stays responsive and shows each frame as it is recorded; encoding runs on the wr
 
 - :class:`TurntableRecording`: a full 360 degree turn of the lighting from the current rotation,
   ``frames`` frames at ``fps``, each rendered at full quality.
-- :class:`LiveRecording`: what the user does, one full-quality frame per pass of the loop, timed
-  by the wall clock.
+- :class:`InteractionRecording`: what the user does, captured as a timeline while they do it, then
+  rendered at full quality at the video's frame rate.
 
 Stopping early (the key again, or closing the window) finishes the file with the frames so far;
 the fragmented MP4 (:mod:`viewer.video`) stays playable even if the program is killed.
@@ -13,11 +13,14 @@ the fragmented MP4 (:mod:`viewer.video`) stays playable even if the program is k
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..progress import TimeLeft
 from ..render import turntable_yaws
+from ..settings import Look
 from ..video import VideoWriter
 
 
@@ -31,6 +34,7 @@ class TurntableRecording:
         self.start_yaw = start_yaw
         self.done = 0
         self.writer = VideoWriter(self.path, size[0], size[1], fps=fps)
+        self.time_left = TimeLeft({"frames": 1.0})
 
     @property
     def finished(self) -> bool:
@@ -46,28 +50,96 @@ class TurntableRecording:
     def add(self, rgb: np.ndarray):
         self.writer.write(rgb)
         self.done += 1
+        self.time_left.update("frames", self.done, self.total)
 
     def close(self) -> Path:
         return self.writer.close()
 
 
-class LiveRecording:
+@dataclass(frozen=True)
+class Moment:
+    """What the viewer showed at ``seconds`` into a recording: enough to render that frame again."""
+    seconds: float
+    look: Look
+    placed: tuple
+    sigma: np.ndarray
+
+
+class InteractionRecording:
+    """What the user does, at the video's frame rate. While the user works, each pass of the loop
+    adds the state shown (:meth:`capture`: the look, their lights and the sigmas, a few hundred bytes,
+    only when something changed); the window draws as it always does (preview frames while
+    dragging). :meth:`stop` ends the capture; then each pass renders one frame at full quality, the
+    state at ``k / fps`` s (the turn interpolated between the moments around it, the rest as it was
+    at that time), so ten seconds of dragging give ten seconds of video however slow a full frame is.
+    The map and the person are those shown while it renders."""
+
     kind = "live"
 
     def __init__(self, path: Path, size, fps: float = 30.0):
         self.path = Path(path)
-        self.writer = VideoWriter(self.path, size[0], size[1], fps=fps)
+        self.size = size
+        self.fps = float(fps)
+        self.moments: list[Moment] = []
         self.start = None
+        self.writer = None  # made when the capture stops
         self.done = 0
-        self.finished = False
-        self.fraction = None
+        self.total = None
+        self.time_left = None
+        self.resume = None  # the user's state when the capture ended
 
-    def add(self, rgb: np.ndarray):
+    @property
+    def capturing(self) -> bool:
+        return self.writer is None
+
+    @property
+    def finished(self) -> bool:
+        return self.total is not None and self.done >= self.total
+
+    @property
+    def fraction(self) -> float | None:
+        return None if self.total is None else self.done / self.total
+
+    @property
+    def seconds(self) -> float:
+        return 0.0 if self.start is None else time.perf_counter() - self.start
+
+    def capture(self, look: Look, placed, sigma: np.ndarray):
         now = time.perf_counter()
         if self.start is None:
             self.start = now
-        self.writer.write(rgb, seconds=now - self.start)
+        last = self.moments[-1] if self.moments else None
+        if last is not None and last.look == look and last.placed == tuple(placed) and np.array_equal(last.sigma, sigma):
+            return
+        self.moments.append(Moment(now - self.start, look, tuple(placed), np.array(sigma, copy=True)))
+
+    def stop(self, look: Look, placed, sigma: np.ndarray):
+        """The capture ends now, the user's state being this one (:attr:`resume`, restored when the
+        frames are written); the frames are rendered from the next pass on."""
+        self.resume = Moment(self.seconds, look, tuple(placed), np.array(sigma, copy=True))
+        self.total = max(1, int(round(self.seconds * self.fps)))
+        self.writer = VideoWriter(self.path, self.size[0], self.size[1], fps=self.fps)
+        self.time_left = TimeLeft({"frames": 1.0})
+
+    def moment(self, k: int) -> Moment:
+        """The state of frame ``k``: the last moment at or before its time, its yaw and tilt carried
+        linearly towards the next moment's."""
+        t = k / self.fps
+        times = [m.seconds for m in self.moments]
+        i = max(int(np.searchsorted(times, t, side="right")) - 1, 0)
+        m = self.moments[i]
+        if i + 1 < len(self.moments):
+            nxt = self.moments[i + 1]
+            w = float(np.clip((t - m.seconds) / max(nxt.seconds - m.seconds, 1e-9), 0.0, 1.0))
+            look = replace(m.look, yaw=m.look.yaw + w * (nxt.look.yaw - m.look.yaw),
+                           tilt=m.look.tilt + w * (nxt.look.tilt - m.look.tilt))
+            m = replace(m, look=look)
+        return m
+
+    def add(self, rgb: np.ndarray):
+        self.writer.write(rgb)
         self.done += 1
+        self.time_left.update("frames", self.done, self.total)
 
     def close(self) -> Path:
         return self.writer.close()

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..gl import Engine, EngineOptions
 from ..lights import AreaLights
-from ..placed_lights import History, PlacedLight, to_area_lights
+from ..placed_lights import History, PlacedLight, level, rescaled, to_area_lights
 from ..render import effective_background
 from ..scene import Scene
 from ..photo_frame import scaled_size
@@ -49,6 +49,7 @@ class Session:
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
         self.placed: tuple[PlacedLight, ...] = ()  # the user's own lights, fixed to the camera (viewer.placed_lights)
         self.history = History()
+        self.keep_absolute = False  # placed lights keep their absolute intensities when the map changes
         self.look = (look or Look()).fitted(len(lights))
         self._set_environment(self.final)
         self.wake = lambda: None  # called when background work finishes (the window's wake)
@@ -59,7 +60,7 @@ class Session:
     # ------------------------------------------------------------------ state
     @property
     def lights(self) -> AreaLights:
-        """The lights as rendered: the user's sigmas and intensity, before the rotation."""
+        """The map's lights as rendered: the user's sigmas and the map's intensity, before the rotation."""
         return AreaLights(self.base_lights.direction, self.sigma, self.base_lights.intensity * np.float32(self.look.intensity))
 
     def rotated_lights(self) -> AreaLights:
@@ -67,8 +68,8 @@ class Session:
 
     def rendered_lights(self) -> AreaLights:
         """The map's lights turned by the look, then the placed lights (fixed to the camera); the
-        look's intensity scales both."""
-        return self.rotated_lights().followed_by(to_area_lights(self.placed).scaled(self.look.intensity))
+        look's intensity scales the map's, its placed intensity the placed ones."""
+        return self.rotated_lights().followed_by(to_area_lights(self.placed).scaled(self.look.placed_intensity))
 
     def set_placed(self, placed, record: bool = True):
         """The user's lights (a rig, an added, moved or deleted light); ``record``: undo brings back
@@ -93,8 +94,14 @@ class Session:
             self.set_placed(after, record=False)
         return after is not None
 
-    def set_lights(self, lights: AreaLights, environment: np.ndarray | None = None):
-        """New lights (a refit, or another map with its pixels): the sliders start from their sigmas."""
+    def set_lights(self, lights: AreaLights, environment: np.ndarray | None = None, new_map: bool = False):
+        """New lights (a refit, or another map with its pixels): the sliders start from their sigmas.
+        ``new_map``: the placed lights keep their share of the light (scaled by the ratio of the
+        maps' levels, undo and redo with them) unless ``keep_absolute``."""
+        if new_map and not self.keep_absolute:
+            factor = level(lights) / level(self.base_lights)
+            self.placed = rescaled(self.placed, factor)
+            self.history.rescale(factor)
         self.base_lights = lights
         self.sigma = lights.sigma.copy()
         if environment is not None:
