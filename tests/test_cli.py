@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 import subprocess
 import sys
 
@@ -10,6 +12,7 @@ import numpy as np
 from viewer.lab.bench.metrics import detail_kept
 from viewer.cli import main
 from viewer.imageio import read_exr, read_png
+from viewer.resources import asset_dir
 from viewer.scene import load_scene
 
 
@@ -141,3 +144,28 @@ def test_benchmarks_leave_the_checkout_clean(tmp_path):
                           "--repeats", "1", "--no-twin"], capture_output=True, text=True, cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file()) == ["out/bench_engine.json"]
+
+
+def test_a_file_of_the_wrong_kind_is_one_line_saying_what_it_is(tmp_path):
+    from viewer.lights import AreaLights
+    from viewer.placed_lights import rig, save_rig
+
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a photo\n")
+    lights = AreaLights(np.array([[0.0, 1.0, 0.0]]), [1.0], [[1.0, 1.0, 1.0]]).save(tmp_path / "l.json")
+    rig_file = save_rig(tmp_path / "rig.json", rig("key", 1.0))
+    look = tmp_path / "capture.json"
+    look.write_text(json.dumps({"look": {"yaw": 10}}))
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    env = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")
+    for given, words in ((notes, "is a text file"), (Path(env), "is an environment map, not a photo"),
+                         (lights, "is a light file"), (rig_file, "is a rig"), (look, "is a saved look"),
+                         (empty, "scene.json")):
+        for argv in (("infer", str(given), "-o", str(tmp_path / "b")), ("render", str(given), "--env", env, "-o",
+                                                                           str(tmp_path / "x.png"))):
+            res = run_cli(*argv)
+            assert res.returncode == 2, (argv, res.stderr)
+            line = res.stderr.strip()
+            assert "\n" not in line and words in line and str(given) in line, (argv, line)
+    assert "--env" in run_cli("render", env, "-o", str(tmp_path / "x.png")).stderr

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .file_kinds import wrong_kind
 
 MAX_SIZE = 2048  # default longer side of every output
 WORK_PERSON = 512  # default pixels of the person's longer side in the work frame
@@ -142,6 +143,9 @@ def read_image_u8(path, what: str, notes: list) -> np.ndarray:
 def read_photo(path, notes: list) -> np.ndarray:
     """The photo as (H, W, 3) uint8 sRGB, upright. Grayscale becomes RGB and alpha is dropped,
     each with a note."""
+    wrong = wrong_kind(path, "a photo")
+    if wrong is not None:
+        raise wrong
     photo = read_image_u8(path, "photo", notes)
     if min(photo.shape[:2]) < MIN_PERSON_PX:
         raise InputError(path, f"is {photo.shape[1]}x{photo.shape[0]} pixels: a photo of a person needs at least "

@@ -34,6 +34,7 @@ import numpy as np
 
 from .camera import Camera
 from .errors import InputError
+from .file_kinds import PHOTO_SUFFIXES, wrong_kind
 from .imageio import linear_to_srgb, read_exr, read_json, read_png, srgb_to_linear, write_exr, write_png, write_text
 
 FORMAT = "relight-scene"
@@ -107,7 +108,6 @@ class FrameLayer:
         if abs(w * mh / mw - h) > ASPECT_TOLERANCE_PX * max(1.0, h / mh):
             raise InputError(file("alpha"), f"the frame {w}x{h} does not have the aspect of the maps ({mw}x{mh})")
         return self
-PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp")
 NORMAL_TOLERANCE = 1e-2  # | |n| - 1 | allowed inside the mask before loading refuses the map
 MAX_DEPTH = 1e4  # metres; a larger depth is a corrupt pixel, not a photographed person
 
@@ -233,7 +233,8 @@ def load_scene(path) -> Scene:
         raise InputError(path, "is a photo: relighting needs its scene bundle (a directory of maps); make one with "
                          f"`relight infer {path.name} --mask MASK.png -o BUNDLE`, or view it with `relight view {path.name} --mask MASK.png`")
     if not path.is_dir():
-        raise InputError(path, "scene bundle directory not found")
+        wrong = wrong_kind(path, "a photo or a scene bundle")
+        raise wrong if wrong is not None else InputError(path, "scene bundle directory not found")
     meta_path = path / "scene.json"
     if not meta_path.is_file():
         raise InputError(meta_path, "missing: a scene bundle needs scene.json")
