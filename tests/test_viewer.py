@@ -166,8 +166,15 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     wid = subprocess.run(["xdotool", "search", "--name", "^relight$"], env=v.env, capture_output=True, text=True,
                          check=True).stdout.split()[0]
     v.xdotool("windowsize", wid, 700, 600)
-    s = v.wait_for(lambda s: s["image_rect"][2] == pytest.approx(300.0), 30)  # 700 - the 400-pixel panel
-    assert s["image_rect"][3] == pytest.approx(300.0)
+    s = v.wait_for(lambda s: s["image_rect"][2] == pytest.approx(400.0), 30)  # 700 - the panel, 300 pixels there
+    assert s["image_rect"][3] == pytest.approx(400.0)
+    # at 900 x 700 the panel narrows to a third of the window and every widget stays inside it
+    v.xdotool("windowsize", wid, 900, 700)
+    s = v.wait_for(lambda s: s["window_size"] == [900, 700] and s["image_rect"][2] == pytest.approx(594.0), 30)
+    time.sleep(0.5)
+    s = v.state()
+    for name, (x0, y0, x1, y1) in s["widgets"].items():
+        assert 594.0 <= x0 and x1 <= 900.0, (name, x0, x1)
     assert v.quit() == 0
 
 

@@ -26,7 +26,7 @@ from ..scene import PHOTO_SUFFIXES, Scene
 from ..settings import AUTO, Look
 from . import interaction as ix
 from .jobs import ChildWorker, LightJob, SceneJob
-from .layout import PANEL_WIDTH, image_area_size
+from .layout import PANEL_WIDTH, image_area_size, panel_width
 from .recording import InteractionRecording, TurntableRecording
 from .session import Session
 
@@ -124,7 +124,7 @@ class ViewerApp:
     # ------------------------------------------------------------------ geometry
     def image_area(self) -> tuple[float, float, float, float]:
         w, h = self.window.size
-        return 0.0, 0.0, float(max(w - PANEL_WIDTH, 1)), float(max(h, 1))
+        return 0.0, 0.0, float(max(w - panel_width(w), 1)), float(max(h, 1))
 
     def image_rect(self) -> tuple[float, float, float, float]:
         _, _, aw, ah = self.image_area()
@@ -315,6 +315,7 @@ class ViewerApp:
         switched to with its lights; a rig's lights are placed. Anything else is one line saying
         what the window opens."""
         from ..errors import InputError
+        from ..file_kinds import kind_of, wrong_kind
         from ..placed_lights import load_rig
         from .files import is_bundle
 
@@ -327,6 +328,8 @@ class ViewerApp:
             self.open_scene(path)
         elif suffix in (".hdr", ".exr"):
             self.open_map(path)
+        elif suffix == ".json" and kind_of(path) not in ("rig", None):  # a light file, a saved look...
+            self.error = str(wrong_kind(path, "a rig"))
         elif suffix == ".json":
             try:
                 self.session.set_placed(load_rig(path))
@@ -432,10 +435,6 @@ class ViewerApp:
         self.session.set_scene(res.scene)
         self.session.update(yaw=facing_yaw(self.session.lights))  # its first frame faces the brightest light
         self.view = ix.ViewState()
-        area_w, area_h = image_area_size(res.scene.output_size)  # a wider photo widens the window (never narrows it)
-        w, h = self.window.size
-        if area_w + PANEL_WIDTH > w or area_h > h:
-            self.window.resize(max(w, area_w + PANEL_WIDTH), max(h, area_h))
         self._exposed_again()
         self.window.set_title(f"relight - {res.path.name}")
         how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",

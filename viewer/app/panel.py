@@ -16,7 +16,7 @@ from ..presets import PRESETS
 from ..settings import VIEWS
 from ..shadow_space import ANGULAR_SIGMA
 from .interaction import exposed
-from .layout import KEYS_HELP, PANEL_WIDTH
+from .layout import KEYS, SMALL_HEIGHT, panel_width
 from .session import PREVIEW_SIZE, SHADOW_MODES, VIEW_NAMES
 
 MAX_LIGHTS = 64
@@ -36,8 +36,10 @@ def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
 
 def draw_panel(app):
     w, h = app.window.size
-    imgui.set_next_window_pos(imgui.ImVec2(w - PANEL_WIDTH, 0))
-    imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, h))
+    app.widgets = {}  # the widgets drawn this frame (a collapsed section's are not there)
+    width = panel_width(w)
+    imgui.set_next_window_pos(imgui.ImVec2(w - width, 0))
+    imgui.set_next_window_size(imgui.ImVec2(width, h))
     # the scroll bar's place always kept: widths that do not depend on whether the panel scrolls (a
     # scroll bar coming and going would change the thumbnail's height, and so whether it scrolls)
     flags = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -52,9 +54,29 @@ def draw_panel(app):
     _record(app)
     _frame_time(app)
     if imgui.collapsing_header("Keys and mouse"):
-        imgui.text_unformatted(KEYS_HELP)
+        _keys()
     app.panel_height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
     imgui.end()
+
+
+def _keys():
+    """The keys and the mouse, a row each, the words wrapped to the panel's width."""
+    if imgui.begin_table("keys", 2, imgui.TableFlags_.sizing_fixed_fit):
+        imgui.table_setup_column("key", imgui.TableColumnFlags_.width_fixed)
+        imgui.table_setup_column("does", imgui.TableColumnFlags_.width_stretch)
+        for key, does in KEYS:
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.text_unformatted(key)
+            imgui.table_next_column()
+            imgui.text_wrapped(does)
+        imgui.end_table()
+
+
+def _open(app, first: bool) -> int:
+    """The flag for a section's header: expanded on a tall window, or when ``first`` (the section a
+    small window shows); a section the user opened or closed stays as they left it."""
+    return imgui.TreeNodeFlags_.default_open if first or app.window.size[1] >= SMALL_HEIGHT else 0
 
 
 def _status(app):
@@ -118,7 +140,7 @@ def _lighting(app):
 
 def _shading(app):
     s = app.session
-    if not imgui.collapsing_header("Shading", imgui.TreeNodeFlags_.default_open):
+    if not imgui.collapsing_header("Shading", _open(app, False)):
         return
     lk = s.look
     presets = list(PRESETS)
@@ -135,10 +157,10 @@ def _shading(app):
     _remember(app, "shadows")
     if changed:
         s.update(shadows=SHADOW_MODES[names[i]])
-    if s.refine_error:
+    if s.refine_error:  # the network failed: the mode went back to soft, and this says why
         imgui.text_colored(imgui.ImVec4(1.0, 0.45, 0.4, 1.0), s.refine_error)
-    elif lk.shadows == "refined" and s.refining:
-        imgui.text_disabled("refining the shadows (soft shown meanwhile)...")
+    elif lk.shadows == "refined":  # one line, there all the time under "refined": nothing below it moves
+        imgui.text_disabled("refining (soft shown meanwhile)..." if s.refining else "refined shadows shown")
     changed, diffuse = imgui.checkbox("diffuse", lk.diffuse)
     if changed:
         s.update(diffuse=diffuse)
@@ -156,7 +178,7 @@ def _shading(app):
 def _lights(app):
     s = app.session
     n = len(s.sigma)
-    if not imgui.collapsing_header(f"Area lights ({n})", imgui.TreeNodeFlags_.default_open):
+    if not imgui.collapsing_header(f"Area lights ({n})", _open(app, False)):
         return
     imgui.set_next_item_width(140)
     changed, count = imgui.slider_int("number of lights", app.n_lights, 1, MAX_LIGHTS)
@@ -204,7 +226,7 @@ def _placed(app):
     """The user's own lights: a rig, add, edit (direction, size, intensity, colour temperature),
     delete, undo and redo, save the rig."""
     s = app.session
-    if not imgui.collapsing_header(f"Your lights ({len(s.placed)})", imgui.TreeNodeFlags_.default_open):
+    if not imgui.collapsing_header(f"Your lights ({len(s.placed)})", _open(app, False)):
         return
     level = app.placed_level()
     names = list(RIGS)
@@ -222,12 +244,11 @@ def _placed(app):
         azimuth, elevation = free_spot(s.placed)  # not on top of a light already there
         s.set_placed(s.placed + (PlacedLight(azimuth, elevation, intensity=level),))
     _remember(app, "add light")
-    imgui.same_line()
-    _, s.keep_absolute = imgui.checkbox("absolute", s.keep_absolute)
+    _, s.keep_absolute = imgui.checkbox("keep absolute intensities", s.keep_absolute)
+    _remember(app, "keep absolute")
     if imgui.is_item_hovered():
         imgui.set_tooltip("on: your lights keep their intensities when the map changes\n"
                           "off: they keep their share of the light (scaled with the map's brightness)")
-    _remember(app, "keep absolute")
     if imgui.button("undo (Ctrl+Z)"):
         s.undo()
     imgui.same_line()
@@ -276,7 +297,7 @@ def _placed(app):
 
 
 def _map(app):
-    if not imgui.collapsing_header("Environment map", imgui.TreeNodeFlags_.default_open):
+    if not imgui.collapsing_header("Environment map", _open(app, True)):
         return
     maps = list(app.config.bundled_maps)
     names = [p.stem for p in maps]
@@ -337,7 +358,7 @@ def _record(app):
     from ..progress import time_left_words
     from .recording import InteractionRecording
 
-    if not imgui.collapsing_header("Record", imgui.TreeNodeFlags_.default_open):
+    if not imgui.collapsing_header("Record", _open(app, False)):
         return
     rec = app.recording
     if rec is None:

@@ -32,6 +32,8 @@ shadows are shown, and the specular code on a scene without specular reflectance
 
 from __future__ import annotations
 
+import math
+
 import moderngl
 import numpy as np
 
@@ -40,7 +42,8 @@ from ..errors import InputError
 from ..ground import ground_plane
 from ..lights import AreaLights
 from ..scene import Scene
-from ..settings import AUTO, VIEWS, VISIBILITY_MODES, Look
+from ..median_cut import LUMINANCE
+from ..settings import AUTO, EXPOSURE_LIMIT, VIEWS, VISIBILITY_MODES, Look
 from .. import shadow_space as ss
 from .composite_pass import CompositePass
 from .context import make_current
@@ -55,6 +58,8 @@ from .outputs import EngineOutputs, in_context
 from .programs import shared_programs
 from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
+
+SHADING_VIEWS = ("diffuse_shading", "specular_shading")  # one term of the composite, shown alone
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
 DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color", "compare")
@@ -225,8 +230,16 @@ class Engine(EngineOutputs):
 
     @property
     def shown_look(self) -> Look:
-        """The look as the display draws it: its ground "auto" resolved (:attr:`ground_shown`)."""
-        return self.look.replace(ground=self.ground_shown)
+        """The look as the display draws it: its ground "auto" resolved (:attr:`ground_shown`); a
+        shading view (albedo 1, or the specular term alone) exposed so that every active light at
+        once, head-on, is white: under the photo's exposure, made for albedos of a few tenths, it
+        would clip to white."""
+        look = self.look.replace(ground=self.ground_shown)
+        if look.view in SHADING_VIEWS:
+            peak = sum(float(l.intensity @ LUMINANCE) for l in self._lights if l.active)
+            stops = -math.log2(peak) if peak > 0.0 and math.isfinite(peak) else 0.0
+            look = look.replace(exposure=float(np.clip(stops, -EXPOSURE_LIMIT, EXPOSURE_LIMIT)))
+        return look
 
     def _set_look(self, look: Look):
         old, terms, shown = self.look, self._composite_terms(), self.ground_shown
