@@ -132,7 +132,8 @@ def cmd_bench(args) -> int:
     elif args.what == "viewer":
         from .bench.viewer import run_viewer_benchmark
 
-        run_viewer_benchmark(sizes=args.sizes, output=output)
+        photos = shared_folder(args.photos, "photos", "--photos") if args.photos or os.environ.get(DATA_VARIABLE) else None
+        run_viewer_benchmark(sizes=args.sizes, photos=photos, output=output)
     elif args.what == "matte":
         from .bench.matte import run_matte_benchmark, table
 
