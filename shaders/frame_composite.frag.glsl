@@ -15,7 +15,7 @@
 uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution
 uniform sampler2D shading_diffuse;     // work resolution, premultiplied by the mask, mipmapped
 uniform sampler2D shading_specular;
-uniform sampler2D background;          // linear, frame resolution (frame_background.frag.glsl)
+uniform sampler2D background;          // linear, the frame's resolution or less (frame_background.frag.glsl), bilinear
 uniform sampler2D photo;               // the original photo, linear, frame resolution
 uniform float compare_x;               // display: pixels from the left showing the photo (0: none)
 uniform vec2 frame_to_uv;              // 1 / frame size: the work images span the same field of view
@@ -40,7 +40,7 @@ void main() {
         fg = term_weights.x * (unit_albedo ? vec3(1.0) : aa.rgb) * d + term_weights.y * s;
     }
     if (output_mode == 1) { color = vec4(fg, aa.a); return; }
-    vec3 bg = aa.a >= 1.0 ? vec3(0.0) : texelFetch(background, px, 0).rgb;
+    vec3 bg = aa.a >= 1.0 ? vec3(0.0) : texture(background, (vec2(px) + 0.5) / vec2(textureSize(frame_albedo_alpha, 0))).rgb;
     if (ground && aa.a < 1.0) {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) * frame_to_uv).rgb, 0.0, 1.0);
     }

@@ -1,5 +1,5 @@
-// The person's shadow on a ground plane at the feet (a shadow catcher), four lights a pass, at half
-// the work resolution. For the plane's point P seen through each pixel, the share of the plane's
+// The person's shadow on a ground plane at the feet (a shadow catcher), four lights a pass, at a
+// fraction of the work resolution (EngineOptions.ground_scale: half, a quarter in the drag preview). For the plane's point P seen through each pixel, the share of the plane's
 // unshadowed irradiance E0 = sum_l I_l max(l.n, 0) that this pass's lights lose to the person
 //   O = sum_l (I_l max(l.n, 0) / E0) (1 - V_l(P))  (n the plane's normal),
 // added over the passes (additive blending); the display multiplies the background by 1 - O.

@@ -89,6 +89,7 @@ class ViewerApp:
         self._drag_applied = (0.0, 0.0)  # drag motion already turned into rotation (pixels)
         self.panning = False
         self.last_motion = 0.0
+        self.adjusted = 0.0  # when a panel widget was last held (its changes preview until it is let go)
         self.job: LightJob | None = None
         self.scene_job: SceneJob | None = None
         # the child processes that fit maps and infer photos, started on first use and kept (torch loads once)
@@ -479,11 +480,13 @@ class ViewerApp:
             else:
                 self._apply_moment(rec.moment(rec.done))
         capturing = isinstance(rec, InteractionRecording) and rec.capturing
-        moving = self.dragging and time.perf_counter() - self.last_motion < STILL_SECONDS
-        preview = moving and (rec is None or capturing)
+        now = time.perf_counter()
+        moving = self.dragging and now - self.last_motion < STILL_SECONDS
+        adjusting = not moving and now - self.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
+        preview = (moving or adjusting) and (rec is None or capturing)
         eng = s.preview if preview else s.final
         before = sum(eng.counters.values())
-        s.render(preview=preview)
+        s.render(preview=preview, hard=moving)
         worked = sum(eng.counters.values()) != before
         if rec is not None and not capturing:
             try:
@@ -507,8 +510,11 @@ class ViewerApp:
             self._switched = False
             return eng, "switch"
         if not worked:  # "load": nothing to redraw while lights are fitted or a scene opened off this thread
-            return eng, "load" if self.job is not None or self.scene_job is not None else "idle"
-        return eng, "drag" if preview else "update"
+            if self.job is not None or self.scene_job is not None:
+                return eng, "load"
+            # "warm": an idle frame makes the drag preview's engine, so the first dragged frame is a preview's
+            return eng, "warm" if s.warm_preview() else "idle"
+        return eng, ("drag" if moving else "adjust") if preview else "update"
 
     def run(self) -> int:
         from .panel import draw_panel
@@ -517,7 +523,9 @@ class ViewerApp:
         previous = signal.signal(signal.SIGTERM, lambda *_: w.close()) if os.name == "posix" else None
         try:
             while not w.should_close:
-                busy = self.dragging or self.panning or self.recording is not None
+                # a slider let go: the loop runs on until its full-quality frame replaces the preview
+                busy = (self.dragging or self.panning or self.recording is not None
+                        or time.perf_counter() - self.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = time.perf_counter()
@@ -587,6 +595,7 @@ class ViewerApp:
             "videos": self.videos,
             "message": self.message,
             "error": self.error,
+            "gl_threads": os.environ.get("LP_NUM_THREADS"),  # llvmpipe's, sized when the window opened (viewer/cores.py)
         }
         text = json.dumps(state)
         now = time.monotonic()

@@ -4,6 +4,7 @@ size in degrees), shading, views, map, recording, frame time, keys. Draws and ap
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -56,6 +57,8 @@ def draw_panel(app):
     if imgui.collapsing_header("Keys and mouse"):
         _keys()
     app.panel_height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
+    if imgui.is_any_item_active():  # a slider held (or a click): the preview until it is let go (app._render)
+        app.adjusted = time.perf_counter()
     imgui.end()
 
 

@@ -96,7 +96,7 @@ class Engine(EngineOutputs):
                                            o.pcss_min_texels)
         self.composite_pass = CompositePass(kit, res, (scene.width, scene.height), frame_shading=scene.frame is not None)
         self.inspect_pass = InspectPass(kit, res, (scene.width, scene.height))
-        self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera, ground_plane(scene))
+        self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera, ground_plane(scene), o.ground_scale)
         ground = self.ground_pass.texture
         if scene.frame is None:
             self.frame_background = self.frame_mipmaps = None

@@ -24,9 +24,10 @@ class GroundShadowPass:
     # direction, shadow map, sigma and mode)
     inputs = ("light_pass", "intensity", "activity", "ground", "visibility")
 
-    def __init__(self, kit: PassKit, scene: SceneResources, light_pass: LightShadingPass, camera, plane: GroundPlane):
+    def __init__(self, kit: PassKit, scene: SceneResources, light_pass: LightShadingPass, camera, plane: GroundPlane,
+                 scale: int = 2):
         self.kit, self.scene, self.light_pass = kit, scene, light_pass
-        w, h = max(camera.width // 2, 1), max(camera.height // 2, 1)
+        w, h = max(camera.width // scale, 1), max(camera.height // scale, 1)
         self.size = (w, h)
         self.center = (w / 2.0, h / 2.0)
         self.focal_px = camera.focal_px * w / camera.width

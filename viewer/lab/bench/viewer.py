@@ -78,8 +78,10 @@ def _load_figures(frames: list) -> dict:
     """The UI frames while something loaded, and the frame that showed it (the viewer's "switch")."""
     load = [ms for ms, kind in frames if kind == "load"]
     shown = next((ms for ms, kind in frames if kind == "switch"), None)
+    warm = [ms for ms, kind in frames if kind == "warm"]  # the drag preview's engine made for the new scene
     return {"frames": len(load), "ms_max": max(load) if load else None,
-            "ms_median": float(np.median(load)) if load else None, "shown_ms": shown}
+            "ms_median": float(np.median(load)) if load else None, "shown_ms": shown,
+            "warm_ms": max(warm) if warm else None}
 
 
 def measure_view(label: str, view_args: list, display: str, workdir: Path, new_map: Path, photo: Path,
@@ -175,7 +177,8 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
     first_drag = next((m for m, k in drag_frames if k == "drag"), None)
     last_drag = max(i for i, k in enumerate(kinds) if k == "drag")
     after = [m for m, k in drag_frames[last_drag + 1:] if k == "update"]
-    sigma = np.array([m for m, k in sigma_frames if k == "update"])
+    sigma = np.array([m for m, k in sigma_frames if k == "adjust"])  # the preview while the slider is held
+    sigma_full = np.array([m for m, k in sigma_frames if k == "update"])  # the full frame once it is let go
     idle = np.array([m for m, k in sigma_frames + refit_frames if k == "idle"])
     load = np.array([m for m, k in refit_frames if k == "load"])
     return {
@@ -183,6 +186,7 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
         "busy": busy,
         "args": view_args,
         "image": s["scene_size"],
+        "gl_threads": s.get("gl_threads"),
         "first_drag_ms": first_drag,
         "drag_frames": int(drag.size),
         "drag_ms_median": float(np.median(drag)) if drag.size else None,
@@ -190,6 +194,7 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
         "drag_fps": float(1000.0 / np.median(drag)) if drag.size else None,
         "converge_ms": after[0] if after else None,
         "sigma_ms_median": float(np.median(sigma)) if sigma.size else None,
+        "sigma_full_ms_median": float(np.median(sigma_full)) if sigma_full.size else None,
         "idle_ms_median": float(np.median(idle)) if idle.size else None,
         "load_frames": int(load.size),
         "load_ms_max": float(load.max()) if load.size else None,
@@ -214,8 +219,8 @@ TARGETS = {"drag_fps": (">=", 20.0), "first_drag_ms": ("<=", 100.0), "converge_m
 
 
 def _met(r: dict) -> dict:
-    r = {**r, "freeze_ms": max(v for v in (r["new_map"]["ms_max"], r["new_map"]["shown_ms"], r["new_photo"]["ms_max"],
-                                              r["new_photo"]["shown_ms"], r["load_ms_max"]) if v is not None)}
+    r = {**r, "freeze_ms": max(v for what in ("new_map", "new_photo") for k in ("ms_max", "shown_ms", "warm_ms")
+                               for v in (r[what][k],) if v is not None)}
     return {name: (r[name] is not None and (r[name] >= goal if op == ">=" else r[name] <= goal))
             for name, (op, goal) in TARGETS.items()} | {"freeze_ms": r["freeze_ms"]}
 
@@ -242,13 +247,14 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                 print(f"{label} ({r['image'][0]}x{r['image'][1]}), beside {busy} busy: drag {r['drag_ms_median']:.0f} ms median "
                       f"({r['drag_fps']:.1f} fps, p90 {r['drag_ms_p90']:.0f} ms, {r['drag_frames']} frames), the first "
                       f"{r['first_drag_ms']:.0f} ms; full frame when the mouse stops {r['converge_ms'] or 0:.0f} ms; sigma "
-                      f"slider {r['sigma_ms_median'] or 0:.0f} ms; idle {r['idle_ms_median'] or 0:.0f} ms; while 12 lights "
+                      f"slider {r['sigma_ms_median'] or 0:.0f} ms (its full frame {r['sigma_full_ms_median'] or 0:.0f} ms); idle {r['idle_ms_median'] or 0:.0f} ms; while 12 lights "
                       f"are fitted: {r['load_frames']} UI frames, longest {r['load_ms_max'] or 0:.0f} ms; quit {r['quit_s']:.2f} s",
                       flush=True)
                 for what in ("new_map", "new_photo"):
                     f = r[what]
                     print(f"  {what.replace('_', ' ')} opened from the panel: {f['frames']} UI frames while it loaded, "
-                          f"longest {f['ms_max'] or 0:.0f} ms; the frame that shows it {f['shown_ms'] or 0:.0f} ms", flush=True)
+                          f"longest {f['ms_max'] or 0:.0f} ms; the frame that shows it {f['shown_ms'] or 0:.0f} ms; the preview made "
+                          f"{f['warm_ms'] or 0:.0f} ms", flush=True)
                 print("  targets: " + ", ".join(f"{k} {'met' if v else 'NOT met'}" for k, v in r["met"].items()
                                                 if k != "freeze_ms"), flush=True)
     result = {"machine": {"renderer": renderer, "cpu": platform.machine(), "cores": os.cpu_count(),
