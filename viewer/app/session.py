@@ -27,7 +27,7 @@ from ..settings import Look
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
-PREVIEW_FRAME_SIZE = 1024  # a photo's frame during a drag: the photo's detail stays, at a quarter of 2048^2's pixels
+PREVIEW_FRAME_SIZE = 768  # a photo's frame during a drag: the photo's detail stays (the window shows it at ~860 px or less)
 SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
     "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
