@@ -31,6 +31,7 @@ from .recording import InteractionRecording, TurntableRecording
 from .session import Session
 
 STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
+SWAP_BUDGET = 0.06  # seconds of engine work a frame gives a new map or person before the frame is shown
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
 JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
 FRAME_HISTORY = 600
@@ -101,7 +102,9 @@ class ViewerApp:
         self.aiming: int | None = None  # the placed light the next click on the person aims
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
-        self._switched = False  # this frame applied a finished job (a new map's lights, a new person)
+        self._switched = False  # a finished job was applied (a new map's lights, a new person) and is not shown yet
+        self._frame_start = time.perf_counter()
+        self._expose_pending = False  # auto exposure to set from the next complete frame (_exposed_again)
         self.frame_count = 0
         self.widgets: dict = {}
         self.panel_height = 0.0  # the panel's content, drawn or not (the first frame fits the window to it)
@@ -424,9 +427,9 @@ class ViewerApp:
         return job
 
     def _exposed_again(self):
-        """After new lights or a new person: auto exposure, unless the user has set one since."""
-        if self.auto_exposure and self.session.look.exposure == self._auto_value:
-            self._apply_auto_exposure()
+        """After new lights or a new person: auto exposure, unless the user has set one since, set
+        from the new state's first complete frame (:meth:`_render`), before it is shown."""
+        self._expose_pending = self.auto_exposure and self.session.look.exposure == self._auto_value
 
     def _poll_scene_job(self):
         job = self._finished("scene_job")
@@ -483,11 +486,20 @@ class ViewerApp:
         now = time.perf_counter()
         moving = self.dragging and now - self.last_motion < STILL_SECONDS
         adjusting = not moving and now - self.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
-        preview = (moving or adjusting) and (rec is None or capturing)
-        eng = s.preview if preview else s.final
-        before = sum(eng.counters.values())
-        s.render(preview=preview, hard=moving)
-        worked = sum(eng.counters.values()) != before
+        switching = self._switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
+        preview = (moving or adjusting) and (rec is None or capturing) and not switching
+        rendered = s.preview if preview else s.final
+        before = sum(rendered.counters.values())
+        budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching else None  # what the frame has left
+        eng = s.render(preview=preview, hard=moving, budget=budget)
+        worked = sum(rendered.counters.values()) != before
+        if switching and not rendered.complete:
+            return eng, "load"  # the last complete frame stays on screen while the rest is done
+        if self._switched and rendered.complete and self._expose_pending:  # exposed like the photo before it shows
+            self._expose_pending = False
+            e = self._auto_value = photo_exposure(rendered, s.scene, s.look.tonemap)
+            s.update(exposure=e)
+            eng = s.render()  # the display again, at that exposure
         if rec is not None and not capturing:
             try:
                 rec.add(eng.read_display())
@@ -528,7 +540,7 @@ class ViewerApp:
                         or time.perf_counter() - self.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
-                start = time.perf_counter()
+                start = self._frame_start = time.perf_counter()
                 w.begin_frame()
                 self._input()
                 for path in w.take_dropped():

@@ -44,6 +44,7 @@ class Session:
         self.options = options or EngineOptions()
         self.final = Engine(ctx, scene, self.options)
         self._preview: Engine | None = None
+        self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
         self.environment = environment
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
@@ -112,8 +113,16 @@ class Session:
 
     def set_scene(self, scene: Scene):
         """Another person (a photo or bundle opened in the window): new engines for it; the lights,
-        placed lights and look stay (a scene without a photo has no before / after)."""
-        self.release()
+        placed lights and look stay (a scene without a photo has no before / after). The old final
+        engine stays (:meth:`render` shows it) until the new one has a complete frame."""
+        if self.refine_job is not None:
+            self.refine_job.stop()
+        if self._preview is not None:
+            self._preview.release()
+            self._preview = None
+        if self._outgoing is not None:
+            self._outgoing.release()
+        self._outgoing = self.final
         self.scene = scene
         self.final = Engine(self.ctx, scene, self.options)
         self._set_environment(self.final)
@@ -172,11 +181,13 @@ class Session:
         if self.environment is not None:
             eng.set_environment(self.environment)
 
-    def render(self, preview: bool = False, hard: bool = True) -> Engine:
-        """Bring the chosen engine up to the current state and render it; returns it (its
-        ``display`` texture is the frame to show). The preview shows hard shadows for soft and
-        refined ones (the lighting dragged), or with ``hard`` False soft ones (a light's size or an
-        intensity being changed: what the slider changes shows)."""
+    def render(self, preview: bool = False, hard: bool = True, budget: float | None = None) -> Engine:
+        """Bring the chosen engine up to the current state and render it; returns the engine whose
+        ``display`` texture is the frame to show: the one rendered, or with ``budget`` (seconds, the
+        engine stops when it is spent and goes on at the next call) the last complete frame: the
+        person before while a new one's first frame is not done. The preview shows hard shadows for
+        soft and refined ones (the lighting dragged), or with ``hard`` False soft ones (a light's
+        size or an intensity being changed: what the slider changes shows)."""
         eng = self.preview if preview else self.final
         lk = self.look
         shadows = lk.shadows
@@ -185,7 +196,12 @@ class Session:
         eng.set_lights(self.rendered_lights())
         eng.set_look(replace(lk, background=effective_background(lk, self.scene, self.environment is not None),
                              shadows=shadows))
-        eng.render()
+        eng.render(budget)
+        if not eng.complete:
+            return self._outgoing if self._outgoing is not None and not preview else eng
+        if self._outgoing is not None and not preview:
+            self._outgoing.release()  # the new person's first frame is complete
+            self._outgoing = None
         if not preview and lk.shadows == "refined" and not eng.refined_current:
             self._start_refinement(eng)
         return eng
@@ -240,4 +256,6 @@ class Session:
             self.refine_job.stop()
         for eng in self._engines():
             eng.release()
-        self._preview = None
+        if self._outgoing is not None:
+            self._outgoing.release()
+        self._preview = self._outgoing = None

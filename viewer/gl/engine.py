@@ -33,6 +33,7 @@ shadows are shown, and the specular code on a scene without specular reflectance
 from __future__ import annotations
 
 import math
+import time
 
 import moderngl
 import numpy as np
@@ -109,6 +110,7 @@ class Engine(EngineOutputs):
         self._frame_passes = [p for p in (self.composite_pass, self.ground_pass, self.frame_mipmaps, self.frame_background,
                                           self.display_pass) if p]
         self._stale = {p.name: "all" for p in self._frame_passes}  # None, "box" (the mask's / matte's) or "all"
+        self.complete = False  # the display holds a frame of the current state (render)
 
     # ------------------------------------------------------------------ change tracking
     def _changed(self, what: str, lights=()):
@@ -363,11 +365,25 @@ class Engine(EngineOutputs):
         return self.options.leave_out and l.sigma < self.options.hard_sigma
 
     @in_context
-    def render(self) -> "Engine":
+    def render(self, budget: float | None = None) -> "Engine":
         """Bring every output up to date, redoing only the passes whose inputs changed. Each stage
-        runs for all lights before the next starts: llvmpipe waits once per stage, not per pass."""
+        runs for all lights before the next starts: llvmpipe waits once per stage, not per pass.
+
+        ``budget`` (seconds): stop once that much time has gone, between one light's or one group's
+        work and the next, leaving the rest stale for the next call; the display is drawn only when
+        everything before it is done, so it keeps the last complete frame meanwhile (a window opening
+        a map or a photo stays live, :attr:`complete` says when the new frame is there)."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
+        start = time.perf_counter()
+
+        def spent() -> bool:
+            if budget is None:
+                return False
+            self.ctx.finish()  # llvmpipe works at the flush: the time is the work's only once it is done
+            return time.perf_counter() - start > budget
+
+        self.complete = False
         active = [l for l in self._lights if l.active]  # inactive lights stay stale until they count
         need = {id(l): self._needed_pass(l) for l in self._lights}
         if self.look.shadows == "none":  # the composite ignores visibility: any computed pass will do
@@ -376,6 +392,8 @@ class Engine(EngineOutputs):
                     need[id(l)] = l.pass_mode
         for l in active:
             if "shadow_map" in l.stale and need[id(l)] in (PASS_HARD, PASS_SOFT):
+                if spent():
+                    return self
                 self.shadow_map_pass.run(l)
                 self._ran(self.shadow_map_pass, [l])
         # CSM's basis and pre-filter; contact-hardening soft shadows read the shadow map itself
@@ -390,6 +408,8 @@ class Engine(EngineOutputs):
         for g in range(0, len(self._lights), LIGHTS_PER_PASS):
             group = self._lights[g:g + LIGHTS_PER_PASS]
             if any(l.active and ("light_pass" in l.stale or l.pass_mode != need[id(l)]) for l in group):
+                if spent():
+                    return self
                 # the whole group is redone; a skipped light's slot is zeroed, so it is redone when it counts again
                 self.light_pass.run(group, [need[id(l)] for l in group])
                 for l in group:
@@ -398,14 +418,21 @@ class Engine(EngineOutputs):
                         l.stale.add(self.light_pass.name)
                 self._ran(self.light_pass, [l for l in group if l.active])
         if self._stale["composite"]:
+            if spent():
+                return self
             self.composite_pass.run(self._lights, self.atlas, self.refined, self.look.shadows, self._composite_terms())
             self._ran(self.composite_pass)
         if self.ground_shown and self._stale["ground_shadow"]:  # left out (and stale) while not shown
+            if spent():
+                return self
             self.ground_pass.run(self._lights, self.look.shadows)
             self._ran(self.ground_pass)
         if self._stale[self.display_pass.name]:
+            if spent():
+                return self
             self._draw_display(whole=self._stale[self.display_pass.name] == "all")
             self._stale[self.display_pass.name] = None
+        self.complete = True
         return self
 
     def _ran(self, p, lights=()):

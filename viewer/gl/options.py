@@ -26,8 +26,9 @@ class EngineOptions:
     leave_out: bool = True  # skip what the scene does not need (dark lights, soft filtering at sigma ~ 0, specular
     # work on a matte scene); False does all of it, for measuring what the policy saves (relight bench report)
     profile: bool = False  # finish GL work after every pass and record its wall time
-    ground_scale: int = 2  # the ground shadow at 1 / ground_scale of the work resolution (soft, and costly per pixel:
-    # every light's visibility and the feet's contact points; the drag preview takes 4)
+    ground_scale: int = 2  # the ground shadow at 1 / ground_scale of the work resolution or less (at most
+    # viewer.gl.ground_pass.GROUND_PIXELS: costly per pixel, every light's visibility and the feet's contact points;
+    # the drag preview takes 4)
 
     def __post_init__(self):
         r = self.shadow_resolution
@@ -43,7 +44,7 @@ class EngineOptions:
             raise InputError(None, f"prefilter must be one of {', '.join(METHODS)}, got {self.prefilter!r}")
         if not (self.hard_sigma >= 0 and 0 <= self.skip_threshold < 1):
             raise InputError(None, "hard_sigma must be >= 0 and skip_threshold in [0, 1)")
-        if self.ground_scale not in (1, 2, 4, 8):
-            raise InputError(None, f"the ground shadow's scale must be 1, 2, 4 or 8, got {self.ground_scale}")
+        if not (isinstance(self.ground_scale, int) and 1 <= self.ground_scale <= 8):
+            raise InputError(None, f"the ground shadow's scale must be an integer in [1, 8], got {self.ground_scale}")
         if not 0 <= self.pcss_min_texels <= 64:
             raise InputError(None, f"the penumbra's smallest sigma must be in [0, 64] texels, got {self.pcss_min_texels}")

@@ -112,7 +112,13 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
             chain += ["mousemove_relative", "--", DRAG_STEP_PX, 0, "sleep", DRAG_EVENT_SECONDS]
         xdo(*chain)
         xdo("mouseup", 1)
-        time.sleep(1.0)
+
+        def settled(st):  # the full frame after the last dragged one (the events may still be queued)
+            kinds = [k for _, k in _frames_since(st, pressed)]
+            return "drag" in kinds and "update" in kinds[len(kinds) - kinds[::-1].index("drag"):]
+
+        state = _wait(state_path, settled, proc, timeout=30)
+        time.sleep(0.5)
         state = json.loads(state_path.read_text())
         drag_frames = _frames_since(state, pressed)
         before_sigma = state["frame_count"]
