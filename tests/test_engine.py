@@ -574,3 +574,33 @@ def test_refined_shadows_read_the_default_soft_shadows(ctx, scene):
         eng.render()
         np.testing.assert_allclose(eng.read_hdr(), expected, atol=1e-4 * float(unshadowed.max()))
     eng.release()
+
+
+def test_a_budgeted_render_keeps_the_last_frame_until_it_is_complete_then_matches_a_full_render(ctx, scene):
+    """Engine.render(budget): the window brings a new map or person in over several frames; the
+    display keeps the last complete frame meanwhile, and the frame it ends with is the full render's."""
+    d = unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0], [0.1, 0.9, 0.5], [0.6, -0.1, 0.8], [0.0, 1.0, 0.2]])
+    lights = AreaLights(d, [3.0, 6.0, 0.5, 12.0, 2.0], [[1, 1, 1], [0.5, 0.4, 0.3], [0.2, 0.2, 0.2], [0.3, 0.3, 0.3],
+                                                           [0.4, 0.4, 0.4]])
+    eng = make_engine(ctx, scene)
+    eng.set_lights(lights)
+    eng.render()
+    assert eng.complete
+    before = eng.read_display().copy()
+    eng.set_lights(lights.rotated(70.0))
+    steps = 0
+    while True:
+        eng.render(budget=0.0)  # one unit of work a call
+        steps += 1
+        if eng.complete:
+            break
+        np.testing.assert_array_equal(eng.read_display(), before)  # not a half-updated frame
+        assert steps < 100
+    assert steps > 3
+    fresh = make_engine(ctx, scene)
+    fresh.set_lights(lights.rotated(70.0))
+    fresh.render()
+    np.testing.assert_array_equal(eng.read_display(), fresh.read_display())
+    assert not np.array_equal(eng.read_display(), before)
+    fresh.release()
+    eng.release()

@@ -370,18 +370,21 @@ class Engine(EngineOutputs):
         runs for all lights before the next starts: llvmpipe waits once per stage, not per pass.
 
         ``budget`` (seconds): stop once that much time has gone, between one light's or one group's
-        work and the next, leaving the rest stale for the next call; the display is drawn only when
+        work and the next (one unit of work at least), leaving the rest stale for the next call; the display is drawn only when
         everything before it is done, so it keeps the last complete frame meanwhile (a window opening
         a map or a photo stays live, :attr:`complete` says when the new frame is there)."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
-        start = time.perf_counter()
+        start, units = time.perf_counter(), [0]
 
         def spent() -> bool:
-            if budget is None:
-                return False
-            self.ctx.finish()  # llvmpipe works at the flush: the time is the work's only once it is done
-            return time.perf_counter() - start > budget
+            """Before a unit of work: whether the budget is spent (never before the first unit)."""
+            if budget is not None and units[0] > 0:
+                self.ctx.finish()  # llvmpipe works at the flush: the time is the work's only once it is done
+                if time.perf_counter() - start > budget:
+                    return True
+            units[0] += 1
+            return False
 
         self.complete = False
         active = [l for l in self._lights if l.active]  # inactive lights stay stale until they count
