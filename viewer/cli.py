@@ -409,8 +409,19 @@ def cmd_view(args) -> int:
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset,
-                          window=window, rig=rig, max_size=args.max_size, device=args.device)
+                          window=window, rig=rig, max_size=args.max_size, device=args.device,
+                          gl_threads=_gl_threads())
     return run_viewer(config)
+
+
+def _gl_threads() -> int:
+    """llvmpipe's threads in this process (sized at the start, viewer/cores.py; a user's own value kept)."""
+    import os
+
+    try:
+        return max(int(os.environ.get("LP_NUM_THREADS", "2")), 1)
+    except ValueError:
+        return 2
 
 
 def _first_look(args, look, lights):

@@ -57,6 +57,7 @@ class ViewerConfig:
     rig: tuple = ()  # placed lights to start with (viewer.placed_lights; relight view --rig)
     max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
     device: str = "cpu"  # ... and where its inference runs (relight view --device)
+    gl_threads: int = 2  # llvmpipe's threads (viewer/cores.py): with one, the drag preview is lighter
 
 
 class ViewerApp:
@@ -77,7 +78,8 @@ class ViewerApp:
         self.auto_exposure = config.look.exposure == AUTO
         self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
-        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look)
+        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look,
+                               light_preview=config.gl_threads < 2)
         self.session.set_placed(config.rig, record=False)
         self.session.wake = self.window.wake
         self.env_path = config.env_path

@@ -18,7 +18,7 @@ from ..settings import VIEWS
 from ..shadow_space import ANGULAR_SIGMA
 from .interaction import exposed
 from .layout import KEYS, SMALL_HEIGHT, panel_width
-from .session import PREVIEW_SIZE, SHADOW_MODES, VIEW_NAMES
+from .session import SHADOW_MODES, VIEW_NAMES
 
 MAX_LIGHTS = 64
 SIGMA_MAX = 30.0  # slider range (256-px units; the fitted lights use 0 to 20)
@@ -407,7 +407,7 @@ def _frame_time(app):
     imgui.text(f"last {last[0]:.0f} ms ({last[1]}), median of updates {med:.0f} ms")
     if "drag" in kinds:
         imgui.push_text_wrap_pos(0.0)
-        imgui.text_disabled(f"while dragging: {PREVIEW_SIZE} px, hard shadows; full quality when the mouse stops")
+        imgui.text_disabled(f"while dragging: {app.session.preview_sizes[0]} px, hard shadows; full quality when the mouse stops")
         imgui.pop_text_wrap_pos()
     if implot.begin_plot("##frame time", imgui.ImVec2(-1, 120), implot.Flags_.no_legend | implot.Flags_.no_menus):
         implot.setup_axes("", "ms", implot.AxisFlags_.no_tick_labels, 0)

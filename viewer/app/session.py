@@ -27,6 +27,9 @@ from ..settings import Look
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
+# with one GL thread (the window opened on a busy machine, viewer/cores.py) the preview takes about twice
+# as long: its work and frame sizes shrink to keep dragging fluid (about half the pixels)
+LIGHT_PREVIEW_SIZE, LIGHT_PREVIEW_FRAME_SIZE = 192, 512
 PREVIEW_FRAME_SIZE = 768  # a photo's frame during a drag: the photo's detail stays (the window shows it at ~860 px or less)
 SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
@@ -38,8 +41,10 @@ VIEW_NAMES = {
 
 class Session:
     def __init__(self, ctx, scene: Scene, lights: AreaLights, environment: np.ndarray | None,
-                 options: EngineOptions | None = None, look: Look | None = None):
+                 options: EngineOptions | None = None, look: Look | None = None, light_preview: bool = False):
         self.ctx = ctx
+        self.preview_sizes = ((LIGHT_PREVIEW_SIZE, LIGHT_PREVIEW_FRAME_SIZE) if light_preview
+                              else (PREVIEW_SIZE, PREVIEW_FRAME_SIZE))  # (work, frame) pixels of the drag preview
         self.scene = scene
         self.options = options or EngineOptions()
         self.final = Engine(ctx, scene, self.options)
@@ -160,10 +165,11 @@ class Session:
     def preview(self) -> Engine:
         if self._preview is None:
             small = self.scene
-            if max(small.width, small.height) > PREVIEW_SIZE:
-                small = resample_scene(small, PREVIEW_SIZE, keep_frame=True)
-            if small.frame is not None and max(small.output_size) > PREVIEW_FRAME_SIZE:
-                small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, PREVIEW_FRAME_SIZE)))
+            work, frame = self.preview_sizes
+            if max(small.width, small.height) > work:
+                small = resample_scene(small, work, keep_frame=True)
+            if small.frame is not None and max(small.output_size) > frame:
+                small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, frame)))
             res = min(PREVIEW_SHADOW_RESOLUTION, self.options.shadow_resolution)
             self._preview = Engine(self.ctx, small, replace(self.options, shadow_resolution=res, shadow_step=0, ground_scale=4))
             self._set_environment(self._preview)
