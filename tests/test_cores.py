@@ -66,3 +66,13 @@ def test_stage_lines_give_the_time_left_of_the_whole_work():
     first, second = out.getvalue().splitlines()
     assert first.startswith("fitting: one: 5/5 in") and first.endswith("left")
     assert "left" not in second  # the work is done
+
+
+def test_the_contention_benchmark_reads_the_time_left_the_fit_said():
+    from viewer.lab.bench.contention import time_left_checks
+
+    lines = ["fitting 16 lights to m.hdr: reference: 2/2 in 0.2 s, about 3 s left",
+             "fitting 16 lights to m.hdr: directions: 150/150 in 1.5 s, under a second left",
+             "fitting 16 lights to m.hdr: sigma: 16/16 in 0.4 s"]
+    assert time_left_checks(lines) == [{"after": "reference", "said_s": 3.0, "took_s": 1.9},
+                                       {"after": "directions", "said_s": 0.5, "took_s": 0.4}]

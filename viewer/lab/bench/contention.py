@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import platform
 import subprocess
 import sys
@@ -75,6 +76,8 @@ def run_contention_benchmark(hdri: Path, repeats: int = 3, output: str = "out/be
         med = {load: float(np.median([r["seconds"] for r in runs])) for load, runs in by_load.items()}
         summary[name] = {"median_s": med, "ratio_to_idle": {load: s / med["0"] for load, s in med.items()},
                          "met": med["2"] / med["0"] <= TARGET_RATIO}
+        if name == "fit":  # the time left it showed against the time it then took, every run
+            summary[name]["time_left"] = {load: [time_left_checks(r["stderr"]) for r in runs] for load, runs in by_load.items()}
     result = {"machine": {"cpu": platform.machine(), "cores": os.cpu_count(), "python": platform.python_version(),
                           "loadavg_before": os.getloadavg()},
               "method": "each command a fresh process with an empty cache, timed start to exit, beside 0/1/2 "
@@ -84,6 +87,22 @@ def run_contention_benchmark(hdri: Path, repeats: int = 3, output: str = "out/be
     path = write_text(output, json.dumps(result, indent=1) + "\n")
     progress(f"wrote {path}")
     return result
+
+
+STAGE_LINE = re.compile(r": (?P<stage>[^:]+): \d+/\d+ in (?P<seconds>[\d.]+) s(?:, (?P<left>about (?P<n>[\d.]+) s left|under a second left))?$")
+
+
+def time_left_checks(lines: list) -> list:
+    """The fit's stage lines (``stage: d/t in X s, about N s left``) as what it said was left after
+    each stage against what was (the stages after it): ``under a second`` counts as 0.5 s."""
+    stages = [m for m in (STAGE_LINE.search(line) for line in lines) if m]
+    out = []
+    for k, m in enumerate(stages):
+        if m["left"] is None:
+            continue
+        said = 0.5 if m["n"] is None else float(m["n"])
+        out.append({"after": m["stage"], "said_s": said, "took_s": round(sum(float(x["seconds"]) for x in stages[k + 1:]), 2)})
+    return out
 
 
 def table(result: dict) -> str:
