@@ -604,3 +604,22 @@ def test_a_budgeted_render_keeps_the_last_frame_until_it_is_complete_then_matche
     assert not np.array_equal(eng.read_display(), before)
     fresh.release()
     eng.release()
+
+
+def test_shading_views_are_exposed_for_display_not_clipped_to_white(ctx, scene):
+    """The diffuse-shading view (albedo 1) under a look exposed for albedos of a few tenths clipped
+    to white; it is shown so that every light head-on is white."""
+    from viewer.settings import Look
+
+    eng = make_engine(ctx, scene)
+    eng.set_lights(AreaLights(unit([[0.3, 0.5, 1.0], [-0.4, 0.3, 1.0]]), [2.0, 4.0], [[30.0, 30.0, 30.0], [10.0, 9.0, 8.0]]))
+    look = Look(background="color", exposure=1.0)
+    eng.set_look(look)
+    eng.render()
+    relit = eng.read_display()[scene.mask]
+    assert (relit >= 254).all(axis=-1).mean() > 0.5  # this look is far too bright for shading alone...
+    eng.set_look(look.replace(view="diffuse_shading"))
+    eng.render()
+    shading = eng.read_display()[scene.mask].astype(np.float32)
+    assert (shading >= 254).all(axis=-1).mean() < 0.01 and shading.max() > 120  # ...which shows, unclipped
+    eng.release()
