@@ -493,15 +493,16 @@ class ViewerApp:
         rendered = s.preview if preview else s.final
         before = sum(rendered.counters.values())
         budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching else None  # what the frame has left
-        eng = s.render(preview=preview, hard=moving, budget=budget)
+        expose = switching and self._expose_pending  # auto exposure from the new HDR, before its frame is drawn
+        eng = s.render(preview=preview, hard=moving, budget=budget, display=not expose)
         worked = sum(rendered.counters.values()) != before
-        if switching and not rendered.complete:
-            return eng, "load"  # the last complete frame stays on screen while the rest is done
-        if self._switched and rendered.complete and self._expose_pending:  # exposed like the photo before it shows
+        if expose and rendered.composited:
             self._expose_pending = False
             e = self._auto_value = photo_exposure(rendered, s.scene, s.look.tonemap)
             s.update(exposure=e)
-            eng = s.render()  # the display again, at that exposure
+            return eng, "load"  # the next pass draws the frame at that exposure
+        if switching and not rendered.complete:
+            return eng, "load"  # the last complete frame stays on screen while the rest is done
         if rec is not None and not capturing:
             try:
                 rec.add(eng.read_display())
@@ -522,6 +523,9 @@ class ViewerApp:
             return eng, "record"
         if self._switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
             self._switched = False
+            if self._expose_pending:  # switched while recording, at full quality: exposed from the next frame on
+                self._expose_pending = False
+                self._apply_auto_exposure()
             return eng, "switch"
         if not worked:  # "load": nothing to redraw while lights are fitted or a scene opened off this thread
             if self.job is not None or self.scene_job is not None:

@@ -187,13 +187,15 @@ class Session:
         if self.environment is not None:
             eng.set_environment(self.environment)
 
-    def render(self, preview: bool = False, hard: bool = True, budget: float | None = None) -> Engine:
+    def render(self, preview: bool = False, hard: bool = True, budget: float | None = None,
+               display: bool = True) -> Engine:
         """Bring the chosen engine up to the current state and render it; returns the engine whose
         ``display`` texture is the frame to show: the one rendered, or with ``budget`` (seconds, the
         engine stops when it is spent and goes on at the next call) the last complete frame: the
         person before while a new one's first frame is not done. The preview shows hard shadows for
         soft and refined ones (the lighting dragged), or with ``hard`` False soft ones (a light's
-        size or an intensity being changed: what the slider changes shows)."""
+        size or an intensity being changed: what the slider changes shows). ``display`` False: all
+        but the display (``Engine.render``), the last complete frame still shown."""
         eng = self.preview if preview else self.final
         lk = self.look
         shadows = lk.shadows
@@ -202,7 +204,7 @@ class Session:
         eng.set_lights(self.rendered_lights())
         eng.set_look(replace(lk, background=effective_background(lk, self.scene, self.environment is not None),
                              shadows=shadows))
-        eng.render(budget)
+        eng.render(budget, display)
         if not eng.complete:
             return self._outgoing if self._outgoing is not None and not preview else eng
         if self._outgoing is not None and not preview:

@@ -111,6 +111,7 @@ class Engine(EngineOutputs):
                                           self.display_pass) if p]
         self._stale = {p.name: "all" for p in self._frame_passes}  # None, "box" (the mask's / matte's) or "all"
         self.complete = False  # the display holds a frame of the current state (render)
+        self.composited = False  # ... or everything but the display is done (render(display=False))
 
     # ------------------------------------------------------------------ change tracking
     def _changed(self, what: str, lights=()):
@@ -365,14 +366,16 @@ class Engine(EngineOutputs):
         return self.options.leave_out and l.sigma < self.options.hard_sigma
 
     @in_context
-    def render(self, budget: float | None = None) -> "Engine":
+    def render(self, budget: float | None = None, display: bool = True) -> "Engine":
         """Bring every output up to date, redoing only the passes whose inputs changed. Each stage
         runs for all lights before the next starts: llvmpipe waits once per stage, not per pass.
 
         ``budget`` (seconds): stop once that much time has gone, between one light's or one group's
-        work and the next (one unit of work at least), leaving the rest stale for the next call; the display is drawn only when
-        everything before it is done, so it keeps the last complete frame meanwhile (a window opening
-        a map or a photo stays live, :attr:`complete` says when the new frame is there)."""
+        work and the next (one unit of work at least), leaving the rest stale for the next call; the
+        display is drawn only when everything before it is done, so it keeps the last complete frame
+        meanwhile (a window opening a map or a photo stays live, :attr:`complete` says when the new
+        frame is there). ``display`` False stops before the display (:attr:`composited` says all the
+        rest is done: the HDR can be read and an exposure chosen from it before the frame is drawn)."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
         start, units = time.perf_counter(), [0]
@@ -386,7 +389,7 @@ class Engine(EngineOutputs):
             units[0] += 1
             return False
 
-        self.complete = False
+        self.complete = self.composited = False
         active = [l for l in self._lights if l.active]  # inactive lights stay stale until they count
         need = {id(l): self._needed_pass(l) for l in self._lights}
         if self.look.shadows == "none":  # the composite ignores visibility: any computed pass will do
@@ -430,8 +433,9 @@ class Engine(EngineOutputs):
                 return self
             self.ground_pass.run(self._lights, self.look.shadows)
             self._ran(self.ground_pass)
+        self.composited = True
         if self._stale[self.display_pass.name]:
-            if spent():
+            if not display or spent():
                 return self
             self._draw_display(whole=self._stale[self.display_pass.name] == "all")
             self._stale[self.display_pass.name] = None
