@@ -177,6 +177,7 @@ class ViewerApp:
                 self.view = ix.zoomed(self.view, io.mouse_wheel, cursor=(mx - ax, my - ay), area=(aw, ah))
             else:
                 self.session.look = ix.wheeled(self.session.look, io.mouse_wheel)
+        shortcuts = self.window.take_shortcuts()
         if io.want_capture_keyboard:
             return
         if imgui.is_key_pressed(imgui.Key.s, False):
@@ -193,10 +194,11 @@ class ViewerApp:
             self.toggle_compare()
         if imgui.is_key_pressed(imgui.Key.g, False):
             self.session.update(ground=not self.session.ground_shown)
-        if io.key_ctrl and imgui.is_key_pressed(imgui.Key.z, False):
-            self.message = "undone" if self.session.undo() else "nothing to undo"
-        if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
-            self.message = "redone" if self.session.redo() else "nothing to redo"
+        for key in shortcuts:
+            if key == "undo":
+                self.message = "undone" if self.session.undo() else "nothing to undo"
+            else:
+                self.message = "redone" if self.session.redo() else "nothing to redo"
         if imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
             self.window.close()
 

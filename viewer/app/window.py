@@ -17,6 +17,9 @@ from ..errors import InputError
 from ..gl.programs import shared_programs
 
 
+SHORTCUTS = {glfw.KEY_Z: "undo", glfw.KEY_Y: "redo"}  # with Ctrl
+
+
 class Window:
     def __init__(self, width: int, height: int, title: str = "relight"):
         if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
@@ -47,6 +50,18 @@ class Window:
         glfw.set_cursor_pos_callback(self.handle, lambda _w, x, y: io.add_mouse_pos_event(float(x), float(y)))
         self.dropped: list[str] = []  # files dropped on the window, taken by the app's next frame
         glfw.set_drop_callback(self.handle, self.on_drop)
+        # Ctrl+Z / Ctrl+Y read from each key event's own modifiers: imgui's Ctrl state is the frame's,
+        # and a Ctrl let go before the Z (xdotool does so, as do quick hands) arrives in the same
+        # frame as the Z, which then read as a bare Z and the undo was lost
+        self.shortcuts: list[str] = []
+        backend_keys = self.imgui.keyboard_callback
+
+        def on_key(handle, key, scancode, action, mods):
+            backend_keys(handle, key, scancode, action, mods)
+            if action == glfw.PRESS and mods & glfw.MOD_CONTROL and key in SHORTCUTS:
+                self.shortcuts.append(SHORTCUTS[key])
+
+        glfw.set_key_callback(self.handle, on_key)
         glfw.focus_window(self.handle)
         self._programs = shared_programs(self.ctx)  # the engines drawing into this window use the same
         self._sampler = self.ctx.sampler(filter=(moderngl.LINEAR, moderngl.LINEAR), repeat_x=False, repeat_y=False)
@@ -61,6 +76,11 @@ class Window:
     def take_dropped(self) -> list[str]:
         paths, self.dropped = self.dropped, []
         return paths
+
+    def take_shortcuts(self) -> list[str]:
+        """The Ctrl shortcuts pressed since the last call ("undo", "redo"), in order."""
+        keys, self.shortcuts = self.shortcuts, []
+        return keys
 
     @property
     def should_close(self) -> bool:
