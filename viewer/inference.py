@@ -41,6 +41,7 @@ from .face import find_faces, light_fit_weight, with_face
 from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
                           resize, square)
+from .ownership import folder_lock, fresh_sibling, mark_written, written_here
 from .resources import network_dir
 
 NETWORK_RES = 256
@@ -54,7 +55,7 @@ STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rend
                 "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-4"  # bundles cached by an older pipeline are inferred again
+PIPELINE = "frame-5"  # bundles cached by an older pipeline are inferred again (frame-5: bundles carry the marker of viewer.ownership)
 
 
 @dataclass(frozen=True)
@@ -360,27 +361,31 @@ def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float
 
 
 def bundle_target(out_dir) -> Path:
-    """``out_dir`` as a place for a scene bundle: new, empty, or an earlier bundle (which is
-    replaced). A folder holding anything else is refused: replacing it would delete the user's files."""
+    """``out_dir`` as a place for a scene bundle: new, empty, or a bundle this program wrote there and
+    nothing else (:mod:`viewer.ownership`), which is replaced. Anything else is refused in one line:
+    replacing it would delete or change the user's files."""
     out_dir = Path(out_dir).resolve()
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(out_dir, "exists and is not a folder: give a folder for the scene bundle")
-    if out_dir.is_dir() and any(out_dir.iterdir()) and not (out_dir / "scene.json").is_file():
-        raise InputError(out_dir, "is a folder with other files and no scene bundle in it: give a new or empty "
-                         "folder for the bundle (nothing was written)")
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not written_here(out_dir):
+        what = ("a scene bundle with files relight did not write there, or changed since" if (out_dir / "scene.json").exists()
+                else "a folder with other files and no scene bundle in it")
+        raise InputError(out_dir, f"is {what}: give a new or empty folder for the bundle (nothing was written)")
     return out_dir
 
 
 def write_bundle(result: dict, out_dir) -> Path:
-    """Write :func:`infer_scene`'s result as a scene bundle; a previous bundle in ``out_dir`` is
-    replaced only once the new one is complete."""
+    """Write :func:`infer_scene`'s result as a scene bundle; a previous bundle in ``out_dir`` (one
+    this program wrote, :func:`bundle_target`) is replaced only once the new one is complete. The
+    new bundle is written into a folder of its own (a name no one else has) and swapped into place
+    under a lock on the parent folder, so two writers to one output take turns."""
     from .imageio import write_text
     from .scene import save_scene
 
     out_dir = bundle_target(out_dir)
-    tmp = out_dir.with_name(f".{out_dir.name}.partial")
-    old = out_dir.with_name(f".{out_dir.name}.old")
-    shutil.rmtree(tmp, ignore_errors=True)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = fresh_sibling(out_dir, "partial")
+    old = None
     try:
         save_scene(result["scene"], tmp)
         result["lights"].save(tmp / "lights.json", fit={"source": Path(result["record"]["photo"]).name,
@@ -391,14 +396,20 @@ def write_bundle(result: dict, out_dir) -> Path:
         record["seconds"] = dict(result["stages"].times)
         record["seconds_total"] = round(sum(record["seconds"].values()), 3)
         write_text(tmp / "inference.json", json.dumps(record, indent=1) + "\n")
-        if out_dir.exists():
-            shutil.rmtree(old, ignore_errors=True)
-            out_dir.rename(old)
-        tmp.rename(out_dir)
+        mark_written(tmp)
+        with folder_lock(out_dir.parent):
+            bundle_target(out_dir)  # again: another writer may have put something there meanwhile
+            if out_dir.exists():
+                old = fresh_sibling(out_dir, "old")
+                out_dir.replace(old / "bundle")
+            tmp.rename(out_dir)
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
-        if old.is_dir() and not out_dir.exists():
-            old.rename(out_dir)  # the earlier bundle back in its place
+        if old is not None and (old / "bundle").is_dir() and not out_dir.exists():
+            (old / "bundle").rename(out_dir)  # the earlier bundle back in its place
+        if old is not None and not any(old.iterdir()):
+            old.rmdir()
         raise InputError(out_dir, f"cannot write the scene bundle ({exc})") from None
-    shutil.rmtree(old, ignore_errors=True)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)  # the folder made above, holding the bundle this program wrote
     return out_dir

@@ -1,0 +1,87 @@
+"""The program replaces only what it wrote (viewer/ownership.py): a scene bundle's folder is replaced
+when it holds exactly the files this program put there; a user's file beside a scene.json, a note added
+to a bundle or an edited map make it the user's. Temporary folders never collide, and two writers to one
+output take turns."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+
+import pytest
+
+from viewer.errors import InputError
+from viewer.inference import bundle_target
+from viewer.ownership import MARKER, folder_lock, fresh_sibling, mark_written, written_here
+from viewer.resources import asset_dir
+
+RELIGHT = [sys.executable, "-m", "viewer.cli"]
+
+
+def _bundle(folder):
+    folder.mkdir()
+    (folder / "scene.json").write_text('{"format": "relight-scene"}')
+    (folder / "albedo.exr").write_bytes(b"\x76\x2f\x31\x01" + bytes(100))
+    mark_written(folder)
+    return folder
+
+
+def test_only_an_untouched_bundle_of_ours_may_be_replaced(tmp_path):
+    ours = _bundle(tmp_path / "ours")
+    assert written_here(ours) and bundle_target(ours) == ours.resolve()
+    for spoil in ("a user's note beside it", "an edited map", "a broken marker", "a marker of another list", "a folder in it"):
+        b = _bundle(tmp_path / spoil.replace(" ", "_").replace("'", ""))
+        if spoil == "a user's note beside it":
+            (b / "thesis.txt").write_text("mine")
+        elif spoil == "an edited map":
+            (b / "albedo.exr").write_bytes(b"changed")
+        elif spoil == "a broken marker":
+            (b / MARKER).write_text("{")
+        elif spoil == "a marker of another list":
+            (b / MARKER).write_text((b / MARKER).read_text().replace("albedo.exr", "normal.exr"))
+        else:
+            (b / "sub").mkdir()
+        assert not written_here(b), spoil
+        with pytest.raises(InputError, match="relight did not write") as info:
+            bundle_target(b)
+        assert "\n" not in str(info.value) and str(b) in str(info.value)
+    user = tmp_path / "proj"
+    user.mkdir()
+    (user / "scene.json").write_text("{}")
+    (user / "thesis.txt").write_text("mine")
+    with pytest.raises(InputError, match="did not write"):
+        bundle_target(user)
+    assert (user / "thesis.txt").read_text() == "mine"
+
+
+def test_temporary_folders_never_collide_and_writers_take_turns(tmp_path):
+    users = tmp_path / ".out.partial"
+    users.mkdir()  # a user's folder with the name the old code used
+    made = {fresh_sibling(tmp_path / "out", "partial") for _ in range(50)}
+    assert len(made) == 50 and users not in made and all(p.is_dir() for p in made)
+    order = []
+
+    def writer(k):
+        with folder_lock(tmp_path):
+            order.append(("in", k))
+            threading.Event().wait(0.05)
+            order.append(("out", k))
+
+    threads = [threading.Thread(target=writer, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(order[i][0] == "in" and order[i + 1] == ("out", order[i][1]) for i in range(0, 8, 2))  # never interleaved
+
+
+def test_two_infers_into_one_folder_leave_one_whole_bundle_and_nothing_else(tmp_path):
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    out = tmp_path / "proj"
+    procs = [subprocess.Popen([*RELIGHT, "infer", str(photo), "-o", str(out), "--size", "128"], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    results = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], results
+    assert written_here(out) and (out / "albedo.exr").is_file() and (out / "inference.json").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["proj"]  # no temporary folder left

@@ -1,0 +1,98 @@
+"""What this program wrote, so that it replaces only that: a folder it writes (a scene bundle) carries a
+marker, ``.relight-written.json``, listing every file it holds with its SHA-256 and a hash of that list.
+A folder is replaced only when its marker is intact and it holds exactly the files listed, unchanged: a
+user's ``thesis.txt`` beside a ``scene.json``, a note added to an earlier bundle, or an edited map make it
+the user's, and it is refused in one line. Temporary folders get names no other process and no user file
+can have (created exclusively), and the final swap into place holds a lock on the parent folder, so two
+writers to one output take turns instead of mixing their files.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import secrets
+from pathlib import Path
+
+MARKER = ".relight-written.json"
+FORMAT = "relight-written"
+CHUNK = 1 << 20
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(CHUNK), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _list_hash(files: dict) -> str:
+    return hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()
+
+
+def _contents(folder: Path) -> dict | None:
+    """name -> SHA-256 of every regular file directly in ``folder`` (the marker left out); None when
+    it holds anything else (a sub-folder, a link, a device)."""
+    files = {}
+    for entry in os.scandir(folder):
+        if entry.name == MARKER:
+            continue
+        if not entry.is_file(follow_symlinks=False):
+            return None
+        files[entry.name] = _sha256(Path(entry.path))
+    return files
+
+
+def mark_written(folder) -> None:
+    """Record ``folder``'s files as this program's (call once everything is written in it)."""
+    folder = Path(folder)
+    files = _contents(folder)
+    if files is None:
+        raise OSError(f"{folder}: holds something other than files; not marked")
+    data = {"format": FORMAT, "files": files, "hash": _list_hash(files)}
+    (folder / MARKER).write_text(json.dumps(data, indent=1) + "\n")
+
+
+def written_here(folder) -> bool:
+    """Whether ``folder`` is a folder this program wrote, exactly as it wrote it."""
+    folder = Path(folder)
+    marker = folder / MARKER
+    if folder.is_symlink() or not folder.is_dir() or marker.is_symlink() or not marker.is_file():
+        return False
+    try:
+        data = json.loads(marker.read_text())
+        files = data["files"]
+        if data.get("format") != FORMAT or not isinstance(files, dict) or data.get("hash") != _list_hash(files):
+            return False
+        return _contents(folder) == files
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return False
+
+
+def fresh_sibling(path, tag: str) -> Path:
+    """A new, empty folder beside ``path`` with a name no one else has (created here, exclusively)."""
+    path = Path(path)
+    while True:
+        candidate = path.with_name(f".{path.name}.{tag}.{os.getpid()}.{secrets.token_hex(4)}")
+        try:
+            candidate.mkdir()
+            return candidate
+        except FileExistsError:
+            continue
+
+
+@contextlib.contextmanager
+def folder_lock(folder):
+    """An exclusive lock on ``folder`` (flock on its descriptor) for the duration: writers into it
+    take turns; nothing is created in it."""
+    import fcntl
+
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
