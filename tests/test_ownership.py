@@ -85,3 +85,21 @@ def test_two_infers_into_one_folder_leave_one_whole_bundle_and_nothing_else(tmp_
     assert [p.returncode for p in procs] == [0, 0], results
     assert written_here(out) and (out / "albedo.exr").is_file() and (out / "inference.json").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["proj"]  # no temporary folder left
+
+
+def test_a_users_partial_video_and_rig_are_never_written_over(tmp_path):
+    from viewer.placed_lights import rig, save_rig
+    from viewer.resources import sample_scene_dir
+
+    env = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")
+    mine = tmp_path / "v.partial.mp4"
+    mine.write_bytes(b"my own video")
+    res = subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), "--env", env, "--frames", "2", "--size", "64",
+                          "-o", str(tmp_path / "v.mp4")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "v.partial.mp4: exists" in res.stderr and res.stderr.count("\n") == 1
+    assert mine.read_bytes() == b"my own video" and not (tmp_path / "v.mp4").exists()
+    rig_file = save_rig(tmp_path / "r.exr", rig("key", 1.0))  # a rig under a name the render's EXR would take
+    before = rig_file.read_bytes()
+    res = subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), "--env", env, "--rig", str(rig_file), "--size", "64",
+                          "-o", str(tmp_path / "r.png")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "r.exr" in res.stderr and rig_file.read_bytes() == before

@@ -11,7 +11,7 @@ import numpy as np
 
 from .cores import size_pools, work_threads
 from .errors import InputError
-from .video import partial_path as video_partial
+from .video import partial_path as video_partial, partial_taken
 from .lightfit import DEFAULT_METHOD, METHODS
 from .resources import asset_dir, sample_scene_dir
 from .scene_ops import load_sized_scene
@@ -321,9 +321,11 @@ def cmd_render(args) -> int:
         raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
     _writable(out)
     outputs = [out] if suffix == ".mp4" else [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
-    _not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look])
+    _not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
     if suffix == ".mp4":
         _check_video(args)
+        if video_partial(out).exists():
+            raise partial_taken(out)
     if suffix == ".png":
         if args.frames is not None:
             raise InputError(out, "--frames makes a video: give a .mp4 output path")

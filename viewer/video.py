@@ -29,6 +29,13 @@ def partial_path(path) -> Path:
     return path.with_name(f"{path.stem}.partial{path.suffix}")
 
 
+def partial_taken(path) -> InputError:
+    """The error for a video whose partial name is already taken (checked before any work, and when
+    the file is created)."""
+    return InputError(partial_path(path), "exists (a recording cut short, or a file of yours): move it or give "
+                                          "another output name; nothing was written")
+
+
 class VideoWriter:
     """``write(rgb)`` frames (H, W, 3) uint8 or float in [0, 1]; ``close()`` when done (also as a
     context manager). Frames are queued to an encoding thread, so a caller rendering frames is not
@@ -47,6 +54,12 @@ class VideoWriter:
         if self.path.is_dir():
             raise InputError(self.path, "is a folder: give a .mp4 file path")
         self.partial = partial_path(self.path)
+        try:  # created here, exclusively: a file already under that name (a recording cut short, the user's) is kept
+            os.close(os.open(self.partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        except FileExistsError:
+            raise partial_taken(self.path) from None
+        except OSError as exc:
+            raise InputError(self.path, f"cannot write the video ({exc.strerror or exc})") from None
         self.size = (int(width), int(height))
         # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
         self.encoded_size = tuple(max(v - v % 2, 2) for v in self.size)
@@ -57,6 +70,7 @@ class VideoWriter:
         try:
             self._container = av.open(str(self.partial), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
         except (OSError, av.FFmpegError) as exc:
+            self.partial.unlink(missing_ok=True)  # the empty file made above
             raise InputError(self.path, f"cannot write the video ({exc})") from None
         try:
             rate = Fraction(self.fps).limit_denominator(1001)
