@@ -7,6 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from dataclasses import replace
+
 from viewer.lab.scenes import plane_and_box
 from viewer.errors import InputError
 from viewer.imageio import read_exr, write_exr, write_png
@@ -139,3 +141,33 @@ def test_implausible_depth_is_refused(bundle):
     corrupt(path, "depth.exr", lambda a: np.where(np.arange(a.size).reshape(a.shape) == 300, 1e20, a))
     with pytest.raises(InputError, match="depth.exr.*implausible"):
         load_scene(path)
+
+
+def test_a_bundle_is_a_closed_box_no_file_is_read_through_a_link(tmp_path):
+    """Every file a bundle is read from, listed or default-named, scene.json and the optional and frame
+    files included: a symbolic link to a file outside it is refused in one line naming the file."""
+    import shutil
+
+    from viewer.scene import FRAME_FILES, MAP_FILES, OPTIONAL_FILES, FrameLayer
+
+    base = load_scene(sample_scene_dir())
+    h, w = base.height, base.width
+    framed = replace(base, frame=FrameLayer(albedo=np.full((h, w, 3), 0.5, np.float32), alpha=base.mask.astype(np.float32),
+                                            photo=np.full((h, w, 3), 0.4, np.float32)))
+    source = save_scene(framed, tmp_path / "source")
+    write_png(source / OPTIONAL_FILES["photo"], np.full((h, w, 3), 0.4, np.float32))  # the optional photo, default-named
+    names = ["scene.json", *MAP_FILES.values(), *FRAME_FILES.values(), OPTIONAL_FILES["photo"]]
+    assert all((source / n).is_file() for n in names)
+    outside = tmp_path / "secret"
+    outside.mkdir()
+    for name in names:
+        bundle = tmp_path / f"b_{name}"
+        shutil.copytree(source, bundle)
+        (outside / name).write_bytes((bundle / name).read_bytes())  # a valid file, but not the bundle's
+        (bundle / name).unlink()
+        (bundle / name).symlink_to(outside / name)
+        with pytest.raises(InputError, match="symbolic link") as info:
+            load_scene(bundle)
+        assert name in str(info.value) and "\n" not in str(info.value)
+    assert json.loads((source / "scene.json").read_text())["format"] == "relight-scene"
+    load_scene(source)  # the untouched bundle loads

@@ -236,6 +236,7 @@ def load_scene(path) -> Scene:
         wrong = wrong_kind(path, "a photo or a scene bundle")
         raise wrong if wrong is not None else InputError(path, "scene bundle directory not found")
     meta_path = path / "scene.json"
+    meta_path = bundle_file(path, "scene.json", meta_path)
     if not meta_path.is_file():
         raise InputError(meta_path, "missing: a scene bundle needs scene.json")
     meta = read_json(meta_path, "scene bundle description")
@@ -264,7 +265,7 @@ def load_scene(path) -> Scene:
 
     maps = {}
     for name in MAP_FILES:
-        f = path / files[name]
+        f = bundle_file(path, files[name], meta_path)
         maps[name] = read_png(f) if f.suffix.lower() in (".png", ".jpg", ".jpeg") else read_exr(f)
     mask = maps.pop("mask")
     if mask.ndim == 3:
@@ -274,7 +275,7 @@ def load_scene(path) -> Scene:
         raise InputError(meta_path, f"says the maps are {said[0]}x{said[1]} but {files['mask']} is {mask.shape[1]}x{mask.shape[0]}")
     extra = {}
     for name in OPTIONAL_FILES:
-        f = path / files[name]
+        f = bundle_file(path, files[name], meta_path)
         if f.is_file():
             img = read_png(f)
             if img.ndim == 2:
@@ -290,9 +291,16 @@ def _plain_names(maps: dict, meta_path: Path) -> dict:
     for name, value in maps.items():
         if not isinstance(value, str) or not value or Path(value).name != value or value in (".", ".."):
             raise InputError(meta_path, f"map {name!r}: {value!r} is not a plain file name inside the bundle")
-        if (meta_path.parent / value).is_symlink():
-            raise InputError(meta_path, f"map {name!r}: {value} is a symbolic link; bundles hold their own files")
     return maps
+
+
+def bundle_file(bundle: Path, name: str, meta_path: Path) -> Path:
+    """The bundle's file ``name``, refused in one line when it is a symbolic link or is not inside the
+    bundle once resolved: a bundle is a closed box, whatever names it lists or leaves to the defaults."""
+    f = bundle / name
+    if f.is_symlink() or (f.exists() and f.resolve().parent != bundle.resolve()):
+        raise InputError(meta_path, f"{name} is a symbolic link or lies outside the bundle; bundles hold their own files")
+    return f
 
 
 def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
@@ -302,11 +310,11 @@ def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
     if not isinstance(entry, dict) or not isinstance(entry.get("maps", {}), dict):
         raise InputError(meta_path, "frame must be an object with width, height and maps")
     files = {**FRAME_FILES, **_plain_names(entry.get("maps", {}), meta_path)}
-    photo = read_png(path / files["photo"])
+    photo = read_png(bundle_file(path, files["photo"], meta_path))
     if photo.ndim == 2:
         photo = np.repeat(photo[..., None], 3, axis=-1)
-    alpha = read_png(path / files["alpha"])
-    albedo = read_exr(path / files["albedo"])
+    alpha = read_png(bundle_file(path, files["alpha"], meta_path))
+    albedo = read_exr(bundle_file(path, files["albedo"], meta_path))
     frame = FrameLayer(albedo=albedo[..., :3] if albedo.ndim == 3 else albedo, alpha=alpha if alpha.ndim == 2 else alpha[..., 0],
                        photo=srgb_to_linear(photo[..., :3]), background_blur=entry.get("background_blur", 0.0))
     size = (entry.get("width"), entry.get("height"))
