@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -92,3 +93,45 @@ def test_the_bad_input_campaign_ends_cleanly(tmp_path):
               if not c["result"]["clean"]]
     assert report["tried"] >= 150 and failed == [] and report["tracebacks"] == 0
     assert json.loads((tmp_path / "robustness.json").read_text())["clean"] == report["tried"]
+
+
+@settings(max_examples=25, deadline=None)
+@given(digits=st.integers(min_value=41, max_value=6000), kind=st.sampled_from(["lights", "rig", "look", "scene"]),
+       fraction=st.booleans())
+def test_numbers_of_thousands_of_digits_are_one_line_in_every_file_kind(tmp_path_factory, digits, kind, fraction):
+    """Integers past Python's digit limit raised ValueError, and big ones overflowed into float: every
+    file the program reads holds them to one line naming the file."""
+    import json
+    import shutil
+
+    from viewer.imageio import read_json
+    from viewer.lights import load_lights
+    from viewer.placed_lights import load_rig
+    from viewer.resources import sample_scene_dir
+    from viewer.scene import load_scene
+
+    d = tmp_path_factory.mktemp("numbers")
+    big = "7" * digits + (".5" if fraction else "")
+    if kind == "lights":
+        path = d / "l.json"
+        path.write_text('{"format": "relight-lights", "version": 1, "lights": [{"direction": [0, 1, 0], "sigma": %s, '
+                        '"intensity": [1, 1, 1]}]}' % big)
+        load = load_lights
+    elif kind == "rig":
+        path = d / "r.json"
+        path.write_text('{"format": "relight-rig", "lights": [{"azimuth": %s}]}' % big)
+        load = load_rig
+    elif kind == "look":
+        path = d / "look.json"
+        path.write_text('{"look": {"yaw": %s}}' % big)
+        load = read_json
+    else:
+        bundle = shutil.copytree(sample_scene_dir(), d / "bundle")
+        path = bundle / "scene.json"
+        meta = json.loads(path.read_text())
+        meta["width"] = "BIG"
+        path.write_text(json.dumps(meta).replace('"BIG"', big))
+        load = lambda p: load_scene(p.parent)  # noqa: E731
+    with pytest.raises(InputError, match="digits|characters") as info:
+        load(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)

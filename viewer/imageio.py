@@ -34,6 +34,27 @@ def atomic_path(path):
 MAX_JSON_BYTES = 64 << 20  # no JSON file this program reads is near this
 
 
+MAX_NUMBER_CHARS = 40  # a JSON number written with more characters is nothing this program reads
+
+
+class _NumberOutOfRange(ValueError):
+    pass
+
+
+def _bounded_int(text: str) -> int:
+    """An integer of the file (parsed with a bound: thousands of digits took Python's own limit, a
+    ValueError, or overflowed into float)."""
+    if len(text) > MAX_NUMBER_CHARS:
+        raise _NumberOutOfRange(f"a number written with {len(text)} digits ({text[:12]}...): out of any range it reads")
+    return int(text)
+
+
+def _bounded_float(text: str) -> float:
+    if len(text) > MAX_NUMBER_CHARS:
+        raise _NumberOutOfRange(f"a number written with {len(text)} characters ({text[:12]}...): out of any range it reads")
+    return float(text)
+
+
 def read_json(path, what: str = "JSON file"):
     """The JSON value in ``path``: strict UTF-8, at most MAX_JSON_BYTES, any nesting the parser can
     take; anything else (missing, a folder, unreadable, wrongly encoded, malformed, absurdly deep
@@ -54,7 +75,9 @@ def read_json(path, what: str = "JSON file"):
     except OSError as exc:
         raise InputError(path, f"cannot read the {what} ({exc.strerror or exc})") from None
     try:
-        return json.loads(data.decode("utf-8"))
+        return json.loads(data.decode("utf-8"), parse_int=_bounded_int, parse_float=_bounded_float)
+    except _NumberOutOfRange as exc:
+        raise InputError(path, f"not a {what}: {exc}") from None
     except UnicodeDecodeError as exc:
         raise InputError(path, f"not a {what}: byte {exc.start} is not UTF-8 text") from None
     except json.JSONDecodeError as exc:
