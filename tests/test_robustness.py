@@ -135,3 +135,17 @@ def test_numbers_of_thousands_of_digits_are_one_line_in_every_file_kind(tmp_path
     with pytest.raises(InputError, match="digits|characters") as info:
         load(path)
     assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+@settings(max_examples=20, deadline=None)
+@given(rows=st.integers(min_value=257, max_value=10**13), cols=st.sampled_from([7, 3, 7000]))
+def test_an_npy_header_claiming_huge_arrays_is_refused_before_allocating(tmp_path_factory, rows, cols):
+    import numpy as np
+
+    d = tmp_path_factory.mktemp("npy")
+    path = d / "lights.npy"
+    np.save(path, np.zeros((2, 7), np.float32))
+    path.write_bytes(path.read_bytes().replace(b"(2, 7)", f"({rows}, {cols})".encode()))
+    with pytest.raises(InputError, match="N x 7|holds") as info:
+        load_lights(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)

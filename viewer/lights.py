@@ -173,12 +173,32 @@ def from_paper_array(arr) -> AreaLights:
     return AreaLights(direction, lights.sigma, lights.intensity)
 
 
+def _check_npy_header(path: Path):
+    """The .npy header's shape and dtype checked against the file's size before numpy allocates:
+    an N x 7 array of at most MAX_LIGHTS rows whose data the file really holds."""
+    from numpy.lib import format as npy
+
+    try:
+        with open(path, "rb") as f:
+            version = npy.read_magic(f)
+            read_header = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+            shape, _, dtype = read_header(f, max_header_size=10_000)
+            data_start = f.tell()
+    except (ValueError, OSError, SyntaxError) as exc:
+        raise InputError(path, f"cannot read as a numpy array ({exc})") from None
+    if len(shape) != 2 or shape[1] != 7 or not 0 < shape[0] <= MAX_LIGHTS:
+        raise InputError(path, f"the paper's light files are N x 7 arrays with N in [1, {MAX_LIGHTS}], got shape {shape}")
+    if data_start + shape[0] * 7 * dtype.itemsize != path.stat().st_size:
+        raise InputError(path, f"says {shape[0]} x 7 {dtype} values but holds {path.stat().st_size - data_start} bytes of data")
+
+
 def load_lights(path) -> AreaLights:
     """Load a light file (.json, or the paper's .npy) and validate it."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "light file not found")
     if path.suffix.lower() == ".npy":
+        _check_npy_header(path)  # before any allocation: a header may claim 1e12 rows
         try:
             arr = np.load(path, allow_pickle=False)
         except (ValueError, OSError) as exc:
