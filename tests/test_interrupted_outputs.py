@@ -105,3 +105,35 @@ def test_a_killed_frame_write_leaves_the_old_frame_or_the_new_one(tmp_path):
         out.with_suffix(".exr").write_bytes(old[1])
     assert (False, False) in seen  # killed before anything was replaced at least once
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".mp4")]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_end_a_render_like_ctrl_c(tmp_path, sig):
+    """SIGTERM (a service stopping) and SIGHUP (a terminal closing) at several moments of ``render
+    -o x.png``: one line, no temporary file left, the old PNG and EXR kept or both new."""
+    out = tmp_path / "x.png"
+    args = ("render", SCENE, LIGHTS, "--size", "128")
+    assert subprocess.run(relight(*args, "-o", out), capture_output=True).returncode == 0
+    old = out.read_bytes(), out.with_suffix(".exr").read_bytes()
+    start = time.monotonic()
+    assert subprocess.run(relight(*args, "--yaw", "90", "-o", tmp_path / "timing.png"), capture_output=True).returncode == 0
+    seconds = time.monotonic() - start
+    interrupted = 0
+    for fraction in (0.4, 0.7, 0.9, 0.97):
+        proc = subprocess.Popen(relight(*args, "--yaw", "90", "-o", out), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                text=True)
+        time.sleep(seconds * fraction)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)
+        if proc.returncode == 130:
+            interrupted += 1
+            assert err.strip().splitlines()[-1].startswith(f"relight: interrupted ({sig.name})"), err
+        else:  # done before the signal, or ended by it while Python itself was starting (nothing written yet)
+            assert proc.returncode in (0, -sig), (proc.returncode, err)
+        assert "Traceback" not in err
+        now = out.read_bytes(), out.with_suffix(".exr").read_bytes()
+        assert now == old or (now[0] != old[0] and now[1] != old[1])  # both old, or both new: never a mix
+        assert not list(tmp_path.glob(".x.*")), list(tmp_path.glob(".x.*"))  # no temporary file left
+        out.write_bytes(old[0])
+        out.with_suffix(".exr").write_bytes(old[1])
+    assert interrupted >= 1

@@ -653,7 +653,8 @@ def main(argv=None) -> int:
         print(f"relight: error: {InputError(where, exc.strerror or str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        print("relight: interrupted" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ())), file=sys.stderr)
+        by = f" ({exc.args[0]})" if exc.args and isinstance(exc.args[0], str) and exc.args[0].startswith("SIG") else ""
+        print(f"relight: interrupted{by}" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ())), file=sys.stderr)
         return 130
     finally:
         warnings.showwarning = shown
@@ -662,10 +663,17 @@ def main(argv=None) -> int:
 def run() -> None:
     """The ``relight`` program: :func:`main`, then the exit handlers, then out at once. Python's own
     teardown of torch's and MediaPipe's modules took 1.2 s after a photo was inferred (the viewer
-    took that long to go after Q); by then every output is written and closed."""
+    took that long to go after Q); by then every output is written and closed. SIGTERM and SIGHUP
+    interrupt like Ctrl-C (the viewer's window sets its own SIGTERM while it is open)."""
     import atexit
     import os
+    import signal
 
+    def stop(signum, _frame):  # SIGTERM and SIGHUP end the work as Ctrl-C does: temporary files removed, old outputs kept
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, stop)
     code = main()
     atexit._run_exitfuncs()  # what registered for the exit (logging's flush, ...) still runs
     for stream in (sys.stdout, sys.stderr):

@@ -31,6 +31,33 @@ def atomic_path(path):
             tmp.unlink()
 
 
+@contextlib.contextmanager
+def atomic_paths(*paths):
+    """:func:`atomic_path` for files that go together (a frame's PNG and its EXR): a temporary path
+    for each; when the block ends without an exception all replace their files at once, with Ctrl-C,
+    SIGTERM and SIGHUP held back until the last is in place (one interrupted write leaves all the old
+    files, never a new PNG beside an old EXR)."""
+    import signal
+
+    paths = [Path(p) for p in paths]
+    for p in paths:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    tmps = [p.with_name(f".{p.name}.{os.getpid()}.tmp") for p in paths]
+    try:
+        yield tmps
+        held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+        before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+        try:
+            for tmp, p in zip(tmps, paths):
+                os.replace(tmp, p)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, before)
+    finally:
+        for tmp in tmps:
+            if tmp.exists():
+                tmp.unlink()
+
+
 MAX_JSON_BYTES = 64 << 20  # no JSON file this program reads is near this
 
 

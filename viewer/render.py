@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .imageio import linear_to_srgb, write_exr, write_png
+from .imageio import atomic_paths, linear_to_srgb, write_exr, write_png
 from .lights import AreaLights
 from .scene import Scene
 from .settings import AUTO, Look
@@ -113,8 +113,10 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
     hdr = engine.read_output_hdr()
-    written = [write_png(out_dir / f"{name}.png", display),
-               write_exr(out_dir / f"{name}.exr", hdr if transparent else hdr[..., :3])]
+    written = [out_dir / f"{name}.png", out_dir / f"{name}.exr"]
+    with atomic_paths(*written) as (png, exr):  # both replaced together, or neither
+        write_png(png, display)
+        write_exr(exr, hdr if transparent else hdr[..., :3])
     if passes:
         if settings.shadows not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
             engine.set_visibility("soft")
