@@ -103,3 +103,13 @@ def test_a_users_partial_video_and_rig_are_never_written_over(tmp_path):
     res = subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), "--env", env, "--rig", str(rig_file), "--size", "64",
                           "-o", str(tmp_path / "r.png")], capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "r.exr" in res.stderr and rig_file.read_bytes() == before
+
+
+def test_an_output_keeps_the_case_the_user_typed(tmp_path):
+    from viewer.resources import sample_scene_dir
+
+    lights = asset_dir() / "envmaps" / "venice_sunset_256.lights.json"
+    res = subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), str(lights), "--size", "64", "-o", str(tmp_path / "r.PNG")],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.PNG", "r.exr", "r_passes.png"]

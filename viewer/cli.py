@@ -240,14 +240,15 @@ def _rig_lights(args):
     return to_area_lights(load_rig(args.rig)) if getattr(args, "rig", None) else None
 
 
-def _render(scene_path, lights_path, envmap_path, out_dir, name, args, look) -> list[Path]:
+def _render(scene_path, lights_path, envmap_path, out_dir, name, args, look, png_name=None) -> list[Path]:
     from .gl import Engine, create_headless_context
     from .render import render_to_files
 
     scene, lights, env = _prepare(scene_path, lights_path, envmap_path, args)
     engine = Engine(create_headless_context(), scene, _engine_options(args))
     try:
-        return render_to_files(engine, scene, lights, out_dir, name, look, environment=env, fixed=_rig_lights(args))
+        return render_to_files(engine, scene, lights, out_dir, name, look, environment=env, fixed=_rig_lights(args),
+                               png_name=png_name)
     finally:
         engine.release()
 
@@ -329,7 +330,7 @@ def cmd_render(args) -> int:
     if suffix == ".png":
         if args.frames is not None:
             raise InputError(out, "--frames makes a video: give a .mp4 output path")
-        for path in _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args, look):
+        for path in _render(args.scene, args.lights, args.envmap, out.parent, out.stem, args, look, png_name=out.name):
             print(f"wrote {path}")
         return 0
 

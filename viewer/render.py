@@ -105,15 +105,16 @@ def render_look(engine, scene: Scene, lights: AreaLights, settings: Look, enviro
 
 
 def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
-                    environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None) -> list[Path]:
-    """Render and write ``name.png`` (display), ``name.exr`` (HDR) and ``name_passes.png``
-    (``fixed``: placed lights, see :func:`apply_settings`)."""
+                    environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None,
+                    png_name: str | None = None) -> list[Path]:
+    """Render and write ``name.png`` (display; ``png_name``: the name as the user typed it, its case
+    kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, see :func:`apply_settings`)."""
     out_dir = Path(out_dir)
     settings, _ = render_look(engine, scene, lights, settings, environment, fixed)
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
     hdr = engine.read_output_hdr()
-    written = [out_dir / f"{name}.png", out_dir / f"{name}.exr"]
+    written = [out_dir / (png_name or f"{name}.png"), out_dir / f"{name}.exr"]
     with atomic_paths(*written) as (png, exr):  # both replaced together, or neither
         write_png(png, display)
         write_exr(exr, hdr if transparent else hdr[..., :3])
