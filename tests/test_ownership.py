@@ -113,3 +113,13 @@ def test_an_output_keeps_the_case_the_user_typed(tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.PNG", "r.exr", "r_passes.png"]
+
+
+def test_a_transparent_video_is_refused_in_one_line_not_written_black(tmp_path):
+    from viewer.resources import sample_scene_dir
+
+    env = asset_dir() / "envmaps" / "venice_sunset_256.hdr"
+    res = subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), "--env", str(env), "--background", "transparent",
+                          "--frames", "2", "-o", str(tmp_path / "v.mp4")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "no transparency" in res.stderr and res.stderr.count("\n") == 1
+    assert not list(tmp_path.iterdir())

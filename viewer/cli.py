@@ -325,6 +325,9 @@ def cmd_render(args) -> int:
     _not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
     if suffix == ".mp4":
         _check_video(args)
+        if look.background == "transparent":  # H.264 has no alpha: it came out black (the option or a --look)
+            raise InputError(out, "an MP4 (H.264) holds no transparency: render a PNG (and its EXR) with "
+                                  "--background transparent, or give the video another --background")
         if video_partial(out).exists():
             raise partial_taken(out)
     if suffix == ".png":
