@@ -169,3 +169,12 @@ def test_a_file_of_the_wrong_kind_is_one_line_saying_what_it_is(tmp_path):
             line = res.stderr.strip()
             assert "\n" not in line and words in line and str(given) in line, (argv, line)
     assert "--env" in run_cli("render", env, "-o", str(tmp_path / "x.png")).stderr
+
+
+def test_a_device_the_machine_lacks_is_named_not_the_weights(tmp_path):
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    for device, words in (("bogus", "not a device torch knows"), ("mps", "run on cpu or cuda")):
+        res = run_cli("infer", str(photo), "-o", str(tmp_path / "b"), "--device", device)
+        assert res.returncode == 2 and words in res.stderr and f"--device" in res.stderr, res.stderr
+        assert "safetensors" not in res.stderr and res.stderr.count("\n") == 1
+    assert not (tmp_path / "b").exists()

@@ -143,9 +143,27 @@ def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[in
     return num / np.maximum(den, 1e-6)[..., None]
 
 
+def check_device(device: str) -> str:
+    """``device`` as torch names it, when this machine has it; else one line naming the device (the
+    weights file was blamed for a missing CUDA before)."""
+    import torch
+
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise InputError(None, f"--device {device!r} is not a device torch knows ({exc}); use cpu or cuda") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise InputError(None, f"--device {device}: this machine has no CUDA device (torch {torch.__version__}); "
+                               "use --device cpu")
+    if dev.type not in ("cpu", "cuda"):
+        raise InputError(None, f"--device {device}: the networks run on cpu or cuda")
+    return device
+
+
 def load_networks(device="cpu", directory=None) -> dict:
     from .nets.weights import load_network
 
+    check_device(device)
     directory = Path(directory) if directory is not None else network_dir()
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
 
