@@ -123,3 +123,14 @@ def test_a_transparent_video_is_refused_in_one_line_not_written_black(tmp_path):
                           "--frames", "2", "-o", str(tmp_path / "v.mp4")], capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "no transparency" in res.stderr and res.stderr.count("\n") == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_a_failed_command_leaves_no_folder_behind(tmp_path):
+    res = subprocess.run([*RELIGHT, "render", str(asset_dir() / "envmaps" / "venice_sunset_256.hdr"), "-o",
+                          str(tmp_path / "new" / "sub" / "x.png")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and not (tmp_path / "new").exists()
+    (tmp_path / "a-file").write_text("x")
+    res = subprocess.run([*RELIGHT, "render", str(asset_dir() / "sample_scene"), "--env",
+                          str(asset_dir() / "envmaps" / "venice_sunset_256.hdr"), "-o", str(tmp_path / "a-file" / "x.png")],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "is a file, not a folder" in res.stderr and (tmp_path / "a-file").read_text() == "x"

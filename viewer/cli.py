@@ -120,20 +120,30 @@ def _beside_the_map(map_path: Path) -> Path | None:
 
 
 def _writable(path, folder: bool = False) -> Path:
-    """``path`` if the program can write it (its folder made when missing), checked before any work
-    is done: else one line naming it. ``folder``: the path is itself a folder to write into."""
+    """``path`` if the program can write it, checked before any work is done: else one line naming
+    it. ``folder``: the path is itself a folder to write into. Missing folders are made only when
+    the output is written, so a command that fails leaves none behind: here the nearest existing
+    folder above must be one the program may create them in."""
     import os
 
     path = Path(path)
     where = path if folder else path.parent
     if not folder and path.is_dir():
         raise InputError(path, "is a folder: give a file path")
-    try:
-        where.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(path, f"cannot write here ({exc.strerror or exc})") from None
-    if not os.access(where, os.W_OK | os.X_OK):
-        raise InputError(path, f"cannot write here ({where} is not writable)")
+    existing = where.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError(path, f"cannot write here ({existing} is a file, not a folder)")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(path, f"cannot write here ({existing} is not writable)")
+    if existing != where.absolute():  # folders to make: a folder made and taken away again proves it can be done
+        import tempfile
+
+        try:
+            os.rmdir(tempfile.mkdtemp(prefix=".relight-probe-", dir=existing))
+        except OSError as exc:
+            raise InputError(path, f"cannot write here ({exc.strerror or exc})") from None
     return path
 
 
