@@ -149,3 +149,27 @@ def test_an_npy_header_claiming_huge_arrays_is_refused_before_allocating(tmp_pat
     with pytest.raises(InputError, match="N x 7|holds") as info:
         load_lights(path)
     assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+@settings(max_examples=15, deadline=None)
+@given(width=st.integers(min_value=14_200, max_value=2**30), height=st.integers(min_value=14_200, max_value=2**30))
+def test_an_exr_header_claiming_a_huge_image_is_refused_before_decoding(tmp_path_factory, width, height):
+    """OpenEXR had no size check: a header's data window is read first, the same pixel limit as every
+    image format applies, and nothing is decoded past it."""
+    import struct
+
+    import numpy as np
+
+    from viewer.imageio import MAX_IMAGE_PIXELS, read_exr, write_exr
+
+    d = tmp_path_factory.mktemp("exr")
+    path = write_exr(d / "map.exr", np.ones((20, 30, 3), np.float32))
+    raw = bytearray(path.read_bytes())
+    start = raw.find(b"dataWindow")
+    value = raw.find(b"\0", raw.find(b"\0", start) + 1) + 1 + 4  # past the name, the type and the size
+    struct.pack_into("<iiii", raw, value, 0, 0, width - 1, height - 1)
+    path.write_bytes(bytes(raw))
+    assert width * height > MAX_IMAGE_PIXELS
+    with pytest.raises(InputError, match="megapixels|cannot read EXR") as info:
+        read_exr(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)

@@ -59,6 +59,7 @@ def atomic_paths(*paths):
 
 
 MAX_JSON_BYTES = 64 << 20  # no JSON file this program reads is near this
+MAX_IMAGE_PIXELS = 200_000_000  # every image format: larger is refused before decoding (decompression bombs)
 
 
 MAX_NUMBER_CHARS = 40  # a JSON number written with more characters is nothing this program reads
@@ -128,6 +129,14 @@ def read_exr(path) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
+    try:
+        with OpenEXR.File(str(path), header_only=True) as f:  # the size first: a header may claim anything
+            lo, hi = (np.asarray(v, dtype=np.int64) for v in f.header()["dataWindow"])
+        w, h = (int(v) for v in hi - lo + 1)
+    except Exception as exc:  # OpenEXR raises plain exceptions for corrupt files
+        raise InputError(path, f"cannot read EXR ({exc})") from None
+    if w < 1 or h < 1 or w * h > MAX_IMAGE_PIXELS:
+        raise InputError(path, f"is {w}x{h} pixels: an image may have at most {MAX_IMAGE_PIXELS // 1_000_000} megapixels")
     try:
         with OpenEXR.File(str(path)) as f:
             channels = f.channels()

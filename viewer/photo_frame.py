@@ -24,10 +24,11 @@ import numpy as np
 
 from .errors import InputError
 from .file_kinds import wrong_kind
+from .imageio import MAX_IMAGE_PIXELS
 
 MAX_SIZE = 2048  # default longer side of every output
 WORK_PERSON = 512  # default pixels of the person's longer side in the work frame
-MAX_PIXELS = 200_000_000  # larger photos are refused (decompression bombs)
+MAX_PIXELS = MAX_IMAGE_PIXELS  # larger photos are refused (decompression bombs), as every image
 MIN_PERSON_PX = 32
 MIN_FRAME = 64  # --max-size below this leaves no room for a person of MIN_PERSON_PX
 MAX_WORK = 4096  # the work frame's longer side at most (its float targets grow with its square)
