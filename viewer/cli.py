@@ -651,9 +651,9 @@ def main(argv=None) -> int:
     import warnings
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    plugins = command_plugins()
     shown, warnings.showwarning = warnings.showwarning, _one_line_warning  # a warning is one line, like an error
     try:
+        plugins = command_plugins()
         if argv and argv[0] in plugins:
             return plugins[argv[0]].load()(argv[1:])
         args = build_parser(plugins).parse_args(argv)
@@ -688,7 +688,15 @@ def run() -> None:
 
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, stop)
-    code = main()
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        # system calls a signal interrupts are restarted, not failed with EINTR: llvmpipe's shader
+        # compiler crashed (SIGSEGV) when one arrived while it ran; Python handles the signal after
+        signal.siginterrupt(sig, False)
+    try:
+        code = main()
+    except KeyboardInterrupt as exc:  # before main's own handling began
+        print(f"relight: interrupted ({exc.args[0] if exc.args else 'SIGINT'})", file=sys.stderr)
+        code = 130
     atexit._run_exitfuncs()  # what registered for the exit (logging's flush, ...) still runs
     for stream in (sys.stdout, sys.stderr):
         try:

@@ -35,9 +35,11 @@ def atomic_path(path):
 def atomic_paths(*paths):
     """:func:`atomic_path` for files that go together (a frame's PNG and its EXR): a temporary path
     for each; when the block ends without an exception all replace their files at once, with Ctrl-C,
-    SIGTERM and SIGHUP held back until the last is in place (one interrupted write leaves all the old
-    files, never a new PNG beside an old EXR)."""
+    SIGTERM and SIGHUP held back until the last is in place (an interrupted write leaves all the old
+    files or all the new ones, never a new PNG beside an old EXR)."""
     import signal
+
+    import threading
 
     paths = [Path(p) for p in paths]
     for p in paths:
@@ -45,13 +47,20 @@ def atomic_paths(*paths):
     tmps = [p.with_name(f".{p.name}.{os.getpid()}.tmp") for p in paths]
     try:
         yield tmps
-        held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-        before = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+        # Python runs a signal's handler between any two bytecodes, even for a signal that arrived
+        # before this point: the handlers only note a signal until every file is in place, then it
+        # is raised again with the handlers as they were
+        caught: list[int] = []
+        held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) if threading.current_thread() is threading.main_thread() else ()
+        previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
         try:
             for tmp, p in zip(tmps, paths):
                 os.replace(tmp, p)
         finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, before)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        if caught:
+            signal.raise_signal(caught[0])
     finally:
         for tmp in tmps:
             if tmp.exists():
