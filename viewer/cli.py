@@ -470,7 +470,7 @@ def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
 
 def cmd_infer(args) -> int:
     from .inference import STAGE_SHARES, bundle_target, infer, load_networks
-    from .progress import TimeLeft, time_left_words
+    from .progress import TimeLeft
 
     target = bundle_target(args.output)
     _writable(target.parent, folder=True)
@@ -483,7 +483,7 @@ def cmd_infer(args) -> int:
 
     def said(stage):
         left.update(stage, 1, 1)
-        words = time_left_words(left.seconds_left()) if left.fraction < 1.0 else ""
+        words = left.words()
         print(f"  {stage} done" + (f", {words}" if words else ""), flush=True)
 
     nets = load_networks(args.device, args.networks)
@@ -667,11 +667,17 @@ def main(argv=None) -> int:
         print(f"relight: error: {InputError(where, exc.strerror or str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        by = f" ({exc.args[0]})" if exc.args and isinstance(exc.args[0], str) and exc.args[0].startswith("SIG") else ""
-        print(f"relight: interrupted{by}" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ())), file=sys.stderr)
+        print(_interrupted(exc), file=sys.stderr)
         return 130
     finally:
         warnings.showwarning = shown
+
+
+def _interrupted(exc: KeyboardInterrupt) -> str:
+    """The one line for an interruption: Ctrl-C, or the signal :func:`run` turned into one (its name
+    in the exception), and what the work left where (its notes)."""
+    by = f" ({exc.args[0]})" if exc.args and isinstance(exc.args[0], str) and exc.args[0].startswith("SIG") else ""
+    return f"relight: interrupted{by}" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ()))
 
 
 def run() -> None:
@@ -695,7 +701,7 @@ def run() -> None:
     try:
         code = main()
     except KeyboardInterrupt as exc:  # before main's own handling began
-        print(f"relight: interrupted ({exc.args[0] if exc.args else 'SIGINT'})", file=sys.stderr)
+        print(_interrupted(exc), file=sys.stderr)
         code = 130
     atexit._run_exitfuncs()  # what registered for the exit (logging's flush, ...) still runs
     for stream in (sys.stdout, sys.stderr):

@@ -73,10 +73,11 @@ def work_threads(reserve: int = 0) -> int:
     return max(1, free - reserve)
 
 
-def size_pools(threads: int) -> int:
+def size_pools(threads: int) -> None:
     """Size every compute pool of this process to ``threads``: the libraries loaded now directly,
     those loaded later through the environment they read at load (torch and OpenMP: OMP_NUM_THREADS,
-    numba: NUMBA_NUM_THREADS, OpenCV: OPENCV_FOR_THREADS_NUM, llvmpipe: LP_NUM_THREADS, unless the user set it). Returns ``threads``."""
+    numba: NUMBA_NUM_THREADS, OpenCV: OPENCV_FOR_THREADS_NUM, llvmpipe: LP_NUM_THREADS, unless the
+    user set it)."""
     for name in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "OPENCV_FOR_THREADS_NUM"):
         os.environ[name] = str(threads)
     os.environ.setdefault("LP_NUM_THREADS", str(threads))
@@ -90,4 +91,3 @@ def size_pools(threads: int) -> int:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=threads)  # OpenBLAS (numpy) and the OpenMP runtimes already loaded
-    return threads

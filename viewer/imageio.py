@@ -34,11 +34,10 @@ def atomic_path(path):
 @contextlib.contextmanager
 def atomic_paths(*paths):
     """:func:`atomic_path` for files that go together (a frame's PNG and its EXR): a temporary path
-    for each; when the block ends without an exception all replace their files at once, with Ctrl-C,
-    SIGTERM and SIGHUP held back until the last is in place (an interrupted write leaves all the old
-    files or all the new ones, never a new PNG beside an old EXR)."""
+    beside each; when the block ends without an exception all replace their files at once, with
+    Ctrl-C, SIGTERM and SIGHUP held back until the last is in place (an interrupted write leaves all
+    the old files or all the new ones, never a new PNG beside an old EXR)."""
     import signal
-
     import threading
 
     paths = [Path(p) for p in paths]
@@ -51,7 +50,8 @@ def atomic_paths(*paths):
         # before this point: the handlers only note a signal until every file is in place, then it
         # is raised again with the handlers as they were
         caught: list[int] = []
-        held = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP) if threading.current_thread() is threading.main_thread() else ()
+        held = [sig for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # (handlers Python can put back)
+                if threading.current_thread() is threading.main_thread() and signal.getsignal(sig) is not None]
         previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
         try:
             for tmp, p in zip(tmps, paths):
@@ -59,6 +59,9 @@ def atomic_paths(*paths):
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+                # setting a handler makes the signal interrupt system calls again: back to restarting
+                # them, as relight runs (viewer.cli.run: llvmpipe's compiler crashed on an interrupted one)
+                signal.siginterrupt(sig, False)
         if caught:
             signal.raise_signal(caught[0])
     finally:

@@ -32,11 +32,12 @@ class TimeLeft:
             return None
         return (time.perf_counter() - self.started) * (1.0 - self.fraction) / self.fraction
 
-
-def time_left_words(seconds: float | None) -> str:
-    if seconds is None:
-        return ""
-    return "under a second left" if seconds < 1.0 else f"about {seconds:.0f} s left"
+    def words(self) -> str:
+        """The time left as a bar or a line says it; empty when it is too early to say or the work is done."""
+        seconds = self.seconds_left()
+        if seconds is None or self.fraction >= 1.0:
+            return ""
+        return "under a second left" if seconds < 1.0 else f"about {seconds:.0f} s left"
 
 
 class StageBars:
@@ -72,7 +73,7 @@ class StageBars:
             self.time_left.update(stage, done, total)
         if self.bar is not None:
             if self.time_left is not None:
-                self.bar.set_postfix_str(time_left_words(self.time_left.seconds_left()), refresh=False)
+                self.bar.set_postfix_str(self.time_left.words(), refresh=False)
             self.bar.update(done - self.bar.n)
 
     def close(self):
@@ -80,9 +81,9 @@ class StageBars:
             self.bar.close()
             self.bar = None
         elif self.stage is not None and not self.quiet:
-            left = time_left_words(self.time_left.seconds_left()) if self.time_left is not None else ""
+            left = self.time_left.words() if self.time_left is not None else ""
             print(f"{self.prefix}{self.stage}: {self.done}/{self.total} in {time.perf_counter() - self.started:.1f} s"
-                  + (f", {left}" if left and self.time_left.fraction < 1.0 else ""), file=self.stream, flush=True)
+                  + (f", {left}" if left else ""), file=self.stream, flush=True)
         self.stage = None
 
     def __enter__(self):

@@ -235,8 +235,7 @@ def load_scene(path) -> Scene:
     if not path.is_dir():
         wrong = wrong_kind(path, "a photo or a scene bundle")
         raise wrong if wrong is not None else InputError(path, "scene bundle directory not found")
-    meta_path = path / "scene.json"
-    meta_path = bundle_file(path, "scene.json", meta_path)
+    meta_path = bundle_file(path, "scene.json", path / "scene.json")
     if not meta_path.is_file():
         raise InputError(meta_path, "missing: a scene bundle needs scene.json")
     meta = read_json(meta_path, "scene bundle description")

@@ -20,7 +20,6 @@ from ..imageio import write_exr, write_png, write_text
 from ..lightfit.methods import DEFAULT_METHOD
 from ..placed_lights import PlacedLight, level
 from ..lights import AreaLights, facing_yaw
-from ..median_cut import LUMINANCE
 from ..render import photo_exposure
 from ..scene import PHOTO_SUFFIXES, Scene
 from ..settings import AUTO, Look
@@ -615,7 +614,7 @@ class ViewerApp:
             "videos": self.videos,
             "message": self.message,
             "error": self.error,
-            "gl_threads": os.environ.get("LP_NUM_THREADS"),  # llvmpipe's, sized when the window opened (viewer/cores.py)
+            "gl_threads": self.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cores.py)
         }
         text = json.dumps(state)
         now = time.monotonic()

@@ -226,12 +226,12 @@ class LightJob(ChildJob):
 
     def _stage(self, said: dict):
         from ..lightfit.methods import STAGE_SHARES
-        from ..progress import TimeLeft, time_left_words
+        from ..progress import TimeLeft
 
         if self._left is None:
             self._left = TimeLeft(STAGE_SHARES.get(self.method) or {str(said["stage"]): 1.0})
         self.fraction = self._left.update(str(said["stage"]), int(said.get("done", 0)), int(said.get("total", 1)))
-        words = time_left_words(self._left.seconds_left())
+        words = self._left.words()
         self.stage = str(said["stage"]) + (f": {words}" if words else "")
 
     def work(self) -> LightsResult:
@@ -283,11 +283,10 @@ class SceneJob(ChildJob):
 
     def _stage(self, said: dict):
         from ..inference import STAGES
-        from ..progress import time_left_words
 
         self._done += 1
         self.fraction = self._left.update(str(said["stage"]), 1, 1)
-        words = time_left_words(self._left.seconds_left())
+        words = self._left.words()
         self.stage = f"{said['stage']} done ({self._done} of {len(STAGES)})" + (f", {words}" if words else "")
 
     def work(self) -> SceneResult:

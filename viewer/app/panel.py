@@ -358,7 +358,6 @@ def _thumbnail(app):
 
 
 def _record(app):
-    from ..progress import time_left_words
     from .recording import InteractionRecording
 
     if not imgui.collapsing_header("Record", _open(app, False)):
@@ -385,7 +384,7 @@ def _record(app):
             app.toggle_recording(rec.kind)
         _remember(app, "record")
     else:
-        left = time_left_words(rec.time_left.seconds_left())
+        left = rec.time_left.words()
         imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{rec.done} / {rec.total} frames" + (f", {left}" if left else ""))
         if imgui.button("Stop"):
             app.toggle_recording(rec.kind)
