@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -155,8 +156,13 @@ def _not_an_input(outputs, inputs):
     input folder (a scene bundle): the user's files are never written over."""
     for out in outputs:
         out = Path(out)
-        if len(out.name.encode()) > NAME_MAX:
+        if len(os.fsencode(out.name)) > NAME_MAX:
             raise InputError(out, f"the file name is longer than {NAME_MAX} bytes")
+        try:
+            str(out).encode("utf-8")
+        except UnicodeEncodeError:  # a byte that is not UTF-8, kept by Python as a surrogate
+            raise InputError(out, "the path is not valid UTF-8 (the image and video writers take UTF-8 "
+                                  "names): choose a UTF-8 name") from None
         if not out.name.isprintable():
             raise InputError(out, "the file name holds control characters (a newline?)")
         resolved = out.resolve()
@@ -669,8 +675,27 @@ def main(argv=None) -> int:
     except KeyboardInterrupt as exc:
         print(_interrupted(exc), file=sys.stderr)
         return 130
+    except Exception as exc:
+        # native code that runs Python code (a module's initialisation) may turn the interruption
+        # into its own exception ("ImportError: initialization failed", caused by the KeyboardInterrupt)
+        cause = _interruption(exc)
+        if cause is None:
+            raise
+        print(_interrupted(cause), file=sys.stderr)
+        return 130
     finally:
         warnings.showwarning = shown
+
+
+def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt an exception was raised from or while handling, if any."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _interrupted(exc: KeyboardInterrupt) -> str:
@@ -689,15 +714,14 @@ def run() -> None:
     import os
     import signal
 
+    from .stop_signals import route_to_main_thread
+
     def stop(signum, _frame):  # SIGTERM and SIGHUP end the work as Ctrl-C does: temporary files removed, old outputs kept
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, stop)
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        # system calls a signal interrupts are restarted, not failed with EINTR: llvmpipe's shader
-        # compiler crashed (SIGSEGV) when one arrived while it ran; Python handles the signal after
-        signal.siginterrupt(sig, False)
+    route_to_main_thread()  # never inside native code: llvmpipe's shader compiler crashed on one
     try:
         code = main()
     except KeyboardInterrupt as exc:  # before main's own handling began

@@ -13,22 +13,36 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .stop_signals import deliver
 
 
 @contextlib.contextmanager
 def atomic_path(path):
     """Yield a temporary path beside ``path``; when the block ends without an exception it
     replaces ``path`` in one step (a reader never sees a half-written file, an interrupted write
-    leaves the old file as it was)."""
+    leaves the old file as it was). A failed write (a full disk) is an ``OSError`` naming ``path``,
+    the file the user asked for, not its temporary name."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
-        yield tmp
+        with _named_as(path, tmp):
+            yield tmp
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+@contextlib.contextmanager
+def _named_as(path: Path, tmp: Path):
+    """An ``OSError`` about ``tmp`` (or about no file: a stream's write) named as ``path``."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename not in (None, str(tmp), os.fsencode(tmp)) or exc.errno is None:
+            raise
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
 
 
 @contextlib.contextmanager
@@ -45,7 +59,10 @@ def atomic_paths(*paths):
         p.parent.mkdir(parents=True, exist_ok=True)
     tmps = [p.with_name(f".{p.name}.{os.getpid()}.tmp") for p in paths]
     try:
-        yield tmps
+        with contextlib.ExitStack() as naming:
+            for p, tmp in zip(paths, tmps):
+                naming.enter_context(_named_as(p, tmp))
+            yield tmps
         # Python runs a signal's handler between any two bytecodes, even for a signal that arrived
         # before this point: the handlers only note a signal until every file is in place, then it
         # is raised again with the handlers as they were
@@ -59,11 +76,8 @@ def atomic_paths(*paths):
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
-                # setting a handler makes the signal interrupt system calls again: back to restarting
-                # them, as relight runs (viewer.cli.run: llvmpipe's compiler crashed on an interrupted one)
-                signal.siginterrupt(sig, False)
         if caught:
-            signal.raise_signal(caught[0])
+            deliver(caught[0])
     finally:
         for tmp in tmps:
             if tmp.exists():
@@ -72,6 +86,14 @@ def atomic_paths(*paths):
 
 MAX_JSON_BYTES = 64 << 20  # no JSON file this program reads is near this
 MAX_IMAGE_PIXELS = 200_000_000  # every image format: larger is refused before decoding (decompression bombs)
+
+
+def check_pixels(path, width: int, height: int, max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+    """Refuse a size read from a header, before any pixel is decoded: one rule and one message for
+    every format (a header may claim anything)."""
+    if width < 1 or height < 1 or width * height > max_pixels:
+        raise InputError(path, f"is {width}x{height} pixels: more than the {max_pixels / 1e6:.0f} megapixels "
+                               "this program reads (downsample it first)")
 
 
 MAX_NUMBER_CHARS = 40  # a JSON number written with more characters is nothing this program reads
@@ -134,43 +156,106 @@ def write_text(path, text: str) -> Path:
     return path
 
 
-def read_exr(path) -> np.ndarray:
-    """Float32 array, HxW for one channel (Y) or HxWxC for RGB / RGBA."""
+@contextlib.contextmanager
+def native_output():
+    """Collect what native code writes to the process's stdout and stderr during the block (OpenEXR
+    prints its own C++ lines before it raises). Yields a list that holds the text after the block;
+    the caller folds it into its one line on failure, or hands it back with :func:`replay` (another
+    thread may have printed meanwhile)."""
+    import ctypes
+    import sys
+    import tempfile
+
+    libc = ctypes.CDLL(None)
+    held: list[str] = []
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    libc.fflush(None)
+    with tempfile.TemporaryFile() as sink:
+        saved = [os.dup(1), os.dup(2)]
+        try:
+            os.dup2(sink.fileno(), 1)
+            os.dup2(sink.fileno(), 2)
+            yield held
+        finally:
+            libc.fflush(None)  # C stdio's buffer (std::cout) to the sink before the descriptors go back
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
+            sink.seek(0)
+            held.append(sink.read().decode("utf-8", "replace"))
+
+
+def replay(held: list[str]) -> None:
+    """Print what :func:`native_output` held, to stderr, as it would have appeared."""
+    import sys
+
+    if held and held[0]:
+        sys.stderr.write(held[0])
+        sys.stderr.flush()
+
+
+def _native_reason(exc: Exception, held: list[str]) -> str:
+    """One reason from OpenEXR's exception and the lines it printed (its core's error line says
+    most: the chunk, the offset), short enough for one line."""
+    lines = [line.strip().removeprefix("<python_buffer>:").strip()
+             for line in (held[0] if held else "").splitlines() if line.strip()]
+    core = [line for line in lines if "EXR_ERR_" in line] or lines[-1:]
+    said = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+    reason = f"{core[0]}; {said}" if core and core[0] not in said else said
+    return reason if len(reason) <= 240 else reason[:237] + "..."
+
+
+def read_exr(path, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
+    """Float32 array, HxW for one channel (Y) or HxWxC for RGB / RGBA. The file is opened once, by
+    Python (any name the system takes, a byte name that is not UTF-8 included) and handed to
+    OpenEXR as a stream; the data window is held to ``max_pixels`` (:func:`check_pixels`) before a pixel is
+    read (a header may claim anything)."""
     import OpenEXR
 
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
     try:
-        with OpenEXR.File(str(path), header_only=True) as f:  # the size first: a header may claim anything
-            lo, hi = (np.asarray(v, dtype=np.int64) for v in f.header()["dataWindow"])
-        w, h = (int(v) for v in hi - lo + 1)
-    except Exception as exc:  # OpenEXR raises plain exceptions for corrupt files
-        raise InputError(path, f"cannot read EXR ({exc})") from None
-    if w < 1 or h < 1 or w * h > MAX_IMAGE_PIXELS:
-        raise InputError(path, f"is {w}x{h} pixels: an image may have at most {MAX_IMAGE_PIXELS // 1_000_000} megapixels")
-    try:
-        with OpenEXR.File(str(path)) as f:
-            channels = f.channels()
-            if "RGB" in channels:
-                arr = channels["RGB"].pixels
-            elif "RGBA" in channels:
-                arr = channels["RGBA"].pixels
-            elif "Y" in channels:
-                arr = channels["Y"].pixels
-            elif len(channels) == 1:
-                arr = next(iter(channels.values())).pixels
-            else:
-                raise InputError(path, f"unsupported EXR channels {sorted(channels)}")
-            return np.ascontiguousarray(arr, dtype=np.float32)
-    except InputError:
-        raise
-    except Exception as exc:  # OpenEXR raises plain exceptions for corrupt files
-        raise InputError(path, f"cannot read EXR ({exc})") from None
+        stream = open(path, "rb")
+    except OSError as exc:
+        raise InputError(path, f"cannot read EXR ({exc.strerror or exc})") from None
+    failure = None
+    with stream, native_output() as held:
+        try:
+            arr = _exr_pixels(stream, path, max_pixels)
+        except InputError:
+            raise
+        except Exception as exc:  # OpenEXR raises plain exceptions for corrupt files
+            failure = exc
+    if failure is not None:
+        raise InputError(path, f"cannot read EXR ({_native_reason(failure, held)})")
+    replay(held)
+    return arr
+
+
+def _exr_pixels(stream, path: Path, max_pixels: int) -> np.ndarray:
+    import OpenEXR
+
+    with OpenEXR.File(stream, header_only=True) as f:
+        lo, hi = (np.asarray(v, dtype=np.int64) for v in f.header()["dataWindow"])
+    w, h = (int(v) for v in hi - lo + 1)
+    check_pixels(path, w, h, max_pixels)
+    stream.seek(0)
+    with OpenEXR.File(stream) as f:
+        channels = f.channels()
+        for name in ("RGB", "RGBA", "Y"):
+            if name in channels:
+                return np.ascontiguousarray(channels[name].pixels, dtype=np.float32)
+        if len(channels) != 1:
+            raise InputError(path, f"unsupported EXR channels {sorted(channels)}")
+        return np.ascontiguousarray(next(iter(channels.values())).pixels, dtype=np.float32)
 
 
 def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
-    """Write HxW (channel Y), HxWx3 (RGB) or HxWx4 (RGBA), ZIP-compressed."""
+    """Write HxW (channel Y), HxWx3 (RGB) or HxWx4 (RGBA), ZIP-compressed, atomically. OpenEXR
+    writes into a file Python opened: a full disk is the ``OSError`` it is (OpenEXR's own file
+    raised a ``RuntimeError``), named as ``path``."""
     import OpenEXR
 
     path = Path(path)
@@ -184,8 +269,15 @@ def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
         arr = np.ascontiguousarray(arr[..., 0])
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_path(path) as tmp:
-        OpenEXR.File(header, {name: arr}).write(str(tmp))
+        write_stream(tmp, lambda stream: OpenEXR.File(header, {name: arr}).write(stream))
     return path
+
+
+def write_stream(tmp: Path, write) -> None:
+    """``write(stream)`` into ``tmp``, a file Python opens (a library handed a stream writes under
+    any name and fails with the ``OSError`` it is)."""
+    with open(tmp, "wb") as stream:
+        write(stream)
 
 
 def read_png(path) -> np.ndarray:

@@ -1,0 +1,57 @@
+"""Stop signals reach the main thread's Python handler and never interrupt another thread
+(viewer.stop_signals): real processes, real signals."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import textwrap
+
+CHILD = textwrap.dedent("""
+    import json, os, signal, sys, threading, time
+    from viewer.stop_signals import route_to_main_thread
+    seen = []
+    signal.signal(signal.SIGTERM, lambda s, f: seen.append((s, threading.current_thread().name)))
+    signal.signal(signal.SIGINT, {sigint})
+    route_to_main_thread()
+    masks = []
+    t = threading.Thread(target=lambda: masks.append(signal.pthread_sigmask(signal.SIG_BLOCK, [])))
+    t.start(); t.join()
+    os.kill(os.getpid(), signal.{sig})
+    start = time.process_time()
+    deadline = time.monotonic() + 0.5
+    while time.monotonic() < deadline and not seen:
+        time.sleep(0.01)
+    time.sleep(0.2)
+    print(json.dumps({{"seen": seen, "cpu": time.process_time() - start,
+                      "blocked": sorted(int(s) for s in masks[0] & {{signal.SIGINT, signal.SIGTERM, signal.SIGHUP}})}}))
+""")
+
+
+def run_child(sig: str, sigint: str = "signal.default_int_handler"):
+    proc = subprocess.run([sys.executable, "-c", CHILD.format(sig=sig, sigint=sigint)], capture_output=True,
+                          text=True, timeout=60)
+    return proc, (json.loads(proc.stdout) if proc.returncode == 0 else None)
+
+
+def test_a_signal_runs_its_python_handler_on_the_main_thread_and_other_threads_block_it():
+    proc, out = run_child("SIGTERM")
+    assert proc.returncode == 0, proc.stderr
+    assert out["seen"] == [[int(signal.SIGTERM), "MainThread"]]
+    assert out["blocked"] == sorted([int(signal.SIGINT), int(signal.SIGTERM), int(signal.SIGHUP)])
+
+
+def test_an_ignored_signal_is_dropped_without_spinning():
+    """SIGINT ignored (a job started in the background): the forwarding thread drops it and does not
+    take it again and again."""
+    proc, out = run_child("SIGINT", sigint="signal.SIG_IGN")
+    assert proc.returncode == 0, proc.stderr
+    assert out["seen"] == []
+    assert out["cpu"] < 0.2  # CPU seconds over the 0.7 s it waited
+
+
+def test_a_signal_left_to_its_default_ends_the_process():
+    proc, _ = run_child("SIGHUP")
+    assert proc.returncode == -signal.SIGHUP, (proc.returncode, proc.stdout, proc.stderr)

@@ -1,0 +1,50 @@
+"""SIGINT, SIGTERM and SIGHUP reach relight's Python code, never its native code.
+
+The kernel runs a signal's handler on a thread it picks, in the middle of whatever that thread is
+doing. Python's own C handler only notes the signal, yet llvmpipe's shader compiler (LLVM) crashed
+with SIGSEGV when SIGTERM arrived while it compiled a program: 1 render in about 100 signalled at a
+random moment beside two busy processes, with interrupted system calls set to restart.
+
+So ``relight`` blocks these signals in every thread (threads started later, llvmpipe's, torch's and
+the video encoder's, inherit the mask) and one daemon thread takes them with ``sigwait`` and hands
+each to the main thread as if it had arrived there (``_thread.interrupt_main``): the Python handler
+runs between two bytecodes of the main thread, as it did, and no native code is ever interrupted.
+A main thread blocked in a wait sees the signal when the wait ends (the window's loop waits at most
+0.25 s). Processes started by relight inherit the mask; the viewer's worker child ends with its
+standard input or when the window kills it, never on a signal.
+"""
+
+from __future__ import annotations
+
+import _thread
+import signal
+import threading
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def route_to_main_thread() -> None:
+    """Block :data:`STOP_SIGNALS` in this process's threads and forward them to the main thread's
+    Python handlers from a daemon thread. Called once, from the main thread, before any other
+    thread starts (relight's entry point, :func:`viewer.cli.run`)."""
+    if threading.current_thread() is not threading.main_thread():
+        raise RuntimeError("stop signals are routed from the main thread")
+    signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    threading.Thread(target=_forward, name="stop-signals", daemon=True).start()
+
+
+def _forward() -> None:
+    while True:
+        deliver(signal.sigwait(STOP_SIGNALS))
+
+
+def deliver(signum: int) -> None:
+    """``signum`` to the main thread's handler as if it had just arrived: a Python handler runs
+    between the main thread's next two bytecodes; an ignored signal is dropped; one left to its
+    default action ends the process, as the kernel would have."""
+    handler = signal.getsignal(signum)
+    if callable(handler):
+        _thread.interrupt_main(signum)
+    elif handler == signal.SIG_DFL:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, [signum])
+        signal.raise_signal(signum)
