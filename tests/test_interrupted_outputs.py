@@ -137,3 +137,38 @@ def test_sigterm_and_sighup_end_a_render_like_ctrl_c(tmp_path, sig):
         out.write_bytes(old[0])
         out.with_suffix(".exr").write_bytes(old[1])
     assert interrupted >= 1
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A folder on a 400 KB file system (a tmpfs, mounted as root; otherwise the children may write
+    at most 400 KB to any file, RLIMIT_FSIZE: the same failed write, EFBIG instead of ENOSPC)."""
+    folder = tmp_path / "small"
+    folder.mkdir()
+    if os.geteuid() == 0:
+        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(folder)], check=True)
+        try:
+            yield folder, None
+        finally:
+            subprocess.run(["umount", str(folder)], check=True)
+    else:
+        import resource
+
+        yield folder, lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
+
+
+def test_a_full_disk_ends_in_one_line_naming_the_file_and_keeps_the_old_outputs(small_disk):
+    folder, limit = small_disk
+    out = folder / "x.png"
+    args = ("render", SCENE, LIGHTS, "-o", out)
+    assert subprocess.run(relight(*args, "--size", "64"), capture_output=True).returncode == 0
+    old = {p.name: p.read_bytes() for p in folder.iterdir()}
+    if limit is None:  # what is left of the disk: less than the new frame's PNG and EXR need
+        free = os.statvfs(folder).f_bavail * os.statvfs(folder).f_frsize
+        (folder / "filler").write_bytes(os.urandom(max(free - 40_000, 0)))
+        old["filler"] = (folder / "filler").read_bytes()
+    proc = subprocess.run(relight(*args, "--size", "512", "--yaw", "90"), capture_output=True, text=True, preexec_fn=limit)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert lines[0].startswith(f"relight: error: {folder}/x.") and ("No space left" in lines[0] or "too large" in lines[0])
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == old  # the old frame whole, no temporary file

@@ -173,3 +173,69 @@ def test_an_exr_header_claiming_a_huge_image_is_refused_before_decoding(tmp_path
     with pytest.raises(InputError, match="megapixels|cannot read EXR") as info:
         read_exr(path)
     assert str(path) in str(info.value) and "\n" not in str(info.value)
+
+
+@settings(max_examples=10, deadline=None)
+@given(lines=st.integers(min_value=0, max_value=20_000), width=st.integers(min_value=1, max_value=90_000))
+def test_a_radiance_header_of_any_length_is_read(tmp_path_factory, lines, width):
+    """Tools write history and comments into a .hdr header: a long one (over 64 KB, or one line of
+    90,000 characters) is still a map, read with the same pixels."""
+    head, rest = HDR.split(b"\n\n", 1)
+    comments = b"".join(b"\n# comment %d" % i for i in range(lines)) + b"\n# " + b"x" * width
+    path = tmp_path_factory.mktemp("hdr") / "map.hdr"
+    path.write_bytes(head + comments + b"\n\n" + rest)
+    plain = tmp_path_factory.getbasetemp() / "plain.hdr"
+    plain.write_bytes(HDR)
+    assert (load_envmap(path).pixels == load_envmap(plain).pixels).all()
+
+
+def test_a_header_without_its_end_is_refused_in_one_line(tmp_path):
+    from viewer.envmap import MAX_RGBE_HEADER
+
+    path = tmp_path / "map.hdr"
+    with open(path, "wb") as f:
+        f.write(b"#?RADIANCE\n")
+        f.write(b"# x\n" * (MAX_RGBE_HEADER // 4 + 10))
+    with pytest.raises(InputError, match="no end of header"):
+        load_envmap(path)
+
+
+def test_names_that_are_not_utf8_are_read_and_outputs_refused_in_one_line(tmp_path):
+    """A map and a bundle whose names hold a byte that is not UTF-8 are read (OpenCV's own open
+    crashed on one); such an output name is refused in one line, the byte shown as \\xff."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    folder = os.fsencode(tmp_path)
+    shutil.copy(ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr", folder + b"/m\xff.hdr")
+    shutil.copytree(ROOT / "assets" / "sample_scene", os.fsdecode(folder + b"/s\xff"))
+    run = [sys.executable, "-m", "viewer.cli", "render", folder + b"/s\xff", "--env", folder + b"/m\xff.hdr",
+           "-n", "4", "--method", "median-cut", "--size", "64", "-o"]
+    env = {**os.environ, "RELIGHT_CACHE": str(tmp_path / "cache")}
+    ok = subprocess.run(run + [folder + b"/ok.png"], capture_output=True, env=env)
+    assert ok.returncode == 0 and (tmp_path / "ok.png").is_file(), ok.stderr
+    bad = subprocess.run(run + [folder + b"/\xfe.png"], capture_output=True, env=env)
+    lines = bad.stderr.decode("utf-8", "replace").strip().splitlines()
+    assert bad.returncode == 2 and len(lines) == 1 and "\\xfe.png: the path is not valid UTF-8" in lines[0], lines
+    assert not any(os.fsencode(p.name).startswith(b"\xfe") or p.name.startswith(".") for p in tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("cut", [1000, 3000, 0.9])
+def test_a_damaged_exr_is_one_line_with_openexrs_own_words(tmp_path, cut):
+    """OpenEXR prints its own C++ lines before it raises: they are folded into the one line."""
+    import subprocess
+    import sys
+
+    data = (ROOT / "assets" / "sample_scene" / "albedo.exr").read_bytes()
+    bundle = tmp_path / "bundle"
+    import shutil
+
+    shutil.copytree(ROOT / "assets" / "sample_scene", bundle)
+    (bundle / "albedo.exr").write_bytes(data[: int(cut * len(data)) if isinstance(cut, float) else cut])
+    proc = subprocess.run([sys.executable, "-m", "viewer.cli", "render", str(bundle), str(ROOT / "assets" / "envmaps" /
+                           "venice_sunset_256.lights.json"), "-o", str(tmp_path / "x.png")], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stdout == "", (proc.stdout, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"relight: error: {bundle / 'albedo.exr'}: cannot read EXR"), lines

@@ -2,8 +2,10 @@
 
 
 def one_line(text: str) -> str:
-    """``text`` with control characters (a newline in a file name) shown escaped: a message stays one line."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+    """``text`` with control characters (a newline in a file name) shown escaped: a message stays one
+    line. A name's bytes that are not UTF-8 (kept by Python as surrogates) are shown as ``\\xff``."""
+    text = str(text).encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 class InputError(ValueError):

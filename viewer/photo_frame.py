@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import InputError
 from .file_kinds import wrong_kind
-from .imageio import MAX_IMAGE_PIXELS
+from .imageio import MAX_IMAGE_PIXELS, check_pixels
 
 MAX_SIZE = 2048  # default longer side of every output
 WORK_PERSON = 512  # default pixels of the person's longer side in the work frame
@@ -114,9 +114,7 @@ def read_image_u8(path, what: str, notes: list) -> np.ndarray:
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             opened = Image.open(path)
         with opened as im:
-            if im.width * im.height > MAX_PIXELS:  # Pillow itself only refuses twice its limit
-                raise InputError(path, f"the {what} has {im.width}x{im.height} pixels, more than "
-                                       f"{MAX_PIXELS // 1_000_000} megapixels")
+            check_pixels(path, im.width, im.height, MAX_PIXELS)  # Pillow itself only refuses twice its limit
             orientation = im.getexif().get(0x0112, 1)
             upright = ImageOps.exif_transpose(im)
             upright.load()
