@@ -178,3 +178,49 @@ def test_a_device_the_machine_lacks_is_named_not_the_weights(tmp_path):
         assert res.returncode == 2 and words in res.stderr and f"--device" in res.stderr, res.stderr
         assert "safetensors" not in res.stderr and res.stderr.count("\n") == 1
     assert not (tmp_path / "b").exists()
+
+
+def test_work_past_the_memory_and_time_budgets_is_refused_before_it_starts(tmp_path):
+    """Sizes asked for that would not fit (a render at --size 8192 with its frame, was killed by the
+    kernel at 23.6 GB; `fast` with 256 lights took 197 s and 9 GB; a card describing 40 GB of weights
+    thrashed the machine): one line, at once, saying what would fit."""
+    import re
+    import shutil
+    import time
+
+    from viewer.resources import network_dir, sample_scene_dir
+
+    nets = tmp_path / "nets"
+    shutil.copytree(network_dir(), nets)
+    card = json.loads((nets / "inverse.json").read_text())
+    card["model"].update(width=256, levels=8)
+    (nets / "inverse.json").write_text(json.dumps(card))
+    env = asset_dir() / "envmaps" / "venice_sunset_256.hdr"
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    for args, said in (
+        (("render", sample_scene_dir(), "--env", env, "--size", "8192", "--max-size", "16384", "-o", tmp_path / "x.png"),
+         r"rendering maps of 8192 px would need about \d+\.\d GB of memory, more than the \d+\.\d GB this machine can "
+         r"give now \(--size \d+ or less fits\)"),
+        (("fit-lights", env, "-n", "256", "--method", "fast", "-o", tmp_path / "l.json"),
+         "--method fast fits at most 64 lights"),
+        (("render", sample_scene_dir(), "--env", env, "-n", "65", "--method", "paper", "-o", tmp_path / "y.png"),
+         "--method paper fits at most 64 lights"),
+        (("infer", photo, "--size", "64", "--networks", nets, "-o", tmp_path / "b"),
+         "inverse.json: the card describes another network than inverse.safetensors holds"),
+    ):
+        start = time.monotonic()
+        res = run_cli(*map(str, args))
+        lines = res.stderr.strip().splitlines()
+        assert res.returncode == 2 and len(lines) == 1, res.stderr
+        assert re.search(said, lines[0]), lines[0]
+        assert time.monotonic() - start < 30
+    assert not any(tmp_path.glob("[xyb]*")) and not (tmp_path / "l.json").exists()
+
+
+def test_the_render_estimate_holds_the_largest_size_it_offers_within_the_budget():
+    from viewer import budget
+
+    for aspect, frame in ((1.0, 0), (0.665, 1362 * 2048), (0.3, 4096 * 4096)):
+        side = budget.largest_render_size(aspect, frame)
+        assert budget.render_bytes(side * side * aspect, frame) <= budget.memory_budget()
+        assert budget.render_bytes((side + 256) ** 2 * aspect, frame) > budget.memory_budget() or side >= 8192

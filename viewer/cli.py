@@ -43,14 +43,17 @@ def _lights_count(args) -> int:
 
     if args.lights_count is None:
         return preset(args.preset or DEFAULT_PRESET).lights
-    return _light_count_option(args.lights_count)
+    return _light_count_option(args.lights_count, args.method)
 
 
-def _light_count_option(n: int) -> int:
+def _light_count_option(n: int, method: str | None) -> int:
+    """``-n``, checked before a map is read: the engine's limit, and the method's."""
+    from .lightfit.methods import check_light_count
     from .lights import MAX_LIGHTS
 
     if not 1 <= n <= MAX_LIGHTS:
         raise InputError(None, f"-n: the number of lights must be in [1, {MAX_LIGHTS}], got {n}")
+    check_light_count(method or DEFAULT_METHOD, n)
     return n
 
 
@@ -522,9 +525,10 @@ def cmd_fit_lights(args) -> int:
         if Path(args.plot).resolve() == out.resolve():
             raise InputError(args.plot, "is the light file's path too: give the plot its own")
     _not_an_input([p for p in (out, args.plot) if p], [args.map])
+    n = _light_count_option(args.n, args.method)
     env = load_envmap(args.map, repair=args.repair)
     start = time.perf_counter()
-    lights, cached = _fitted_lights(env, _light_count_option(args.n), args.method, refit=args.refit)
+    lights, cached = _fitted_lights(env, n, args.method, refit=args.refit)
     seconds = time.perf_counter() - start
     how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
     if out is None:

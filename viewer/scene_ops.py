@@ -16,18 +16,41 @@ def load_sized_scene(path, size: int | None = None, max_size: int | None = None)
     from .photo_frame import scaled_size
 
     scene = load_scene(path)
+    if size is not None and not 16 <= size <= 8192:
+        raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
+    if max_size is not None and not 16 <= max_size <= 16384:
+        raise InputError(None, f"--max-size must be within [16, 16384] pixels, got {max_size}")
+    _check_render_memory(scene, size, max_size)
     if size is not None:
-        if not 16 <= size <= 8192:
-            raise InputError(None, f"--size must be within [16, 8192] pixels, got {size}")
         scene = resample_scene(scene, size, keep_frame=True)
     if max_size is not None:
-        if not 16 <= max_size <= 16384:
-            raise InputError(None, f"--max-size must be within [16, 16384] pixels, got {max_size}")
         if scene.frame is not None and max(scene.output_size) > max_size:
             scene.frame = scene.frame.resized(scaled_size(scene.output_size, max_size))
         elif scene.frame is None and max(scene.output_size) > max_size:
             scene = resample_scene(scene, max_size)
     return scene
+
+
+def _check_render_memory(scene: Scene, size: int | None, max_size: int | None) -> None:
+    """Refuse, before resampling, maps and a frame whose render would not fit this machine's memory
+    (``render --size 8192`` was killed by the kernel at 23.6 GB): see :mod:`viewer.budget`."""
+    from . import budget
+    from .photo_frame import scaled_size
+
+    h, w = scene.height, scene.width
+    long_side = size if size is not None else max(h, w)
+    aspect = min(h, w) / max(h, w)
+    if scene.frame is not None:
+        frame = scene.output_size if max_size is None or max(scene.output_size) <= max_size \
+            else scaled_size(scene.output_size, max_size)
+        map_pixels = long_side * long_side * aspect
+    else:  # the maps are the frame, at most max_size
+        long_side = min(long_side, max_size) if max_size is not None else long_side
+        frame = (long_side, long_side * aspect)
+        map_pixels = long_side * long_side * aspect
+    frame_pixels = int(frame[0] * frame[1])
+    budget.require(budget.render_bytes(map_pixels, frame_pixels), f"rendering maps of {long_side} px",
+                   f"--size {budget.largest_render_size(aspect, frame_pixels)} or less fits")
 
 
 def resample_scene(scene: Scene, size: int, keep_frame: bool = False) -> Scene:

@@ -51,7 +51,7 @@ from ..errors import InputError
 from ..lights import AreaLights
 from ..median_cut import SIGMA_MAX, median_cut_lights
 from .adam import CosineAdam
-from .methods import DEFAULT_METHOD, METHODS
+from .methods import DEFAULT_METHOD, METHODS, check_light_count
 from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
 
 FAST_STEPS = 300
@@ -87,6 +87,7 @@ def fit_lights(env: EnvMap, n: int, method: str = DEFAULT_METHOD, settings: FitS
         raise InputError(None, f"unknown fitting method {method!r} (choose from {', '.join(METHODS)})")
     if n < 1:
         raise InputError(env.source, f"the number of lights must be >= 1, got {n}")
+    check_light_count(method, n, env.source)
     if not np.any(env.pixels > 0):
         warnings.warn(f"{env.source or 'environment map'}: the map is black (every pixel is 0): "
                       f"its {n} lights have zero intensity", stacklevel=2)

@@ -31,11 +31,33 @@ def load_network(path, device="cpu") -> UNet:
         if inputs is not None and (inputs not in known or in_channels(inputs) != cfg["in_channels"]):
             raise ValueError(f"inputs {inputs!r} are not one of {' or '.join(map(str, known))} adding up to "
                              f"{cfg['in_channels']} channels")
-        model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"), inputs)
+        import torch
+
+        with torch.device("meta"):  # shapes only: a card may describe a network of many gigabytes
+            shapes = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"), inputs)
     except (ValueError, KeyError, TypeError, AttributeError, RuntimeError, IndexError) as exc:
         raise InputError(card_path, f"not a network card this program reads ({type(exc).__name__}: {exc})") from None
+    _check_weights_match(path, card_path, {k: tuple(v.shape) for k, v in shapes.state_dict().items()})
+    model = UNet(cfg["in_channels"], cfg["outputs"], cfg["width"], cfg["levels"], cfg.get("vectors"), inputs)
     try:
         model.load_state_dict(load_file(str(path), device=str(device)))
     except Exception as exc:  # a truncated file, other shapes than the card says
         raise InputError(path, f"cannot load these weights ({type(exc).__name__}: {str(exc).splitlines()[0]})") from None
     return model.eval().to(device)
+
+
+def _check_weights_match(path: Path, card_path: Path, expected: dict) -> None:
+    """The card's network has the tensors the weights file holds, read from the file's header
+    before anything is allocated (a card of width 256 and 8 levels described 40 GB of weights
+    beside a file of 0.4 MB: building it thrashed the machine)."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            stored = {k: tuple(f.get_slice(k).get_shape()) for k in f.keys()}
+    except Exception as exc:  # a truncated or foreign file
+        raise InputError(path, f"cannot read these weights ({type(exc).__name__}: {str(exc).splitlines()[0]})") from None
+    if stored != expected:
+        differ = sorted(set(stored) ^ set(expected)) or [k for k in expected if stored[k] != expected[k]]
+        raise InputError(card_path, f"the card describes another network than {path.name} holds "
+                                    f"({len(differ)} tensor(s) differ, first {differ[0]})")

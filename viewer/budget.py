@@ -1,0 +1,74 @@
+"""Memory budgets: what a command will need, estimated from the sizes asked before anything large
+is allocated, held to what this machine can give.
+
+The budget is 80 % of the memory available when the command starts (``MemAvailable``, bounded by
+the cgroup's limit): past it the command is refused in one line that says what would fit, instead
+of being killed by the kernel or thrashing the machine. The estimates are peak resident sizes
+measured with ``/usr/bin/time -f %M`` on this project's 2-core machine (docs/robustness.md) and
+checked by ``relight bench robustness``, which records every case's peak beside the budget.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import InputError
+
+BUDGET_SHARE = 0.8
+GB = 1e9
+
+# a frame rendered from a scene bundle (render, video, the viewer): measured on a photo bundle
+# (maps 391x588 to 2724x4096, frame 1362x2048) and the sample (maps = frame, 256 to 2048 px):
+# 0.66 / 0.99 / 2.41 / 7.48 GB at maps of 0.23 / 0.70 / 2.79 / 11.2 MP; the frame adds ~110 B a pixel
+RENDER_BASE = 0.35 * GB
+RENDER_PER_MAP_PIXEL = 610
+RENDER_PER_FRAME_PIXEL = 110
+
+
+def _meminfo_available() -> int | None:
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def _cgroup_room() -> int | None:
+    """What the cgroup (v2) still lets this process group take, if it sets a limit."""
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        if limit == "max":
+            return None
+        return int(limit) - int(Path("/sys/fs/cgroup/memory.current").read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def memory_budget() -> int:
+    """Bytes a command may plan to use: :data:`BUDGET_SHARE` of what is available now."""
+    room = [v for v in (_meminfo_available(), _cgroup_room()) if v is not None]
+    return int(BUDGET_SHARE * min(room)) if room else int(8 * GB)
+
+
+def require(need: float, what: str, advice: str, path=None) -> None:
+    """Refuse in one line when ``need`` bytes are past the budget: what would need them, how much
+    is free, and ``advice`` (what would fit)."""
+    budget = memory_budget()
+    if need > budget:
+        raise InputError(path, f"{what} would need about {need / GB:.1f} GB of memory, more than the "
+                               f"{budget / GB:.1f} GB this machine can give now ({advice})")
+
+
+def render_bytes(map_pixels: int, frame_pixels: int) -> float:
+    """Peak memory of rendering a scene whose maps and frame have these many pixels."""
+    return RENDER_BASE + RENDER_PER_MAP_PIXEL * map_pixels + RENDER_PER_FRAME_PIXEL * frame_pixels
+
+
+def largest_render_size(aspect: float, frame_pixels: int) -> int:
+    """The largest ``--size`` (the maps' longer side, a multiple of 256) whose render fits the budget,
+    for maps whose shorter side is ``aspect`` times the longer."""
+    room = memory_budget() - RENDER_BASE - RENDER_PER_FRAME_PIXEL * frame_pixels
+    side = int((max(room, 0) / (RENDER_PER_MAP_PIXEL * aspect)) ** 0.5)
+    return max(side // 256 * 256, 16)
