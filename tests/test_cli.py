@@ -224,3 +224,23 @@ def test_the_render_estimate_holds_the_largest_size_it_offers_within_the_budget(
         side = budget.largest_render_size(aspect, frame)
         assert budget.render_bytes(side * side * aspect, frame) <= budget.memory_budget()
         assert budget.render_bytes((side + 256) ** 2 * aspect, frame) > budget.memory_budget() or side >= 8192
+
+
+def test_a_photo_whose_frame_would_not_fit_memory_is_refused_from_its_header(tmp_path):
+    """A 12000x8011 photo at --max-size 12000 was killed by the kernel at 24.4 GB: the frame's
+    memory is estimated from the photo's header and the command refused at once, saying what fits."""
+    import re
+
+    from PIL import Image
+
+    from viewer import budget
+
+    photo = tmp_path / "wide.png"
+    Image.new("RGB", (16000, 10000), (90, 80, 70)).save(photo)  # 16000x10000: 120 MB decoded, a few KB on disk
+    res = run_cli("infer", str(photo), "--max-size", "16384", "-o", str(tmp_path / "b"))
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1, res.stderr
+    side = int(re.search(r"--max-size (\d+) or less fits", lines[0]).group(1))
+    assert lines[0].startswith(f"relight: error: {photo}: a 16000x10000 frame from this photo would need about")
+    assert budget.infer_bytes(16000 * 10000, side * side * 10000 // 16000) <= budget.memory_budget()
+    assert not (tmp_path / "b").exists()

@@ -24,6 +24,12 @@ RENDER_BASE = 0.35 * GB
 RENDER_PER_MAP_PIXEL = 610
 RENDER_PER_FRAME_PIXEL = 110
 
+# a photo inferred into a bundle: measured on a 12000x8011 photo, frame 2048 and 4096 px long:
+# 2.07 and 4.36 GB (at 12000 px long the kernel killed it at 24.4 GB)
+INFER_BASE = 1.0 * GB
+INFER_PER_PHOTO_PIXEL = 6  # the decoded photo and its mask
+INFER_PER_FRAME_PIXEL = 275
+
 
 def _meminfo_available() -> int | None:
     try:
@@ -71,4 +77,16 @@ def largest_render_size(aspect: float, frame_pixels: int) -> int:
     for maps whose shorter side is ``aspect`` times the longer."""
     room = memory_budget() - RENDER_BASE - RENDER_PER_FRAME_PIXEL * frame_pixels
     side = int((max(room, 0) / (RENDER_PER_MAP_PIXEL * aspect)) ** 0.5)
+    return max(side // 256 * 256, 16)
+
+
+def infer_bytes(photo_pixels: int, frame_pixels: int) -> float:
+    """Peak memory of inferring a bundle from a photo of this many pixels into a frame of these."""
+    return INFER_BASE + INFER_PER_PHOTO_PIXEL * photo_pixels + INFER_PER_FRAME_PIXEL * frame_pixels
+
+
+def largest_frame_side(photo_pixels: int, aspect: float) -> int:
+    """The largest ``--max-size`` (a multiple of 256) whose inference fits the budget."""
+    room = memory_budget() - INFER_BASE - INFER_PER_PHOTO_PIXEL * photo_pixels
+    side = int((max(room, 0) / (INFER_PER_FRAME_PIXEL * aspect)) ** 0.5)
     return max(side // 256 * 256, 16)

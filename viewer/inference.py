@@ -28,6 +28,7 @@ from __future__ import annotations
 import json
 import shutil
 import time
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -224,6 +225,26 @@ def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int
     return result["record"]
 
 
+def _check_memory(photo_path, max_size: int) -> None:
+    """Refuse, from the photo's header, a frame whose inference would not fit this machine's memory
+    (a 12000x8011 photo at --max-size 12000 was killed by the kernel at 24.4 GB): viewer.budget."""
+    from PIL import Image, UnidentifiedImageError
+
+    from . import budget
+
+    try:
+        with warnings.catch_warnings():  # the size is all that is read here; read_photo checks the rest
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(photo_path) as im:
+                w, h = im.size
+    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError):
+        return  # not an image this program reads: read_photo says so in its one line
+    fw, fh = output_frame((w, h), max_size)
+    budget.require(budget.infer_bytes(w * h, fw * fh), f"a {fw}x{fh} frame from this photo",
+                   f"--max-size {budget.largest_frame_side(w * h, min(fw, fh) / max(fw, fh))} or less fits",
+                   photo_path)
+
+
 def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
                 keep_intermediate: bool = False) -> dict:
@@ -243,6 +264,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
 
     stage = _Stages(progress)
     notes: list[str] = []
+    _check_memory(photo_path, max_size)
     photo = read_photo(photo_path, notes)
     h, w = photo.shape[:2]
     frame = output_frame((w, h), max_size)
