@@ -83,15 +83,18 @@ def test_any_bytes_as_a_mask_are_refused_in_one_line(tmp_path, data):
 
 
 def test_the_bad_input_campaign_ends_cleanly(tmp_path):
-    """Every case of ``relight bench robustness`` (over 150: hostile light files, maps, bundles,
-    looks, caches, photos and options on the real CLI) exits 0 or 2 with one line, writes nothing
-    on an error and leaves its inputs as they were."""
+    """Every case of ``relight bench robustness`` (over 250: hostile light files, maps, bundles,
+    looks, caches, photos and options, a user's files beside the outputs, links out of a bundle,
+    unbounded numbers and headers, sizes past the memory budget, signals at random moments, a full
+    disk, two writers racing) exits 0 or 2 with one line, writes nothing on an error, leaves its
+    inputs as they were and stays under the memory budget."""
     from viewer.lab.bench.robustness import run_robustness_benchmark
 
     report = run_robustness_benchmark(work=tmp_path / "work", output=tmp_path / "robustness.json")
     failed = [(c["group"], c["name"], c["result"]["problems"], c["result"]["last_line"]) for c in report["cases"]
               if not c["result"]["clean"]]
-    assert report["tried"] >= 150 and failed == [] and report["tracebacks"] == 0
+    assert report["tried"] >= 250 and failed == [] and report["tracebacks"] == 0
+    assert all(0 < c["result"]["peak_mb"] <= report["memory_budget_mb"] for c in report["cases"])
     assert json.loads((tmp_path / "robustness.json").read_text())["clean"] == report["tried"]
 
 

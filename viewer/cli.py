@@ -522,7 +522,7 @@ def cmd_fit_lights(args) -> int:
         if Path(args.plot).suffix.lower() != ".png":
             raise InputError(args.plot, "the plot is a PNG: give a .png path")
         _writable(args.plot)
-        if Path(args.plot).resolve() == out.resolve():
+        if out is not None and Path(args.plot).resolve() == out.resolve():
             raise InputError(args.plot, "is the light file's path too: give the plot its own")
     _not_an_input([p for p in (out, args.plot) if p], [args.map])
     n = _light_count_option(args.n, args.method)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -46,6 +47,29 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap) < min(p, 0.999) else (lo, mid)
     return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
+
+
+WHITE_SHARE = 0.9  # of the person's pixels clipped to white: the lights are far too bright for the exposure
+
+
+def warn_if_white(engine, scene: Scene, settings: Look) -> None:
+    """One warning line when the person comes out white: lights far brighter than the exposure can
+    show (light files allow intensities up to 1e20; a silhouette was all one got). Uses the engine's
+    current render."""
+    from .detail import luminance
+    from .settings import EXPOSURE_LIMIT
+
+    if not scene.mask.any():
+        return
+    lum = luminance(engine.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
+    if np.mean(tonemap_curve(lum, settings.tonemap) >= 0.99) < WHITE_SHARE:
+        return
+    stops = float(np.log2(max(np.median(lum), 1e-30) / 0.18))
+    lower = settings.exposure - stops
+    advice = (f"try --exposure {lower:.0f}" if lower >= -EXPOSURE_LIMIT
+              else f"lower the lights' intensities (--exposure goes down to -{EXPOSURE_LIMIT:.0f} stops)")
+    warnings.warn(f"the person comes out white: the lights are about {stops:.0f} stops brighter than exposure "
+                  f"{settings.exposure:+.1f} shows; {advice}", stacklevel=2)
 
 
 def effective_background(settings: Look, scene: Scene, has_environment: bool) -> str:
@@ -111,6 +135,7 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, see :func:`apply_settings`)."""
     out_dir = Path(out_dir)
     settings, _ = render_look(engine, scene, lights, settings, environment, fixed)
+    warn_if_white(engine, scene, settings)
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
     hdr = engine.read_output_hdr()
@@ -153,6 +178,8 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
         for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
             apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None, fixed)
             refiner = render_frame(engine, settings, refiner)
+            if i == 0:
+                warn_if_white(engine, scene, settings)
             video.write(engine.read_display())
             if progress is not None:
                 progress(i + 1, frames)

@@ -219,14 +219,15 @@ def cmd_bench(args) -> int:
 
         def show(case):
             r = case.result
-            print(f"  {'clean' if r['clean'] else 'NOT CLEAN'}: {case.group}: {case.name} (exit {r['exit']}, {r['seconds']:.1f} s)"
+            print(f"  {'clean' if r['clean'] else 'NOT CLEAN'}: {case.group}: {case.name} (exit {r['exit']}, {r['seconds']:.1f} s, "
+                  f"{r['peak_mb']} MB)"
                   + ("" if r["clean"] else f": {'; '.join(r['problems'])}: {r['last_line']}"), flush=True)
 
         result = run_robustness_benchmark(output=output, progress=show)
         for group, g in result["groups"].items():
-            print(f"{group:>16}: {g['clean']}/{g['tried']} clean")
+            print(f"{group:>20}: {g['clean']}/{g['tried']} clean, peak {g['peak_mb']} MB")
         print(f"{result['tried']} cases tried, {result['clean']} ended cleanly, {result['tracebacks']} tracebacks, "
-              f"in {result['seconds'] / 60:.1f} min; wrote {output}")
+              f"memory budget {result['memory_budget_mb']} MB, in {result['seconds'] / 60:.1f} min; wrote {output}")
     elif args.what == "shadows":
         from .bench.shadows import run_shadow_benchmark
 

@@ -1,0 +1,207 @@
+"""Cases of more than one command: SIGTERM and SIGHUP at random moments of a frame's and a video's
+write, a full disk, two writers racing for one output. Each returns its problems (empty: clean),
+the largest peak of its processes and the exit code of the one the case is about."""
+
+from __future__ import annotations
+
+import os
+import random
+import shutil
+import signal
+import subprocess
+import time
+from functools import partial
+from pathlib import Path
+
+from viewer.resources import asset_dir, sample_scene_dir
+
+from .case import Scenario, peak_of, run_command, start_command
+
+SCENE = sample_scene_dir()
+LIGHTS = asset_dir() / "envmaps" / "venice_sunset_256.lights.json"
+PHOTO = asset_dir() / "photos" / "underpass.jpg"
+MASK = asset_dir() / "photos" / "underpass.mask.png"
+
+
+def scenarios(seed: int = 33) -> list[Scenario]:
+    rng = random.Random(seed)
+    cases = []
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        for k in range(3):
+            fraction = rng.uniform(0.1, 1.0)
+            cases.append(Scenario("interrupted outputs", f"{sig.name} at {fraction:.0%} of a frame's render",
+                                  partial(_signal_a_frame, sig, fraction)))
+        fraction = rng.uniform(0.3, 0.9)
+        cases.append(Scenario("interrupted outputs", f"{sig.name} at {fraction:.0%} of a video's render",
+                              partial(_signal_a_video, sig, fraction)))
+    cases.append(Scenario("interrupted outputs", "a full disk while a frame is written", _full_disk))
+    cases.append(Scenario("read-only folders", "fit-lights --plot beside a map in a read-only folder", _read_only_map))
+    for k in range(2):
+        cases.append(Scenario("two writers", f"two infer into one -o at once ({k + 1})", partial(_two_writers, k)))
+    return cases
+
+
+def _start(args, folder: Path):
+    """``relight ARGS`` started in ``folder``; :func:`_reap` ends it."""
+    proc = start_command(args, folder.parent / f".peak_{folder.name}_{time.monotonic_ns()}", cwd=folder)
+    proc.peak_file = Path(proc.args[3])
+    return proc
+
+
+def _reap(proc) -> tuple[int, str, int]:
+    """Exit code, stderr and peak KB of a process started by :func:`_start`."""
+    _, err = proc.communicate()
+    peak = peak_of(proc.peak_file)
+    proc.peak_file.unlink(missing_ok=True)
+    return proc.returncode, err.decode("utf-8", "replace"), peak
+
+
+def _leftovers(folder: Path, keep: set) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name not in keep)
+
+
+def _interrupted(sig, code: int, err: str) -> list[str]:
+    """What an interrupted command may end with: done before the signal (0), the one interrupted line
+    (130), or ended by it while Python itself was starting, before anything was written."""
+    lines = err.strip().splitlines()
+    if code == 130:
+        return [] if lines and lines[-1].startswith(f"relight: interrupted ({sig.name})") and "Traceback" not in err \
+            else [f"exit 130 without the one line: {err[-200:]!r}"]
+    return [] if code in (0, -sig) and "Traceback" not in err else [f"exit {code}: {err[-200:]!r}"]
+
+
+def _signal_a_frame(sig, fraction: float, work: Path):
+    folder = work / "scenarios" / f"frame_{sig.name}_{fraction:.3f}"
+    folder.mkdir(parents=True)
+    args = ("render", SCENE, LIGHTS, "--size", "128", "-o", folder / "x.png")
+    code, _, err, seconds, peak = run_command([*args, "--yaw", "90"])  # its time, and the old outputs
+    if code != 0:
+        return [f"the first render failed: {err[-200:]}"], peak, code
+    old = {p.name: p.read_bytes() for p in folder.iterdir()}
+    proc = _start([*args, "--yaw", "200"], folder)
+    time.sleep(seconds * fraction)
+    proc.send_signal(sig)
+    code, err, peak2 = _reap(proc)
+    problems = _interrupted(sig, code, err)
+    now = {p.name: p.read_bytes() for p in folder.iterdir()}
+    if set(now) != set(old):
+        problems.append(f"files left: {_leftovers(folder, set(old))}")
+    elif (now["x.png"] == old["x.png"]) != (now["x.exr"] == old["x.exr"]):
+        problems.append("a new PNG beside the old EXR (or the other way round)")
+    return problems, max(peak, peak2), code
+
+
+def _signal_a_video(sig, fraction: float, work: Path):
+    folder = work / "scenarios" / f"video_{sig.name}_{fraction:.3f}"
+    folder.mkdir(parents=True)
+    video = folder / "v.mp4"
+    code, _, err, seconds, peak = run_command(["render", SCENE, LIGHTS, "--size", "96", "--frames", "12", "-o", video])
+    if code != 0:
+        return [f"the first video failed: {err[-200:]}"], peak, code
+    old = video.read_bytes()
+    proc = _start(["render", SCENE, LIGHTS, "--size", "96", "--frames", "12", "--yaw", "45", "-o", video], folder)
+    time.sleep(seconds * fraction)
+    proc.send_signal(sig)
+    code, err, peak2 = _reap(proc)
+    problems = _interrupted(sig, code, err)
+    if code != 0 and video.read_bytes() != old:
+        problems.append("the earlier video changed")
+    partial_video = folder / "v.partial.mp4"
+    if code == 130 and partial_video.exists() and "v.partial.mp4" not in err:
+        problems.append("a partial video left without a word of it")
+    leftovers = [n for n in _leftovers(folder, {"v.mp4", "v.partial.mp4"})]
+    if leftovers:
+        problems.append(f"files left: {leftovers}")
+    return problems, max(peak, peak2), code
+
+
+def _full_disk(work: Path):
+    """A 400 KB tmpfs (as root; otherwise a 100 KB file-size limit on the process, the same failed
+    write): one line naming the file, the old frame's PNG and EXR kept, no temporary file."""
+    folder = work / "scenarios" / "small_disk"
+    folder.mkdir(parents=True)
+    root = os.geteuid() == 0
+    if root:
+        subprocess.run(["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(folder)], check=True)
+    try:
+        args = ["render", SCENE, LIGHTS, "-o", folder / "x.png"]
+        code, _, err, _, peak = run_command([*args, "--size", "64"])
+        if code != 0:
+            return [f"the first render failed: {err[-200:]}"], peak, code
+        if root:
+            stat = os.statvfs(folder)
+            (folder / "filler").write_bytes(os.urandom(max(stat.f_bavail * stat.f_frsize - 40_000, 0)))
+        old = {p.name: p.read_bytes() for p in folder.iterdir()}
+        limit = None if root else _file_size_limit
+        code, _, err, _, peak2 = run_command([*args, "--size", "512", "--yaw", "90"], preexec=limit)
+        lines = err.strip().splitlines()
+        problems = []
+        if code != 2 or len(lines) != 1 or not lines[0].startswith(f"relight: error: {folder}/x."):
+            problems.append(f"exit {code}, said {err[-300:]!r}")
+        if {p.name: p.read_bytes() for p in folder.iterdir()} != old:
+            problems.append(f"the old outputs changed or files were left: {_leftovers(folder, set(old))}")
+        return problems, max(peak, peak2), code
+    finally:
+        if root:
+            subprocess.run(["umount", str(folder)], check=True)
+
+
+def _file_size_limit():
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
+
+
+def _two_writers(k: int, work: Path):
+    """Two ``infer`` into one ``-o`` at once: they take turns (both done) or one is refused; the
+    bundle left is whole and loads."""
+    from viewer.errors import InputError
+    from viewer.scene import load_scene
+
+    folder = work / "scenarios" / f"race_{k}"
+    folder.mkdir(parents=True)
+    out = folder / "bundle"
+    args = ["infer", PHOTO, "--mask", MASK, "--size", "64", "--max-size", "256", "-o", out]
+    procs = [_start(args, folder) for _ in range(2)]
+    results = [_reap(p) for p in procs]
+    problems = [f"exit {code}: {err[-200:]!r}" for code, err, _ in results if code not in (0, 2) or "Traceback" in err]
+    if not any(code == 0 for code, _, _ in results):
+        problems.append("neither writer finished")
+    try:
+        load_scene(out)
+    except InputError as exc:
+        problems.append(f"the bundle left does not load: {exc}")
+    if _leftovers(folder, {"bundle"}):
+        problems.append(f"files left: {_leftovers(folder, {'bundle'})}")
+    return problems, max(peak for _, _, peak in results), max(code for code, _, _ in results)
+
+
+def _read_only_map(work: Path):
+    """A map in a folder nobody may write (a read-only bind mount as root, the mode bits otherwise):
+    its lights go to the cache, the plot where asked (a traceback once), and the folder is untouched."""
+    folder = work / "scenarios" / "read_only"
+    (folder / "maps").mkdir(parents=True)
+    shutil.copy(asset_dir() / "envmaps" / "venice_sunset_256.hdr", folder / "maps")
+    root = os.geteuid() == 0
+    seen = folder / "seen"
+    seen.mkdir()
+    if root:
+        subprocess.run(["mount", "--bind", "-o", "ro", str(folder / "maps"), str(seen)], check=True)
+    else:
+        seen.rmdir()
+        seen = folder / "maps"
+        seen.chmod(0o555)
+    try:
+        code, _, err, _, peak = run_command(["fit-lights", seen / "venice_sunset_256.hdr", "-n", "4", "--method",
+                                             "median-cut", "--plot", folder / "plot.png"],
+                                            {**os.environ, "RELIGHT_CACHE": str(folder / "cache")})
+        problems = [] if code == 0 and "Traceback" not in err and (folder / "plot.png").is_file() \
+            else [f"exit {code}: {err[-300:]!r}"]
+        if sorted(p.name for p in seen.iterdir()) != ["venice_sunset_256.hdr"]:
+            problems.append("the read-only folder was written")
+        return problems, peak, code
+    finally:
+        if root:
+            subprocess.run(["umount", str(seen)], check=True)
+        else:
+            seen.chmod(0o755)
