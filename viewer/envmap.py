@@ -195,29 +195,35 @@ MAX_MAP_PIXELS = MAX_MAP_WIDTH * MAX_MAP_WIDTH // 2  # 1.6 GB of float32 RGB
 MAX_RGBE_HEADER = 16 * 1024 * 1024  # comments and tool lines; a longer "header" is not a map
 
 
-def _rgbe_size(path: Path) -> tuple[int, int]:
-    """(width, height) from a Radiance header, read before any pixel (a hostile header cannot make
-    the reader allocate what it claims). The header is read line by line up to its blank line, as
-    long as it is (tools write history and comments there), up to ``MAX_RGBE_HEADER``."""
+def _rgbe_header(path: Path) -> tuple[int, int, bytes]:
+    """(width, height, the file as OpenCV is given it) from a Radiance header, read before any pixel
+    (a hostile header cannot make the reader allocate what it claims). The header is read line by
+    line up to its blank line, as long as it is (tools write history and comments there), up to
+    ``MAX_RGBE_HEADER``; OpenCV is handed the signature, the format line, the resolution line and
+    the pixels (its reader split lines at 127 bytes and took a split's end for the header's)."""
     try:
         with open(path, "rb") as f:
             if not f.readline(64).startswith(b"#?"):
                 raise InputError(path, "not a Radiance HDR image (no #? signature)")
+            fmt = b""
             while f.tell() <= MAX_RGBE_HEADER:
                 line = f.readline(MAX_RGBE_HEADER)
                 if line in (b"", b"\n"):
                     break
+                if line.startswith(b"FORMAT="):
+                    fmt = line
             else:
                 raise InputError(path, f"not a Radiance HDR image (no end of header in its first "
                                        f"{MAX_RGBE_HEADER // (1024 * 1024)} MB)")
             resolution = f.readline(256) if line == b"\n" else b""
+            pixels = f.read() if resolution.endswith(b"\n") else b""
     except OSError as exc:
         raise InputError(path, f"cannot read the map ({exc.strerror or exc})") from None
     try:
         y_tag, height, x_tag, width = resolution.split()[:4]
         if y_tag.lstrip(b"+-") != b"Y" or x_tag.lstrip(b"+-") != b"X":
             raise ValueError
-        return int(width), int(height)
+        return int(width), int(height), b"#?RADIANCE\n" + fmt + b"\n" + resolution + pixels
     except (ValueError, IndexError):
         raise InputError(path, "not a Radiance HDR image (no resolution line after the header)") from None
 
@@ -242,12 +248,10 @@ def load_envmap(path, repair: bool = False) -> EnvMap:
         import cv2
 
         cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # failures are ours to say, in one line
-        width, height = _rgbe_size(path)
+        width, height, data = _rgbe_header(path)
         check_pixels(path, width, height, MAX_MAP_PIXELS)
         try:  # the bytes read by Python: OpenCV's own open crashed on a name that is not UTF-8
-            bgr = cv2.imdecode(np.fromfile(path, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
-        except OSError as exc:
-            raise InputError(path, f"cannot read the map ({exc.strerror or exc})") from None
+            bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
         except cv2.error as exc:
             raise InputError(path, f"cannot read as a Radiance HDR image ({str(exc).strip().splitlines()[-1][:120]})") from None
         if bgr is None or bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.float32:

@@ -92,7 +92,7 @@ def check_pixels(path, width: int, height: int, max_pixels: int = MAX_IMAGE_PIXE
     """Refuse a size read from a header, before any pixel is decoded: one rule and one message for
     every format (a header may claim anything)."""
     if width < 1 or height < 1 or width * height > max_pixels:
-        raise InputError(path, f"is {width}x{height} pixels: more than the {max_pixels / 1e6:.0f} megapixels "
+        raise InputError(path, f"is {width}x{height} pixels: more than the {max_pixels / 1e6:.3g} megapixels "
                                "this program reads (downsample it first)")
 
 

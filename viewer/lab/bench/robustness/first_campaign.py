@@ -270,7 +270,10 @@ def options(kit: Campaign) -> None:
         kit.render("option", what, kit.sample, kit.lights, *extra, suffix=".mp4")
     existing = kit.work / "files" / "existing.png"
     existing.write_bytes(kit.mask.read_bytes())
-    for what, o in (("-o an existing folder", kit.work / "files"), ("-o a .txt", kit.work / "files" / "x.txt"),
+    folder = kit.work / "a_folder"  # its own: the files folder gains light files beside maps as cases run
+    folder.mkdir()
+    (folder / "keep.txt").write_text("the user's")
+    for what, o in (("-o an existing folder", folder), ("-o a .txt", kit.work / "files" / "x.txt"),
                     ("-o under a file", kit.work / "files" / "existing.png" / "x.png"), ("-o in /proc", Path("/proc/nope/x.png"))):
         kit.cases.append(Case("option", what, ["render", str(kit.sample), str(kit.lights), "--size", "96", "-o", str(o)], "error", str(o)))
     kit.cases.append(Case("option", "-o an existing PNG (replaced whole)", ["render", str(kit.sample), str(kit.lights), "--size", "96",
