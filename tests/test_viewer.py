@@ -340,11 +340,22 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
 
     v = viewer_factory()
 
-    def click(name, fx=0.5, fy=0.5):
-        x0, y0, x1, y1 = v.state()["widgets"][name]
-        v.xdotool("mousemove", int(x0 + fx * (x1 - x0)), int(y0 + fy * (y1 - y0)))
-        time.sleep(0.2)
-        v.xdotool("click", 1)
+    def click(name, fx=0.5, fy=0.5, until=None):
+        """Click a widget; with ``until``, wait for the state it should bring, clicking again when a
+        click went unseen (once in a full run the 29x13 "aim" button's click changed nothing for
+        30 s; it did not happen again in 5 runs of this file; the cause is not found)."""
+        for attempt in range(3):
+            x0, y0, x1, y1 = v.state()["widgets"][name]
+            v.xdotool("mousemove", int(x0 + fx * (x1 - x0)), int(y0 + fy * (y1 - y0)))
+            time.sleep(0.2)
+            v.xdotool("click", 1)
+            if until is None:
+                return None
+            try:
+                return v.wait_for(until, 10)
+            except AssertionError:
+                if attempt == 2:
+                    raise
 
     s = v.state()
     assert s["panel_height"] <= s["window_size"][1]  # the window opens tall enough for the whole panel (1200-px screen)
@@ -353,14 +364,11 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     inner = np.nonzero((uv[:, 0] > 0.15) & (uv[:, 0] < 0.85) & (uv[:, 1] > 0.1) & (uv[:, 1] < 0.9))[0]
     k = inner[np.argmax(lights.intensity[inner].sum(axis=1))]
     sun, (u, w) = lights.direction[k], uv[k]
-    click("thumbnail", u, w)
-    s = v.wait_for(lambda s: len(s["placed"]) == 1, 30)
+    s = click("thumbnail", u, w, until=lambda s: len(s["placed"]) == 1)
     assert "added at" in s["message"]
     assert np.degrees(np.arccos(np.clip(PlacedLight(**s["placed"][0]).direction @ sun, -1, 1))) < 2.0
-    click("placed 0 aim")
-    v.wait_for(lambda s: s["message"].startswith("click on the person or the map"), 30)
-    click("thumbnail", 0.5, 0.9)  # behind the person, low
-    s = v.wait_for(lambda s: "aimed at" in s["message"], 30)
+    click("placed 0 aim", until=lambda s: s["message"].startswith("click on the person or the map"))
+    s = click("thumbnail", 0.5, 0.9, until=lambda s: "aimed at" in s["message"])  # behind the person, low
     assert len(s["placed"]) == 1 and s["placed"][0]["elevation"] < -60
     before = read_png(v.save())
     v.xdotool("key", "g")
