@@ -14,7 +14,7 @@ uniform vec3 intensity[MAX_LIGHTS];      // zero for lights that are skipped
 uniform int groups;
 uniform ivec2 box_origin;
 uniform sampler2D refined_plane0, refined_plane1, refined_plane2, refined_plane3;  // refined V (r), same tiles
-uniform int visibility_channel;          // 0: soft (CSM), 1: hard (shadow map), 2: none, 3: refined
+uniform int visibility_channel;          // VISIBILITY_*: soft (CSM), hard (shadow map), none, refined
 uniform bool write_alpha;
 uniform vec2 term_weights;            // (diffuse, specular): 1 shown, 0 left out
 uniform bool unit_albedo;             // show shading: albedo replaced by 1
@@ -28,7 +28,8 @@ vec3 sum_diffuse = vec3(0.0);
 vec3 sum_specular = vec3(0.0);
 
 void contribution(vec4 b, float refined, vec3 i) {
-    float v = visibility_channel == 0 ? b.x : (visibility_channel == 1 ? b.y : (visibility_channel == 3 ? refined : 1.0));
+    float v = visibility_channel == VISIBILITY_SOFT ? b.x : (visibility_channel == VISIBILITY_HARD ? b.y
+                                                                  : (visibility_channel == VISIBILITY_REFINED ? refined : 1.0));
     sum_diffuse += v * i * b.z;
     sum_specular += v * i * b.w;
 }
@@ -47,7 +48,7 @@ void main() {
     ivec2 local = px - box_origin;
     for (int g = 0; g < groups; ++g) {
         ivec2 q = group_origin[g] + local;
-        bool r = visibility_channel == 3;
+        bool r = visibility_channel == VISIBILITY_REFINED;
         contribution(texelFetch(light_plane0, q, 0), r ? texelFetch(refined_plane0, q, 0).r : 0.0, intensity[4 * g]);
         contribution(texelFetch(light_plane1, q, 0), r ? texelFetch(refined_plane1, q, 0).r : 0.0, intensity[4 * g + 1]);
         contribution(texelFetch(light_plane2, q, 0), r ? texelFetch(refined_plane2, q, 0).r : 0.0, intensity[4 * g + 2]);

@@ -9,7 +9,7 @@
 uniform sampler2D hdr;
 uniform sampler2D background_image;   // linear RGB, image rows top first
 uniform sampler2D environment;        // equirectangular, linear RGB
-uniform int background_mode;          // 0 colour, 1 photo background, 2 environment map, 3 transparent
+uniform int background_mode;          // BACKGROUND_*
 uniform vec3 background_color;        // linear
 uniform mat3 environment_rotation;    // camera-space view direction -> map direction
 uniform vec2 focal_center_px;         // principal point (pixels)
@@ -26,19 +26,19 @@ void main() {
     vec3 bg = background_color;
     if (c.a >= 1.0) {
         // the person covers the pixel: no background to look up
-    } else if (background_mode == 1) {
+    } else if (background_mode == BACKGROUND_PHOTO) {
         bg = texelFetch(background_image, px, 0).rgb;
-    } else if (background_mode == 2) {
+    } else if (background_mode == BACKGROUND_ENVIRONMENT) {
         bg = environment_seen(environment, environment_rotation, vec2(px) + 0.5, focal_center_px, focal_px);
     }
     if (ground && c.a < 1.0) {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) / vec2(textureSize(hdr, 0))).rgb, 0.0, 1.0);
     }
 #ifdef HDR_OUTPUT
-    color = background_mode == 3 ? vec4(c.rgb * c.a, c.a) : vec4(mix(bg, c.rgb, c.a), 1.0);
+    color = background_mode == BACKGROUND_TRANSPARENT ? vec4(c.rgb * c.a, c.a) : vec4(mix(bg, c.rgb, c.a), 1.0);
 #else
     vec3 fg = tonemap(c.rgb * scale, tonemap_op);
-    if (background_mode == 3) {
+    if (background_mode == BACKGROUND_TRANSPARENT) {
         color = vec4(linear_to_srgb(fg), c.a);
         return;
     }

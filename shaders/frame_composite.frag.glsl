@@ -5,7 +5,7 @@
 // shading sums of the work-resolution composite (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
 // brought to the frame by filled_sample (bilinear, normalized by the mask, filled past it); then,
 // over the cached background, exposure, tone map and sRGB as the work display does.
-// output_mode 0 writes the display image; 1 the person's HDR and matte; 2 the HDR composited over
+// output_mode OUTPUT_DISPLAY writes the display image; OUTPUT_PERSON_HDR the person's HDR and matte; OUTPUT_COMPOSITED_HDR the HDR composited over
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG.
 // Before / after (display only): left of compare_x pixels the original photo as it was, with a
 // two-pixel white line at the split. With ground, the background is darkened by the person's
@@ -39,12 +39,12 @@ void main() {
         vec3 s = filled_sample(shading_specular, uv, max_lod);
         fg = term_weights.x * (unit_albedo ? vec3(1.0) : aa.rgb) * d + term_weights.y * s;
     }
-    if (output_mode == 1) { color = vec4(fg, aa.a); return; }
+    if (output_mode == OUTPUT_PERSON_HDR) { color = vec4(fg, aa.a); return; }
     vec3 bg = aa.a >= 1.0 ? vec3(0.0) : texture(background, (vec2(px) + 0.5) / vec2(textureSize(frame_albedo_alpha, 0))).rgb;
     if (ground && aa.a < 1.0) {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) * frame_to_uv).rgb, 0.0, 1.0);
     }
-    if (output_mode == 2) {
+    if (output_mode == OUTPUT_COMPOSITED_HDR) {
         color = transparent ? vec4(fg * aa.a, aa.a) : vec4(mix(bg, fg, aa.a), 1.0);
         return;
     }

@@ -48,7 +48,7 @@ float contact_occlusion(vec3 p, vec3 l, float alpha) {
 }
 
 vec3 light_occlusion(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p) {
-    if (light_mode[j] == 0 || light_mode[j] == 3 || dot(light_dir[j], ground_normal) <= 0.0) return vec3(0.0);
+    if (light_mode[j] == PASS_OFF || light_mode[j] == PASS_UNSHADOWED || dot(light_dir[j], ground_normal) <= 0.0) return vec3(0.0);
     vec2 uv = (light_frame[j] * vec4(p, 1.0)).xy;
     float v = (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) ? 1.0
             : light_visibility(j, shadow_map, filtered_basis, p, ground_normal).x;

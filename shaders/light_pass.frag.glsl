@@ -29,7 +29,7 @@ layout(location = 3) out vec4 result3;
 vec4 light_result(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p, vec3 n, float specular,
                   float roughness) {
     vec3 l = light_dir[j];
-    if (light_mode[j] == 0 || dot(n, l) <= 0.0) return vec4(0.0);  // also every pixel outside the mask
+    if (light_mode[j] == PASS_OFF || dot(n, l) <= 0.0) return vec4(0.0);  // also every pixel outside the mask
     vec2 v = light_visibility(j, shadow_map, filtered_basis, p, n);
 #ifdef SPECULAR
     float s_spec = disney_specular_shading(n, l, specular, roughness, light_alpha[j]);

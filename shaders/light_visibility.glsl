@@ -6,8 +6,8 @@
 uniform mat4 light_frame[4];
 uniform vec3 light_dir[4];
 uniform float depth_scale[4];
-uniform int light_mode[4];     // 0: no light in this slot; 1: hard only (sigma ~ 0, or soft not shown);
-                               // 2: hard and soft; 3: no shadows (visibility 1)
+uniform int light_mode[4];     // PASS_OFF: no light in this slot; PASS_HARD: hard only (sigma ~ 0, or
+                               // soft not shown); PASS_SOFT: hard and soft; PASS_UNSHADOWED: visibility 1
 uniform float csm_offset;
 uniform float csm_clamp;
 uniform float light_alpha[4];  // each light's angular sigma (radians): contact-hardening penumbrae, specular widening
@@ -16,7 +16,7 @@ uniform float shadow_window;   // metres a shadow map spans (the same for every 
 // (soft, hard) visibility of light j at p, a receiver with unit normal n facing the light
 // (n.l > 0); 1 in mode 3.
 vec2 light_visibility(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 p, vec3 n) {
-    if (light_mode[j] == 3) return vec2(1.0);
+    if (light_mode[j] == PASS_UNSHADOWED) return vec2(1.0);
     vec3 l = light_dir[j];
     vec3 uvd = receiver_uvd(light_frame[j], p, n);
     // a receiver past everything the map holds (the ground far behind the person) is as deep as
@@ -25,11 +25,11 @@ vec2 light_visibility(int j, sampler2D shadow_map, sampler2D filtered_basis, vec
     float bias = receiver_bias(n, l, depth_scale[j]);
     float v_hard = hard_visibility(shadow_map, uvd, bias);
 #ifdef SOFT_PCSS
-    float v_soft = light_mode[j] == 1 ? v_hard
+    float v_soft = light_mode[j] == PASS_HARD ? v_hard
         : pcss_visibility(shadow_map, uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias,
                           light_alpha[j], shadow_window, depth_scale[j]);
 #else
-    float v_soft = light_mode[j] == 1 ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
+    float v_soft = light_mode[j] == PASS_HARD ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
 #endif
     return vec2(v_soft, v_hard);
 }

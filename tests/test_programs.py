@@ -57,3 +57,52 @@ def test_shared_constants_come_from_one_place():
         for literal in ("3.14159", "0.08 *", "MIN_ALPHA =", "FILLED_MIN_COVERAGE ="):
             assert literal not in text, (path.name, literal)
     assert twin_brdf.MIN_ALPHA is MIN_ALPHA and twin_brdf.SPECULAR_SCALE is SPECULAR_SCALE
+
+
+MODE = r"(?:op|\w*(?:mode|_op|view|channel)\w*)(?:\[[^\]]*\])?"  # a mode's uniform, parameter or array element
+MODE_COMPARISON = re.compile(rf"\b{MODE}\s*[!=]=\s*\d+\b|\b\d+\s*[!=]=\s*{MODE}")
+
+
+def test_shaders_compare_modes_by_name_not_by_number():
+    """Modes are named once (viewer.shader_modes) and reach GLSL as #defines: a shader that compares
+    a mode with a bare integer would drift from Python's numbering."""
+    from viewer.shader_modes import MODES, glsl_mode_defines
+
+    bare = [f"{p.name}: {m.group(0)}" for p in shader_dir().glob("*.glsl") for m in MODE_COMPARISON.finditer(p.read_text())]
+    assert bare == []
+    used = "".join(p.read_text() for p in shader_dir().glob("*.glsl"))
+    defined = {line.split()[1] for line in glsl_mode_defines()}
+    assert len(defined) == sum(len(v) for v in MODES.values())
+    for family in MODES:  # every family is compared by name somewhere
+        assert any(name in used for name in defined if name.startswith(family + "_")), family
+
+
+def test_the_tone_curves_in_glsl_and_in_numpy_agree(ctx, tmp_path):
+    """shaders/tonemap.glsl drawn over inputs from 0 to past its cap, against viewer.render's numpy
+    curves (the auto exposure and the white warning use them)."""
+    import numpy as np
+
+    from viewer.render import tonemap_curve
+    from viewer.shader_modes import code
+
+    for p in shader_dir().glob("*.glsl"):
+        shutil.copy(p, tmp_path)
+    (tmp_path / "tonemap_probe.frag.glsl").write_text(
+        '#include "tonemap.glsl"\nuniform sampler2D values;\nuniform int op;\nout vec4 color;\n'
+        "void main() { color = vec4(tonemap(texelFetch(values, ivec2(gl_FragCoord.xy), 0).rgb, op), 1.0); }\n")
+    x = np.concatenate([np.linspace(0, 4, 200), np.geomspace(4, 1e8, 56)]).astype(np.float32)
+    values = np.repeat(x[:, None], 3, axis=1).reshape(1, -1, 3)
+    tex = ctx.texture((x.size, 1), 3, values.tobytes(), dtype="f4")
+    out = ctx.texture((x.size, 1), 4, dtype="f4")
+    fbo = ctx.framebuffer([out])
+    prog = ProgramCache(ctx, tmp_path).get("fullscreen.vert.glsl", "tonemap_probe.frag.glsl")
+    vao = ctx.vertex_array(prog, [])
+    for op in ("aces", "reinhard", "clamp"):
+        prog["values"], prog["op"] = 0, code("TONEMAP", op)
+        fbo.use()
+        tex.use(0)
+        vao.render(vertices=3)
+        got = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(-1, 4)[:, 0]
+        assert np.abs(got - tonemap_curve(x, op)).max() < 1e-5, op
+    for r in (vao, fbo, out, tex):
+        r.release()

@@ -14,9 +14,10 @@ PI = math.pi
 MIN_ALPHA = 1e-3  # GGX alpha = max(roughness^2, MIN_ALPHA): roughness 0 stays finite
 SPECULAR_SCALE = 0.08  # Disney: F0 = SPECULAR_SCALE * specular
 FILLED_MIN_COVERAGE = 0.05  # filled_sample: mask coverage below which a coarser mip level is read
+TONEMAP_INPUT_MAX = 1e6  # the ACES curve is 1 long before; beyond, x^2 would overflow float32
 
 GLSL_CONSTANTS = {"PI": PI, "MIN_ALPHA": MIN_ALPHA, "SPECULAR_SCALE": SPECULAR_SCALE,
-                  "FILLED_MIN_COVERAGE": FILLED_MIN_COVERAGE}
+                  "FILLED_MIN_COVERAGE": FILLED_MIN_COVERAGE, "TONEMAP_INPUT_MAX": TONEMAP_INPUT_MAX}
 
 
 def glsl_defines() -> list[str]:

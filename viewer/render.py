@@ -8,18 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
+from .constants import TONEMAP_INPUT_MAX
 from .errors import InputError
 from .imageio import atomic_paths, linear_to_srgb, write_exr, write_png
 from .lights import AreaLights
 from .scene import Scene
 from .settings import AUTO, Look
 
-ACES_WHITE = 1e6  # the tone curve's input range (shaders/tonemap.glsl)
-
 
 def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
     """The display tone curves of shaders/tonemap.glsl, in numpy."""
-    x = np.clip(np.asarray(x, np.float64), 0.0, ACES_WHITE)
+    x = np.clip(np.asarray(x, np.float64), 0.0, TONEMAP_INPUT_MAX)
     if op == "aces":
         return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
     if op == "reinhard":

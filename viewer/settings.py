@@ -16,14 +16,15 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 
 from .errors import InputError
+from .shader_modes import MODES
 from .lights import rotation_matrix
 
 AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.render.photo_exposure)
 MAX_BACKDROP_BLUR = 30.0  # degrees (viewer.backdrop.MAX_BLUR)
 EXPOSURE_LIMIT = 40.0  # stops either way
-TONEMAPS = {"aces": 0, "reinhard": 1, "clamp": 2}
-BACKGROUNDS = {"color": 0, "photo": 1, "environment": 2, "transparent": 3}
-VISIBILITY_MODES = {"soft": 0, "hard": 1, "none": 2, "refined": 3}
+TONEMAPS = MODES["TONEMAP"]
+BACKGROUNDS = MODES["BACKGROUND"]
+VISIBILITY_MODES = MODES["VISIBILITY"]
 # What the display image shows: the relit frame, the diffuse or specular shading alone (composited
 # from the same light atlas), or an inspection view of the bundle's maps or of one light's shadow.
 VIEWS = ("final", "diffuse_shading", "specular_shading", "albedo", "normal", "depth", "specular", "roughness", "shadow")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from ..settings import VISIBILITY_MODES
+from ..shader_modes import code
 from .kit import PassKit
 from .light import Light
 from .light_pass import LIGHTS_PER_PASS, LightAtlas, RefinedVisibility
@@ -62,7 +62,7 @@ class CompositePass:
                         prog[f"refined_plane{j}"] = 1 + LIGHTS_PER_PASS + j
                 else:
                     mode = "soft"  # until the refinement of these lights arrives
-            prog["visibility_channel"] = VISIBILITY_MODES[mode]
+            prog["visibility_channel"] = code("VISIBILITY", mode)
             diffuse, specular, unit_albedo = terms
             prog["term_weights"] = (diffuse, specular)
             prog["unit_albedo"] = unit_albedo

@@ -8,19 +8,20 @@ import moderngl
 import numpy as np
 
 from ..camera import Camera
-from ..settings import BACKGROUNDS, TONEMAPS, Look
+from ..settings import Look
+from ..shader_modes import MODES, code
 from .kit import PassKit
 from .light import PASS_OFF, Light
 from .light_pass import LightAtlas
 from .scene_resources import SceneResources
 
-INSPECT_VIEWS = {"albedo": 1, "normal": 2, "depth": 3, "specular": 4, "roughness": 5, "shadow": 6}
+INSPECT_VIEWS = MODES["INSPECT"]
 
 
 def set_background(prog, look: Look, background: str, camera: Camera):
     """The background's uniforms (shaders/envmap.glsl and the background modes) for ``look``: its
     mode, colour, the map's turn and the camera the map is seen through."""
-    prog["background_mode"] = BACKGROUNDS[background]
+    prog["background_mode"] = code("BACKGROUND", background)
     prog["background_color"] = look.background_color
     prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
     prog["focal_center_px"] = camera.center
@@ -62,7 +63,7 @@ class DisplayPass:
         set_background(prog, look, background, self.camera)
         if not hdr_output:
             prog["exposure"] = look.exposure_stops
-            prog["tonemap_op"] = TONEMAPS[look.tonemap]
+            prog["tonemap_op"] = code("TONEMAP", look.tonemap)
         kit.fullscreen(prog)
         fbo.scissor = None
 
@@ -106,8 +107,8 @@ class InspectPass:
             prog["light_valid"] = light is not None and light.active and light.pass_mode != PASS_OFF
             prog["tile_origin"] = light.tile if light is not None else (0, 0)
             prog["box_origin"] = sc.mask_box[:2]
-            prog["visibility_channel"] = 1 if visibility == "hard" else 0
-            prog["view"] = INSPECT_VIEWS[view]
+            prog["visibility_channel"] = code("VISIBILITY", "hard" if visibility == "hard" else "soft")
+            prog["view"] = code("INSPECT", view)
             prog["depth_range"] = sc.depth_range
             prog["background_color"] = (0.1, 0.1, 0.1)
             kit.fullscreen(prog)

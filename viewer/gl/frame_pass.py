@@ -30,12 +30,13 @@ import numpy as np
 
 from ..camera import Camera
 from ..scene import FrameLayer
-from ..settings import TONEMAPS, Look
+from ..settings import Look
+from ..shader_modes import code
 from .display_pass import set_background
 from .kit import PassKit
 
 MAX_FILL_LOD = 4  # mip levels the frame composite may reach past the mask (16 work pixels)
-OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR = 0, 1, 2
+OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR = (code("OUTPUT", n) for n in ("display", "person_hdr", "composited_hdr"))
 ENVIRONMENT_SCALE = 2  # the map behind the person at half the frame's resolution (FrameBackgroundPass)
 
 
@@ -156,7 +157,7 @@ class FrameCompositePass:
         prog["unit_albedo"] = unit_albedo
         prog["transparent"] = transparent
         prog["exposure"] = look.exposure_stops
-        prog["tonemap_op"] = TONEMAPS[look.tonemap]
+        prog["tonemap_op"] = code("TONEMAP", look.tonemap)
         prog["output_mode"] = output_mode
         kit.fullscreen(prog)
         fbo.scissor = None

@@ -10,11 +10,12 @@ import moderngl
 import numpy as np
 
 from .. import shadow_space as ss
+from ..shader_modes import code
 from .kit import PassKit
 from .prefilter import BlurPlan
 
 # light-pass modes per light (shaders/light_pass.frag.glsl): what the light atlas holds for it
-PASS_OFF, PASS_HARD, PASS_SOFT, PASS_UNSHADOWED = 0, 1, 2, 3
+PASS_OFF, PASS_HARD, PASS_SOFT, PASS_UNSHADOWED = (code("PASS", n) for n in ("off", "hard", "soft", "unshadowed"))
 PER_LIGHT_PASSES = ("shadow_map", "csm_basis", "prefilter", "light_pass")
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import InputError
 from .. import shadow_space as ss
 from .kit import PassKit
-from .light import PASS_HARD, PASS_SOFT, Light
+from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from .scene_resources import SceneResources
 
 LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each)
@@ -137,7 +137,7 @@ class LightShadingPass:
         prog["light_frame"].write(frames.tobytes())
         prog["light_dir"].write(dirs.tobytes())
         prog["depth_scale"].write(scales.tobytes())
-        prog["light_mode"].write(np.array(list(modes) + [0] * (LIGHTS_PER_PASS - len(modes)), "i4").tobytes())
+        prog["light_mode"].write(np.array(list(modes) + [PASS_OFF] * (LIGHTS_PER_PASS - len(modes)), "i4").tobytes())
         prog["texel_world"] = group[0].frame.texel_world(self.resolution)
         prog["hard_threshold"] = ss.HARD_SHADOW_THRESHOLD
         prog["normal_offset_texels"] = ss.NORMAL_OFFSET_TEXELS

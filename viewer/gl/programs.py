@@ -8,6 +8,7 @@ from pathlib import Path
 import moderngl
 
 from ..constants import glsl_defines
+from ..shader_modes import glsl_mode_defines
 from ..resources import shader_dir
 
 GLSL_VERSION = "#version 410 core"
@@ -17,7 +18,7 @@ _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
 def shader_source(name: str, defines: dict | None = None, directory: Path | None = None,
                   files: list[str] | None = None) -> str:
     """The text of ``shaders/name`` with includes expanded (each file once), the shared constants
-    (:mod:`viewer.constants`) and ``defines`` prepended.
+    (:mod:`viewer.constants`), the modes' names (:mod:`viewer.shader_modes`) and ``defines`` prepended.
     Each file's text starts with ``#line 1 k`` and the text after an include with the line it came
     from, so the GLSL compiler reports (source string k, line) of the ``.glsl`` file itself;
     ``files``, when given, receives the file names by k (:func:`explain_errors`)."""
@@ -45,7 +46,7 @@ def shader_source(name: str, defines: dict | None = None, directory: Path | None
         out.append(text[last:])
         return out[0] + "\n" + "".join(out[1:])
 
-    lines = [GLSL_VERSION, *glsl_defines()]
+    lines = [GLSL_VERSION, *glsl_defines(), *glsl_mode_defines()]
     for key, value in (defines or {}).items():
         lines.append(f"#define {key} {value}" if value is not None else f"#define {key}")
     return "\n".join(lines) + "\n" + expand(name)
