@@ -100,13 +100,13 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
                           "-n", "4", "-o", str(tmp_path / "r.png"), "--yaw", "90"], capture_output=True, text=True,
                          env=environ)
     assert res.returncode == 0, res.stderr
-    assert "cached 4 lights" in res.stdout
+    assert f"4 lights for {env}: from the cache" in res.stdout
     assert read_exr(tmp_path / "r.exr").max() > 0.05
     # without -o the light file goes beside the map, where the viewer looks for it (not into the
     # working folder); a stage of the fit that ran is one line on a log (stderr is not a terminal)
     import shutil
 
-    from viewer.app.jobs import sidecar_lights
+    from viewer.map_lights import sidecar_lights
 
     (tmp_path / "maps").mkdir()
     (tmp_path / "work").mkdir()

@@ -11,6 +11,11 @@ from viewer.gl.prefilter import blur_plan
 from viewer.lights import AreaLights
 
 
+def relook(eng, **changes):
+    """The engine's look with ``changes`` (the display fields, the terms shown)."""
+    eng.set_look(eng.look.replace(**changes))
+
+
 def unit(v):
     v = np.asarray(v, dtype=np.float64)
     return (v / np.linalg.norm(v, axis=-1, keepdims=True)).astype(np.float32)
@@ -180,8 +185,8 @@ def test_cache_rules(ctx, scene):
 
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1, "display": 1}
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0).scaled(2.0))) == {"composite": 1, "display": 1}
-    assert delta(lambda: eng.set_display(exposure=1.0)) == {"display": 1}
-    assert delta(lambda: eng.set_display(exposure=1.0, yaw=0.0)) == {}  # unchanged: nothing redone
+    assert delta(lambda: relook(eng, exposure=1.0)) == {"display": 1}
+    assert delta(lambda: relook(eng, exposure=1.0, yaw=0.0)) == {}  # unchanged: nothing redone
     assert delta(lambda: eng.render()) == {}
     rotated = lights.with_sigma(1, 9.0).scaled(2.0).rotated(20.0)
     assert delta(lambda: eng.set_lights(rotated)) == {"shadow_map": 3, "csm_basis": 2, "prefilter": 2, "light_pass": 1, "composite": 1, "display": 1}
@@ -300,7 +305,7 @@ def test_bad_options_are_clear_errors(options, message):
 def test_extreme_exposure_saturates_instead_of_going_black(ctx, scene):
     eng = make_engine(ctx, scene)
     eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0]]), [2.0], [[1e5, 1e5, 1e5]]))
-    eng.set_display(exposure=40.0)
+    relook(eng, exposure=40.0)
     eng.render()
     lit = eng.read_hdr().max(axis=-1) > 0
     assert lit.mean() > 0.9 and (eng.read_display()[lit] == 255).all()
@@ -386,13 +391,13 @@ def test_components_and_views(ctx):
     albedo = sc.albedo * sc.mask[..., None]
     np.testing.assert_allclose(full, albedo * diff + spec, rtol=1e-5, atol=1e-7)
     passes = dict(eng.counters)
-    eng.set_components(diffuse=False, specular=True)
+    relook(eng, diffuse=False, specular=True)
     eng.render()
     np.testing.assert_allclose(eng.read_hdr(), spec, rtol=1e-5, atol=1e-7)
-    eng.set_components(diffuse=True, specular=False)
+    relook(eng, diffuse=True, specular=False)
     eng.render()
     np.testing.assert_allclose(eng.read_hdr(), albedo * diff, rtol=1e-5, atol=1e-7)
-    eng.set_components()
+    relook(eng, diffuse=True, specular=True)
     eng.set_view("diffuse_shading")
     eng.render()
     np.testing.assert_allclose(eng.read_hdr(), diff, rtol=1e-5, atol=1e-7)
@@ -469,9 +474,9 @@ def test_frame_cache_rules(ctx, scene):
         eng.render()
         return {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)}
 
-    assert delta(lambda: eng.set_display(exposure=1.0)) == {"frame_composite": 1}
-    assert delta(lambda: eng.set_display(background_color=(0.5, 0.2, 0.1))) == {"frame_background": 1, "frame_composite": 1}
-    assert delta(lambda: eng.set_display(yaw=30.0)) == {"frame_background": 1, "frame_composite": 1}
+    assert delta(lambda: relook(eng, exposure=1.0)) == {"frame_composite": 1}
+    assert delta(lambda: relook(eng, background_color=(0.5, 0.2, 0.1))) == {"frame_background": 1, "frame_composite": 1}
+    assert delta(lambda: relook(eng, yaw=30.0)) == {"frame_background": 1, "frame_composite": 1}
     assert delta(lambda: eng.set_environment(np.ones((8, 16, 3), np.float32))) == {"frame_background": 1, "frame_composite": 1}
     assert delta(lambda: eng.set_lights(lights.scaled(2.0))) == {"composite": 1, "frame_mipmaps": 1, "frame_composite": 1}
     assert delta(lambda: eng.set_view("albedo")) == {"display": 1}  # an inspection view: the frame passes wait
@@ -496,7 +501,7 @@ def test_before_and_after_shows_the_photo_left_of_the_split(ctx, scene):
     eng.render()
     after, hdr = eng.read_display().astype(int), eng.read_hdr()
     start = dict(eng.counters)
-    eng.set_display(compare=0.25)
+    relook(eng, compare=0.25)
     eng.render()
     assert {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)} == {"frame_composite": 1}
     split = eng.read_display().astype(int)

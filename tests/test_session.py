@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.app.jobs import LightJob, sidecar_lights
+from viewer.app.jobs import LightJob
+from viewer.map_lights import sidecar_lights
 from viewer.app.session import PREVIEW_SIZE, Session
 from viewer.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions

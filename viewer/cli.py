@@ -24,25 +24,26 @@ DEMO_PHOTO = "photos/underpass.jpg"
 DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it lights the front
 
 
-def _engine_options(args):
-    """The preset's engine options with the knobs given on the command line in place of its values."""
+def _engine_options(args, look):
+    """The look's preset's engine options with the knobs given on the command line in place of its values."""
     from dataclasses import replace
 
     from .presets import DEFAULT_PRESET, preset
 
     given = {k: getattr(args, k) for k in ("soft", "shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
     try:
-        return replace(preset(args.preset or DEFAULT_PRESET).options, **given)
+        return replace(preset(look.preset or DEFAULT_PRESET).options, **given)
     except InputError as exc:  # name the option
         option = next((f"--{k.replace('_', '-')}" for k in given if k.split("_")[-1] in exc.problem), None)
         raise InputError(None, f"{option}: {exc.problem}" if option else exc.problem) from None
 
 
-def _lights_count(args) -> int:
+def _lights_count(args, look) -> int:
+    """``-n``, or the look's preset's count."""
     from .presets import DEFAULT_PRESET, preset
 
     if args.lights_count is None:
-        return preset(args.preset or DEFAULT_PRESET).lights
+        return preset(look.preset or DEFAULT_PRESET).lights
     return _light_count_option(args.lights_count, args.method)
 
 
@@ -195,22 +196,35 @@ def _fitted_lights(env, n, method, refit=False):
     return lights, cached
 
 
-def _prepare(scene_path, lights_path, envmap_path, args):
+def _prepare(scene_path, lights_path, envmap_path, args, look):
     """Scene (resampled to ``--size``), lights (a file, or fitted to the map) and map pixels."""
     from .envmap import load_envmap
-    from .lights import load_lights
 
     scene = load_sized_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
+    if lights_path is None and env is None:
+        raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
+    return scene, _lights(args, look, lights_path, env, envmap_path), (env.pixels if env is not None else None)
+
+
+def _lights(args, look, lights_path, env, env_path):
+    """The light file given, or the map's lights by the one rule (:mod:`viewer.map_lights`), the
+    fit in this process with its progress bars; said on a line when they come from the map."""
+    from .lights import load_lights
+    from .map_lights import map_lights
+
     if lights_path is not None:
         lights = load_lights(lights_path)
-    elif env is not None:
-        lights, cached = _fitted_lights(env, _lights_count(args), args.method)
-        print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {envmap_path}")
     else:
-        raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
-    _warn_if_dark(lights, lights_path or envmap_path)
-    return scene, lights, (env.pixels if env is not None else None)
+        n = _lights_count(args, look)
+        lights, how = map_lights(env, env_path, n, args.method or DEFAULT_METHOD,
+                                 lambda e: _fitted_lights(e, n, args.method))
+        print(f"{len(lights)} lights for {env_path}: {HOW[how]}")
+    _warn_if_dark(lights, lights_path or env_path)
+    return lights
+
+
+HOW = {"bundled": "those shipped beside the map", "cached": "from the cache", "fitted": "fitted now"}
 
 
 def _warn_if_dark(lights, source):
@@ -229,7 +243,7 @@ _LOOK_OPTIONS = (("yaw", "yaw"), ("tilt", "tilt"), ("exposure", "exposure"), ("t
 def _settings(args, yaw_default: float = 0.0):
     """The look of a command: a saved one (``--look FILE``: a frame saved by the viewer, its state
     file, or a bare look object) or the defaults, with every option given on the command line in
-    its place. Also settles ``args.preset`` (the look's)."""
+    its place (the preset among them: what the engine options and the lights' count follow)."""
     from .settings import AUTO, Look
 
     base = _read_look(args.look) if getattr(args, "look", None) else Look(yaw=yaw_default, exposure=AUTO)
@@ -239,7 +253,6 @@ def _settings(args, yaw_default: float = 0.0):
     except InputError as exc:  # name the option, not the field
         option = next((o for f, o in _LOOK_OPTIONS if exc.problem.startswith(f.replace("tonemap", "tone map"))), None)
         raise InputError(None, f"--{option}: {exc.problem}" if option else exc.problem) from None
-    args.preset = look.preset
     return look
 
 
@@ -263,8 +276,8 @@ def _render(scene_path, lights_path, envmap_path, out_dir, name, args, look, png
     from .gl import Engine, create_headless_context
     from .render import render_to_files
 
-    scene, lights, env = _prepare(scene_path, lights_path, envmap_path, args)
-    engine = Engine(create_headless_context(), scene, _engine_options(args))
+    scene, lights, env = _prepare(scene_path, lights_path, envmap_path, args, look)
+    engine = Engine(create_headless_context(), scene, _engine_options(args, look))
     try:
         return render_to_files(engine, scene, lights, out_dir, name, look, environment=env, fixed=_rig_lights(args),
                                png_name=png_name)
@@ -301,7 +314,7 @@ def cmd_demo(args) -> int:
     print(f"inferred the scene bundle of {DEMO_PHOTO} (automatic mask) in {time.perf_counter() - t0:.1f} s: "
           f"{out / 'photo_bundle'}")
     scene = load_sized_scene(out / "photo_bundle", None, args.max_size)
-    engine = Engine(ctx, scene, _engine_options(args))
+    engine = Engine(ctx, scene, _engine_options(args, look))
     pictures = [resize(read_photo(photo, []), scene.output_size).astype(np.float32) / 255.0]  # upright, the output's size
     settings = replace(look, shadows="refined", background="environment")
     try:
@@ -327,10 +340,15 @@ def _check_video(args):
     """--frames, --fps and --turn within what a video can be, named when not."""
     if args.frames is not None and not 1 <= args.frames <= MAX_FRAMES:
         raise InputError(None, f"--frames must be in [1, {MAX_FRAMES}], got {args.frames}")
-    if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
-        raise InputError(None, f"--fps must be in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], got {args.fps}")
+    _check_fps(args)
     if not (np.isfinite(args.turn) and abs(args.turn) <= 36000):
         raise InputError(None, f"--turn must be a finite number of degrees within +-36000, got {args.turn}")
+
+
+def _check_fps(args):
+    """--fps within what a video (or the viewer's recording) can be, named when not."""
+    if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
+        raise InputError(None, f"--fps must be in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], got {args.fps}")
 
 
 def cmd_render(args) -> int:
@@ -362,8 +380,8 @@ def cmd_render(args) -> int:
     from .render import render_turntable
 
     frames = 120 if args.frames is None else args.frames
-    scene, lights, env = _prepare(args.scene, args.lights, args.envmap, args)
-    engine = Engine(create_headless_context(), scene, _engine_options(args))
+    scene, lights, env = _prepare(args.scene, args.lights, args.envmap, args, look)
+    engine = Engine(create_headless_context(), scene, _engine_options(args, look))
     start = time.perf_counter()
     try:
         with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
@@ -379,9 +397,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from .app.jobs import sidecar_lights
     from .envmap import load_envmap
-    from .lights import load_lights
     from .scene import PHOTO_SUFFIXES
 
     assets = asset_dir()
@@ -396,8 +412,7 @@ def cmd_view(args) -> int:
     from .placed_lights import load_rig
 
     rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
-    if not (np.isfinite(args.fps) and FPS_RANGE[0] <= args.fps <= FPS_RANGE[1]):
-        raise InputError(None, f"--fps must be in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}], got {args.fps}")
+    _check_fps(args)
     window = None
     if photo:
         from .app.window import Window
@@ -413,14 +428,7 @@ def cmd_view(args) -> int:
     try:
         scene = load_sized_scene(scene_path, args.size, args.max_size)
         env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
-        if args.lights:
-            lights = load_lights(args.lights)
-        else:
-            lights = sidecar_lights(env_path, _lights_count(args), args.method)
-            if lights is None:
-                lights, cached = _fitted_lights(env, _lights_count(args), args.method)
-                print(f"{'cached' if cached else 'fitted'} {len(lights)} lights for {env_path}")
-        _warn_if_dark(lights, args.lights or env_path)
+        lights = _lights(args, look, args.lights, env, env_path)
     except BaseException:
         if window is not None:
             window.release()
@@ -430,10 +438,10 @@ def cmd_view(args) -> int:
 
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
                           env_path=Path(env_path) if env_path is not None else None, method=args.method,
-                          options=_engine_options(args), look=look, out_dir=Path(args.out_dir),
+                          options=_engine_options(args, look), look=look, out_dir=Path(args.out_dir),
                           record_frames=args.record_frames, fps=args.fps,
                           state_file=Path(args.state_file) if args.state_file else None,
-                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=args.preset,
+                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=look.preset,
                           window=window, rig=rig, max_size=args.max_size, device=args.device,
                           gl_threads=_gl_threads())
     return run_viewer(config)
@@ -511,8 +519,6 @@ def cmd_infer(args) -> int:
 
 def cmd_fit_lights(args) -> int:
     from .envmap import load_envmap
-    from .lightfit.cache import write_atomic
-
     out = Path(args.output) if args.output else _beside_the_map(Path(args.map))
     if out is not None and out.suffix.lower() != ".json":
         raise InputError(out, "the light file is JSON: give a .json output path")
@@ -535,7 +541,7 @@ def cmd_fit_lights(args) -> int:
         print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache (the map's folder is not "
               "writable; -o writes a light file)")
     else:
-        write_atomic(out, lights, {"source": Path(args.map).name, "method": args.method, "n": args.n})
+        lights.save(out, fit={"source": Path(args.map).name, "method": args.method, "n": args.n})
         print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
     _warn_if_dark(lights, args.map)
     if args.plot:
@@ -661,7 +667,12 @@ def main(argv=None) -> int:
     import warnings
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    shown, warnings.showwarning = warnings.showwarning, _one_line_warning  # a warning is one line, like an error
+    with warnings.catch_warnings():  # a warning is one line, like an error; the hook is put back after
+        warnings.showwarning = _one_line_warning
+        return _main(argv)
+
+
+def _main(argv: list) -> int:
     try:
         plugins = command_plugins()
         if argv and argv[0] in plugins:
@@ -687,8 +698,6 @@ def main(argv=None) -> int:
             raise
         print(_interrupted(cause), file=sys.stderr)
         return 130
-    finally:
-        warnings.showwarning = shown
 
 
 def _interruption(exc: BaseException) -> KeyboardInterrupt | None:

@@ -43,11 +43,6 @@ class FrameSizes:
     work: tuple[int, int]
 
     @property
-    def frame_scale(self) -> float:
-        """Frame pixels per photo pixel."""
-        return max(self.frame) / max(self.photo)
-
-    @property
     def work_scale(self) -> float:
         """Work pixels per frame pixel."""
         return max(self.work) / max(self.frame)

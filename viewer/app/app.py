@@ -629,6 +629,11 @@ class ViewerApp:
 def run_viewer(config: ViewerConfig) -> int:
     # background work runs on threads (reading a scene's maps, the refinement network; light fits and
     # a photo's inference run in child processes, their threads only read them): hand the GIL over
-    # every 0.5 ms, not 5, so a frame of the window waits little behind the work's Python steps
+    # every 0.5 ms, not 5, so a frame of the window waits little behind the work's Python steps;
+    # the interpreter's own interval is back when the window closes
+    previous = sys.getswitchinterval()
     sys.setswitchinterval(0.0005)
-    return ViewerApp(config).run()
+    try:
+        return ViewerApp(config).run()
+    finally:
+        sys.setswitchinterval(previous)

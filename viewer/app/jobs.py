@@ -20,29 +20,8 @@ import numpy as np
 
 from ..envmap import EnvMap, load_envmap
 from ..errors import InputError
-from ..imageio import read_json
-from ..lights import AreaLights, load_lights
-
-
-def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
-    """Lights shipped beside a map (``<map>.lights.json``, as the bundled maps have) when they were
-    fitted for the same count, by the method asked or one at least as accurate
-    (:func:`viewer.lightfit.methods.serves`)."""
-    from ..lightfit.methods import serves
-
-    side = Path(env_path).with_suffix(".lights.json")
-    if not side.is_file():
-        return None
-    try:
-        fit = read_json(side, "light file").get("fit") or {}
-    except (InputError, AttributeError):
-        return None
-    if fit.get("n") != n or not serves(str(fit.get("method")), method):
-        return None
-    try:
-        return load_lights(side)
-    except InputError:
-        return None
+from ..lights import AreaLights
+from ..map_lights import map_lights
 
 
 @dataclass
@@ -235,20 +214,15 @@ class LightJob(ChildJob):
         self.stage = str(said["stage"]) + (f": {words}" if words else "")
 
     def work(self) -> LightsResult:
-        from ..lightfit.cache import cached_lights
-
         env = load_envmap(self.path)
-        lights = sidecar_lights(self.path, self.n, self.method)
-        if lights is not None:
-            return LightsResult(env, lights, "bundled")
-        lights = cached_lights(env, self.n, self.method)  # a corrupt entry: warned, and the child fits again
-        if lights is not None:
-            return LightsResult(env, lights, "cached")
+        lights, how = map_lights(env, self.path, self.n, self.method, self._fit_in_child)
+        return LightsResult(env, lights, how)
+
+    def _fit_in_child(self, env) -> tuple[AreaLights, bool]:
         self.stage = "fitting"
         said = self.run_child({"what": "lights", "map": str(self.path), "n": self.n, "method": self.method}, self.path,
                               self._stage)
-        lights = AreaLights.from_array(np.asarray(said["lights"], dtype=np.float32)).validate(self.path)
-        return LightsResult(env, lights, "cached" if said.get("cached") else "fitted")
+        return AreaLights.from_array(np.asarray(said["lights"], dtype=np.float32)).validate(self.path), bool(said.get("cached"))
 
 
 @dataclass

@@ -262,21 +262,12 @@ class Engine(EngineOutputs):
         if any(not np.array_equal(getattr(look, f), getattr(old, f)) for f in BACKGROUND_FIELDS):
             self._changed("background")
 
-    def set_display(self, **changes):
-        """Change the look's display fields (``exposure``, ``tonemap``, ``background``,
-        ``background_color``, ``yaw``, ``tilt``, ``compare``: before / after); only the display is redone."""
-        self.set_look(self.look.replace(**changes))
-
     def set_visibility(self, mode: str):
         """Which visibility the composite uses: 'soft' (EngineOptions.soft), 'hard' (shadow map), 'none', or
         'refined' (the refinement network's, see ``set_refined_visibility``; soft until it is set)."""
         if mode not in VISIBILITY_MODES:
             raise ValueError(f"visibility must be one of {', '.join(VISIBILITY_MODES)}, got {mode!r}")
         self.set_look(self.look.replace(shadows=mode))
-
-    def set_components(self, diffuse: bool = True, specular: bool = True):
-        """Show or leave out the diffuse and specular terms of the final image (composite only)."""
-        self.set_look(self.look.replace(diffuse=bool(diffuse), specular=bool(specular)))
 
     def set_view(self, view: str = "final", light: int = 0):
         """What the display image shows (``VIEWS``): the relit frame; the diffuse or specular shading

@@ -108,14 +108,6 @@ class EngineOutputs:
         return {"visibility_soft": full[..., 0], "visibility_hard": full[..., 1], "diffuse": full[..., 2], "specular": full[..., 3]}
 
     @in_context
-    def read_shadow_map(self, index: int) -> np.ndarray:
-        """(R, R) normalised depth of a light's shadow map, row 0 at v = 0."""
-        l = self._lights[index]
-        if not l.active or l.shadow_map is None or "shadow_map" in l.stale:
-            raise ValueError(f"light {index} contributes nothing, so it has no current shadow map")
-        return self.kit.read(l.shadow_map, 1)[..., 0]
-
-    @in_context
     def read_filtered_basis(self, index: int) -> np.ndarray:
         """A light's pre-filtered CSM basis, (2 M, n, n): cos and sin of c_k z for k = 0 .. M-1, at
         the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft

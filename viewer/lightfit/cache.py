@@ -78,20 +78,7 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
               "seconds": round(time.perf_counter() - start, 3), "version": FIT_VERSION}
     if usable:
         try:
-            write_atomic(path, lights, record)
+            lights.save(path, fit=record)
         except OSError as exc:  # a read-only cache costs the next run a refit, nothing more
             warnings.warn(f"{path}: cannot cache the lights ({exc.strerror or exc})", stacklevel=2)
     return lights, False
-
-
-def write_atomic(path: Path, lights: AreaLights, fit_record: dict | None = None) -> Path:
-    """Write a light file so that it appears complete or not at all."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        lights.save(tmp, fit=fit_record)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path

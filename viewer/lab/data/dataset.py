@@ -122,10 +122,8 @@ def map_pool(cfg: DatasetConfig, progress=None) -> list[PoolMap]:
         if side.is_file():
             lights = load_lights(side)
         else:
-            from viewer.lightfit.cache import write_atomic
-
             lights, _ = lights_for_map(env, N_LIGHTS)
-            write_atomic(side, lights, {"source": hdr.name, "method": "fast", "n": N_LIGHTS})
+            lights.save(side, fit={"source": hdr.name, "method": "fast", "n": N_LIGHTS})
         pool.append(PoolMap(name, kind, env, lights))
         if progress is not None:
             progress("maps", k + 1, len(made))

@@ -15,8 +15,8 @@ from typing import Callable
 
 TIMEOUT = 180.0
 # lines a command may print besides its one error line: progress (bars, infer's stages, the fit's
-# bars), what the lights came from, warnings, and argparse's usage above its error
-ALLOWED_PREFIXES = ("  ", "fitting ", "cached ", "relight: warning:", "usage: ")
+# bars), warnings, and argparse's usage above its error
+ALLOWED_PREFIXES = ("  ", "fitting ", "relight: warning:", "usage: ")
 
 
 @dataclass
