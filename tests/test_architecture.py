@@ -117,7 +117,7 @@ def test_the_lab_commands_are_listed_but_not_imported():
     import subprocess
     import sys
 
-    code = ("import sys; from viewer.cli import build_parser, command_plugins; "
+    code = ("import sys; from viewer.cli_parser import build_parser, command_plugins; "
             "build_parser(command_plugins()).print_help(); print(sorted(m for m in sys.modules if m.startswith('viewer.lab')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert all(f"    {name}" in out for name in ("bench", "dataset", "train")) and out.strip().endswith("[]")

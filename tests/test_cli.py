@@ -64,7 +64,7 @@ def test_bad_inputs_give_one_line_errors(tmp_path):
 
 def test_viewing_precomputed_maps_never_imports_torch(tmp_path):
     """Rendering a scene bundle under a light file (what the demo does after inference) needs no torch."""
-    from viewer.cli import DEMO_ENVMAP, DEMO_LIGHTS
+    from viewer.commands import DEMO_ENVMAP, DEMO_LIGHTS
     from viewer.resources import asset_dir, sample_scene_dir
 
     args = [str(sample_scene_dir()), str(asset_dir() / DEMO_LIGHTS), "--env", str(asset_dir() / DEMO_ENVMAP),

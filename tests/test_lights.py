@@ -58,7 +58,8 @@ def test_bad_light_files_are_named(tmp_path, edit, message):
 
 
 def test_facing_yaw_turns_the_brightest_light_to_the_camera():
-    from viewer.cli import _first_look, build_parser
+    from viewer.cli_parser import build_parser
+    from viewer.command_setup import first_look
     from viewer.lights import AreaLights, facing_yaw
     from viewer.settings import Look
 
@@ -74,5 +75,5 @@ def test_facing_yaw_turns_the_brightest_light_to_the_camera():
     # the viewer's first look: facing, unless a yaw was asked for
     behind = AreaLights(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), [1.0, 1.0], [[5.0, 5.0, 5.0], [1.0, 1.0, 1.0]])
     parser = build_parser()
-    assert abs(_first_look(parser.parse_args(["view"]), Look(), behind).yaw) == pytest.approx(180.0)
-    assert _first_look(parser.parse_args(["view", "--yaw", "30"]), Look(yaw=30.0), behind).yaw == 30.0
+    assert abs(first_look(parser.parse_args(["view"]), Look(), behind).yaw) == pytest.approx(180.0)
+    assert first_look(parser.parse_args(["view", "--yaw", "30"]), Look(yaw=30.0), behind).yaw == 30.0

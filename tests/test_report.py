@@ -62,16 +62,19 @@ def test_soft_shadow_targets():
 
 def test_balanced_preset_is_the_default():
     assert DEFAULT_PRESET == "balanced" and PRESETS["balanced"].options == EngineOptions()
-    from viewer.cli import _engine_options, _lights_count, build_parser
+    from viewer.cli_parser import build_parser
+    from viewer.command_setup import command_look, engine_options, lights_count
 
-    args = build_parser().parse_args(["render", "scene", "--preset", "interactive", "--terms", "8"])
-    assert _lights_count(args) == PRESETS["interactive"].lights
-    assert _engine_options(args) == replace(PRESETS["interactive"].options, terms=8)
-    args = build_parser().parse_args(["view"])
-    assert _lights_count(args) == PRESETS["balanced"].lights and _engine_options(args) == EngineOptions()
+    def options(*argv):
+        args = build_parser().parse_args(list(argv))
+        look = command_look(args)  # the preset is the look's: the options and the count follow it
+        return lights_count(args, look), engine_options(args, look)
+
+    assert options("render", "scene", "--preset", "interactive", "--terms", "8") == (
+        PRESETS["interactive"].lights, replace(PRESETS["interactive"].options, terms=8))
+    assert options("view") == (PRESETS["balanced"].lights, EngineOptions())
     assert EngineOptions().soft == "pcss"  # the contact-hardening soft shadows; the paper's CSM on request
-    args = build_parser().parse_args(["render", "scene", "--soft", "csm", "--terms", "8"])
-    assert _engine_options(args) == replace(EngineOptions(), soft="csm", terms=8)
+    assert options("render", "scene", "--soft", "csm", "--terms", "8")[1] == replace(EngineOptions(), soft="csm", terms=8)
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from viewer.lab.bench.viewer import x_display
-from viewer.cli import DEMO_LIGHTS
+from viewer.commands import DEMO_LIGHTS
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.metrics import detail_kept
 from viewer.imageio import read_exr, read_png
