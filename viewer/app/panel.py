@@ -153,7 +153,7 @@ def _shading(app):
         p = PRESETS[app.preset]
         imgui.set_tooltip(f"{p.summary}\nchosen as {p.rule} (docs/results.md)")
     if changed:
-        app.set_preset(presets[i])
+        app.actions.set_preset(presets[i])
     names = list(SHADOW_MODES)
     current = list(SHADOW_MODES.values()).index(lk.shadows)
     changed, i = imgui.combo("shadows", current, names)
@@ -189,7 +189,7 @@ def _lights(app):
     if changed:
         app.n_lights = count
     if imgui.is_item_deactivated_after_edit() and app.n_lights != n and app.env_path is not None:
-        app.open_map(app.env_path, app.n_lights)
+        app.actions.open_map(app.env_path, app.n_lights)
     if app.env_path is None:
         imgui.text_disabled("(no map to refit: lights came from a file)")
     lights = s.rotated_lights()
@@ -231,7 +231,7 @@ def _placed(app):
     s = app.session
     if not imgui.collapsing_header(f"Your lights ({len(s.placed)})", _open(app, False)):
         return
-    level = app.placed_level()
+    level = app.actions.placed_level()
     names = list(RIGS)
     imgui.set_next_item_width(140)
     _, app.rig_choice = imgui.combo("##rig", app.rig_choice, names)
@@ -259,7 +259,7 @@ def _placed(app):
         s.redo()
     imgui.same_line()
     if imgui.button("save rig") and s.placed:
-        app.save_rig()
+        app.actions.save_rig()
     placed = list(s.placed)
     for j, p in enumerate(placed):
         imgui.push_id(f"placed{j}")
@@ -309,7 +309,7 @@ def _map(app):
     if imgui.begin_combo("map", label):
         for i, name in enumerate(names):
             if imgui.selectable(name, i == current)[0] and i != current:
-                app.open_map(maps[i])
+                app.actions.open_map(maps[i])
         imgui.end_combo()
     _remember(app, "map")
     _thumbnail(app)
@@ -320,7 +320,7 @@ def _map(app):
     if app.show_browser:
         chosen = app.browser.draw(lambda name: _remember(app, f"browser {name}"))
         if chosen is not None:
-            app.open_file(chosen)
+            app.actions.open_file(chosen)
 
 
 def _thumbnail(app):
@@ -340,7 +340,7 @@ def _thumbnail(app):
     lo = imgui.get_item_rect_min()
     if imgui.is_item_clicked(0):
         mouse = imgui.get_io().mouse_pos
-        app.aim_direction(thumb.direction_at((mouse.x - lo.x) / size.x, (mouse.y - lo.y) / size.y, yaw, tilt))
+        app.actions.aim_direction(thumb.direction_at((mouse.x - lo.x) / size.x, (mouse.y - lo.y) / size.y, yaw, tilt))
     if imgui.is_item_hovered():
         imgui.set_tooltip("the map as it lights the person now\nmiddle: behind the person; edges: the camera's side\n"
                           "click: aim the light being aimed here, or add one here")
@@ -365,15 +365,15 @@ def _record(app):
     rec = app.recording
     if rec is None:
         if imgui.button("Record (R)"):
-            app.toggle_recording("live")
+            app.actions.toggle_recording("live")
         _remember(app, "record")
         imgui.same_line()
         if imgui.button("360 turn (T)"):
-            app.toggle_recording("turntable")
+            app.actions.toggle_recording("turntable")
         _remember(app, "record turn")
         imgui.same_line()
         if imgui.button("Save frame (S)"):
-            app.save_frame()
+            app.actions.save_frame()
         imgui.set_next_item_width(120)
         changed, frames = imgui.slider_int("turn frames", app.config.record_frames, 12, 720)
         if changed:
@@ -381,13 +381,13 @@ def _record(app):
     elif isinstance(rec, InteractionRecording) and rec.capturing:
         imgui.text(f"recording what you do: {rec.seconds:.1f} s")
         if imgui.button("Stop and render (R)"):
-            app.toggle_recording(rec.kind)
+            app.actions.toggle_recording(rec.kind)
         _remember(app, "record")
     else:
         left = rec.time_left.words()
         imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{rec.done} / {rec.total} frames" + (f", {left}" if left else ""))
         if imgui.button("Stop"):
-            app.toggle_recording(rec.kind)
+            app.actions.toggle_recording(rec.kind)
         _remember(app, "record")
     imgui.text_disabled(f"to {app.config.out_dir}/")
 

@@ -1,0 +1,235 @@
+"""What the viewer does when the user asks: save the frame or the rig, record, open a map, a
+person or a rig, aim a placed light, compare before / after, change the quality preset. Each
+action reads and changes the window's state (:class:`viewer.app.app.ViewerApp`) and says what it
+did in its message line; the frame loop and the panel call them."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from ..imageio import write_exr, write_png, write_text
+from ..placed_lights import PlacedLight, level
+from ..scene import PHOTO_SUFFIXES
+from . import interaction as ix
+from .jobs import LightJob, SceneJob
+from .recording import InteractionRecording, TurntableRecording
+from .state_file import look_json
+
+
+class Actions:
+    def __init__(self, app):
+        self.app = app
+        self._capture_index = 0
+        self.last_compare = 0.5  # where B puts the before / after split
+
+    def _capture_stem(self) -> Path:
+        self._capture_index += 1
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        return self.app.config.out_dir / f"relight-{stamp}-{self._capture_index:03d}"
+
+    def report(self, what: str, exc: Exception):
+        """An error in an action: shown in the panel and printed; the viewer goes on."""
+        self.app.error = f"{what}: {exc}"
+        print(f"relight: error: {self.app.error}", file=sys.stderr, flush=True)
+
+    def save_frame(self):
+        try:
+            self._save_frame()
+        except Exception as exc:  # an unwritable folder, a full disk: reported, the viewer goes on
+            self.report("saving the frame failed", exc)
+
+    def _save_frame(self):
+        """The current state at full quality: display PNG, HDR EXR and a JSON of lights and look."""
+        eng = self.app.session.render(preview=False)
+        stem = self._capture_stem()
+        png = write_png(stem.with_suffix(".png"), eng.read_display().astype(np.float32) / 255.0)
+        write_exr(stem.with_suffix(".exr"), eng.read_output_hdr()[..., :3])
+        state = {"look": look_json(self.app), "map": str(self.app.env_path) if self.app.env_path else None, "preset": self.app.preset}
+        state["lights"] = self.app.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
+        state["rig"] = [asdict(p) for p in self.app.session.placed]
+        write_text(stem.with_suffix(".json"), json.dumps(state, indent=2) + "\n")
+        self.app.captures.append(str(png))
+        self.app.message = f"saved {png.name} (+ .exr, .json)"
+        print(f"saved {png} {stem.with_suffix('.exr')} {stem.with_suffix('.json')}", flush=True)
+
+    def toggle_recording(self, kind: str):
+        rec = self.app.recording
+        if isinstance(rec, InteractionRecording) and rec.capturing:
+            rec.stop(self.app.session.look, self.app.session.placed, self.app.session.sigma)  # the capture ends: its frames are rendered from the next pass on
+            self.app.message = f"rendering {rec.total} frames of {rec.path.name}"
+            return
+        if rec is not None:
+            self.finish_recording(stopped=True)
+            return
+        size = self.app.session.scene.output_size
+        path = self._capture_stem().with_suffix(".mp4")
+        try:
+            if kind == "turntable":
+                self.app.recording = TurntableRecording(path, size, self.app.session.look.yaw, self.app.config.record_frames, self.app.config.fps)
+            else:
+                self.app.recording = InteractionRecording(path, size, self.app.config.fps)
+        except Exception as exc:
+            self.report(f"cannot record to {path}", exc)
+            return
+        self.app.message = f"recording {path.name}"
+
+    def apply_moment(self, m):
+        s = self.app.session
+        s.look = m.look.fitted(len(s.base_lights) + len(m.placed))
+        s.set_placed(m.placed, record=False)
+        if len(m.sigma) == len(s.sigma):  # the same map's lights (a refit meanwhile keeps the new sigmas)
+            s.sigma[:] = m.sigma
+
+    def _render_capture(self, rec: InteractionRecording):
+        """A quit during a capture: its frames rendered now (nothing else holds what the user did)."""
+        rec.stop(self.app.session.look, self.app.session.placed, self.app.session.sigma)
+        print(f"rendering the {rec.total} frames of {rec.path.name} before quitting", flush=True)
+        while not rec.finished:
+            self.apply_moment(rec.moment(rec.done))
+            self.app.session.render()
+            rec.add(self.app.session.final.read_display())
+
+    def finish_recording(self, stopped: bool = False):
+        rec, self.app.recording = self.app.recording, None
+        if isinstance(rec, TurntableRecording):
+            self.app.session.update(yaw=rec.start_yaw)
+        if isinstance(rec, InteractionRecording):
+            try:
+                if rec.capturing:
+                    self._render_capture(rec)
+            finally:
+                self.apply_moment(rec.resume)  # back to where the user was
+        try:
+            path = rec.close()
+        except Exception as exc:
+            self.report(f"recording {rec.path} failed", exc)
+            return
+        how = "stopped after" if stopped and not rec.finished else "recorded"
+        self.app.videos.append(str(path))
+        self.app.message = f"{how} {rec.done} frames: {path.name}"
+        print(f"{how} {rec.done} frames to {path}", flush=True)
+
+    def open_map(self, path: Path, n: int | None = None):
+        if self.app.job is not None:
+            self.app.message = "still fitting the previous map"
+            return
+        self.app.error = ""
+        self.app.message = f"lights for {Path(path).name}; the window stays live meanwhile"
+        self.app.job = LightJob(path, n or self.app.n_lights, self.app.config.method, wake=self.app.window.wake,
+                            worker=self.app.workers["lights"])
+
+    def open_scene(self, path: Path):
+        """Another person: a photo (inferred in a child process, or from the cache) or a scene
+        bundle, read on a thread; the window shows it when its maps are ready (:meth:`_poll_scene_job`)."""
+        if self.app.scene_job is not None:
+            self.app.message = f"still opening {self.app.scene_job.path.name}"
+            return
+        self.app.error = ""
+        self.app.message = f"opening {path.name}; the window stays live meanwhile"
+        self.app.scene_job = SceneJob(path, self.app.config.max_size, self.app.config.device, wake=self.app.window.wake,
+                                  worker=self.app.workers["photo"])
+
+    def open_file(self, path: Path):
+        """A file dropped on the window or chosen in its browser: a photo or a scene bundle (its
+        folder or its scene.json) becomes the person shown; an environment map is fitted and
+        switched to with its lights; a rig's lights are placed. Anything else is one line saying
+        what the window opens."""
+        from ..errors import InputError
+        from ..file_kinds import kind_of, wrong_kind
+        from ..placed_lights import load_rig
+        from .files import is_bundle
+
+        suffix = path.suffix.lower()
+        if is_bundle(path):
+            self.open_scene(path)
+        elif path.name == "scene.json":
+            self.open_scene(path.parent)
+        elif suffix in PHOTO_SUFFIXES:
+            self.open_scene(path)
+        elif suffix in (".hdr", ".exr"):
+            self.open_map(path)
+        elif suffix == ".json" and kind_of(path) not in ("rig", None):  # a light file, a saved look...
+            self.app.error = str(wrong_kind(path, "a rig"))
+        elif suffix == ".json":
+            try:
+                self.app.session.set_placed(load_rig(path))
+            except InputError as exc:
+                self.app.error = str(exc)
+                return
+            self.app.message = f"{len(self.app.session.placed)} placed lights from {path.name}"
+        else:
+            self.app.error = (f"{path}: the window opens photos ({', '.join(PHOTO_SUFFIXES)}), scene bundles (a folder "
+                          "with scene.json), environment maps (.hdr, .exr) and rigs (.json)")
+
+    def aim_at(self, x: float, y: float):
+        """Aim the placed light being aimed so that it faces the person's surface under the image
+        point (x, y) head-on (its direction: the normal there)."""
+        sc = self.app.session.scene
+        px = ix.image_pixel((x, y), self.app.image_rect(), (sc.width, sc.height))
+        if px is None or not sc.mask[px[1], px[0]]:
+            self.app.aiming = None
+            self.app.message = "not aimed: click on the person"
+            return
+        self.aim_direction(sc.normal[px[1], px[0]], f"the person's pixel {px[0]}, {px[1]}")
+
+    def aim_direction(self, direction, where: str = "the map's point clicked"):
+        """The placed light being aimed turned to come from ``direction`` (camera space); with none
+        being aimed, a new light from there."""
+        s = self.app.session
+        j, self.app.aiming = self.app.aiming, None
+        placed = list(s.placed)
+        if j is None or j >= len(placed):
+            placed.append(PlacedLight.aimed(direction, intensity=self.placed_level()))
+            j, verb = len(placed) - 1, "added at"
+        else:
+            p = placed[j]
+            placed[j] = PlacedLight.aimed(direction, size=p.size, intensity=p.intensity, kelvin=p.kelvin)
+            verb = "aimed at"
+        s.set_placed(placed)
+        self.app.message = f"light {len(s.base_lights) + j} {verb} {where}"
+
+    def placed_level(self) -> float:
+        """A new placed light's intensity: the map's level (viewer.placed_lights.level)."""
+        return level(self.app.session.base_lights)
+
+    def save_rig(self):
+        from ..placed_lights import save_rig
+
+        try:
+            self.app.config.out_dir.mkdir(parents=True, exist_ok=True)
+            path = save_rig(self._capture_stem().with_name(f"rig-{time.strftime('%Y%m%d-%H%M%S')}.json"),
+                            self.app.session.placed)
+        except OSError as exc:
+            self.report("saving the rig failed", exc)
+            return
+        self.app.message = f"saved the rig: {path.name} (relight view --rig {path.name})"
+
+    def toggle_compare(self):
+        """Before / after: the original photo left of a split (at the last position, half the frame
+        at first), or the relit frame alone again."""
+        if self.app.session.scene.frame is None:
+            self.app.message = "before / after needs a photo: this scene has no original to show"
+            return
+        look = self.app.session.look
+        if look.compare > 0.0:
+            self.last_compare = look.compare
+        self.app.session.update(compare=0.0 if look.compare > 0.0 else self.last_compare)
+
+    def set_preset(self, name: str):
+        """A quality preset: its engine options now, its number of lights refitted (cached) when the
+        lights came from a map."""
+        from ..presets import preset
+
+        p = preset(name)
+        self.app.preset = name
+        self.app.session.set_options(p.options)
+        if p.lights != len(self.app.session.sigma) and self.app.env_path is not None:
+            self.app.n_lights = p.lights
+            self.open_map(self.app.env_path, p.lights)
+        self.app.message = f"preset {name}: {p.summary}"

@@ -1,0 +1,79 @@
+"""The window's mouse and keys, read once a frame from imgui: a drag turns the lighting, the right
+button pans, the wheel changes the exposure (with Ctrl: zooms), a click aims a placed light, and
+the keys of the viewer's table (viewer/app/layout.py) save, record, compare and undo."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+from . import interaction as ix
+
+
+class Controls:
+    def __init__(self, app):
+        self.app = app
+
+    def handle(self):
+        from imgui_bundle import imgui
+
+        io = imgui.get_io()
+        mx, my = io.mouse_pos.x, io.mouse_pos.y
+        ax, ay, aw, ah = self.app.image_area()
+        over_image = ax <= mx < ax + aw and ay <= my < ay + ah and not io.want_capture_mouse
+        recording_turn = self.app.replaying  # the lighting is the recording's, not the mouse's
+        now = time.perf_counter()
+        if self.app.aiming is not None and imgui.is_mouse_clicked(0) and over_image:
+            self.app.actions.aim_at(mx - ax, my - ay)
+        elif imgui.is_mouse_clicked(0) and over_image and not recording_turn:
+            self.app.dragging = True
+            self.app.drag_applied = (0.0, 0.0)
+        if self.app.dragging:
+            # motion since the press, from imgui's own press position: nothing is lost between
+            # the press and the first frame that sees it, nor before the release
+            down = imgui.is_mouse_down(0)
+            if down or imgui.is_mouse_released(0):
+                total = imgui.get_mouse_drag_delta(0, 0.0)
+                dx, dy = total.x - self.app.drag_applied[0], total.y - self.app.drag_applied[1]
+                if dx or dy:
+                    self.app.session.look = ix.dragged(self.app.session.look, dx, dy)
+                    self.app.drag_applied = (total.x, total.y)
+                    self.app.last_motion = now
+            if not down:
+                self.app.dragging = False
+        if imgui.is_mouse_clicked(1) and over_image:
+            self.app.panning = True
+        elif self.app.panning:
+            if imgui.is_mouse_down(1):
+                self.app.view = ix.panned(self.app.view, io.mouse_delta.x, io.mouse_delta.y)
+            else:
+                self.app.panning = False
+        if over_image and io.mouse_wheel:
+            if io.key_ctrl:
+                self.app.view = ix.zoomed(self.app.view, io.mouse_wheel, cursor=(mx - ax, my - ay), area=(aw, ah))
+            else:
+                self.app.session.look = ix.wheeled(self.app.session.look, io.mouse_wheel)
+        shortcuts = self.app.window.take_shortcuts()
+        if io.want_capture_keyboard:
+            return
+        if imgui.is_key_pressed(imgui.Key.s, False):
+            self.app.actions.save_frame()
+        if imgui.is_key_pressed(imgui.Key.r, False):
+            self.app.actions.toggle_recording("live")
+        if imgui.is_key_pressed(imgui.Key.t, False):
+            self.app.actions.toggle_recording("turntable")
+        if imgui.is_key_pressed(imgui.Key.f, False):
+            self.app.view = replace(self.app.view, zoom=1.0, pan=(0.0, 0.0))
+        if imgui.is_key_pressed(imgui.Key._0, False):
+            self.app.session.update(yaw=0.0, tilt=0.0)
+        if imgui.is_key_pressed(imgui.Key.b, False):
+            self.app.actions.toggle_compare()
+        if imgui.is_key_pressed(imgui.Key.g, False):
+            self.app.session.update(ground=not self.app.session.ground_shown)
+        for key in shortcuts:
+            if key == "undo":
+                self.app.message = "undone" if self.app.session.undo() else "nothing to undo"
+            else:
+                self.app.message = "redone" if self.app.session.redo() else "nothing to redo"
+        if imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
+            self.app.window.close()

@@ -1,0 +1,63 @@
+"""The window's jobs, looked at once a frame: a person opened (a photo inferred or a bundle read)
+or a map's lights fitted is switched in when it is done, with its first frame facing the
+brightest light and exposed as the last; a failed one shows its line."""
+
+from __future__ import annotations
+
+import sys
+
+from ..lights import facing_yaw
+from . import interaction as ix
+
+
+class JobPolling:
+    def __init__(self, app):
+        self.app = app
+
+    def poll(self):
+        self.lights_fitted()
+        self.scene_opened()
+
+    def _finished(self, attr: str):
+        """The job in ``app.<attr>`` once it has ended (the attribute emptied): its result, or None
+        (still running, none, or failed: its error shown and printed)."""
+        job = getattr(self.app, attr)
+        if job is None or not job.done:
+            return None
+        setattr(self.app, attr, None)
+        if job.error:
+            self.app.error, self.app.message = job.error, ""
+            print(f"relight: error: {job.error}", file=sys.stderr, flush=True)
+            return None
+        self.app.switched = True
+        return job
+
+    def scene_opened(self):
+        job = self._finished("scene_job")
+        if job is None:
+            return
+        res = job.result
+        self.app.session.set_scene(res.scene)
+        self.app.session.update(yaw=facing_yaw(self.app.session.lights))  # its first frame faces the brightest light
+        self.app.view = ix.ViewState()
+        self.app.exposed_again()
+        self.app.window.set_title(f"relight - {res.path.name}")
+        how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",
+               "bundle": "a scene bundle"}[res.how]
+        self.app.message = f"opened {res.path.name} ({how}): {res.scene.output_size[0]}x{res.scene.output_size[1]}"
+        print(self.app.message, flush=True)
+
+    def lights_fitted(self):
+        job = self._finished("job")
+        if job is None:
+            return
+        res = job.result
+        new_map = job.path != self.app.env_path
+        self.app.session.set_lights(res.lights, environment=res.env.pixels, new_map=new_map)
+        if new_map:  # as the first map: its brightest light on the camera's side
+            self.app.session.update(yaw=facing_yaw(res.lights))
+        self.app.env_path = job.path
+        self.app.n_lights = len(res.lights)
+        self.app.exposed_again()
+        self.app.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
+        print(self.app.message, flush=True)

@@ -1,0 +1,64 @@
+"""The viewer's state file (``relight view --state-file``): the look, the lights, the widgets'
+places, what is being recorded, fitted or opened, and the frame times, as JSON for scripts, tests
+and benchmarks."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+from ..imageio import write_text
+
+
+def look_json(app) -> dict:
+    """The look shown, with the quality preset it was made at."""
+    return replace(app.session.look, preset=app.preset).to_json()
+
+
+class StateFile:
+    """Writes ``path`` atomically, skipping a write that would change nothing but the frame times
+    within a second."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._text = ""
+        self._time = 0.0
+
+    def write(self, app, force: bool = False):
+        """The window's state now (at most once a second when only the frame times changed)."""
+        rec = app.recording
+        state = {
+            "look": look_json(app),
+            "sigma": [float(v) for v in app.session.sigma],
+            "placed": [asdict(p) for p in app.session.placed],
+            "n_lights": len(app.session.sigma),
+            "preset": app.preset,
+            "map": str(app.env_path) if app.env_path else None,
+            "image_rect": list(app.image_rect()),
+            "window_size": list(app.window.size),
+            "panel_height": app.panel_height,
+            "widgets": app.widgets,
+            "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "total": rec.total, "path": str(rec.path),
+                                                   "capturing": getattr(rec, "capturing", False),
+                                                   "seconds": getattr(rec, "seconds", None)},
+            "fitting": app.job is not None,
+            "opening": None if app.scene_job is None else str(app.scene_job.path),
+            "scene_size": list(app.session.scene.output_size),
+            "refined": app.session.final.refined_current,
+            "refine_error": app.session.refine_error,
+            "captures": app.captures,
+            "videos": app.videos,
+            "message": app.message,
+            "error": app.error,
+            "gl_threads": app.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cores.py)
+        }
+        text = json.dumps(state)
+        now = time.monotonic()
+        if text == self._text and not force and now - self._time < 1.0:  # frame times: once a second
+            return
+        self._text, self._time = text, now
+        state["frame_count"] = app.frame_count
+        state["frames"] = [[round(ms, 3), kind] for ms, kind in app.frames]
+        write_text(self.path, json.dumps(state))
