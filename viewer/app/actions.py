@@ -194,6 +194,26 @@ class Actions:
         s.set_placed(placed)
         self.app.message = f"light {len(s.base_lights) + j} {verb} {where}"
 
+    def start_aiming(self, j: int):
+        """The next click on the person or the map aims placed light ``j``."""
+        self.app.aiming = j
+        self.app.message = f"click on the person or the map: light {len(self.app.session.base_lights) + j} will face that point"
+
+    def use_rig(self, name: str):
+        """The placed lights of rig ``name`` in place of the user's (undoable)."""
+        from ..placed_lights import rig
+
+        s = self.app.session
+        replaced = len(s.placed)
+        s.set_placed(rig(name, self.placed_level()))
+        self.app.message = (f"rig {name}: {len(s.placed)} lights"
+                            + (f" in place of your {replaced} (Ctrl+Z brings them back)" if replaced else ""))
+
+    def refit(self, n: int):
+        """The map's lights fitted again at ``n`` lights (the count the panel's slider was let go at)."""
+        self.app.n_lights = n
+        self.open_map(self.app.env_path, n)
+
     def placed_level(self) -> float:
         """A new placed light's intensity: the map's level (viewer.placed_lights.level)."""
         return level(self.app.session.base_lights)

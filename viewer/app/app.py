@@ -27,6 +27,7 @@ from .job_polling import JobPolling
 from .jobs import ChildWorker, LightJob, SceneJob
 from .layout import PANEL_WIDTH, image_area_size, panel_width
 from .recording import InteractionRecording, TurntableRecording
+from .panel import PanelState
 from .session import Session
 from .state_file import StateFile
 
@@ -92,14 +93,12 @@ class ViewerApp:
         self.drag_applied = (0.0, 0.0)  # drag motion already turned into rotation (pixels)
         self.panning = False
         self.last_motion = 0.0
-        self.adjusted = 0.0  # when a panel widget was last held (its changes preview until it is let go)
         self.job: LightJob | None = None
         self.scene_job: SceneJob | None = None
         # the child processes that fit maps and infer photos, started on first use and kept (torch loads once)
         self.workers = {"lights": ChildWorker(), "photo": ChildWorker()}
         self.recording = None
         self.message = ""
-        self.rig_choice = 0  # the rig the panel's combo shows
         self.aiming: int | None = None  # the placed light the next click on the person aims
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
@@ -107,14 +106,12 @@ class ViewerApp:
         self._frame_start = time.perf_counter()
         self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
         self.frame_count = 0
-        self.widgets: dict = {}
-        self.panel_height = 0.0  # the panel's content, drawn or not (the first frame fits the window to it)
+        self.panel = PanelState()
         self.captures: list[str] = []
         self.videos: list[str] = []
         self.state_file = StateFile(config.state_file) if config.state_file is not None else None
         self.thumbnail = MapThumbnail(self.window.ctx)
         self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd(), OPENS)
-        self.show_browser = False
         self.actions = Actions(self)
         self.jobs = JobPolling(self)
         self.controls = Controls(self)
@@ -157,7 +154,7 @@ class ViewerApp:
         """A window taller than the panel's content where the screen has room: nothing is cut off
         and no scrolling is needed at first (a smaller screen keeps the panel's scroll bar)."""
         w, h = self.window.size
-        need = int(np.ceil(self.panel_height))
+        need = int(np.ceil(self.panel.height))
         screen = self.window.screen_height()
         if need > h and screen is not None:
             self.window.resize(w, min(need, max(screen - 40, h)))
@@ -177,7 +174,7 @@ class ViewerApp:
         capturing = isinstance(rec, InteractionRecording) and rec.capturing
         now = time.perf_counter()
         moving = self.dragging and now - self.last_motion < STILL_SECONDS
-        adjusting = not moving and now - self.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
+        adjusting = not moving and now - self.panel.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
         switching = self.switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
         preview = (moving or adjusting) and (rec is None or capturing) and not switching
         rendered = s.preview if preview else s.final
@@ -233,7 +230,7 @@ class ViewerApp:
             while not w.should_close:
                 # a slider let go: the loop runs on until its full-quality frame replaces the preview
                 busy = (self.dragging or self.panning or self.recording is not None
-                        or time.perf_counter() - self.adjusted < 2 * STILL_SECONDS)
+                        or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = self._frame_start = time.perf_counter()

@@ -1,18 +1,20 @@
 """The side panel (imgui): lighting, per-light size sliders (sigma shown as the light's angular
-size in degrees), shading, views, map, recording, frame time, keys. Draws and applies the user's changes to the app's state."""
+size in degrees), shading, views, map, recording, frame time, keys. It keeps its own state
+(:class:`PanelState`), reads the window's, and changes it through the app's actions or the
+session's own methods."""
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from imgui_bundle import imgui, implot
 
 from ..lights import azimuth_elevation
 from ..median_cut import LUMINANCE
-from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb, rig
+from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb
 from ..presets import PRESETS
 from ..settings import VIEWS
 from ..shadow_space import ANGULAR_SIGMA
@@ -25,9 +27,22 @@ SIGMA_MAX = 30.0  # slider range (256-px units; the fitted lights use 0 to 20)
 DEG_PER_SIGMA = math.degrees(ANGULAR_SIGMA)  # the slider shows a light's size: its angular sigma in degrees
 
 
+@dataclass
+class PanelState:
+    """What the panel keeps between frames, its own: the window's state it only reads, and it
+    changes that state through the app's actions (:mod:`viewer.app.actions`)."""
+
+    widgets: dict = field(default_factory=dict)  # name -> [x0, y0, x1, y1] of the widgets drawn this frame
+    height: float = 0.0  # its content, drawn or not (the first frame fits the window to it)
+    adjusted: float = 0.0  # when a widget was last held (its changes preview until it is let go)
+    show_browser: bool = False
+    rig_choice: int = 0  # the rig the combo shows
+    light_count: int | None = None  # the count slider's value while it is held
+
+
 def _remember(app, name: str):
     lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
-    app.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
+    app.panel.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
 
 
 def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
@@ -37,7 +52,7 @@ def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
 
 def draw_panel(app):
     w, h = app.window.size
-    app.widgets = {}  # the widgets drawn this frame (a collapsed section's are not there)
+    app.panel.widgets = {}  # the widgets drawn this frame (a collapsed section's are not there)
     width = panel_width(w)
     imgui.set_next_window_pos(imgui.ImVec2(w - width, 0))
     imgui.set_next_window_size(imgui.ImVec2(width, h))
@@ -56,9 +71,9 @@ def draw_panel(app):
     _frame_time(app)
     if imgui.collapsing_header("Keys and mouse"):
         _keys()
-    app.panel_height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
+    app.panel.height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
     if imgui.is_any_item_active():  # a slider held (or a click): the preview until it is let go (app._render)
-        app.adjusted = time.perf_counter()
+        app.panel.adjusted = time.perf_counter()
     imgui.end()
 
 
@@ -184,12 +199,15 @@ def _lights(app):
     if not imgui.collapsing_header(f"Area lights ({n})", _open(app, False)):
         return
     imgui.set_next_item_width(140)
-    changed, count = imgui.slider_int("number of lights", app.n_lights, 1, MAX_LIGHTS)
+    shown = app.panel.light_count if app.panel.light_count is not None else app.n_lights
+    changed, count = imgui.slider_int("number of lights", shown, 1, MAX_LIGHTS)
     _remember(app, "number of lights")
     if changed:
-        app.n_lights = count
-    if imgui.is_item_deactivated_after_edit() and app.n_lights != n and app.env_path is not None:
-        app.actions.open_map(app.env_path, app.n_lights)
+        app.panel.light_count = count
+    if imgui.is_item_deactivated_after_edit():
+        count, app.panel.light_count = app.panel.light_count, None
+        if count is not None and count != n and app.env_path is not None:
+            app.actions.refit(count)
     if app.env_path is None:
         imgui.text_disabled("(no map to refit: lights came from a file)")
     lights = s.rotated_lights()
@@ -234,13 +252,10 @@ def _placed(app):
     level = app.actions.placed_level()
     names = list(RIGS)
     imgui.set_next_item_width(140)
-    _, app.rig_choice = imgui.combo("##rig", app.rig_choice, names)
+    _, app.panel.rig_choice = imgui.combo("##rig", app.panel.rig_choice, names)
     imgui.same_line()
     if imgui.button("use rig"):
-        replaced = len(s.placed)
-        s.set_placed(rig(names[app.rig_choice], level))
-        app.message = (f"rig {names[app.rig_choice]}: {len(s.placed)} lights"
-                       + (f" in place of your {replaced} (Ctrl+Z brings them back)" if replaced else ""))
+        app.actions.use_rig(names[app.panel.rig_choice])
     _remember(app, "use rig")
     imgui.same_line()
     if imgui.button("add light"):
@@ -269,8 +284,7 @@ def _placed(app):
         imgui.text(f"yours {j + 1} (light {len(s.base_lights) + j})")
         imgui.same_line()
         if imgui.small_button("aim"):
-            app.aiming = j
-            app.message = f"click on the person or the map: light {len(s.base_lights) + j} will face that point"
+            app.actions.start_aiming(j)
         _remember(app, f"placed {j} aim")
         imgui.same_line()
         if imgui.small_button("delete"):
@@ -313,11 +327,11 @@ def _map(app):
         imgui.end_combo()
     _remember(app, "map")
     _thumbnail(app)
-    changed, app.show_browser = imgui.checkbox("open a file...", app.show_browser)
+    changed, app.panel.show_browser = imgui.checkbox("open a file...", app.panel.show_browser)
     _remember(app, "open a file")
     if imgui.is_item_hovered():
         imgui.set_tooltip("a photo, a scene bundle, an environment map or a rig (or drop one on the window)")
-    if app.show_browser:
+    if app.panel.show_browser:
         chosen = app.browser.draw(lambda name: _remember(app, f"browser {name}"))
         if chosen is not None:
             app.actions.open_file(chosen)
