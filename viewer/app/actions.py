@@ -27,6 +27,7 @@ class Actions:
         self.app = app
         self._capture_index = 0
         self.last_compare = 0.5  # where B puts the before / after split
+        self.turn_frames = app.config.record_frames  # a 360 turn's frames (relight view --record-frames; the panel's slider)
 
     def _capture_stem(self) -> Path:
         self._capture_index += 1
@@ -71,7 +72,7 @@ class Actions:
         path = self._capture_stem().with_suffix(".mp4")
         try:
             if kind == "turntable":
-                self.app.recording = TurntableRecording(path, size, self.app.session.look.yaw, self.app.config.record_frames, self.app.config.fps)
+                self.app.recording = TurntableRecording(path, size, self.app.session.look.yaw, self.turn_frames, self.app.config.fps)
             else:
                 self.app.recording = InteractionRecording(path, size, self.app.config.fps)
         except Exception as exc:
@@ -193,6 +194,9 @@ class Actions:
             verb = "aimed at"
         s.set_placed(placed)
         self.app.message = f"light {len(s.base_lights) + j} {verb} {where}"
+
+    def set_turn_frames(self, frames: int):
+        self.turn_frames = int(frames)
 
     def start_aiming(self, j: int):
         """The next click on the person or the map aims placed light ``j``."""

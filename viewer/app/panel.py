@@ -389,9 +389,9 @@ def _record(app):
         if imgui.button("Save frame (S)"):
             app.actions.save_frame()
         imgui.set_next_item_width(120)
-        changed, frames = imgui.slider_int("turn frames", app.config.record_frames, 12, 720)
+        changed, frames = imgui.slider_int("turn frames", app.actions.turn_frames, 12, 720)
         if changed:
-            app.config.record_frames = frames
+            app.actions.set_turn_frames(frames)
     elif isinstance(rec, InteractionRecording) and rec.capturing:
         imgui.text(f"recording what you do: {rec.seconds:.1f} s")
         if imgui.button("Stop and render (R)"):
