@@ -516,3 +516,19 @@ def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, 
     engine.release()
     assert rel_l1(read_exr(shot.with_suffix(".exr")), expected) < 1e-3
     assert v.quit() == 0
+
+
+def test_the_light_count_slider_refits_the_map_when_let_go(viewer_factory):
+    """The panel's "number of lights" slider keeps its value while held and refits the map's lights
+    at it when let go (the panel's own state, then the refit action)."""
+    v = viewer_factory()
+    s = v.state()
+    x0, y0, x1, y1 = s["widgets"]["number of lights"]
+    before = s["n_lights"]
+    v.xdotool("mousemove", int(x0 + 0.04 * (x1 - x0)), int((y0 + y1) / 2))  # near the slider's low end
+    time.sleep(0.2)
+    v.xdotool("click", 1)
+    s = v.wait_for(lambda s: s["n_lights"] != before and not s["fitting"], 120)
+    assert 1 <= s["n_lights"] < before and len(s["sigma"]) == s["n_lights"]
+    assert "lights (" in s["message"] and s["error"] == ""
+    assert v.quit() == 0
