@@ -22,7 +22,8 @@ these declarations):
     9 GroundShadowPass   inputs: light_pass, intensity, activity, ground, visibility; 6 and 8 redraw the
                          whole image when it ran
 
-Reading results back is the other half of the interface (outputs.py, a mixin). When a pass runs,
+Reading results back is the other half of the interface (outputs.py, a mixin); the final picture,
+an image or a photo's frame, is one object with one interface (picture.py). When a pass runs,
 what it made counts as changed in turn (``_changed``), which is how a new direction
 reaches the composite. Left out on purpose: lights that cannot contribute (zero intensity, facing no
 pixel, or an upper bound below ``skip_threshold`` of the scene's diffuse level), soft filtering where
@@ -48,14 +49,14 @@ from ..settings import AUTO, EXPOSURE_LIMIT, VIEWS, VISIBILITY_MODES, Look
 from .. import shadow_space as ss
 from .composite_pass import CompositePass
 from .context import make_current
-from .display_pass import INSPECT_VIEWS, DisplayPass, InspectPass
-from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
+from .display_pass import INSPECT_VIEWS, InspectPass
 from .ground_pass import GroundShadowPass
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light
 from .light_pass import LIGHTS_PER_PASS, LightAtlas, LightShadingPass, RefinedVisibility
 from .options import EngineOptions
 from .outputs import EngineOutputs, in_context
+from .picture import FramePicture, ImagePicture, PictureInputs
 from .programs import shared_programs
 from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
@@ -99,16 +100,10 @@ class Engine(EngineOutputs):
         self.inspect_pass = InspectPass(kit, res, (scene.width, scene.height))
         self.ground_pass = GroundShadowPass(kit, res, self.light_pass, scene.camera, ground_plane(scene), o.ground_scale)
         ground = self.ground_pass.texture
-        if scene.frame is None:
-            self.frame_background = self.frame_mipmaps = None
-            self.display_pass = DisplayPass(kit, res, (scene.width, scene.height), scene.camera, ground)
-        else:
-            self.frame_background = FrameBackgroundPass(kit, scene.frame, scene.camera)
-            self.frame_mipmaps = FrameMipmapsPass(kit)
-            self.display_pass = FrameCompositePass(kit, scene.frame, self.frame_background.photo, ground)
+        self.picture = (ImagePicture(kit, res, (scene.width, scene.height), scene.camera, ground) if scene.frame is None
+                        else FramePicture(kit, scene.frame, scene.camera, ground))
         self._light_passes = (self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.light_pass)
-        self._frame_passes = [p for p in (self.composite_pass, self.ground_pass, self.frame_mipmaps, self.frame_background,
-                                          self.display_pass) if p]
+        self._frame_passes = [self.composite_pass, self.ground_pass, *self.picture.passes]
         self._stale = {p.name: "all" for p in self._frame_passes}  # None, "box" (the mask's / matte's) or "all"
         self.complete = False  # the display holds a frame of the current state (render)
         self.composited = False  # ... or everything but the display is done (render(display=False))
@@ -425,11 +420,12 @@ class Engine(EngineOutputs):
             self.ground_pass.run(self._lights, self.look.shadows)
             self._ran(self.ground_pass)
         self.composited = True
-        if self._stale[self.display_pass.name]:
+        last = self.picture.last.name
+        if self._stale[last]:
             if not display or spent():
                 return self
-            self._draw_display(whole=self._stale[self.display_pass.name] == "all")
-            self._stale[self.display_pass.name] = None
+            self._draw_picture(whole=self._stale[last] == "all")
+            self._stale[last] = None
         self.complete = True
         return self
 
@@ -441,32 +437,18 @@ class Engine(EngineOutputs):
             self._stale[p.name] = None
         self._changed(p.name, lights)
 
-    def _draw_display(self, whole: bool):
-        look, dp = self.shown_look, self.display_pass
-        if look.view in INSPECT_VIEWS:
+    def _draw_picture(self, whole: bool):
+        look = self.shown_look
+        if look.view in INSPECT_VIEWS:  # an inspection view draws into the picture's place
             light = self._lights[look.light] if look.view == "shadow" else None
-            self.inspect_pass.run(dp.fbo, look.view, light, self.atlas, look.shadows)
-        elif self.frame_background is None:
-            dp.run(self.composite_pass.hdr, look, look.background, box=None if whole else self.resources.mask_box)
+            self.inspect_pass.run(self.picture.last.fbo, look.view, light, self.atlas, look.shadows)
         else:
-            self._frame_ready()
-            dp.run(self.composite_pass.shading, self.frame_background.image, self._composite_terms(), look,
-                   look.background == "transparent", box=None if whole else dp.box)
+            self.picture.draw(self._picture_inputs(), whole)
 
-    def _frame_ready(self):
-        """The frame composite's inputs up to date: the background and the shading sums' mipmaps."""
-        if self._stale["frame_background"]:
-            self.frame_background.run(self.look, self.look.background, self.resources.environment)
-            self._ran(self.frame_background)
-        if self._stale["frame_mipmaps"]:
-            self.frame_mipmaps.run(self.composite_pass.shading)
-            self._ran(self.frame_mipmaps)
-
-    def _frame_read(self, terms, output_mode: int) -> np.ndarray:
-        self._frame_ready()
-        return self.display_pass.read(self.composite_pass.shading, self.frame_background.image, terms,
-                                      self.shown_look, self.look.background == "transparent",
-                                      output_mode)
+    def _picture_inputs(self) -> PictureInputs:
+        """What the picture draws and reads from, now."""
+        return PictureInputs(self.composite_pass, self.shown_look, self.look.background, self._composite_terms(),
+                             self.resources.environment, lambda name: bool(self._stale[name]), self._ran)
 
     def light_active(self, index: int) -> bool:
         return self._lights[index].active
@@ -477,7 +459,7 @@ class Engine(EngineOutputs):
         for l in self._lights:
             l.release()
         self._lights = []
-        for owner in (self.atlas, self.refined, self.display_pass, self.frame_background, self.composite_pass,
+        for owner in (self.atlas, self.refined, self.picture, self.composite_pass,
                       self.ground_pass, self.shadow_map_pass, self.resources, self.kit):
             if owner is not None:
                 owner.release()

@@ -11,7 +11,6 @@ import moderngl
 import numpy as np
 
 from .context import make_current
-from .frame_pass import OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR
 from .light import PASS_OFF
 
 
@@ -33,7 +32,7 @@ class EngineOutputs:
     def display(self) -> moderngl.Texture:
         """The display image shown and saved: at the output frame's resolution for a scene with a
         frame layer (the inspection views too), else at the maps'."""
-        return self.display_pass.image
+        return self.picture.last.image
 
     @in_context
     def read_ground_shadow(self) -> np.ndarray:
@@ -55,20 +54,14 @@ class EngineOutputs:
     @in_context
     def read_hdr_rgba(self) -> np.ndarray:
         """(H, W, 4): the person's linear HDR and its coverage (the mask, or the frame's matte)."""
-        if self.frame_background is None:
-            return self.kit.read(self.composite_pass.hdr, 4)
-        return self._frame_read(self._composite_terms(), OUTPUT_PERSON_HDR)
+        return self.picture.read_person(self._picture_inputs())
 
     @in_context
     def read_frame_shading(self) -> tuple[np.ndarray, np.ndarray]:
         """The diffuse and specular shading sums (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
         (H, W, 3) each at the output frame's resolution, upsampled exactly as the frame composite
         upsamples them (a scene with a frame layer; after render())."""
-        if self.frame_background is None:
-            raise ValueError("the scene has no frame layer")
-        diffuse = self._frame_read((1.0, 0.0, True), OUTPUT_PERSON_HDR)[..., :3]
-        specular = self._frame_read((0.0, 1.0, False), OUTPUT_PERSON_HDR)[..., :3]
-        return diffuse, specular
+        return self.picture.read_shading(self._picture_inputs())
 
     @in_context
     def read_work_hdr(self) -> np.ndarray:
@@ -91,10 +84,7 @@ class EngineOutputs:
         """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
         the same background (alpha 1), or premultiplied with its coverage for the transparent
         background: the EXR that goes with the display PNG."""
-        if self.frame_background is not None:
-            return self._frame_read(self._composite_terms(), OUTPUT_COMPOSITED_HDR)
-        return self.display_pass.read_hdr_output(self.composite_pass.hdr, self.shown_look,
-                                                 self.look.background)
+        return self.picture.read_output(self._picture_inputs())
 
     @in_context
     def read_light(self, index: int) -> dict:
