@@ -52,7 +52,7 @@ from .context import make_current
 from .display_pass import INSPECT_VIEWS, InspectPass
 from .ground_pass import GroundShadowPass
 from .kit import PassKit
-from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light
+from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light, needed_pass, update_activity
 from .light_pass import LIGHTS_PER_PASS, LightAtlas, LightShadingPass, RefinedVisibility
 from .options import EngineOptions
 from .outputs import EngineOutputs, in_context
@@ -192,19 +192,9 @@ class Engine(EngineOutputs):
         self._update_activity()
 
     def _update_activity(self):
-        """A light is skipped when even its upper bound (diffuse + specular peak) stays below
-        ``skip_threshold`` of the scene's diffuse level (the sum of the lights' diffuse bounds)."""
-        res = self.resources
-        peaks = [float(np.max(l.intensity)) * l.facing for l in self._lights]  # max I x max n.l
-        for l, peak in zip(self._lights, peaks):
-            l.bound = peak * res.response_bound
-        level = sum(peaks) * res.diffuse_bound
-        level = level if level > 0 else sum(l.bound for l in self._lights)
-        for l in self._lights:
-            active = not self.options.leave_out or (l.bound > 0.0 and l.bound >= self.options.skip_threshold * level)
-            if active != l.active:
-                l.active = active
-                self._changed("activity")
+        o, res = self.options, self.resources
+        if update_activity(self._lights, res.response_bound, res.diffuse_bound, o.leave_out, o.skip_threshold):
+            self._changed("activity")
 
     def set_look(self, look: Look):
         """What the user sees (:class:`viewer.settings.Look`, validated there): the display settings,
@@ -334,18 +324,9 @@ class Engine(EngineOutputs):
 
     # ------------------------------------------------------------------ scheduling
     def _needed_pass(self, l: Light) -> int:
-        """The light-pass mode the current visibility and view need for this light: no shadow map
-        when no shadows are shown, no filtering unless the soft visibility is shown."""
-        if not l.active:
-            return PASS_OFF
-        visibility = self.look.shadows
-        if visibility == "none" and self.look.view == "shadow" and self._lights[self.look.light] is l:
-            visibility = "soft"  # the shadow view shows the inspected light's soft visibility then
-        if visibility == "none":
-            return PASS_UNSHADOWED
-        if visibility == "hard" or self._soft_is_hard(l):
-            return PASS_HARD
-        return PASS_SOFT  # soft, and refined (whose network reads the hard and soft visibility)
+        """The light-pass mode the current visibility and view need for this light (light.needed_pass)."""
+        inspected = self._lights[self.look.light] if self.look.view == "shadow" else None
+        return needed_pass(l, self.look.shadows, inspected, self._soft_is_hard(l))
 
     def _soft_is_hard(self, l: Light) -> bool:
         """sigma ~ 0: the light's soft visibility is its hard one and its filtering is skipped."""

@@ -61,3 +61,37 @@ class Light:
             if res is not None:
                 res.release()
         self.work.clear()
+
+
+def update_activity(lights: list[Light], response_bound: float, diffuse_bound: float, leave_out: bool,
+                    skip_threshold: float) -> bool:
+    """Which lights take part: a light is skipped when even its upper bound (diffuse + specular
+    peak) stays below ``skip_threshold`` of the scene's diffuse level (the sum of the lights'
+    diffuse bounds). Returns whether any light's activity changed."""
+    peaks = [float(np.max(l.intensity)) * l.facing for l in lights]  # max I x max n.l
+    for l, peak in zip(lights, peaks):
+        l.bound = peak * response_bound
+    level = sum(peaks) * diffuse_bound
+    level = level if level > 0 else sum(l.bound for l in lights)
+    changed = False
+    for l in lights:
+        active = not leave_out or (l.bound > 0.0 and l.bound >= skip_threshold * level)
+        if active != l.active:
+            l.active, changed = active, True
+    return changed
+
+
+def needed_pass(l: Light, visibility: str, inspected: Light | None, soft_is_hard: bool) -> int:
+    """The light-pass mode the shown visibility needs for this light: no shadow map when no shadows
+    are shown, no filtering unless the soft visibility is shown (``soft_is_hard``: sigma ~ 0, its soft
+    visibility is its hard one). ``inspected``: the light the shadow view shows, whose soft
+    visibility is needed even when no shadows are shown."""
+    if not l.active:
+        return PASS_OFF
+    if visibility == "none" and inspected is l:
+        visibility = "soft"
+    if visibility == "none":
+        return PASS_UNSHADOWED
+    if visibility == "hard" or soft_is_hard:
+        return PASS_HARD
+    return PASS_SOFT  # soft, and refined (whose network reads the hard and soft visibility)
