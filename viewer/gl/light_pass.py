@@ -86,7 +86,8 @@ class RefinedVisibility:
 
 class LightShadingPass:
     """One light pass per group of four lights; a light's ``pass_mode`` says what its slot holds
-    (0 nothing, 1 hard visibility only, 2 hard and CSM, 3 unit visibility)."""
+    (PASS_OFF nothing, PASS_HARD hard visibility only, PASS_SOFT hard and soft, PASS_UNSHADOWED unit
+    visibility: viewer.shader_modes)."""
 
     name = "light_pass"
 
