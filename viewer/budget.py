@@ -72,12 +72,17 @@ def render_bytes(map_pixels: int, frame_pixels: int) -> float:
     return RENDER_BASE + RENDER_PER_MAP_PIXEL * map_pixels + RENDER_PER_FRAME_PIXEL * frame_pixels
 
 
-def largest_render_size(aspect: float, frame_pixels: int) -> int:
-    """The largest ``--size`` (the maps' longer side, a multiple of 256) whose render fits the budget,
-    for maps whose shorter side is ``aspect`` times the longer."""
-    room = memory_budget() - RENDER_BASE - RENDER_PER_FRAME_PIXEL * frame_pixels
-    side = int((max(room, 0) / (RENDER_PER_MAP_PIXEL * aspect)) ** 0.5)
+def _largest_side(fixed: float, per_pixel: float, aspect: float) -> int:
+    """The largest longer side (a multiple of 256, at least 16) of an image whose shorter side is
+    ``aspect`` times it and whose ``per_pixel`` bytes fit the budget beside ``fixed`` bytes."""
+    side = int((max(memory_budget() - fixed, 0) / (per_pixel * aspect)) ** 0.5)
     return max(side // 256 * 256, 16)
+
+
+def largest_render_size(aspect: float, frame_pixels: int) -> int:
+    """The largest ``--size`` (the maps' longer side) whose render fits the budget, for maps whose
+    shorter side is ``aspect`` times the longer."""
+    return _largest_side(RENDER_BASE + RENDER_PER_FRAME_PIXEL * frame_pixels, RENDER_PER_MAP_PIXEL, aspect)
 
 
 def infer_bytes(photo_pixels: int, frame_pixels: int) -> float:
@@ -86,7 +91,5 @@ def infer_bytes(photo_pixels: int, frame_pixels: int) -> float:
 
 
 def largest_frame_side(photo_pixels: int, aspect: float) -> int:
-    """The largest ``--max-size`` (a multiple of 256) whose inference fits the budget."""
-    room = memory_budget() - INFER_BASE - INFER_PER_PHOTO_PIXEL * photo_pixels
-    side = int((max(room, 0) / (INFER_PER_FRAME_PIXEL * aspect)) ** 0.5)
-    return max(side // 256 * 256, 16)
+    """The largest ``--max-size`` whose inference fits the budget."""
+    return _largest_side(INFER_BASE + INFER_PER_PHOTO_PIXEL * photo_pixels, INFER_PER_FRAME_PIXEL, aspect)

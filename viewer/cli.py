@@ -100,5 +100,6 @@ def run() -> None:
             pass
     os._exit(code)
 
+
 if __name__ == "__main__":
     run()

@@ -21,17 +21,9 @@ def atomic_path(path):
     """Yield a temporary path beside ``path``; when the block ends without an exception it
     replaces ``path`` in one step (a reader never sees a half-written file, an interrupted write
     leaves the old file as it was). A failed write (a full disk) is an ``OSError`` naming ``path``,
-    the file the user asked for, not its temporary name."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with _named_as(path, tmp):
-            yield tmp
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    the file the user asked for, not its temporary name. (:func:`atomic_paths` of one file.)"""
+    with atomic_paths(path) as (tmp,):
+        yield tmp
 
 
 @contextlib.contextmanager
@@ -54,6 +46,8 @@ def atomic_paths(*paths):
     import signal
     import threading
 
+    from .stop_signals import STOP_SIGNALS
+
     paths = [Path(p) for p in paths]
     for p in paths:
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -67,7 +61,7 @@ def atomic_paths(*paths):
         # before this point: the handlers only note a signal until every file is in place, then it
         # is raised again with the handlers as they were
         caught: list[int] = []
-        held = [sig for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # (handlers Python can put back)
+        held = [sig for sig in STOP_SIGNALS  # (handlers Python can put back)
                 if threading.current_thread() is threading.main_thread() and signal.getsignal(sig) is not None]
         previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
         try:
@@ -211,8 +205,6 @@ def read_exr(path, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
     Python (any name the system takes, a byte name that is not UTF-8 included) and handed to
     OpenEXR as a stream; the data window is held to ``max_pixels`` (:func:`check_pixels`) before a pixel is
     read (a header may claim anything)."""
-    import OpenEXR
-
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
@@ -269,15 +261,9 @@ def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
         arr = np.ascontiguousarray(arr[..., 0])
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_path(path) as tmp:
-        write_stream(tmp, lambda stream: OpenEXR.File(header, {name: arr}).write(stream))
+        with open(tmp, "wb") as stream:  # Python's file: any name, and a failed write is the OSError it is
+            OpenEXR.File(header, {name: arr}).write(stream)
     return path
-
-
-def write_stream(tmp: Path, write) -> None:
-    """``write(stream)`` into ``tmp``, a file Python opens (a library handed a stream writes under
-    any name and fails with the ``OSError`` it is)."""
-    with open(tmp, "wb") as stream:
-        write(stream)
 
 
 def read_png(path) -> np.ndarray:

@@ -43,11 +43,10 @@ def _check_render_memory(scene: Scene, size: int | None, max_size: int | None) -
     if scene.frame is not None:
         frame = scene.output_size if max_size is None or max(scene.output_size) <= max_size \
             else scaled_size(scene.output_size, max_size)
-        map_pixels = long_side * long_side * aspect
     else:  # the maps are the frame, at most max_size
         long_side = min(long_side, max_size) if max_size is not None else long_side
         frame = (long_side, long_side * aspect)
-        map_pixels = long_side * long_side * aspect
+    map_pixels = long_side * long_side * aspect
     frame_pixels = int(frame[0] * frame[1])
     budget.require(budget.render_bytes(map_pixels, frame_pixels), f"rendering maps of {long_side} px",
                    f"--size {budget.largest_render_size(aspect, frame_pixels)} or less fits")

@@ -133,8 +133,12 @@ def run_command(args: list, env: dict | None = None, timeout: float = TIMEOUT, p
     return (code, out.decode("utf-8", "replace"), err.decode("utf-8", "replace"), time.perf_counter() - start, peak)
 
 
-def judge(case: Case, code: int, err: str, before: dict) -> list[str]:
-    lines = [line for line in err.splitlines() if line.strip() and "%|" not in line]
+def said_lines(err: str) -> list[str]:
+    """A command's stderr lines, progress bars left out."""
+    return [line for line in err.splitlines() if line.strip() and "%|" not in line]
+
+
+def judge(case: Case, code: int, err: str, lines: list[str], before: dict) -> list[str]:
     problems = []
     if "Traceback" in err:
         problems.append("traceback")
@@ -184,8 +188,8 @@ def run_case(case: Case, work: Path) -> dict:
     if code is None:
         return {"exit": None, "seconds": TIMEOUT, "clean": False, "problems": [f"no answer in {TIMEOUT:.0f} s"],
                 "last_line": "", "peak_mb": round(peak / 1024)}
-    problems = judge(case, code, err, watched)
-    lines = [line for line in err.splitlines() if line.strip() and "%|" not in line]
+    lines = said_lines(err)
+    problems = judge(case, code, err, lines, watched)
     return {"exit": code, "seconds": round(seconds, 2), "clean": not problems, "problems": problems,
             "last_line": lines[-1][:300] if lines else "", "peak_mb": round(peak / 1024)}
 
