@@ -214,7 +214,7 @@ class Actions:
                             + (f" in place of your {replaced} (Ctrl+Z brings them back)" if replaced else ""))
 
     def refit(self, n: int):
-        """The map's lights fitted again at ``n`` lights (the count the panel's slider was let go at)."""
+        """The map's lights fitted again at ``n`` lights (the panel's count slider let go, a preset's count)."""
         self.app.n_lights = n
         self.open_map(self.app.env_path, n)
 
@@ -254,6 +254,5 @@ class Actions:
         self.app.preset = name
         self.app.session.set_options(p.options)
         if p.lights != len(self.app.session.sigma) and self.app.env_path is not None:
-            self.app.n_lights = p.lights
-            self.open_map(self.app.env_path, p.lights)
+            self.refit(p.lights)
         self.app.message = f"preset {name}: {p.summary}"
