@@ -424,11 +424,11 @@ class Engine(EngineOutputs):
             light = self._lights[look.light] if look.view == "shadow" else None
             self.inspect_pass.run(self.picture.last.fbo, look.view, light, self.atlas, look.shadows)
         else:
-            self.picture.draw(self._picture_inputs(), whole)
+            self.picture.draw(self._picture_inputs(look), whole)
 
-    def _picture_inputs(self) -> PictureInputs:
-        """What the picture draws and reads from, now."""
-        return PictureInputs(self.composite_pass, self.shown_look, self.look.background, self._composite_terms(),
+    def _picture_inputs(self, shown: Look | None = None) -> PictureInputs:
+        """What the picture draws and reads from, now (``shown``: the shown look, when the caller has it)."""
+        return PictureInputs(self.composite_pass, shown or self.shown_look, self.look.background, self._composite_terms(),
                              self.resources.environment, lambda name: bool(self._stale[name]), self._ran)
 
     def light_active(self, index: int) -> bool:
