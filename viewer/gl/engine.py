@@ -185,7 +185,7 @@ class Engine(EngineOutputs):
             res = self.resources
             dirs = np.array([self._lights[k].direction for k in moved])
             frames = ss.light_frames(res.caster_points, dirs, self.options.shadow_resolution, self.options.terms, sphere=res.sphere)
-            facing = (res.normals_masked @ dirs.T.astype(np.float32)).max(axis=0, initial=0.0)
+            facing = res.facing(dirs)
             for k, frame, f in zip(moved, frames, facing):
                 self._lights[k].frame = frame
                 self._lights[k].facing = max(float(f), 0.0)

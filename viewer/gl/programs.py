@@ -52,8 +52,9 @@ def shader_source(name: str, defines: dict | None = None, directory: Path | None
     return "\n".join(lines) + "\n" + expand(name)
 
 
-# Mesa: "0:12(5): error: ..."; NVIDIA: "0(12) : error ..."; the first number is the source string
-_ERROR_PLACE = re.compile(r"^(\d+)(?::(\d+)\(\d+\)|\((\d+)\))", re.M)
+# Mesa: "0:12(5): error: ..."; NVIDIA: "0(12) : error ..."; the first number is the source string.
+# Both become "file.glsl:12: error ...".
+_ERROR_PLACE = re.compile(r"^(\d+)(?::(\d+)\(\d+\)|\((\d+)\) ?)", re.M)
 
 
 def explain_errors(log: str, files: list[str], directory: Path) -> str:

@@ -124,7 +124,7 @@ def cmd_bench(args) -> int:
     output = args.output or f"out/bench_{args.what}.json"  # report and photos take a folder (below)
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
-                             output=output, twin=not args.no_twin)
+                             output=output, twin=not args.no_twin, twin_device=args.twin_device)
     elif args.what == "contention":
         from .bench.contention import run_contention_benchmark, table
 
@@ -311,6 +311,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
+    p.add_argument("--twin-device", default="cpu", help="engine: the torch device the twin is timed on (cpu, cuda)")
     p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default $RELIGHT_DATA/hdri)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
     p.add_argument("--methods", nargs="+", choices=("instant", "fast", "paper", "median-cut"),

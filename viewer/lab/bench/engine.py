@@ -76,7 +76,7 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
 
 
 def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: int = 5, output="out/bench_engine.json",
-                         twin: bool = True) -> dict:
+                         twin: bool = True, twin_device: str = "cpu") -> dict:
     from viewer.gl import Engine, EngineOptions, create_headless_context
     from viewer.gl.context import describe
     from viewer.scene import load_scene
@@ -85,7 +85,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
     ctx = create_headless_context()
     base = load_scene(sample_scene_dir())  # 512^2
     report = {"machine": {"renderer": describe(ctx), "cpu": platform.processor() or platform.machine(),
-                          "python": platform.python_version()},
+                          "python": platform.python_version()}, "twin_device": twin_device,
               "options": {}, "repeats": repeats, "runs": []}
     print(f"GL engine benchmark on {describe(ctx)}; medians of {repeats} runs")
     print(f"{'size':>5} {'lights':>6} {'full ms':>8} {'sigma ms':>9} {'intens ms':>9} {'twin ms':>8}  passes (full)")
@@ -101,7 +101,7 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
             engine.release()
             run = {"size": size, "lights": n, **res}
             if twin:
-                run["twin_full_ms"] = _time_twin(scene, lights, options, repeats=2)
+                run["twin_full_ms"] = _time_twin(scene, lights, options, repeats=2, device=twin_device)
                 run["twin_over_gl"] = run["twin_full_ms"] / max(res["full"]["total_ms"], 1e-9)
             report["runs"].append(run)
             passes = " ".join(f"{k}={v:.1f}" for k, v in res["full"]["passes_ms"].items())
@@ -189,16 +189,25 @@ def _sigma_sweep(ctx, scene, repeats: int) -> dict:
     return sweep
 
 
-def _time_twin(scene, lights: AreaLights, options, repeats: int = 2) -> float:
+def _time_twin(scene, lights: AreaLights, options, repeats: int = 2, device: str = "cpu") -> float:
+    """The torch twin's full frame on ``device`` (a warm-up frame first, so CUDA's start-up and
+    kernel compilation are not timed; the wait for the device is)."""
     import torch
 
     from viewer.twin import render as twin_render
 
+    def frame():
+        twin_render(scene, lights, shadow_resolution=options.shadow_resolution, shadow_step=options.shadow_step,
+                    terms=options.terms, soft=options.soft, device=device)
+        if device.startswith("cuda"):
+            torch.cuda.synchronize(device)
+
     times = []
     with torch.no_grad():
+        if device != "cpu":
+            frame()
         for _ in range(repeats):
             t0 = time.perf_counter()
-            twin_render(scene, lights, shadow_resolution=options.shadow_resolution, shadow_step=options.shadow_step,
-                        terms=options.terms, soft=options.soft)
+            frame()
             times.append(time.perf_counter() - t0)
     return _median_ms(times)
