@@ -116,7 +116,7 @@ def test_receiver_coordinates_match_numpy_rule():
                                          torch.tensor(normals, dtype=torch.float64), frames, res)
     for i, f in enumerate(frames_np):
         # (the numpy rule projects the points in float32 for the depth range: 1e-6 agreement)
-        np.testing.assert_allclose(frames.matrix()[i].detach().numpy(), f.matrix(), atol=1e-6)
+        np.testing.assert_allclose(frames.matrix()[i].detach().numpy(), f.matrix, atol=1e-6)
         assert frames.empty_depth == pytest.approx(f.empty_depth)
         ref = shadow_space.receiver_coordinates(pts, normals, f, res)
         for got, want in zip((u, v, d, bias), ref):

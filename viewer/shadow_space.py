@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -64,8 +64,10 @@ class LightFrame:
     empty_depth: float  # normalised depth stored where no triangle covers a texel
     footprint: tuple = (0.0, 0.0, 1.0, 1.0)  # (u0, v0, u1, v1): the mesh's extent in the shadow map
 
+    @cached_property
     def matrix(self) -> np.ndarray:
-        """4x4 (row-major) taking homogeneous camera-space points to (u, v, z, 1)."""
+        """4x4 (row-major) taking homogeneous camera-space points to (u, v, z, 1); made once (the
+        shadow-map and light passes read it in every frame). Read only."""
         m = np.zeros((4, 4), dtype=np.float64)
         s = 1.0 / (2.0 * self.radius)
         m[0, :3] = self.right * s
@@ -76,6 +78,7 @@ class LightFrame:
         m[2, :3] = -self.direction * k
         m[2, 3] = self.hi * k
         m[3, 3] = 1.0
+        m.flags.writeable = False
         return m
 
     def texel_world(self, resolution: int) -> float:
@@ -100,7 +103,7 @@ def receiver_coordinates(points, normals, frame: LightFrame, resolution: int):
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     texel = frame.texel_world(resolution)
     q = p + n * (NORMAL_OFFSET_TEXELS * texel)
-    m = frame.matrix()
+    m = frame.matrix
     uvd = q @ m[:3, :3].T + m[:3, 3]
     c = np.abs(n @ frame.direction)
     tan = np.minimum(np.sqrt(np.maximum(1.0 - c * c, 0.0)) / np.maximum(c, 1e-6), MAX_SLOPE)

@@ -168,17 +168,21 @@ class Engine(EngineOutputs):
                 self._set_look(self.look.replace(view="final", light=0))  # the inspected light is gone
         else:
             moved = []
-            for k, (l, d, s, i) in enumerate(zip(self._lights, lights.direction, lights.sigma, lights.intensity)):
-                if not np.array_equal(l.direction, d):
-                    l.direction = d.copy()
+            turned = (np.array([l.direction for l in self._lights]) != lights.direction).any(axis=1)
+            widened = np.array([l.sigma for l in self._lights]) != lights.sigma
+            brightened = (np.array([l.intensity for l in self._lights]) != lights.intensity).any(axis=1)
+            for k in np.flatnonzero(turned | widened | brightened):  # a drag turns every light: compared at once
+                l = self._lights[k]
+                if turned[k]:
+                    l.direction = lights.direction[k].copy()
                     self._changed("direction", [l])
-                    moved.append(k)
-                if l.sigma != float(s):
-                    l.sigma = float(s)
+                    moved.append(int(k))
+                if widened[k]:
+                    l.sigma = float(lights.sigma[k])
                     self._changed("sigma", [l])
                     self._drop_refined()
-                if not np.array_equal(l.intensity, i):
-                    l.intensity = i.copy()
+                if brightened[k]:
+                    l.intensity = lights.intensity[k].copy()
                     self._changed("intensity")
         if moved:
             self._drop_refined()

@@ -130,7 +130,7 @@ class LightShadingPass:
                 (l.filtered if soft else fallback).use(6 + j)
                 prog[f"filtered_basis{j}"] = 6 + j
             if used:
-                frames[j] = l.frame.matrix().T
+                frames[j] = l.frame.matrix.T
                 scales[j] = l.frame.depth_scale()
             if l is not None:
                 dirs[j] = l.frame.direction

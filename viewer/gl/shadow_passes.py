@@ -46,7 +46,7 @@ class ShadowMapPass:
             fbo.clear(l.frame.empty_depth, 0.0, 0.0, 0.0, depth=1.0)
             if self.vao is not None:
                 prog = self.vao.program
-                prog["light_frame"].write(l.frame.matrix().T.astype("f4").tobytes())
+                prog["light_frame"].write(l.frame.matrix.T.astype("f4").tobytes())
                 ctx.enable(moderngl.DEPTH_TEST)
                 ctx.disable(moderngl.CULL_FACE)
                 self.vao.render(moderngl.TRIANGLES)
