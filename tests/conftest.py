@@ -20,7 +20,7 @@ def ctx():
 def tiny_dataset(tmp_path_factory):
     """A three-person dataset at 64^2 made by the command line in two shards (people 0, 2 and 1),
     one lighting each, for the dataset, loader and training tests. Returns (dir, the arguments)."""
-    from viewer.cli import main
+    from viewer.cli.main import main
 
     out = tmp_path_factory.mktemp("dataset")
     args = ["dataset", "make", "--out", str(out), "--count", "3", "--res", "64", "--pool", "1", "--spp", "16", "--lightings", "1"]
@@ -33,7 +33,7 @@ def tiny_dataset(tmp_path_factory):
 def tiny_networks(tiny_dataset, tmp_path_factory):
     """The three networks trained for one epoch on the tiny dataset (small sizes): real weights and
     cards for the inference and refinement tests. Returns their folder."""
-    from viewer.cli import main
+    from viewer.cli.main import main
 
     out = tmp_path_factory.mktemp("networks")
     for net in ("inverse", "depth", "refine"):

@@ -76,7 +76,7 @@ def test_looks_round_trip_and_old_state_files_load(tmp_path):
 
 
 def test_the_command_line_names_the_option(tmp_path, capsys):
-    from viewer.cli import main
+    from viewer.cli.main import main
 
     env = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
     scene = ROOT / "assets" / "sample_scene"
@@ -95,7 +95,7 @@ def test_the_command_line_names_the_option(tmp_path, capsys):
 def test_a_saved_look_renders_what_the_options_render(tmp_path):
     """``--look`` with a frame's saved JSON gives the same pixels as the same options spelled out;
     an option given beside it wins."""
-    from viewer.cli import main
+    from viewer.cli.main import main
     from viewer.imageio import read_png
 
     env = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
@@ -117,7 +117,7 @@ def test_the_lab_commands_are_listed_but_not_imported():
     import subprocess
     import sys
 
-    code = ("import sys; from viewer.cli_parser import build_parser, command_plugins; "
+    code = ("import sys; from viewer.cli.parser import build_parser, command_plugins; "
             "build_parser(command_plugins()).print_help(); print(sorted(m for m in sys.modules if m.startswith('viewer.lab')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert all(f"    {name}" in out for name in ("bench", "dataset", "train")) and out.strip().endswith("[]")
@@ -133,7 +133,7 @@ def test_a_look_saved_with_more_lights_fits_fewer():
 def test_a_saved_looks_intensity_and_selected_light_are_rendered(tmp_path):
     """A capture saved at x2 intensity renders brighter than at x1; one whose selected light is
     past the light file's count renders (the relit image) instead of failing."""
-    from viewer.cli import main
+    from viewer.cli.main import main
     from viewer.imageio import read_exr
 
     env = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"

@@ -13,7 +13,7 @@ import pytest
 from viewer.backdrop import blurred_map, photo_blur
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.scene import FrameLayer
 from viewer.settings import Look
 

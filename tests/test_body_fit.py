@@ -71,7 +71,7 @@ def test_anny_fitted_to_a_known_bodys_landmarks_lands_on_it():
 def test_bench_bodyfit_scores_the_fit_the_prior_and_a_flat_figure(tiny_dataset, tmp_path, capsys):
     import json
 
-    from viewer.cli import main
+    from viewer.cli.main import main
 
     assert main(["bench", "bodyfit", "--data", str(tiny_dataset[0]), "--limit", "1", "-o", str(tmp_path / "b.json")]) == 0
     result = json.loads((tmp_path / "b.json").read_text())

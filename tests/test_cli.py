@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 from viewer.lab.bench.metrics import detail_kept
-from viewer.cli import main
+from viewer.cli.main import main
 from viewer.imageio import read_exr, read_png
 from viewer.resources import asset_dir
 from viewer.scene import load_scene
@@ -43,7 +43,7 @@ def test_demo_writes_png_and_exr(tmp_path, capsys):
 
 
 def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "viewer.cli", *args], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "viewer.cli.main", *args], capture_output=True, text=True)
 
 
 def test_bad_inputs_give_one_line_errors(tmp_path):
@@ -64,12 +64,12 @@ def test_bad_inputs_give_one_line_errors(tmp_path):
 
 def test_viewing_precomputed_maps_never_imports_torch(tmp_path):
     """Rendering a scene bundle under a light file (what the demo does after inference) needs no torch."""
-    from viewer.commands import DEMO_ENVMAP, DEMO_LIGHTS
+    from viewer.cli.commands import DEMO_ENVMAP, DEMO_LIGHTS
     from viewer.resources import asset_dir, sample_scene_dir
 
     args = [str(sample_scene_dir()), str(asset_dir() / DEMO_LIGHTS), "--env", str(asset_dir() / DEMO_ENVMAP),
             "-o", str(tmp_path / "x.png")]
-    code = ("import sys; from viewer.cli import main; assert main(['render', *sys.argv[1:]]) == 0;"
+    code = ("import sys; from viewer.cli.main import main; assert main(['render', *sys.argv[1:]]) == 0;"
             "assert 'torch' not in sys.modules, 'torch was imported'")
     res = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
@@ -84,7 +84,7 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
     env = asset_dir() / "envmaps" / "immenstadter_horn_256.hdr"
     out, plot = tmp_path / "lights.json", tmp_path / "lights.png"
     environ = dict(os.environ, RELIGHT_CACHE=str(tmp_path / "cache"))
-    args = [sys.executable, "-m", "viewer.cli", "fit-lights", str(env), "-n", "4", "-o", str(out), "--plot", str(plot)]
+    args = [sys.executable, "-m", "viewer.cli.main", "fit-lights", str(env), "-n", "4", "-o", str(out), "--plot", str(plot)]
     first = subprocess.run(args, capture_output=True, text=True, env=environ)
     assert first.returncode == 0, first.stderr
     assert "fitted in" in first.stdout
@@ -96,7 +96,7 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
     # the render command fits (here: finds in the cache) the lights of a map given without a light file
     from viewer.resources import sample_scene_dir
 
-    res = subprocess.run([sys.executable, "-m", "viewer.cli", "render", str(sample_scene_dir()), "--envmap", str(env),
+    res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "render", str(sample_scene_dir()), "--envmap", str(env),
                           "-n", "4", "-o", str(tmp_path / "r.png"), "--yaw", "90"], capture_output=True, text=True,
                          env=environ)
     assert res.returncode == 0, res.stderr
@@ -106,12 +106,12 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
     # working folder); a stage of the fit that ran is one line on a log (stderr is not a terminal)
     import shutil
 
-    from viewer.map_lights import sidecar_lights
+    from viewer.lighting.map_lights import sidecar_lights
 
     (tmp_path / "maps").mkdir()
     (tmp_path / "work").mkdir()
     mine = shutil.copyfile(env, tmp_path / "maps" / env.name)
-    res = subprocess.run([sys.executable, "-m", "viewer.cli", "fit-lights", str(mine), "-n", "4", "--refit"],
+    res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "fit-lights", str(mine), "-n", "4", "--refit"],
                          capture_output=True, text=True, env=environ, cwd=tmp_path / "work")
     assert res.returncode == 0, res.stderr
     assert not any((tmp_path / "work").iterdir()) and f"-> {mine.with_suffix('.lights.json')}" in res.stdout
@@ -140,15 +140,15 @@ def test_fit_lights_bad_maps_give_one_line_errors(tmp_path):
 
 def test_benchmarks_leave_the_checkout_clean(tmp_path):
     """A benchmark without -o writes under out/ of the working folder, never into docs/."""
-    res = subprocess.run([sys.executable, "-m", "viewer.cli", "bench", "engine", "--sizes", "64", "--lights", "8",
+    res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "bench", "engine", "--sizes", "64", "--lights", "8",
                           "--repeats", "1", "--no-twin"], capture_output=True, text=True, cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file()) == ["out/bench_engine.json"]
 
 
 def test_a_file_of_the_wrong_kind_is_one_line_saying_what_it_is(tmp_path):
-    from viewer.lights import AreaLights
-    from viewer.placed_lights import rig, save_rig
+    from viewer.lighting.lights import AreaLights
+    from viewer.lighting.placed_lights import rig, save_rig
 
     notes = tmp_path / "notes.txt"
     notes.write_text("not a photo\n")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from viewer.cli import main
+from viewer.cli.main import main
 from viewer.lab.data.dataset import DatasetConfig, make_sample, map_pool, sample_dir
 from viewer.lab.data.loader import RelightDataset
 from viewer.errors import InputError

@@ -8,7 +8,7 @@ import pytest
 from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
 from viewer.gl.prefilter import blur_plan
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 
 
 def relook(eng, **changes):

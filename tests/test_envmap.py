@@ -1,11 +1,11 @@
-"""Environment maps (viewer.envmap) and median-cut area lights (viewer.median_cut)."""
+"""Environment maps (viewer.lighting.envmap) and median-cut area lights (viewer.lighting.median_cut)."""
 
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from viewer.envmap import (
+from viewer.lighting.envmap import (
     EnvMap,
     direction_to_uv,
     load_envmap,
@@ -15,8 +15,8 @@ from viewer.envmap import (
 )
 from viewer.errors import InputError
 from viewer.imageio import write_exr
-from viewer.lights import load_lights, rotation_matrix
-from viewer.median_cut import median_cut_lights
+from viewer.lighting.lights import load_lights, rotation_matrix
+from viewer.lighting.median_cut import median_cut_lights
 from viewer.resources import asset_dir
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -233,7 +233,7 @@ def test_bundled_environment_carries_its_fitted_lights(horn):
     import json
 
     from viewer.lab.bench.lightfit_evaluate import shading_errors
-    from viewer.lightfit.problem import FitSettings, build_problem
+    from viewer.lighting.lightfit.problem import FitSettings, build_problem
 
     env = load_envmap(BUNDLED.with_suffix(".hdr"))
     assert env.pixels.shape == (128, 256, 3)

@@ -1,4 +1,4 @@
-"""The face fitted at its own resolution (viewer.face): MediaPipe's face landmarks on real files
+"""The face fitted at its own resolution (viewer.photo.face): MediaPipe's face landmarks on real files
 (renders of held-out synthetic people written by `relight dataset make`, with their masks as alpha,
 and the bundled photo), rasterized into depth and normals and blended into a scene's maps."""
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from viewer import face
+from viewer.photo import face
 from viewer.camera import Camera
-from viewer.photo_frame import read_photo
+from viewer.photo.photo_frame import read_photo
 from viewer.scene import Scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -150,8 +150,8 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
     unweighted, and the weights give the patch ``FIT_SHARE`` of the fit."""
     from viewer.gl import Engine, EngineOptions
     from viewer.lab.scenes import sphere
-    from viewer.lights import AreaLights
-    from viewer.photo_lighting import fit_photo_lights
+    from viewer.lighting.lights import AreaLights
+    from viewer.photo.photo_lighting import fit_photo_lights
 
     scene = sphere(64, albedo=0.6, specular=0.0)
     h, w = scene.mask.shape

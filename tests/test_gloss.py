@@ -1,14 +1,14 @@
-"""How shiny each region may be (viewer/gloss.py): skin, told by the face's colour, keeps the
+"""How shiny each region may be (viewer/photo/gloss.py): skin, told by the face's colour, keeps the
 network's roughness; dark cloth and the rest become matte; without a face nothing changes."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from viewer import gloss
+from viewer.photo import gloss
 from viewer.imageio import srgb_to_linear
-from viewer.photo_frame import read_photo, resize
-from viewer.segmentation import find_person
+from viewer.photo.photo_frame import read_photo, resize
+from viewer.photo.segmentation import find_person
 
 from conftest import SHARED_DATA
 

@@ -14,7 +14,7 @@ import pytest
 from viewer.camera import Camera
 from viewer.gl import Engine, EngineOptions
 from viewer.ground import MAX_TILT, contacts, ground_plane
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
 from viewer.scene import FrameLayer, Scene, load_scene
 from viewer.scene_ops import resample_scene
@@ -185,7 +185,7 @@ def test_the_plane_goes_through_both_feet():
 def test_each_foot_darkens_the_ground_it_stands_on(ctx, person):
     """Under a sky of 16 lights, the feet's contact points darken the ground beside them beyond
     what the shadow maps alone do (the occlusion at contact their bias leaves out)."""
-    from viewer.lightfit.fit import fibonacci_sphere
+    from viewer.lighting.lightfit.fit import fibonacci_sphere
 
     dirs = fibonacci_sphere(32)
     dirs = dirs[dirs[:, 1] > 0.1][:16]

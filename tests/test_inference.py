@@ -14,12 +14,12 @@ from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.detail import detail_albedo
-from viewer.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, framing, infer, infer_scene, load_networks,
+from viewer.photo.detail import detail_albedo
+from viewer.photo.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, framing, infer, infer_scene, load_networks,
                               to_work_frame, write_bundle)
-from viewer.lights import load_lights
-from viewer.photo_frame import frame_sizes, resize
-from viewer.render import apply_settings
+from viewer.lighting.lights import load_lights
+from viewer.photo.photo_frame import frame_sizes, resize
+from viewer.output.render import apply_settings
 from viewer.scene import load_scene
 from viewer.settings import Look
 
@@ -78,7 +78,7 @@ def test_a_real_photo_becomes_a_bundle_in_its_own_frame(landscape_bundle, ctx):
     saved = json.loads((out / "inference.json").read_text())
     assert saved["photo_size"] == [1950, 1302] and saved["seconds_total"] > 0
     assert saved["sizes"]["frame"] == [1950, 1302] and saved["photo_lighting"]["psnr_db"] > 18
-    # the face, fitted at its own resolution (viewer.face), is in the maps: its box on the person's head
+    # the face, fitted at its own resolution (viewer.photo.face), is in the maps: its box on the person's head
     fitted = saved["face"]["fitted"]
     assert saved["face"]["faces_found"] == 1 and 80 < fitted["width_px"] < 200 and fitted["work_pixels"] > 500
     left, top, width, height = fitted["box"]
@@ -112,7 +112,7 @@ def test_relit_under_its_own_lights_the_output_is_the_photo(landscape, ctx):
                              lowpass_sigma=result["record"]["framing"]["side"] / NETWORK_RES, shared_scale=0.0)
     unshared = replace(sc, frame=replace(sc.frame, albedo=exact))
     assert _own_lights_error(ctx, unshared, lights) < 0.03
-    # 0.138 with the face unweighted in the light fit, 0.167 weighted (viewer.face.FIT_SHARE): the lights
+    # 0.138 with the face unweighted in the light fit, 0.167 weighted (viewer.photo.face.FIT_SHARE): the lights
     # come closer to the truth (held-out: relit with detail 0.2590 -> 0.2550 RMSE), the body's residual
     # that the shared correction takes grows
     assert _own_lights_error(ctx, load_scene(out), lights) < 0.2
@@ -223,8 +223,8 @@ def test_bad_inputs_name_the_file_and_the_problem(tiny_networks, tmp_path, ctx):
 
 
 def test_photos_over_the_pixel_limit_are_refused_in_one_line(tmp_path, monkeypatch):
-    import viewer.photo_frame as photo_frame
-    from viewer.photo_frame import read_photo
+    import viewer.photo.photo_frame as photo_frame
+    from viewer.photo.photo_frame import read_photo
 
     Image.fromarray(np.zeros((300, 400, 3), np.uint8)).save(tmp_path / "big.png")
     monkeypatch.setattr(photo_frame, "MAX_PIXELS", 100_000)
@@ -287,9 +287,9 @@ def test_render_outputs_keep_the_photo_frame(landscape_bundle, tmp_path, capsys)
     """relight render on a photo's bundle: PNG and EXR at the photo's own size; a transparent
     background gives RGBA files whose alpha is the person's matte; --max-size caps a video, whose
     frames keep the photo's aspect (an odd side loses its last row, never padded)."""
-    from viewer.cli import main
+    from viewer.cli.main import main
     from viewer.imageio import read_exr, read_png
-    from viewer.video import read_video
+    from viewer.output.video import read_video
 
     out, _ = landscape_bundle
     scene = load_scene(out)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from viewer.video import partial_path, read_video
+from viewer.output.video import partial_path, read_video
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "assets" / "sample_scene"
@@ -21,7 +21,7 @@ LIGHTS = ROOT / "assets" / "envmaps" / "venice_sunset_256.lights.json"
 
 
 def relight(*args) -> list[str]:
-    return [sys.executable, "-m", "viewer.cli", *map(str, args)]
+    return [sys.executable, "-m", "viewer.cli.main", *map(str, args)]
 
 
 def _default_sigint():

@@ -8,15 +8,15 @@ import pytest
 import torch
 
 from conftest import SHARED_DATA
-from viewer.envmap import EnvMap, load_envmap, pixel_directions, save_envmap
-from viewer.lightfit import cache_path, lights_for_map, map_hash
+from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions, save_envmap
+from viewer.lighting.lightfit import cache_path, lights_for_map, map_hash
 from viewer.lab.bench.lightfit_evaluate import held_out, relative_l1, shading_errors
-from viewer.lightfit.fit import fit_lights
-from viewer.lightfit.problem import FitSettings, VisibilityTable, build_problem, shadowed_views
-from viewer.lightfit.reference import plane_reference, sphere_reference
-from viewer.lightfit.samples import all_texels, map_samples
-from viewer.lightfit.views import PlaneView, SphereView, plane_view, sphere_view
-from viewer.lights import PAPER_TO_CAMERA, load_lights
+from viewer.lighting.lightfit.fit import fit_lights
+from viewer.lighting.lightfit.problem import FitSettings, VisibilityTable, build_problem, shadowed_views
+from viewer.lighting.lightfit.reference import plane_reference, sphere_reference
+from viewer.lighting.lightfit.samples import all_texels, map_samples
+from viewer.lighting.lightfit.views import PlaneView, SphereView, plane_view, sphere_view
+from viewer.lighting.lights import PAPER_TO_CAMERA, load_lights
 
 HDRI = SHARED_DATA / "hdri"
 SMALL = FitSettings(sphere_resolution=32, plane_resolution=48, shadow_resolution=64, samples=256)
@@ -236,7 +236,7 @@ def test_cache_stores_once_and_ctrl_c_leaves_nothing(tmp_path, monkeypatch):
     first, cached = lights_for_map(env, 4, "fast", directory=cache)
     assert not cached and cache_path(env, 4, "fast", cache).is_file()
     assert [p.name for p in cache.iterdir()] == [cache_path(env, 4, "fast", cache).name]
-    import viewer.lightfit.fit as fit
+    import viewer.lighting.lightfit.fit as fit
 
     monkeypatch.setattr(fit, "fit_lights", lambda *a, **k: pytest.fail("refitted a cached map"))
     again, cached = lights_for_map(env, 4, "fast", directory=cache)
@@ -260,7 +260,7 @@ def test_corrupt_cache_entry_is_refitted(tmp_path):
 
 @pytest.mark.parametrize("t_max, eta_min, steps", [(40, 0.0, 40), (5, 1e-3, 23)])  # annealed; periodic past t_max
 def test_cosine_adam_matches_torch_optim_step_for_step(t_max, eta_min, steps):
-    from viewer.lightfit.adam import CosineAdam
+    from viewer.lighting.lightfit.adam import CosineAdam
 
     start = torch.randn(7, 3, generator=torch.Generator().manual_seed(1))
     target = torch.randn(7, 3, generator=torch.Generator().manual_seed(2))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.lights import AreaLights, load_lights, rotation_matrix
+from viewer.lighting.lights import AreaLights, load_lights, rotation_matrix
 
 
 def sample_lights():
@@ -58,9 +58,9 @@ def test_bad_light_files_are_named(tmp_path, edit, message):
 
 
 def test_facing_yaw_turns_the_brightest_light_to_the_camera():
-    from viewer.cli_parser import build_parser
-    from viewer.command_setup import first_look
-    from viewer.lights import AreaLights, facing_yaw
+    from viewer.cli.parser import build_parser
+    from viewer.cli.command_setup import first_look
+    from viewer.lighting.lights import AreaLights, facing_yaw
     from viewer.settings import Look
 
     rng = np.random.default_rng(5)

@@ -1,4 +1,4 @@
-"""The person's true matte (viewer/matting.py) on real photos and on known answers: the trimap's
+"""The person's true matte (viewer/photo/matting.py) on real photos and on known answers: the trimap's
 band holds the gaps between limbs, the matte meets the hand-made masks, the old background leaves
 the person's colours, a plain backdrop seen between the limbs is cut out, hair stays soft, and a
 mask file still wins."""
@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer import matting
+from viewer.photo import matting
 from viewer.imageio import srgb_to_linear
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
-from viewer.photo_frame import output_frame, read_mask, read_photo, resize
-from viewer.segmentation import find_person
+from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
+from viewer.photo.segmentation import find_person
 
 from conftest import SHARED_DATA
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from viewer.cli import main
+from viewer.cli.main import main
 from viewer.errors import InputError
 from viewer.nets import depth as dn
 from viewer.nets import inverse as inv

@@ -12,11 +12,11 @@ import threading
 import pytest
 
 from viewer.errors import InputError
-from viewer.inference import bundle_target
+from viewer.photo.inference import bundle_target
 from viewer.ownership import MARKER, folder_lock, fresh_sibling, mark_written, written_here
 from viewer.resources import asset_dir
 
-RELIGHT = [sys.executable, "-m", "viewer.cli"]
+RELIGHT = [sys.executable, "-m", "viewer.cli.main"]
 
 
 def _bundle(folder):
@@ -88,7 +88,7 @@ def test_two_infers_into_one_folder_leave_one_whole_bundle_and_nothing_else(tmp_
 
 
 def test_a_users_partial_video_and_rig_are_never_written_over(tmp_path):
-    from viewer.placed_lights import rig, save_rig
+    from viewer.lighting.placed_lights import rig, save_rig
     from viewer.resources import sample_scene_dir
 
     env = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")

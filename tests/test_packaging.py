@@ -39,7 +39,7 @@ class NoLab(importlib.abc.MetaPathFinder):
         if any(name == lab or name.startswith(lab + ".") for lab in {LAB!r}):
             raise ImportError("the product imported the lab module " + name)
 sys.meta_path.insert(0, NoLab())
-from viewer.cli import main
+from viewer.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 

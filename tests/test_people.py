@@ -90,7 +90,7 @@ def test_long_hair_falls_down_the_back_and_folds_stay_on_cloth():
 
 
 def test_preview_draws_people_and_maps(tmp_path, capsys):
-    from viewer.cli import main
+    from viewer.cli.main import main
 
     assert main(["dataset", "preview", "--out", str(tmp_path), "--count", "1"]) == 0
     import imageio.v3 as iio

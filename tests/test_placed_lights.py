@@ -1,4 +1,4 @@
-"""The user's own lights (viewer/placed_lights.py): directions, colour temperature, rigs as JSON,
+"""The user's own lights (viewer/lighting/placed_lights.py): directions, colour temperature, rigs as JSON,
 undo and redo, and how a session renders them with the map's lights."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.placed_lights import (MIN_SEPARATION, History, PlacedLight, free_spot, kelvin_to_rgb, level, load_rig, rig,
+from viewer.lighting.placed_lights import (MIN_SEPARATION, History, PlacedLight, free_spot, kelvin_to_rgb, level, load_rig, rig,
                                    save_rig, to_area_lights)
 from viewer.shadow_space import ANGULAR_SIGMA
 
@@ -70,7 +70,7 @@ def test_history_undo_and_redo():
 def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
     from viewer.app.session import Session
     from viewer.lab.scenes import plane_and_box
-    from viewer.lights import AreaLights
+    from viewer.lighting.lights import AreaLights
 
     scene = plane_and_box(48)
     env = AreaLights(np.array([[0.0, 0.6, 0.8]]), [2.0], [[1.0, 1.0, 1.0]])
@@ -91,7 +91,7 @@ def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
 def test_your_lights_keep_their_share_when_the_map_changes_and_their_own_intensity(ctx):
     from viewer.app.session import Session
     from viewer.lab.scenes import plane_and_box
-    from viewer.lights import AreaLights
+    from viewer.lighting.lights import AreaLights
 
     bright = AreaLights(np.array([[0.0, 0.6, 0.8]]), [2.0], [[40.0, 40.0, 40.0]])
     dim = AreaLights(np.array([[0.6, 0.6, 0.0], [0.0, 1.0, 0.0]]), [2.0, 4.0], [[0.3, 0.3, 0.3], [0.1, 0.1, 0.1]])
@@ -140,7 +140,7 @@ def test_the_map_thumbnail_maps_points_and_directions_both_ways():
     """The thumbnail's point of a light and the light aimed from that point agree under any turn of
     the lighting, and the point shows what the map turned by the yaw shows there."""
     from viewer.app.thumbnail import MapThumbnail
-    from viewer.envmap import EnvMap
+    from viewer.lighting.envmap import EnvMap
 
     rng = np.random.default_rng(5)
     d = rng.normal(size=(50, 3))

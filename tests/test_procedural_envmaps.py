@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from viewer.lab.data.envmaps import KINDS, interior, key_light, outdoor, random_map, sky, studio, overcast
-from viewer.envmap import pixel_directions, solid_angles
-from viewer.median_cut import median_cut_lights
+from viewer.lighting.envmap import pixel_directions, solid_angles
+from viewer.lighting.median_cut import median_cut_lights
 
 
 def test_same_seed_same_map_bit_for_bit():

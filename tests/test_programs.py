@@ -89,11 +89,11 @@ def test_shaders_compare_modes_by_name_not_by_number():
 
 
 def test_the_tone_curves_in_glsl_and_in_numpy_agree(ctx, tmp_path):
-    """shaders/tonemap.glsl drawn over inputs from 0 to past its cap, against viewer.render's numpy
+    """shaders/tonemap.glsl drawn over inputs from 0 to past its cap, against viewer.output.render's numpy
     curves (the auto exposure and the white warning use them)."""
     import numpy as np
 
-    from viewer.render import tonemap_curve
+    from viewer.output.render import tonemap_curve
     from viewer.shader_modes import code
 
     for p in shader_dir().glob("*.glsl"):

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import load_lights
-from viewer.refinement import Refiner, light_visibility, refine_engine
+from viewer.lighting.lights import load_lights
+from viewer.photo.refinement import Refiner, light_visibility, refine_engine
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene

@@ -9,18 +9,18 @@ import numpy as np
 import pytest
 
 from viewer.app import interaction as ix
-from viewer.cli import main
+from viewer.cli.main import main
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
 from viewer.imageio import read_exr, read_png
-from viewer.lights import load_lights
-from viewer.render import apply_settings, render_turntable, turntable_yaws
+from viewer.lighting.lights import load_lights
+from viewer.output.render import apply_settings, render_turntable, turntable_yaws
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import EXPOSURE_LIMIT, Look
-from viewer.temporal import drmse, flicker_ratio
-from viewer.video import VideoWriter, read_video
+from viewer.output.temporal import drmse, flicker_ratio
+from viewer.output.video import VideoWriter, read_video
 
 DATA = Path(__file__).parent / "data"
 MAP = asset_dir() / "envmaps/immenstadter_horn_256.hdr"
@@ -182,7 +182,7 @@ def test_the_temporal_benchmarks_turn_renders(ctx, monkeypatch):
 def test_render_with_a_rig_adds_its_lights_fixed_to_the_camera(tmp_path, capsys):
     """relight render --rig: the placed lights light the person as well as the map's, and a turn of
     the map leaves them where they are; a bad rig is one line naming it."""
-    from viewer.placed_lights import rig, save_rig
+    from viewer.lighting.placed_lights import rig, save_rig
 
     path = save_rig(tmp_path / "rig.json", rig("rim", 2.0))
     base = [str(sample_scene_dir()), str(LIGHTS), "--env", str(MAP), "--size", "128", "--no-ground"]

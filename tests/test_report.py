@@ -62,8 +62,8 @@ def test_soft_shadow_targets():
 
 def test_balanced_preset_is_the_default():
     assert DEFAULT_PRESET == "balanced" and PRESETS["balanced"].options == EngineOptions()
-    from viewer.cli_parser import build_parser
-    from viewer.command_setup import command_look, engine_options, lights_count
+    from viewer.cli.parser import build_parser
+    from viewer.cli.command_setup import command_look, engine_options, lights_count
 
     def options(*argv):
         args = build_parser().parse_args(list(argv))
@@ -80,7 +80,7 @@ def test_balanced_preset_is_the_default():
 @pytest.fixture(scope="module")
 def quick_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
-    proc = subprocess.run([sys.executable, "-m", "viewer.cli", "bench", "report", "--quick", "-o", str(out)],
+    proc = subprocess.run([sys.executable, "-m", "viewer.cli.main", "bench", "report", "--quick", "-o", str(out)],
                           capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return out, proc.stdout
@@ -131,7 +131,7 @@ def test_cases_helpers(tmp_path):
 
 
 def test_report_refuses_a_folder_that_is_not_a_dataset(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "viewer.cli", "bench", "report", "--quick", "--data", str(tmp_path),
+    proc = subprocess.run([sys.executable, "-m", "viewer.cli.main", "bench", "report", "--quick", "--data", str(tmp_path),
                            "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
     assert proc.returncode != 0 and "Traceback" not in proc.stderr
     assert str(tmp_path) in proc.stderr and "dataset" in proc.stderr

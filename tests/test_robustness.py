@@ -10,11 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.errors import InputError
 from viewer.imageio import read_json
-from viewer.lights import load_lights
-from viewer.photo_frame import read_mask
+from viewer.lighting.lights import load_lights
+from viewer.photo.photo_frame import read_mask
 from viewer.settings import Look
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -108,8 +108,8 @@ def test_numbers_of_thousands_of_digits_are_one_line_in_every_file_kind(tmp_path
     import shutil
 
     from viewer.imageio import read_json
-    from viewer.lights import load_lights
-    from viewer.placed_lights import load_rig
+    from viewer.lighting.lights import load_lights
+    from viewer.lighting.placed_lights import load_rig
     from viewer.resources import sample_scene_dir
     from viewer.scene import load_scene
 
@@ -193,7 +193,7 @@ def test_a_radiance_header_of_any_length_is_read(tmp_path_factory, lines, width)
 
 
 def test_a_header_without_its_end_is_refused_in_one_line(tmp_path):
-    from viewer.envmap import MAX_RGBE_HEADER
+    from viewer.lighting.envmap import MAX_RGBE_HEADER
 
     path = tmp_path / "map.hdr"
     with open(path, "wb") as f:
@@ -214,7 +214,7 @@ def test_names_that_are_not_utf8_are_read_and_outputs_refused_in_one_line(tmp_pa
     folder = os.fsencode(tmp_path)
     shutil.copy(ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr", folder + b"/m\xff.hdr")
     shutil.copytree(ROOT / "assets" / "sample_scene", os.fsdecode(folder + b"/s\xff"))
-    run = [sys.executable, "-m", "viewer.cli", "render", folder + b"/s\xff", "--env", folder + b"/m\xff.hdr",
+    run = [sys.executable, "-m", "viewer.cli.main", "render", folder + b"/s\xff", "--env", folder + b"/m\xff.hdr",
            "-n", "4", "--method", "median-cut", "--size", "64", "-o"]
     env = {**os.environ, "RELIGHT_CACHE": str(tmp_path / "cache")}
     ok = subprocess.run(run + [folder + b"/ok.png"], capture_output=True, env=env)
@@ -237,7 +237,7 @@ def test_a_damaged_exr_is_one_line_with_openexrs_own_words(tmp_path, cut):
 
     shutil.copytree(ROOT / "assets" / "sample_scene", bundle)
     (bundle / "albedo.exr").write_bytes(data[: int(cut * len(data)) if isinstance(cut, float) else cut])
-    proc = subprocess.run([sys.executable, "-m", "viewer.cli", "render", str(bundle), str(ROOT / "assets" / "envmaps" /
+    proc = subprocess.run([sys.executable, "-m", "viewer.cli.main", "render", str(bundle), str(ROOT / "assets" / "envmaps" /
                            "venice_sunset_256.lights.json"), "-o", str(tmp_path / "x.png")], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stdout == "", (proc.stdout, proc.stderr)
     lines = proc.stderr.strip().splitlines()

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from viewer.lab.bench.photos import mask_iou, read_reference_mask
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.errors import InputError
 from viewer.imageio import linear_to_srgb
-from viewer.photo_frame import read_photo, resize
-from viewer.segmentation import find_person
+from viewer.photo.photo_frame import read_photo, resize
+from viewer.photo.segmentation import find_person
 
 from conftest import SHARED_DATA
 

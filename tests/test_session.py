@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.app.jobs import LightJob
-from viewer.map_lights import sidecar_lights
+from viewer.lighting.map_lights import sidecar_lights
 from viewer.app.session import PREVIEW_SIZE, Session
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import load_lights
-from viewer.render import apply_settings
+from viewer.lighting.lights import load_lights
+from viewer.output.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.settings import Look
@@ -75,7 +75,7 @@ def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
     the lighting it was computed for."""
     import time
 
-    from viewer.refinement import Refiner
+    from viewer.photo.refinement import Refiner
     from viewer.scene_ops import resample_scene
 
     scene = resample_scene(load_scene(sample_scene_dir()), 96)

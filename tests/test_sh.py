@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.envmap import EnvMap, pixel_directions, solid_angles
-from viewer.sh import irradiance, project, relight
+from viewer.lighting.envmap import EnvMap, pixel_directions, solid_angles
+from viewer.lighting.sh import irradiance, project, relight
 
 
 def _exact_irradiance(env: EnvMap, normals):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.lab.bench.contact import LIGHT, ContactConfig, penumbra_widths
 from viewer.lab.scenes import plane_and_box
 
@@ -38,7 +38,7 @@ def test_csm_is_too_soft_near_contact(widths):
 
 def test_extreme_lights_stay_finite_and_bounded(ctx):
     """Sigma 0, tiny and the largest allowed, a grazing and a below-horizon light: visibility in [0, 1]."""
-    from viewer.lights import MAX_SIGMA
+    from viewer.lighting.lights import MAX_SIGMA
 
     scene = plane_and_box(48)
     grazing = np.array([np.cos(np.radians(2.0)), 0.0, np.sin(np.radians(2.0))])

@@ -11,7 +11,7 @@ import pytest
 from viewer.lab.scenes import sphere
 from viewer.lab.bench.contact import gaussian_light
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.shadow_space import ANGULAR_SIGMA
 
 LIGHT = np.array([0.35, 0.25, 1.0]) / np.linalg.norm([0.35, 0.25, 1.0])

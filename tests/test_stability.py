@@ -7,7 +7,7 @@ import pytest
 
 from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 
 
 def unit(v):

@@ -7,7 +7,7 @@ import pytest
 
 from viewer.lab.data.people import make_person
 from viewer.lab.data.truth import render_person, unshadowed_shading
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.resources import asset_dir
 
 

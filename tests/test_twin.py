@@ -12,7 +12,7 @@ import torch.nn.functional as F
 from viewer.lab.scenes import plane_and_box
 from viewer import shadow_space
 from viewer.camera import Camera
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.mesh import caster_points, depth_mesh
 from viewer.scene import Scene
 from viewer.twin import (LightTensors, SceneTensors, diffuse_shading, gaussian_filter, light_frames,

@@ -8,13 +8,13 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.gl import Engine, EngineOptions
-from viewer.inference import infer_scene
+from viewer.photo.inference import infer_scene
 from viewer.lab.bench.upsample import _gradient, lightings, render
 from viewer.resources import asset_dir
 
 # display RMSE ([0, 1] sRGB) over the person, here a 512-px output with the person 160 px tall in the work
 # frame: 0.028 measured with the networks' maps alone, 0.037 with the face fitted at its own resolution
-# (viewer.face: its nose and cheeks are 12 work pixels across here, sharp in the reference);
+# (viewer.photo.face: its nose and cheeks are 12 work pixels across here, sharp in the reference);
 # docs/engine.md measures 0.008-0.018 at 2048 with the default work size (512)
 TOLERANCE = 0.042
 

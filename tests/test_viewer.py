@@ -15,23 +15,23 @@ import numpy as np
 import pytest
 
 from viewer.lab.bench.viewer import x_display
-from viewer.commands import DEMO_LIGHTS
+from viewer.cli.commands import DEMO_LIGHTS
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.metrics import detail_kept
 from viewer.imageio import read_exr, read_png
-from viewer.lights import facing_yaw, load_lights
-from viewer.render import apply_settings
+from viewer.lighting.lights import facing_yaw, load_lights
+from viewer.output.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import Look
-from viewer.video import partial_path, read_video
+from viewer.output.video import partial_path, read_video
 
 # the viewer opens with the brightest light turned toward the camera (no --yaw given)
 FIRST_YAW = facing_yaw(load_lights(asset_dir() / DEMO_LIGHTS))
 
 SIZE = 256
-RELIGHT = [sys.executable, "-m", "viewer.cli"]
+RELIGHT = [sys.executable, "-m", "viewer.cli.main"]
 
 
 @pytest.fixture(scope="module")
@@ -118,7 +118,7 @@ def viewer_factory(display, tmp_path):
 def headless(ctx):
     scene = resample_scene(load_scene(sample_scene_dir()), SIZE)
     lights = load_lights(asset_dir() / DEMO_LIGHTS)
-    from viewer.envmap import load_envmap
+    from viewer.lighting.envmap import load_envmap
 
     env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr").pixels
     engine = Engine(ctx, scene, EngineOptions())
@@ -271,7 +271,7 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, hea
     time.sleep(0.2)
     v.xdotool("click", 1)
     s = v.wait_for(lambda s: "aimed" in s["message"], 30)
-    from viewer.placed_lights import PlacedLight
+    from viewer.lighting.placed_lights import PlacedLight
 
     got = PlacedLight(**s["placed"][0]).direction
     assert s["message"].endswith(f"{col}, {row}") and np.dot(got, scene.normal[row, col]) > 0.999
@@ -293,8 +293,8 @@ import json, sys, threading, time
 from pathlib import Path
 from viewer.app import ViewerConfig
 from viewer.app.app import ViewerApp
-from viewer.envmap import load_envmap
-from viewer.lights import load_lights
+from viewer.lighting.envmap import load_envmap
+from viewer.lighting.lights import load_lights
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
@@ -336,7 +336,7 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     default since the feet are in the frame (the person's pixels stay); a scene bundle typed into the panel's
     browser opens."""
     from viewer.app.thumbnail import MapThumbnail
-    from viewer.placed_lights import PlacedLight
+    from viewer.lighting.placed_lights import PlacedLight
 
     v = viewer_factory()
 
@@ -393,7 +393,7 @@ def test_files_dropped_on_the_window_open_a_map_a_rig_and_a_photo(display, tmp_p
     person shown, and a file of another kind gets one line saying what opens."""
     import shutil
 
-    from viewer.placed_lights import rig, save_rig
+    from viewer.lighting.placed_lights import rig, save_rig
 
     new_map = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", tmp_path / "dropped.hdr")  # no light file
     rig_file = save_rig(tmp_path / "rig.json", rig("key and fill", 1.0))
@@ -505,7 +505,7 @@ def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, 
     lights = load_lights(tmp_path / "lights.json")
     assert len(lights) == p.lights
     scene = resample_scene(load_scene(sample_scene_dir()), SIZE)
-    from viewer.envmap import load_envmap
+    from viewer.lighting.envmap import load_envmap
 
     engine = Engine(ctx, scene, p.options)
     engine.set_environment(load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr").pixels)

@@ -21,7 +21,7 @@ frame_albedo.exr   optional (version 2): the detail albedo at output resolution,
 Only pixels inside the mask carry data; loading zeroes everything outside it. The three
 ``frame_*`` files form the :class:`FrameLayer`: the photo's own frame (its aspect, the person where
 the photo had them) at the output resolution, over the same field of view as the maps (see
-:mod:`viewer.photo_frame`). A bundle made from a photo has one; a synthetic scene need not.
+:mod:`viewer.photo.photo_frame`). A bundle made from a photo has one; a synthetic scene need not.
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ class FrameLayer:
 
     def resized(self, size: tuple[int, int]) -> "FrameLayer":
         """The layer at ``size`` = (width, height) (area average down, bilinear up)."""
-        from .photo_frame import resize
+        from .photo.photo_frame import resize
 
         if size == (self.width, self.height):
             return self
@@ -218,7 +218,7 @@ class Scene:
         if self.frame is not None:
             self.frame.validate((w, h), base)
             if self.photo is None:  # the maps' photo and background are the frame's, at their resolution
-                from .photo_frame import resize
+                from .photo.photo_frame import resize
 
                 self.photo = np.maximum(resize(self.frame.photo, (w, h)), 0).astype(np.float32)
             if self.background is None:

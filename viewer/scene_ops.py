@@ -13,7 +13,7 @@ from .scene import Scene, load_scene
 def load_sized_scene(path, size: int | None = None, max_size: int | None = None) -> Scene:
     """The scene bundle at ``path``, its maps resampled to ``size`` pixels on the longer side when
     given (``--size``), its frame capped to ``max_size`` (``--max-size``)."""
-    from .photo_frame import scaled_size
+    from .photo.photo_frame import scaled_size
 
     scene = load_scene(path)
     if size is not None and not 16 <= size <= 8192:
@@ -35,7 +35,7 @@ def _check_render_memory(scene: Scene, size: int | None, max_size: int | None) -
     """Refuse, before resampling, maps and a frame whose render would not fit this machine's memory
     (``render --size 8192`` was killed by the kernel at 23.6 GB): see :mod:`viewer.budget`."""
     from . import budget
-    from .photo_frame import scaled_size
+    from .photo.photo_frame import scaled_size
 
     h, w = scene.height, scene.width
     long_side = size if size is not None else max(h, w)

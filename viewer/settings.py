@@ -17,9 +17,9 @@ import numpy as np
 
 from .errors import InputError
 from .shader_modes import MODES
-from .lights import rotation_matrix
+from .lighting.lights import rotation_matrix
 
-AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.render.photo_exposure)
+AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.output.render.photo_exposure)
 MAX_BACKDROP_BLUR = 30.0  # degrees (viewer.backdrop.MAX_BLUR)
 EXPOSURE_LIMIT = 40.0  # stops either way
 TONEMAPS = MODES["TONEMAP"]
@@ -57,7 +57,7 @@ class Look:
     view: str = "final"  # VIEWS
     light: int = 0  # the selected light (its shadow in the "shadow" view)
     intensity: float = 1.0  # scales the map's lights
-    placed_intensity: float = 1.0  # scales your lights (viewer.placed_lights), apart from the map's
+    placed_intensity: float = 1.0  # scales your lights (viewer.lighting.placed_lights), apart from the map's
     preset: str = "balanced"  # quality preset (viewer.presets)
     compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
     ground: bool | str = AUTO  # the person's shadow on a ground plane at the feet, over the background (a shadow

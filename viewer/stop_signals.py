@@ -26,7 +26,7 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 def route_to_main_thread() -> None:
     """Block :data:`STOP_SIGNALS` in this process's threads and forward them to the main thread's
     Python handlers from a daemon thread. Called once, from the main thread, before any other
-    thread starts (relight's entry point, :func:`viewer.cli.run`)."""
+    thread starts (relight's entry point, :func:`viewer.cli.main.run`)."""
     if threading.current_thread() is not threading.main_thread():
         raise RuntimeError("stop signals are routed from the main thread")
     signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..imageio import write_exr, write_png, write_text
-from ..placed_lights import PlacedLight, level
+from ..lighting.placed_lights import PlacedLight, level
 from ..scene import PHOTO_SUFFIXES
 from . import interaction as ix
 from .jobs import LightJob, SceneJob
@@ -143,7 +143,7 @@ class Actions:
         what the window opens."""
         from ..errors import InputError
         from ..file_kinds import kind_of, wrong_kind
-        from ..placed_lights import load_rig
+        from ..lighting.placed_lights import load_rig
         from .files import is_bundle
 
         suffix = path.suffix.lower()
@@ -205,7 +205,7 @@ class Actions:
 
     def use_rig(self, name: str):
         """The placed lights of rig ``name`` in place of the user's (undoable)."""
-        from ..placed_lights import rig
+        from ..lighting.placed_lights import rig
 
         s = self.app.session
         replaced = len(s.placed)
@@ -219,11 +219,11 @@ class Actions:
         self.open_map(self.app.env_path, n)
 
     def placed_level(self) -> float:
-        """A new placed light's intensity: the map's level (viewer.placed_lights.level)."""
+        """A new placed light's intensity: the map's level (viewer.lighting.placed_lights.level)."""
         return level(self.app.session.base_lights)
 
     def save_rig(self):
-        from ..placed_lights import save_rig
+        from ..lighting.placed_lights import save_rig
 
         try:
             self.app.config.out_dir.mkdir(parents=True, exist_ok=True)

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..lightfit.methods import DEFAULT_METHOD
-from ..lights import AreaLights
-from ..render import photo_exposure
+from ..lighting.lightfit.methods import DEFAULT_METHOD
+from ..lighting.lights import AreaLights
+from ..output.render import photo_exposure
 from ..scene import PHOTO_SUFFIXES, Scene
 from ..settings import AUTO, Look
 from . import interaction as ix
@@ -55,7 +55,7 @@ class ViewerConfig:
     bundled_maps: tuple = ()
     preset: str = "balanced"  # the quality preset the options came from (viewer/presets.py)
     window: object = None  # a window already open (a photo's inference ran in its context), else one is made
-    rig: tuple = ()  # placed lights to start with (viewer.placed_lights; relight view --rig)
+    rig: tuple = ()  # placed lights to start with (viewer.lighting.placed_lights; relight view --rig)
     max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
     device: str = "cpu"  # ... and where its inference runs (relight view --device)
     gl_threads: int = 2  # llvmpipe's threads (viewer/cores.py): with one, the drag preview is lighter

@@ -3,7 +3,7 @@ standard input, one JSON object a line, and serves them one at a time until its 
 ``{"what": "photo", "photo": PATH, "max_size": N, "device": D}`` writes (or finds in the cache) the
 photo's scene bundle; ``{"what": "lights", "map": PATH, "n": N, "method": M}`` fits (or finds in the
 cache) a map's lights. Each request is answered on standard output, one JSON object a line:
-``{"stage": NAME}`` (a photo: as each stage of :data:`viewer.inference.STAGES` ends) or ``{"stage":
+``{"stage": NAME}`` (a photo: as each stage of :data:`viewer.photo.inference.STAGES` ends) or ``{"stage":
 NAME, "done": D, "total": T}`` (a fit), then ``{"bundle": PATH, "cached": BOOL}`` or ``{"lights": N x
 7 array, "cached": BOOL}``, or ``{"error": LINE}``.
 
@@ -26,7 +26,7 @@ def _say(**fields):
 
 
 def _photo(req: dict):
-    from ..inference import cached_bundle
+    from ..photo.inference import cached_bundle
 
     bundle, cached = cached_bundle(req["photo"], None, max_size=int(req["max_size"]), device=req.get("device", "cpu"),
                                    progress=lambda stage: _say(stage=stage))
@@ -34,8 +34,8 @@ def _photo(req: dict):
 
 
 def _lights(req: dict):
-    from ..envmap import load_envmap
-    from ..lightfit import lights_for_map
+    from ..lighting.envmap import load_envmap
+    from ..lighting.lightfit import lights_for_map
 
     lights, cached = lights_for_map(load_envmap(req["map"]), int(req["n"]), req["method"],
                                     progress=lambda stage, done, total: _say(stage=stage, done=done, total=total))

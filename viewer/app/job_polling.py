@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sys
 
-from ..lights import facing_yaw
+from ..lighting.lights import facing_yaw
 from . import interaction as ix
 
 

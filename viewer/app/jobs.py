@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envmap import EnvMap, load_envmap
+from ..lighting.envmap import EnvMap, load_envmap
 from ..errors import InputError
-from ..lights import AreaLights
-from ..map_lights import map_lights
+from ..lighting.lights import AreaLights
+from ..lighting.map_lights import map_lights
 
 
 @dataclass
@@ -204,7 +204,7 @@ class LightJob(ChildJob):
         super().__init__(wake, worker)
 
     def _stage(self, said: dict):
-        from ..lightfit.methods import STAGE_SHARES
+        from ..lighting.lightfit.methods import STAGE_SHARES
         from ..progress import TimeLeft
 
         if self._left is None:
@@ -249,14 +249,14 @@ class SceneJob(ChildJob):
         self.stage = "starting the inference" if self.photo else "reading the maps"
         self.fraction = 0.0
         self._done = 0
-        from ..inference import STAGE_SHARES
+        from ..photo.inference import STAGE_SHARES
         from ..progress import TimeLeft
 
         self._left = TimeLeft(STAGE_SHARES)
         super().__init__(wake, worker)
 
     def _stage(self, said: dict):
-        from ..inference import STAGES
+        from ..photo.inference import STAGES
 
         self._done += 1
         self.fraction = self._left.update(str(said["stage"]), 1, 1)

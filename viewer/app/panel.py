@@ -12,9 +12,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from imgui_bundle import imgui, implot
 
-from ..lights import azimuth_elevation
-from ..median_cut import LUMINANCE
-from ..placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb
+from ..lighting.lights import azimuth_elevation
+from ..lighting.median_cut import LUMINANCE
+from ..lighting.placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb
 from ..presets import PRESETS
 from ..settings import VIEWS
 from ..shadow_space import ANGULAR_SIGMA

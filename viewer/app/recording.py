@@ -7,7 +7,7 @@ stays responsive and shows each frame as it is recorded; encoding runs on the wr
   rendered at full quality at the video's frame rate.
 
 Stopping early (the key again, or closing the window) finishes the file with the frames so far;
-the fragmented MP4 (:mod:`viewer.video`) stays playable even if the program is killed.
+the fragmented MP4 (:mod:`viewer.output.video`) stays playable even if the program is killed.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from ..progress import TimeLeft
-from ..render import turntable_yaws
+from ..output.render import turntable_yaws
 from ..settings import Look
-from ..video import VideoWriter
+from ..output.video import VideoWriter
 
 
 class TurntableRecording:

@@ -17,11 +17,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..gl import Engine, EngineOptions
-from ..lights import AreaLights
-from ..placed_lights import History, PlacedLight, level, rescaled, to_area_lights
-from ..render import effective_background
+from ..lighting.lights import AreaLights
+from ..lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
+from ..output.render import effective_background
 from ..scene import Scene
-from ..photo_frame import scaled_size
+from ..photo.photo_frame import scaled_size
 from ..scene_ops import resample_scene
 from ..settings import Look
 
@@ -53,7 +53,7 @@ class Session:
         self.environment = environment
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
-        self.placed: tuple[PlacedLight, ...] = ()  # the user's own lights, fixed to the camera (viewer.placed_lights)
+        self.placed: tuple[PlacedLight, ...] = ()  # the user's own lights, fixed to the camera (viewer.lighting.placed_lights)
         self.history = History()
         self.keep_absolute = False  # placed lights keep their absolute intensities when the map changes
         self.look = (look or Look()).fitted(len(lights))
@@ -222,7 +222,7 @@ class Session:
     def _start_refinement(self, eng: Engine):
         """Run the refinement network for the final engine's current lights on a thread (the soft
         visibility is shown meanwhile); :meth:`poll_refinement` hands its result to the engine."""
-        from ..refinement import Refiner, light_visibility
+        from ..photo.refinement import Refiner, light_visibility
         from .jobs import RefineJob
 
         key = self._lights_key(eng)

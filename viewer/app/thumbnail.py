@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..envmap import EnvMap, direction_to_uv, uv_to_direction
+from ..lighting.envmap import EnvMap, direction_to_uv, uv_to_direction
 from ..imageio import linear_to_srgb
-from ..lights import rotation_matrix
-from ..median_cut import LUMINANCE
+from ..lighting.lights import rotation_matrix
+from ..lighting.median_cut import LUMINANCE
 
 WIDTH = 256  # texels across (height: half)
 

@@ -42,9 +42,9 @@ import numpy as np
 from ..backdrop import blurred_map
 from ..errors import InputError
 from ..ground import ground_plane
-from ..lights import AreaLights
+from ..lighting.lights import AreaLights
 from ..scene import Scene
-from ..median_cut import LUMINANCE
+from ..lighting.median_cut import LUMINANCE
 from ..settings import AUTO, EXPOSURE_LIMIT, VIEWS, VISIBILITY_MODES, Look
 from .. import shadow_space as ss
 from .composite_pass import CompositePass

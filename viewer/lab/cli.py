@@ -235,7 +235,7 @@ def cmd_bench(args) -> int:
     else:
         from .bench.lights import COUNTS, run_lights_benchmark
 
-        from viewer.lightfit.methods import METHODS
+        from viewer.lighting.lightfit.methods import METHODS
 
         run_lights_benchmark(maps_dir=shared_folder(args.maps, "hdri", "--maps"), counts=args.counts or COUNTS,
                              methods=tuple(args.methods or METHODS), output=output)
@@ -319,7 +319,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--data", nargs="+", help="networks, report, photos, bodyfit: dataset directory (networks: or several)")
     p.add_argument("--networks", help="networks: folder of weights (default: the shipped ones)")
     p.add_argument("--no-face", action="store_true", help="networks: the networks' maps alone, without the face "
-                   "fitted to the photo (viewer.face) that relight infer blends in")
+                   "fitted to the photo (viewer.photo.face) that relight infer blends in")
     p.add_argument("--limit", type=int, help="networks, photos: evaluate at most this many held-out (input, target) pairs; "
                    "bodyfit: people (default 12)")
     p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "
@@ -348,6 +348,6 @@ def bench(argv) -> int:
 
 
 if __name__ == "__main__":
-    from viewer.cli import main
+    from viewer.cli.main import main
 
     sys.exit(main())

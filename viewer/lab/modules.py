@@ -20,23 +20,17 @@ BEGIN, END = "<!-- modules:begin (python -m viewer.lab.modules --write docs/arch
 # the stages of the picture: a module belongs to the group of the longest prefix it starts with
 GROUPS = (
     ("lab", ("viewer.lab",), "datasets, ground truth, training, benchmarks"),
-    ("cli", ("viewer.cli", "viewer.cli_parser", "viewer.commands", "viewer.command_setup", "viewer.output_paths"),
-     "the relight command"),
+    ("cli", ("viewer.cli",), "the relight command"),
     ("app", ("viewer.app",), "the viewer window: input, panel, session, jobs, recording"),
-    ("output", ("viewer.render", "viewer.video", "viewer.temporal"), "headless frames, MP4, temporal metrics"),
-    ("inference", ("viewer.inference", "viewer.segmentation", "viewer.matting", "viewer.face", "viewer.gloss", "viewer.photo_lighting", "viewer.detail",
-                   "viewer.refinement", "viewer.nets"), "photo to scene bundle: matte, the networks, refinement"),
+    ("output", ("viewer.output",), "headless frames, MP4, temporal metrics"),
+    ("photo", ("viewer.photo", "viewer.nets"), "photo to scene bundle: its frame, the matte, the networks, the face, refinement"),
     ("engine", ("viewer.gl", "viewer.presets", "viewer.backdrop", "viewer.shader_modes"),
      "GL passes, programs, context, the shaders' modes; quality presets; the backdrop"),
     ("twin", ("viewer.twin",), "the engine in differentiable torch"),
-    ("lights", ("viewer.lightfit", "viewer.median_cut", "viewer.envmap", "viewer.sh", "viewer.map_lights"),
-     "environment maps, light fitting, where a map's lights come from"),
-    ("scene", ("viewer.scene", "viewer.scene_ops", "viewer.camera", "viewer.mesh", "viewer.shadow_space", "viewer.settings",
-               "viewer.lights", "viewer.photo_frame", "viewer.ground"),
-     "scene bundle, photo frame, camera, geometry, the ground, area lights, the Look"),
-    ("base", ("viewer.errors", "viewer.imageio", "viewer.resources", "viewer.constants", "viewer.progress", "viewer.budget",
-              "viewer.stop_signals", "viewer"),
-     "errors, files, assets, constants, progress, memory budgets, signals"),
+    ("lighting", ("viewer.lighting",), "environment maps, area lights, light fitting, your lights, where a map's lights come from"),
+    ("scene", ("viewer.scene", "viewer.scene_ops", "viewer.camera", "viewer.mesh", "viewer.shadow_space", "viewer.settings", "viewer.ground"),
+     "scene bundle, camera, geometry, the ground, the Look"),
+    ("base", ("viewer",), "errors, files, assets, constants, progress, memory budgets, cores, signals"),
 )
 
 

@@ -30,8 +30,8 @@ from __future__ import annotations
 import torch
 from torch.nn import functional as F
 
-from ..lightfit.fit import fibonacci_sphere
-from ..median_cut import SIGMA_MAX
+from ..lighting.lightfit.fit import fibonacci_sphere
+from ..lighting.median_cut import SIGMA_MAX
 from ..twin.brdf import diffuse_shading, specular_shading
 from .photo import photo_input, reads_silhouette
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import torch
 
-from ..median_cut import SIGMA_MAX
+from ..lighting.median_cut import SIGMA_MAX
 from ..twin.brdf import diffuse_shading
 from . import depth as depth_net
 from .inverse import masked_l1

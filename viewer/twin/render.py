@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..lights import AreaLights
+from ..lighting.lights import AreaLights
 from ..mesh import DepthMesh, caster_points, depth_mesh, resolve_step
 from ..scene import Scene
 from .. import shadow_space as rule

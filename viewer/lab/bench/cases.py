@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.envmap import EnvMap, load_envmap
+from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.errors import InputError
 from viewer.imageio import read_exr, write_exr
-from viewer.lightfit.cache import cache_dir, map_hash
+from viewer.lighting.lightfit.cache import cache_dir, map_hash
 from viewer.scene import Scene, load_scene
 
 REFERENCE_VERSION = 1  # bump when the reference renderer changes its images
@@ -58,7 +58,7 @@ def sample_case(scene: Scene, maps, yaws) -> Case:
 
 def photo_case(photo: Path, mask: Path, maps, yaw: float, size: int = 512) -> Case:
     """The bundled photo's inferred bundle (``relight infer``, cached) under every map."""
-    from viewer.inference import cached_bundle
+    from viewer.photo.inference import cached_bundle
 
     bundle, _ = cached_bundle(photo, mask, size=size)
     return Case(f"photo {photo.stem}", "photo", load_scene(bundle), [Lighting(m, float(yaw)) for m in maps])

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.envmap import EnvMap, pixel_directions
+from viewer.lighting.envmap import EnvMap, pixel_directions
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.shadow_space import ANGULAR_SIGMA
 from viewer.lab.scenes import plane_and_box
 

@@ -29,7 +29,7 @@ TARGET_RATIO = 2.5  # beside two busy processes, at most this times the idle tim
 def _commands(work: Path, hdri: Path) -> dict:
     from viewer.resources import asset_dir, sample_scene_dir
 
-    relight = [sys.executable, "-m", "viewer.cli"]
+    relight = [sys.executable, "-m", "viewer.cli.main"]
     return {
         "fit": relight + ["fit-lights", str(hdri / "kiara_1_dawn_1k.hdr"), "-n", "16", "-o", str(work / "fit.lights.json")],
         "infer": relight + ["infer", str(asset_dir() / "photos" / "underpass.jpg"), "-o", str(work / "bundle")],

@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from viewer.imageio import write_text
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.mesh import resolve_step
 from viewer.resources import asset_dir, sample_scene_dir
 
@@ -26,8 +26,8 @@ ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 def bench_lights(n: int) -> AreaLights:
     """N lights from the bundled environment map (median cut), so sigma and intensity spreads are
     those of a real map."""
-    from viewer.envmap import load_envmap
-    from viewer.median_cut import median_cut_lights
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.median_cut import median_cut_lights
 
     return median_cut_lights(load_envmap(asset_dir() / ENVMAP), n)
 

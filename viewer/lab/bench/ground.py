@@ -18,11 +18,11 @@ import time
 
 import numpy as np
 
-from viewer.envmap import EnvMap, load_envmap
+from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.gl import Engine, EngineOptions
 from viewer.ground import GroundPlane, ground_plane
 from viewer.imageio import write_text
-from viewer.lights import AreaLights, load_lights
+from viewer.lighting.lights import AreaLights, load_lights
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene

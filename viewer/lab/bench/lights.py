@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.imageio import atomic_path, write_text
 from viewer.lab.bench.lightfit_evaluate import held_out, shading_errors
-from viewer.lightfit.fit import METHODS, fit_lights
-from viewer.lightfit.problem import FitSettings, build_problem
+from viewer.lighting.lightfit.fit import METHODS, fit_lights
+from viewer.lighting.lightfit.problem import FitSettings, build_problem
 
 COUNTS = (4, 8, 16, 32)
 VIEWS = ("sphere", "plane", "heldout")

@@ -6,7 +6,7 @@ only), at the output frame (the photo capped at 2048 px), and for the same perso
 plain pink backdrop by that mask (:func:`viewer.lab.bench.metrics.on_backdrop`):
 
 - the pose model's segmentation alone (thresholded at 0.5);
-- the band decided by colour and the background's holes (:func:`viewer.matting.decided_outline`),
+- the band decided by colour and the background's holes (:func:`viewer.photo.matting.decided_outline`),
   with no soft edge;
 - the soft edge solved by each of pymatting's alpha solvers (closed-form, KNN, large-kernel,
   random-walk, learning-based) at several band widths, with the foreground colours;
@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer import matting
+from viewer.photo import matting
 from viewer.imageio import srgb_to_linear, write_text
-from viewer.photo_frame import output_frame, read_mask, read_photo, resize
+from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
 
 SOLVERS = ("cf", "knn", "lkm", "rw", "lbdm")
@@ -58,7 +58,7 @@ def _scores(alpha, foreground, linear, hand, photo, backdrop: bool) -> dict:
 
 def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges, repeats: int) -> dict:
     """Every step and solver on one photo (uint8 sRGB at the frame) against its hand-made mask."""
-    from viewer.segmentation import find_person
+    from viewer.photo.segmentation import find_person
 
     linear = srgb_to_linear(photo.astype(np.float32) / 255.0)
     person, t_find = _timed(lambda: find_person(photo), 1)

@@ -7,7 +7,7 @@ on the same machine in the same run.
 - ``directional`` (baseline): the same N fitted lights as directional lights with hard shadows only
   (sigma 0: shadow maps, no convolutional shadow maps);
 - ``sh`` (baseline): second-order spherical-harmonics lighting of the turned map, no shadows, no
-  specular (:mod:`viewer.sh`, numpy);
+  specular (:mod:`viewer.lighting.sh`, numpy);
 - ``twin`` (baseline): the torch twin, the paper's own way of computing the engine's image (CPU).
 
 Times: ``full`` is a frame after the lighting turned (every light moved: shadow maps, filtering,
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.gl import Engine, EngineOptions
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.lab.bench.engine import frame_seconds
 
 KINDS = ("engine", "directional", "sh", "twin")
@@ -112,7 +112,7 @@ class Renderer:
     def image(self, lights: AreaLights | None, env=None) -> np.ndarray:
         kind = self.method.kind
         if kind == "sh":
-            from viewer.sh import relight
+            from viewer.lighting.sh import relight
 
             return relight(self.scene.albedo, self.scene.normal, self.scene.mask, env)
         if kind == "twin":

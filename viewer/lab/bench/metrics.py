@@ -116,7 +116,7 @@ def spill_cut(alpha: np.ndarray, hand: np.ndarray, margin: float = MATTE_MARGIN)
     """Against a hand-made mask: ``spill``, the alpha outside it farther than ``margin`` pixels
     from its outline, and ``cut``, the alpha missing inside it farther than that, each per pixel
     of its outline (pixels of error along the outline, on average)."""
-    from viewer.matting import distances
+    from viewer.photo.matting import distances
 
     hand = hand > 0.5
     length = max(int(outline(hand).sum()), 1)
@@ -149,7 +149,7 @@ def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
     ``BLEED_CONTROL`` (what a person's own colours score); pixels darker than ``BLEED_DARKEST`` of
     the person's median have no chromaticity to judge and are left out. ``person``: the relit
     person's colour (not premultiplied), ``photo`` the photo, both linear at the same size."""
-    from viewer.matting import distances
+    from viewer.photo.matting import distances
 
     inside, outside = distances(alpha >= 0.5)
     cp, cb = _rg(person), _rg(photo)

@@ -15,7 +15,7 @@ For every held-out person and each of its two lightings as the *input* photo (th
 - **relit image**: the predicted scene relit under the target's lights by the GL engine (refined,
   CSM and SM shadows), the same with the true maps (what the renderer alone loses), and the
   baseline: second-order spherical-harmonics lighting of the target map without shadows
-  (:mod:`viewer.sh`) on the same predicted albedo and normals, against the ray-traced relit image.
+  (:mod:`viewer.lighting.sh`) on the same predicted albedo and normals, against the ray-traced relit image.
 
 Every image is scaled by the target photo's exposure (its 99th percentile of luminance -> 0.9, the
 networks' own convention, so maps of any brightness weigh alike) before RMSE; SSIM uses the same
@@ -32,11 +32,11 @@ from pathlib import Path
 import numpy as np
 
 from viewer.camera import Camera
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import atomic_path, read_exr, write_text
-from viewer.lights import AreaLights, load_lights
+from viewer.lighting.lights import AreaLights, load_lights
 from viewer.scene import Scene, load_scene
 from viewer.lab.bench.metrics import chroma, metrics, srgb
 
@@ -49,7 +49,7 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
     """{(shadow-mode label, view): HDR (H, W, 3)} for the scene, ``wanted`` a list of (label of
     :data:`SHADOW_MODES`, view); one engine per soft-shadow method (refined: the refinement network
     on that engine's own visibility)."""
-    from viewer.render import render_frame
+    from viewer.output.render import render_frame
     from viewer.settings import Look
 
     out = {}
@@ -76,16 +76,16 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     (``NETWORK_RES``; the photo area-averaged down to it in linear light, where inference resizes
     the 8-bit photo), and their maps, extended past the mask, are resampled (bilinear) back to the
     photo's; with ``face``, the face fitted to the photo (exposed and in 8-bit sRGB, as a photo
-    is) is blended in (:mod:`viewer.face`). ``raw["face_region"]``: the fitted face's pixels
+    is) is blended in (:mod:`viewer.photo.face`). ``raw["face_region"]``: the fitted face's pixels
     (None without one), found in both cases so that both are measured over the same pixels."""
     import torch
     from torch.nn import functional as F
 
-    from viewer import face as face_mod
+    from viewer.photo import face as face_mod
     from viewer.imageio import linear_to_srgb
     from viewer.nets.photo import exposure_scale
 
-    from viewer.inference import NETWORK_RES, extend, map_stack, scene_maps
+    from viewer.photo.inference import NETWORK_RES, extend, map_stack, scene_maps
     from viewer.nets import depth as depth_net
     from viewer.nets import inverse as inverse_net
 
@@ -153,12 +153,12 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
                       surface=None) -> dict:
     """How well the input photo's own lights are known (what relighting divides out): its shadowed
     diffuse shading rebuilt on the TRUE geometry under the lights the product fits to the photo on
-    the predicted maps (viewer.photo_lighting, as ``relight infer`` does), under the inverse
+    the predicted maps (viewer.photo.photo_lighting, as ``relight infer`` does), under the inverse
     network's own guess, and under the same fit made on the true maps (the fit's own floor: what
     is left when the networks are perfect), against the ray-traced shading of the photo's lighting.
     ``surface``: the face blended into ``pred`` (weighted in its fit as inference weighs it)."""
-    from viewer.face import light_fit_weight
-    from viewer.photo_lighting import fit_mask, fit_photo_lights
+    from viewer.photo.face import light_fit_weight
+    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights
 
     def fit(scene, face=None):
         eng = Engine(ctx, scene, EngineOptions())
@@ -180,11 +180,11 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
 def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
                            limit: int | None = None, progress=None, face: bool = True) -> dict:
     from viewer.lab.data.loader import RelightDataset
-    from viewer.inference import NETWORK_RES, load_networks
+    from viewer.photo.inference import NETWORK_RES, load_networks
     from viewer.resources import network_dir
     from viewer.nets.photo import exposure_scale
-    from viewer.refinement import Refiner
-    from viewer.sh import relight as sh_relight
+    from viewer.photo.refinement import Refiner
+    from viewer.lighting.sh import relight as sh_relight
 
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     nets = load_networks("cpu", networks_dir)

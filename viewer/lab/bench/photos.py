@@ -14,7 +14,7 @@ For each photo of ``--photos`` (default the two shared ones), with the automatic
   lights fitted to the photo, against the photo's low-pass over the person (PSNR and SSIM, display
   sRGB), next to the same for the lights the inverse-rendering network guessed;
 - **detail kept** (:func:`viewer.lab.bench.metrics.detail_kept`) of every detail method
-  (:mod:`viewer.detail`) and of the network's maps alone rendered at the maps' resolution and
+  (:mod:`viewer.photo.detail`) and of the network's maps alone rendered at the maps' resolution and
   upsampled (what the product output before), under three maps;
 - **light moved** (:func:`viewer.lab.bench.metrics.light_moved`): the person under a sun from the
   left and the same sun from the right (each with a dim sky);
@@ -38,22 +38,22 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer import detail as detail_mod
-from viewer.envmap import load_envmap
+from viewer.photo import detail as detail_mod
+from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import linear_to_srgb, write_jpeg, write_png, write_text
-from viewer.inference import infer_scene, load_networks, with_detail
-from viewer.lightfit import lights_for_map
-from viewer.lights import AreaLights
-from viewer.photo_frame import read_photo, resize
-from viewer.render import apply_settings, render_look
+from viewer.photo.inference import infer_scene, load_networks, with_detail
+from viewer.lighting.lightfit import lights_for_map
+from viewer.lighting.lights import AreaLights
+from viewer.photo.photo_frame import read_photo, resize
+from viewer.output.render import apply_settings, render_look
 from viewer.settings import Look
 from viewer.lab.bench.metrics import detail_kept, light_moved, metrics
 
 FIGURE_MAPS = (("venice_sunset_1k", 200.0), ("studio_small_03_1k", 30.0), ("immenstadter_horn_1k", 180.0))
 BEFORE = "before"  # the network's maps alone at the maps' resolution, upsampled: the output before this step
-# the detail variants measured: label -> (viewer.detail method, sharing scale; None = the default)
+# the detail variants measured: label -> (viewer.photo.detail method, sharing scale; None = the default)
 VARIANTS = {"network": ("network", None), "highpass": ("highpass", None), "quotient-plain": ("quotient", 0.0),
             "quotient": ("quotient", None)}
 SUN = (0.8, 0.35, 0.49)  # a sun from the camera's right (x right, y up, z to the camera); mirrored for the left
@@ -78,7 +78,7 @@ def read_reference_mask(path) -> np.ndarray:
 def sun_and_sky(direction) -> AreaLights:
     """A sun (sigma 1, intensity 3) from ``direction`` over a dim sky (16 lights of the upper
     hemisphere, 0.05 each): the light-moved test's lighting."""
-    from viewer.lightfit.fit import fibonacci_sphere
+    from viewer.lighting.lightfit.fit import fibonacci_sphere
 
     sky = fibonacci_sphere(32)
     sky = sky[sky[:, 1] > 0]
@@ -202,7 +202,7 @@ def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, di
 
 def neutral_lights() -> AreaLights:
     """16 equal lights over the sphere: a uniform white map, whose light has no colour nor direction."""
-    from viewer.lightfit.fit import fibonacci_sphere
+    from viewer.lighting.lightfit.fit import fibonacci_sphere
 
     dirs = fibonacci_sphere(16).astype(np.float32)
     return AreaLights(dirs, np.full(16, 12.0, np.float32), np.full((16, 3), 1.0 / 16, np.float32))
@@ -229,7 +229,7 @@ def _matte_in_output(path: Path, photo: np.ndarray, frame_size, ctx, nets, resul
     """Spill, cut and bleed of the output's matte and colours; kept on a pink backdrop."""
     from viewer.imageio import srgb_to_linear
     from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
-    from viewer.photo_frame import read_mask
+    from viewer.photo.photo_frame import read_mask
 
     rgba = transparent_render(ctx, result["scene"])
     linear_photo = srgb_to_linear(resize(photo, frame_size).astype(np.float32) / 255.0)
@@ -299,7 +299,7 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
     from PIL import Image
 
     from viewer.lab.data.loader import RelightDataset
-    from viewer.lights import load_lights
+    from viewer.lighting.lights import load_lights
     from viewer.nets.photo import exposure_scale
 
     ds = RelightDataset(data, fields=("image", "background", "mask"))
@@ -383,7 +383,7 @@ def run_photos_benchmark(photos, maps_dir, data=None, out_dir="out/bench-photos"
 
 
 def _label(tile: np.ndarray, text: str) -> np.ndarray:
-    from viewer.render import _label as label
+    from viewer.output.render import _label as label
 
     return label(tile, text)
 

@@ -35,7 +35,7 @@ import numpy as np
 from viewer.imageio import write_text
 from viewer.progress import StageBars
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.lightfit.cache import cache_dir
+from viewer.lighting.lightfit.cache import cache_dir
 from viewer.lab.bench.cases import REFERENCE_VERSION, Case, Lighting, MapStore, find_maps, heldout_cases, interior, photo_case, reference, sample_case, scene_hash
 from viewer.lab.bench.contact import ContactConfig, contact_errors, penumbra_widths
 from viewer.lab.bench.methods import Method, Renderer
@@ -91,7 +91,7 @@ def _machine(ctx) -> dict:
 
 
 def _lights_by_map(maps: MapStore, names, counts, method: str, progress) -> dict:
-    from viewer.lightfit.cache import lights_for_map
+    from viewer.lighting.lightfit.cache import lights_for_map
 
     out = {}
     jobs = [(m, n) for m in names for n in counts]
@@ -129,7 +129,7 @@ def renderer_code_hash() -> str:
 
     product, here = Path(__file__).resolve().parents[2], Path(__file__).resolve().parent
     files = sorted(shader_dir().glob("*.glsl")) + sorted((product / "gl").rglob("*.py")) + sorted((product / "twin").rglob("*.py"))
-    files += [product / name for name in ("mesh.py", "shadow_space.py", "sh.py", "lights.py", "scene.py", "scene_ops.py")]
+    files += [product / name for name in ("mesh.py", "shadow_space.py", "lighting/sh.py", "lighting/lights.py", "scene.py", "scene_ops.py")]
     files += [here / name for name in ("methods.py", "metrics.py", "cases.py")]
     h = hashlib.sha256()
     for f in files:
@@ -321,7 +321,7 @@ def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced
     method's absolute error (linear, after the report's exposure): the sample scene and the first
     held-out person (else the last case), each under its lowest sun."""
     from viewer.lab.bench.metrics import srgb
-    from viewer.photo_frame import person_box
+    from viewer.photo.photo_frame import person_box
 
     held = [c for c in cases if c.group == "held-out"] or cases[-1:]
     picks = [(case, _low_sun(case, lights, balanced.lights)) for case in (cases[0], held[0])]
@@ -354,10 +354,10 @@ def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced
 def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
     """dRMSE of the presets and baselines against the ray-traced turntable of each map."""
     from viewer.lab.data.reference import render_bundle_reference
-    from viewer.render import turntable_yaws
+    from viewer.output.render import turntable_yaws
     from viewer.scene import load_scene
     from viewer.scene_ops import resample_scene
-    from viewer.temporal import drmse
+    from viewer.output.temporal import drmse
     from viewer.lab.bench.metrics import srgb
 
     scene = resample_scene(load_scene(sample_scene_dir()), config.temporal_size)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer.imageio import atomic_path, write_text
-from viewer.lights import AreaLights
+from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
 from viewer.lab.bench.engine import _median_ms, bench_lights, frame_seconds
 

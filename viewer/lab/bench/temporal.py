@@ -1,5 +1,5 @@
 """Temporal stability of turntables (``relight bench temporal``): the paper's dRMSE at steps 1, 2
-and 4 and the flicker ratio (viewer/temporal.py) of 128-frame turns of the sample scene under two
+and 4 and the flicker ratio (viewer/output/temporal.py) of 128-frame turns of the sample scene under two
 bundled maps, for engine settings against the converged engine (shadow maps 2048, full-resolution
 mesh, 8 Fourier terms), with the time per frame of each setting."""
 
@@ -14,13 +14,13 @@ import numpy as np
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import write_text
-from viewer.lights import load_lights
-from viewer.render import apply_settings, turntable_yaws
+from viewer.lighting.lights import load_lights
+from viewer.output.render import apply_settings, turntable_yaws
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import Look
-from viewer.temporal import drmse, flicker_ratio
+from viewer.output.temporal import drmse, flicker_ratio
 
 FRAMES = 128
 SIZE = 256

@@ -25,16 +25,16 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.envmap import load_envmap
+from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import write_jpeg, write_text
-from viewer.inference import infer_scene, load_networks
-from viewer.lightfit import lights_for_map
-from viewer.lights import AreaLights
-from viewer.photo_frame import WORK_PERSON
-from viewer.placed_lights import PlacedLight, to_area_lights
-from viewer.render import render_look
+from viewer.photo.inference import infer_scene, load_networks
+from viewer.lighting.lightfit import lights_for_map
+from viewer.lighting.lights import AreaLights
+from viewer.photo.photo_frame import WORK_PERSON
+from viewer.lighting.placed_lights import PlacedLight, to_area_lights
+from viewer.output.render import render_look
 from viewer.resources import asset_dir
 from viewer.settings import Look
 
@@ -147,7 +147,7 @@ def run_upsample_benchmark(photos, output_dir="out/bench-upsample", sizes=SIZES,
 def _figure(crops, path):
     """Per photo, a 100 % crop (320 px) where the key light's shadow edge changes most between the
     work frame and the reference: before, now, reference."""
-    from viewer.render import _label
+    from viewer.output.render import _label
 
     rows = []
     for name in dict.fromkeys(c[0] for c in crops):

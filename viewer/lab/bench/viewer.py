@@ -92,7 +92,7 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
     env = {**os.environ, "DISPLAY": display, "RELIGHT_CACHE": str(workdir / f"cache_{tag}" / "lights")}
     state_path = workdir / f"state_{tag}.json"
     hogs = [subprocess.Popen([sys.executable, "-c", "while 1: pass"]) for _ in range(busy)]
-    proc = subprocess.Popen([sys.executable, "-m", "viewer.cli", "view", *view_args, "--state-file", str(state_path),
+    proc = subprocess.Popen([sys.executable, "-m", "viewer.cli.main", "view", *view_args, "--state-file", str(state_path),
                              "--out-dir", str(workdir)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
     def xdo(*args):

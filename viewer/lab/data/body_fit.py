@@ -39,7 +39,7 @@ def landmarks(photo_srgb: np.ndarray):
     """(image (33, 2) in pixels, visibility (33,), world (33, 3) metres in camera axes: x right, y up,
     z towards the camera) of the most prominent person in an (H, W, 3) uint8 photo; None when
     MediaPipe finds nobody."""
-    from viewer.segmentation import _mediapipe, quiet_native_stderr
+    from viewer.photo.segmentation import _mediapipe, quiet_native_stderr
 
     pose, _ = _mediapipe(None)
     with quiet_native_stderr():

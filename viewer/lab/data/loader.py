@@ -2,7 +2,7 @@
 
 Each item is one (person, lighting) pair, a dict of float32 tensors, images channels-first:
 ``image`` (3, H, W) the relit person (zero outside the mask), ``background`` (3, H, W) the turned
-map seen through the camera behind them (:meth:`viewer.envmap.EnvMap.seen_through`; the photo is
+map seen through the camera behind them (:meth:`viewer.lighting.envmap.EnvMap.seen_through`; the photo is
 ``image + (1 - mask) * background``), ``mask`` (1, H, W), ``albedo``, ``normal`` (3, H, W),
 ``specular``, ``roughness``, ``depth`` (1, H, W), ``diffuse``, ``specular_shading``,
 ``diffuse_shadowed`` (3, H, W), ``body`` (5, H, W: a body prior, :func:`body_channels`, made on
@@ -28,9 +28,9 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from viewer.envmap import EnvMap, load_envmap
+from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.imageio import read_exr
-from viewer.lights import load_lights
+from viewer.lighting.lights import load_lights
 from viewer.nets.refine import SHADOW_RESOLUTION
 from viewer.scene import load_scene
 
@@ -124,7 +124,7 @@ def cached_visibility(ctx, lighting_dir: Path, scene, lights, resolution: int = 
     """(hard, soft) visibility (N, H, W) of one dataset lighting from the GL engine (the same
     passes the refined mode reads at run time), computed once and kept as ``visibility_<R>.npz``."""
     from viewer.gl import Engine, EngineOptions
-    from viewer.refinement import light_visibility
+    from viewer.photo.refinement import light_visibility
 
     path = Path(lighting_dir) / f"visibility_{resolution}.npz"
     if path.is_file():

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.envmap import EnvMap
-from viewer.lights import rotation_matrix
+from viewer.lighting.envmap import EnvMap
+from viewer.lighting.lights import rotation_matrix
 from viewer.mesh import depth_mesh
 from viewer.scene import Scene
 

@@ -10,7 +10,7 @@ Per (person, map, rotation):
 - ``specular_shadowed``: the render with base colour 0 (the specular lobe alone, with shadows);
 - ``diffuse`` and ``specular``: the same two lobes *without* shadows, at every pixel of the
   G-buffers: the principled BSDF evaluated by Mitsuba towards every sample of the map
-  (:func:`viewer.lightfit.samples.map_samples`, 2048 samples, exact energy) and summed; no rays.
+  (:func:`viewer.lighting.lightfit.samples.map_samples`, 2048 samples, exact energy) and summed; no rays.
 
 So, up to Monte Carlo noise, ``full = albedo * diffuse_shadowed + specular_shadowed`` everywhere and
 ``= albedo * diffuse + specular`` where nothing is shadowed, and ``diffuse_shadowed <= diffuse``
@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.envmap import EnvMap
-from viewer.lights import rotation_matrix
+from viewer.lighting.envmap import EnvMap
+from viewer.lighting.lights import rotation_matrix
 from viewer.scene import Scene
 from viewer.lab.data.reference import SPECULAR_LEVELS, camera_sensor, direct_scene, envmap_emitter, mi_mesh, mitsuba, specular_levels
 
@@ -70,7 +70,7 @@ def unshadowed_shading(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: float 
                        samples: int = UNSHADOWED_SAMPLES) -> tuple[np.ndarray, np.ndarray]:
     """(diffuse, specular) without shadows at every masked pixel of ``scene``: the principled lobes
     (albedo 1 for the diffuse one) evaluated towards each map sample and weighted by its flux."""
-    from viewer.lightfit.samples import map_samples
+    from viewer.lighting.lightfit.samples import map_samples
 
     mi = mitsuba()
     import drjit as dr

@@ -79,7 +79,7 @@ PEAK_WRAPPER = """
 import os, signal, sys
 pid = os.fork()
 if pid == 0:
-    os.execv(sys.executable, [sys.executable, "-m", "viewer.cli", *sys.argv[2:]])
+    os.execv(sys.executable, [sys.executable, "-m", "viewer.cli.main", *sys.argv[2:]])
 for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
     signal.signal(s, lambda n, f: os.kill(pid, n))
 signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM, signal.SIGHUP))  # (relight blocks them)

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from viewer.envmap import EnvMap, load_envmap, save_envmap
+from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.imageio import read_exr, write_exr, write_png
-from viewer.lightfit.cache import cache_path
+from viewer.lighting.lightfit.cache import cache_path
 from viewer.resources import asset_dir, network_dir, sample_scene_dir
 
 from .case import Case, truncations

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.envmap import EnvMap, save_envmap
+from viewer.lighting.envmap import EnvMap, save_envmap
 from viewer.imageio import write_exr
-from viewer.placed_lights import PlacedLight, save_rig
+from viewer.lighting.placed_lights import PlacedLight, save_rig
 from viewer.resources import network_dir
 from viewer.scene import FRAME_FILES, MAP_FILES, OPTIONAL_FILES
 

@@ -1,0 +1,262 @@
+"""The ``relight`` commands: each parses nothing and decides little; it checks its outputs, sets
+up its work (:mod:`viewer.cli.command_setup`) and calls the module that does it."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .command_setup import command_lights, command_look, engine_options, first_look, fitted_lights, gl_threads, light_count_option, prepare, rig_lights, warn_if_dark
+from ..errors import InputError
+from .output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
+from ..resources import asset_dir, sample_scene_dir
+from ..scene_ops import load_sized_scene
+from ..output.video import partial_path as video_partial, partial_taken
+
+
+DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
+DEMO_LIGHTS = "envmaps/immenstadter_horn_256.lights.json"
+DEMO_PHOTO = "photos/underpass.jpg"
+DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it lights the front
+
+
+def render_files(scene_path, lights_path, envmap_path, out_dir, name, args, look, png_name=None) -> list[Path]:
+    from ..gl import Engine, create_headless_context
+    from ..output.render import render_to_files
+
+    scene, lights, env = prepare(scene_path, lights_path, envmap_path, args, look)
+    engine = Engine(create_headless_context(), scene, engine_options(args, look))
+    try:
+        return render_to_files(engine, scene, lights, out_dir, name, look, environment=env, fixed=rig_lights(args),
+                               png_name=png_name)
+    finally:
+        engine.release()
+
+
+def cmd_demo(args) -> int:
+    """The whole path: the sample scene, then the bundled real photo inferred (automatic mask),
+    relit at its own size under the three bundled maps with refined shadows, and a sheet of the
+    photo beside its relightings."""
+    from dataclasses import replace
+
+    from ..lighting.envmap import load_envmap
+    from ..gl import Engine, create_headless_context
+    from ..imageio import read_png, write_png
+    from ..photo.inference import infer
+    from ..lighting.lights import load_lights
+    from ..photo.photo_frame import read_photo, resize
+    from ..output.render import render_to_files
+
+    assets = asset_dir()
+    look = command_look(args, DEMO_YAW)
+    writable(args.output, folder=True)
+    written = render_files(sample_scene_dir(), assets / DEMO_LIGHTS, assets / DEMO_ENVMAP, args.output, "demo", args, look)
+    print(f"rendered the sample scene under {DEMO_LIGHTS} (16 area lights):")
+    for path in written:
+        print(f"  wrote {path}")
+    out = Path(args.output)
+    photo = assets / DEMO_PHOTO
+    t0 = time.perf_counter()
+    ctx = create_headless_context()
+    infer(photo, None, out / "photo_bundle", max_size=args.max_size, ctx=ctx)
+    print(f"inferred the scene bundle of {DEMO_PHOTO} (automatic mask) in {time.perf_counter() - t0:.1f} s: "
+          f"{out / 'photo_bundle'}")
+    scene = load_sized_scene(out / "photo_bundle", None, args.max_size)
+    engine = Engine(ctx, scene, engine_options(args, look))
+    pictures = [resize(read_photo(photo, []), scene.output_size).astype(np.float32) / 255.0]  # upright, the output's size
+    settings = replace(look, shadows="refined", background="environment")
+    try:
+        for env_path in sorted((assets / "envmaps").glob("*.hdr")):
+            t0 = time.perf_counter()
+            files = render_to_files(engine, scene, load_lights(env_path.with_suffix(".lights.json")), out,
+                                    f"photo_{env_path.stem}", settings, environment=load_envmap(env_path).pixels, passes=False)
+            pictures.append(read_png(files[0])[..., :3])
+            print(f"  relit under {env_path.name} (refined shadows), {scene.output_size[0]}x{scene.output_size[1]}, "
+                  f"in {time.perf_counter() - t0:.1f} s: {files[0]}")
+    finally:
+        engine.release()
+    sheet = write_png(out / "photo_relit.png", np.concatenate(pictures, axis=1))
+    print(f"wrote {sheet} (the photo, then relit under each bundled map)")
+    return 0
+
+
+def cmd_render(args) -> int:
+    look = command_look(args)
+    out = Path(args.output)
+    suffix = out.suffix.lower()
+    if suffix not in (".png", ".mp4"):
+        raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
+    writable(out)
+    outputs = [out] if suffix == ".mp4" else [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
+    not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
+    if suffix == ".mp4":
+        check_video(args)
+        if look.background == "transparent":  # H.264 has no alpha: it came out black (the option or a --look)
+            raise InputError(out, "an MP4 (H.264) holds no transparency: render a PNG (and its EXR) with "
+                                  "--background transparent, or give the video another --background")
+        if video_partial(out).exists():
+            raise partial_taken(out)
+    if suffix == ".png":
+        if args.frames is not None:
+            raise InputError(out, "--frames makes a video: give a .mp4 output path")
+        for path in render_files(args.scene, args.lights, args.envmap, out.parent, out.stem, args, look, png_name=out.name):
+            print(f"wrote {path}")
+        return 0
+
+    from tqdm import tqdm
+
+    from ..gl import Engine, create_headless_context
+    from ..output.render import render_turntable
+
+    frames = 120 if args.frames is None else args.frames
+    scene, lights, env = prepare(args.scene, args.lights, args.envmap, args, look)
+    engine = Engine(create_headless_context(), scene, engine_options(args, look))
+    start = time.perf_counter()
+    try:
+        with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
+            width, height = render_turntable(engine, scene, lights, out, look, frames, fps=args.fps, turn=args.turn,
+                                             environment=env, progress=lambda done, total: bar.update(1),
+                                             fixed=rig_lights(args))
+    finally:
+        engine.release()
+    seconds = time.perf_counter() - start
+    print(f"wrote {out} ({frames} frames, {width}x{height}, {args.fps:g} fps, "
+          f"{args.turn:g} degrees; {seconds:.1f} s, {1000 * seconds / frames:.0f} ms per frame)")
+    return 0
+
+
+def cmd_view(args) -> int:
+    from ..lighting.envmap import load_envmap
+    from ..scene import PHOTO_SUFFIXES
+
+    assets = asset_dir()
+    scene_path = args.scene or sample_scene_dir()
+    photo = args.scene is not None and Path(args.scene).suffix.lower() in PHOTO_SUFFIXES
+    if args.mask and not photo:
+        raise InputError(args.scene, "--mask needs a photo: relight view PHOTO [--mask MASK]")
+    env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
+    look = command_look(args)  # its yaw: first_look, once the lights are known
+    if args.record_frames < 1:
+        raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
+    from ..lighting.placed_lights import load_rig
+
+    rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
+    check_fps(args)
+    window = None
+    if photo:
+        from ..app.window import Window
+
+        # the window first: its GL context also serves the inference (a headless EGL context made
+        # before the window's would make the window fail, ../shared/docs/STACK.md)
+        window = Window(960, 720, f"relight - {Path(args.scene).name}")
+        try:
+            scene_path = _photo_bundle(args.scene, args.mask, args.device, window, args.max_size)
+        except BaseException:
+            window.release()
+            raise
+    try:
+        scene = load_sized_scene(scene_path, args.size, args.max_size)
+        env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
+        lights = command_lights(args, look, args.lights, env, env_path)
+    except BaseException:
+        if window is not None:
+            window.release()
+        raise
+    look = first_look(args, look, lights)
+    from ..app import ViewerConfig, run_viewer
+
+    config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
+                          env_path=Path(env_path) if env_path is not None else None, method=args.method,
+                          options=engine_options(args, look), look=look, out_dir=Path(args.out_dir),
+                          record_frames=args.record_frames, fps=args.fps,
+                          state_file=Path(args.state_file) if args.state_file else None,
+                          bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=look.preset,
+                          window=window, rig=rig, max_size=args.max_size, device=args.device,
+                          gl_threads=gl_threads())
+    return run_viewer(config)
+
+
+def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
+    """The scene bundle of a photo: inferred once (its stages shown in the window), then taken
+    from the cache."""
+    from ..photo.inference import cached_bundle
+
+    start = time.perf_counter()
+
+    def progress(stage):
+        print(f"  {stage} done ({time.perf_counter() - start:.1f} s)", flush=True)
+        window.show_message(f"Preparing {Path(photo).name}: {stage} done")
+
+    window.show_message(f"Preparing {Path(photo).name}: reading the photo, finding the person...")
+    bundle, cached = cached_bundle(photo, mask, max_size=max_size, device=device, progress=progress, ctx=window.ctx)
+    print(f"scene bundle of {photo}: {bundle} ({'from the cache' if cached else 'inferred now, cached for next time'}; "
+          f"{time.perf_counter() - start:.1f} s)")
+    return bundle
+
+
+def cmd_infer(args) -> int:
+    from ..photo.inference import STAGE_SHARES, bundle_target, infer, load_networks
+    from ..progress import TimeLeft
+
+    target = bundle_target(args.output)
+    writable(target.parent, folder=True)
+    for given in (args.photo, args.mask, args.networks):
+        if given is not None and target in Path(given).resolve().parents:
+            raise InputError(args.output, f"holds the input {given}: the bundle written there would replace it; "
+                                          "give another folder")
+    t0 = time.perf_counter()
+    left = TimeLeft(STAGE_SHARES)
+
+    def said(stage):
+        left.update(stage, 1, 1)
+        words = left.words()
+        print(f"  {stage} done" + (f", {words}" if words else ""), flush=True)
+
+    nets = load_networks(args.device, args.networks)
+    record = infer(args.photo, args.mask, args.output, size=args.size, max_size=args.max_size, device=args.device,
+                   networks=nets, progress=said)
+    print("  " + ", ".join(f"{k} {v:.2f} s" for k, v in record["seconds"].items()))
+    for note in record["notes"]:
+        print(f"note: {note}")
+    sizes, fit = record["sizes"], record["photo_lighting"]
+    print(f"the photo's own lighting: {fit['lights']} lights explain the photo to {fit['psnr_db']:.1f} dB (PSNR over the person)")
+    print(f"wrote scene bundle {args.output}: frame {sizes['frame'][0]}x{sizes['frame'][1]} (the photo's own size, "
+          f"at most --max-size), maps {sizes['work'][0]}x{sizes['work'][1]}, mask {'from ' + args.mask if args.mask else 'automatic'}; "
+          f"{time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+def cmd_fit_lights(args) -> int:
+    from ..lighting.envmap import load_envmap
+    out = Path(args.output) if args.output else beside_the_map(Path(args.map))
+    if out is not None and out.suffix.lower() != ".json":
+        raise InputError(out, "the light file is JSON: give a .json output path")
+    if out is not None:
+        writable(out)
+    if args.plot:
+        if Path(args.plot).suffix.lower() != ".png":
+            raise InputError(args.plot, "the plot is a PNG: give a .png path")
+        writable(args.plot)
+        if out is not None and Path(args.plot).resolve() == out.resolve():
+            raise InputError(args.plot, "is the light file's path too: give the plot its own")
+    not_an_input([p for p in (out, args.plot) if p], [args.map])
+    n = light_count_option(args.n, args.method)
+    env = load_envmap(args.map, repair=args.repair)
+    start = time.perf_counter()
+    lights, cached = fitted_lights(env, n, args.method, refit=args.refit)
+    seconds = time.perf_counter() - start
+    how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
+    if out is None:
+        print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache (the map's folder is not "
+              "writable; -o writes a light file)")
+    else:
+        lights.save(out, fit={"source": Path(args.map).name, "method": args.method, "n": args.n})
+        print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
+    warn_if_dark(lights, args.map)
+    if args.plot:
+        from ..lighting.lightfit.plot import plot_lights
+
+        print(f"wrote {plot_lights(env, lights, args.plot)}")
+    return 0

@@ -1,0 +1,177 @@
+"""The ``relight`` command line's options, declared once per command (the engine's and the view's
+shared), and the commands other packages add (the lab's, through an entry-point group)."""
+
+from __future__ import annotations
+
+import argparse
+
+from .commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
+from ..lighting.lightfit import DEFAULT_METHOD, METHODS
+
+
+COMMAND_GROUP = "relight.commands"
+
+
+def add_engine_args(p):
+    from ..presets import DEFAULT_PRESET, PRESETS
+    from ..shadow_space import SOFT_METHODS
+
+    p.add_argument("--preset", choices=tuple(PRESETS),
+                   help=f"quality preset: lights and engine options from docs/results.md (default {DEFAULT_PRESET}); "
+                        "the options below override its values")
+    p.add_argument("--soft", choices=SOFT_METHODS,
+                   help="soft shadows: contact-hardening (pcss, the presets') or the paper's convolutional shadow maps (csm)")
+    p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
+    p.add_argument("--shadow-step", type=int, help="depth-mesh decimation for shadow maps (0 = auto, the presets' choice)")
+    p.add_argument("--terms", type=int, help="with --soft csm: Fourier terms M, 2M basis maps (default 4)")
+    p.add_argument("--prefilter", choices=("pyramid", "exact"), help="with --soft csm: pre-filtering (default pyramid)")
+
+
+def auto_or(unit: str):
+    """An option's parser: "auto" or a number of ``unit`` (its range is the look's to check, viewer.settings.Look)."""
+    def parse(text: str):
+        if text.strip().lower() == "auto":
+            return "auto"
+        try:
+            return float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected 'auto' or a number of {unit}, got {text!r}") from None
+    return parse
+
+
+def add_view_args(p, yaw_default=0.0):
+    p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
+                   "object (docs/architecture.md); the options below override its values")
+    p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
+                   help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
+                        "a video starts there")
+    p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
+    p.add_argument("--exposure", type=auto_or("stops"),
+                   help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
+                        "(0 stops for a scene without a photo)")
+    p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), help="tone curve (default aces)")
+    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
+                   help="behind the person: the environment map seen through the photo's camera (default), the "
+                        "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
+    p.add_argument("--backdrop-blur", type=auto_or("degrees"),
+                   help="the map behind the person blurred like a defocused background, degrees, or auto (default): "
+                        "as much as the photo's own background is (0 for a scene without a photo)")
+    p.add_argument("--max-size", type=int, default=2048,
+                   help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
+                        "the photo's own size up to this)")
+    ground = p.add_mutually_exclusive_group()
+    ground.add_argument("--ground", action="store_const", const=True,
+                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
+                             "by default shown when the feet are in the frame and the map is behind the person")
+    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
+                   help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
+                        "(refined), the shadow map (hard) or none")
+
+
+def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="relight", description="Relight full-body photos of people under HDR environment maps.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("demo", help="the whole path: the sample scene, then the bundled photo inferred and relit under "
+                                    "the bundled maps")
+    p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
+    add_engine_args(p)
+    add_view_args(p, yaw_default=DEMO_YAW)
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("render", help="headless: a scene bundle under an environment map (or a light file) to "
+                       "PNG + EXR, or a turntable video to MP4")
+    p.add_argument("scene", help="scene bundle directory")
+    p.add_argument("lights", nargs="?", help="area-light file (.json, or the paper's .npy); "
+                   "default: lights fitted to --env (cached)")
+    p.add_argument("--env", "--envmap", dest="envmap",
+                   help="environment map (.hdr/.exr): the background, and the lights when no light file is given")
+    p.add_argument("-n", "--lights-count", type=int, help="lights to fit to --env (default: the preset's, balanced 16)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.add_argument("-o", "--out", "--output", dest="output", default="out/render.png",
+                   help="a .png (one frame; the HDR EXR goes beside it) or a .mp4 (turntable video); default out/render.png")
+    p.add_argument("--frames", type=int, help="video frames (default 120 for a .mp4)")
+    p.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
+    p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
+    p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
+    p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
+    add_engine_args(p)
+    add_view_args(p)
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("view", help="the interactive viewer: drag to turn the lighting, tune each light, record video")
+    p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo (its bundle is inferred once and cached; "
+                   "default: the bundled sample)")
+    p.add_argument("--mask", help="the photo's person mask (default: found automatically)")
+    p.add_argument("--device", default="cpu", help="device for a photo's inference (default cpu)")
+    p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
+    p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
+    p.add_argument("-n", "--lights-count", type=int, help="lights fitted to the map (default: the preset's, balanced 16; cached)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.add_argument("--rig", help="placed lights to start with: a rig saved from the viewer's panel (JSON)")
+    p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
+                   "options below override its values")
+    p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
+                   help="initial rotation of the lighting, degrees (default: the brightest light turned toward the camera)")
+    p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
+    p.add_argument("--exposure", type=auto_or("stops"),
+                   help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
+    ground = p.add_mutually_exclusive_group()
+    ground.add_argument("--ground", action="store_const", const=True,
+                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
+                             "by default shown when the feet are in the frame and the map is behind the person")
+    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    p.add_argument("--backdrop-blur", type=auto_or("degrees"),
+                   help="the map behind the person blurred, degrees, or auto (default): as the photo's own background")
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
+    p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
+    p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")
+    p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
+    p.add_argument("--record-frames", type=int, default=120, help="frames of a 360 degree recording (default 120)")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate of recordings (default 30)")
+    p.add_argument("--state-file", help="write the viewer's state, widget positions and frame times to this JSON "
+                   "after every change (for scripts and tests)")
+    add_engine_args(p)
+    p.set_defaults(func=cmd_view)
+
+    p = sub.add_parser("infer", help="photo -> scene bundle (the networks' maps, the photo's own lighting, its detail)")
+    p.add_argument("photo", help="photo (PNG/JPEG, sRGB; EXIF rotation applied)")
+    p.add_argument("--mask", help="person mask (PNG, person where > 50 %%, grey levels kept as a soft edge), the photo's "
+                   "size; default: found automatically (MediaPipe)")
+    p.add_argument("-o", "--output", required=True, help="scene bundle directory to write")
+    p.add_argument("--size", type=int, default=512, help="pixels of the person's longer side in the maps, where the shadow "
+                   "work runs (default 512)")
+    p.add_argument("--max-size", type=int, default=2048, help="longer side of the bundle's frame: the photo's own size up "
+                   "to this (default 2048)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    p.add_argument("--networks", help="folder of network weights (default: the shipped ones in assets/networks)")
+    p.set_defaults(func=cmd_infer)
+
+    p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")
+    p.add_argument("map", help="equirectangular environment map (.hdr or .exr)")
+    p.add_argument("-n", type=int, default=16, help="number of area lights (default 16)")
+    p.add_argument("-o", "--output", help="light file to write (default MAP.lights.json beside the map, which the viewer "
+                                          "reads for that map; the fitting cache only where the map's folder is read-only)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
+                   help="instant (the default, ~1 s): median cut + short refinement on small views; fast: the same on "
+                        "the full views (~17 s); paper: the paper's optimization; "
+                        "median-cut: initialization only")
+    p.add_argument("--plot", help="also draw the lights on the map into this PNG")
+    p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")
+    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    p.set_defaults(func=cmd_fit_lights)
+
+    for name in sorted(plugins or {}):  # listed for --help; main() runs them with their own parser
+        sub.add_parser(name, help=f"offline work (the lab, viewer/lab): see relight {name} --help")
+    return parser
+
+
+def command_plugins() -> dict:
+    """Commands other installed code adds to ``relight`` (the ``relight.commands`` entry points:
+    the lab's dataset, train and bench), by name; none is imported until it runs."""
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep for ep in entry_points(group=COMMAND_GROUP)}

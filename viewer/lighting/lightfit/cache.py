@@ -1,0 +1,84 @@
+"""Fitted lights cached by map content, so the viewer never fits the same map twice.
+
+A cache entry is a light file (``viewer.lighting.lights`` JSON, with a ``fit`` record of the source map,
+method, N and fitting time) named ``<hash>-n<N>-<method>-v<FIT_VERSION>.json``, the hash being the
+SHA-256 of the decoded map (shape and float32 pixels: the same map saved as .hdr or .exr, or under
+another name, hits the same entry; a map edited by one pixel does not). The directory is
+``$RELIGHT_CACHE`` if set, else ``$XDG_CACHE_HOME/relight/lights``, else ``~/.cache/relight/lights``.
+
+Entries are written to a temporary file in the same directory and renamed into place, so an
+interrupted fit (Ctrl-C) or a crash never leaves a partial entry; a corrupt entry is refitted.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..envmap import EnvMap
+from ...errors import InputError
+from ..lights import AreaLights, load_lights
+
+FIT_VERSION = 1  # bump when a change to the fitters changes their results
+
+
+def cache_dir() -> Path:
+    if os.environ.get("RELIGHT_CACHE"):
+        return Path(os.environ["RELIGHT_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "relight" / "lights"
+
+
+def map_hash(env: EnvMap) -> str:
+    h = hashlib.sha256()
+    h.update(np.asarray(env.pixels.shape, dtype=np.int64).tobytes())
+    h.update(np.ascontiguousarray(env.pixels, dtype=np.float32).tobytes())
+    return h.hexdigest()[:24]
+
+
+def cache_path(env: EnvMap, n: int, method: str, directory=None) -> Path:
+    return Path(directory or cache_dir()) / f"{map_hash(env)}-n{n}-{method}-v{FIT_VERSION}.json"
+
+
+def cached_lights(env: EnvMap, n: int, method: str, directory=None) -> AreaLights | None:
+    """The lights of ``env`` in the cache, or None (none there, or a corrupt entry: warned)."""
+    path = cache_path(env, n, method, directory)
+    if not path.is_file():
+        return None
+    try:
+        return load_lights(path)
+    except InputError as exc:
+        warnings.warn(f"ignoring a corrupt cache entry ({exc}); fitting again", stacklevel=3)
+        return None
+
+
+def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, directory=None, progress=None,
+                   refit: bool = False) -> tuple[AreaLights, bool]:
+    """The fitted lights of ``env`` and whether they came from the cache (else they are fitted now)."""
+    from .methods import DEFAULT_METHOD
+
+    method = method or DEFAULT_METHOD
+    path = cache_path(env, n, method, directory)
+    usable = not path.exists() or path.is_file()
+    if not usable:
+        warnings.warn(f"{path}: the cache entry is not a file; fitting without the cache (remove it to cache again)", stacklevel=2)
+    cached = None if refit else cached_lights(env, n, method, directory)
+    if cached is not None:
+        return cached, True
+    from .fit import fit_lights  # torch: imported only when fitting
+
+    start = time.perf_counter()
+    lights = fit_lights(env, n, method, progress=progress)
+    record = {"source": Path(env.source).name if env.source else None, "method": method, "n": n,
+              "seconds": round(time.perf_counter() - start, 3), "version": FIT_VERSION}
+    if usable:
+        try:
+            lights.save(path, fit=record)
+        except OSError as exc:  # a read-only cache costs the next run a refit, nothing more
+            warnings.warn(f"{path}: cannot cache the lights ({exc.strerror or exc})", stacklevel=2)
+    return lights, False

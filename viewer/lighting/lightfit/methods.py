@@ -1,0 +1,38 @@
+"""The fitting methods' names (no torch here: the cache and the command line name them without
+fitting); what each does is in :mod:`viewer.lighting.lightfit.fit`."""
+
+METHODS = ("instant", "fast", "paper", "median-cut")
+DEFAULT_METHOD = "instant"
+# lights fitted by these methods serve a request for the key's: slower, and at least as accurate
+# on every median of docs/lights.md (a map shipped with `fast` lights needs no instant refit)
+AT_LEAST_AS_GOOD = {"instant": ("instant", "fast", "paper")}
+
+
+# the optimizing methods hold every light's soft visibility at each sigma of the search: their time
+# and memory grow with the lights (fast, 1k map: 21 s / 1.6 GB at 32 lights, 43 s / 2.6 GB at 64,
+# 90 s / 4.7 GB at 128; 256 took 197 s and 9 GB); instant fits 256 lights in 22 s and 2.5 GB
+MAX_LIGHTS_FOR = {"fast": 64, "paper": 64}
+
+
+def check_light_count(method: str, n: int, source=None) -> None:
+    """Refuse in one line a light count a method does not fit (its stated limit)."""
+    from ...errors import InputError
+
+    limit = MAX_LIGHTS_FOR.get(method)
+    if limit is not None and n > limit:
+        raise InputError(source, f"--method {method} fits at most {limit} lights (its time and memory grow with "
+                                 f"each light), got {n}: use --method instant for more")
+
+
+def serves(fitted: str, asked: str) -> bool:
+    """Whether lights fitted by ``fitted`` answer a request for ``asked`` lights."""
+    return fitted in AT_LEAST_AS_GOOD.get(asked, (asked,))
+
+# each method's stages, in order, with their share of the time (viewer.progress.TimeLeft): seconds of
+# a 1k map, 16 lights (instant: kiara_1_dawn, fast and paper: studio_small_03), on the 2-core CPU machine,
+# 2026-11-25 (median cut reports no stages)
+STAGE_SHARES = {
+    "instant": {"reference": 0.2, "directions": 0.55, "shadows": 0.35, "sigma": 0.1},
+    "fast": {"reference": 1.1, "directions": 2.8, "shadows": 6.0, "sigma": 1.0},
+    "paper": {"reference": 1.0, "directions": 16.1, "shadows": 5.6, "sigma": 2.8},  # one thread
+}

@@ -1,0 +1,52 @@
+"""Where a map's area lights come from: the one rule the command line and the window share.
+
+In order: a light file the user gave; the lights shipped beside the map (``MAP.lights.json``, as
+the bundled maps have) when they were fitted for the same count by the method asked or one at
+least as accurate; the fitting cache; a fit now (the caller's: in process with progress bars on
+the command line, in a niced child process in the window).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+from .envmap import EnvMap
+from ..errors import InputError
+from ..imageio import read_json
+from .lightfit.cache import cached_lights
+from .lightfit.methods import serves
+from .lights import AreaLights, load_lights
+
+
+def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
+    """Lights shipped beside a map (``<map>.lights.json``) when they were fitted for the same count,
+    by the method asked or one at least as accurate (:func:`viewer.lighting.lightfit.methods.serves`)."""
+    side = Path(env_path).with_suffix(".lights.json")
+    if not side.is_file():
+        return None
+    try:
+        fit = read_json(side, "light file").get("fit") or {}
+    except (InputError, AttributeError):
+        return None
+    if fit.get("n") != n or not serves(str(fit.get("method")), method):
+        return None
+    try:
+        return load_lights(side)
+    except InputError:
+        return None
+
+
+def map_lights(env: EnvMap, env_path, n: int, method: str,
+               fit: Callable[[EnvMap], tuple[AreaLights, bool]]) -> tuple[AreaLights, str]:
+    """The lights of the map ``env`` (read from ``env_path``) and where they came from: "bundled"
+    (beside the map), "cached" or "fitted" (``fit(env)`` returns the lights and whether they came
+    from the cache after all: another process may have fitted them meanwhile)."""
+    side = sidecar_lights(env_path, n, method)
+    if side is not None:
+        return side, "bundled"
+    cached = cached_lights(env, n, method)  # a corrupt entry: warned, and fitted again
+    if cached is not None:
+        return cached, "cached"
+    lights, was_cached = fit(env)
+    return lights, "cached" if was_cached else "fitted"

@@ -1,0 +1,1 @@
+"""Headless outputs: frames and passes sheets to files, MP4 video, temporal stability metrics."""

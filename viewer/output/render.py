@@ -1,0 +1,246 @@
+"""Headless rendering to files: one scene, one light set, PNG + EXR (+ an optional passes sheet)."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..constants import TONEMAP_INPUT_MAX
+from ..errors import InputError
+from ..imageio import atomic_paths, linear_to_srgb, write_exr, write_png
+from ..lighting.lights import AreaLights
+from ..scene import Scene
+from ..settings import AUTO, Look
+
+
+def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
+    """The display tone curves of shaders/tonemap.glsl, in numpy."""
+    x = np.clip(np.asarray(x, np.float64), 0.0, TONEMAP_INPUT_MAX)
+    if op == "aces":
+        return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
+    if op == "reinhard":
+        return x / (1.0 + x)
+    return np.clip(x, 0.0, 1.0)
+
+
+def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
+    """Exposure (stops) at which the relit person's median luminance, tone-mapped, matches the
+    photo's own median luminance over the person: the photo's exposure carried over, so a
+    brighter map does not wash out black clothes nor a dim one sink the person (0 for a scene
+    without a photo). Uses the engine's current work-resolution render."""
+    from ..photo.detail import luminance
+
+    if scene.photo is None:
+        return 0.0
+    relit = luminance(engine.read_work_hdr()[scene.mask])
+    shown = luminance(scene.photo[scene.mask])
+    r, p = float(np.median(relit)), float(np.median(shown))
+    if not (r > 0 and p > 0):
+        return 0.0
+    # tone_curve(2^e r) = p: bisection on e (the curves increase monotonically)
+    lo, hi = -30.0, 30.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap) < min(p, 0.999) else (lo, mid)
+    return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
+
+
+WHITE_SHARE = 0.9  # of the person's pixels clipped to white: the lights are far too bright for the exposure
+
+
+def warn_if_white(engine, scene: Scene, settings: Look) -> None:
+    """One warning line when the person comes out white: lights far brighter than the exposure can
+    show (light files allow intensities up to 1e20; a silhouette was all one got). Uses the engine's
+    current render."""
+    from ..photo.detail import luminance
+    from ..settings import EXPOSURE_LIMIT
+
+    if not scene.mask.any():
+        return
+    lum = luminance(engine.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
+    if np.mean(tonemap_curve(lum, settings.tonemap) >= 0.99) < WHITE_SHARE:
+        return
+    stops = float(np.log2(max(np.median(lum), 1e-30) / 0.18))
+    lower = settings.exposure - stops
+    advice = (f"try --exposure {lower:.0f}" if lower >= -EXPOSURE_LIMIT
+              else f"lower the lights' intensities (--exposure goes down to -{EXPOSURE_LIMIT:.0f} stops)")
+    warnings.warn(f"the person comes out white: the lights are about {stops:.0f} stops brighter than exposure "
+                  f"{settings.exposure:+.1f} shows; {advice}", stacklevel=2)
+
+
+def effective_background(settings: Look, scene: Scene, has_environment: bool) -> str:
+    """The requested background, falling back to the photo's, then to a plain colour."""
+    background = settings.background
+    if background == "environment" and not has_environment:
+        background = "photo" if scene.background is not None else "color"
+    if background == "photo" and scene.background is None:
+        background = "color"
+    return background
+
+
+def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has_environment: bool,
+                   fixed: AreaLights | None = None):
+    """Set the engine's lights (rotated by yaw / tilt, the environment background with them; then
+    the ``fixed`` ones, placed lights that do not turn), shadow mode and display; the caller renders."""
+    turned = lights.rotated(settings.yaw, settings.tilt).scaled(settings.intensity)
+    if fixed is not None:
+        turned = turned.followed_by(fixed.scaled(settings.placed_intensity))
+    engine.set_lights(turned)
+    engine.set_look(replace(settings.fitted(len(turned)), background=effective_background(settings, scene, has_environment)))
+
+
+def resolve_exposure(engine, scene: Scene, settings: Look) -> Look:
+    """``settings`` with an "auto" exposure replaced by :func:`photo_exposure` of a render of
+    them (renders once)."""
+    if settings.exposure != AUTO:
+        return settings
+    engine.render()
+    return replace(settings, exposure=photo_exposure(engine, scene, settings.tonemap))
+
+
+def render_frame(engine, settings: Look, refiner=None):
+    """Render; in the refined shadow mode, also run the refinement network for these lights (once
+    per lighting: ``refiner`` is a :class:`viewer.photo.refinement.Refiner`, made on first need)."""
+    engine.render()
+    if settings.shadows == "refined" and not engine.refined_current:
+        from ..photo.refinement import Refiner, refine_engine
+
+        refiner = refiner if refiner is not None else Refiner()
+        refine_engine(engine, refiner)
+        engine.render()
+    return refiner
+
+
+def render_look(engine, scene: Scene, lights: AreaLights, settings: Look, environment: np.ndarray | None = None,
+                fixed: AreaLights | None = None, refiner=None) -> tuple[Look, object]:
+    """Render ``scene`` under ``lights`` (the map's, turned; the ``fixed`` placed lights) with the
+    look ``settings``, the map ``environment`` behind (None: none given); returns (the look with an
+    "auto" exposure resolved, the refiner :func:`render_frame` used)."""
+    if environment is not None:
+        engine.set_environment(environment)
+    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
+    settings = resolve_exposure(engine, scene, settings)
+    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
+    return settings, render_frame(engine, settings, refiner)
+
+
+def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
+                    environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None,
+                    png_name: str | None = None) -> list[Path]:
+    """Render and write ``name.png`` (display; ``png_name``: the name as the user typed it, its case
+    kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, see :func:`apply_settings`)."""
+    out_dir = Path(out_dir)
+    settings, _ = render_look(engine, scene, lights, settings, environment, fixed)
+    warn_if_white(engine, scene, settings)
+    transparent = effective_background(settings, scene, environment is not None) == "transparent"
+    display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
+    hdr = engine.read_output_hdr()
+    written = [out_dir / (png_name or f"{name}.png"), out_dir / f"{name}.exr"]
+    with atomic_paths(*written) as (png, exr):  # both replaced together, or neither
+        write_png(png, display)
+        write_exr(exr, hdr if transparent else hdr[..., :3])
+    if passes:
+        if settings.shadows not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
+            engine.set_visibility("soft")
+            engine.render()
+        written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene, display)))
+        engine.set_visibility(settings.shadows)
+    return written
+
+
+def turntable_yaws(start: float, turn: float, frames: int) -> np.ndarray:
+    """Yaw of each frame: ``frames`` equal steps over ``turn`` degrees from ``start``; a full turn
+    leaves out the end, which is the first frame again, so the video loops seamlessly."""
+    return start + turn * np.arange(frames) / frames if abs(turn) >= 360 else start + turn * np.arange(frames) / max(frames - 1, 1)
+
+
+def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: Look, frames: int,
+                     fps: float = 30.0, turn: float = 360.0, environment: np.ndarray | None = None,
+                     progress=None, fixed: AreaLights | None = None) -> tuple[int, int]:
+    """A relit video of the lighting turning about the vertical axis (``frames`` frames over
+    ``turn`` degrees, starting at ``settings.yaw``) written to ``path`` (H.264 MP4).
+    ``progress(done, total)`` is called after every frame. Returns the video's (width, height)."""
+    from .video import VideoWriter
+
+    if frames < 1:
+        raise InputError(path, f"a video needs at least one frame, got {frames}")
+    if environment is not None:
+        engine.set_environment(environment)
+    refiner = None
+    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
+    settings = resolve_exposure(engine, scene, settings)  # one exposure for the whole turn
+    width, height = engine.output_size
+    with VideoWriter(path, width, height, fps=fps) as video:
+        for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
+            apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None, fixed)
+            refiner = render_frame(engine, settings, refiner)
+            if i == 0:
+                warn_if_white(engine, scene, settings)
+            video.write(engine.read_display())
+            if progress is not None:
+                progress(i + 1, frames)
+    return video.encoded_size
+
+
+def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
+    """A 2 x 4 picture of the inputs and intermediate passes, for looking rather than reading:
+    albedo, normal, depth, specular | summed soft visibility, summed hard visibility, shading
+    without shadows, ``final`` (the display image, float RGB or RGBA in [0, 1])."""
+    m = scene.mask
+    n = len(engine.lights)
+    weights = engine.lights.intensity.mean(axis=1)
+    soft = np.zeros(m.shape, np.float32)
+    hard = np.zeros(m.shape, np.float32)
+    shade = np.zeros(m.shape, np.float32)
+    for i in range(n):
+        out = engine.read_light(i)
+        s = weights[i] * (out["diffuse"] + out["specular"])
+        soft += s * out["visibility_soft"]
+        hard += s * out["visibility_hard"]
+        shade += s
+    scale = max(float(np.percentile(shade[m], 99.5)), 1e-12) * 1.5 if m.any() else 1.0
+    depth = scene.depth.copy()
+    if m.any():
+        lo, hi = depth[m].min(), depth[m].max()
+        depth = np.where(m, 1.0 - (depth - lo) / max(hi - lo, 1e-9), 0.0)
+
+    def grey(x):
+        return np.repeat(np.clip(x, 0, 1)[..., None], 3, axis=-1)
+
+    tiles = [
+        linear_to_srgb(scene.albedo),
+        np.where(m[..., None], scene.normal * 0.5 + 0.5, 0.0),
+        grey(depth),
+        grey(scene.specular),
+        linear_to_srgb(grey(soft / scale)),
+        linear_to_srgb(grey(hard / scale)),
+        linear_to_srgb(grey(shade / scale)),
+        final,
+    ]
+    if final.shape[-1] == 4:  # a transparent background, shown over grey
+        final = tiles[-1] = final[..., :3] * final[..., 3:] + 0.5 * (1.0 - final[..., 3:])
+    if final.shape[:2] != m.shape:  # the frame's image, shown at the maps' size
+        from ..photo.photo_frame import resize
+
+        tiles[-1] = resize(final.astype(np.float32), (m.shape[1], m.shape[0]))
+    names = ["albedo", "normal", "depth", "specular", "soft shadows", "hard shadows (shadow map)",
+             "shading, no shadows", "final"]
+    tiles = [_label(t, name) for t, name in zip(tiles, names)]
+    top = np.concatenate(tiles[:4], axis=1)
+    bottom = np.concatenate(tiles[4:], axis=1)
+    return np.concatenate([top, bottom], axis=0)
+
+
+def _label(tile: np.ndarray, text: str) -> np.ndarray:
+    """The tile with its name written in its top-left corner."""
+    from PIL import Image, ImageDraw
+
+    im = Image.fromarray((np.clip(tile, 0, 1) * 255 + 0.5).astype(np.uint8))
+    draw = ImageDraw.Draw(im)
+    box = draw.textbbox((4, 4), text)
+    draw.rectangle((box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2), fill=(0, 0, 0))
+    draw.text((4, 4), text, fill=(255, 255, 255))
+    return np.asarray(im, dtype=np.float32) / 255.0

@@ -1,0 +1,182 @@
+"""Relit video files: H.264 in MP4 through PyAV (FFmpeg's libx264), encoded on a background thread.
+
+Frames go to ``<name>.partial.mp4`` beside the target, which replaces the target in one step when
+:meth:`VideoWriter.close` has flushed every frame: an earlier video of the same name stays whole
+until the new one is. The MP4 is fragmented (a self-contained fragment per keyframe interval, the
+index up front), so a recording cut short, even by a crash, leaves a playable partial file holding
+every finished fragment, under its own clearly marked name.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import threading
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
+FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
+
+
+def partial_path(path) -> Path:
+    """Where a video is written until it is complete: ``name.partial.mp4`` beside ``name.mp4``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.partial{path.suffix}")
+
+
+def partial_taken(path) -> InputError:
+    """The error for a video whose partial name is already taken (checked before any work, and when
+    the file is created)."""
+    return InputError(partial_path(path), "exists (a recording cut short, or a file of yours): move it or give "
+                                          "another output name; nothing was written")
+
+
+class VideoWriter:
+    """``write(rgb)`` frames (H, W, 3) uint8 or float in [0, 1]; ``close()`` when done (also as a
+    context manager). Frames are queued to an encoding thread, so a caller rendering frames is not
+    held up by the encoder unless it runs ahead by more than ``queue_frames``."""
+
+    def __init__(self, path, width: int, height: int, fps: float = 30.0, crf: int = 18, keyframe_seconds: float = 1.0,
+                 queue_frames: int = 8):
+        import av
+
+        self.path = Path(path)
+        if self.path.suffix.lower() != ".mp4":
+            raise InputError(self.path, "videos are written as H.264 MP4: give a .mp4 path")
+        if not (np.isfinite(fps) and 0.1 <= fps <= 1000):
+            raise InputError(self.path, f"frame rate must be in [0.1, 1000] frames a second, got {fps}")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self.path.is_dir():
+            raise InputError(self.path, "is a folder: give a .mp4 file path")
+        self.partial = partial_path(self.path)
+        try:  # created here, exclusively: a file already under that name (a recording cut short, the user's) is kept
+            os.close(os.open(self.partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        except FileExistsError:
+            raise partial_taken(self.path) from None
+        except OSError as exc:
+            raise InputError(self.path, f"cannot write the video ({exc.strerror or exc})") from None
+        self.size = (int(width), int(height))
+        # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
+        self.encoded_size = tuple(max(v - v % 2, 2) for v in self.size)
+        self.fps = float(fps)
+        self.frames = 0
+        self._last_pts = -1
+        # flush_packets: each finished fragment reaches the file at once, not when an I/O buffer fills
+        try:
+            self._container = av.open(str(self.partial), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
+        except (OSError, av.FFmpegError) as exc:
+            self.partial.unlink(missing_ok=True)  # the empty file made above
+            raise InputError(self.path, f"cannot write the video ({exc})") from None
+        try:
+            rate = Fraction(self.fps).limit_denominator(1001)
+            self._time_base = 1 / (rate * TICKS_PER_FRAME)
+            stream = self._container.add_stream("libx264", rate=rate)
+            stream.width, stream.height = self.encoded_size
+            stream.pix_fmt = "yuv420p"
+            stream.codec_context.time_base = self._time_base
+            stream.codec_context.gop_size = max(int(round(self.fps * keyframe_seconds)), 1)
+            # no B-frames: frame times start at 0 and every encoded frame can be muxed at once
+            stream.options = {"crf": str(crf), "preset": "veryfast", "bf": "0"}
+        except Exception:
+            self._container.close()
+            raise
+        self._stream = stream
+        self._queue: queue.Queue = queue.Queue(maxsize=queue_frames)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._encode_loop, name="video-encoder", daemon=True)
+        self._thread.start()
+
+    def write(self, rgb: np.ndarray, seconds: float | None = None):
+        """Append a frame shown at ``seconds`` from the start (default: the next frame at ``fps``)."""
+        self._raise_pending()
+        if rgb.dtype != np.uint8:
+            rgb = (np.clip(np.nan_to_num(rgb, nan=0.0), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        h, w = rgb.shape[:2]
+        if (w, h) != self.size or rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise ValueError(f"frame of shape {rgb.shape} does not match the video's {self.size[0]}x{self.size[1]} RGB")
+        pts = self.frames * TICKS_PER_FRAME if seconds is None else int(round(seconds / self._time_base))
+        pts = max(pts, self._last_pts + 1)  # strictly increasing, even for two frames at the same time
+        self._last_pts = pts
+        sw, sh = self._stream.width, self._stream.height
+        if (sw, sh) != (w, h):
+            rgb = rgb[:sh, :sw] if sw <= w and sh <= h else np.pad(rgb, ((0, max(sh - h, 0)), (0, max(sw - w, 0)), (0, 0)), mode="edge")[:sh, :sw]
+        self._queue.put((np.ascontiguousarray(rgb), pts))
+        self.frames += 1
+
+    def _encode_loop(self):
+        import av
+
+        finished = False  # the end-of-stream marker was taken from the queue
+        try:
+            while True:
+                item = self._queue.get()
+                if item is None:
+                    finished = True
+                    break
+                rgb, pts = item
+                frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
+                frame.pts, frame.time_base = pts, self._time_base
+                for packet in self._stream.encode(frame):
+                    self._container.mux(packet)
+            for packet in self._stream.encode():
+                self._container.mux(packet)
+        except BaseException as exc:  # reported to the writer's thread by write() / close()
+            self._error = exc
+            while not finished and self._queue.get() is not None:  # let a blocked write() and close() go on
+                pass
+        finally:
+            try:
+                self._container.close()
+            except BaseException as exc:
+                self._error = self._error or exc
+
+    def _raise_pending(self):
+        if self._error is not None:
+            raise RuntimeError(f"encoding {self.path} failed: {self._error}") from self._error
+
+    def _finish_encoding(self):
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join()
+
+    def close(self) -> Path:
+        """Flush the encoder, finish the file and put it in place of the target; returns its path."""
+        self._finish_encoding()
+        self._raise_pending()
+        os.replace(self.partial, self.path)
+        return self.path
+
+    def abort(self) -> Path:
+        """Stop here: the frames so far are flushed into the partial file, which stays under its own
+        name (the target is left as it was); returns the partial file's path."""
+        self._finish_encoding()
+        if not self.frames:
+            self.partial.unlink(missing_ok=True)
+        return self.partial
+
+    def __enter__(self) -> "VideoWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.close()
+            return
+        partial = self.abort()
+        if exc is not None and self.frames:
+            exc.add_note(f"the {self.frames} frames so far are in {partial}; {self.path} was left as it was")
+
+
+def read_video(path) -> tuple[np.ndarray, float]:
+    """All frames of a video as (T, H, W, 3) uint8, and its frame rate."""
+    import av
+
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(stream)]
+        rate = float(stream.average_rate or stream.guessed_rate or 0.0)
+    return np.stack(frames) if frames else np.zeros((0, 0, 0, 3), np.uint8), rate

@@ -1,0 +1,142 @@
+"""Detail from the photo: the detail albedo the frame composite multiplies by the new shading.
+
+The networks see the person at 256 pixels, so their albedo carries none of the photo's fine
+texture (faces, hair, cloth weave). The frame composite draws ``A_frame D_new + S_new`` at the
+photo's own resolution, with the new shading sums D, S brought from the work resolution; the
+photo's detail comes in through ``A_frame``, made once at inference by one of:
+
+- ``network``: the network's albedo, upsampled (no detail: what the product did before);
+- ``highpass``: the network's albedo times the photo's high-frequency ratio, photo over its
+  low-pass (a mask-normalized Gaussian of about one network pixel);
+- ``quotient``: the photo divided by its own shading: ``Q = (photo - S_old) / D_old`` with D_old,
+  S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo.photo_lighting`),
+  upsampled exactly as the frame composite upsamples the new ones, D_old's colour low-passed
+  (``smooth_colour``: the photo's light changes colour slowly; at the outline the networks'
+  normals would tint the edge). Under new lights the output is
+  then the photo times D_new / D_old, the quotient image, with the old highlights taken out.
+  Where D_old is dark (below ``DARK`` of its mean over the person) the quotient is noise over a
+  small number: there it fades to ``highpass``. The subtraction of the old highlights never
+  removes more than ``HIGHLIGHT_KEEP`` of a pixel.
+  Q carries whatever of the photo's light the model did not explain. Where Q is *darker* than the
+  network's albedo N at coarse scale, that is mostly albedo the network missed (black clothes,
+  dark hair: kept as the photo has them); where it is *brighter*, it is mostly light the model
+  missed (highlights it underestimated, light where it put a shadow), which must not become
+  albedo and stay when the light moves. So, with LP a Gaussian of ``SHARED_SCALE`` network pixels
+  and Y the luminance, ``A = Q min(1, Y(LP(N)) / Y(LP(Q)))^BRIGHT_SHARE``: of a coarse excess of
+  brightness over the network's albedo, the share ``BRIGHT_SHARE`` (in log) is left to the light;
+  detail finer than that scale, and colour, stay the photo's. Measured on held-out pairs against
+  the ray-traced truth, this makes the relit RMSE, SSIM and FLIP better than the network's albedo
+  alone, where the plain quotient is worse on RMSE (docs/photos.md). Relit under the photo's own
+  lights the output is the photo up to that correction.
+
+The method is chosen by measurement (docs/photos.md; ``relight bench photos``): ``DEFAULT``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+METHODS = ("quotient", "highpass", "network")
+DEFAULT = "quotient"
+DARK = 0.1  # D_old below this fraction of its mean over the person: the quotient fades out
+HIGHLIGHT_KEEP = 0.5  # removing the old specular keeps at least this fraction of the photo
+MAX_RATIO = 4.0  # bound of the high-frequency ratio (a speck of glare over a dark low-pass)
+LOWPASS_SHRINK = 2.0  # a low-pass of sigma s runs on the image shrunk by s / this (at least 2 pixels of sigma remain)
+SHARED_SCALE = 0.25  # network pixels: the scale at which the quotient is compared with the network's albedo
+BRIGHT_SHARE = 0.5  # of a coarse excess of brightness over the network's albedo, the share (log) left to the light
+LIGHT_COLOUR_SCALE = 3.0  # network pixels: the colour of the photo's shading is low-passed at this scale (smooth_colour)
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian low-pass of ``image`` (H, W[, C]) over the pixels ``weight`` (H, W) covers, each
+    pixel the weighted mean of its neighbourhood (OpenCV's Gaussian, normalized convolution). A
+    wide Gaussian runs on the image shrunk by up to half its sigma (area average) and is brought
+    back bilinearly: the same low-pass at a fraction of the cost."""
+    import cv2
+
+    if sigma <= 0:
+        return image.astype(np.float32)
+    h, w = weight.shape
+    w32 = weight.astype(np.float32)
+    num = image.astype(np.float32) * (w32[..., None] if image.ndim == 3 else w32)
+    factor = max(1, int(sigma / LOWPASS_SHRINK))
+    if factor > 1:
+        size = (max(w // factor, 1), max(h // factor, 1))
+        num = cv2.resize(num, size, interpolation=cv2.INTER_AREA)
+        w32 = cv2.resize(w32, size, interpolation=cv2.INTER_AREA)
+        sigma = sigma * size[0] / w
+    k = 2 * int(np.ceil(3 * sigma)) + 1
+    num = cv2.GaussianBlur(num, (k, k), sigma, borderType=cv2.BORDER_REFLECT)
+    den = np.maximum(cv2.GaussianBlur(w32, (k, k), sigma, borderType=cv2.BORDER_REFLECT), 1e-6)
+    out = num / (den[..., None] if num.ndim == 3 else den)
+    if factor > 1:
+        out = cv2.resize(out, (w, h), interpolation=cv2.INTER_LINEAR)
+    return out.reshape(image.shape).astype(np.float32, copy=False)
+
+
+def smooth_colour(shading: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
+    """``shading`` (H, W, 3) with its own luminance per pixel and the colour of its low-pass (a
+    Gaussian of ``sigma`` pixels over ``weight``): the photo's light changes colour slowly over the
+    person, and where the networks' normals are least sure (the outline, turned away from the
+    camera) a colour of the shading's own would tint the quotient's edge."""
+    low = masked_lowpass(shading, weight, sigma)
+    return (luminance(shading)[..., None] * low / np.maximum(luminance(low), 1e-12)[..., None]).astype(np.float32)
+
+
+def highpass_ratio(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
+    """photo / low-pass(photo) per channel inside the matte (1 outside), bounded by MAX_RATIO."""
+    low = masked_lowpass(photo, alpha > 0.5, sigma)
+    floor = 1e-3 * max(float(photo[alpha > 0.5].mean()) if (alpha > 0.5).any() else 1.0, 1e-6)
+    ratio = (photo + floor) / (low + floor)
+    return np.where(alpha[..., None] > 0, np.clip(ratio, 0.0, MAX_RATIO), 1.0).astype(np.float32)
+
+
+def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_albedo: np.ndarray,
+                  shading: tuple[np.ndarray, np.ndarray] | None, lowpass_sigma: float,
+                  shared_scale: float | None = None) -> tuple[np.ndarray, dict]:
+    """(A_frame (H, W, 3) in [0, 1], statistics) at the frame's resolution.
+
+    ``photo`` linear (H, W, 3); ``alpha`` the matte; ``network_albedo`` the network's albedo
+    brought to the frame; ``shading`` = (D_old, S_old) at the frame (needed by ``quotient``);
+    ``lowpass_sigma`` one network pixel in frame pixels (the high-pass's scale); ``shared_scale``
+    the scale (network pixels) of the quotient's comparison with the network's albedo (0: none,
+    the plain quotient)."""
+    if method not in METHODS:
+        raise ValueError(f"detail method must be one of {', '.join(METHODS)}, got {method!r}")
+    inside = alpha > 0
+    stats = {"method": method}
+    if method == "network":
+        albedo = network_albedo
+    else:
+        albedo = network_albedo * highpass_ratio(photo, alpha, lowpass_sigma)
+        if method == "quotient":
+            if shading is None:
+                raise ValueError("the quotient needs the photo's own shading")
+            diffuse, specular = shading
+            person = alpha > 0.5
+            diffuse = smooth_colour(diffuse, person, LIGHT_COLOUR_SCALE * lowpass_sigma)
+            mean = diffuse[person].mean(axis=0) if person.any() else np.ones(3, np.float32)
+            floor = np.maximum(DARK * mean, 1e-12).astype(np.float32)
+            lit = photo - np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)
+            quotient = lit / np.maximum(diffuse, floor)
+            # weight 0 below the floor, 1 from twice the floor up, per channel
+            w = np.clip(diffuse / floor - 1.0, 0.0, 1.0)
+            albedo = w * quotient + (1.0 - w) * albedo
+            shared_scale = SHARED_SCALE if shared_scale is None else shared_scale
+            if shared_scale > 0:
+                sigma = shared_scale * lowpass_sigma
+                low_q = luminance(masked_lowpass(albedo, person, sigma))
+                low_n = luminance(masked_lowpass(network_albedo, person, sigma))
+                excess = np.maximum(low_q, 1e-4) / np.maximum(low_n, 1e-4)
+                albedo = albedo / np.maximum(excess, 1.0)[..., None] ** BRIGHT_SHARE
+            stats["dark_fraction"] = float((w[person] < 1).any(axis=-1).mean()) if person.any() else 0.0
+            stats["highlight_removed"] = float((np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)[person]).mean()
+                                              / max(float(photo[person].mean()), 1e-12)) if person.any() else 0.0
+    clipped = (albedo > 1.0).any(axis=-1) & inside
+    stats["clipped_fraction"] = float(clipped.sum() / max(int(inside.sum()), 1))
+    albedo = np.where(inside[..., None], np.clip(albedo, 0.0, 1.0), 0.0).astype(np.float32)
+    return albedo, stats

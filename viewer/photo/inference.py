@@ -1,0 +1,455 @@
+"""Photo -> scene bundle: the one-time inference (the paper's Stage 1 and Stage 2 networks), the
+photo's own lighting and the detail layer.
+
+``infer(photo, mask=None)``:
+
+1. reads the photo upright (EXIF orientation applied) and caps it to the output frame
+   (``max_size`` on the longer side, :mod:`viewer.photo.photo_frame`); the person's matte and
+   foreground colours come from the mask file, or from the automatic person segmentation
+   (:mod:`viewer.photo.segmentation`), matted from the photo (:mod:`viewer.photo.matting`);
+2. frames the person the way the training images frame them (a square around the matte, the
+   person ``FILL`` of its height, padded by repeating the photo's edge: internal to the networks,
+   never shown) and runs the inverse-rendering network (normal, albedo, specular, roughness, the
+   photo's lights as the network guesses them) and the depth network at ``NETWORK_RES``;
+3. brings their maps to the work frame (the photo's field of view, the person about ``size``
+   pixels: the resolution of the shadow work), extended a few pixels past the mask first, so that
+   resampling never mixes in what the networks say about the background; the face, fitted at its
+   own resolution (:mod:`viewer.photo.face`), replaces their normals and depth where it is;
+4. fits the photo's own lights to the photo (:mod:`viewer.photo.photo_lighting`) with the GL engine;
+5. makes the detail albedo at the frame's resolution (:mod:`viewer.photo.detail`) from the photo and its
+   shading under those lights, upsampled by the same frame composite that draws every relit frame;
+6. writes the scene bundle (the maps at the work frame, the frame layer, the photo's lights
+   ``lights.json``, the network's guess ``lights_network.json``, ``inference.json``) into a new
+   folder that replaces ``out_dir`` only when complete.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+import warnings
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from . import detail as detail_mod
+from . import gloss
+from ..backdrop import photo_blur
+from ..errors import InputError
+from .face import find_faces, light_fit_weight, with_face
+from .matting import automatic_matte, mask_matte
+from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
+                          resize, square)
+from ..ownership import folder_lock, fresh_sibling, mark_written, written_here
+from ..resources import network_dir
+
+NETWORK_RES = 256
+# the stages infer() reports to its progress callback, in order
+STAGES = ("read", "mask", "load networks", "inverse rendering", "depth", "maps to the work frame", "face",
+          "fit the photo's lights", "render the photo's shading", "detail", "write")
+# each stage's share of the time, for the time-left estimate (viewer.progress.TimeLeft): seconds measured
+# for assets/photos/underpass.jpg (681x1024) on the 2-core CPU machine, 2026-11-25
+STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rendering": 0.21, "depth": 0.07,
+                "maps to the work frame": 0.24, "face": 0.10, "fit the photo's lights": 1.65,
+                "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
+FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
+NETWORKS = ("inverse", "depth")
+PIPELINE = "frame-5"  # bundles cached by an older pipeline are inferred again (frame-5: bundles carry the marker of viewer.ownership)
+
+
+@dataclass(frozen=True)
+class Framing:
+    """The square of the frame the networks see: top-left corner (may be negative) and side, pixels."""
+
+    top: int
+    left: int
+    side: int
+
+    def to_json(self) -> dict:
+        return {"top": self.top, "left": self.left, "side": self.side}
+
+
+def framing(mask: np.ndarray) -> Framing:
+    top, left, height, width = person_box(mask)
+    side = int(np.ceil(max(height / FILL, width / 0.95)))
+    cy, cx = top + height / 2.0, left + width / 2.0
+    return Framing(int(round(cy - side / 2.0)), int(round(cx - side / 2.0)), side)
+
+
+def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
+    """The framing's square of ``image``; outside the photo: its edge repeated (``edge``) or zero."""
+    return square(image, f.top, f.left, f.side, mode)
+
+
+def extend(values, mask, steps: int = 6):
+    """Fill the pixels next to the mask with the mean of their filled neighbours, ``steps`` rings."""
+    import torch
+    from torch.nn import functional as F
+
+    known = mask.clone()
+    v = values * known
+    for _ in range(steps):
+        total = F.avg_pool2d(v, 3, 1, 1, count_include_pad=False)
+        weight = F.avg_pool2d(known, 3, 1, 1, count_include_pad=False)
+        grow = (weight > 0) & (known < 0.5)
+        v = torch.where(grow, total / weight.clamp_min(1e-6), v)
+        known = torch.where(grow, torch.ones_like(known), known)
+    return v
+
+
+def to_work_frame(stack, f: Framing, work_size: tuple[int, int], work_scale: float):
+    """The networks' maps (1, C, R, R) over the framing's square, resampled (bilinear) at the
+    centres of the work frame's pixels: (H, W, C) numpy. A work pixel (x, y) is the frame point
+    ((x + 0.5) / s, (y + 0.5) / s); outside the square the border is repeated (never in the mask)."""
+    import torch
+    from torch.nn import functional as F
+
+    w, h = work_size
+    xs = ((torch.arange(w, dtype=torch.float64) + 0.5) / work_scale - f.left) / f.side * 2.0 - 1.0
+    ys = ((torch.arange(h, dtype=torch.float64) + 0.5) / work_scale - f.top) / f.side * 2.0 - 1.0
+    gy, gx = torch.meshgrid(ys, xs, indexing="ij")
+    grid = torch.stack([gx, gy], dim=-1)[None].to(stack.dtype)
+    out = F.grid_sample(stack, grid, mode="bilinear", padding_mode="border", align_corners=False)
+    return out[0].permute(1, 2, 0).cpu().numpy()
+
+
+def map_stack(maps: dict, depth):
+    """(B, 9, H, W): the networks' maps (:func:`viewer.nets.inverse.maps`) and metric depth, in
+    the channel order :func:`scene_maps` reads."""
+    import torch
+
+    return torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
+
+
+def scene_maps(work: np.ndarray, mask: np.ndarray, distance: float) -> dict:
+    """A scene's albedo, specular, roughness, normal and depth from a resampled :func:`map_stack`
+    (H, W, 9): clipped to their ranges, normals made unit, zero outside ``mask`` (depth: the
+    camera's ``distance``, and at least 0.1 m inside)."""
+    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
+    inside = mask[..., None]
+    return {"albedo": np.where(inside, np.clip(work[..., :3], 0, 1), 0).astype(np.float32),
+            "specular": np.where(mask, np.clip(work[..., 3], 0, 1), 0).astype(np.float32),
+            "roughness": np.where(mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
+            "normal": np.where(inside, normal, 0).astype(np.float32),
+            "depth": np.where(mask, np.maximum(work[..., 8], 0.1), distance).astype(np.float32)}
+
+
+def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Area resize of ``image`` weighted by ``weight`` (what lies outside the person does not
+    darken its edge)."""
+    num = resize((image * weight[..., None]).astype(np.float32), size)
+    den = resize(weight.astype(np.float32), size)
+    return num / np.maximum(den, 1e-6)[..., None]
+
+
+def check_device(device: str) -> str:
+    """``device`` as torch names it, when this machine has it; else one line naming the device (the
+    weights file was blamed for a missing CUDA before)."""
+    import torch
+
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise InputError(None, f"--device {device!r} is not a device torch knows ({exc}); use cpu or cuda") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise InputError(None, f"--device {device}: this machine has no CUDA device (torch {torch.__version__}); "
+                               "use --device cpu")
+    if dev.type not in ("cpu", "cuda"):
+        raise InputError(None, f"--device {device}: the networks run on cpu or cuda")
+    return device
+
+
+def load_networks(device="cpu", directory=None) -> dict:
+    from ..nets.weights import load_network
+
+    check_device(device)
+    directory = Path(directory) if directory is not None else network_dir()
+    return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
+
+
+def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+                  networks_dir=None, progress=None, ctx=None) -> tuple[Path, bool]:
+    """(bundle directory, whether it was cached): inference runs once per (photo, mask or the
+    automatic one, sizes, weights, pipeline); the bundle is kept beside the light cache
+    (``bundles/``)."""
+    import hashlib
+
+    from ..lighting.lightfit.cache import cache_dir
+
+    h = hashlib.sha256()
+    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
+    for path in (photo_path, *([mask_path] if mask_path is not None else []),
+                 *(networks_dir / f"{n}.safetensors" for n in NETWORKS)):
+        path = Path(path)
+        if not path.is_file():
+            raise InputError(path, "not found")
+        h.update(path.read_bytes())
+    h.update(f"{size} {max_size} {mask_path is None} {PIPELINE} {detail_mod.DEFAULT}".encode())
+    out = cache_dir().with_name("bundles") / f"{Path(photo_path).stem}-{h.hexdigest()[:16]}"
+    if (out / "inference.json").is_file():
+        return out, True
+    infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
+          networks=load_networks(device, networks_dir), progress=progress, ctx=ctx)
+    return out, False
+
+
+class _Stages:
+    """Seconds per stage, reported to ``progress(stage)`` as each one ends."""
+
+    def __init__(self, progress):
+        self.times: dict[str, float] = {}
+        self.progress = progress
+        self._t = time.perf_counter()
+
+    def __call__(self, name: str):
+        now = time.perf_counter()
+        self.times[name] = round(now - self._t, 3)
+        self._t = now
+        if self.progress is not None:
+            self.progress(name)
+
+
+def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+          networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT) -> dict:
+    """Write the scene bundle of ``photo_path`` into ``out_dir``; returns the record also written
+    as ``inference.json``. ``mask_path`` None: the automatic person mask. ``size``: pixels of the
+    person's longer side in the maps; ``max_size``: the frame's longer side."""
+    bundle_target(out_dir)  # refused before the work, not after it
+    result = infer_scene(photo_path, mask_path, size=size, max_size=max_size, device=device, networks=networks,
+                         progress=progress, ctx=ctx, detail=detail)
+    write_bundle(result, out_dir)
+    if progress is not None:
+        progress("write")
+    return result["record"]
+
+
+def _check_memory(photo_path, max_size: int) -> None:
+    """Refuse, from the photo's header, a frame whose inference would not fit this machine's memory
+    (a 12000x8011 photo at --max-size 12000 was killed by the kernel at 24.4 GB): viewer.budget."""
+    from PIL import Image, UnidentifiedImageError
+
+    from .. import budget
+
+    try:
+        with warnings.catch_warnings():  # the size is all that is read here; read_photo checks the rest
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(photo_path) as im:
+                w, h = im.size
+    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError):
+        return  # not an image this program reads: read_photo says so in its one line
+    fw, fh = output_frame((w, h), max_size)
+    budget.require(budget.infer_bytes(w * h, fw * fh), f"a {fw}x{fh} frame from this photo",
+                   f"--max-size {budget.largest_frame_side(w * h, min(fw, fh) / max(fw, fh))} or less fits",
+                   photo_path)
+
+
+def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+                networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
+                keep_intermediate: bool = False) -> dict:
+    """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
+    (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
+    network's maps and the photo's shading at the frame (for the benchmarks)."""
+    import torch
+
+    from ..camera import Camera
+    from ..gl import Engine, EngineOptions, create_headless_context
+    from ..imageio import srgb_to_linear
+    from ..lighting.lights import AreaLights
+    from ..nets import depth as depth_net
+    from ..nets import inverse as inverse_net
+    from .photo_lighting import fit_mask, fit_photo_lights
+    from ..scene import FrameLayer, Scene
+
+    stage = _Stages(progress)
+    notes: list[str] = []
+    _check_memory(photo_path, max_size)
+    photo = read_photo(photo_path, notes)
+    h, w = photo.shape[:2]
+    frame = output_frame((w, h), max_size)
+    frame_photo = resize(photo, frame)
+    stage("read")
+    from .segmentation import find_person
+
+    if mask_path is not None:
+        matte = mask_matte(frame_photo, np.clip(resize(read_mask(mask_path, (h, w), notes), frame), 0.0, 1.0))
+        mask_source = str(mask_path)
+        try:  # the pose's landmarks still tell the face's skin (viewer.photo.gloss); a mask needs no person found
+            landmarks = find_person(frame_photo, photo_path).landmarks
+        except InputError:
+            landmarks = {}
+    else:
+        found = find_person(frame_photo, photo_path, notes)
+        matte = automatic_matte(frame_photo, found)
+        landmarks = found.landmarks
+        mask_source = "automatic (MediaPipe pose segmentation, matted: viewer.photo.matting)"
+    alpha = matte.alpha
+    person = alpha > 0.5
+    check_person(person, mask_path if mask_path is not None else photo_path)
+    if person.all():
+        notes.append("the mask covers the whole photo: there is no background to see the new lighting against")
+    _, _, ph, pw = person_box(person)
+    sizes = frame_sizes((w, h), (pw * w / frame[0], ph * h / frame[1]), max_size, size)
+    stage("mask")
+
+    f = framing(person)
+    square = crop(frame_photo, f, "edge")
+    small = srgb_to_linear(resize(square, (NETWORK_RES, NETWORK_RES)).astype(np.float32) / 255.0)
+    small_mask = resize(crop(alpha, f, "constant"), (NETWORK_RES, NETWORK_RES)) > 0.5
+    if not small_mask.any():
+        raise InputError(mask_path or photo_path, "the person is too thin to be seen at the networks' resolution")
+    nets = networks if networks is not None else load_networks(device)
+    stage("load networks")
+    dev = torch.device(device)
+    s = sizes.work_scale
+    work_mask = resize(alpha, sizes.work) > 0.5
+    if not work_mask.any():
+        raise InputError(mask_path or photo_path, "the person vanishes at the work resolution; give a larger --size")
+    side_work = f.side * s
+    # the framing's square sees what the training camera sees: 50 mm on 36 mm across the square
+    cam = Camera(sizes.work[0], sizes.work[1], sensor_mm=36.0 * max(sizes.work) / side_work)
+    with torch.no_grad():
+        linear = torch.from_numpy(small).permute(2, 0, 1)[None].to(dev)
+        m = torch.from_numpy(small_mask.astype(np.float32))[None, None].to(dev)
+        maps, (direction, sigma, intensity), scale = inverse_net.predict(nets["inverse"], linear, m)
+        stage("inverse rendering")
+        depth = depth_net.predict(nets["depth"], linear, m, cam.distance)
+        stage("depth")
+        work = to_work_frame(extend(map_stack(maps, depth), m).cpu().double(), f, sizes.work, s).astype(np.float32)
+    frame_linear = srgb_to_linear(frame_photo.astype(np.float32) / 255.0)
+    # upsampled from the maps extended past the mask, not from the zeroed ones: zeros mixed in at
+    # the outline would darken the matte's edge (frame pixels whose work pixel is outside the mask)
+    frame_network_albedo = np.where(alpha[..., None] > 0, np.clip(resize(np.clip(work[..., :3], 0, 1), sizes.frame), 0, 1),
+                                    0).astype(np.float32)
+    blur_px = photo_blur(frame_photo, alpha)  # the photo's own background defocus: the backdrop's "auto" blur
+    scene = Scene(**scene_maps(work, work_mask, cam.distance), mask=work_mask, camera=cam,
+                  frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear,
+                                   background_blur=blur_px * s / cam.focal_px))
+    skin = gloss.skin(matte.foreground, alpha, landmarks)  # skin keeps the network's sheen, the rest is matte
+    if skin is not None:
+        scene = replace(scene, roughness=np.where(work_mask, gloss.matte_roughness(
+            scene.roughness, mask_normalized_resize(skin[..., None], alpha, sizes.work)[..., 0]), 0).astype(np.float32))
+    gloss_record = {"skin_share": float((skin[person] > 0.5).mean()) if skin is not None else None,
+                    "matte_roughness": gloss.MATTE_ROUGHNESS if skin is not None else None}
+    scene.validate()
+    stage("maps to the work frame")
+    scene, face_record, face_surface = with_face(scene, find_faces(frame_photo, alpha), s)
+    stage("face")
+
+    own_ctx = ctx is None
+    ctx = create_headless_context() if own_ctx else ctx
+    engine = None
+    try:
+        engine = Engine(ctx, scene, EngineOptions())
+        # the photo at the maps' level of detail: one network pixel of low-pass
+        net_px_work = side_work / NETWORK_RES
+        target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, net_px_work)
+        valid = fit_mask(scene, resize(frame_linear, sizes.work))
+        if not valid.any():
+            valid = work_mask
+        lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
+        stage("fit the photo's lights")
+        engine.set_lights(lights)
+        explained = engine.render().read_work_hdr()
+        fit["psnr_db"] = fit_psnr(explained, target, valid)
+        diffuse, specular = engine.read_frame_shading()
+    finally:
+        if engine is not None:
+            engine.release()
+        if own_ctx:
+            ctx.release()
+    stage("render the photo's shading")
+    scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, matte.foreground, detail)
+    stage("detail")
+    network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
+    record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
+              "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
+              "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
+              "matte": matte.record, "gloss": gloss_record, "face": face_record, "background_blur": {"pixels": round(blur_px, 3),
+                                                         "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
+              "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
+    result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}
+    if keep_intermediate:
+        result.update(network_albedo_frame=frame_network_albedo, shading=(diffuse, specular), target=target,
+                      valid=valid, explained=explained, foreground=matte.foreground)
+    return result
+
+
+def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarray, np.ndarray], framing_side: float,
+                foreground: np.ndarray, method: str = detail_mod.DEFAULT, shared_scale: float | None = None):
+    """(``scene`` with the detail albedo of ``method`` in its frame layer and, area-averaged over
+    the person, in its maps; the detail step's statistics). ``shading`` = (D_old, S_old) at the
+    frame, ``framing_side`` the networks' square in frame pixels, ``foreground`` the matte's
+    foreground colours (linear, the frame's size): the photo's colour wherever it enters the person."""
+
+    frame = scene.frame
+    albedo, stats = detail_mod.detail_albedo(method, foreground, frame.alpha, network_albedo_frame, shading,
+                                             lowpass_sigma=framing_side / NETWORK_RES, shared_scale=shared_scale)
+    work = mask_normalized_resize(albedo, frame.alpha, (scene.width, scene.height))
+    return replace(scene, albedo=np.where(scene.mask[..., None], np.clip(work, 0, 1), 0).astype(np.float32),
+                   frame=replace(frame, albedo=albedo)).validate(), stats
+
+
+def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float:
+    """PSNR (dB) of a render against the photo's low-pass over ``valid``, in display sRGB."""
+    from ..imageio import linear_to_srgb
+
+    a, b = linear_to_srgb(render[valid]), linear_to_srgb(target[valid])
+    mse = float(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2))
+    return float(10 * np.log10(1.0 / max(mse, 1e-12)))
+
+
+def bundle_target(out_dir) -> Path:
+    """``out_dir`` as a place for a scene bundle: new, empty, or a bundle this program wrote there and
+    nothing else (:mod:`viewer.ownership`), which is replaced. Anything else is refused in one line:
+    replacing it would delete or change the user's files."""
+    out_dir = Path(out_dir).resolve()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder: give a folder for the scene bundle")
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not written_here(out_dir):
+        what = ("a scene bundle with files relight did not write there, or changed since" if (out_dir / "scene.json").exists()
+                else "a folder with other files and no scene bundle in it")
+        raise InputError(out_dir, f"is {what}: give a new or empty folder for the bundle (nothing was written)")
+    return out_dir
+
+
+def write_bundle(result: dict, out_dir) -> Path:
+    """Write :func:`infer_scene`'s result as a scene bundle; a previous bundle in ``out_dir`` (one
+    this program wrote, :func:`bundle_target`) is replaced only once the new one is complete. The
+    new bundle is written into a folder of its own (a name no one else has) and swapped into place
+    under a lock on the parent folder, so two writers to one output take turns."""
+    from ..imageio import write_text
+    from ..scene import save_scene
+
+    out_dir = bundle_target(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = fresh_sibling(out_dir, "partial")
+    old = None
+    try:
+        save_scene(result["scene"], tmp)
+        result["lights"].save(tmp / "lights.json", fit={"source": Path(result["record"]["photo"]).name,
+                                                          "method": "fitted to the photo (viewer.photo.photo_lighting)"})
+        result["network_lights"].save(tmp / "lights_network.json",
+                                      fit={"source": Path(result["record"]["photo"]).name, "method": "inverse-rendering network"})
+        record = result["record"]
+        record["seconds"] = dict(result["stages"].times)
+        record["seconds_total"] = round(sum(record["seconds"].values()), 3)
+        write_text(tmp / "inference.json", json.dumps(record, indent=1) + "\n")
+        mark_written(tmp)
+        with folder_lock(out_dir.parent):
+            bundle_target(out_dir)  # again: another writer may have put something there meanwhile
+            if out_dir.exists():
+                old = fresh_sibling(out_dir, "old")
+                out_dir.replace(old / "bundle")
+            tmp.rename(out_dir)
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if old is not None and (old / "bundle").is_dir() and not out_dir.exists():
+            (old / "bundle").rename(out_dir)  # the earlier bundle back in its place
+        if old is not None and not any(old.iterdir()):
+            old.rmdir()
+        raise InputError(out_dir, f"cannot write the scene bundle ({exc})") from None
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)  # the folder made above, holding the bundle this program wrote
+    return out_dir

@@ -1,0 +1,451 @@
+"""The person's true matte and foreground colours, from a coarse segmentation or a mask file.
+
+A relit person shows the photo's old background wherever the matte keeps it: in the gaps between
+an arm and the body, between hair and shoulder, between the feet (which the pose model's 256-px
+segmentation fills), and, at any alpha, wherever the photo's colour mixes person and background.
+So the matte is decided from the photo, in three steps (docs/photos.md measures each):
+
+1. **The wide band, decided by colour** (:func:`decide_band`). A trimap from the segmentation:
+   the person for sure deeper than ``CORE`` of the person's height inside it (except where limbs,
+   hair and body meet: ``GAPS``); the background for sure farther than ``OUTER`` outside it. The
+   band between holds the gaps between limbs, and is labelled person or background by a minimum cut
+   (SciPy's ``maximum_flow``, a maintained solver) of a GrabCut-like energy: local colour models
+   (Gaussians of the sure person and of the sure background within ``MODEL_RADIUS``), trusted
+   only as far as the two models differ (their Bhattacharyya overlap: where hair and a dark shop
+   window look alike, the segmentation decides), the segmentation as a prior, and a
+   contrast-sensitive smoothness that puts the outline on the photo's edges. Solved at a size
+   where the person is ``SOLVE_HEIGHT`` pixels tall; then, at the frame's resolution, pixels of
+   the person whose colour is the local background's beyond doubt are punched out
+   (:func:`background_holes`: slivers between the thighs, too thin for the band's resolution).
+2. **The soft edge** (:func:`edge_alpha`): a narrow trimap (``EDGE`` of the person's height either
+   side of that outline) solved at the frame's resolution by closed-form matting
+   (``pymatting``), chosen against KNN, large-kernel, random-walk and learning-based alpha by
+   ``relight bench matte``: hair strands and motion blur come out semi-transparent.
+3. **The foreground colours** (:func:`foreground_colours`): ``pymatting``'s multilevel foreground
+   estimation (Germer et al. 2020) solves ``I = a F + (1 - a) B`` for smooth F and B, so no old
+   background colour survives in the person's colour at any alpha.
+
+A mask file wins over all of this (:func:`mask_matte`): a soft one is the alpha; a binary one is
+the trimap's core, its outline softened by step 2. Either way step 3 gives the colours.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+CORE = 0.02  # of the person's height: deeper than this inside the segmentation is the person for sure
+OUTER = 0.012  # of the person's height: farther than this outside it is the background for sure
+BONE = 0.01  # the pose's bones, drawn this thick (of the person's height), are sampled for the person's colours
+MODEL_RADIUS = 0.03  # local colour models: the Gaussian window's sigma, of the person's height
+MODEL_REG = 5e-4  # added to the colour covariances (colours in [0, 1])
+COLOUR_CLIP = 10.0  # the colour log-likelihood ratio is bounded to this (nats)
+PRIOR = 6.0  # cost (nats) of going against the segmentation at the band's far edge
+SMOOTH = 20.0  # contrast-sensitive smoothness between neighbours (GrabCut's gamma; its default is 50)
+SOLVE_HEIGHT = 700  # the band is decided where the person is this many pixels tall (or less)
+EDGE = 0.004  # half-width of the soft edge's band, of the person's height (8 px at 2048)
+MIN_EDGE = 1.5  # pixels
+FLOW_SCALE = 256  # capacities are integers: costs times this
+HOLE_DEPTH = 1.0  # holes are punched deeper than this many soft-edge half-widths inside the person
+HOLE = 9.0  # nats: a pixel of the person this much likelier the local background's colour than its own is background
+# The pose model's bones (MediaPipe's POSE_CONNECTIONS without the fingers, 17-22, which it guesses)
+BONES = ((0, 1), (0, 4), (1, 2), (2, 3), (3, 7), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12), (11, 13), (11, 23),
+         (12, 14), (12, 24), (13, 15), (14, 16), (23, 24), (23, 25), (24, 26), (25, 27), (26, 28), (27, 29),
+         (27, 31), (28, 30), (28, 32), (29, 31), (30, 32))
+TORSO = (11, 12, 24, 23)
+FACE = tuple(range(11))  # MediaPipe's face landmarks (nose, eyes, ears, mouth)
+# Where limbs, hair and body meet, the segmentation fills the gaps between them (the background
+# seen between an arm and the body, between the legs, between hair and shoulder): these polygons
+# of landmarks are never the person for sure, whatever their depth inside the segmentation
+# ("hips" is the middle of the two hips).
+GAPS = ((11, 13, 15, 23), (12, 14, 16, 24),  # each arm and the side of the body
+        ("hips", 25, 27, 28, 26),  # between the legs
+        (7, 11, 12), (8, 12, 11))  # each ear, its shoulder and the other (hair over the shoulders)
+
+
+@dataclass(frozen=True)
+class Matte:
+    """The person's alpha (H, W) float32 in [0, 1] and foreground colours (H, W, 3) float32,
+    linear RGB (the photo's colour with the old background taken out; the photo where alpha is 0
+    or 1), with how it was made (``record``: method, seconds)."""
+
+    alpha: np.ndarray
+    foreground: np.ndarray
+    record: dict
+
+
+def person_height(mask: np.ndarray) -> int:
+    """Rows the mask spans (at least 1)."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    return int(rows[-1] - rows[0] + 1) if rows.size else 1
+
+
+def bones_mask(landmarks: dict, size: tuple[int, int], thickness: int) -> np.ndarray:
+    """(H, W) bool: the pose's bones, torso and face drawn at ``size`` = (w, h) from landmarks
+    (index -> normalized (x, y))."""
+    import cv2
+
+    w, h = size
+    out = np.zeros((h, w), np.uint8)
+    pts = {i: (int(round(x * w)), int(round(y * h))) for i, (x, y) in landmarks.items()}
+    for a, b in BONES:
+        if a in pts and b in pts:
+            cv2.line(out, pts[a], pts[b], 1, max(1, thickness))
+    if all(i in pts for i in TORSO):
+        cv2.fillPoly(out, [np.array([pts[i] for i in TORSO], np.int32)], 1)
+    face = face_mask(landmarks, size)
+    return (out > 0) | face if face is not None else out > 0
+
+
+def face_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
+    """(H, W) bool: the convex hull of the pose's face landmarks (``FACE``) at ``size`` = (w, h);
+    None when fewer than three of them are seen."""
+    import cv2
+
+    w, h = size
+    face = [(int(round(x * w)), int(round(y * h))) for i, (x, y) in landmarks.items() if i in FACE]
+    if len(face) < 3:
+        return None
+    out = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(out, [cv2.convexHull(np.array(face, np.int32))], 1)
+    return out > 0
+
+
+def gaps_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the ``GAPS`` polygons at ``size`` = (w, h) whose landmarks are all seen."""
+    import cv2
+
+    w, h = size
+    pts = {i: (x * w, y * h) for i, (x, y) in landmarks.items()}
+    if 23 in pts and 24 in pts:
+        pts["hips"] = tuple(0.5 * (a + b) for a, b in zip(pts[23], pts[24]))
+    out = np.zeros((h, w), np.uint8)
+    for polygon in GAPS:
+        if all(i in pts for i in polygon):
+            cv2.fillPoly(out, [np.round([pts[i] for i in polygon]).astype(np.int32)], 1)
+    return out > 0
+
+
+def distances(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(distance inside, distance outside) of every pixel to the mask's outline, pixels."""
+    import cv2
+
+    m = mask.astype(np.uint8)
+    return cv2.distanceTransform(m, cv2.DIST_L2, 5), cv2.distanceTransform(1 - m, cv2.DIST_L2, 5)
+
+
+def local_gaussians(image: np.ndarray, weight: np.ndarray, sigma: float, at: np.ndarray):
+    """Mean (n, 3) and covariance (n, 3, 3) of ``image``'s colours weighted by ``weight`` in a
+    Gaussian window of ``sigma`` pixels, at the pixels ``at`` (H, W) bool. The window's sums run
+    on the image shrunk to a quarter of sigma per pixel and come back bilinearly."""
+    import cv2
+
+    h, w = weight.shape
+    factor = max(1, int(sigma / 4))
+    size = (max(w // factor, 1), max(h // factor, 1))
+    s = sigma * size[0] / w
+    k = 2 * int(np.ceil(3 * s)) + 1
+    x = image.astype(np.float32)
+    iu, ju = np.triu_indices(3)
+    moments = np.concatenate([x, x[..., iu] * x[..., ju], np.ones((h, w, 1), np.float32)], axis=-1) * weight[..., None]
+    sums = []
+    for c in range(0, moments.shape[-1], 4):  # OpenCV resizes up to 4 channels at a time
+        part = cv2.resize(moments[..., c:c + 4], size, interpolation=cv2.INTER_AREA)
+        part = cv2.GaussianBlur(part, (k, k), s, borderType=cv2.BORDER_REFLECT)
+        part = cv2.resize(part, (w, h), interpolation=cv2.INTER_LINEAR)
+        sums.append(part.reshape(h, w, -1)[at])
+    sums = np.concatenate(sums, axis=-1)
+    total = np.maximum(sums[:, 9:10], 1e-6)
+    mean = sums[:, :3] / total
+    second = sums[:, 3:9] / total
+    cov = np.empty((len(mean), 3, 3), np.float32)
+    for n, (i, j) in enumerate(zip(iu, ju)):
+        cov[:, i, j] = cov[:, j, i] = second[:, n] - mean[:, i] * mean[:, j]
+    cov += MODEL_REG * np.eye(3, dtype=np.float32)
+    return mean, cov
+
+
+@dataclass(frozen=True)
+class ColourModels:
+    """Local Gaussian colour models of the sure person and the sure background at some pixels of
+    an image (``index`` (H, W): the pixel's row in the arrays, -1 where there is none): means
+    (n, 3), inverse covariances (n, 3, 3) and log-determinants (n,), person's then background's,
+    and the trust (n,) in telling them apart, 1 minus their Bhattacharyya coefficient (0 where
+    the two look alike)."""
+
+    index: np.ndarray
+    mean: tuple
+    inverse: tuple
+    logdet: tuple
+    trust: np.ndarray
+
+    def evidence(self, colours: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """The log-likelihood ratio person / background of ``colours`` (m, 3) under the models of
+        the pixels ``rows`` (m,), bounded by ``COLOUR_CLIP`` and scaled by the trust."""
+        ll = []
+        for mean, inv, logdet in zip(self.mean, self.inverse, self.logdet):
+            d = colours.astype(np.float32) - mean[rows]
+            ll.append(-0.5 * np.einsum("ni,nij,nj->n", d, inv[rows], d) - 0.5 * logdet[rows])
+        return (np.clip(ll[0] - ll[1], -COLOUR_CLIP, COLOUR_CLIP) * self.trust[rows]).astype(np.float32)
+
+
+def colour_models(image: np.ndarray, person: np.ndarray, background: np.ndarray, at: np.ndarray,
+                  sigma: float) -> ColourModels:
+    """The :class:`ColourModels` of the ``person`` and ``background`` pixels' colours (Gaussian
+    windows of ``sigma`` pixels) at the pixels ``at``."""
+    index = np.full(at.shape, -1, np.int64)
+    index[at] = np.arange(int(at.sum()))
+    mean_p, cov_p = local_gaussians(image, person.astype(np.float32), sigma, at)
+    mean_b, cov_b = local_gaussians(image, background.astype(np.float32), sigma, at)
+    logdet_p, logdet_b = np.linalg.slogdet(cov_p)[1], np.linalg.slogdet(cov_b)[1]
+    mid = 0.5 * (cov_p + cov_b)
+    d = mean_p - mean_b
+    bhattacharyya = (np.einsum("ni,nij,nj->n", d, np.linalg.inv(mid), d) / 8
+                     + 0.5 * (np.linalg.slogdet(mid)[1] - 0.5 * (logdet_p + logdet_b)))
+    return ColourModels(index, (mean_p, mean_b), (np.linalg.inv(cov_p), np.linalg.inv(cov_b)), (logdet_p, logdet_b),
+                        (1.0 - np.exp(-np.maximum(bhattacharyya, 0.0))).astype(np.float32))
+
+
+def min_cut(image: np.ndarray, person: np.ndarray, background: np.ndarray, cost_person: np.ndarray,
+            cost_background: np.ndarray, smooth: float = SMOOTH) -> np.ndarray:
+    """(H, W) bool: the labelling of minimum energy, person where ``person``, background where
+    ``background``, and between them the sum of each pixel's cost of its label (``cost_*`` at the
+    free pixels, (n,)) and, between 8-neighbours labelled differently,
+    ``smooth / distance * exp(-beta |I_p - I_q|^2)`` (Boykov and Jolly's contrast term, beta as
+    in GrabCut): a minimum s-t cut, SciPy's ``maximum_flow`` (Dinic)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import breadth_first_order, maximum_flow
+
+    h, w = person.shape
+    free = ~person & ~background
+    n = int(free.sum())
+    out = person.copy()
+    if n == 0:
+        return out
+    ids = np.full((h, w), -1, np.int64)
+    ids[free] = np.arange(n)
+    cost_p = np.zeros((h, w), np.float64)
+    cost_b = np.zeros((h, w), np.float64)
+    cost_p[free], cost_b[free] = cost_person, cost_background
+    img = image.astype(np.float32)
+    pairs = []
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        p = (slice(0, h - dy), slice(max(0, -dx), w - max(0, dx)))
+        q = (slice(dy, h), slice(max(0, dx), w + min(0, dx)))
+        pairs.append((p, q, ((img[p] - img[q]) ** 2).sum(-1), 1.0 / np.hypot(dy, dx)))
+    near = [d2[free[p] | free[q]] for p, q, d2, _ in pairs]
+    beta = 1.0 / max(2.0 * float(np.mean(np.concatenate(near))), 1e-12)
+    rows, cols, caps = [], [], []
+    for p, q, d2, inv_dist in pairs:
+        weight = smooth * inv_dist * np.exp(-beta * d2)
+        fp, fq = free[p], free[q]
+        both = fp & fq
+        rows += [ids[p][both], ids[q][both]]
+        cols += [ids[q][both], ids[p][both]]
+        caps += [weight[both], weight[both]]
+        # a free pixel beside a fixed one pays the pair's weight for the other label
+        for here, there, fixed_person, fixed_background in ((p, q, person[q], background[q]), (q, p, person[p], background[p])):
+            alone = free[here] & ~free[there]
+            cost_b[here] += np.where(alone & fixed_person, weight, 0.0)
+            cost_p[here] += np.where(alone & fixed_background, weight, 0.0)
+    cp, cb = cost_p[free], cost_b[free]
+    low = np.minimum(cp, cb)
+    source, sink = n, n + 1
+    idx = np.arange(n)
+    rows += [np.full(n, source), idx]
+    cols += [idx, np.full(n, sink)]
+    caps += [cb - low, cp - low]  # cutting source -> p labels p background; p -> sink labels it person
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    cap = np.round(np.concatenate(caps) * FLOW_SCALE).astype(np.int64)
+    keep = cap > 0
+    graph = csr_matrix((np.minimum(cap[keep], 2 ** 30).astype(np.int32), (r[keep], c[keep])), shape=(n + 2, n + 2))
+    graph.sum_duplicates()
+    flow = maximum_flow(graph, source, sink, method="dinic").flow
+    residual = (graph - flow).tocsr()
+    residual.data = np.maximum(residual.data, 0)
+    residual.eliminate_zeros()
+    reached = np.zeros(n + 2, bool)
+    reached[breadth_first_order(residual, source, directed=True, return_predecessors=False)] = True
+    out[free] = reached[:n]
+    return out
+
+
+@dataclass(frozen=True)
+class Trimap:
+    """The segmentation's trimap (H, W) bool each: the person for sure, the pixels its colours are
+    sampled from (the sure person and its bones), the background for sure; the band is the rest.
+    ``inside``, ``outside``: each pixel's distance to the segmentation's outline; ``height`` the
+    person's, pixels."""
+
+    sure_person: np.ndarray
+    samples: np.ndarray
+    sure_background: np.ndarray
+    inside: np.ndarray
+    outside: np.ndarray
+    height: int
+
+    @property
+    def band(self) -> np.ndarray:
+        return ~self.sure_person & ~self.sure_background
+
+
+def trimap(segmentation: np.ndarray, landmarks: dict) -> Trimap:
+    """The trimap of a soft segmentation (H, W) and the pose's landmarks (index -> normalized (x, y))."""
+    h, w = segmentation.shape
+    seg = segmentation > 0.5
+    height = person_height(seg)
+    inside, outside = distances(seg)
+    sure_person = (inside > CORE * height) & ~gaps_mask(landmarks, (w, h))
+    # the person's colours also come from its bones (a thin limb has no deep pixels)
+    samples = sure_person | (bones_mask(landmarks, (w, h), int(round(BONE * height))) & seg)
+    return Trimap(sure_person, samples, outside > OUTER * height, inside, outside, height)
+
+
+def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels) -> np.ndarray:
+    """(H, W) bool: the person at ``image``'s size (float RGB in [0, 1]), the trimap's band
+    labelled by :func:`min_cut` with the colour ``models`` (which cover the band)."""
+    band = tri.band
+    if not band.any() or not tri.sure_background.any():
+        return tri.inside > 0
+    llr = models.evidence(image[band], models.index[band])
+    cost_person = np.maximum(-llr, 0) + PRIOR * np.minimum(tri.outside[band] / (OUTER * tri.height), 1.0)
+    cost_background = np.maximum(llr, 0) + PRIOR * np.minimum(tri.inside[band] / (CORE * tri.height), 1.0)
+    person = min_cut(image, tri.sure_person, tri.sure_background, cost_person, cost_background)
+    return keep_connected(person, tri.sure_person)
+
+
+def background_holes(image: np.ndarray, person: np.ndarray, models: ColourModels, depth: float) -> np.ndarray:
+    """(H, W) bool at ``image``'s size (float RGB in [0, 1], finer than the models'): pixels of
+    ``person`` deeper than ``depth`` pixels inside it whose colour is the local background's
+    beyond doubt (evidence below ``-HOLE``), each judged by the models of its nearest model
+    pixel: slivers of background between the thighs or beside an arm, too thin for the band's
+    resolution or deep in a segmentation that filled them (nearer the outline, the soft edge
+    decides)."""
+    h, w = person.shape
+    mh, mw = models.index.shape
+    ys, xs = np.nonzero(distances(person)[0] > depth)
+    rows = models.index[np.minimum((ys * mh) // h, mh - 1), np.minimum((xs * mw) // w, mw - 1)]
+    known = rows >= 0
+    holes = np.zeros((h, w), bool)
+    holes[ys[known], xs[known]] = models.evidence(image[ys[known], xs[known]], rows[known]) < -HOLE
+    return holes
+
+
+def keep_connected(mask: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """The connected parts of ``mask`` (8-neighbours) that hold a seed pixel."""
+    import cv2
+
+    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    if count <= 2:
+        return mask
+    keep = np.zeros(count, bool)
+    keep[np.unique(labels[seeds & mask])] = True
+    keep[0] = False
+    return keep[labels]
+
+
+def edge_alpha(photo: np.ndarray, person: np.ndarray, half_width: float, holes: np.ndarray | None = None,
+               solve=None) -> np.ndarray:
+    """(H, W) float32 alpha: ``person`` (bool) less its ``holes`` (background for sure), with its
+    outline softened in a band of ``half_width`` pixels either side, over the band's bounding
+    box, by ``solve(image, trimap)`` (one of pymatting's alpha solvers; closed-form matting when
+    None)."""
+    if solve is None:
+        from pymatting import estimate_alpha_cf as solve
+
+    if holes is not None:
+        person = person & ~holes
+    inside, outside = distances(person)
+    known = np.where(inside > half_width, 1.0, np.where(outside > half_width, 0.0, 0.5))
+    if holes is not None:
+        known[holes] = 0.0
+    unknown = known == 0.5
+    alpha = known.astype(np.float32)
+    if not unknown.any() or (known == 0).sum() == 0 or (known == 1).sum() == 0:
+        return person.astype(np.float32)
+    rows, cols = np.flatnonzero(unknown.any(axis=1)), np.flatnonzero(unknown.any(axis=0))
+    pad = int(np.ceil(half_width)) + 2
+    y0, y1 = max(rows[0] - pad, 0), min(rows[-1] + pad + 1, person.shape[0])
+    x0, x1 = max(cols[0] - pad, 0), min(cols[-1] + pad + 1, person.shape[1])
+    box = (slice(y0, y1), slice(x0, x1))
+    tri = known[box]
+    if (tri == 0).any() and (tri == 1).any():
+        image = np.clip(photo[box].astype(np.float64) / 255.0, 0.0, 1.0)
+        with contextlib.redirect_stdout(io.StringIO()):  # pymatting prints its preconditioner's retries
+            alpha[box] = np.clip(solve(image, tri), 0.0, 1.0)
+    return alpha
+
+
+def foreground_colours(linear: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32: the person's own colours F in ``I = a F + (1 - a) B`` (pymatting's
+    multilevel estimate) over the matte's soft pixels' box; the photo elsewhere."""
+    from pymatting import estimate_foreground_ml
+
+    soft = (alpha > 0) & (alpha < 1)
+    out = linear.astype(np.float32).copy()
+    if not soft.any():
+        return out
+    rows, cols = np.flatnonzero(soft.any(axis=1)), np.flatnonzero(soft.any(axis=0))
+    y0, y1 = max(rows[0] - 8, 0), min(rows[-1] + 9, alpha.shape[0])
+    x0, x1 = max(cols[0] - 8, 0), min(cols[-1] + 9, alpha.shape[1])
+    box = (slice(y0, y1), slice(x0, x1))
+    scale = max(float(linear[box].max()), 1e-6)  # the estimate works on [0, 1] images
+    fg = estimate_foreground_ml((linear[box] / scale).astype(np.float32), alpha[box].astype(np.float32))
+    out[box] = np.where(soft[box][..., None], np.maximum(fg * scale, 0.0), out[box])
+    return out
+
+
+def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, float]:
+    """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
+    decided by colour; the background's holes in it; the soft edge's half-width, pixels)."""
+    from .photo_frame import resize, scaled_size
+
+    h, w = photo.shape[:2]
+    height = person_height(person.segmentation > 0.5)
+    size = (w, h) if height <= SOLVE_HEIGHT else scaled_size((w, h), int(round(max(w, h) * SOLVE_HEIGHT / height)))
+    tri = trimap(resize(person.segmentation, size), person.landmarks)
+    small = resize(photo, size).astype(np.float32) / 255.0
+    models = colour_models(small, tri.samples, tri.sure_background, ~tri.sure_background, MODEL_RADIUS * tri.height)
+    decided = resize(decide_band(small, tri, models).astype(np.float32), (w, h)) > 0.5
+    half_width = max(MIN_EDGE, EDGE * height)
+    return decided, background_holes(photo.astype(np.float32) / 255.0, decided, models, HOLE_DEPTH * half_width), half_width
+
+
+def automatic_matte(photo: np.ndarray, person) -> Matte:
+    """The matte of ``photo`` (H, W, 3) uint8 sRGB from the pose model's :class:`viewer.photo.segmentation.Person`."""
+    from ..imageio import srgb_to_linear
+
+    t0 = time.perf_counter()
+    decided, holes, half_width = decided_outline(photo, person)
+    t1 = time.perf_counter()
+    alpha = edge_alpha(photo, decided, half_width, holes)
+    t2 = time.perf_counter()
+    foreground = foreground_colours(srgb_to_linear(photo.astype(np.float32) / 255.0), alpha)
+    t3 = time.perf_counter()
+    return Matte(alpha, foreground, {"method": "automatic: pose segmentation, colour min cut, closed-form edge",
+                                     "holes_px": int(holes.sum()),
+                                     "seconds": {"band": round(t1 - t0, 3), "edge": round(t2 - t1, 3),
+                                                 "foreground": round(t3 - t2, 3)}})
+
+
+BINARY_GREY = 0.25  # a mask with fewer grey pixels (2 % to 98 %) than this share of its outline is binary
+
+
+def mask_matte(photo: np.ndarray, mask: np.ndarray) -> Matte:
+    """The matte of a mask file (H, W) in [0, 1]: a soft mask is the alpha as it is; a binary one
+    is the trimap's core, its outline softened by :func:`edge_alpha`. Foreground colours either way."""
+    from ..imageio import srgb_to_linear
+
+    t0 = time.perf_counter()
+    person = mask > 0.5
+    inside, _ = distances(person)
+    binary = int(((mask > 0.02) & (mask < 0.98)).sum()) < BINARY_GREY * int(((inside > 0) & (inside <= 1)).sum())
+    alpha = edge_alpha(photo, person, max(MIN_EDGE, EDGE * person_height(person))) if binary else mask.astype(np.float32)
+    t1 = time.perf_counter()
+    foreground = foreground_colours(srgb_to_linear(photo.astype(np.float32) / 255.0), alpha)
+    return Matte(alpha, foreground, {"method": "mask file, " + ("binary: closed-form edge" if binary else "soft: as given"),
+                                     "seconds": {"edge": round(t1 - t0, 3), "foreground": round(time.perf_counter() - t1, 3)}})

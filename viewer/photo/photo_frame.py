@@ -1,0 +1,206 @@
+"""A photo as the user gave it: read upright, and the three frames the pipeline works in.
+
+- the **photo** itself: its pixels after the EXIF orientation is applied (a phone's sideways JPEG
+  comes out upright, with a note);
+- the **frame**: the photo scaled so that its longer side is at most ``max_size`` (default
+  ``MAX_SIZE``), same aspect. Every output (PNG, EXR, video, the viewer's saved frames) is this
+  size; nothing is padded;
+- the **work frame**: the same field of view at a lower resolution, where the person's longer
+  side spans about ``work_person`` pixels (``WORK_PERSON``). The scene bundle's maps, the shadow
+  maps and the per-light shading live here; the final composite brings them to the frame.
+
+The three frames share one camera (a lens on a sensor spanning the longer side, principal point in
+the middle), so a pixel (x, y) of the frame is the point (x s, y s) of the work frame with
+``s = work / frame`` for either axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..file_kinds import wrong_kind
+from ..imageio import MAX_IMAGE_PIXELS, check_pixels
+
+MAX_SIZE = 2048  # default longer side of every output
+WORK_PERSON = 512  # default pixels of the person's longer side in the work frame
+MAX_PIXELS = MAX_IMAGE_PIXELS  # larger photos are refused (decompression bombs), as every image
+MIN_PERSON_PX = 32
+MIN_FRAME = 64  # --max-size below this leaves no room for a person of MIN_PERSON_PX
+MAX_WORK = 4096  # the work frame's longer side at most (its float targets grow with its square)
+
+
+@dataclass(frozen=True)
+class FrameSizes:
+    """Sizes (width, height) of the photo, the output frame and the work frame."""
+
+    photo: tuple[int, int]
+    frame: tuple[int, int]
+    work: tuple[int, int]
+
+    @property
+    def work_scale(self) -> float:
+        """Work pixels per frame pixel."""
+        return max(self.work) / max(self.frame)
+
+    def to_json(self) -> dict:
+        return {"photo": list(self.photo), "frame": list(self.frame), "work": list(self.work)}
+
+
+def scaled_size(size: tuple[int, int], longest: int) -> tuple[int, int]:
+    """``size`` (w, h) scaled so the longer side is ``longest`` (never below 1 pixel)."""
+    w, h = size
+    s = longest / max(w, h)
+    return max(int(round(w * s)), 1), max(int(round(h * s)), 1)
+
+
+def output_frame(photo_size: tuple[int, int], max_size: int = MAX_SIZE) -> tuple[int, int]:
+    """The output frame (width, height): the photo's own size, its longer side capped at ``max_size``."""
+    if not MIN_FRAME <= max_size <= 16384:
+        raise InputError(None, f"--max-size must be within [{MIN_FRAME}, 16384] pixels, got {max_size}")
+    return tuple(photo_size) if max(photo_size) <= max_size else scaled_size(photo_size, max_size)
+
+
+def frame_sizes(photo_size: tuple[int, int], person_box: tuple[int, int], max_size: int = MAX_SIZE,
+                work_person: int = WORK_PERSON) -> FrameSizes:
+    """The frame (photo capped at ``max_size``) and the work frame (person's longer side about
+    ``work_person`` pixels, never larger than the frame nor than ``MAX_WORK``) of a photo whose
+    person's bounding box is ``person_box`` = (width, height) photo pixels."""
+    if not MIN_PERSON_PX <= work_person <= MAX_WORK:
+        raise InputError(None, f"the work size must be within [{MIN_PERSON_PX}, {MAX_WORK}] pixels, got {work_person}")
+    frame = output_frame(photo_size, max_size)
+    person = max(person_box) * max(frame) / max(photo_size)
+    work_long = min(max(frame), MAX_WORK, int(round(max(frame) * work_person / max(person, 1.0))))
+    work = frame if work_long >= max(frame) else scaled_size(frame, work_long)
+    return FrameSizes(tuple(photo_size), tuple(frame), tuple(work))
+
+
+def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``image`` (H, W[, C]) resized to ``size`` = (w, h): area average when shrinking, bilinear
+    when enlarging (OpenCV; float32 or uint8 kept)."""
+    import cv2
+
+    h, w = image.shape[:2]
+    if (w, h) == tuple(size):
+        return image
+    shrink = size[0] <= w and size[1] <= h
+    channels = image.shape[2] if image.ndim == 3 else 0
+    if channels > 4:  # OpenCV resizes up to 4 channels at a time
+        return np.concatenate([resize(image[..., i:i + 4], size) for i in range(0, channels, 4)], axis=-1)
+    out = cv2.resize(image, tuple(int(v) for v in size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+    return out[..., None] if channels == 1 else out
+
+
+def read_image_u8(path, what: str, notes: list) -> np.ndarray:
+    """An image file as uint8 (H, W[, C]), upright: the EXIF orientation applied (with a note),
+    16-bit images reduced to 8 bits (with a note), palette and other modes converted."""
+    from PIL import Image, ImageOps
+
+    Image.MAX_IMAGE_PIXELS = MAX_PIXELS
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, f"{what} not found")
+    try:
+        with warnings.catch_warnings():  # the size check below refuses it in one line instead
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            opened = Image.open(path)
+        with opened as im:
+            check_pixels(path, im.width, im.height, MAX_PIXELS)  # Pillow itself only refuses twice its limit
+            orientation = im.getexif().get(0x0112, 1)
+            upright = ImageOps.exif_transpose(im)
+            upright.load()
+            if orientation not in (1, None) and isinstance(orientation, int) and 2 <= orientation <= 8:
+                notes.append(f"the {what} is stored rotated (EXIF orientation {orientation}): used upright, "
+                             f"{upright.width}x{upright.height}")
+            if upright.mode in ("I;16", "I;16B", "I;16L", "I"):
+                notes.append(f"the {what} is 16-bit: reduced to 8 bits")
+                arr = (np.asarray(upright, dtype=np.float64) / 257.0).round().clip(0, 255).astype(np.uint8)
+            else:
+                if upright.mode not in ("L", "RGB", "RGBA"):
+                    upright = upright.convert("RGBA" if "A" in upright.getbands() else "RGB")
+                arr = np.asarray(upright, dtype=np.uint8)
+    except InputError:
+        raise
+    except Image.DecompressionBombError:
+        raise InputError(path, f"the {what} has more than {MAX_PIXELS // 1_000_000} megapixels") from None
+    except Exception as exc:
+        raise InputError(path, f"cannot read the {what} ({exc})") from None
+    if arr.size == 0:
+        raise InputError(path, f"the {what} has no pixels")
+    return arr
+
+
+def read_photo(path, notes: list) -> np.ndarray:
+    """The photo as (H, W, 3) uint8 sRGB, upright. Grayscale becomes RGB and alpha is dropped,
+    each with a note."""
+    wrong = wrong_kind(path, "a photo")
+    if wrong is not None:
+        raise wrong
+    photo = read_image_u8(path, "photo", notes)
+    if min(photo.shape[:2]) < MIN_PERSON_PX:
+        raise InputError(path, f"is {photo.shape[1]}x{photo.shape[0]} pixels: a photo of a person needs at least "
+                               f"{MIN_PERSON_PX} pixels a side")
+    if photo.ndim == 2:
+        notes.append("the photo is grayscale: used as RGB")
+        photo = np.repeat(photo[..., None], 3, axis=-1)
+    elif photo.shape[-1] == 4:
+        notes.append("the photo's alpha channel is ignored (the person mask says where the person is)")
+        photo = photo[..., :3]
+    return np.ascontiguousarray(photo)
+
+
+MAX_GREY_FRACTION = 0.25  # of a mask's pixels between 10 % and 90 %
+
+
+def read_mask(path, photo_shape: tuple[int, int], notes: list) -> np.ndarray:
+    """A person mask file as a matte (H, W) float32 in [0, 1] matching the upright photo: grey
+    or RGB (first channel). A mask drawn on the photo as stored (before its EXIF rotation) is
+    refused with that hint."""
+    img = read_image_u8(path, "mask", notes)
+    if img.ndim == 3:
+        img = img[..., 0]
+    h, w = photo_shape
+    if img.shape != (h, w):
+        if img.shape == (w, h) and h != w:
+            raise InputError(path, f"is {img.shape[1]}x{img.shape[0]} pixels but the upright photo is {w}x{h}: "
+                                   "the mask looks drawn on the photo before its EXIF rotation; turn it upright")
+        raise InputError(path, f"is {img.shape[1]}x{img.shape[0]} pixels but the photo is {w}x{h}: a mask must match its photo")
+    matte = img.astype(np.float32) / 255.0
+    grey = float(((matte > 0.1) & (matte < 0.9)).mean())
+    if grey > MAX_GREY_FRACTION:  # hand-made masks have < 1 % (soft edges); a photo has ~95 %
+        raise InputError(path, f"is not a person mask: {grey:.0%} of its pixels are neither person nor background "
+                               "(a mask is black and white, soft at the edges at most; is it the photo?)")
+    if not (matte > 0.5).any():
+        raise InputError(path, "no person in the mask (no pixel is above 50 %)")
+    return matte
+
+
+def square(image: np.ndarray, top: int, left: int, side: int, mode: str) -> np.ndarray:
+    """The ``side``-pixel square of ``image`` whose top-left corner is (``top``, ``left``) (either
+    may be negative); outside the image: its edge repeated (``edge``) or zero (``constant``)."""
+    h, w = image.shape[:2]
+    pad = [(max(0, -top), max(0, top + side - h)), (max(0, -left), max(0, left + side - w))]
+    pad += [(0, 0)] * (image.ndim - 2)
+    padded = np.pad(image, pad, mode=mode) if any(a or b for a, b in pad[:2]) else image
+    t, l = top + pad[0][0], left + pad[1][0]
+    return padded[t:t + side, l:l + side]
+
+
+def person_box(mask: np.ndarray) -> tuple[int, int, int, int]:
+    """(top, left, height, width) of the mask's bounding box."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    return int(rows[0]), int(cols[0]), int(rows[-1] - rows[0] + 1), int(cols[-1] - cols[0] + 1)
+
+
+def check_person(mask: np.ndarray, path) -> None:
+    """Refuse an empty mask or a person too small to relight, naming ``path``."""
+    if not mask.any():
+        raise InputError(path, "no person in the mask")
+    _, _, h, w = person_box(mask)
+    if max(h, w) < MIN_PERSON_PX:
+        raise InputError(path, f"the person is {max(h, w)} pixels tall; at least {MIN_PERSON_PX} are needed")
