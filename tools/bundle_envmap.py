@@ -1,10 +1,10 @@
 """Make a bundled demo environment: a small copy of an HDR map and its fitted area lights.
 
 ``bundle_envmap(source, out_dir, width, n_lights)`` loads ``source`` (.hdr or .exr), area-averages it
-to ``width`` x ``width / 2`` with the energy-preserving :meth:`viewer.envmap.EnvMap.downsampled`,
+to ``width`` x ``width / 2`` with the energy-preserving :meth:`viewer.lighting.envmap.EnvMap.downsampled`,
 writes it as ``<name>_<width>.hdr`` (``<name>`` is the source's stem without a resolution suffix such
 as ``_1k``), reads that file back and writes its ``n_lights`` lights fitted by the default method
-(:func:`viewer.lightfit.fit.fit_lights`) as ``<name>_<width>.lights.json``, so the demo shows
+(:func:`viewer.lighting.lightfit.fit.fit_lights`) as ``<name>_<width>.lights.json``, so the demo shows
 fitted lights without fitting (and without importing torch).
 
 Run from the project root (positional arguments, no options)::
@@ -18,10 +18,10 @@ import re
 import sys
 from pathlib import Path
 
-from viewer.envmap import load_envmap, save_envmap
-from viewer.lightfit import DEFAULT_METHOD
-from viewer.lightfit.cache import write_atomic
-from viewer.lightfit.fit import fit_lights
+from viewer.lighting.envmap import load_envmap, save_envmap
+from viewer.lighting.lightfit import DEFAULT_METHOD
+from viewer.lighting.lightfit.cache import write_atomic
+from viewer.lighting.lightfit.fit import fit_lights
 
 
 def bundle_envmap(source, out_dir, width: int, n_lights: int) -> tuple[Path, Path]:

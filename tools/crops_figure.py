@@ -26,8 +26,8 @@ def crop_boxes(photo: np.ndarray) -> dict:
     """name -> (top, left, side) of the four crops of ``photo`` (uint8 sRGB at its output frame)."""
     import cv2
 
-    from viewer.matting import automatic_matte, person_height
-    from viewer.segmentation import find_person
+    from viewer.photo.matting import automatic_matte, person_height
+    from viewer.photo.segmentation import find_person
 
     person = find_person(photo)
     alpha = automatic_matte(photo, person).alpha
@@ -68,8 +68,8 @@ def crop_boxes(photo: np.ndarray) -> dict:
 def figure(groups: list, out: Path, tile: int = 300, parts=PARTS) -> Path:
     """Rows of (photo, {label: image}): per photo and part, the crop of each render side by side."""
     from viewer.imageio import read_png, write_jpeg
-    from viewer.photo_frame import read_photo, resize, output_frame
-    from viewer.render import _label
+    from viewer.photo.photo_frame import read_photo, resize, output_frame
+    from viewer.output.render import _label
 
     rows = []
     for photo_path, renders in groups:
