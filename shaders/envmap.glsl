@@ -1,4 +1,4 @@
-// Equirectangular environment-map lookup (viewer/envmap.py convention): longitude
+// Equirectangular environment-map lookup (viewer/lighting/envmap.py convention): longitude
 // phi = 2 pi u - pi, latitude lam = pi/2 - pi v (u, v in [0, 1], v = 0 the top row, +y), and
 // direction (cos lam sin phi, sin lam, -cos lam cos phi).
 vec2 direction_to_equirect(vec3 d) {
