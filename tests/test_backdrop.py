@@ -60,7 +60,7 @@ def _background_row(ctx, scene, env, **look):
     eng.set_environment(env)
     eng.set_look(Look(exposure=0.0, tonemap="clamp", **look))
     eng.render()
-    image = eng.read_display().astype(np.float32)
+    image = eng.output.read_display().astype(np.float32)
     eng.release()
     return image
 

@@ -57,11 +57,11 @@ def test_shading_matches_brdf_formula(ctx, roughness):
     eng = make_engine(ctx, sc)
     eng.set_lights(AreaLights(l[None], [0.0], [[1, 1, 1]]))
     eng.render()
-    out = eng.read_light(0)
+    out = eng.output.read_light(0)
     diff, spec = numpy_shading(np.array([0, 0, 1.0]), l.astype(np.float64), 0.8, roughness)
     np.testing.assert_allclose(out["diffuse"], diff, rtol=1e-5)
     np.testing.assert_allclose(out["specular"], spec, rtol=1e-4)
-    hdr = eng.read_hdr()
+    hdr = eng.output.read_hdr()
     np.testing.assert_allclose(hdr, 0.5 * diff + spec, rtol=1e-4)
     eng.release()
 
@@ -71,7 +71,7 @@ def test_box_casts_shadow_in_the_right_place(ctx, scene):
     eng = make_engine(ctx, scene)
     eng.set_lights(AreaLights(l[None], [0.0], [[1, 1, 1]]))
     eng.render()
-    hard = eng.read_light(0)["visibility_hard"]
+    hard = eng.output.read_light(0)["visibility_hard"]
     # Expected shadow: plane points whose ray towards the light passes the box square at z = -3.6.
     pts = scene.points()
     t = (-3.6 - pts[..., 2]) / l[2]
@@ -96,7 +96,7 @@ def test_grazing_light_has_no_acne(ctx):
         eng = make_engine(ctx, sc)
         eng.set_lights(AreaLights(l[None], [0.0], [[1, 1, 1]]))
         eng.render()
-        out = eng.read_light(0)
+        out = eng.output.read_light(0)
         assert out["visibility_hard"].mean() > 0.99, elevation
         assert out["visibility_soft"].mean() > 0.99, elevation
         eng.release()
@@ -109,7 +109,7 @@ def test_sigma_zero_converges_to_hard(ctx, scene):
         eng = make_engine(ctx, scene, hard_sigma=0.0)
         eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
         eng.render()
-        out = eng.read_light(0)
+        out = eng.output.read_light(0)
         diffs.append(float(np.abs(out["visibility_soft"] - out["visibility_hard"]).mean()))
         eng.release()
     assert all(a >= b - 1e-4 for a, b in zip(diffs, diffs[1:])), diffs
@@ -126,7 +126,7 @@ def test_soft_filter_skip_matches_full_computation(ctx, scene):
         eng = make_engine(ctx, scene, hard_sigma=hs, soft="csm")
         eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
         eng.render()
-        out[hs] = (eng.read_hdr(), eng.counters["prefilter"])
+        out[hs] = (eng.output.read_hdr(), eng.kit.counters["prefilter"])
         eng.release()
     skipped, full = out[EngineOptions().hard_sigma], out[0.0]
     assert skipped[1] == 0 and full[1] == 1
@@ -140,7 +140,7 @@ def test_larger_sigma_gives_smoother_shadows(ctx, scene):
         eng = make_engine(ctx, scene)
         eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
         eng.render()
-        v = eng.read_light(0)["visibility_soft"]
+        v = eng.output.read_light(0)["visibility_soft"]
         tv.append(float((np.diff(v, axis=0) ** 2).sum() + (np.diff(v, axis=1) ** 2).sum()))  # gradient energy
         assert 0.0 <= v.min() and v.max() <= 1.0
         eng.release()
@@ -155,7 +155,7 @@ def test_pyramid_prefilter_close_to_exact(ctx, scene):
             eng = make_engine(ctx, scene, prefilter=method)
             eng.set_lights(AreaLights(l[None], [sigma], [[1, 1, 1]]))
             eng.render()
-            vis[method] = eng.read_light(0)["visibility_soft"]
+            vis[method] = eng.output.read_light(0)["visibility_soft"]
             eng.release()
         err = np.abs(vis["pyramid"] - vis["exact"])
         assert err.mean() < 0.01 and err.max() < 0.15, (sigma, err.mean(), err.max())
@@ -173,15 +173,15 @@ def test_cache_rules(ctx, scene):
     eng = make_engine(ctx, scene, soft="csm")
     eng.set_lights(lights)
     eng.render()
-    c = dict(eng.counters)
+    c = dict(eng.kit.counters)
     assert c["shadow_map"] == 3 and c["prefilter"] == 2 and c["light_pass"] == 1  # light 3 is hard; one pass per 4 lights
-    before = eng.read_hdr()
+    before = eng.output.read_hdr()
 
     def delta(action):
-        start = dict(eng.counters)
+        start = dict(eng.kit.counters)
         action()
         eng.render()
-        return {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)}
+        return {k: v - start.get(k, 0) for k, v in eng.kit.counters.items() if v - start.get(k, 0)}
 
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1, "display": 1}
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0).scaled(2.0))) == {"composite": 1, "display": 1}
@@ -193,7 +193,7 @@ def test_cache_rules(ctx, scene):
     # going back reproduces the first frame exactly (nothing stale survives in the cache)
     eng.set_lights(lights)
     eng.render()
-    np.testing.assert_array_equal(eng.read_hdr(), before)
+    np.testing.assert_array_equal(eng.output.read_hdr(), before)
     eng.release()
 
 
@@ -204,14 +204,14 @@ def test_lights_that_contribute_nothing_are_skipped(ctx, scene):
     eng.set_lights(base)
     eng.render()
     assert [eng.light_active(i) for i in range(4)] == [True, False, False, False]
-    assert eng.counters["shadow_map"] == 1
-    skipped = eng.read_hdr()
+    assert eng.kit.counters["shadow_map"] == 1
+    skipped = eng.output.read_hdr()
     eng.release()
     full = make_engine(ctx, scene, skip_threshold=0.0)
     full.set_lights(AreaLights(base.direction, base.sigma, base.intensity))
     full.render()
-    assert full.counters["shadow_map"] == 2  # the 1e-9 light is computed, the back and black ones never can be
-    np.testing.assert_allclose(skipped, full.read_hdr(), rtol=1e-5, atol=1e-7)
+    assert full.kit.counters["shadow_map"] == 2  # the 1e-9 light is computed, the back and black ones never can be
+    np.testing.assert_allclose(skipped, full.output.read_hdr(), rtol=1e-5, atol=1e-7)
     full.release()
 
 
@@ -219,7 +219,7 @@ def used_programs(eng, fragment: str) -> list:
     """The cache keys of the programs with this fragment shader that the engine drew with (the
     context's program cache is shared by every engine on it)."""
     drawn = set(eng.kit.fullscreen_vaos)
-    return [k for k, prog in eng.programs._programs.items() if k[1] == fragment and prog.glo in drawn]
+    return [k for k, prog in eng.kit.programs._programs.items() if k[1] == fragment and prog.glo in drawn]
 
 
 def test_matte_scene_skips_specular(ctx):
@@ -229,9 +229,9 @@ def test_matte_scene_skips_specular(ctx):
     eng.render()
     light_programs = used_programs(eng, "light_pass.frag.glsl")
     assert light_programs and all("SPECULAR" not in dict(k[2]) for k in light_programs)
-    out = eng.read_light(0)
+    out = eng.output.read_light(0)
     expected = np.broadcast_to((0.5 * out["diffuse"] * out["visibility_soft"])[..., None], (48, 48, 3))
-    np.testing.assert_allclose(eng.read_hdr(), expected, rtol=1e-6)
+    np.testing.assert_allclose(eng.output.read_hdr(), expected, rtol=1e-6)
     eng.release()
 
 
@@ -247,7 +247,7 @@ def test_weak_light_on_a_mirror_highlight_is_not_skipped(ctx):
     full.set_lights(lights)
     full.render()
     assert eng.light_active(1)
-    np.testing.assert_allclose(eng.read_hdr(), full.read_hdr(), rtol=1e-5, atol=1e-9)
+    np.testing.assert_allclose(eng.output.read_hdr(), full.output.read_hdr(), rtol=1e-5, atol=1e-9)
     eng.release()
     full.release()
 
@@ -282,7 +282,7 @@ def test_any_sequence_of_changes_matches_a_fresh_render(ctx, scene, soft):
         fresh.set_lights(lights)
         fresh.set_visibility(vis)
         fresh.render()
-        np.testing.assert_array_equal(eng.read_hdr(), fresh.read_hdr(), err_msg=f"after {kind} {value}")
+        np.testing.assert_array_equal(eng.output.read_hdr(), fresh.output.read_hdr(), err_msg=f"after {kind} {value}")
         fresh.release()
     eng.release()
 
@@ -307,8 +307,8 @@ def test_extreme_exposure_saturates_instead_of_going_black(ctx, scene):
     eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0]]), [2.0], [[1e5, 1e5, 1e5]]))
     relook(eng, exposure=40.0)
     eng.render()
-    lit = eng.read_hdr().max(axis=-1) > 0
-    assert lit.mean() > 0.9 and (eng.read_display()[lit] == 255).all()
+    lit = eng.output.read_hdr().max(axis=-1) > 0
+    assert lit.mean() > 0.9 and (eng.output.read_display()[lit] == 255).all()
     eng.release()
 
 
@@ -316,11 +316,11 @@ def test_filtered_basis_is_readable_and_bounded(ctx, scene):
     eng = make_engine(ctx, scene, soft="csm")
     eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0], [0.1, 0.2, 1.0]]), [6.0, 0.0], [[1, 1, 1], [1, 1, 1]]))
     eng.render()
-    basis = eng.read_filtered_basis(0)
+    basis = eng.output.read_filtered_basis(0)
     assert basis.shape[0] == 8 and basis.shape[1] == basis.shape[2] == 256 >> eng._lights[0].plan.level
     assert np.abs(basis).max() <= 1.0 + 1e-6  # averages of cosines and sines
     with pytest.raises(ValueError, match="sigma ~ 0"):
-        eng.read_filtered_basis(1)
+        eng.output.read_filtered_basis(1)
     eng.release()
 
 
@@ -336,7 +336,7 @@ def test_many_lights_compose_linearly(ctx):
         eng = make_engine(ctx, sc, shadow_resolution=128, skip_threshold=0.0)
         eng.set_lights(AreaLights(lights.direction[sel], lights.sigma[sel], lights.intensity[sel]))
         eng.render()
-        parts.append(eng.read_hdr())
+        parts.append(eng.output.read_hdr())
         eng.release()
     np.testing.assert_allclose(parts[0], parts[1] + parts[2], rtol=1e-5, atol=1e-7)
 
@@ -349,29 +349,29 @@ def test_shadow_modes_do_only_the_work_they_show(ctx, scene):
     eng.set_visibility("none")
     eng.set_lights(lights)
     eng.render()
-    assert eng.counters["shadow_map"] == 0 and eng.counters["csm_basis"] == 0
-    unshadowed = eng.read_hdr()
+    assert eng.kit.counters["shadow_map"] == 0 and eng.kit.counters["csm_basis"] == 0
+    unshadowed = eng.output.read_hdr()
     eng.set_visibility("hard")
     eng.set_lights(lights.rotated(15.0))
     eng.render()
-    assert eng.counters["shadow_map"] == 2 and eng.counters["csm_basis"] == 0
-    hard = eng.read_hdr()
+    assert eng.kit.counters["shadow_map"] == 2 and eng.kit.counters["csm_basis"] == 0
+    hard = eng.output.read_hdr()
     eng.set_visibility("soft")
     eng.render()
-    assert eng.counters["shadow_map"] == 2 and eng.counters["csm_basis"] == 2
-    soft = eng.read_hdr()
+    assert eng.kit.counters["shadow_map"] == 2 and eng.kit.counters["csm_basis"] == 2
+    soft = eng.output.read_hdr()
     ref = make_engine(ctx, scene, soft="csm")
     ref.set_lights(lights.rotated(15.0))
     ref.render()
-    np.testing.assert_array_equal(soft, ref.read_hdr())
+    np.testing.assert_array_equal(soft, ref.output.read_hdr())
     ref.set_visibility("hard")
     ref.render()
-    np.testing.assert_array_equal(hard, ref.read_hdr())
+    np.testing.assert_array_equal(hard, ref.output.read_hdr())
     ref.set_lights(lights)
     ref.set_visibility("none")
     ref.render()
-    np.testing.assert_allclose(unshadowed, ref.read_hdr(), rtol=1e-6, atol=1e-7)
-    out = ref.read_light(0)  # no shadows computed: unit visibility wherever the light shades
+    np.testing.assert_allclose(unshadowed, ref.output.read_hdr(), rtol=1e-6, atol=1e-7)
+    out = ref.output.read_light(0)  # no shadows computed: unit visibility wherever the light shades
     assert out["diffuse"].sum() > 0 and (out["visibility_soft"][out["diffuse"] > 0] == 1.0).all()
     assert unshadowed.sum() > hard.sum()  # (at different rotations, but the box shadows either)
     eng.release()
@@ -384,47 +384,47 @@ def test_components_and_views(ctx):
     eng = make_engine(ctx, sc)
     eng.set_lights(lights)
     eng.render()
-    full = eng.read_hdr()
-    outs = [eng.read_light(i) for i in range(2)]
+    full = eng.output.read_hdr()
+    outs = [eng.output.read_light(i) for i in range(2)]
     diff = sum(o["visibility_soft"][..., None] * o["diffuse"][..., None] * lights.intensity[i] for i, o in enumerate(outs))
     spec = sum(o["visibility_soft"][..., None] * o["specular"][..., None] * lights.intensity[i] for i, o in enumerate(outs))
     albedo = sc.albedo * sc.mask[..., None]
     np.testing.assert_allclose(full, albedo * diff + spec, rtol=1e-5, atol=1e-7)
-    passes = dict(eng.counters)
+    passes = dict(eng.kit.counters)
     relook(eng, diffuse=False, specular=True)
     eng.render()
-    np.testing.assert_allclose(eng.read_hdr(), spec, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(eng.output.read_hdr(), spec, rtol=1e-5, atol=1e-7)
     relook(eng, diffuse=True, specular=False)
     eng.render()
-    np.testing.assert_allclose(eng.read_hdr(), albedo * diff, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(eng.output.read_hdr(), albedo * diff, rtol=1e-5, atol=1e-7)
     relook(eng, diffuse=True, specular=True)
     eng.set_view("diffuse_shading")
     eng.render()
-    np.testing.assert_allclose(eng.read_hdr(), diff, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(eng.output.read_hdr(), diff, rtol=1e-5, atol=1e-7)
     eng.set_view("specular_shading")
     eng.render()
-    np.testing.assert_allclose(eng.read_hdr(), spec, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(eng.output.read_hdr(), spec, rtol=1e-5, atol=1e-7)
     # none of this redid a light pass
-    assert eng.counters["light_pass"] == passes["light_pass"] and eng.counters["shadow_map"] == passes["shadow_map"]
+    assert eng.kit.counters["light_pass"] == passes["light_pass"] and eng.kit.counters["shadow_map"] == passes["shadow_map"]
     m = sc.mask
     eng.set_view("final")
     eng.render()
-    composites = eng.counters["composite"]
+    composites = eng.kit.counters["composite"]
     eng.set_view("normal")
     eng.render()
-    assert eng.counters["composite"] == composites  # an inspection view redoes the display only
-    np.testing.assert_array_equal(eng.read_hdr(), full)  # and the HDR output stays the relit image
-    shown = eng.read_display().astype(np.float32) / 255
+    assert eng.kit.counters["composite"] == composites  # an inspection view redoes the display only
+    np.testing.assert_array_equal(eng.output.read_hdr(), full)  # and the HDR output stays the relit image
+    shown = eng.output.read_display().astype(np.float32) / 255
     np.testing.assert_allclose(shown[m], sc.normal[m] * 0.5 + 0.5, atol=1 / 255 + 1e-6)
     eng.set_view("roughness")
     eng.render()
-    np.testing.assert_allclose(eng.read_display()[m][:, 0] / 255, sc.roughness[m], atol=1 / 255 + 1e-6)
+    np.testing.assert_allclose(eng.output.read_display()[m][:, 0] / 255, sc.roughness[m], atol=1 / 255 + 1e-6)
     eng.set_view("shadow", light=0)
     eng.render()
-    np.testing.assert_allclose(eng.read_display()[m][:, 0] / 255, np.clip(outs[0]["visibility_soft"][m], 0, 1), atol=1 / 255 + 1e-6)
+    np.testing.assert_allclose(eng.output.read_display()[m][:, 0] / 255, np.clip(outs[0]["visibility_soft"][m], 0, 1), atol=1 / 255 + 1e-6)
     eng.set_view("final")
     eng.render()
-    np.testing.assert_array_equal(eng.read_hdr(), full)
+    np.testing.assert_array_equal(eng.output.read_hdr(), full)
     with pytest.raises(ValueError):
         eng.set_view("shadow", light=5)
     eng.release()
@@ -442,7 +442,7 @@ def test_leave_out_off_does_all_the_work_for_the_same_image(ctx):
         eng.set_lights(lights)
         eng.render()
         specular = any("SPECULAR" in dict(k[2]) for k in used_programs(eng, "light_pass.frag.glsl"))
-        out[leave_out] = (eng.read_hdr(), eng.counters["shadow_map"], eng.counters["prefilter"], specular)
+        out[leave_out] = (eng.output.read_hdr(), eng.kit.counters["shadow_map"], eng.kit.counters["prefilter"], specular)
         eng.release()
     (on, maps_on, filters_on, spec_on), (off, maps_off, filters_off, spec_off) = out[True], out[False]
     assert (maps_on, filters_on, spec_on) == (2, 1, False)
@@ -465,14 +465,14 @@ def test_frame_cache_rules(ctx, scene):
     eng.set_lights(lights)
     eng.render()
     assert eng.output_size == (192, 192)
-    assert {k: eng.counters[k] for k in ("composite", "frame_background", "frame_mipmaps", "frame_composite")} == \
+    assert {k: eng.kit.counters[k] for k in ("composite", "frame_background", "frame_mipmaps", "frame_composite")} == \
         {"composite": 1, "frame_background": 1, "frame_mipmaps": 1, "frame_composite": 1}
 
     def delta(action):
-        start = dict(eng.counters)
+        start = dict(eng.kit.counters)
         action()
         eng.render()
-        return {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)}
+        return {k: v - start.get(k, 0) for k, v in eng.kit.counters.items() if v - start.get(k, 0)}
 
     assert delta(lambda: relook(eng, exposure=1.0)) == {"frame_composite": 1}
     assert delta(lambda: relook(eng, background_color=(0.5, 0.2, 0.1))) == {"frame_background": 1, "frame_composite": 1}
@@ -499,19 +499,19 @@ def test_before_and_after_shows_the_photo_left_of_the_split(ctx, scene):
     eng = make_engine(ctx, sc)
     eng.set_lights(AreaLights(unit([[0.3, 0.4, 1.0]]), [3.0], [[2, 2, 2]]))
     eng.render()
-    after, hdr = eng.read_display().astype(int), eng.read_hdr()
-    start = dict(eng.counters)
+    after, hdr = eng.output.read_display().astype(int), eng.output.read_hdr()
+    start = dict(eng.kit.counters)
     relook(eng, compare=0.25)
     eng.render()
-    assert {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)} == {"frame_composite": 1}
-    split = eng.read_display().astype(int)
+    assert {k: v - start.get(k, 0) for k, v in eng.kit.counters.items() if v - start.get(k, 0)} == {"frame_composite": 1}
+    split = eng.output.read_display().astype(int)
     w = split.shape[1]
     srgb = np.where(photo <= 0.0031308, 12.92 * photo, 1.055 * np.power(np.maximum(photo, 0.0031308), 1 / 2.4) - 0.055)
     assert np.abs(split[:, : w // 4 - 1] - np.rint(255 * srgb[:, : w // 4 - 1])).max() <= 1
     assert (split[:, w // 4 - 1: w // 4 + 1] == 255).all()
     np.testing.assert_array_equal(split[:, w // 4 + 1:], after[:, w // 4 + 1:])
     assert np.abs(split[:, : w // 4 - 1] - after[:, : w // 4 - 1]).mean() > 5  # the photo is not the relit frame
-    np.testing.assert_array_equal(eng.read_hdr(), hdr)
+    np.testing.assert_array_equal(eng.output.read_hdr(), hdr)
     eng.release()
 
 
@@ -520,7 +520,7 @@ def test_passes_declare_what_makes_them_stale(ctx, scene):
     inputs it touches, and the passes that read them (directly or through a pass they read) run."""
     eng = make_engine(ctx, scene, soft="csm")  # the paper's CSM: the longest chain of passes
     readers = {}
-    for p in (*eng._light_passes, *eng._frame_passes):
+    for p in (*eng.stale.light_passes, *eng.stale.frame_passes):
         for what in (*p.inputs, *getattr(p, "whole_inputs", ())):
             readers.setdefault(what, set()).add(p.name)
     assert readers["direction"] == {"shadow_map", "light_pass"}
@@ -551,13 +551,13 @@ def test_contact_hardening_cache_rules(ctx, scene):
     eng = Engine(ctx, scene, EngineOptions(soft="pcss"))
     eng.set_lights(lights)
     eng.render()
-    assert eng.counters.get("csm_basis", 0) == 0 and eng.counters.get("prefilter", 0) == 0
-    start = dict(eng.counters)
+    assert eng.kit.counters.get("csm_basis", 0) == 0 and eng.kit.counters.get("prefilter", 0) == 0
+    start = dict(eng.kit.counters)
     eng.set_lights(lights.with_sigma(1, 9.0))
     eng.render()
-    assert {k: v - start.get(k, 0) for k, v in eng.counters.items() if v - start.get(k, 0)} == {
+    assert {k: v - start.get(k, 0) for k, v in eng.kit.counters.items() if v - start.get(k, 0)} == {
         "light_pass": 1, "composite": 1, "display": 1}
-    soft = eng.read_light(1)["visibility_soft"]
+    soft = eng.output.read_light(1)["visibility_soft"]
     assert np.isfinite(soft).all() and 0.0 <= soft.min() and soft.max() <= 1.0
     eng.release()
 
@@ -571,13 +571,13 @@ def test_refined_shadows_read_the_default_soft_shadows(ctx, scene):
     eng.set_lights(lights)
     eng.set_visibility("none")
     eng.render()
-    unshadowed = eng.read_hdr()
+    unshadowed = eng.output.read_hdr()
     eng.set_visibility("refined")
     shape = (2, scene.height, scene.width)
     for value, expected in ((0.0, np.zeros_like(unshadowed)), (1.0, unshadowed)):
         eng.set_refined_visibility(np.full(shape, value, np.float32))
         eng.render()
-        np.testing.assert_allclose(eng.read_hdr(), expected, atol=1e-4 * float(unshadowed.max()))
+        np.testing.assert_allclose(eng.output.read_hdr(), expected, atol=1e-4 * float(unshadowed.max()))
     eng.release()
 
 
@@ -591,7 +591,7 @@ def test_a_budgeted_render_keeps_the_last_frame_until_it_is_complete_then_matche
     eng.set_lights(lights)
     eng.render()
     assert eng.complete
-    before = eng.read_display().copy()
+    before = eng.output.read_display().copy()
     eng.set_lights(lights.rotated(70.0))
     steps = 0
     while True:
@@ -599,14 +599,14 @@ def test_a_budgeted_render_keeps_the_last_frame_until_it_is_complete_then_matche
         steps += 1
         if eng.complete:
             break
-        np.testing.assert_array_equal(eng.read_display(), before)  # not a half-updated frame
+        np.testing.assert_array_equal(eng.output.read_display(), before)  # not a half-updated frame
         assert steps < 100
     assert steps > 3
     fresh = make_engine(ctx, scene)
     fresh.set_lights(lights.rotated(70.0))
     fresh.render()
-    np.testing.assert_array_equal(eng.read_display(), fresh.read_display())
-    assert not np.array_equal(eng.read_display(), before)
+    np.testing.assert_array_equal(eng.output.read_display(), fresh.output.read_display())
+    assert not np.array_equal(eng.output.read_display(), before)
     fresh.release()
     eng.release()
 
@@ -621,10 +621,10 @@ def test_shading_views_are_exposed_for_display_not_clipped_to_white(ctx, scene):
     look = Look(background="color", exposure=1.0)
     eng.set_look(look)
     eng.render()
-    relit = eng.read_display()[scene.mask]
+    relit = eng.output.read_display()[scene.mask]
     assert (relit >= 254).all(axis=-1).mean() > 0.5  # this look is far too bright for shading alone...
     eng.set_look(look.replace(view="diffuse_shading"))
     eng.render()
-    shading = eng.read_display()[scene.mask].astype(np.float32)
+    shading = eng.output.read_display()[scene.mask].astype(np.float32)
     assert (shading >= 254).all(axis=-1).mean() < 0.01 and shading.max() > 120  # ...which shows, unclipped
     eng.release()

@@ -164,7 +164,7 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
             direction = np.array([[x, 0.3, 0.5]], np.float32)
             engine.set_lights(AreaLights(direction / np.linalg.norm(direction), np.full(1, 2.0, np.float32),
                                          np.ones((1, 3), np.float32)))
-            images.append(engine.render().read_work_hdr()[..., :3].copy())
+            images.append(engine.render().output.read_work_hdr()[..., :3].copy())
         target = np.where(patch[..., None], images[1], images[0]).astype(np.float32)
         ramp = np.clip((np.minimum(xx - 0.62 * w, 0.12 * h - np.abs(yy - h / 2)) / 3.0), 0.0, 1.0) * patch  # 0 at its edge
         surface = face.FaceSurface(scene.depth, scene.normal, ramp.astype(np.float32), patch)
@@ -175,7 +175,7 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
         for wt in (None, weight):
             lights, _ = fit_photo_lights(engine, target, scene.mask, weight=wt)
             engine.set_lights(lights)
-            fitted = engine.render().read_work_hdr()[..., :3]
+            fitted = engine.render().output.read_work_hdr()[..., :3]
             errors.append(float(np.abs(fitted[patch] - target[patch]).mean() / target[patch].mean()))
     finally:
         engine.release()

@@ -47,12 +47,12 @@ def engine(ctx, scene, lights, **look):
 
 def test_the_shadow_falls_away_from_the_sun_on_the_background_only(ctx, person):
     off = engine(ctx, person, sun_and_sky())
-    before = off.read_display().astype(int)
-    assert off.counters["ground_shadow"] == 0  # left out while not shown
+    before = off.output.read_display().astype(int)
+    assert off.kit.counters["ground_shadow"] == 0  # left out while not shown
     off.release()
     eng = engine(ctx, person, sun_and_sky(), ground=True)
-    after = eng.read_display().astype(int)
-    occ = eng.read_ground_shadow()
+    after = eng.output.read_display().astype(int)
+    occ = eng.output.read_ground_shadow()
     assert occ.shape == (64, 64, 3) and np.all(np.isfinite(occ)) and occ.min() >= 0.0 and occ.max() <= 1.0 + 1e-6
     assert occ.max() > 0.5  # the sun is most of the ground's light
     mask = person.mask
@@ -71,14 +71,14 @@ def test_the_shadow_falls_away_from_the_sun_on_the_background_only(ctx, person):
 def test_lights_below_the_ground_cast_nothing_on_it(ctx, person):
     under = AreaLights(np.array([[0.3, -0.5, 0.8]]) / np.linalg.norm([0.3, -0.5, 0.8]), np.array([1.0]), np.array([[3.0, 3.0, 3.0]]))
     eng = engine(ctx, person, under, ground=True)
-    assert np.all(eng.read_ground_shadow() == 0.0)
+    assert np.all(eng.output.read_ground_shadow() == 0.0)
     eng.release()
 
 
 def test_a_larger_light_softens_the_shadow_on_the_ground(ctx, person):
     def partial(sigma):
         eng = engine(ctx, person, AreaLights(SUN[None], np.array([sigma]), np.array([[5.0, 5.0, 5.0]])), ground=True)
-        occ = eng.read_ground_shadow()[..., 0]
+        occ = eng.output.read_ground_shadow()[..., 0]
         eng.release()
         return ((occ > 0.05) & (occ < 0.95)).sum() / max((occ > 0.05).sum(), 1)
 
@@ -89,10 +89,10 @@ def test_the_ground_is_redone_only_when_the_lights_change(ctx, person):
     eng = engine(ctx, person, sun_and_sky(), ground=True)
 
     def runs(action):
-        start = eng.counters["ground_shadow"]
+        start = eng.kit.counters["ground_shadow"]
         action()
         eng.render()
-        return eng.counters["ground_shadow"] - start
+        return eng.kit.counters["ground_shadow"] - start
 
     assert runs(lambda: relook(eng, exposure=1.0)) == 0
     assert runs(lambda: eng.set_lights(sun_and_sky().scaled(2.0))) == 1
@@ -102,7 +102,7 @@ def test_the_ground_is_redone_only_when_the_lights_change(ctx, person):
     assert runs(lambda: eng.set_look(eng.look.replace(ground=True))) == 1
     eng.set_look(eng.look.replace(shadows="none"))
     eng.render()
-    assert np.all(eng.read_ground_shadow() == 0.0)  # no shadows shown: none on the ground either
+    assert np.all(eng.output.read_ground_shadow() == 0.0)  # no shadows shown: none on the ground either
     eng.release()
 
 
@@ -115,7 +115,7 @@ def test_a_photo_frame_and_its_exr_carry_the_ground_shadow(ctx, person):
         eng = engine(ctx, sc, sun_and_sky(), ground=ground, compare=0.0)
         eng.set_look(eng.look.replace(background="photo"))
         eng.render()
-        out[ground] = (eng.read_display().astype(int), eng.read_output_hdr()[..., :3])
+        out[ground] = (eng.output.read_display().astype(int), eng.output.read_output_hdr()[..., :3])
         eng.release()
     (d0, h0), (d1, h1) = out[False], out[True]
     matte = up(person.mask)
@@ -198,7 +198,7 @@ def test_each_foot_darkens_the_ground_it_stands_on(ctx, person):
         eng.set_lights(sky)
         eng.set_look(Look(background="color", ground=True))
         eng.render()
-        occlusion[with_contact] = eng.read_ground_shadow().mean(axis=-1)
+        occlusion[with_contact] = eng.output.read_ground_shadow().mean(axis=-1)
         eng.release()
     extra = occlusion[True] - occlusion[False]
     x, y = contacts(person.mask)[0]

@@ -25,7 +25,7 @@ def test_hard_shadows_match_ray_tracing(ctx):
         eng = Engine(ctx, scene, EngineOptions(shadow_resolution=res, shadow_step=1))
         eng.set_lights(lights)
         eng.render()
-        errors[res] = weighted_error(scene, lights, [eng.read_light(i)["visibility_hard"] for i in range(len(lights))], truth)
+        errors[res] = weighted_error(scene, lights, [eng.output.read_light(i)["visibility_hard"] for i in range(len(lights))], truth)
         eng.release()
     assert errors[1024] < 0.015, errors  # measured ~0.01 (docs/engine.md, "Error against ground truth")
     assert errors[1024] < errors[256], errors  # a finer shadow map converges towards the truth

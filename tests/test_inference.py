@@ -90,8 +90,8 @@ def _own_lights_error(ctx, scene, lights):
     engine = Engine(ctx, scene, EngineOptions())
     try:
         apply_settings(engine, scene, lights, Look(exposure=0.0, background="photo"), has_environment=False)
-        hdr = engine.render().read_hdr()
-        assert engine.read_display().shape == (1302, 1950, 3)
+        hdr = engine.render().output.read_hdr()
+        assert engine.output.read_display().shape == (1302, 1950, 3)
     finally:
         engine.release()
     photo = scene.frame.photo
@@ -318,13 +318,13 @@ def test_inspection_views_keep_the_frame_size(landscape_bundle, ctx):
     eng = Engine(ctx, scene, EngineOptions())
     try:
         apply_settings(eng, scene, load_lights(out / "lights.json"), Look(exposure=0.0), has_environment=False)
-        final = eng.render().read_display()
+        final = eng.render().output.read_display()
         eng.set_view("normal")
-        normal = eng.render().read_display()
+        normal = eng.render().output.read_display()
         eng.set_view("shadow", 0)
-        assert eng.render().read_display().shape == final.shape == normal.shape == (1302, 1950, 3)
+        assert eng.render().output.read_display().shape == final.shape == normal.shape == (1302, 1950, 3)
         eng.set_view("final")
-        assert np.array_equal(eng.render().read_display(), final)
+        assert np.array_equal(eng.render().output.read_display(), final)
     finally:
         eng.release()
     sy, sx = scene.height / 1302, scene.width / 1950

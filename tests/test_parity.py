@@ -27,7 +27,7 @@ def both(ctx):
     eng = Engine(ctx, scene, opts)
     eng.set_lights(lights)
     eng.render()
-    gl = {"hdr": eng.read_hdr(), "lights": [eng.read_light(i) for i in range(len(lights))]}
+    gl = {"hdr": eng.output.read_hdr(), "lights": [eng.output.read_light(i) for i in range(len(lights))]}
     step = eng.shadow_step
     eng.release()
     with torch.no_grad():
@@ -75,7 +75,7 @@ def test_contact_hardening_parity(ctx):
     eng = Engine(ctx, scene, EngineOptions(soft="pcss", hard_sigma=0.0, skip_threshold=0.0))
     eng.set_lights(lights)
     eng.render()
-    gl = np.stack([eng.read_light(i)["visibility_soft"] for i in range(len(lights))])
+    gl = np.stack([eng.output.read_light(i)["visibility_soft"] for i in range(len(lights))])
     step = eng.shadow_step
     eng.release()
     with torch.no_grad():

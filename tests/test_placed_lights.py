@@ -82,7 +82,7 @@ def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
     assert np.allclose(lights.direction[1:], [p.direction for p in s.placed], atol=1e-6)  # not turned with the map
     assert not np.allclose(lights.direction[0], env.direction[0])  # the map's light turned
     eng = s.render()
-    assert len(eng.lights) == 3 and eng.read_hdr().max() > 0
+    assert len(eng.lights) == 3 and eng.output.read_hdr().max() > 0
     assert s.undo() and s.placed == () and s.redo() and len(s.placed) == 2
     s.release()
     json.dumps([p.__dict__ for p in s.placed])  # plain values: the state file takes them

@@ -95,7 +95,7 @@ def test_engine_against_the_reference_on_the_sample(ctx):
     eng = Engine(ctx, scene, EngineOptions())
     eng.set_lights(lights.rotated(180.0))
     eng.render()
-    hdr = eng.read_hdr()
+    hdr = eng.output.read_hdr()
     eng.release()
     inner = scene.mask & (ref["coverage"] > 0.999)
     err = np.abs(hdr - ref["full"])[inner].sum() / ref["full"][inner].sum()

@@ -25,7 +25,7 @@ def engine(ctx):
 
 def _image(eng, mode):
     eng.set_visibility(mode)
-    return eng.render().read_hdr()[..., :3].copy()
+    return eng.render().output.read_hdr()[..., :3].copy()
 
 
 def test_refined_mode_composites_the_given_visibility(engine):

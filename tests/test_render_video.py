@@ -64,7 +64,7 @@ def test_turntable_is_temporally_stable(ctx, tmp_path):
         for yaw in turntable_yaws(180.0, 360.0, 32):
             apply_settings(eng, scene, lights, Look(yaw=float(yaw), background="color"), False)
             eng.render()
-            out.append(eng.read_display().astype(np.float32) / 255.0)
+            out.append(eng.output.read_display().astype(np.float32) / 255.0)
         eng.release()
         return np.stack(out)
 

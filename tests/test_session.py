@@ -30,14 +30,14 @@ def test_session_final_and_preview(ctx):
     ref.set_environment(env)
     apply_settings(ref, scene, lights.with_sigma(0, 12.0), Look(yaw=150.0, exposure=0.5), True)
     ref.render()
-    np.testing.assert_array_equal(final.read_display(), ref.read_display())
+    np.testing.assert_array_equal(final.output.read_display(), ref.output.read_display())
     ref.release()
     preview = s.render(preview=True)
     assert preview is not final and preview.scene.width == PREVIEW_SIZE
-    assert preview.counters["csm_basis"] == 0 and preview.counters["shadow_map"] > 0  # hard shadows while dragging
+    assert preview.kit.counters["csm_basis"] == 0 and preview.kit.counters["shadow_map"] > 0  # hard shadows while dragging
     # shading and inspection views and switches go to the same engines
     s.update(view="albedo")
-    shown = s.render().read_display()
+    shown = s.render().output.read_display()
     m = scene.mask
     assert np.abs(shown[m].astype(np.float32) / 255 - np.clip(scene.albedo[m], 0, 1) ** (1 / 2.2)).mean() < 0.02
     # new lights (another map): the sliders restart from their sigmas, a shadow view of a light
@@ -84,15 +84,15 @@ def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
     s.wake = lambda: woken.append(1)
     s._refiner = Refiner(tiny_networks / "refine.safetensors")
     s.update(shadows="refined")
-    soft_shown = s.render().read_hdr().copy()
+    soft_shown = s.render().output.read_hdr().copy()
     assert s.refining and not s.final.refined_current
     preview = s.render(preview=True)
-    assert preview.counters["csm_basis"] == 0  # hard shadows while dragging, no refinement
+    assert preview.kit.counters["csm_basis"] == 0  # hard shadows while dragging, no refinement
     deadline = time.time() + 60
     while not s.refine_job.done and time.time() < deadline:
         time.sleep(0.05)
     assert woken and s.poll_refinement() and s.final.refined_current
-    refined = s.render().read_hdr()
+    refined = s.render().output.read_hdr()
     assert np.all(np.isfinite(refined)) and not np.array_equal(refined, soft_shown)
     # a job for a lighting that has since moved is dropped; the new lighting gets its own
     s.update(yaw=40.0)

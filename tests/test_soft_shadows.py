@@ -48,9 +48,9 @@ def test_extreme_lights_stay_finite_and_bounded(ctx):
     eng.set_lights(AreaLights(dirs, [0.0, 1e-3, MAX_SIGMA, 10.0, 10.0], np.ones((5, 3), np.float32)))
     eng.render()
     for i in range(5):
-        v = eng.read_light(i)["visibility_soft"]
+        v = eng.output.read_light(i)["visibility_soft"]
         assert np.isfinite(v).all() and v.min() >= 0.0 and v.max() <= 1.0
-    assert np.isfinite(eng.read_hdr()).all()
+    assert np.isfinite(eng.output.read_hdr()).all()
     eng.release()
 
 
@@ -65,7 +65,7 @@ def test_a_sharp_shadows_edge_is_filtered_not_a_staircase(ctx):
     eng = Engine(ctx, scene, EngineOptions(soft="pcss", shadow_step=1, shadow_resolution=128))
     eng.set_lights(AreaLights(np.array([LIGHT], np.float32), [0.2], np.ones((1, 3), np.float32)))
     eng.render()
-    out = eng.read_light(0)
+    out = eng.output.read_light(0)
     soft, hard = out["visibility_soft"], out["visibility_hard"]
     eng.release()
     assert set(np.unique(hard)) <= {0.0, 1.0}

@@ -30,7 +30,7 @@ def test_the_light_size_widens_the_highlight_as_the_ray_tracer_does(ctx, roughne
         eng = Engine(ctx, scene, EngineOptions(leave_out=False))
         eng.set_lights(AreaLights(LIGHT[None].astype(np.float32), [sigma], [intensity]))
         eng.render()
-        img = eng.read_hdr().mean(axis=-1)[scene.mask]
+        img = eng.output.read_hdr().mean(axis=-1)[scene.mask]
         eng.release()
         error[name] = np.sqrt(np.mean((img - truth) ** 2) / np.mean(truth ** 2))
         peak[name], total[name] = img.max() / truth.max(), img.sum() / truth.sum()

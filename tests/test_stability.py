@@ -23,12 +23,12 @@ EXTREME_LIGHTS = AreaLights(
 
 
 def check_outputs(eng, n):
-    hdr = eng.read_hdr()
+    hdr = eng.output.read_hdr()
     assert np.isfinite(hdr).all() and hdr.min() >= 0.0
-    disp = eng.read_display()
+    disp = eng.output.read_display()
     assert disp.dtype == np.uint8
     for i in range(n):
-        out = eng.read_light(i)
+        out = eng.output.read_light(i)
         for name, v in out.items():
             assert np.isfinite(v).all(), name
         for name in ("visibility_soft", "visibility_hard"):
@@ -84,13 +84,13 @@ def test_white_lambertian_plane_never_exceeds_analytic_value(ctx):
         for sigma in (0.0, 20.0):
             eng.set_lights(AreaLights(d[None], [sigma], [[1, 1, 1]]))
             eng.render()
-            hdr = eng.read_hdr()
+            hdr = eng.output.read_hdr()
             analytic = max(float(d[2]), 0.0) / np.pi
             assert hdr.max() <= analytic * (1 + 1e-6) + 1e-9, (d, sigma)
     for sigma in (0.0, 20.0):  # a lone flat plane facing the light is fully lit, hard or soft
         eng.set_lights(AreaLights(dirs[:1], [sigma], [[1, 1, 1]]))
         eng.render()
-        np.testing.assert_allclose(eng.read_hdr(), 1 / np.pi, rtol=1e-6)
+        np.testing.assert_allclose(eng.output.read_hdr(), 1 / np.pi, rtol=1e-6)
     eng.release()
 
 
@@ -99,6 +99,6 @@ def test_huge_image(ctx):
     eng = Engine(ctx, sc, EngineOptions(shadow_resolution=256))
     eng.set_lights(EXTREME_LIGHTS)
     eng.render()
-    hdr = eng.read_hdr()
+    hdr = eng.output.read_hdr()
     assert np.isfinite(hdr).all() and hdr.max() > 0
     eng.release()

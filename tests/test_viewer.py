@@ -131,7 +131,7 @@ def render_hdr(headless, yaw, lights=None):
     scene, base, engine = headless
     apply_settings(engine, scene, lights or base, Look(yaw=yaw), True)
     engine.render()
-    return engine.read_output_hdr()[..., :3]  # what a saved frame's EXR holds: the display's HDR, background included
+    return engine.output.read_output_hdr()[..., :3]  # what a saved frame's EXR holds: the display's HDR, background included
 
 
 def rel_l1(a, b):
@@ -226,7 +226,7 @@ def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
     def penumbra(lights):
         """Pixels facing the light (away from its terminator) that are partly shadowed."""
         render_hdr(headless, FIRST_YAW, lights)
-        out = engine.read_light(k)
+        out = engine.output.read_light(k)
         facing = out["diffuse"] > 0.05
         vis = out["visibility_soft"][facing]
         return int(((vis > 0.05) & (vis < 0.95)).sum())
@@ -422,11 +422,11 @@ def test_record_a_turn(viewer_factory, headless):
     # the first frame is the current view (H.264 is lossy: compare loosely)
     scene, base, engine = headless
     render_hdr(headless, FIRST_YAW)
-    first = engine.read_display().astype(np.float32)
+    first = engine.output.read_display().astype(np.float32)
     assert np.abs(frames[0].astype(np.float32) - first).mean() < 3.0
     # and the turn is a turn: the last frame is 330 degrees on
     render_hdr(headless, FIRST_YAW + 330.0)
-    assert np.abs(frames[-1].astype(np.float32) - engine.read_display()).mean() < 3.0
+    assert np.abs(frames[-1].astype(np.float32) - engine.output.read_display()).mean() < 3.0
     assert v.state()["look"]["yaw"] == pytest.approx(FIRST_YAW)  # back where the user was
     # R records what the user does until R again, then renders it at the video's rate: the video
     # lasts as long as the interaction did, however slow a full-quality frame is
@@ -512,7 +512,7 @@ def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, 
     yaw = saved["look"]["yaw"]  # the saved lights are turned by the look's yaw (tilt 0)
     apply_settings(engine, scene, lights.rotated(-yaw), Look(yaw=yaw), True)
     engine.render()
-    expected = engine.read_output_hdr()[..., :3]
+    expected = engine.output.read_output_hdr()[..., :3]
     engine.release()
     assert rel_l1(read_exr(shot.with_suffix(".exr")), expected) < 1e-3
     assert v.quit() == 0

@@ -32,7 +32,7 @@ eng = Engine(ctx, plane_and_box(48), EngineOptions(shadow_resolution=128, shadow
 d = np.array([[0.3, 0.4, 1.0]], np.float32); d /= np.linalg.norm(d)
 eng.set_lights(AreaLights(d, [4.0], [[1, 1, 1]]))
 eng.render()
-np.save(sys.argv[2], eng.read_hdr())
+np.save(sys.argv[2], eng.output.read_hdr())
 glfw.terminate()
 """
 
@@ -51,5 +51,5 @@ def test_engine_in_glfw_context_matches_headless(ctx, tmp_path):
     d /= np.linalg.norm(d)
     eng.set_lights(AreaLights(d, [4.0], [[1, 1, 1]]))
     eng.render()
-    np.testing.assert_allclose(np.load(out), eng.read_hdr(), atol=1e-6)
+    np.testing.assert_allclose(np.load(out), eng.output.read_hdr(), atol=1e-6)
     eng.release()

@@ -49,8 +49,8 @@ class Actions:
         """The current state at full quality: display PNG, HDR EXR and a JSON of lights and look."""
         eng = self.app.session.render(preview=False)
         stem = self._capture_stem()
-        png = write_png(stem.with_suffix(".png"), eng.read_display().astype(np.float32) / 255.0)
-        write_exr(stem.with_suffix(".exr"), eng.read_output_hdr()[..., :3])
+        png = write_png(stem.with_suffix(".png"), eng.output.read_display().astype(np.float32) / 255.0)
+        write_exr(stem.with_suffix(".exr"), eng.output.read_output_hdr()[..., :3])
         state = {"look": look_json(self.app), "map": str(self.app.env_path) if self.app.env_path else None, "preset": self.app.preset}
         state["lights"] = self.app.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
         state["rig"] = [asdict(p) for p in self.app.session.placed]
@@ -94,7 +94,7 @@ class Actions:
         while not rec.finished:
             self.apply_moment(rec.moment(rec.done))
             self.app.session.render()
-            rec.add(self.app.session.final.read_display())
+            rec.add(self.app.session.final.output.read_display())
 
     def finish_recording(self, stopped: bool = False):
         rec, self.app.recording = self.app.recording, None

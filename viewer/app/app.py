@@ -178,11 +178,11 @@ class ViewerApp:
         switching = self.switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
         preview = (moving or adjusting) and (rec is None or capturing) and not switching
         rendered = s.preview if preview else s.final
-        before = sum(rendered.counters.values())
+        before = sum(rendered.kit.counters.values())
         budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching else None  # what the frame has left
         expose = switching and self._expose_pending  # auto exposure from the new HDR, before its frame is drawn
         eng = s.render(preview=preview, hard=moving, budget=budget, display=not expose)
-        worked = sum(rendered.counters.values()) != before
+        worked = sum(rendered.kit.counters.values()) != before
         if expose and rendered.composited:
             self._expose_pending = False
             e = self._auto_value = photo_exposure(rendered, s.scene, s.look.tonemap)
@@ -192,7 +192,7 @@ class ViewerApp:
             return eng, "load"  # the last complete frame stays on screen while the rest is done
         if rec is not None and not capturing:
             try:
-                rec.add(eng.read_display())
+                rec.add(eng.output.read_display())
             except Exception as exc:
                 self.actions.report(f"recording {rec.path} failed", exc)
                 self.recording = None

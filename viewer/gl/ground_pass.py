@@ -77,7 +77,10 @@ class GroundShadowPass:
             try:
                 for g in range(0, len(lights), LIGHTS_PER_PASS):
                     group = lights[g:g + LIGHTS_PER_PASS]
-                    modes = [l.pass_mode if l.active else PASS_OFF for l in group]
+                    # the shadows shown: a light pass that also holds the soft visibility (Engine.render's
+                    # soft_planes) casts hard shadows on the ground when hard shadows are shown
+                    modes = [PASS_OFF if not l.active else PASS_HARD if shadows == "hard" and l.pass_mode == PASS_SOFT
+                             else l.pass_mode for l in group]
                     if not any(m in (PASS_HARD, PASS_SOFT) for m in modes):
                         continue  # no shadows from these lights (or none shown)
                     self.light_pass.bind_lights(prog, group, modes, self.scene.positions)

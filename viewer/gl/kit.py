@@ -1,5 +1,5 @@
 """What every pass of the engine shares: the GL context, its compiled programs, texture creation,
-the full-screen draw, and the pass counters and timings (``Engine.counters``, ``Engine.timings``)."""
+the full-screen draw, and the pass counters and timings (``Engine.kit``)."""
 
 from __future__ import annotations
 

@@ -63,6 +63,15 @@ class Light:
         self.work.clear()
 
 
+def frame_lights(lights: list[Light], resources, resolution: int, terms: int):
+    """Each light's shadow frame and facing (its best n.l over the person), after it turned;
+    ``resources``: the scene's :class:`viewer.gl.scene_resources.SceneResources`."""
+    dirs = np.array([l.direction for l in lights])
+    frames = ss.light_frames(resources.caster_points, dirs, resolution, terms, sphere=resources.sphere)
+    for l, frame, f in zip(lights, frames, resources.facing(dirs)):
+        l.frame, l.facing = frame, max(float(f), 0.0)
+
+
 def update_activity(lights: list[Light], response_bound: float, diffuse_bound: float, leave_out: bool,
                     skip_threshold: float) -> bool:
     """Which lights take part: a light is skipped when even its upper bound (diffuse + specular

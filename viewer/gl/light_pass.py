@@ -68,12 +68,19 @@ class RefinedVisibility:
         self.planes: list = []
         self.current = False
 
-    def write(self, lights: list[Light], visibility: np.ndarray, size):
+    def set(self, lights: list[Light], visibility: np.ndarray, shape: tuple[int, int], size):
+        """The network's visibility (N, H, W) of ``lights`` over the maps' ``shape`` (H, W), written
+        into planes of the light atlas's ``size``; values clipped to [0, 1], non-finite refused."""
+        vis = np.asarray(visibility, np.float32)
+        if vis.shape != (len(lights), *shape):
+            raise ValueError(f"refined visibility must be ({len(lights)}, {shape[0]}, {shape[1]}), got {vis.shape}")
+        if not np.all(np.isfinite(vis)):
+            raise ValueError("refined visibility has NaN or Inf values")
         if not self.planes or self.planes[0].size != size:
             self.release()
             self.planes = [self.kit.texture(size, 1) for _ in range(LIGHTS_PER_PASS)]
         x, y, bw, bh = self.mask_box
-        for l, v in zip(lights, visibility):
+        for l, v in zip(lights, vis):
             tile = np.ascontiguousarray(np.clip(v[y:y + bh, x:x + bw], 0.0, 1.0))
             self.planes[l.slot].write(tile.tobytes(), viewport=(l.tile[0], l.tile[1], bw, bh))
         self.current = True

@@ -1,21 +1,22 @@
-"""Reading the engine's outputs back: the display image, the HDR (work and frame resolution), the
-frame's shading sums, each light's planes, shadow map and filtered basis. A mixin of
-:class:`viewer.gl.engine.Engine` (which keeps the passes these read), so the engine's own module is
-the scheduler alone."""
+"""Reading the engine's outputs back (``Engine.output``): the display image, the HDR (work and frame
+resolution), the frame's shading sums, each light's planes and filtered basis, the ground's shadow.
+An object handed the passes and textures it reads when the engine is made, so the engine's own
+module is the scheduler alone."""
 
 from __future__ import annotations
 
 import functools
 
-import moderngl
 import numpy as np
 
 from .context import make_current
+from .kit import PassKit
 from .light import PASS_OFF
 
 
 def in_context(method):
-    """Runs an engine method with the engine's GL context current (see :func:`make_current`)."""
+    """Runs a method of an object with a ``ctx`` (the engine, its read-back) with that GL context
+    current (see :func:`make_current`)."""
 
     @functools.wraps(method)
     def run(self, *args, **kwargs):
@@ -25,25 +26,24 @@ def in_context(method):
     return run
 
 
-class EngineOutputs:
-    """The read-back half of the engine's interface (after ``render``)."""
+class Readback:
+    """The read-back half of the engine's interface (after ``Engine.render``). ``shape``: the
+    maps' (H, W); ``lights()`` gives
+    the engine's lights, ``picture_inputs()`` what its picture draws from now, and
+    ``soft_is_hard(light)`` whether a light's soft visibility is its hard one."""
 
-    @property
-    def display(self) -> moderngl.Texture:
-        """The display image shown and saved: at the output frame's resolution for a scene with a
-        frame layer (the inspection views too), else at the maps'."""
-        return self.picture.last.image
+    def __init__(self, kit: PassKit, picture, composite_pass, ground_pass, atlas, resources, csm_basis_pass, terms: int,
+                 shape: tuple[int, int], lights, picture_inputs, soft_is_hard):
+        self.ctx, self.kit, self.picture, self.shape = kit.ctx, kit, picture, shape
+        self.composite_pass, self.ground_pass, self.atlas, self.resources = composite_pass, ground_pass, atlas, resources
+        self.csm_basis_pass, self.terms = csm_basis_pass, terms
+        self._lights, self._picture_inputs, self._soft_is_hard = lights, picture_inputs, soft_is_hard
 
     @in_context
     def read_ground_shadow(self) -> np.ndarray:
         """(h, w, 3) float32 at half the maps' resolution: the share of the ground plane's light the
         person takes away (``Look.ground``; zero until the ground is shown)."""
         return self.ground_pass.read()
-
-    @property
-    def output_size(self) -> tuple[int, int]:
-        """(width, height) of :attr:`display` and :meth:`read_hdr`."""
-        return self.display.size
 
     @in_context
     def read_hdr(self) -> np.ndarray:
@@ -71,13 +71,13 @@ class EngineOutputs:
     @in_context
     def read_display(self) -> np.ndarray:
         """(H, W, 3) uint8 sRGB display image."""
-        return self.kit.read(self.display, 4, dtype="f1")[..., :3]
+        return self.kit.read(self.picture.last.image, 4, dtype="f1")[..., :3]
 
     @in_context
     def read_display_rgba(self) -> np.ndarray:
         """(H, W, 4) uint8: the display image and its alpha (the coverage for the transparent
         background, 255 otherwise)."""
-        return self.kit.read(self.display, 4, dtype="f1")
+        return self.kit.read(self.picture.last.image, 4, dtype="f1")
 
     @in_context
     def read_output_hdr(self) -> np.ndarray:
@@ -90,8 +90,8 @@ class EngineOutputs:
     def read_light(self, index: int) -> dict:
         """Per-light intermediate outputs (H, W) each: soft and hard visibility, diffuse and
         specular shading per unit intensity. All zero for a skipped light and outside the mask."""
-        l = self._lights[index]
-        full = np.zeros((self.scene.height, self.scene.width, 4), np.float32)
+        l = self._lights()[index]
+        full = np.zeros((*self.shape, 4), np.float32)
         if l.active and l.pass_mode != PASS_OFF:
             x, y, bw, bh = self.resources.mask_box
             full[y:y + bh, x:x + bw] = self.atlas.read_tile(l)
@@ -102,7 +102,7 @@ class EngineOutputs:
         """A light's pre-filtered CSM basis, (2 M, n, n): cos and sin of c_k z for k = 0 .. M-1, at
         the blur plan's mip level (n = shadow resolution / 2^L). Raises for a light whose soft
         visibility is its hard one (sigma ~ 0) or that contributes nothing."""
-        l = self._lights[index]
+        l = self._lights()[index]
         if not l.active or l.filtered is None or l.stale & {"shadow_map", "csm_basis"} or l.plan is None \
                 or self._soft_is_hard(l):
             raise ValueError(f"light {index} has no current filtered basis (skipped, or sigma ~ 0)")
@@ -111,4 +111,4 @@ class EngineOutputs:
         n_tex = self.csm_basis_pass.n_tex
         tiles = [atlas[:, t * n:(t + 1) * n] for t in range(n_tex)]
         maps = [tile[..., c] for tile in tiles for c in range(4)]
-        return np.stack(maps[:2 * self.options.terms])
+        return np.stack(maps[:2 * self.terms])

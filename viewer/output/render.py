@@ -35,7 +35,7 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
 
     if scene.photo is None:
         return 0.0
-    relit = luminance(engine.read_work_hdr()[scene.mask])
+    relit = luminance(engine.output.read_work_hdr()[scene.mask])
     shown = luminance(scene.photo[scene.mask])
     r, p = float(np.median(relit)), float(np.median(shown))
     if not (r > 0 and p > 0):
@@ -60,7 +60,7 @@ def warn_if_white(engine, scene: Scene, settings: Look) -> None:
 
     if not scene.mask.any():
         return
-    lum = luminance(engine.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
+    lum = luminance(engine.output.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
     if np.mean(tonemap_curve(lum, settings.tonemap) >= 0.99) < WHITE_SHARE:
         return
     stops = float(np.log2(max(np.median(lum), 1e-30) / 0.18))
@@ -92,19 +92,20 @@ def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has
     engine.set_look(replace(settings.fitted(len(turned)), background=effective_background(settings, scene, has_environment)))
 
 
-def resolve_exposure(engine, scene: Scene, settings: Look) -> Look:
+def resolve_exposure(engine, scene: Scene, settings: Look, soft_planes: bool = False) -> Look:
     """``settings`` with an "auto" exposure replaced by :func:`photo_exposure` of a render of
-    them (renders once)."""
+    them up to the display (which the exposure changes alone)."""
     if settings.exposure != AUTO:
         return settings
-    engine.render()
+    engine.render(display=False, soft_planes=soft_planes)
     return replace(settings, exposure=photo_exposure(engine, scene, settings.tonemap))
 
 
-def render_frame(engine, settings: Look, refiner=None):
+def render_frame(engine, settings: Look, refiner=None, soft_planes: bool = False):
     """Render; in the refined shadow mode, also run the refinement network for these lights (once
-    per lighting: ``refiner`` is a :class:`viewer.photo.refinement.Refiner`, made on first need)."""
-    engine.render()
+    per lighting: ``refiner`` is a :class:`viewer.photo.refinement.Refiner`, made on first need).
+    ``soft_planes``: see ``Engine.render``."""
+    engine.render(soft_planes=soft_planes)
     if settings.shadows == "refined" and not engine.refined_current:
         from ..photo.refinement import Refiner, refine_engine
 
@@ -115,16 +116,17 @@ def render_frame(engine, settings: Look, refiner=None):
 
 
 def render_look(engine, scene: Scene, lights: AreaLights, settings: Look, environment: np.ndarray | None = None,
-                fixed: AreaLights | None = None, refiner=None) -> tuple[Look, object]:
+                fixed: AreaLights | None = None, refiner=None, soft_planes: bool = False) -> tuple[Look, object]:
     """Render ``scene`` under ``lights`` (the map's, turned; the ``fixed`` placed lights) with the
     look ``settings``, the map ``environment`` behind (None: none given); returns (the look with an
-    "auto" exposure resolved, the refiner :func:`render_frame` used)."""
+    "auto" exposure resolved, the refiner :func:`render_frame` used). ``soft_planes``: see
+    ``Engine.render``."""
     if environment is not None:
         engine.set_environment(environment)
     apply_settings(engine, scene, lights, settings, environment is not None, fixed)
-    settings = resolve_exposure(engine, scene, settings)
+    settings = resolve_exposure(engine, scene, settings, soft_planes)
     apply_settings(engine, scene, lights, settings, environment is not None, fixed)
-    return settings, render_frame(engine, settings, refiner)
+    return settings, render_frame(engine, settings, refiner, soft_planes)
 
 
 def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str, settings: Look,
@@ -133,21 +135,17 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     """Render and write ``name.png`` (display; ``png_name``: the name as the user typed it, its case
     kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, see :func:`apply_settings`)."""
     out_dir = Path(out_dir)
-    settings, _ = render_look(engine, scene, lights, settings, environment, fixed)
+    settings, _ = render_look(engine, scene, lights, settings, environment, fixed, soft_planes=passes)
     warn_if_white(engine, scene, settings)
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
-    display = (engine.read_display_rgba() if transparent else engine.read_display()).astype(np.float32) / 255.0
-    hdr = engine.read_output_hdr()
+    display = (engine.output.read_display_rgba() if transparent else engine.output.read_display()).astype(np.float32) / 255.0
+    hdr = engine.output.read_output_hdr()
     written = [out_dir / (png_name or f"{name}.png"), out_dir / f"{name}.exr"]
     with atomic_paths(*written) as (png, exr):  # both replaced together, or neither
         write_png(png, display)
         write_exr(exr, hdr if transparent else hdr[..., :3])
-    if passes:
-        if settings.shadows not in ("soft", "refined"):  # the sheet shows both visibilities: compute the soft one too
-            engine.set_visibility("soft")
-            engine.render()
+    if passes:  # the sheet shows both visibilities: rendered with the soft one whatever the shadows shown
         written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene, display)))
-        engine.set_visibility(settings.shadows)
     return written
 
 
@@ -179,7 +177,7 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
             refiner = render_frame(engine, settings, refiner)
             if i == 0:
                 warn_if_white(engine, scene, settings)
-            video.write(engine.read_display())
+            video.write(engine.output.read_display())
             if progress is not None:
                 progress(i + 1, frames)
     return video.encoded_size
@@ -196,7 +194,7 @@ def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
     hard = np.zeros(m.shape, np.float32)
     shade = np.zeros(m.shape, np.float32)
     for i in range(n):
-        out = engine.read_light(i)
+        out = engine.output.read_light(i)
         s = weights[i] * (out["diffuse"] + out["specular"])
         soft += s * out["visibility_soft"]
         hard += s * out["visibility_hard"]

@@ -351,9 +351,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
         stage("fit the photo's lights")
         engine.set_lights(lights)
-        explained = engine.render().read_work_hdr()
+        explained = engine.render().output.read_work_hdr()
         fit["psnr_db"] = fit_psnr(explained, target, valid)
-        diffuse, specular = engine.read_frame_shading()
+        diffuse, specular = engine.output.read_frame_shading()
     finally:
         if engine is not None:
             engine.release()

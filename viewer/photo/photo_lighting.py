@@ -72,7 +72,7 @@ def basis_images(engine, lights: AreaLights, pixels: tuple[np.ndarray, np.ndarra
     albedo = engine.scene.albedo[pixels]
     out = np.zeros((len(lights), pixels[0].size, 3), np.float32)
     for i in range(len(lights)):
-        r = engine.read_light(i)
+        r = engine.output.read_light(i)
         v = r["visibility_soft"][pixels]
         out[i] = v[:, None] * (albedo * r["diffuse"][pixels][:, None] + r["specular"][pixels][:, None])
     return out

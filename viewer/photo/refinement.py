@@ -64,7 +64,7 @@ class Refiner:
 def light_visibility(engine) -> tuple[np.ndarray, np.ndarray]:
     """(hard, soft) visibility (N, H, W) of the engine's current lights (rendered first)."""
     engine.render()
-    data = [engine.read_light(i) for i in range(len(engine.lights))]
+    data = [engine.output.read_light(i) for i in range(len(engine.lights))]
     return (np.stack([d["visibility_hard"] for d in data]), np.stack([d["visibility_soft"] for d in data]))
 
 

@@ -67,7 +67,7 @@ def penumbra_widths(ctx, config: ContactConfig = ContactConfig(), methods=METHOD
             try:
                 eng.set_lights(AreaLights(LIGHT[None].astype(np.float32), [SIGMA], [[1.0, 1.0, 1.0]]))
                 eng.render()
-                v = eng.read_light(0)["visibility_hard" if method == "hard" else "visibility_soft"]
+                v = eng.output.read_light(0)["visibility_hard" if method == "hard" else "visibility_soft"]
             finally:
                 eng.release()
             out[method].append(penumbra(v, box))

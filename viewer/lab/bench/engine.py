@@ -63,12 +63,12 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
         per_pass: dict[str, list[float]] = {}
         totals, profiled = [], []
         for i in range(2 * repeats):  # alternate: plain frames (total) and profiled frames (per pass)
-            engine.profile = i % 2 == 1
-            for v in engine.timings.values():
+            engine.kit.profile = i % 2 == 1
+            for v in engine.kit.timings.values():
                 v.clear()
-            (profiled if engine.profile else totals).append(frame_seconds(engine, ctx, make(i)))
-            if engine.profile:
-                for name, ts in engine.timings.items():
+            (profiled if engine.kit.profile else totals).append(frame_seconds(engine, ctx, make(i)))
+            if engine.kit.profile:
+                for name, ts in engine.kit.timings.items():
                     per_pass.setdefault(name, []).append(sum(ts))
         results[kind] = {"total_ms": _median_ms(totals), "profiled_total_ms": _median_ms(profiled),
                          "passes_ms": {k: _median_ms(v) for k, v in per_pass.items()}}
@@ -155,7 +155,7 @@ def _slider_effect(ctx, scene) -> dict:
         for sigma in SLIDER:
             engine.set_lights(lights.with_sigma(k, sigma))
             engine.render()
-            shown.append(engine.read_display().astype(np.float64))  # uint8 sRGB
+            shown.append(engine.output.read_display().astype(np.float64))  # uint8 sRGB
         engine.release()
         d = np.abs(shown[1] - shown[0])[scene.mask]
         out[label] = {"mean": float(d.mean()), "p99": float(np.percentile(d, 99)), "changed_over_2": float((d.max(axis=-1) > 2).mean())}

@@ -89,15 +89,15 @@ def engine_ratio(ctx, scene, lights: AreaLights, method: str, repeats: int) -> t
         look = Look(background="color", shadows="hard" if method == "hard" else "soft", ground=True)
         eng.set_look(look)
         eng.render()
-        occ = eng.read_ground_shadow().mean(axis=-1)
+        occ = eng.output.read_ground_shadow().mean(axis=-1)
         times = []
         for _ in range(repeats):  # the ground alone: off and on again redoes only the ground pass and the display
             eng.set_look(look.replace(ground=False))
             eng.render()
-            eng.timings.clear()
+            eng.kit.timings.clear()
             eng.set_look(look)
             eng.render()
-            times.append(1000.0 * sum(eng.timings["ground_shadow"]))
+            times.append(1000.0 * sum(eng.kit.timings["ground_shadow"]))
     finally:
         eng.release()
     left = 1.0 - cv2.resize(occ, (scene.width, scene.height), interpolation=cv2.INTER_LINEAR)

@@ -126,7 +126,7 @@ class Renderer:
             return out.image.numpy().astype(np.float32)
         self.engine.set_lights(self._lights(lights))
         self.engine.render()
-        return self.engine.read_work_hdr().copy()  # the maps' resolution, as the reference (a photo's frame is larger)
+        return self.engine.output.read_work_hdr().copy()  # the maps' resolution, as the reference (a photo's frame is larger)
 
     def times(self, lights: AreaLights | None, env, repeats: int) -> tuple[list[float], list[float]]:
         """(full frame seconds, update seconds) measured ``repeats`` times each under this lighting."""

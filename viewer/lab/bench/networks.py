@@ -64,7 +64,7 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
                 eng.set_visibility(mode)
                 eng.set_view(view)
                 render_frame(eng, Look(shadows=mode), refiner)
-                out[label, view] = eng.read_hdr()[..., :3].copy()
+                out[label, view] = eng.output.read_hdr()[..., :3].copy()
         finally:
             eng.release()
     return out

@@ -104,8 +104,8 @@ def _render(engine, scene, lights, settings, env_pixels, frame_size) -> tuple[np
     """(display (H, W, 3) in [0, 1], person HDR (H, W, 3)) at the frame's size (a scene without a
     frame layer renders at its maps' size and is upsampled, as its output would be shown)."""
     render_look(engine, scene, lights, settings, env_pixels)
-    display = engine.read_display().astype(np.float32) / 255.0
-    hdr = engine.read_hdr()
+    display = engine.output.read_display().astype(np.float32) / 255.0
+    hdr = engine.output.read_hdr()
     return resize(display, frame_size), resize(hdr, frame_size)
 
 
@@ -159,7 +159,7 @@ def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, di
     eng = Engine(ctx, base, EngineOptions())
     try:
         eng.set_lights(result["network_lights"])
-        row["explains_photo"]["network"] = _psnr_ssim(eng.render().read_work_hdr(), target, valid)
+        row["explains_photo"]["network"] = _psnr_ssim(eng.render().output.read_work_hdr(), target, valid)
     finally:
         eng.release()
     if progress is not None:
@@ -218,7 +218,7 @@ def transparent_render(ctx, scene, specular: bool = True) -> np.ndarray:
         look = Look(exposure=0.0, background="transparent", ground=False, specular=specular)
         apply_settings(eng, scene, neutral_lights(), look, False)
         eng.render()
-        hdr = eng.read_output_hdr()
+        hdr = eng.output.read_output_hdr()
         alpha = hdr[..., 3:]
         return np.concatenate([hdr[..., :3] / np.maximum(alpha, 1e-6), alpha], axis=-1)
     finally:
@@ -254,7 +254,7 @@ def _own_lights(eng, scene, lights) -> dict:
     """The output relit under the photo's own fitted lights against the photo, over the solid
     matte (alpha > 0.99): PSNR (display sRGB) and mean relative error (linear)."""
     apply_settings(eng, scene, lights, Look(exposure=0.0, background="photo"), False)
-    hdr = eng.render().read_hdr()
+    hdr = eng.render().output.read_hdr()
     m = scene.frame.alpha > 0.99
     a, b = np.clip(linear_to_srgb(hdr[m]), 0, 1), np.clip(linear_to_srgb(scene.frame.photo[m]), 0, 1)
     return {"psnr_db": float(10 * np.log10(1.0 / max(float(np.mean((a - b) ** 2)), 1e-12))),
@@ -272,7 +272,7 @@ def _frame_times(eng, lights, env_lights) -> dict:
         state["yaw"] += 7.0
         eng.set_lights(lights.rotated(state["yaw"]))
         eng.render()
-        eng.read_display()
+        eng.output.read_display()
 
     def intensity():
         state["k"] += 1
@@ -330,7 +330,7 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
                 eng = Engine(ctx, sc, EngineOptions())
                 try:
                     apply_settings(eng, sc, lights, Look(exposure=0.0, shadows="soft", background="color"), False)
-                    relit = resize(eng.render().read_hdr(), (truth.shape[1], truth.shape[0]))
+                    relit = resize(eng.render().output.read_hdr(), (truth.shape[1], truth.shape[0]))
                 finally:
                     eng.release()
                 rows[method].append(metrics(s_t * relit, truth, tm, flip=True))

@@ -36,7 +36,7 @@ def _frame_ms(engine, ctx, lights: AreaLights, repeats: int) -> float:
 def _visibilities(engine, lights: AreaLights, channel: str) -> list[np.ndarray]:
     engine.set_lights(lights)
     engine.render()
-    return [engine.read_light(i)[channel] for i in range(len(lights))]
+    return [engine.output.read_light(i)[channel] for i in range(len(lights))]
 
 
 def weighted_error(scene, lights: AreaLights, vis, ref) -> float:

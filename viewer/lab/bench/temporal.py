@@ -43,7 +43,7 @@ def _turn(ctx, scene, lights, options, visibility):
         eng.render()
         ctx.finish()
         times.append(time.perf_counter() - t)
-        frames.append(eng.read_display().astype(np.float32) / 255.0)
+        frames.append(eng.output.read_display().astype(np.float32) / 255.0)
     eng.release()
     return np.stack(frames), float(np.median(times) * 1000)
 

@@ -62,7 +62,7 @@ def render(engine, scene, lighting, shadows: str, exposure=None) -> tuple[np.nda
     env, lights, fixed, yaw = lighting
     look = Look(exposure="auto" if exposure is None else exposure, shadows=shadows, yaw=yaw, background="transparent")
     look, _ = render_look(engine, scene, lights, look, env, fixed)
-    return engine.read_display_rgba().astype(np.float32) / 255.0, look.exposure_stops
+    return engine.output.read_display_rgba().astype(np.float32) / 255.0, look.exposure_stops
 
 
 def _times(engine, lighting, repeats: int) -> dict:
