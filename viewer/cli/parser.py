@@ -5,68 +5,13 @@ from __future__ import annotations
 
 import argparse
 
+from .batch_command import add_batch_parser
 from .commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
+from .options import add_engine_args, add_view_args, auto_or
 from ..lighting.lightfit import DEFAULT_METHOD, METHODS
 
 
 COMMAND_GROUP = "relight.commands"
-
-
-def add_engine_args(p):
-    from ..presets import DEFAULT_PRESET, PRESETS
-    from ..shadow_space import SOFT_METHODS
-
-    p.add_argument("--preset", choices=tuple(PRESETS),
-                   help=f"quality preset: lights and engine options from docs/results.md (default {DEFAULT_PRESET}); "
-                        "the options below override its values")
-    p.add_argument("--soft", choices=SOFT_METHODS,
-                   help="soft shadows: contact-hardening (pcss, the presets') or the paper's convolutional shadow maps (csm)")
-    p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
-    p.add_argument("--shadow-step", type=int, help="depth-mesh decimation for shadow maps (0 = auto, the presets' choice)")
-    p.add_argument("--terms", type=int, help="with --soft csm: Fourier terms M, 2M basis maps (default 4)")
-    p.add_argument("--prefilter", choices=("pyramid", "exact"), help="with --soft csm: pre-filtering (default pyramid)")
-
-
-def auto_or(unit: str):
-    """An option's parser: "auto" or a number of ``unit`` (its range is the look's to check, viewer.settings.Look)."""
-    def parse(text: str):
-        if text.strip().lower() == "auto":
-            return "auto"
-        try:
-            return float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected 'auto' or a number of {unit}, got {text!r}") from None
-    return parse
-
-
-def add_view_args(p, yaw_default=0.0):
-    p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
-                   "object (docs/architecture.md); the options below override its values")
-    p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
-                   help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
-                        "a video starts there")
-    p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
-    p.add_argument("--exposure", type=auto_or("stops"),
-                   help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
-                        "(0 stops for a scene without a photo)")
-    p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), help="tone curve (default aces)")
-    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
-                   help="behind the person: the environment map seen through the photo's camera (default), the "
-                        "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
-    p.add_argument("--backdrop-blur", type=auto_or("degrees"),
-                   help="the map behind the person blurred like a defocused background, degrees, or auto (default): "
-                        "as much as the photo's own background is (0 for a scene without a photo)")
-    p.add_argument("--max-size", type=int, default=2048,
-                   help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
-                        "the photo's own size up to this)")
-    ground = p.add_mutually_exclusive_group()
-    ground.add_argument("--ground", action="store_const", const=True,
-                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
-                             "by default shown when the feet are in the frame and the map is behind the person")
-    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
-    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
-                   help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
-                        "(refined), the shadow map (hard) or none")
 
 
 def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
@@ -163,6 +108,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
+
+    add_batch_parser(sub)
 
     for name in sorted(plugins or {}):  # listed for --help; main() runs them with their own parser
         sub.add_parser(name, help=f"offline work (the lab, viewer/lab): see relight {name} --help")

@@ -1,0 +1,186 @@
+"""relight batch on real files and real processes: every output and its manifest, a rerun that does
+nothing, a bad photo that fails alone, a batch killed with SIGKILL and run again, two batches on one
+folder, the compositor's layers read back with OpenEXR, and a local Ray cluster with a worker killed
+mid-batch."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from viewer.resources import asset_dir
+
+PHOTO = asset_dir() / "photos" / "underpass.jpg"
+MAPS = [asset_dir() / "envmaps" / n for n in ("venice_sunset_256.hdr", "studio_small_03_256.hdr")]
+
+
+def batch(tmp_path, *args, wait=True, env=None):
+    cmd = [sys.executable, "-m", "viewer.cli.main", "batch", *map(str, args), "--max-size", "256"]
+    environ = {**os.environ, "RELIGHT_CACHE": str(tmp_path / "cache" / "lights"), **(env or {})}
+    if not wait:
+        return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=environ)
+    return subprocess.run(cmd, capture_output=True, text=True, env=environ, timeout=600)
+
+
+def events(folder: Path) -> list[dict]:
+    return [json.loads(line) for line in (folder / "manifest.jsonl").read_text().splitlines()]
+
+
+def done_items(folder: Path) -> list[str]:
+    return [e["item"] for e in events(folder) if e["event"] == "done"]
+
+
+def hashes(folder: Path) -> dict:
+    import hashlib
+
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file() and p.suffix in (".png", ".exr")}
+
+
+@pytest.fixture(scope="module")
+def first_run(tmp_path_factory):
+    """Two photos (one of them not a photo) x two maps, with layers, on two workers."""
+    tmp = tmp_path_factory.mktemp("batch")
+    photos = tmp / "photos"
+    photos.mkdir()
+    shutil.copy(PHOTO, photos / "underpass.jpg")
+    (photos / "broken.jpg").write_text("not a photo")
+    out = tmp / "out"
+    res = batch(tmp, photos, "--env", *MAPS, "-o", out, "--workers", "2", "--layers")
+    return tmp, photos, out, res
+
+
+def test_a_batch_writes_every_output_and_its_manifest(first_run):
+    tmp, photos, out, res = first_run
+    assert res.returncode == 1, res.stderr  # one photo failed
+    assert "batch: 2 done, 2 failed, 0 already done" in res.stdout, res.stdout
+    for look in ("venice_sunset_256", "studio_small_03_256"):
+        for suffix in (".png", ".exr", ".layers.exr"):
+            assert (out / "underpass" / f"{look}{suffix}").is_file()
+    done = {e["item"]: e for e in events(out) if e["event"] == "done"}
+    assert set(done) == {"underpass/venice_sunset_256", "underpass/studio_small_03_256"}
+    for e in done.values():
+        assert len(e["key"]) == 64 and set(e["sha256"]) == set(e["outputs"]) and e["times"]["render"] > 0
+    failed = [e for e in events(out) if e["event"] == "failed"]
+    assert sorted(e["item"] for e in failed) == ["broken/studio_small_03_256", "broken/venice_sunset_256"]
+    assert all("broken.jpg" in e["error"] and "\n" not in e["error"] for e in failed)  # its line, and its items alone
+    assert "relight: broken/venice_sunset_256: " in res.stderr and "Traceback" not in res.stderr
+    assert not [p for p in out.rglob("*.tmp")]
+
+
+def test_a_rerun_does_nothing(first_run):
+    tmp, photos, out, res = first_run
+    before, lines = hashes(out), len(events(out))
+    again = batch(tmp, photos, "--env", *MAPS, "-o", out, "--workers", "2", "--layers")
+    assert "batch: 0 done, 2 failed, 2 already done" in again.stdout, again.stdout
+    assert hashes(out) == before
+    assert [e["event"] for e in events(out)[lines:]] == ["failed", "failed"]  # the broken photo, tried again
+
+
+def test_a_changed_input_or_setting_is_done_again_and_a_foreign_file_kept(first_run, tmp_path):
+    tmp, photos, out, res = first_run
+    again = batch(tmp, photos / "underpass.jpg", "--env", MAPS[0], "-o", out, "--workers", "1", "--layers", "--exposure", "1")
+    assert "batch: 1 done, 0 failed, 0 already done" in again.stdout, again.stdout  # another exposure: another key
+    (out / "underpass" / "studio_small_03_256.png").write_bytes(b"the user's own file")
+    kept = batch(tmp, photos / "underpass.jpg", "--env", MAPS[1], "-o", out, "--workers", "1", "--layers", "--exposure", "1")
+    assert kept.returncode == 1 and "exists and no relight batch wrote it there" in kept.stderr
+    assert (out / "underpass" / "studio_small_03_256.png").read_bytes() == b"the user's own file"
+
+
+def test_layers_hold_the_beauty_as_the_sum_of_its_parts(first_run):
+    import OpenEXR
+
+    out = first_run[2]
+    with OpenEXR.File(str(out / "underpass" / "venice_sunset_256.layers.exr"), separate_channels=True) as f:
+        ch = {name: c.pixels.astype(np.float64) for name, c in f.channels().items()}
+    for layer in ("person", "albedo", "diffuse", "specular", "unshadowed"):
+        assert {f"{layer}.{c}" for c in "RGB"} <= set(ch)
+    assert {"R", "G", "B", "A", "person.A", "visibility.Y", "normal.X", "normal.Y", "normal.Z", "depth.Z"} <= set(ch)
+    rgb = lambda layer: np.stack([ch[f"{layer}.{c}"] for c in "RGB"], -1)  # noqa: E731
+    person = ch["person.A"] > 0
+    assert person.mean() > 0.1
+    parts = rgb("albedo") * rgb("diffuse") + rgb("specular")
+    assert np.abs(rgb("person") - parts)[person].max() <= 1e-5 * max(1.0, np.abs(parts).max())
+    vis = ch["visibility.Y"][person]
+    assert vis.min() >= 0 and vis.max() <= 1 and vis.min() < 0.9  # some of her is in shadow
+    assert np.all(rgb("diffuse")[person] <= rgb("unshadowed")[person] + 1e-5)
+
+
+def test_a_batch_killed_and_run_again_completes(tmp_path):
+    args = [PHOTO, "--env", *MAPS, "--yaw", "0", "120", "240", "-o", tmp_path / "out", "--workers", "2"]
+    proc = batch(tmp_path, *args, wait=False)
+    manifest = tmp_path / "out" / "manifest.jsonl"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if manifest.is_file() and '"done"' in manifest.read_text():
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    first = done_items(tmp_path / "out")
+    assert 1 <= len(first) < 6
+    time.sleep(1.5)  # its workers see their batch gone and end
+    again = batch(tmp_path, *args)
+    assert again.returncode == 0, again.stderr
+    assert f"already done" in again.stdout and f"{len(first)} already done" in again.stdout
+    items = done_items(tmp_path / "out")
+    assert sorted(items) == sorted(set(items)) and len(items) == 6  # every item done, each once
+    assert not list((tmp_path / "out").rglob("*.tmp"))
+
+
+def test_two_batches_on_one_folder(tmp_path):
+    from viewer.batch.manifest import OutputLock
+
+    with OutputLock(tmp_path / "out"):
+        res = batch(tmp_path, PHOTO, "--env", MAPS[0], "-o", tmp_path / "out")
+    assert res.returncode == 2 and "another relight batch is writing here" in res.stderr
+    assert res.stderr.count("\n") == 1 and not (tmp_path / "out" / "manifest.jsonl").exists()
+
+
+@pytest.fixture
+def ray_cluster():
+    """A local Ray cluster (``ray start --head``, 2 CPUs) for the test, stopped after it. Its folder
+    is short: Ray's sockets live there, and a socket's path has at most 107 characters."""
+    import tempfile
+
+    ray = Path(sys.executable).with_name("ray")
+    temp = tempfile.mkdtemp(prefix="ray", dir="/tmp")
+    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
+    started = subprocess.run([str(ray), "start", "--head", "--num-cpus", "2", "--include-dashboard", "false",
+                              "--temp-dir", temp], capture_output=True, text=True, env=env, timeout=180)
+    assert started.returncode == 0, started.stdout + started.stderr
+    try:
+        yield {**env, "RAY_ADDRESS": "auto"}
+    finally:
+        subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=180)
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):
+    args = [PHOTO, "--env", *MAPS, "--yaw", "0", "90", "180", "-o", tmp_path / "out", "--ray", "auto", "--threads", "1"]
+    proc = batch(tmp_path, *args, wait=False, env=ray_cluster)
+    killed = None
+    deadline = time.monotonic() + 300
+    while killed is None and time.monotonic() < deadline and proc.poll() is None:
+        ps = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
+        running = [int(line.split()[0]) for line in ps.splitlines() if "ray::Worker.run" in line]
+        if running and (tmp_path / "out" / "manifest.jsonl").is_file() and \
+                '"done"' in (tmp_path / "out" / "manifest.jsonl").read_text():
+            killed = running[0]
+            os.kill(killed, signal.SIGKILL)
+        time.sleep(0.05)
+    out, err = proc.communicate(timeout=600)
+    assert killed is not None, (out, err)
+    assert proc.returncode == 0, err
+    items = done_items(tmp_path / "out")
+    assert len(items) == 6 and sorted(items) == sorted(set(items)), items
+    assert "batch: 6 done, 0 failed" in out

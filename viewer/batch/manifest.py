@@ -1,0 +1,124 @@
+"""The batch's record and its claim on the output folder.
+
+``manifest.jsonl`` gets one JSON line per event, flushed to the disk before the next item counts:
+``start`` (an item about to be handed to a worker, with the outputs it will write) and ``done`` or
+``failed`` (its outputs with their SHA-256, the seconds of each stage, the one-line
+error). A batch killed at any moment leaves whole lines but perhaps the last; that line is ignored.
+A rerun skips the items whose last ``done`` has the same key and whose outputs are still the files
+it wrote. The lock (``.relight-batch.lock``, an flock the kernel drops when the process dies, even
+by SIGKILL) keeps a second batch out of the folder."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import time
+from pathlib import Path
+
+from ..errors import InputError
+from .plan import file_sha256
+
+MANIFEST = "manifest.jsonl"
+LOCK = ".relight-batch.lock"
+
+
+class OutputLock:
+    """Holds the batch folder for one batch at a time."""
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / LOCK
+        self._fd = None
+
+    def __enter__(self):
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 200).decode(errors="replace").strip()
+            os.close(fd)
+            raise InputError(self.path.parent, f"another relight batch is writing here ({holder or 'its process is unknown'}); "
+                                               "wait for it, or give another -o") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"process {os.getpid()}, since {time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
+        self._fd = fd
+        return self
+
+    def __exit__(self, *exc):
+        fcntl.flock(self._fd, fcntl.LOCK_UN)
+        os.close(self._fd)
+
+
+class Manifest:
+    """Appends events to ``folder/manifest.jsonl`` and reads back what earlier runs finished."""
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / MANIFEST
+        self.events = list(read_events(self.path))
+        self._file = None
+
+    def __enter__(self):
+        self._file = open(self.path, "a", encoding="utf-8")
+        return self
+
+    def __exit__(self, *exc):
+        self._file.close()
+
+    def add(self, event: str, **fields) -> dict:
+        record = {"event": event, "time": round(time.time(), 3), **fields}
+        self._file.write(json.dumps(record, sort_keys=True) + "\n")
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self.events.append(record)
+        return record
+
+    def finished(self) -> dict[str, dict]:
+        """Item name -> its last ``done`` event."""
+        return {e["item"]: e for e in self.events if e.get("event") == "done"}
+
+    def unfinished_starts(self) -> list[dict]:
+        """``start`` events with no ``done`` or ``failed`` after them (the items in flight when a
+        batch was killed)."""
+        open_starts: dict[str, dict] = {}
+        for e in self.events:
+            if e.get("event") == "start":
+                open_starts[e["item"]] = e
+            elif e.get("event") in ("done", "failed"):
+                open_starts.pop(e["item"], None)
+        return list(open_starts.values())
+
+
+def read_events(path: Path):
+    """The manifest's whole lines (a last line cut by a kill is left out)."""
+    if not path.is_file():
+        return
+    with open(path, encoding="utf-8") as f:
+        for line in f:
+            try:
+                record = json.loads(line)
+            except ValueError:
+                continue
+            if isinstance(record, dict) and "event" in record and "item" in record:
+                yield record
+
+
+def still_done(done: dict | None, key: str, folder: Path) -> bool:
+    """Whether an item finished by an earlier run with this key still has its outputs as written."""
+    if done is None or done.get("key") != key:
+        return False
+    for name, sha in done.get("sha256", {}).items():
+        path = folder / name
+        if not path.is_file() or file_sha256(path) != sha:
+            return False
+    return bool(done.get("sha256"))
+
+
+def written_by_us(path: Path, folder: Path, manifest: "Manifest") -> bool:
+    """Whether an existing output file is this folder's batches': as a finished item wrote it (and
+    nobody changed it since), or one of an item that was being written when a batch was killed
+    (its ``start`` came before any work on it)."""
+    rel = path.relative_to(folder).as_posix()
+    if any(rel in e.get("outputs", []) for e in manifest.unfinished_starts()):
+        return True
+    return any(e.get("sha256", {}).get(rel) == file_sha256(path) for e in manifest.finished().values())

@@ -1,0 +1,130 @@
+"""What a batch does: photos (files, folders, globs) x looks (environment maps at yaws, light files,
+each with a rig and a preset where given) -> items, each with its output names and a key hashed from
+the content of everything it depends on. Plain data; nothing here renders."""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..file_kinds import PHOTO_SUFFIXES
+
+KEY_VERSION = "batch-1"  # outputs of an older batch code are made again
+
+
+def file_sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def collect_photos(paths) -> tuple[list[Path], list[str]]:
+    """The photos named by ``paths`` (files, folders: their photos, sorted; globs), each once, and
+    one line per path that named none. ``*.mask.png`` files (hand-made masks beside photos) are not
+    photos."""
+    photos, missing = [], []
+    for given in paths:
+        p = Path(given)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.is_file() and is_photo(q))
+        elif p.is_file():
+            found = [p]
+        else:
+            found = sorted(Path(q) for q in glob.glob(str(given)) if Path(q).is_file() and is_photo(Path(q)))
+        if not found:
+            missing.append(f"{given}: no photo there (PNG, JPEG, TIFF, WebP or BMP)")
+        photos += [q for q in found if q.resolve() not in {r.resolve() for r in photos}]
+    return photos, missing
+
+
+def is_photo(path: Path) -> bool:
+    name = path.name.lower()
+    return path.suffix.lower() in PHOTO_SUFFIXES and not name.endswith((".mask.png", "-mask.png"))
+
+
+@dataclass(frozen=True)
+class LookSpec:
+    """One look of the batch: where the lights come from (a map, or a light file), the yaw ("auto":
+    the brightest light turned to the camera), the rig added, the preset."""
+
+    name: str
+    envmap: Path | None
+    lights_file: Path | None
+    yaw: float | str
+    rig: Path | None
+    preset: str | None
+
+
+@dataclass
+class Item:
+    """One photo under one look, and what it writes."""
+
+    photo: Path
+    look: LookSpec
+    name: str  # "<photo>/<look>": the outputs' stem under the batch folder
+    outputs: tuple[Path, ...] = ()
+    key: str = ""
+    settings: dict = field(default_factory=dict)
+
+
+def look_specs(envmaps, light_files, yaws, rigs, presets) -> list[LookSpec]:
+    """Every look: (maps, then light files) x yaws x rigs (or none) x presets (or the default),
+    named by what varies: ``<map>``, ``_y<yaw>`` when yaws were given, ``_<rig>``, ``_<preset>``."""
+    sources = [(Path(m), None) for m in envmaps] + [(None, Path(f)) for f in light_files]
+    names_used: dict[str, int] = {}
+    looks = []
+    for envmap, lights_file in sources:
+        for yaw in (yaws or ["auto"]):
+            for rig in (rigs or [None]):
+                for preset in (presets or [None]):
+                    stem = (envmap or lights_file).name.split(".")[0]
+                    name = stem + (f"_y{_yaw_text(yaw)}" if yaws else "") + (f"_{Path(rig).stem}" if rig else "") \
+                        + (f"_{preset}" if preset else "")
+                    count = names_used[name] = names_used.get(name, 0) + 1
+                    if count > 1:  # two maps of one name in different folders
+                        name = f"{name}-{count}"
+                    looks.append(LookSpec(name, envmap, lights_file, yaw, Path(rig) if rig else None, preset))
+    return looks
+
+
+def _yaw_text(yaw) -> str:
+    return "auto" if yaw == "auto" else f"{float(yaw):g}"
+
+
+def photo_names(photos: list[Path]) -> dict[Path, str]:
+    """A folder name per photo: its stem, or its stem and a short hash of its path where two photos
+    share a stem."""
+    stems: dict[str, int] = {}
+    for p in photos:
+        stems[p.stem] = stems.get(p.stem, 0) + 1
+    return {p: p.stem if stems[p.stem] == 1 else f"{p.stem}-{hashlib.sha256(str(p.resolve()).encode()).hexdigest()[:6]}"
+            for p in photos}
+
+
+def item_key(photo_sha: str, look: LookSpec, source_sha: str, rig_sha: str, lights: np.ndarray, settings: dict) -> str:
+    """The content hash an item's outputs are made from: the photo's bytes, the map's or light
+    file's, the rig's, the lights themselves (the fit's method and count), the look and the
+    options, and the code's version."""
+    from ..photo.inference import PIPELINE
+
+    h = hashlib.sha256()
+    h.update(json.dumps({"photo": photo_sha, "source": source_sha, "rig": rig_sha, "settings": settings,
+                         "version": [KEY_VERSION, PIPELINE]}, sort_keys=True).encode())
+    h.update(np.ascontiguousarray(lights, np.float32).tobytes())
+    return h.hexdigest()
+
+
+def check_sources(looks: list[LookSpec]) -> None:
+    """Every rig and light file named exists (a bad map fails its own items later, not the batch)."""
+    for look in looks:
+        for path in (look.rig, look.lights_file):
+            if path is not None and not path.is_file():
+                raise InputError(path, "not found")

@@ -1,0 +1,188 @@
+"""The batch's driver: photos x looks -> items; the items not done yet (by content key) handed to a
+pool as an inference per photo, then a render per item as soon as its photo's bundle is there; each
+result recorded in the manifest as it arrives; a progress bar with the time left; a summary."""
+
+from __future__ import annotations
+
+import re
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .manifest import Manifest, OutputLock, still_done, written_by_us
+from .plan import Item, LookSpec, file_sha256, item_key, photo_names
+
+
+@dataclass
+class ResolvedLook:
+    """A look with everything its renders need, found once by the driver (a map's lights fitted or
+    taken from the cache once), or the one line saying why it cannot be rendered."""
+
+    spec: LookSpec
+    look_json: dict | None = None
+    options: dict = field(default_factory=dict)
+    lights: np.ndarray | None = None  # (N, 7): direction, sigma, intensity
+    rig: np.ndarray | None = None
+    source_sha: str = ""
+    rig_sha: str = ""
+    error: str | None = None
+
+
+@dataclass
+class Summary:
+    done: int = 0
+    failed: int = 0
+    skipped: int = 0
+    seconds: float = 0.0
+    workers: int = 0
+    failures: list = field(default_factory=list)  # (item, error)
+
+    @property
+    def per_minute(self) -> float:
+        return 60.0 * self.done / self.seconds if self.seconds > 0 else 0.0
+
+    def line(self, manifest: Path) -> str:
+        return (f"batch: {self.done} done, {self.failed} failed, {self.skipped} already done, in {self.seconds:.1f} s "
+                f"({self.per_minute:.1f} photo-looks a minute, {self.workers} workers); manifest {manifest}")
+
+
+def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) -> tuple[list[Item], dict[Path, str]]:
+    """Every (photo, look) item with its outputs and key; the photos' content hashes (or, for a photo
+    that cannot be read, its error line, with an empty hash)."""
+    names = photo_names(photos)
+    shas, errors = {}, {}
+    for p in photos:
+        try:
+            shas[p] = file_sha256(p)
+        except OSError as exc:
+            shas[p], errors[p] = "", f"{p}: cannot be read ({exc.strerror or exc})"
+    items = []
+    for p in photos:
+        for look in looks:
+            name = f"{names[p]}/{look.spec.name}"
+            outputs = (f"{name}.png", f"{name}.exr") + ((f"{name}.layers.exr",) if settings.get("layers") else ())
+            item = Item(p, look.spec, name, outputs)
+            if look.lights is not None and shas[p]:
+                item.settings = {"look": look.look_json, "options": look.options, **settings}
+                item.key = item_key(shas[p], look.spec, look.source_sha, look.rig_sha,
+                                    np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
+            items.append(item)
+    return items, errors
+
+
+def remove_leftovers(folder: Path, items: list[Item]) -> int:
+    """Temporary files a killed batch left beside the outputs it plans (``.NAME.PID.tmp``, the
+    atomic writes' names: viewer.imageio.atomic_paths); nothing else is touched."""
+    removed = 0
+    for item in items:
+        for rel in item.outputs:
+            path = folder / rel
+            if not path.parent.is_dir():
+                continue
+            pattern = re.compile(rf"^\.{re.escape(path.name)}\.\d+\.tmp$")
+            for tmp in path.parent.iterdir():
+                if pattern.match(tmp.name) and tmp.is_file():
+                    tmp.unlink()
+                    removed += 1
+    return removed
+
+
+def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, settings: dict,
+              quiet: bool = False) -> Summary:
+    """Render every item not done yet into ``folder``; ``make_pool()`` gives the pool (called only
+    when there is work); ``settings``: the options every item shares (max_size, layers, ...)."""
+    from tqdm import tqdm
+
+    folder = Path(folder)
+    start = time.perf_counter()
+    summary = Summary()
+    with OutputLock(folder), Manifest(folder) as manifest:
+        finished = manifest.finished()
+        items, photo_errors = plan_items(photos, looks, settings)
+        remove_leftovers(folder, items)
+        by_look = {look.spec: look for look in looks}
+        todo = []
+        for item in items:
+            look = by_look[item.look]
+            error = look.error or photo_errors.get(item.photo)
+            if error is None and still_done(finished.get(item.name), item.key, folder):
+                summary.skipped += 1
+                continue
+            if error is None:
+                taken = [rel for rel in item.outputs if (folder / rel).exists() and not written_by_us(folder / rel, folder, manifest)]
+                if taken:
+                    error = f"{folder / taken[0]}: exists and no relight batch wrote it there: move it away or give another -o"
+            if error is not None:
+                _failed(manifest, summary, item, error)
+            else:
+                todo.append(item)
+        if todo:
+            pool = make_pool()
+            summary.workers = pool.size
+            try:
+                _run(pool, todo, by_look, folder, settings, manifest, summary, quiet, tqdm)
+            finally:
+                pool.close()
+    summary.seconds = time.perf_counter() - start
+    return summary
+
+
+def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest: Manifest, summary: Summary, quiet, tqdm):
+    waiting: dict[Path, list[Item]] = {}
+    for item in todo:
+        waiting.setdefault(item.photo, []).append(item)
+    tasks: dict[int, tuple[str, object]] = {}
+    next_id = 0
+    for photo in waiting:
+        tasks[next_id] = ("infer", photo)
+        pool.submit({"id": next_id, "kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
+                     "device": settings.get("device", "cpu")})
+        next_id += 1
+    bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
+    try:
+        while tasks:
+            for r in pool.results(timeout=0.5):
+                kind, what = tasks.get(r["id"], (None, None))
+                if kind is None:
+                    continue
+                if r.get("kind") == "started":
+                    continue
+                del tasks[r["id"]]
+                if kind == "infer":
+                    for item in waiting.pop(what):
+                        if not r["ok"]:
+                            _failed(manifest, summary, item, r["error"])
+                            bar.update(1)
+                            continue
+                        tasks[next_id] = ("render", item)
+                        manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
+                        pool.submit(_render_task(next_id, item, by_look[item.look], r["bundle"], folder, settings))
+                        next_id += 1
+                else:
+                    if r["ok"]:
+                        manifest.add("done", item=what.name, key=what.key, photo=str(what.photo), look=what.look.name,
+                                     settings=what.settings, outputs=list(what.outputs), sha256=r["sha256"],
+                                     times={**r.get("times", {}), "total": r.get("seconds")}, pid=r.get("pid"))
+                        summary.done += 1
+                    else:
+                        _failed(manifest, summary, what, r["error"])
+                    bar.update(1)
+    finally:
+        bar.close()
+
+
+def _render_task(task_id: int, item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:
+    return {"id": task_id, "kind": "render", "item": item.name, "bundle": bundle, "folder": str(folder),
+            "outputs": list(item.outputs), "envmap": str(look.spec.envmap) if look.spec.envmap else None,
+            "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,
+            "look": look.look_json, "options": look.options, "max_size": settings["max_size"],
+            "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light"))}
+
+
+def _failed(manifest: Manifest, summary: Summary, item: Item, error: str):
+    manifest.add("failed", item=item.name, key=item.key, photo=str(item.photo), look=item.look.name, error=error)
+    summary.failed += 1
+    summary.failures.append((item.name, error))

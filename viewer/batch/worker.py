@@ -1,0 +1,117 @@
+"""A batch worker: one process, one GL context, its threads sized by the batch. It infers a photo's
+bundle (the inference cache: once per photo) and renders an item's outputs, keeping the last
+scene's engine and the maps it read, so that a photo's looks in a row cost their renders alone.
+Tasks and results are plain dicts (they cross process and machine boundaries)."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from ..errors import InputError
+
+
+class Worker:
+    def __init__(self, threads: int):
+        from ..cores import size_pools
+
+        os.environ["LP_NUM_THREADS"] = str(threads)  # llvmpipe reads it when the context is made
+        size_pools(threads)
+        self.threads = threads
+        self._ctx = None
+        self._engine_key, self._engine, self._scene = None, None, None
+        self._maps: dict[str, object] = {}
+
+    @property
+    def ctx(self):
+        if self._ctx is None:
+            from ..gl import create_headless_context
+
+            self._ctx = create_headless_context()
+        return self._ctx
+
+    def pid(self) -> int:
+        return os.getpid()
+
+    def run(self, task: dict) -> dict:
+        """Run one task; an error the user can act on comes back as its one line."""
+        start = time.perf_counter()
+        try:
+            result = self.infer(task) if task["kind"] == "infer" else self.render(task)
+            return {**result, "ok": True, "pid": os.getpid(), "seconds": round(time.perf_counter() - start, 3)}
+        except InputError as exc:
+            return {"ok": False, "error": str(exc), "pid": os.getpid()}
+        except (OSError, ValueError, RuntimeError, MemoryError) as exc:
+            return {"ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0], "pid": os.getpid()}
+
+    def infer(self, task: dict) -> dict:
+        from ..photo.inference import cached_bundle
+
+        bundle, cached = cached_bundle(task["photo"], None, max_size=task["max_size"], device=task.get("device", "cpu"),
+                                       ctx=self.ctx)
+        return {"bundle": str(bundle), "cached": cached}
+
+    def render(self, task: dict) -> dict:
+        from ..gl import Engine
+        from ..gl.options import EngineOptions
+        from ..lighting.envmap import load_envmap
+        from ..lighting.lights import AreaLights
+        from ..output.layers import layer_channels, write_layers
+        from ..output.render import render_to_files
+        from ..scene_ops import load_sized_scene
+        from ..settings import Look
+        from .plan import file_sha256
+
+        times = {}
+        t = time.perf_counter()
+        key = (task["bundle"], task["max_size"], tuple(sorted(task["options"].items())))
+        if key != self._engine_key:
+            if self._engine is not None:
+                self._engine.release()
+                self._engine_key = self._engine = None
+            self._scene = load_sized_scene(task["bundle"], None, task["max_size"])
+            self._engine = Engine(self.ctx, self._scene, EngineOptions(**task["options"]))
+            self._engine_key = key
+        times["scene"] = round(time.perf_counter() - t, 3)
+        t = time.perf_counter()
+        env = None
+        if task.get("envmap"):
+            if task["envmap"] not in self._maps:
+                self._maps = {task["envmap"]: load_envmap(task["envmap"]).pixels}  # the last map only
+            env = self._maps[task["envmap"]]
+        lights = AreaLights.from_array(task["lights"])
+        fixed = AreaLights.from_array(task["rig"]) if task.get("rig") is not None else None
+        folder = Path(task["folder"])
+        png = folder / task["outputs"][0]
+        look = Look.from_json(task["look"])
+        render_to_files(self._engine, self._scene, lights, png.parent, png.stem, look, environment=env, passes=False,
+                        fixed=fixed)
+        times["render"] = round(time.perf_counter() - t, 3)
+        if task.get("layers"):
+            t = time.perf_counter()
+            write_layers(folder / task["outputs"][2], layer_channels(self._engine, self._scene, task.get("per_light", False)))
+            times["layers"] = round(time.perf_counter() - t, 3)
+        return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]}}
+
+
+def serve(threads: int, tasks, results, parent: int) -> None:
+    """A local worker process: tasks from one queue, results to another, until a None task or until
+    its batch (process ``parent``) is gone, killed or not. Ctrl-C is the batch's to handle (it stops
+    the workers), not each worker's."""
+    import queue
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    worker = Worker(threads)
+    while True:
+        try:
+            task = tasks.get(timeout=1.0)
+        except queue.Empty:
+            if os.getppid() != parent:
+                return
+            continue
+        if task is None or os.getppid() != parent:  # nothing is written for a batch that is gone
+            return
+        results.put({"kind": "started", "id": task["id"], "pid": os.getpid()})
+        results.put({**worker.run(task), "kind": "result", "id": task["id"]})

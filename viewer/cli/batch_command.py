@@ -1,0 +1,128 @@
+"""``relight batch``: its options, and the looks resolved once in this process (each map read and its
+lights found once: beside the map, in the cache, or fitted now) before the batch hands the renders
+to its workers (viewer/batch)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+from .options import add_engine_args, add_view_args, auto_or
+
+
+def add_batch_parser(sub) -> None:
+    from ..lighting.lightfit import DEFAULT_METHOD, METHODS
+
+    p = sub.add_parser("batch", help="relight folders of photos under several looks: every photo inferred once, every "
+                       "map fitted once, renders on worker processes or a Ray cluster, a manifest, resumable")
+    p.add_argument("photos", nargs="+", help="photos, folders of photos, or globs (quoted)")
+    p.add_argument("--env", "--envmap", dest="envmaps", nargs="+", default=[], help="environment maps: one look each")
+    p.add_argument("--lights", dest="light_files", nargs="+", default=[], help="area-light files: one look each (no map behind)")
+    p.add_argument("--yaw", dest="yaws", nargs="+", type=auto_or("degrees"),
+                   help="yaws of every look, degrees, or auto (default): the brightest light turned to the camera")
+    p.add_argument("--rig", dest="rigs", nargs="+", default=[], help="rigs (placed lights saved by the viewer): each look "
+                   "once with each rig")
+    p.add_argument("-n", "--lights-count", type=int, help="lights fitted to each map (default: the preset's)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    p.add_argument("-o", "--output", required=True, help="the batch's folder: PHOTO/LOOK.png and .exr, manifest.jsonl")
+    p.add_argument("--workers", type=int, help="worker processes (default: one per two idle cores, at least one)")
+    p.add_argument("--threads", type=int, help="threads of each worker (default: the idle cores shared among the workers)")
+    p.add_argument("--ray", help="run on a Ray cluster: auto (the one this machine belongs to), an address, or local "
+                   "(a Ray instance started for this batch)")
+    p.add_argument("--layers", action="store_true", help="also PHOTO/LOOK.layers.exr for compositors (docs/batch.md)")
+    p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
+    p.add_argument("--device", default="cpu", help="device of the photos' inference (cpu or cuda)")
+    add_engine_args(p, presets=True)
+    add_view_args(p, yaws=False)
+    p.set_defaults(func=cmd_batch)
+
+
+def cmd_batch(args) -> int:
+    from ..batch.plan import check_sources, collect_photos, look_specs
+    from ..batch.run import run_batch
+    from ..cores import work_threads
+    from .output_paths import writable
+
+    photos, missing = collect_photos(args.photos)
+    for line in missing:
+        print(f"relight: warning: {line}", file=sys.stderr)
+    if not photos:
+        raise InputError(None, "no photos to relight: give photos, folders or globs")
+    if not args.envmaps and not args.light_files:
+        raise InputError(None, "give the looks: --env MAP [MAP ...] and/or --lights FILE [FILE ...]")
+    if args.per_light and not args.layers:
+        raise InputError(None, "--per-light adds layers: give --layers too")
+    specs = look_specs(args.envmaps, args.light_files, args.yaws, args.rigs, args.presets)
+    check_sources(specs)
+    folder = Path(args.output)
+    writable(folder, folder=True)
+    looks = resolve_looks(specs, args)
+    cores = work_threads()
+    workers = args.workers or max(1, cores // 2)
+    threads = args.threads or max(1, cores // workers)
+    if workers < 1 or threads < 1:
+        raise InputError(None, "--workers and --threads must be at least 1")
+
+    def make_pool():
+        from ..batch.pools import LocalPool, RayPool
+
+        return RayPool(args.ray, args.workers, threads) if args.ray else LocalPool(workers, threads)
+
+    settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device}
+    summary = run_batch(photos, looks, folder, make_pool, settings)
+    for item, error in summary.failures:
+        print(f"relight: {item}: {error}", file=sys.stderr)
+    print(summary.line(folder / "manifest.jsonl"))
+    return 1 if summary.failed else 0
+
+
+def resolve_looks(specs, args) -> list:
+    """Each look's lights (a map's found once per count), yaw, rig, look and engine options; a map
+    or light file that cannot be used fails its own looks, with its line."""
+    from ..batch.plan import file_sha256
+    from ..batch.run import ResolvedLook
+    from ..lighting.envmap import load_envmap
+    from ..lighting.lights import facing_yaw, load_lights
+    from ..lighting.map_lights import map_lights
+    from ..lighting.placed_lights import load_rig, to_area_lights
+    from .command_setup import HOW, command_look, engine_options, fitted_lights, lights_count, warn_if_dark
+
+    base = command_look(args)
+    found: dict = {}  # (source, n) -> (lights, sha) or the error line
+    looks = []
+    for spec in specs:
+        look = base.replace(preset=spec.preset) if spec.preset else base
+        try:
+            n = lights_count(args, look)
+            source = spec.envmap or spec.lights_file
+            if (source, n) not in found:
+                try:
+                    if spec.envmap is not None:
+                        env = load_envmap(spec.envmap)
+                        lights, how = map_lights(env, spec.envmap, n, args.method, lambda e: fitted_lights(e, n, args.method))
+                        print(f"{len(lights)} lights for {spec.envmap}: {HOW[how]}")
+                    else:
+                        lights = load_lights(spec.lights_file)
+                    warn_if_dark(lights, source)
+                    found[(source, n)] = (lights, file_sha256(source))
+                except InputError as exc:
+                    found[(source, n)] = str(exc)
+            if isinstance(found[(source, n)], str):
+                looks.append(ResolvedLook(spec, error=found[(source, n)]))
+                continue
+            lights, sha = found[(source, n)]
+            yaw = facing_yaw(lights) if spec.yaw == "auto" else float(spec.yaw)
+            look = look.replace(yaw=yaw)  # no map behind a light file's look: the photo's background (render.effective_background)
+            rig = to_area_lights(load_rig(spec.rig)).to_array() if spec.rig is not None else None
+            looks.append(ResolvedLook(spec, look.to_json(), _options(engine_options(args, look)), lights.to_array(), rig, sha,
+                                      file_sha256(spec.rig) if spec.rig is not None else ""))
+        except InputError as exc:
+            looks.append(ResolvedLook(spec, error=str(exc)))
+    return looks
+
+
+def _options(options) -> dict:
+    from dataclasses import asdict
+
+    return asdict(options)

@@ -1,0 +1,66 @@
+"""The options several commands share, declared once: the engine's (a preset and its knobs) and
+what the user sees (a look and its fields)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_engine_args(p, presets: bool = False):
+    """The engine's options; ``presets``: several presets (``--preset A B``, dest ``presets``: a batch's looks)."""
+    from ..presets import DEFAULT_PRESET, PRESETS
+    from ..shadow_space import SOFT_METHODS
+
+    p.add_argument("--preset", dest="presets" if presets else "preset", choices=tuple(PRESETS), nargs="+" if presets else None,
+                   help=f"quality preset{'s (each look once with each)' if presets else ''}: lights and engine options from "
+                        f"docs/results.md (default {DEFAULT_PRESET}); the options below override its values")
+    p.add_argument("--soft", choices=SOFT_METHODS,
+                   help="soft shadows: contact-hardening (pcss, the presets') or the paper's convolutional shadow maps (csm)")
+    p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
+    p.add_argument("--shadow-step", type=int, help="depth-mesh decimation for shadow maps (0 = auto, the presets' choice)")
+    p.add_argument("--terms", type=int, help="with --soft csm: Fourier terms M, 2M basis maps (default 4)")
+    p.add_argument("--prefilter", choices=("pyramid", "exact"), help="with --soft csm: pre-filtering (default pyramid)")
+
+
+def auto_or(unit: str):
+    """An option's parser: "auto" or a number of ``unit`` (its range is the look's to check, viewer.settings.Look)."""
+    def parse(text: str):
+        if text.strip().lower() == "auto":
+            return "auto"
+        try:
+            return float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected 'auto' or a number of {unit}, got {text!r}") from None
+    return parse
+
+
+def add_view_args(p, yaw_default=0.0, yaws: bool = True):
+    """What the user sees; ``yaws`` False: no ``--yaw`` here (a batch takes several)."""
+    p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
+                   "object (docs/architecture.md); the options below override its values")
+    if yaws:
+        p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
+                       help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
+                            "a video starts there")
+    p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
+    p.add_argument("--exposure", type=auto_or("stops"),
+                   help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
+                        "(0 stops for a scene without a photo)")
+    p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), help="tone curve (default aces)")
+    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
+                   help="behind the person: the environment map seen through the photo's camera (default), the "
+                        "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
+    p.add_argument("--backdrop-blur", type=auto_or("degrees"),
+                   help="the map behind the person blurred like a defocused background, degrees, or auto (default): "
+                        "as much as the photo's own background is (0 for a scene without a photo)")
+    p.add_argument("--max-size", type=int, default=2048,
+                   help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
+                        "the photo's own size up to this)")
+    ground = p.add_mutually_exclusive_group()
+    ground.add_argument("--ground", action="store_const", const=True,
+                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
+                             "by default shown when the feet are in the frame and the map is behind the person")
+    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
+                   help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
+                        "(refined), the shadow map (hard) or none")
