@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .contact_sheet import contact_sheet
 from .manifest import Manifest, OutputLock, still_done, written_by_us
 from .plan import Item, LookSpec, file_sha256, item_key, photo_names
 
@@ -39,6 +40,7 @@ class Summary:
     seconds: float = 0.0
     workers: int = 0
     failures: list = field(default_factory=list)  # (item, error)
+    sheet: Path | None = None  # the contact sheet, when this run rendered something
 
     @property
     def per_minute(self) -> float:
@@ -126,6 +128,8 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
                 _run(pool, todo, by_look, folder, settings, manifest, summary, quiet, tqdm)
             finally:
                 pool.close()
+        if summary.done:
+            summary.sheet = contact_sheet(folder, manifest.finished())
     summary.seconds = time.perf_counter() - start
     return summary
 
@@ -139,7 +143,7 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
     for photo in waiting:
         tasks[next_id] = ("infer", photo)
         pool.submit({"id": next_id, "kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
-                     "device": settings.get("device", "cpu")})
+                     "device": settings.get("device", "cpu"), "bundles": settings["bundles"]})
         next_id += 1
     bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
     try:
@@ -152,6 +156,9 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
                     continue
                 del tasks[r["id"]]
                 if kind == "infer":
+                    if r["ok"]:
+                        manifest.add("inferred", item=str(what), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
+                                     pid=r.get("pid"))
                     for item in waiting.pop(what):
                         if not r["ok"]:
                             _failed(manifest, summary, item, r["error"])

@@ -49,7 +49,7 @@ class Worker:
         from ..photo.inference import cached_bundle
 
         bundle, cached = cached_bundle(task["photo"], None, max_size=task["max_size"], device=task.get("device", "cpu"),
-                                       ctx=self.ctx)
+                                       ctx=self.ctx, bundles=task["bundles"])
         return {"bundle": str(bundle), "cached": cached}
 
     def render(self, task: dict) -> dict:

@@ -41,7 +41,6 @@ def add_batch_parser(sub) -> None:
 def cmd_batch(args) -> int:
     from ..batch.plan import check_sources, collect_photos, look_specs
     from ..batch.run import run_batch
-    from ..cores import work_threads
     from .output_paths import writable
 
     photos, missing = collect_photos(args.photos)
@@ -58,23 +57,48 @@ def cmd_batch(args) -> int:
     folder = Path(args.output)
     writable(folder, folder=True)
     looks = resolve_looks(specs, args)
-    cores = work_threads()
-    workers = args.workers or max(1, cores // 2)
-    threads = args.threads or max(1, cores // workers)
-    if workers < 1 or threads < 1:
+    if (args.workers is not None and args.workers < 1) or (args.threads is not None and args.threads < 1):
         raise InputError(None, "--workers and --threads must be at least 1")
+    workers, threads = worker_count(args)
 
     def make_pool():
         from ..batch.pools import LocalPool, RayPool
 
-        return RayPool(args.ray, args.workers, threads) if args.ray else LocalPool(workers, threads)
+        if args.ray:  # the cluster's cores, not this machine's: one thread an actor unless told
+            return RayPool(args.ray, args.workers, args.threads or 1)
+        return LocalPool(workers, threads)
 
-    settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device}
+    from ..lighting.lightfit.cache import cache_dir
+
+    # the bundles' folder as this process sees it: workers on other machines need it shared (docs/batch.md)
+    settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device,
+                "bundles": str(cache_dir().with_name("bundles").resolve())}
     summary = run_batch(photos, looks, folder, make_pool, settings)
     for item, error in summary.failures:
         print(f"relight: {item}: {error}", file=sys.stderr)
     print(summary.line(folder / "manifest.jsonl"))
+    if summary.sheet is not None:
+        print(f"wrote {summary.sheet}")
     return 1 if summary.failed else 0
+
+
+WORKER_PHOTO_PIXELS = 12e6  # a 12-MP photo: what a worker's memory is sized for
+WORKER_MAP_PIXELS = 1e6  # a photo bundle's maps (the person's longer side 512 pixels in its work frame)
+
+
+def worker_count(args) -> tuple[int, int]:
+    """(workers, threads each): one single-threaded worker per idle core (measured: two workers of one
+    thread made 36 photo-looks a minute here, one of two threads 24; docs/batch.md), as many as the
+    memory budget holds (a worker infers a 12-MP photo, or renders a bundle's maps of about a megapixel,
+    into a frame of --max-size), or as given."""
+    from ..budget import infer_bytes, memory_budget, render_bytes
+    from ..cores import work_threads
+
+    cores = work_threads()
+    frame = args.max_size * args.max_size * 2 // 3
+    per_worker = max(infer_bytes(WORKER_PHOTO_PIXELS, frame), render_bytes(WORKER_MAP_PIXELS, frame))
+    workers = args.workers or max(1, min(cores, int(memory_budget() // per_worker)))
+    return workers, args.threads or max(1, cores // workers)
 
 
 def resolve_looks(specs, args) -> list:

@@ -149,6 +149,13 @@ def cmd_bench(args) -> int:
                                         progress=lambda what: print(f"  measured {what}", flush=True))
         print(table(result))
         print(f"wrote {out_dir / 'upsample.json'}, {out_dir / 'upsample.jpg'}")
+    elif args.what == "batch":
+        from .bench.batch import BATCH_MAPS, run_batch_benchmark
+        from viewer.batch.plan import collect_photos
+
+        maps = shared_folder(args.maps, "hdri", "--maps")
+        photos, _ = collect_photos([shared_folder(args.photos, "photos", "--photos")])
+        run_batch_benchmark(photos, [maps / m for m in BATCH_MAPS], count=args.count, output=output)
     elif args.what == "ground":
         from .bench.ground import run_ground_benchmark
 
@@ -291,7 +298,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos", "robustness",
-                                    "bodyfit", "ground", "matte", "upsample"),
+                                    "bodyfit", "ground", "matte", "upsample", "batch"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -303,7 +310,10 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
                         "ground against Mitsuba (error and the ground pass's time per shadow method); matte: the person's matte "
                         "against the hand-made masks (--photos), every step and matting solver, quality and time; upsample: "
-                        "the work shading brought to the frame (bilinear) against a work frame as large as the frame")
+                        "the work shading brought to the frame (bilinear) against a work frame as large as the frame; "
+                        "batch: relight batch's throughput on --count photos made from --photos x three of --maps, "
+                        "with one worker, two and a local Ray cluster")
+    p.add_argument("--count", type=int, default=20, help="batch: distinct photos (default 20)")
     p.add_argument("--photos", help="photos, matte, upsample: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")

@@ -170,10 +170,10 @@ def load_networks(device="cpu", directory=None) -> dict:
 
 
 def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
-                  networks_dir=None, progress=None, ctx=None) -> tuple[Path, bool]:
+                  networks_dir=None, progress=None, ctx=None, bundles=None) -> tuple[Path, bool]:
     """(bundle directory, whether it was cached): inference runs once per (photo, mask or the
-    automatic one, sizes, weights, pipeline); the bundle is kept beside the light cache
-    (``bundles/``)."""
+    automatic one, sizes, weights, pipeline); the bundle is kept in ``bundles``, by default beside
+    the light cache (``bundles/``; a batch on a cluster names its shared folder)."""
     import hashlib
 
     from ..lighting.lightfit.cache import cache_dir
@@ -187,7 +187,7 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
             raise InputError(path, "not found")
         h.update(path.read_bytes())
     h.update(f"{size} {max_size} {mask_path is None} {PIPELINE} {detail_mod.DEFAULT}".encode())
-    out = cache_dir().with_name("bundles") / f"{Path(photo_path).stem}-{h.hexdigest()[:16]}"
+    out = Path(bundles or cache_dir().with_name("bundles")) / f"{Path(photo_path).stem}-{h.hexdigest()[:16]}"
     if (out / "inference.json").is_file():
         return out, True
     infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
