@@ -81,7 +81,7 @@ def test_a_rerun_does_nothing(first_run):
     tmp, photos, out, res = first_run
     before, lines = hashes(out), len(events(out))
     again = batch(tmp, photos, "--env", *MAPS, "-o", out, "--workers", "2", "--layers")
-    assert "batch: 0 done, 2 failed, 2 already done" in again.stdout, again.stdout
+    assert "batch: 0 done, 2 failed, 2 already done" in again.stdout, again.stdout  # the broken photo fails again
     assert hashes(out) == before
     assert [e["event"] for e in events(out)[lines:]] == ["failed", "failed"]  # the broken photo, tried again
 
@@ -135,6 +135,16 @@ def test_a_batch_killed_and_run_again_completes(tmp_path):
     items = done_items(tmp_path / "out")
     assert sorted(items) == sorted(set(items)) and len(items) == 6  # every item done, each once
     assert not list((tmp_path / "out").rglob("*.tmp"))
+
+
+def test_a_bad_map_fails_its_own_looks(tmp_path):
+    (tmp_path / "bad.hdr").write_text("not a map")
+    res = batch(tmp_path, PHOTO, "--env", MAPS[0], tmp_path / "bad.hdr", tmp_path / "missing.hdr", "-o", tmp_path / "out")
+    assert res.returncode == 1 and "batch: 1 done, 2 failed" in res.stdout, res.stdout + res.stderr
+    lines = [l for l in res.stderr.splitlines() if l.startswith("relight: underpass/")]
+    assert len(lines) == 2 and "bad.hdr: not a Radiance HDR image" in lines[0] and "missing.hdr" in lines[1]
+    assert "Traceback" not in res.stderr and (tmp_path / "out" / "underpass" / "venice_sunset_256.png").is_file()
+    assert (tmp_path / "out" / "contact-sheet.png").is_file()
 
 
 def test_two_batches_on_one_folder(tmp_path):

@@ -47,8 +47,11 @@ class Summary:
         return 60.0 * self.done / self.seconds if self.seconds > 0 else 0.0
 
     def line(self, manifest: Path) -> str:
+        if not self.done and not self.failed:
+            return f"batch: nothing to do, {self.skipped} items already done; manifest {manifest}"
         return (f"batch: {self.done} done, {self.failed} failed, {self.skipped} already done, in {self.seconds:.1f} s "
-                f"({self.per_minute:.1f} photo-looks a minute, {self.workers} workers); manifest {manifest}")
+                f"({self.per_minute:.1f} photo-looks a minute, {self.workers} worker{'s' if self.workers != 1 else ''}); "
+                f"manifest {manifest}")
 
 
 def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) -> tuple[list[Item], dict[Path, str]]:
