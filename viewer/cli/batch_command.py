@@ -30,6 +30,9 @@ def add_batch_parser(sub) -> None:
     p.add_argument("--threads", type=int, help="threads of each worker (default: the idle cores shared among the workers)")
     p.add_argument("--ray", help="run on a Ray cluster: auto (the one this machine belongs to), an address, or local "
                    "(a Ray instance started for this batch)")
+    p.add_argument("--gpus-per-worker", type=float, default=0.0,
+                   help="with --ray: GPUs each actor asks for (e.g. 0.25: four actors share a GPU); Ray places them on "
+                        "nodes that have them, and their GL contexts render there (default 0: CPU nodes)")
     p.add_argument("--layers", action="store_true", help="also PHOTO/LOOK.layers.exr for compositors (docs/batch.md)")
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
     p.add_argument("--device", default="cpu", help="device of the photos' inference (cpu or cuda)")
@@ -50,6 +53,8 @@ def cmd_batch(args) -> int:
         raise InputError(None, "no photos to relight: give photos, folders or globs")
     if not args.envmaps and not args.light_files:
         raise InputError(None, "give the looks: --env MAP [MAP ...] and/or --lights FILE [FILE ...]")
+    if args.gpus_per_worker < 0 or (args.gpus_per_worker and not args.ray):
+        raise InputError(None, "--gpus-per-worker: a share of a GPU (0 or more) for each Ray actor: give --ray too")
     if args.per_light and not args.layers:
         raise InputError(None, "--per-light adds layers: give --layers too")
     specs = look_specs(args.envmaps, args.light_files, args.yaws, args.rigs, args.presets)
@@ -65,7 +70,7 @@ def cmd_batch(args) -> int:
         from ..batch.pools import LocalPool, RayPool
 
         if args.ray:  # the cluster's cores, not this machine's: one thread an actor unless told
-            return RayPool(args.ray, args.workers, args.threads or 1)
+            return RayPool(args.ray, args.workers, args.threads or 1, gpus=args.gpus_per_worker)
         return LocalPool(workers, threads)
 
     from ..lighting.lightfit.cache import cache_dir
