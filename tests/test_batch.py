@@ -198,3 +198,72 @@ def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):
     items = done_items(tmp_path / "out")
     assert len(items) == 6 and sorted(items) == sorted(set(items)), items
     assert "batch: 6 done, 0 failed" in out
+
+
+def test_an_idle_worker_killed_is_replaced(tmp_path):
+    """A worker killed while it waits (the kernel's out-of-memory killer picks any) leaves no lock
+    held: the batch goes on with a new one."""
+    from viewer.batch.pools import LocalPool
+
+    pool = LocalPool(2, 1)
+    try:
+        victim = pool._slots[0]["proc"]
+        time.sleep(1.0)
+        os.kill(victim.pid, signal.SIGKILL)
+        victim.join(5)
+        pool.submit({"id": 1, "kind": "infer", "photo": str(tmp_path / "missing.jpg"), "max_size": 64,
+                     "bundles": str(tmp_path / "bundles")})
+        got = []
+        deadline = time.monotonic() + 120
+        while not got and time.monotonic() < deadline:
+            got = [r for r in pool.results(0.5) if r.get("id") == 1]
+        assert got and not got[0]["ok"] and "missing.jpg" in got[0]["error"]  # its one line, from a live worker
+        assert all(slot["proc"].is_alive() for slot in pool._slots)
+    finally:
+        pool.close()
+
+
+def test_what_an_item_wrote_before_failing_stays_ours(tmp_path):
+    from viewer.batch.manifest import Manifest, Ownership
+
+    (tmp_path / "p").mkdir()
+    png = tmp_path / "p" / "look.png"
+    png.write_bytes(b"half of a batch's work")
+    with Manifest(tmp_path) as m:
+        m.add("start", item="p/look", outputs=["p/look.png", "p/look.exr"])
+        m.add("failed", item="p/look", key="k", error="disk full", sha256={"p/look.png": __import__("hashlib").sha256(png.read_bytes()).hexdigest()})
+    own = Ownership(Manifest(tmp_path))
+    assert own.ours(png, tmp_path)
+    png.write_bytes(b"the user's file now")
+    assert not Ownership(Manifest(tmp_path)).ours(png, tmp_path)
+
+
+def test_a_cut_manifest_line_is_ended(tmp_path):
+    from viewer.batch.manifest import Manifest
+
+    (tmp_path / "manifest.jsonl").write_text('{"event": "done", "item": "a", "key": "k"}\n{"event": "start", "item": "b", "outp')
+    with Manifest(tmp_path) as m:
+        m.add("inferred", item="photo.jpg")
+    assert [e["event"] for e in Manifest(tmp_path).events] == ["done", "inferred"]
+
+
+def test_look_names_never_collide(tmp_path):
+    from viewer.batch.plan import look_specs
+
+    names = [l.name for l in look_specs(["a/x.hdr", "b/x.hdr", "c/x-2.hdr", "d/x.hdr"], [], None, [], None)]
+    assert len(set(names)) == 4, names
+
+
+def test_the_contact_sheet_keeps_a_users_file_and_skips_what_it_cannot_read(first_run):
+    from viewer.batch.contact_sheet import contact_sheet
+    from viewer.batch.manifest import Manifest, Ownership
+
+    out = first_run[2]
+    manifest = Manifest(out)
+    done = manifest.finished()
+    broken = dict(done)
+    broken["underpass/missing"] = {**next(iter(done.values())), "outputs": ["underpass/nothing.png"]}
+    assert contact_sheet(out, broken, Ownership(manifest)) == out / "contact-sheet.png"  # ours: made again
+    (out / "contact-sheet.png").write_bytes(b"my own sheet")
+    assert contact_sheet(out, done, Ownership(Manifest(out))) is None
+    assert (out / "contact-sheet.png").read_bytes() == b"my own sheet"

@@ -60,6 +60,11 @@ class Manifest:
 
     def __enter__(self):
         self._file = open(self.path, "a", encoding="utf-8")
+        if self._file.tell() > 0:  # a line a kill cut short is ended, so the next event starts its own
+            with open(self.path, "rb") as f:
+                f.seek(-1, os.SEEK_END)
+                if f.read(1) != b"\n":
+                    self._file.write("\n")
         return self
 
     def __exit__(self, *exc):
@@ -104,21 +109,37 @@ def read_events(path: Path):
 
 
 def still_done(done: dict | None, key: str, folder: Path) -> bool:
-    """Whether an item finished by an earlier run with this key still has its outputs as written."""
-    if done is None or done.get("key") != key:
+    """Whether an item finished by an earlier run with this key still has its outputs as written
+    (their size and time as recorded, else their SHA-256)."""
+    if done is None or done.get("key") != key or not done.get("sha256"):
         return False
-    for name, sha in done.get("sha256", {}).items():
-        path = folder / name
-        if not path.is_file() or file_sha256(path) != sha:
+    stamps = done.get("stamps", {})
+    for rel, sha in done["sha256"].items():
+        path = folder / rel
+        if not path.is_file():
             return False
-    return bool(done.get("sha256"))
+        if stamps.get(rel) != stamp(path) and file_sha256(path) != sha:
+            return False
+    return True
 
 
-def written_by_us(path: Path, folder: Path, manifest: "Manifest") -> bool:
-    """Whether an existing output file is this folder's batches': as a finished item wrote it (and
-    nobody changed it since), or one of an item that was being written when a batch was killed
-    (its ``start`` came before any work on it)."""
-    rel = path.relative_to(folder).as_posix()
-    if any(rel in e.get("outputs", []) for e in manifest.unfinished_starts()):
-        return True
-    return any(e.get("sha256", {}).get(rel) == file_sha256(path) for e in manifest.finished().values())
+def stamp(path: Path) -> list:
+    st = path.stat()
+    return [st.st_size, st.st_mtime_ns]
+
+
+class Ownership:
+    """Which existing files the batches of this folder wrote: outputs recorded with their SHA-256
+    (in ``done`` events, or in ``failed`` ones when an item failed after writing some), and the
+    outputs of items started and never finished (a killed batch's)."""
+
+    def __init__(self, manifest: Manifest):
+        self.hashes: dict[str, set] = {}
+        for e in manifest.events:
+            for rel, sha in e.get("sha256", {}).items():
+                self.hashes.setdefault(rel, set()).add(sha)
+        self.claimed = {rel for e in manifest.unfinished_starts() for rel in e.get("outputs", [])}
+
+    def ours(self, path: Path, folder: Path) -> bool:
+        rel = path.relative_to(folder).as_posix()
+        return rel in self.claimed or (rel in self.hashes and file_sha256(path) in self.hashes[rel])

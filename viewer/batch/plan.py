@@ -88,9 +88,11 @@ def look_specs(envmaps, light_files, yaws, rigs, presets) -> list[LookSpec]:
                     stem = (envmap or lights_file).name.split(".")[0]
                     name = stem + (f"_y{_yaw_text(yaw)}" if yaws else "") + (f"_{Path(rig).stem}" if rig else "") \
                         + (f"_{preset}" if preset else "")
-                    count = names_used[name] = names_used.get(name, 0) + 1
-                    if count > 1:  # two maps of one name in different folders
-                        name = f"{name}-{count}"
+                    base, count = name, 1
+                    while name in names_used:  # two maps of one name in different folders (or x and x-2)
+                        count += 1
+                        name = f"{base}-{count}"
+                    names_used[name] = 1
                     looks.append(LookSpec(name, envmap, lights_file, yaw, Path(rig) if rig else None, preset))
     return looks
 

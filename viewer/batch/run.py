@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact_sheet import contact_sheet
-from .manifest import Manifest, OutputLock, still_done, written_by_us
+from .contact_sheet import SHEET, contact_sheet
+from .manifest import Manifest, OutputLock, Ownership, stamp, still_done
 from .plan import Item, LookSpec, file_sha256, item_key, photo_names
 
 
@@ -54,14 +54,23 @@ class Summary:
                 f"manifest {manifest}")
 
 
+KEYLESS = ("bundles",)  # settings that do not change an output (where the bundles are kept)
+
+
 def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) -> tuple[list[Item], dict[Path, str]]:
-    """Every (photo, look) item with its outputs and key; the photos' content hashes (or, for a photo
-    that cannot be read, its error line, with an empty hash)."""
+    """Every (photo, look) item with its outputs and key; the photos' bundle keys (what their bundles
+    are made from: viewer.photo.inference.bundle_key), or for a photo that cannot be read its line."""
+    from ..errors import InputError
+    from ..photo.inference import bundle_key, inference_version
+
     names = photo_names(photos)
+    version = inference_version()
     shas, errors = {}, {}
     for p in photos:
         try:
-            shas[p] = file_sha256(p)
+            shas[p] = bundle_key(p, max_size=settings["max_size"], version=version)
+        except InputError as exc:
+            shas[p], errors[p] = "", str(exc)
         except OSError as exc:
             shas[p], errors[p] = "", f"{p}: cannot be read ({exc.strerror or exc})"
     items = []
@@ -71,7 +80,8 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
             outputs = (f"{name}.png", f"{name}.exr") + ((f"{name}.layers.exr",) if settings.get("layers") else ())
             item = Item(p, look.spec, name, outputs)
             if look.lights is not None and shas[p]:
-                item.settings = {"look": look.look_json, "options": look.options, **settings}
+                item.settings = {"look": look.look_json, "options": look.options,
+                                 **{k: v for k, v in settings.items() if k not in KEYLESS}}
                 item.key = item_key(shas[p], look.spec, look.source_sha, look.rig_sha,
                                     np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
             items.append(item)
@@ -106,6 +116,7 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
     summary = Summary()
     with OutputLock(folder), Manifest(folder) as manifest:
         finished = manifest.finished()
+        ownership = Ownership(manifest)
         items, photo_errors = plan_items(photos, looks, settings)
         remove_leftovers(folder, items)
         by_look = {look.spec: look for look in looks}
@@ -117,7 +128,7 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
                 summary.skipped += 1
                 continue
             if error is None:
-                taken = [rel for rel in item.outputs if (folder / rel).exists() and not written_by_us(folder / rel, folder, manifest)]
+                taken = [rel for rel in item.outputs if (folder / rel).exists() and not ownership.ours(folder / rel, folder)]
                 if taken:
                     error = f"{folder / taken[0]}: exists and no relight batch wrote it there: move it away or give another -o"
             if error is not None:
@@ -132,7 +143,11 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
             finally:
                 pool.close()
         if summary.done:
-            summary.sheet = contact_sheet(folder, manifest.finished())
+            finished = manifest.finished()
+            shown = {i.name: finished[i.name] for i in items if i.name in finished and finished[i.name].get("key") == i.key}
+            summary.sheet = contact_sheet(folder, shown, Ownership(manifest))
+            if summary.sheet is not None:
+                manifest.add("sheet", item=SHEET, sha256={SHEET: file_sha256(summary.sheet)})
     summary.seconds = time.perf_counter() - start
     return summary
 
@@ -155,8 +170,6 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
                 kind, what = tasks.get(r["id"], (None, None))
                 if kind is None:
                     continue
-                if r.get("kind") == "started":
-                    continue
                 del tasks[r["id"]]
                 if kind == "infer":
                     if r["ok"]:
@@ -175,10 +188,11 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
                     if r["ok"]:
                         manifest.add("done", item=what.name, key=what.key, photo=str(what.photo), look=what.look.name,
                                      settings=what.settings, outputs=list(what.outputs), sha256=r["sha256"],
+                                     stamps={rel: stamp(folder / rel) for rel in what.outputs},
                                      times={**r.get("times", {}), "total": r.get("seconds")}, pid=r.get("pid"))
                         summary.done += 1
                     else:
-                        _failed(manifest, summary, what, r["error"])
+                        _failed(manifest, summary, what, r["error"], folder)
                     bar.update(1)
     finally:
         bar.close()
@@ -192,7 +206,11 @@ def _render_task(task_id: int, item: Item, look: ResolvedLook, bundle: str, fold
             "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light"))}
 
 
-def _failed(manifest: Manifest, summary: Summary, item: Item, error: str):
-    manifest.add("failed", item=item.name, key=item.key, photo=str(item.photo), look=item.look.name, error=error)
+def _failed(manifest: Manifest, summary: Summary, item: Item, error: str, folder: Path | None = None):
+    """``folder``: the item was handed to a worker (its outputs were checked to be ours or absent),
+    so whatever it wrote before failing is recorded as ours, to be replaced by its next try."""
+    written = {rel: file_sha256(folder / rel) for rel in item.outputs if (folder / rel).is_file()} if folder else {}
+    manifest.add("failed", item=item.name, key=item.key, photo=str(item.photo), look=item.look.name, error=error,
+                 **({"sha256": written} if written else {}))
     summary.failed += 1
     summary.failures.append((item.name, error))

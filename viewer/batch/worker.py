@@ -42,8 +42,18 @@ class Worker:
             return {**result, "ok": True, "pid": os.getpid(), "seconds": round(time.perf_counter() - start, 3)}
         except InputError as exc:
             return {"ok": False, "error": str(exc), "pid": os.getpid()}
-        except (OSError, ValueError, RuntimeError, MemoryError) as exc:
-            return {"ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0], "pid": os.getpid()}
+        except Exception as exc:  # noqa: BLE001 - any failure is its item's one line; the worker goes on
+            self._drop_engine()  # (a GL error may have left the engine half made)
+            text = f"{type(exc).__name__}: {exc}".strip().splitlines()
+            return {"ok": False, "error": text[0] if text else type(exc).__name__, "pid": os.getpid()}
+
+    def _drop_engine(self):
+        if self._engine is not None:
+            try:
+                self._engine.release()
+            except Exception:  # noqa: BLE001 - a broken engine is dropped all the same
+                pass
+        self._engine_key, self._engine, self._scene = None, None, None
 
     def infer(self, task: dict) -> dict:
         from ..photo.inference import cached_bundle
@@ -67,9 +77,7 @@ class Worker:
         t = time.perf_counter()
         key = (task["bundle"], task["max_size"], tuple(sorted(task["options"].items())))
         if key != self._engine_key:
-            if self._engine is not None:
-                self._engine.release()
-                self._engine_key = self._engine = None
+            self._drop_engine()
             self._scene = load_sized_scene(task["bundle"], None, task["max_size"])
             self._engine = Engine(self.ctx, self._scene, EngineOptions(**task["options"]))
             self._engine_key = key
@@ -95,23 +103,33 @@ class Worker:
         return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]}}
 
 
-def serve(threads: int, tasks, results, parent: int) -> None:
-    """A local worker process: tasks from one queue, results to another, until a None task or until
-    its batch (process ``parent``) is gone, killed or not. Ctrl-C is the batch's to handle (it stops
-    the workers), not each worker's."""
-    import queue
+def serve(threads: int, conn, parent: int) -> None:
+    """A local worker process: tasks from its pipe, each result back on it, until a None task or
+    its batch (process ``parent``) is gone: the kernel kills it with its parent (SIGKILL included),
+    so nothing is written for a batch that is no longer there. Ctrl-C is the batch's to handle."""
     import signal
 
+    _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if os.getppid() != parent:  # the parent went before the request took effect
+        return
     worker = Worker(threads)
     while True:
         try:
-            task = tasks.get(timeout=1.0)
-        except queue.Empty:
-            if os.getppid() != parent:
-                return
-            continue
-        if task is None or os.getppid() != parent:  # nothing is written for a batch that is gone
+            task = conn.recv()
+        except (EOFError, OSError):
             return
-        results.put({"kind": "started", "id": task["id"], "pid": os.getpid()})
-        results.put({**worker.run(task), "kind": "result", "id": task["id"]})
+        if task is None:
+            return
+        conn.send({**worker.run(task), "kind": "result", "id": task["id"]})
+
+
+def _die_with_parent() -> None:
+    """prctl(PR_SET_PDEATHSIG, SIGKILL): Linux ends this process when its parent ends."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass  # not Linux: the pipe's end is seen at the next task

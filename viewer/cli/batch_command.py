@@ -26,7 +26,7 @@ def add_batch_parser(sub) -> None:
     p.add_argument("-n", "--lights-count", type=int, help="lights fitted to each map (default: the preset's)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
     p.add_argument("-o", "--output", required=True, help="the batch's folder: PHOTO/LOOK.png and .exr, manifest.jsonl")
-    p.add_argument("--workers", type=int, help="worker processes (default: one per two idle cores, at least one)")
+    p.add_argument("--workers", type=int, help="worker processes (default: one per idle core, as many as the memory holds)")
     p.add_argument("--threads", type=int, help="threads of each worker (default: the idle cores shared among the workers)")
     p.add_argument("--ray", help="run on a Ray cluster: auto (the one this machine belongs to), an address, or local "
                    "(a Ray instance started for this batch)")
@@ -47,6 +47,7 @@ def cmd_batch(args) -> int:
     from .output_paths import writable
 
     photos, missing = collect_photos(args.photos)
+    photos = [p.resolve() for p in photos]  # workers elsewhere (Ray) read and write the same paths, not relative ones
     for line in missing:
         print(f"relight: warning: {line}", file=sys.stderr)
     if not photos:
@@ -57,9 +58,10 @@ def cmd_batch(args) -> int:
         raise InputError(None, "--gpus-per-worker: a share of a GPU (0 or more) for each Ray actor: give --ray too")
     if args.per_light and not args.layers:
         raise InputError(None, "--per-light adds layers: give --layers too")
-    specs = look_specs(args.envmaps, args.light_files, args.yaws, args.rigs, args.presets)
+    specs = look_specs(*([Path(p).resolve() for p in paths] for paths in (args.envmaps, args.light_files)),
+                       args.yaws, [Path(p).resolve() for p in args.rigs], args.presets)
     check_sources(specs)
-    folder = Path(args.output)
+    folder = Path(args.output).resolve()
     writable(folder, folder=True)
     looks = resolve_looks(specs, args)
     if (args.workers is not None and args.workers < 1) or (args.threads is not None and args.threads < 1):

@@ -169,27 +169,48 @@ def load_networks(device="cpu", directory=None) -> dict:
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
 
 
-def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
-                  networks_dir=None, progress=None, ctx=None, bundles=None) -> tuple[Path, bool]:
-    """(bundle directory, whether it was cached): inference runs once per (photo, mask or the
-    automatic one, sizes, weights, pipeline); the bundle is kept in ``bundles``, by default beside
-    the light cache (``bundles/``; a batch on a cluster names its shared folder)."""
+def inference_version(networks_dir=None) -> str:
+    """The networks' weights and the pipeline's version, hashed: what every bundle is made with."""
     import hashlib
 
-    from ..lighting.lightfit.cache import cache_dir
-
-    h = hashlib.sha256()
+    h = hashlib.sha256(f"{PIPELINE} {detail_mod.DEFAULT}".encode())
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
-    for path in (photo_path, *([mask_path] if mask_path is not None else []),
-                 *(networks_dir / f"{n}.safetensors" for n in NETWORKS)):
+    for path in (networks_dir / f"{n}.safetensors" for n in NETWORKS):
+        if not path.is_file():
+            raise InputError(path, "not found")
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def bundle_key(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, networks_dir=None,
+               version: str | None = None) -> str:
+    """What a photo's bundle is made from, hashed: the photo's and mask's bytes, the sizes and the
+    :func:`inference_version` (``version``: already computed, for many photos); a missing file is
+    one line naming it."""
+    import hashlib
+
+    h = hashlib.sha256((version or inference_version(networks_dir)).encode())
+    for path in (photo_path, *([mask_path] if mask_path is not None else [])):
         path = Path(path)
         if not path.is_file():
             raise InputError(path, "not found")
         h.update(path.read_bytes())
-    h.update(f"{size} {max_size} {mask_path is None} {PIPELINE} {detail_mod.DEFAULT}".encode())
-    out = Path(bundles or cache_dir().with_name("bundles")) / f"{Path(photo_path).stem}-{h.hexdigest()[:16]}"
+    h.update(f"{size} {max_size} {mask_path is None}".encode())
+    return h.hexdigest()
+
+
+def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+                  networks_dir=None, progress=None, ctx=None, bundles=None) -> tuple[Path, bool]:
+    """(bundle directory, whether it was cached): inference runs once per :func:`bundle_key`; the
+    bundle is kept in ``bundles``, by default beside the light cache (``bundles/``; a batch on a
+    cluster names its shared folder)."""
+    from ..lighting.lightfit.cache import cache_dir
+
+    key = bundle_key(photo_path, mask_path, size, max_size, networks_dir)
+    out = Path(bundles or cache_dir().with_name("bundles")) / f"{Path(photo_path).stem}-{key[:16]}"
     if (out / "inference.json").is_file():
         return out, True
+    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
           networks=load_networks(device, networks_dir), progress=progress, ctx=ctx)
     return out, False
