@@ -80,8 +80,13 @@ import os, signal, sys
 pid = os.fork()
 if pid == 0:
     os.execv(sys.executable, [sys.executable, "-m", "viewer.cli.main", *sys.argv[2:]])
+def forward(n, f):
+    try:
+        os.kill(pid, n)
+    except ProcessLookupError:  # it ended (and was waited for) as the signal came: its own exit stands
+        pass
 for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-    signal.signal(s, lambda n, f: os.kill(pid, n))
+    signal.signal(s, forward)
 signal.pthread_sigmask(signal.SIG_UNBLOCK, (signal.SIGINT, signal.SIGTERM, signal.SIGHUP))  # (relight blocks them)
 while True:
     try:
