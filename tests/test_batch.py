@@ -235,9 +235,9 @@ def test_what_an_item_wrote_before_failing_stays_ours(tmp_path):
         m.add("start", item="p/look", outputs=["p/look.png", "p/look.exr"])
         m.add("failed", item="p/look", key="k", error="disk full", sha256={"p/look.png": __import__("hashlib").sha256(png.read_bytes()).hexdigest()})
     own = Ownership(Manifest(tmp_path))
-    assert own.ours(png, tmp_path)
+    assert own.ours(tmp_path, "p/look.png")
     png.write_bytes(b"the user's file now")
-    assert not Ownership(Manifest(tmp_path)).ours(png, tmp_path)
+    assert not Ownership(Manifest(tmp_path)).ours(tmp_path, "p/look.png")
 
 
 def test_a_cut_manifest_line_is_ended(tmp_path):
@@ -265,6 +265,7 @@ def test_the_contact_sheet_keeps_a_users_file_and_skips_what_it_cannot_read(firs
     done = manifest.finished()
     broken = dict(done)
     broken["underpass/missing"] = {**next(iter(done.values())), "outputs": ["underpass/nothing.png"]}
+    broken["another/venice_sunset_256"] = done["underpass/venice_sunset_256"]  # a photo with one of the looks alone
     assert contact_sheet(out, broken, Ownership(manifest)) == out / "contact-sheet.png"  # ours: made again
     (out / "contact-sheet.png").write_bytes(b"my own sheet")
     assert contact_sheet(out, done, Ownership(Manifest(out))) is None

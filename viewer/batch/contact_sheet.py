@@ -24,7 +24,7 @@ def contact_sheet(folder: Path, done: dict[str, dict], ownership) -> Path | None
     from PIL import Image, ImageDraw, ImageOps, UnidentifiedImageError
 
     path = folder / SHEET
-    if path.exists() and not ownership.ours(path, folder):
+    if path.exists() and not ownership.ours(folder, SHEET):
         print(f"relight: warning: {path}: kept (no relight batch wrote it): no contact sheet this time", file=sys.stderr)
         return None
 
@@ -48,6 +48,8 @@ def contact_sheet(folder: Path, done: dict[str, dict], ownership) -> Path | None
         for c, (label, png) in enumerate(row):
             x, y = c * width, r * (THUMB + LABEL)
             draw.text((x + 4, y + 3), label[:40], fill=(220, 220, 220))
+            if png is None:  # this photo has no such look done
+                continue
             try:
                 with Image.open(png) as im:
                     im = ImageOps.exif_transpose(im).convert("RGB")  # a photo as it is seen
