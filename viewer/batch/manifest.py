@@ -1,9 +1,9 @@
 """The batch's record and its claim on the output folder.
 
 ``manifest.jsonl`` gets one JSON line per event, flushed to the disk before the next item counts:
-``start`` (an item about to be handed to a worker, with the outputs it will write) and ``done`` or
-``failed`` (its outputs with their SHA-256, the seconds of each stage, the one-line
-error). A batch killed at any moment leaves whole lines but perhaps the last; that line is ignored.
+``inferred`` (a photo's bundle), ``start`` (an item about to be handed to a worker, with the outputs
+it will write), ``done`` or ``failed`` (its outputs with their SHA-256, the seconds of each stage,
+the one-line error), ``sheet`` (the contact sheet written). A batch killed at any moment leaves whole lines but perhaps the last; that line is ignored.
 A rerun skips the items whose last ``done`` has the same key and whose outputs are still the files
 it wrote. The lock (``.relight-batch.lock``, an flock the kernel drops when the process dies, even
 by SIGKILL) keeps a second batch out of the folder."""
@@ -140,6 +140,6 @@ class Ownership:
                 self.hashes.setdefault(rel, set()).add(sha)
         self.claimed = {rel for e in manifest.unfinished_starts() for rel in e.get("outputs", [])}
 
-    def ours(self, path: Path, folder: Path) -> bool:
-        rel = path.relative_to(folder).as_posix()
-        return rel in self.claimed or (rel in self.hashes and file_sha256(path) in self.hashes[rel])
+    def ours(self, folder: Path, rel: str) -> bool:
+        """Whether ``folder/rel`` (which exists) is the batches'."""
+        return rel in self.claimed or (rel in self.hashes and file_sha256(folder / rel) in self.hashes[rel])

@@ -111,14 +111,15 @@ def photo_names(photos: list[Path]) -> dict[Path, str]:
             for p in photos}
 
 
-def item_key(photo_sha: str, look: LookSpec, source_sha: str, rig_sha: str, lights: np.ndarray, settings: dict) -> str:
-    """The content hash an item's outputs are made from: the photo's bytes, the map's or light
-    file's, the rig's, the lights themselves (the fit's method and count), the look and the
-    options, and the code's version."""
+def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, settings: dict) -> str:
+    """The content hash an item's outputs are made from: its photo's bundle key (the photo's bytes,
+    the networks, the pipeline: viewer.photo.inference.bundle_key), the map's or light file's bytes,
+    the rig's, the lights themselves (the fit's method and count), the look and the options, and
+    this code's key version."""
     from ..photo.inference import PIPELINE
 
     h = hashlib.sha256()
-    h.update(json.dumps({"photo": photo_sha, "source": source_sha, "rig": rig_sha, "settings": settings,
+    h.update(json.dumps({"photo": photo_key, "source": source_sha, "rig": rig_sha, "settings": settings,
                          "version": [KEY_VERSION, PIPELINE]}, sort_keys=True).encode())
     h.update(np.ascontiguousarray(lights, np.float32).tobytes())
     return h.hexdigest()

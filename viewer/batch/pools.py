@@ -156,8 +156,10 @@ class RayPool:
 
     def results(self, timeout: float = 0.5) -> list[dict]:
         out = []
-        if self._running:
-            done, _ = self._ray.wait(list(self._running), num_returns=len(self._running), timeout=timeout)
+        if self._running:  # back as soon as one is done (its actor gets the next task), with all done by then
+            done, _ = self._ray.wait(list(self._running), num_returns=1, timeout=timeout)
+            if done:
+                done, _ = self._ray.wait(list(self._running), num_returns=len(self._running), timeout=0)
             for ref in done:
                 actor, task = self._running.pop(ref)
                 self._idle.append(actor)

@@ -54,6 +54,7 @@ class Summary:
                 f"manifest {manifest}")
 
 
+LEFTOVER = re.compile(r"^\.(.+)\.\d+\.tmp$")  # .NAME.PID.tmp
 KEYLESS = ("bundles",)  # settings that do not change an output (where the bundles are kept)
 
 
@@ -82,27 +83,27 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
             if look.lights is not None and shas[p]:
                 item.settings = {"look": look.look_json, "options": look.options,
                                  **{k: v for k, v in settings.items() if k not in KEYLESS}}
-                item.key = item_key(shas[p], look.spec, look.source_sha, look.rig_sha,
+                item.key = item_key(shas[p], look.source_sha, look.rig_sha,
                                     np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
             items.append(item)
     return items, errors
 
 
-def remove_leftovers(folder: Path, items: list[Item]) -> int:
+def remove_leftovers(folder: Path, items: list[Item]) -> None:
     """Temporary files a killed batch left beside the outputs it plans (``.NAME.PID.tmp``, the
-    atomic writes' names: viewer.imageio.atomic_paths); nothing else is touched."""
-    removed = 0
+    atomic writes' names: viewer.imageio.atomic_paths); nothing else is touched. Each folder is
+    listed once."""
+    planned: dict[Path, set] = {}
     for item in items:
         for rel in item.outputs:
-            path = folder / rel
-            if not path.parent.is_dir():
-                continue
-            pattern = re.compile(rf"^\.{re.escape(path.name)}\.\d+\.tmp$")
-            for tmp in path.parent.iterdir():
-                if pattern.match(tmp.name) and tmp.is_file():
-                    tmp.unlink()
-                    removed += 1
-    return removed
+            planned.setdefault((folder / rel).parent, set()).add((folder / rel).name)
+    for parent, names in planned.items():
+        if not parent.is_dir():
+            continue
+        for tmp in parent.iterdir():
+            m = LEFTOVER.match(tmp.name)
+            if m and m.group(1) in names and tmp.is_file():
+                tmp.unlink()
 
 
 def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, settings: dict,
@@ -128,7 +129,7 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
                 summary.skipped += 1
                 continue
             if error is None:
-                taken = [rel for rel in item.outputs if (folder / rel).exists() and not ownership.ours(folder / rel, folder)]
+                taken = [rel for rel in item.outputs if (folder / rel).exists() and not ownership.ours(folder, rel)]
                 if taken:
                     error = f"{folder / taken[0]}: exists and no relight batch wrote it there: move it away or give another -o"
             if error is not None:

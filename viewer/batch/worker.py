@@ -18,10 +18,9 @@ class Worker:
 
         os.environ["LP_NUM_THREADS"] = str(threads)  # llvmpipe reads it when the context is made
         size_pools(threads)
-        self.threads = threads
         self._ctx = None
         self._engine_key, self._engine, self._scene = None, None, None
-        self._maps: dict[str, object] = {}
+        self._map = (None, None)  # the last map read: (path, pixels)
 
     @property
     def ctx(self):
@@ -85,9 +84,9 @@ class Worker:
         t = time.perf_counter()
         env = None
         if task.get("envmap"):
-            if task["envmap"] not in self._maps:
-                self._maps = {task["envmap"]: load_envmap(task["envmap"]).pixels}  # the last map only
-            env = self._maps[task["envmap"]]
+            if self._map[0] != task["envmap"]:
+                self._map = (task["envmap"], load_envmap(task["envmap"]).pixels)
+            env = self._map[1]
         lights = AreaLights.from_array(task["lights"])
         fixed = AreaLights.from_array(task["rig"]) if task.get("rig") is not None else None
         folder = Path(task["folder"])

@@ -58,14 +58,14 @@ def cmd_batch(args) -> int:
         raise InputError(None, "--gpus-per-worker: a share of a GPU (0 or more) for each Ray actor: give --ray too")
     if args.per_light and not args.layers:
         raise InputError(None, "--per-light adds layers: give --layers too")
+    if (args.workers is not None and args.workers < 1) or (args.threads is not None and args.threads < 1):
+        raise InputError(None, "--workers and --threads must be at least 1")
     specs = look_specs(*([Path(p).resolve() for p in paths] for paths in (args.envmaps, args.light_files)),
                        args.yaws, [Path(p).resolve() for p in args.rigs], args.presets)
     check_sources(specs)
     folder = Path(args.output).resolve()
     writable(folder, folder=True)
     looks = resolve_looks(specs, args)
-    if (args.workers is not None and args.workers < 1) or (args.threads is not None and args.threads < 1):
-        raise InputError(None, "--workers and --threads must be at least 1")
     workers, threads = worker_count(args)
 
     def make_pool():
