@@ -162,21 +162,11 @@ def test_two_batches_on_one_folder(tmp_path):
 
 @pytest.fixture
 def ray_cluster():
-    """A local Ray cluster (``ray start --head``, 2 CPUs) for the test, stopped after it. Its folder
-    is short: Ray's sockets live there, and a socket's path has at most 107 characters."""
-    import tempfile
+    """A local Ray cluster (``ray start --head``, 2 CPUs) for the test, stopped after it."""
+    from viewer.lab.bench.batch import local_ray_cluster
 
-    ray = Path(sys.executable).with_name("ray")
-    temp = tempfile.mkdtemp(prefix="ray", dir="/tmp")
-    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
-    started = subprocess.run([str(ray), "start", "--head", "--num-cpus", "2", "--include-dashboard", "false",
-                              "--temp-dir", temp], capture_output=True, text=True, env=env, timeout=180)
-    assert started.returncode == 0, started.stdout + started.stderr
-    try:
-        yield {**env, "RAY_ADDRESS": "auto"}
-    finally:
-        subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=180)
-        shutil.rmtree(temp, ignore_errors=True)
+    with local_ray_cluster() as env:
+        yield env
 
 
 def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):

@@ -6,6 +6,7 @@ photo, render per item, from the manifest) and where the time went. Results to s
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import platform
@@ -49,16 +50,23 @@ def catalogue(sources: list[Path], folder: Path, count: int) -> list[Path]:
     return out
 
 
-def _ray_cluster(temp: str) -> dict:
+@contextlib.contextmanager
+def local_ray_cluster(cpus: int = 2):
+    """A local Ray cluster (``ray start --head``) for the block: yields the environment that joins
+    it; stopped after. Its folder is short: Ray's sockets live there, and a socket's path has at
+    most 107 characters (pytest's folders are longer)."""
     ray = Path(sys.executable).with_name("ray")
+    temp = tempfile.mkdtemp(prefix="ray", dir="/tmp")
     env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
-    subprocess.run([str(ray), "start", "--head", "--num-cpus", "2", "--include-dashboard", "false", "--temp-dir", temp],
-                   check=True, capture_output=True, env=env, timeout=180)
-    return {**env, "RAY_ADDRESS": "auto"}
-
-
-def _stop_ray():
-    subprocess.run([str(Path(sys.executable).with_name("ray")), "stop", "--force"], capture_output=True, timeout=180)
+    try:
+        started = subprocess.run([str(ray), "start", "--head", "--num-cpus", str(cpus), "--include-dashboard", "false",
+                                  "--temp-dir", temp], capture_output=True, text=True, env=env, timeout=180)
+        if started.returncode != 0:
+            raise RuntimeError(f"ray start failed: {started.stdout}{started.stderr}")
+        yield {**env, "RAY_ADDRESS": "auto"}
+    finally:
+        subprocess.run([str(ray), "stop", "--force"], capture_output=True, env=env, timeout=180)
+        shutil.rmtree(temp, ignore_errors=True)
 
 
 def run_batch_benchmark(sources: list[Path], maps: list[Path], count: int = 20, max_size: int = 2048,
@@ -71,21 +79,12 @@ def run_batch_benchmark(sources: list[Path], maps: list[Path], count: int = 20, 
         catalogue(sources, work / "photos", count)
         for label, options in CONFIGS:
             cache, out = work / label.split()[0] / "cache" / "lights", work / label.split()[0] / "out"
-            env = {**os.environ, "RELIGHT_CACHE": str(cache)}
-            ray_temp = tempfile.mkdtemp(prefix="ray", dir="/tmp") if "--ray" in options else None
-            try:
-                if ray_temp:
-                    env.update(_ray_cluster(ray_temp))
-                    env["RELIGHT_CACHE"] = str(cache)
+            with local_ray_cluster() if "--ray" in options else contextlib.nullcontext(dict(os.environ)) as env:
                 t0 = time.perf_counter()
                 res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "batch", str(work / "photos"), "--env",
                                       *map(str, maps), "-o", str(out), "--max-size", str(max_size), *options],
-                                     capture_output=True, text=True, env=env)
+                                     capture_output=True, text=True, env={**env, "RELIGHT_CACHE": str(cache)})
                 seconds = time.perf_counter() - t0
-            finally:
-                if ray_temp:
-                    _stop_ray()
-                    shutil.rmtree(ray_temp, ignore_errors=True)
             events = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
             done = [e for e in events if e["event"] == "done"]
             inferred = [e for e in events if e["event"] == "inferred"]
