@@ -95,7 +95,7 @@ WORKER_MAP_PIXELS = 1e6  # a photo bundle's maps (the person's longer side 512 p
 
 def worker_count(args) -> tuple[int, int]:
     """(workers, threads each): one single-threaded worker per idle core (measured: two workers of one
-    thread made 36 photo-looks a minute here, one of two threads 25; docs/batch.md), as many as the
+    thread made 36-37 photo-looks a minute here, one of two threads 23-25; docs/batch.md), as many as the
     memory budget holds (a worker infers a 12-MP photo, or renders a bundle's maps of about a megapixel,
     into a frame of --max-size), or as given."""
     from ..budget import infer_bytes, memory_budget, render_bytes
