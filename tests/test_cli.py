@@ -201,8 +201,8 @@ def test_work_past_the_memory_and_time_budgets_is_refused_before_it_starts(tmp_p
         (("render", sample_scene_dir(), "--env", env, "--size", "8192", "--max-size", "16384", "-o", tmp_path / "x.png"),
          r"rendering maps of 8192 px would need about \d+\.\d GB of memory, more than the \d+\.\d GB this machine can "
          r"give now \(--size \d+ or less fits\)"),
-        (("fit-lights", env, "-n", "256", "--method", "fast", "-o", tmp_path / "l.json"),
-         "--method fast fits at most 64 lights"),
+        (("fit-lights", env, "-n", "300", "-o", tmp_path / "l.json"),
+         r"-n: the number of lights must be in \[1, 256\], got 300"),
         (("render", sample_scene_dir(), "--env", env, "-n", "65", "--method", "paper", "-o", tmp_path / "y.png"),
          "--method paper fits at most 64 lights"),
         (("infer", photo, "--size", "64", "--networks", nets, "-o", tmp_path / "b"),

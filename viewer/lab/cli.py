@@ -160,6 +160,10 @@ def cmd_bench(args) -> int:
         from .bench.ground import run_ground_benchmark
 
         run_ground_benchmark(output=output, repeats=args.repeats)
+    elif args.what == "light-sizes":
+        from .bench.light_sizes import run_light_sizes_benchmark
+
+        run_light_sizes_benchmark(shared_folder(args.maps, "hdri", "--maps"), output=output)
     elif args.what == "temporal":
         from .bench.temporal import run_temporal_benchmark
 
@@ -298,7 +302,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos", "robustness",
-                                    "bodyfit", "ground", "matte", "upsample", "batch"),
+                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -308,7 +312,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "mask IoU, times; --data adds held-out pairs); robustness: the bad-input campaign (hostile files and options "
                         "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
                         "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
-                        "ground against Mitsuba (error and the ground pass's time per shadow method); matte: the person's matte "
+                        "ground against Mitsuba (error and the ground pass's time per shadow method); light-sizes: the area lights' sigmas "
+                        "(each light's size on the map, scaled, and 0) against Mitsuba on the person and the ground under --maps; matte: the person's matte "
                         "against the hand-made masks (--photos), every step and matting solver, quality and time; upsample: "
                         "the work shading brought to the frame (bilinear) against a work frame as large as the frame; "
                         "batch: relight batch's throughput on --count photos made from --photos x three of --maps, "

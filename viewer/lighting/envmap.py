@@ -40,6 +40,8 @@ from ..errors import InputError
 from ..imageio import atomic_path, check_pixels, read_exr, write_exr
 from .lights import rotation_matrix
 
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 weights of linear RGB
+
 SUFFIXES = (".hdr", ".exr")
 
 

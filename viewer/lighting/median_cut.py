@@ -14,10 +14,8 @@ becomes one light:
 - ``intensity``: sum over its texels of L x solid angle per RGB channel, so a white Lambertian
   surface facing the light receives the irradiance the region would give it (the sums over all
   lights equal the map's :meth:`~viewer.lighting.envmap.EnvMap.energy`);
-- ``sigma``: ``min(20, 40 * s)`` with ``s`` the region's energy-weighted RMS angle (radians) about
-  the light direction. **This is a heuristic placeholder**: K = 40 only maps small regions (sun,
-  lamps) to sharp shadows and large ones to the softest blur (20, the paper's upper bound) until a
-  later issue fits sigma properly to the shadows the region would cast.
+- ``sigma``: the region's size (:func:`viewer.lighting.light_size.cell_sigma`): the angular
+  Gaussian its light spreads over, in the engine's sigma unit.
 """
 
 from __future__ import annotations
@@ -26,13 +24,12 @@ import heapq
 
 import numpy as np
 
-from .envmap import EnvMap, pixel_directions, solid_angles
+from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from ..errors import InputError
+from .light_size import SIGMA_MAX, cell_sigma
 from .lights import AreaLights
 
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 weights of linear RGB
-SIGMA_PER_RADIAN = 40.0  # K of the placeholder sigma = min(SIGMA_MAX, K * angular spread)
-SIGMA_MAX = 20.0
+__all__ = ["LUMINANCE", "SIGMA_MAX", "median_cut_lights"]
 
 
 def median_cut_lights(env: EnvMap, n: int, max_width: int = 256) -> AreaLights:
@@ -104,9 +101,7 @@ def _lights(regions, flux, energy, omega, dirs) -> AreaLights:
         mean = np.einsum("ij,ijk->k", weight, d) / weight.sum()
         length = np.linalg.norm(mean)
         mean = mean / length if length > 1e-12 else np.array([0.0, 1.0, 0.0])
-        angle = np.arccos(np.clip(d @ mean, -1.0, 1.0))
-        spread = np.sqrt(np.sum(weight * angle**2) / weight.sum())
         direction.append(mean)
-        sigma.append(min(SIGMA_MAX, SIGMA_PER_RADIAN * spread))
+        sigma.append(cell_sigma(d.reshape(-1, 3), weight.reshape(-1)))
         intensity.append(flux[i0:i1, j0:j1].sum(axis=(0, 1)))
     return AreaLights(np.array(direction), np.array(sigma), np.array(intensity)).validate()

@@ -24,7 +24,7 @@ from ..envmap import EnvMap
 from ...errors import InputError
 from ..lights import AreaLights, load_lights
 
-FIT_VERSION = 1  # bump when a change to the fitters changes their results
+FIT_VERSION = 2  # bump when a change to the fitters changes their results
 
 
 def cache_dir() -> Path:

@@ -4,17 +4,16 @@ Four methods (error against run time in docs/lights.md, from ``relight bench lig
 
 ``median-cut``
     Initialization only: :func:`viewer.lighting.median_cut.median_cut_lights` (directions and intensities
-    straight from the map, sigma from each region's angular spread).
+    straight from the map, sigma each region's size).
 ``instant`` (the default)
-    ``fast`` on small views (a 32-pixel sphere, a 48-pixel plane, 64-texel shadow maps, 512 map
-    samples) with ``INSTANT_STEPS`` Adam steps and one sweep over the 9 sigmas of ``INSTANT_TABLE``:
-    about a second per map, so the viewer and the command line never make the user wait on a fit.
+    ``fast`` on small views (a 32-pixel sphere, 512 map samples) with ``INSTANT_STEPS`` Adam steps:
+    about half a second per map, so the viewer and the command line never make the user wait on a fit.
 ``fast``
     Median cut, then a short Step 2 (``FAST_STEPS`` Adam steps on directions and log-intensities,
-    learning rate cosine-annealed to 0, the paper's diffuse + specular sRGB L1 loss) and a sigma
-    search on the paper's Step 3 loss: each light's sigma is chosen by
-    coordinate descent (``SIGMA_SWEEPS`` sweeps over the lights) over the sigmas of ``SIGMA_TABLE``,
-    the soft shadows at each being computed once with the twin's convolutional shadow maps.
+    learning rate cosine-annealed to 0, the paper's diffuse + specular sRGB L1 loss). Each light's
+    sigma is then its size on the map (:func:`viewer.lighting.light_size.region_sizes`: the angular
+    spread of the part of the map nearest it), which carries over to a person's shadows better than
+    a search on the sphere-on-plane scene's (docs/lights.md, ``relight bench light-sizes``).
 ``paper``
     The paper's procedure: Step 1 directions on a Fibonacci sphere, constant intensities, sigma 10;
     Step 2, 1000 Adam steps (betas 0.5, 0.999; learning rate cosine-annealed from 1 to 1e-5 with
@@ -48,25 +47,22 @@ import torch
 
 from ..envmap import EnvMap
 from ...errors import InputError
+from ..light_size import SIGMA_MAX, region_sizes
 from ..lights import AreaLights
-from ..median_cut import SIGMA_MAX, median_cut_lights
+from ..median_cut import median_cut_lights
 from .adam import CosineAdam
 from .methods import DEFAULT_METHOD, METHODS, check_light_count
 from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
 
 FAST_STEPS = 300
 FAST_LR = 0.15
-# instant: the fast method's steps on small views (1.0 s median per 1k map at N = 16 on 2 cores,
-# docs/lights.md), so a new map is lit while the user waits
-INSTANT_SETTINGS = FitSettings(sphere_resolution=32, plane_resolution=48, shadow_resolution=64, samples=512)
+# instant: the fast method's steps on small views (docs/lights.md), so a new map is lit while the user waits
+INSTANT_SETTINGS = FitSettings(sphere_resolution=32, plane_resolution=48, samples=512)
 INSTANT_STEPS = 150
-INSTANT_TABLE = (0.0, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 14.0, 20.0)
-INSTANT_SWEEPS = 1
-# sigmas at which the soft shadows of fixed-direction lights are tabulated for Step 3: the paper's
-# method interpolates linearly between them, the fast method searches them
+# sigmas at which the soft shadows of the paper's fixed-direction lights are tabulated for its Step 3
+# (interpolated linearly between them)
 SIGMA_TABLE = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 12.0, 14.0, 16.0,
               18.0, 20.0)
-SIGMA_SWEEPS = 2
 PAPER_STEP2 = 1000
 PAPER_STEP3 = 300
 PAPER_LR = 1.0
@@ -94,18 +90,17 @@ def fit_lights(env: EnvMap, n: int, method: str = DEFAULT_METHOD, settings: FitS
         return AreaLights(fibonacci_sphere(n), np.zeros(n), np.zeros((n, 3)))
     if method == "median-cut":
         return median_cut_lights(env, n)
-    if method == "instant":  # its own small views, whatever was passed
-        problem = build_problem(env, INSTANT_SETTINGS, progress)
-        direction, intensity = _refine_fast(problem, median_cut_lights(env, n), progress, INSTANT_STEPS)
-        sigma = _sigma_search(problem, direction, intensity, progress, INSTANT_TABLE, INSTANT_SWEEPS)
-        return AreaLights(direction, sigma, intensity * problem.scale).validate(env.source)
-    if problem is None:
-        problem = build_problem(env, settings, progress)
-    if method == "fast":
-        start = median_cut_lights(env, n)
-        direction, intensity = _refine_fast(problem, start, progress)
-        sigma = _sigma_search(problem, direction, intensity, progress)
+    if method in ("instant", "fast"):
+        if method == "instant":  # its own small views, whatever was passed
+            problem = build_problem(env, INSTANT_SETTINGS, progress)
+        elif problem is None:
+            problem = build_problem(env, settings, progress)
+        steps = INSTANT_STEPS if method == "instant" else FAST_STEPS
+        direction, intensity = _refine_fast(problem, median_cut_lights(env, n), progress, steps)
+        sigma = region_sizes(env, direction)
     else:
+        if problem is None:
+            problem = build_problem(env, settings, progress)
         direction, intensity = _paper_step2(problem, n, progress)
         sigma = _paper_step3(problem, direction, intensity, progress)
     return AreaLights(direction, sigma, intensity * problem.scale).validate(env.source)
@@ -201,37 +196,6 @@ def _refine_fast(problem: Problem, start: AreaLights, progress, steps: int = FAS
         report(progress, "directions", step + 1, steps)
     with torch.no_grad():
         return _unit(direction).numpy().astype(np.float64), torch.exp(log_int).numpy().astype(np.float64)
-
-
-def _sigma_search(problem: Problem, direction: np.ndarray, intensity: np.ndarray, progress, sigmas=SIGMA_TABLE,
-                  sweeps: int = SIGMA_SWEEPS) -> np.ndarray:
-    """Coordinate descent (``sweeps`` over the lights) of each light's sigma over ``sigmas`` on the
-    Step 3 loss."""
-    table = _visibility_table(problem, direction, progress, sigmas)
-    n, k, g_count = len(direction), len(problem.rotations), len(sigmas)
-    inten = torch.as_tensor(intensity, dtype=torch.float32)
-    target = Step3Target.of(problem)
-    diffuse = table.views.diffuse
-    report(progress, "sigma", 0, sweeps * n)
-    with torch.no_grad():
-        # each light's shading under each grid sigma: (G, N, K, P, 3)
-        weighted = (table.values * diffuse).reshape(g_count, k, n, -1)
-        contrib = torch.einsum("gknp,nc->gnkpc", weighted, inten)
-        choice = [g_count // 2] * n
-        total = sum(contrib[choice[l], l] for l in range(n))
-        best = float(target.loss(problem, total))
-        for sweep in range(sweeps):
-            for l in range(n):
-                without = total - contrib[choice[l], l]
-                for g in range(g_count):
-                    if g == choice[l]:
-                        continue
-                    loss = float(target.loss(problem, without + contrib[g, l]))
-                    if loss < best:
-                        best, choice[l] = loss, g
-                total = without + contrib[choice[l], l]
-                report(progress, "sigma", sweep * n + l + 1, sweeps * n)
-    return np.array([sigmas[g] for g in choice])
 
 
 def _visibility_table(problem: Problem, direction: np.ndarray, progress, sigmas=SIGMA_TABLE) -> VisibilityTable:

@@ -8,10 +8,10 @@ DEFAULT_METHOD = "instant"
 AT_LEAST_AS_GOOD = {"instant": ("instant", "fast", "paper")}
 
 
-# the optimizing methods hold every light's soft visibility at each sigma of the search: their time
-# and memory grow with the lights (fast, 1k map: 21 s / 1.6 GB at 32 lights, 43 s / 2.6 GB at 64,
-# 90 s / 4.7 GB at 128; 256 took 197 s and 9 GB); instant fits 256 lights in 22 s and 2.5 GB
-MAX_LIGHTS_FOR = {"fast": 64, "paper": 64}
+# the paper's method holds every light's soft visibility at each sigma of its Step 3: its time and
+# memory grow with the lights (measured with the same table in the fast method before it took its
+# sigmas from the map, 1k map: 21 s / 1.6 GB at 32 lights, 43 s / 2.6 GB at 64, 90 s / 4.7 GB at 128)
+MAX_LIGHTS_FOR = {"paper": 64}
 
 
 def check_light_count(method: str, n: int, source=None) -> None:
@@ -29,10 +29,10 @@ def serves(fitted: str, asked: str) -> bool:
     return fitted in AT_LEAST_AS_GOOD.get(asked, (asked,))
 
 # each method's stages, in order, with their share of the time (viewer.progress.TimeLeft): seconds of
-# a 1k map, 16 lights (instant: kiara_1_dawn, fast and paper: studio_small_03), on the 2-core CPU machine,
-# 2026-11-25 (median cut reports no stages)
+# a 1k map, 16 lights (instant and fast: 2026-11-26, studio_small_03 and kiara_1_dawn; paper:
+# studio_small_03, 2026-11-25), on the 2-core CPU machine (median cut reports no stages)
 STAGE_SHARES = {
-    "instant": {"reference": 0.2, "directions": 0.55, "shadows": 0.35, "sigma": 0.1},
-    "fast": {"reference": 1.1, "directions": 2.8, "shadows": 6.0, "sigma": 1.0},
+    "instant": {"reference": 0.2, "directions": 0.47},
+    "fast": {"reference": 0.7, "directions": 2.5},
     "paper": {"reference": 1.0, "directions": 16.1, "shadows": 5.6, "sigma": 2.8},  # one thread
 }
