@@ -273,6 +273,8 @@ class SceneJob(ChildJob):
             bundle, how = Path(said["bundle"]), "cached" if said.get("cached") else "inferred"
             self.stage = "reading the maps"
         scene = load_sized_scene(bundle, None, self.max_size)
+        if scene.frame is not None:  # packed here, not in the frame that shows the person
+            scene.frame.texels, scene.frame.box
         return SceneResult(scene, self.path, how)
 
 

@@ -27,6 +27,11 @@ from ..settings import Look
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
+# the preview's shadow casters: the depth mesh decimated to a triangle every PREVIEW_SHADOW_STEP pixels
+# of a 256-pixel preview, in proportion at other sizes (the final engine's auto step gives 2 there; 3
+# takes 10-25 % off a dragged frame, docs/viewer.md: hard shadows while the light moves, their fine
+# detail back when it stops)
+PREVIEW_SHADOW_STEP = 3
 # with one GL thread (the window opened on a busy machine, viewer/cores.py) the preview takes about twice
 # as long: its work and frame sizes shrink to keep dragging fluid (about half the pixels)
 LIGHT_PREVIEW_SIZE, LIGHT_PREVIEW_FRAME_SIZE = 192, 512
@@ -171,7 +176,8 @@ class Session:
             if small.frame is not None and max(small.output_size) > frame:
                 small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, frame)))
             res = min(PREVIEW_SHADOW_RESOLUTION, self.options.shadow_resolution)
-            self._preview = Engine(self.ctx, small, replace(self.options, shadow_resolution=res, shadow_step=0, ground_scale=4))
+            step = max(1, round(PREVIEW_SHADOW_STEP * max(small.width, small.height) / PREVIEW_SIZE))
+            self._preview = Engine(self.ctx, small, replace(self.options, shadow_resolution=res, shadow_step=step, ground_scale=4))
             self._set_environment(self._preview)
         return self._preview
 

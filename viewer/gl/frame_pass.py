@@ -60,8 +60,7 @@ class FrameBackgroundPass:
         self.kit = kit
         self.camera = frame_camera(frame, camera)
         size = self.size = (frame.width, frame.height)
-        photo = np.dstack([frame.photo, np.ones(frame.alpha.shape, np.float32)]).astype(np.float16)
-        self.photo = kit.texture(size, 4, photo.tobytes(), dtype="f2")
+        self.photo = kit.texture(size, 4, frame.texels[0], dtype="f2")
         self.full = kit.texture(size, 4, dtype="f4", linear=True)
         small = (max(frame.width // ENVIRONMENT_SCALE, 1), max(frame.height // ENVIRONMENT_SCALE, 1))
         self.small_camera = Camera(small[0], small[1], camera.focal_mm, camera.sensor_mm, camera.distance)
@@ -116,13 +115,10 @@ class FrameCompositePass:
         self.kit, self.photo = kit, photo  # the photo (FrameBackgroundPass's): the "before" of look.compare
         self.ground = ground  # GroundShadowPass's: the background's darkening by the person's shadow
         size = self.size = (frame.width, frame.height)
-        albedo_alpha = np.dstack([frame.albedo, frame.alpha]).astype(np.float16)
-        self.albedo_alpha = kit.texture(size, 4, albedo_alpha.tobytes(), dtype="f2")
+        self.albedo_alpha = kit.texture(size, 4, frame.texels[1], dtype="f2")
         self.image = kit.texture(size, 4, dtype="f1")
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
-        rows, cols = np.nonzero(frame.alpha > 0)
-        self.box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1)) \
-            if rows.size else (0, 0, 1, 1)
+        self.box = frame.box
 
     def run(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, box=None):
         with self.kit.timed(self.name):
