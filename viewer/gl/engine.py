@@ -33,7 +33,6 @@ shadows are shown, and the specular code on a scene without specular reflectance
 
 from __future__ import annotations
 
-import time
 
 import moderngl
 import numpy as np
@@ -57,6 +56,7 @@ from .picture import FramePicture, ImagePicture, PictureInputs
 from .programs import shared_programs
 from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
+from .budget import Budget
 from .staleness import Staleness
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
@@ -99,6 +99,7 @@ class Engine:
                                (self.composite_pass, self.ground_pass, *self.picture.passes))
         self.output = Readback(kit, self.picture, self.composite_pass, self.ground_pass, self.atlas, res, self.csm_basis_pass,
                                o.terms, (scene.height, scene.width), lambda: self._lights, self._picture_inputs, self._soft_is_hard)
+        self._unit_costs: dict[str, float] = {}  # seconds each kind of unit of work took last (Budget)
         self.complete = False  # the display holds a frame of the current state (render)
         self.composited = False  # ... or everything but the display is done (render(display=False))
 
@@ -256,17 +257,7 @@ class Engine:
         are shown (the passes sheet reads both; the picture is the same)."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
-        start, units = time.perf_counter(), [0]
-
-        def spent() -> bool:
-            """Before a unit of work: whether the budget is spent (never before the first unit)."""
-            if budget is not None and units[0] > 0:
-                self.ctx.finish()  # llvmpipe works at the flush: the time is the work's only once it is done
-                if time.perf_counter() - start > budget:
-                    return True
-            units[0] += 1
-            return False
-
+        work = Budget(self.ctx, budget, self._unit_costs)
         self.complete = self.composited = False
         active = [l for l in self._lights if l.active]  # inactive lights stay stale until they count
         need = {id(l): self._needed_pass(l, soft_planes) for l in self._lights}
@@ -276,7 +267,7 @@ class Engine:
                     need[id(l)] = l.pass_mode
         for l in active:
             if "shadow_map" in l.stale and need[id(l)] in (PASS_HARD, PASS_SOFT):
-                if spent():
+                if work.spent("shadow_map"):
                     return self
                 self.shadow_map_pass.run(l)
                 self.stale.ran(self.shadow_map_pass, [l])
@@ -292,7 +283,7 @@ class Engine:
         for g in range(0, len(self._lights), LIGHTS_PER_PASS):
             group = self._lights[g:g + LIGHTS_PER_PASS]
             if any(l.active and ("light_pass" in l.stale or l.pass_mode != need[id(l)]) for l in group):
-                if spent():
+                if work.spent("light_pass"):
                     return self
                 # the whole group is redone; a skipped light's slot is zeroed, so it is redone when it counts again
                 self.light_pass.run(group, [need[id(l)] for l in group])
@@ -302,32 +293,41 @@ class Engine:
                         l.stale.add(self.light_pass.name)
                 self.stale.ran(self.light_pass, [l for l in group if l.active])
         if self.stale.frame["composite"]:
-            if spent():
+            if work.spent("composite"):
                 return self
             self.composite_pass.run(self._lights, self.atlas, self.refined, self.look.shadows, self.looks.composite_terms())
             self.stale.ran(self.composite_pass)
         if self.looks.ground_shown and self.stale.frame["ground_shadow"]:  # left out (and stale) while not shown
-            if spent():
+            if work.units:  # what the ground's shadow reads changed in this call: its groups start again
+                self.ground_pass.restart()
+            if work.spent("ground_shadow") or not self.ground_pass.run(self._lights, self.look.shadows,
+                                                                        work if budget is not None else None):
                 return self
-            self.ground_pass.run(self._lights, self.look.shadows)
             self.stale.ran(self.ground_pass)
         self.composited = True
         last = self.picture.last.name
         if self.stale.frame[last]:
-            if not display or spent():
+            if not display:
                 return self
-            self._draw_picture(whole=self.stale.frame[last] == "all")
+            if work.units:  # what the picture draws from changed in this call: its bands start again
+                self.picture.restart()
+            if not self._draw_picture(self.stale.frame[last] == "all", work if budget is not None else None):
+                return self
             self.stale.frame[last] = None
+        work.close()
         self.complete = True
         return self
 
-    def _draw_picture(self, whole: bool):
+    def _draw_picture(self, whole: bool, work: Budget | None) -> bool:
+        """Draw the picture; with ``work`` (a budgeted render) in units, False when it ran out first."""
         look = self.shown_look
         if look.view in INSPECT_VIEWS:  # an inspection view draws into the picture's place
+            if work is not None and work.spent("inspect"):
+                return False
             light = self._lights[look.light] if look.view == "shadow" else None
             self.inspect_pass.run(self.picture.last.fbo, look.view, light, self.atlas, look.shadows)
-        else:
-            self.picture.draw(self._picture_inputs(look), whole)
+            return True
+        return self.picture.draw(self._picture_inputs(look), whole, work)
 
     def _picture_inputs(self, shown: Look | None = None) -> PictureInputs:
         """What the picture draws and reads from, now (``shown``: the shown look, when the caller has it)."""

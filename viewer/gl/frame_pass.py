@@ -68,19 +68,24 @@ class FrameBackgroundPass:
         self.fbos = {id(t): kit.ctx.framebuffer(color_attachments=[t]) for t in (self.full, self.small)}
         self.image = self.full  # the texture holding the current background
 
-    def run(self, look: Look, background: str, environment: moderngl.Texture):
+    def run(self, look: Look, background: str, environment: moderngl.Texture, band: tuple[int, int] | None = None):
+        """Draw the background; ``band`` (k, n): only the k-th of n bands of rows (a budgeted frame)."""
         kit = self.kit
         with kit.timed(self.name):
             prog = kit.programs.get("fullscreen.vert.glsl", "frame_background.frag.glsl")
             small = background == "environment"
             self.image = self.small if small else self.full
-            self.fbos[id(self.image)].use()
+            fbo = self.fbos[id(self.image)]
+            w, h = self.image.size
+            fbo.scissor = None if band is None else (0, band[0] * h // band[1], w, (band[0] + 1) * h // band[1] - band[0] * h // band[1])
+            fbo.use()
             self.photo.use(0)
             environment.use(1)
             prog["photo"] = 0
             prog["environment"] = 1
             set_background(prog, look, background, self.small_camera if small else self.camera)
             kit.fullscreen(prog)
+            fbo.scissor = None
 
     def release(self):
         for obj in (*self.fbos.values(), self.full, self.small, self.photo):
@@ -118,11 +123,28 @@ class FrameCompositePass:
         self.albedo_alpha = kit.texture(size, 4, frame.texels[1], dtype="f2")
         self.image = kit.texture(size, 4, dtype="f1")
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
+        self.back = self.back_fbo = None  # the image drawn in bands while the front is shown (made when first needed)
         self.box = frame.box
 
     def run(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, box=None):
         with self.kit.timed(self.name):
             self.draw(self.fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, box)
+
+    def draw_band(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, band: int,
+                  bands: int):
+        """Band ``band`` of ``bands`` (rows) of the display image, into the back image (:meth:`swap`)."""
+        if self.back is None:
+            self.back = self.kit.texture(self.size, 4, dtype="f1")
+            self.back_fbo = self.kit.ctx.framebuffer(color_attachments=[self.back])
+        w, h = self.size
+        y0, y1 = band * h // bands, (band + 1) * h // bands
+        with self.kit.timed(self.name):
+            self.draw(self.back_fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, (0, y0, w, y1 - y0))
+
+    def swap(self):
+        """The back image, all its bands drawn, becomes the one shown."""
+        self.image, self.back = self.back, self.image
+        self.fbo, self.back_fbo = self.back_fbo, self.fbo
 
     def draw(self, fbo: moderngl.Framebuffer, shading, background: moderngl.Texture, terms, look: Look, transparent: bool,
              output_mode: int = OUTPUT_DISPLAY, box=None):
@@ -171,5 +193,6 @@ class FrameCompositePass:
             tex.release()
 
     def release(self):
-        for obj in (self.fbo, self.image, self.albedo_alpha):
-            obj.release()
+        for obj in (self.fbo, self.image, self.back_fbo, self.back, self.albedo_alpha):
+            if obj is not None:
+                obj.release()

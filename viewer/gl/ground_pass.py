@@ -45,20 +45,33 @@ class GroundShadowPass:
         centre = pts.mean(axis=0) if len(pts) else np.zeros(3)
         radius = float(np.linalg.norm(pts - centre, axis=1).max()) + CONTACT_BOUND if len(pts) else 0.0
         self.contact_bound = (*(float(v) for v in centre), radius)
+        self._next = None  # a budgeted run under way: (the shadow mode, the next group)
         self.texture = kit.texture(self.size, 4, linear=True)
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.texture])
 
-    def run(self, lights: list[Light], shadows: str):
-        """``shadows``: the look's shadow mode (none: no shadow on the ground either)."""
+    def restart(self):
+        """What the ground's shadow reads changed: a budgeted run starts again from its first group."""
+        self._next = None
+
+    def run(self, lights: list[Light], shadows: str, work=None) -> bool:
+        """``shadows``: the look's shadow mode (none: no shadow on the ground either). With ``work``
+        (a budgeted render, :class:`viewer.gl.budget.Budget`) each group of lights is a unit: False
+        when the budget ran out first (the groups drawn add up in the texture; the next call goes on
+        from the next group while the shadow mode is the same)."""
         kit = self.kit
+        if work is None or self._next is None or self._next[0] != shadows:
+            self._next = (shadows, 0)
+        first = self._next[1]
         with kit.timed(self.name):
             self.fbo.use()
-            self.fbo.clear(0.0, 0.0, 0.0, 0.0)
+            if first == 0:
+                self.fbo.clear(0.0, 0.0, 0.0, 0.0)
             intensity = np.array([l.intensity for l in lights], np.float64).reshape(-1, 3)
             up = np.array([max(float(np.dot(l.direction, self.plane.normal)), 0.0) for l in lights])
             e0 = (intensity * up[:, None]).sum(axis=0)  # the plane's unshadowed irradiance (RGB)
             if shadows == "none" or not self.plane.below_camera or not np.any(e0 > 0.0):
-                return
+                self._next = None
+                return True
             share = np.where(e0 > 0.0, intensity * up[:, None] / np.where(e0 > 0.0, e0, 1.0), 0.0).astype("f4")
             prog = kit.programs.get("fullscreen.vert.glsl", "ground_shadow.frag.glsl", **self.light_pass.defines,
                                     MAX_CONTACT_POINTS=MAX_CONTACT_POINTS)
@@ -75,7 +88,10 @@ class GroundShadowPass:
             kit.ctx.enable(moderngl.BLEND)
             kit.ctx.blend_func = moderngl.ONE, moderngl.ONE
             try:
-                for g in range(0, len(lights), LIGHTS_PER_PASS):
+                for g in range(first, len(lights), LIGHTS_PER_PASS):
+                    if work is not None and g > first and work.spent("ground_group"):
+                        self._next = (shadows, g)
+                        return False
                     group = lights[g:g + LIGHTS_PER_PASS]
                     # the shadows shown: a light pass that also holds the soft visibility (Engine.render's
                     # soft_planes) casts hard shadows on the ground when hard shadows are shown
@@ -91,6 +107,8 @@ class GroundShadowPass:
             finally:
                 kit.ctx.disable(moderngl.BLEND)
                 kit.ctx.blend_func = moderngl.DEFAULT_BLENDING
+        self._next = None
+        return True
 
     def read(self) -> np.ndarray:
         """(h, w, 3) float32: the share of the ground's light the person takes away."""

@@ -23,6 +23,9 @@ from .display_pass import DisplayPass
 from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass, OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR
 
 
+BANDS = 4  # a budgeted frame composite's bands (at 2048 pixels with one llvmpipe thread the whole is ~110 ms)
+
+
 @dataclass
 class PictureInputs:
     composite: object  # the CompositePass: its HDR (work resolution) and its shading sums
@@ -42,8 +45,14 @@ class ImagePicture:
         self.last = DisplayPass(kit, resources, size, camera, ground)  # the pass that draws the picture
         self.passes = (self.last,)
 
-    def draw(self, i: PictureInputs, whole: bool):
+    def restart(self):
+        """Nothing to start again: the picture is drawn in one unit."""
+
+    def draw(self, i: PictureInputs, whole: bool, work=None) -> bool:
+        if work is not None and work.spent("display"):
+            return False
         self.last.run(i.composite.hdr, i.look, i.background, box=None if whole else self.box)
+        return True
 
     def read_person(self, i: PictureInputs) -> np.ndarray:
         return self.kit.read(i.composite.hdr, 4)
@@ -66,6 +75,7 @@ class FramePicture:
         self.mipmaps = FrameMipmapsPass(kit)
         self.last = FrameCompositePass(kit, frame, self.background.photo, ground)
         self.passes = (self.mipmaps, self.background, self.last)
+        self._bands = None  # a budgeted draw under way: what it draws, the background's and the frame's bands drawn
 
     def _ready(self, i: PictureInputs):
         """The frame composite's inputs up to date: the background and the shading sums' mipmaps."""
@@ -76,10 +86,50 @@ class FramePicture:
             self.mipmaps.run(i.composite.shading)
             i.ran(self.mipmaps)
 
-    def draw(self, i: PictureInputs, whole: bool):
-        self._ready(i)
-        self.last.run(i.composite.shading, self.background.image, i.terms, i.look, i.background == "transparent",
-                      box=None if whole else self.last.box)
+    def restart(self):
+        """What the picture draws from changed: a budgeted picture's bands start again."""
+        self._bands = None
+
+    def draw(self, i: PictureInputs, whole: bool, work=None) -> bool:
+        """Draw the frame (``whole``, else over the matte's box). With ``work`` (a budgeted render,
+        :class:`viewer.gl.budget.Budget`) the background (when stale) and the whole frame are drawn
+        in ``BANDS`` bands of rows each, one unit a band, the frame into the back image, shown
+        (swapped to the front) once all its bands are drawn, so no frame of a window shows half of
+        one; False when the budget ran out first (the bands drawn are kept for the next call while
+        nothing they read changes)."""
+        transparent = i.background == "transparent"
+        if work is None:
+            self._bands = None
+            self._ready(i)
+            self.last.run(i.composite.shading, self.background.image, i.terms, i.look, transparent,
+                          box=None if whole else self.last.box)
+            return True
+        signature = (i.look, i.background, i.terms, id(i.environment))
+        if self._bands is None or self._bands["of"] != signature:
+            self._bands = {"of": signature, "background": 0, "frame": 0}
+        b = self._bands
+        if i.stale(self.background.name):
+            while b["background"] < BANDS:
+                if work.spent("frame_background"):
+                    return False
+                self.background.run(i.look, i.background, i.environment, (b["background"], BANDS))
+                b["background"] += 1
+            i.ran(self.background)
+            b["frame"] = 0
+        if i.stale(self.mipmaps.name):
+            if work.spent("frame_mipmaps"):
+                return False
+            self.mipmaps.run(i.composite.shading)
+            i.ran(self.mipmaps)
+            b["frame"] = 0
+        while b["frame"] < BANDS:
+            if work.spent("frame_band"):
+                return False
+            self.last.draw_band(i.composite.shading, self.background.image, i.terms, i.look, transparent, b["frame"], BANDS)
+            b["frame"] += 1
+        self.last.swap()
+        self._bands = None
+        return True
 
     def _read(self, i: PictureInputs, terms, output_mode: int) -> np.ndarray:
         self._ready(i)

@@ -47,7 +47,11 @@ def x_display(private: bool = False):
         yield name
     finally:
         proc.terminate()
-        proc.wait(10)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:  # a server slow to end must not lose the measurements
+            proc.kill()
+            proc.wait()
 
 
 def _wait(state_path: Path, predicate, proc, timeout=180.0) -> dict:
