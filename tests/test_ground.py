@@ -228,3 +228,58 @@ def test_the_ground_shows_by_default_when_the_feet_are_in_the_frame(ctx, person)
     eng.release()
     with pytest.raises(Exception, match="ground must be true or false"):
         Look(ground="sometimes")
+
+
+def test_a_budgeted_photo_frame_comes_in_by_units_and_never_shows_half_a_frame(ctx, person):
+    """A window bringing in a new map over a photo (Engine.render with a budget): the ground's shadow
+    a group of lights a call, the frame's background and composite a band of rows a call; until the
+    new frame is whole the display keeps the last one, and the frame it ends with is the full
+    render's, also when the look changes half-way (the bands start again)."""
+    up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
+    sc = replace(person, frame=FrameLayer(albedo=up(person.albedo), alpha=up(person.mask.astype(np.float32)),
+                                          photo=np.full(up(person.albedo).shape, 0.4, np.float32)))
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(10, 3))
+    d[:, 1] = np.abs(d[:, 1]) + 0.3  # from above: shadows on the ground
+    lights = AreaLights(d / np.linalg.norm(d, axis=1, keepdims=True), rng.uniform(0, 6, 10), rng.uniform(0.2, 1.0, (10, 3)))
+    for background in ("photo", "color"):
+        eng = engine(ctx, sc, lights, ground=True)
+        relook(eng, background=background)
+        eng.render()
+        before = eng.output.read_display().copy()
+        eng.set_lights(lights.rotated(60.0))
+        calls = 0
+        while True:
+            eng.render(budget=0.0)  # one unit of work a call
+            calls += 1
+            if eng.complete:
+                break
+            np.testing.assert_array_equal(eng.output.read_display(), before)
+            if calls == 18:
+                relook(eng, exposure=0.7)  # the look changes half-way (in the frame's bands)
+            assert calls < 200
+        # shadow maps, light passes, the composite, the ground by groups, the frame by bands (twice)
+        assert calls >= 10 + 3 + 1 + 3 + 4
+        fresh = engine(ctx, sc, lights.rotated(60.0), ground=True)
+        relook(fresh, background=background, exposure=0.7)
+        fresh.render()
+        np.testing.assert_array_equal(eng.output.read_display(), fresh.output.read_display())
+        np.testing.assert_array_equal(eng.output.read_ground_shadow(), fresh.output.read_ground_shadow())
+        fresh.release()
+        eng.release()
+
+
+def test_a_budget_does_not_start_a_unit_it_has_no_time_left_for():
+    from viewer.gl.work_budget import WorkBudget
+
+    class Clockless:  # a GL context whose work is done at once
+        def finish(self):
+            pass
+
+    costs = {"long": 10.0}  # seconds it took last time
+    assert not WorkBudget(Clockless(), 1.0, dict(costs)).spent("long")  # the first unit always runs
+    work = WorkBudget(Clockless(), 1.0, costs)
+    assert not work.spent("short")
+    assert work.spent("long")  # it would pass the budget: not started
+    assert not work.spent("short") and costs["short"] < 0.5  # what ran is timed for next time
+    assert WorkBudget(Clockless(), None, costs).spent("long") is False  # no budget: never spent

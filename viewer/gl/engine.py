@@ -56,7 +56,7 @@ from .picture import FramePicture, ImagePicture, PictureInputs
 from .programs import shared_programs
 from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
-from .budget import Budget
+from .work_budget import WorkBudget
 from .staleness import Staleness
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
@@ -257,7 +257,7 @@ class Engine:
         are shown (the passes sheet reads both; the picture is the same)."""
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
-        work = Budget(self.ctx, budget, self._unit_costs)
+        work = WorkBudget(self.ctx, budget, self._unit_costs)
         self.complete = self.composited = False
         active = [l for l in self._lights if l.active]  # inactive lights stay stale until they count
         need = {id(l): self._needed_pass(l, soft_planes) for l in self._lights}
@@ -318,7 +318,7 @@ class Engine:
         self.complete = True
         return self
 
-    def _draw_picture(self, whole: bool, work: Budget | None) -> bool:
+    def _draw_picture(self, whole: bool, work: WorkBudget | None) -> bool:
         """Draw the picture; with ``work`` (a budgeted render) in units, False when it ran out first."""
         look = self.shown_look
         if look.view in INSPECT_VIEWS:  # an inspection view draws into the picture's place

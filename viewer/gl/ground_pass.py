@@ -55,7 +55,7 @@ class GroundShadowPass:
 
     def run(self, lights: list[Light], shadows: str, work=None) -> bool:
         """``shadows``: the look's shadow mode (none: no shadow on the ground either). With ``work``
-        (a budgeted render, :class:`viewer.gl.budget.Budget`) each group of lights is a unit: False
+        (a budgeted render, :class:`viewer.gl.work_budget.WorkBudget`) each group of lights is a unit: False
         when the budget ran out first (the groups drawn add up in the texture; the next call goes on
         from the next group while the shadow mode is the same)."""
         kit = self.kit

@@ -92,7 +92,7 @@ class FramePicture:
 
     def draw(self, i: PictureInputs, whole: bool, work=None) -> bool:
         """Draw the frame (``whole``, else over the matte's box). With ``work`` (a budgeted render,
-        :class:`viewer.gl.budget.Budget`) the background (when stale) and the whole frame are drawn
+        :class:`viewer.gl.work_budget.WorkBudget`) the background (when stale) and the whole frame are drawn
         in ``BANDS`` bands of rows each, one unit a band, the frame into the back image, shown
         (swapped to the front) once all its bands are drawn, so no frame of a window shows half of
         one; False when the budget ran out first (the bands drawn are kept for the next call while

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 
-class Budget:
+class WorkBudget:
     def __init__(self, ctx, seconds: float | None, costs: dict[str, float]):
         self.ctx, self.seconds, self.costs = ctx, seconds, costs  # costs: the engine's, kept between calls
         self.start = time.perf_counter()
