@@ -85,7 +85,8 @@ def _load_figures(frames: list) -> dict:
     warm = [ms for ms, kind in frames if kind == "warm"]  # the drag preview's engine made for the new scene
     return {"frames": len(load), "ms_max": max(load) if load else None,
             "ms_median": float(np.median(load)) if load else None, "shown_ms": shown,
-            "warm_ms": max(warm) if warm else None}
+            "warm_ms": max(warm) if warm else None,
+            "longest": sorted(([round(ms, 1), kind] for ms, kind in frames), reverse=True)[:4]}  # of any kind
 
 
 def measure_view(label: str, view_args: list, display: str, workdir: Path, new_map: Path, photo: Path,
