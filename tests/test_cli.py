@@ -175,7 +175,7 @@ def test_a_device_the_machine_lacks_is_named_not_the_weights(tmp_path):
     photo = asset_dir() / "photos" / "underpass.jpg"
     for device, words in (("bogus", "not a device torch knows"), ("mps", "run on cpu or cuda")):
         res = run_cli("infer", str(photo), "-o", str(tmp_path / "b"), "--device", device)
-        assert res.returncode == 2 and words in res.stderr and f"--device" in res.stderr, res.stderr
+        assert res.returncode == 2 and words in res.stderr and "--device" in res.stderr, res.stderr
         assert "safetensors" not in res.stderr and res.stderr.count("\n") == 1
     assert not (tmp_path / "b").exists()
 
