@@ -230,18 +230,64 @@ def test_the_ground_shows_by_default_when_the_feet_are_in_the_frame(ctx, person)
         Look(ground="sometimes")
 
 
+def framed_person(person):
+    up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
+    return replace(person, frame=FrameLayer(albedo=up(person.albedo), alpha=up(person.mask.astype(np.float32)),
+                                            photo=np.full(up(person.albedo).shape, 0.4, np.float32)))
+
+
+def ten_lights() -> AreaLights:
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(10, 3))
+    d[:, 1] = np.abs(d[:, 1]) + 0.3  # from above: shadows on the ground
+    return AreaLights(d / np.linalg.norm(d, axis=1, keepdims=True), rng.uniform(0, 6, 10), rng.uniform(0.2, 1.0, (10, 3)))
+
+
+def budgeted_until(eng, done):
+    """Budgeted calls (one unit each) until ``done(eng)``."""
+    for _ in range(300):
+        if done(eng):
+            return
+        eng.render(budget=0.0)
+    raise AssertionError("a budgeted render did not get there")
+
+
+def test_work_left_part_way_starts_again_when_anything_changed_meanwhile(ctx, person):
+    """The ground's groups left part-way, the ground hidden, new lights rendered in full, the ground
+    shown again; the frame's bands left part-way, new lights, a readback: what a budgeted render
+    ends with is the full render's, not half of each lighting."""
+    sc, lights = framed_person(person), ten_lights()
+    eng = engine(ctx, sc, lights, ground=True)
+    eng.set_lights(lights.rotated(60.0))
+    budgeted_until(eng, lambda e: (e.ground_pass._next or 0) > 0)
+    relook(eng, ground=False)
+    eng.set_lights(lights.rotated(120.0))
+    eng.render()
+    relook(eng, ground=True)
+    budgeted_until(eng, lambda e: e.complete)
+    eng.set_lights(lights.rotated(200.0))
+    budgeted_until(eng, lambda e: e.picture._bands is not None and e.picture._bands["frame"] >= 2)
+    eng.set_lights(lights.rotated(240.0))
+    eng.render(display=False)
+    eng.output.read_output_hdr()  # builds the frame's inputs for the new lights
+    budgeted_until(eng, lambda e: e.complete)
+    fresh = engine(ctx, sc, lights.rotated(240.0), ground=True)
+    np.testing.assert_array_equal(eng.output.read_display(), fresh.output.read_display())
+    eng.set_lights(lights.rotated(120.0))
+    eng.render()
+    fresh.set_lights(lights.rotated(120.0))
+    fresh.render()
+    np.testing.assert_array_equal(eng.output.read_ground_shadow(), fresh.output.read_ground_shadow())
+    fresh.release()
+    eng.release()
+
+
 def test_a_budgeted_photo_frame_comes_in_by_units_and_never_shows_half_a_frame(ctx, person):
     """A window bringing in a new map over a photo (Engine.render with a budget): the ground's shadow
     a group of lights a call, the frame's background and composite a band of rows a call; until the
     new frame is whole the display keeps the last one, and the frame it ends with is the full
     render's, also when the look changes half-way (the bands start again)."""
-    up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
-    sc = replace(person, frame=FrameLayer(albedo=up(person.albedo), alpha=up(person.mask.astype(np.float32)),
-                                          photo=np.full(up(person.albedo).shape, 0.4, np.float32)))
-    rng = np.random.default_rng(3)
-    d = rng.normal(size=(10, 3))
-    d[:, 1] = np.abs(d[:, 1]) + 0.3  # from above: shadows on the ground
-    lights = AreaLights(d / np.linalg.norm(d, axis=1, keepdims=True), rng.uniform(0, 6, 10), rng.uniform(0.2, 1.0, (10, 3)))
+    sc, lights = framed_person(person), ten_lights()
     for background in ("photo", "color"):
         eng = engine(ctx, sc, lights, ground=True)
         relook(eng, background=background)

@@ -99,7 +99,8 @@ class Engine:
                                (self.composite_pass, self.ground_pass, *self.picture.passes))
         self.output = Readback(kit, self.picture, self.composite_pass, self.ground_pass, self.atlas, res, self.csm_basis_pass,
                                o.terms, (scene.height, scene.width), lambda: self._lights, self._picture_inputs, self._soft_is_hard)
-        self._unit_costs: dict[str, float] = {}  # seconds each kind of unit of work took last (Budget)
+        self._unit_costs: dict[str, float] = {}  # seconds each kind of unit of work took last (WorkBudget)
+        self._partial = {"ground": -1, "picture": -1}  # Staleness.changes when a budgeted render left each part-way
         self.complete = False  # the display holds a frame of the current state (render)
         self.composited = False  # ... or everything but the display is done (render(display=False))
 
@@ -273,13 +274,14 @@ class Engine:
                 self.stale.ran(self.shadow_map_pass, [l])
         # CSM's basis and pre-filter; contact-hardening soft shadows read the shadow map itself
         to_filter = [l for l in active if "csm_basis" in l.stale and need[id(l)] == PASS_SOFT and self.options.soft == "csm"]
-        for l in to_filter:
-            self.csm_basis_pass.run(l)
-        self.stale.ran(self.csm_basis_pass, to_filter)
-        for axis in ((1, 0), (0, 1)):
+        if to_filter:
             for l in to_filter:
-                self.prefilter_pass.run_axis(l, axis)
-        self.stale.ran(self.prefilter_pass, to_filter)
+                self.csm_basis_pass.run(l)
+            self.stale.ran(self.csm_basis_pass, to_filter)
+            for axis in ((1, 0), (0, 1)):
+                for l in to_filter:
+                    self.prefilter_pass.run_axis(l, axis)
+            self.stale.ran(self.prefilter_pass, to_filter)
         for g in range(0, len(self._lights), LIGHTS_PER_PASS):
             group = self._lights[g:g + LIGHTS_PER_PASS]
             if any(l.active and ("light_pass" in l.stale or l.pass_mode != need[id(l)]) for l in group):
@@ -298,20 +300,23 @@ class Engine:
             self.composite_pass.run(self._lights, self.atlas, self.refined, self.look.shadows, self.looks.composite_terms())
             self.stale.ran(self.composite_pass)
         if self.looks.ground_shown and self.stale.frame["ground_shadow"]:  # left out (and stale) while not shown
-            if work.units:  # what the ground's shadow reads changed in this call: its groups start again
+            if self.stale.changes != self._partial["ground"]:  # anything changed since its groups were left part-way
                 self.ground_pass.restart()
             if work.spent("ground_shadow") or not self.ground_pass.run(self._lights, self.look.shadows,
                                                                         work if budget is not None else None):
+                self._partial["ground"] = self.stale.changes
                 return self
             self.stale.ran(self.ground_pass)
         self.composited = True
         last = self.picture.last.name
         if self.stale.frame[last]:
             if not display:
+                work.close()
                 return self
-            if work.units:  # what the picture draws from changed in this call: its bands start again
+            if self.stale.changes != self._partial["picture"]:  # anything changed since its bands were left part-way
                 self.picture.restart()
             if not self._draw_picture(self.stale.frame[last] == "all", work if budget is not None else None):
+                self._partial["picture"] = self.stale.changes
                 return self
             self.stale.frame[last] = None
         work.close()

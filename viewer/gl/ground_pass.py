@@ -45,23 +45,23 @@ class GroundShadowPass:
         centre = pts.mean(axis=0) if len(pts) else np.zeros(3)
         radius = float(np.linalg.norm(pts - centre, axis=1).max()) + CONTACT_BOUND if len(pts) else 0.0
         self.contact_bound = (*(float(v) for v in centre), radius)
-        self._next = None  # a budgeted run under way: (the shadow mode, the next group)
+        self._next = None  # a budgeted run under way: the next group
         self.texture = kit.texture(self.size, 4, linear=True)
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.texture])
 
     def restart(self):
-        """What the ground's shadow reads changed: a budgeted run starts again from its first group."""
+        """Something changed since a budgeted run was left part-way: it starts again from its first group."""
         self._next = None
 
     def run(self, lights: list[Light], shadows: str, work=None) -> bool:
         """``shadows``: the look's shadow mode (none: no shadow on the ground either). With ``work``
         (a budgeted render, :class:`viewer.gl.work_budget.WorkBudget`) each group of lights is a unit: False
         when the budget ran out first (the groups drawn add up in the texture; the next call goes on
-        from the next group while the shadow mode is the same)."""
+        from the next group, the engine calling :meth:`restart` first when anything changed meanwhile)."""
         kit = self.kit
-        if work is None or self._next is None or self._next[0] != shadows:
-            self._next = (shadows, 0)
-        first = self._next[1]
+        if work is None or self._next is None:
+            self._next = 0
+        first = self._next
         with kit.timed(self.name):
             self.fbo.use()
             if first == 0:
@@ -90,7 +90,7 @@ class GroundShadowPass:
             try:
                 for g in range(first, len(lights), LIGHTS_PER_PASS):
                     if work is not None and g > first and work.spent("ground_group"):
-                        self._next = (shadows, g)
+                        self._next = g
                         return False
                     group = lights[g:g + LIGHTS_PER_PASS]
                     # the shadows shown: a light pass that also holds the soft visibility (Engine.render's

@@ -75,7 +75,7 @@ class FramePicture:
         self.mipmaps = FrameMipmapsPass(kit)
         self.last = FrameCompositePass(kit, frame, self.background.photo, ground)
         self.passes = (self.mipmaps, self.background, self.last)
-        self._bands = None  # a budgeted draw under way: what it draws, the background's and the frame's bands drawn
+        self._bands = None  # a budgeted draw under way: the background's and the frame's bands drawn
 
     def _ready(self, i: PictureInputs):
         """The frame composite's inputs up to date: the background and the shading sums' mipmaps."""
@@ -87,7 +87,7 @@ class FramePicture:
             i.ran(self.mipmaps)
 
     def restart(self):
-        """What the picture draws from changed: a budgeted picture's bands start again."""
+        """Something changed since a budgeted draw was left part-way: its bands start again."""
         self._bands = None
 
     def draw(self, i: PictureInputs, whole: bool, work=None) -> bool:
@@ -95,8 +95,8 @@ class FramePicture:
         :class:`viewer.gl.work_budget.WorkBudget`) the background (when stale) and the whole frame are drawn
         in ``BANDS`` bands of rows each, one unit a band, the frame into the back image, shown
         (swapped to the front) once all its bands are drawn, so no frame of a window shows half of
-        one; False when the budget ran out first (the bands drawn are kept for the next call while
-        nothing they read changes)."""
+        one; False when the budget ran out first (the bands drawn are kept for the next call; the
+        engine calls :meth:`restart` first when anything changed meanwhile)."""
         transparent = i.background == "transparent"
         if work is None:
             self._bands = None
@@ -104,9 +104,8 @@ class FramePicture:
             self.last.run(i.composite.shading, self.background.image, i.terms, i.look, transparent,
                           box=None if whole else self.last.box)
             return True
-        signature = (i.look, i.background, i.terms, id(i.environment))
-        if self._bands is None or self._bands["of"] != signature:
-            self._bands = {"of": signature, "background": 0, "frame": 0}
+        if self._bands is None:
+            self._bands = {"background": 0, "frame": 0}
         b = self._bands
         if i.stale(self.background.name):
             while b["background"] < BANDS:

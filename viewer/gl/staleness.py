@@ -12,10 +12,12 @@ class Staleness:
     def __init__(self, light_passes, frame_passes):
         self.light_passes, self.frame_passes = tuple(light_passes), tuple(frame_passes)
         self.frame = {p.name: "all" for p in self.frame_passes}  # None, "box" (the mask's / matte's) or "all"
+        self.changes = 0  # how many changes so far: work left part-way is good only while this stays the same
 
     def changed(self, what: str, lights=()):
         """``what`` changed (an input, or the output of a pass that ran): the passes that read it
         are stale: per-light passes for ``lights``, frame passes over their box or as a whole."""
+        self.changes += 1
         for p in self.light_passes:
             if what in p.inputs:
                 for l in lights:
