@@ -67,8 +67,19 @@ def test_odd_cases():
     assert (region_sizes(black, d) == 0).all()
     uniform = EnvMap(np.ones((16, 32, 3), np.float32))
     sizes = region_sizes(uniform, d)
-    assert sizes[1] == 0.0  # the second of two stacked lights owns no texel
+    assert sizes[1] == sizes[0] > 0  # the second of two stacked lights owns no texel: the first's size
     assert region_sizes(uniform, d[:1])[0] == SIGMA_MAX  # one light for the whole sky: as soft as they get
+
+
+def test_a_light_that_owns_one_texel_is_a_texel_wide():
+    """A one-texel sun on a 256-wide map (1.4 degrees a texel) is not a point: about a texel's
+    spread (1.4 / sqrt(12) degrees), above the engine's hard-shadow threshold."""
+    px = np.full((128, 256, 3), 1e-3, np.float32)
+    px[40, 100] = 1e6
+    sun = pixel_directions(128, 256)[40, 100]
+    size = region_sizes(EnvMap(px), np.stack([sun, -sun]))[0]
+    texel = np.radians(360.0 / 256) * np.cos(np.radians(90 - 180 * 40.5 / 128)) ** 0.5 / np.sqrt(12)
+    assert size == pytest.approx(texel / ANGULAR_SIGMA, rel=0.25) and size > 0.05
 
 
 @settings(max_examples=25, deadline=None)

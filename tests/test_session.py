@@ -57,6 +57,14 @@ def test_light_jobs(tmp_path, monkeypatch):
     studio = MAPS / "studio_small_03_256.hdr"
     assert sidecar_lights(studio, 16, "fast") is not None
     assert sidecar_lights(studio, 8, "fast") is None and sidecar_lights(studio, 16, "paper") is None
+    import json
+    import shutil
+
+    old = shutil.copyfile(studio, tmp_path / studio.name)  # lights fitted before the fitters last changed
+    record = json.loads(studio.with_suffix(".lights.json").read_text())
+    record["fit"].pop("version")
+    old.with_suffix(".lights.json").write_text(json.dumps(record))
+    assert sidecar_lights(old, 16, "fast") is None
     job = LightJob(studio, 16, "fast")
     job._thread.join(60)
     assert job.done and job.error is None and job.result.how == "bundled" and len(job.result.lights) == 16

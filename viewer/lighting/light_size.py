@@ -10,7 +10,8 @@ Here every texel of the map belongs to the light nearest it (a Voronoi cell on t
 its cell, a light's *size* is the angular Gaussian sigma of the cell's light about the cell's energy
 centroid, measured robustly: the angle within which half the cell's energy lies (``r50``) is
 ``alpha * sqrt(2 ln 2)`` for a 2-D Gaussian of per-axis sigma ``alpha`` (a dim halo far out, the
-room's walls, moves the median little while it would dominate a second moment). In the engine's
+room's walls, moves the median little while it would dominate a second moment), with the texels'
+own width added in quadrature (a light that owns a single texel is a texel wide). In the engine's
 unit (:data:`viewer.shadow_space.ANGULAR_SIGMA` radians a sigma unit, the factor the contact
 benchmark checks against Mitsuba) that is ``alpha / ANGULAR_SIGMA``.
 
@@ -35,9 +36,11 @@ SIZE_MAP_WIDTH = 512  # the map is area-averaged to this width first (the fit's 
 R50_PER_SIGMA = math.sqrt(2.0 * math.log(2.0))  # the radius holding half a 2-D Gaussian's energy, in sigmas
 
 
-def cell_sigma(directions: np.ndarray, weight: np.ndarray) -> float:
-    """The size of the light spread over unit ``directions`` (M, 3) with energies ``weight`` (M,): the
-    angle about their energy centroid within which half the energy lies, as a Gaussian sigma in the
+def cell_sigma(directions: np.ndarray, weight: np.ndarray, omega: np.ndarray) -> float:
+    """The size of the light spread over unit ``directions`` (M, 3) with energies ``weight`` (M,),
+    texels of solid angles ``omega`` (M,): the angle about their energy centroid within which half
+    the energy lies, as a Gaussian sigma, and each texel's own spread (a square of side sqrt(omega):
+    omega / 12 a axis) added in quadrature (a light that owns one texel is as wide as it); in the
     engine's unit, at most ``SIGMA_MAX``; 0 without energy."""
     total = float(weight.sum())
     if not total > 0.0:
@@ -49,16 +52,26 @@ def cell_sigma(directions: np.ndarray, weight: np.ndarray) -> float:
     angle = np.arccos(np.clip(directions @ (centroid / length), -1.0, 1.0))
     order = np.argsort(angle)
     half = min(int(np.searchsorted(np.cumsum(weight[order]), 0.5 * total)), len(order) - 1)
-    return float(min(SIGMA_MAX, angle[order][half] / R50_PER_SIGMA / ANGULAR_SIGMA))
+    spread = angle[order][half] / R50_PER_SIGMA
+    texel = float(weight @ omega) / total / 12.0
+    return float(min(SIGMA_MAX, math.sqrt(spread * spread + texel) / ANGULAR_SIGMA))
 
 
 def region_sizes(env: EnvMap, direction: np.ndarray, max_width: int = SIZE_MAP_WIDTH) -> np.ndarray:
     """(N,) each light's size (:func:`cell_sigma`) over the map's texels nearer to it than to any
-    other light (see the module docstring)."""
+    other light (see the module docstring); a light that owns no texel (stacked on another) takes
+    the size of the nearest light that does."""
     direction = np.asarray(direction, np.float64).reshape(-1, 3)
     env = env.downsampled(max_width)
     h, w = env.height, env.width
     dirs = pixel_directions(h, w).reshape(-1, 3)
-    energy = ((env.pixels.astype(np.float64) @ LUMINANCE) * solid_angles(h, w)[:, None]).reshape(-1)
+    omega = np.broadcast_to(solid_angles(h, w)[:, None], (h, w)).reshape(-1)
+    energy = (env.pixels.astype(np.float64) @ LUMINANCE).reshape(-1) * omega
     owner = np.argmax(dirs @ direction.T, axis=1)
-    return np.array([cell_sigma(dirs[owner == i], energy[owner == i]) for i in range(len(direction))])
+    owned = np.bincount(owner, minlength=len(direction)) > 0
+    sizes = np.array([cell_sigma(dirs[owner == i], energy[owner == i], omega[owner == i]) if owned[i] else 0.0
+                      for i in range(len(direction))])
+    for i in np.flatnonzero(~owned):
+        nearest = np.flatnonzero(owned)[np.argmax(direction[owned] @ direction[i])]
+        sizes[i] = sizes[nearest]
+    return sizes

@@ -14,14 +14,15 @@ from typing import Callable
 from .envmap import EnvMap
 from ..errors import InputError
 from ..imageio import read_json
-from .lightfit.cache import cached_lights
+from .lightfit.cache import FIT_VERSION, cached_lights
 from .lightfit.methods import serves
 from .lights import AreaLights, load_lights
 
 
 def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
     """Lights shipped beside a map (``<map>.lights.json``) when they were fitted for the same count,
-    by the method asked or one at least as accurate (:func:`viewer.lighting.lightfit.methods.serves`)."""
+    by the method asked or one at least as accurate (:func:`viewer.lighting.lightfit.methods.serves`),
+    by the fitters' current version (``FIT_VERSION``; a file without one is version 1)."""
     side = Path(env_path).with_suffix(".lights.json")
     if not side.is_file():
         return None
@@ -29,8 +30,8 @@ def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
         fit = read_json(side, "light file").get("fit") or {}
     except (InputError, AttributeError):
         return None
-    if fit.get("n") != n or not serves(str(fit.get("method")), method):
-        return None
+    if fit.get("n") != n or not serves(str(fit.get("method")), method) or fit.get("version", 1) != FIT_VERSION:
+        return None  # another count or method, or fitted before the fitters last changed
     try:
         return load_lights(side)
     except InputError:

@@ -102,6 +102,6 @@ def _lights(regions, flux, energy, omega, dirs) -> AreaLights:
         length = np.linalg.norm(mean)
         mean = mean / length if length > 1e-12 else np.array([0.0, 1.0, 0.0])
         direction.append(mean)
-        sigma.append(cell_sigma(d.reshape(-1, 3), weight.reshape(-1)))
+        sigma.append(cell_sigma(d.reshape(-1, 3), weight.reshape(-1), np.broadcast_to(omega[i0:i1, None], weight.shape).reshape(-1)))
         intensity.append(flux[i0:i1, j0:j1].sum(axis=(0, 1)))
     return AreaLights(np.array(direction), np.array(sigma), np.array(intensity)).validate()

@@ -57,7 +57,7 @@ from .problem import FitSettings, Problem, VisibilityTable, build_problem, repor
 FAST_STEPS = 300
 FAST_LR = 0.15
 # instant: the fast method's steps on small views (docs/lights.md), so a new map is lit while the user waits
-INSTANT_SETTINGS = FitSettings(sphere_resolution=32, plane_resolution=48, samples=512)
+INSTANT_SETTINGS = FitSettings(sphere_resolution=32, samples=512)
 INSTANT_STEPS = 150
 # sigmas at which the soft shadows of the paper's fixed-direction lights are tabulated for its Step 3
 # (interpolated linearly between them)
@@ -92,9 +92,9 @@ def fit_lights(env: EnvMap, n: int, method: str = DEFAULT_METHOD, settings: FitS
         return median_cut_lights(env, n)
     if method in ("instant", "fast"):
         if method == "instant":  # its own small views, whatever was passed
-            problem = build_problem(env, INSTANT_SETTINGS, progress)
+            problem = build_problem(env, INSTANT_SETTINGS, progress, shadows=False)
         elif problem is None:
-            problem = build_problem(env, settings, progress)
+            problem = build_problem(env, settings, progress, shadows=False)
         steps = INSTANT_STEPS if method == "instant" else FAST_STEPS
         direction, intensity = _refine_fast(problem, median_cut_lights(env, n), progress, steps)
         sigma = region_sizes(env, direction)

@@ -51,8 +51,8 @@ class Problem:
     sphere: SphereView
     sphere_diffuse: torch.Tensor  # (K, P, 3) normalized
     sphere_specular: torch.Tensor
-    plane: PlaneView
-    plane_shadowed: torch.Tensor  # (K, P, 3) normalized
+    plane: PlaneView | None  # None: built without the shadowed plane (build_problem's ``shadows``)
+    plane_shadowed: torch.Tensor | None  # (K, P, 3) normalized
     rotations: tuple = ROTATIONS
 
     def sphere_shading(self, direction: torch.Tensor, intensity: torch.Tensor):
@@ -66,19 +66,21 @@ class Problem:
         return torch.einsum("knp,nc->kpc", diff, intensity), torch.einsum("knp,nc->kpc", spec, intensity)
 
 
-def build_problem(env: EnvMap, settings: FitSettings = FitSettings(), progress=None) -> Problem:
-    """References of ``env`` on the fitting views (raises nothing for a black map: scale is then 0)."""
+def build_problem(env: EnvMap, settings: FitSettings = FitSettings(), progress=None, shadows: bool = True) -> Problem:
+    """References of ``env`` on the fitting views (raises nothing for a black map: scale is then 0);
+    ``shadows`` False leaves out the shadowed plane (``plane`` and ``plane_shadowed`` None: only the
+    paper's Step 3 and the benchmark's errors read them)."""
     report(progress, "reference", 0, 2)
     samples = map_samples(env, settings.samples)
     sphere = sphere_view(settings.sphere_resolution)
-    plane = plane_view("sphere", settings.plane_resolution)
     diff, spec = sphere_reference(samples, sphere)
     report(progress, "reference", 1, 2)
-    shadowed = plane_reference(samples, plane)
+    plane = plane_view("sphere", settings.plane_resolution) if shadows else None
+    shadowed = plane_reference(samples, plane) if shadows else None
     report(progress, "reference", 2, 2)
     scale = float((diff.double() @ torch.as_tensor(LUMINANCE)).mean())
     inv = 1.0 / scale if scale > 0 else 0.0
-    return Problem(settings, samples, scale, sphere, diff * inv, spec * inv, plane, shadowed * inv)
+    return Problem(settings, samples, scale, sphere, diff * inv, spec * inv, plane, None if shadowed is None else shadowed * inv)
 
 
 def rotated_directions(direction: torch.Tensor, rotations=ROTATIONS) -> torch.Tensor:
