@@ -53,6 +53,16 @@ FRAME_FILES = {"photo": "frame_photo.png", "alpha": "frame_alpha.png", "albedo":
 ASPECT_TOLERANCE_PX = 1.5  # the frame and the maps may differ by rounding only
 
 
+
+def bounding_box(mask: np.ndarray) -> tuple[int, int, int, int]:
+    """(x, y, width, height) of the smallest box holding ``mask``'s pixels (one pixel at the corner
+    when it has none)."""
+    rows, cols = np.nonzero(mask)
+    if not rows.size:
+        return (0, 0, 1, 1)
+    return (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
+
+
 @dataclass
 class FrameLayer:
     """The photo's frame at output resolution (what the final composite draws): the detail
@@ -80,10 +90,7 @@ class FrameLayer:
     @cached_property
     def box(self) -> tuple[int, int, int, int]:
         """(x, y, width, height): the smallest box holding the matte (one pixel at the corner when it is empty)."""
-        rows, cols = np.nonzero(self.alpha > 0)
-        if not rows.size:
-            return (0, 0, 1, 1)
-        return (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
+        return bounding_box(self.alpha > 0)
 
     @property
     def width(self) -> int:

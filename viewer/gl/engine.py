@@ -33,7 +33,6 @@ shadows are shown, and the specular code on a scene without specular reflectance
 
 from __future__ import annotations
 
-
 import moderngl
 import numpy as np
 
@@ -259,6 +258,7 @@ class Engine:
         if not self._lights:
             raise ValueError("no lights: call set_lights first")
         work = WorkBudget(self.ctx, budget, self._unit_costs)
+        in_units = work if budget is not None else None  # what the ground and the picture get: None, all at once
         self.complete = self.composited = False
         active = [l for l in self._lights if l.active]  # inactive lights stay stale until they count
         need = {id(l): self._needed_pass(l, soft_planes) for l in self._lights}
@@ -302,8 +302,7 @@ class Engine:
         if self.looks.ground_shown and self.stale.frame["ground_shadow"]:  # left out (and stale) while not shown
             if self.stale.changes != self._partial["ground"]:  # anything changed since its groups were left part-way
                 self.ground_pass.restart()
-            if work.spent("ground_shadow") or not self.ground_pass.run(self._lights, self.look.shadows,
-                                                                        work if budget is not None else None):
+            if work.spent("ground_shadow") or not self.ground_pass.run(self._lights, self.look.shadows, in_units):
                 self._partial["ground"] = self.stale.changes
                 return self
             self.stale.ran(self.ground_pass)
@@ -315,7 +314,7 @@ class Engine:
                 return self
             if self.stale.changes != self._partial["picture"]:  # anything changed since its bands were left part-way
                 self.picture.restart()
-            if not self._draw_picture(self.stale.frame[last] == "all", work if budget is not None else None):
+            if not self._draw_picture(self.stale.frame[last] == "all", in_units):
                 self._partial["picture"] = self.stale.changes
                 return self
             self.stale.frame[last] = None

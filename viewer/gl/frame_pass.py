@@ -45,6 +45,13 @@ def frame_camera(frame: FrameLayer, camera: Camera) -> Camera:
     return Camera(frame.width, frame.height, camera.focal_mm, camera.sensor_mm, camera.distance)
 
 
+def band_box(size: tuple[int, int], band: int, bands: int) -> tuple[int, int, int, int]:
+    """(x, y, width, height): band ``band`` of ``bands`` bands of rows of an image of ``size`` (w, h)."""
+    w, h = size
+    y0, y1 = band * h // bands, (band + 1) * h // bands
+    return (0, y0, w, y1 - y0)
+
+
 class FrameBackgroundPass:
     """7. The background at the frame's resolution (environment through the camera, photo, colour,
     transparent), in linear HDR, kept in a texture (:attr:`image`). The environment, redrawn on
@@ -76,8 +83,7 @@ class FrameBackgroundPass:
             small = background == "environment"
             self.image = self.small if small else self.full
             fbo = self.fbos[id(self.image)]
-            w, h = self.image.size
-            fbo.scissor = None if band is None else (0, band[0] * h // band[1], w, (band[0] + 1) * h // band[1] - band[0] * h // band[1])
+            fbo.scissor = None if band is None else band_box(self.image.size, *band)
             fbo.use()
             self.photo.use(0)
             environment.use(1)
@@ -136,10 +142,9 @@ class FrameCompositePass:
         if self.back is None:
             self.back = self.kit.texture(self.size, 4, dtype="f1")
             self.back_fbo = self.kit.ctx.framebuffer(color_attachments=[self.back])
-        w, h = self.size
-        y0, y1 = band * h // bands, (band + 1) * h // bands
         with self.kit.timed(self.name):
-            self.draw(self.back_fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, (0, y0, w, y1 - y0))
+            self.draw(self.back_fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY,
+                      band_box(self.size, band, bands))
 
     def swap(self):
         """The back image, all its bands drawn, becomes the one shown."""

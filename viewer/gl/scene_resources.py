@@ -9,7 +9,7 @@ import moderngl
 import numpy as np
 
 from ..mesh import caster_points, depth_mesh, resolve_step
-from ..scene import Scene
+from ..scene import Scene, bounding_box
 from .. import shadow_space as ss
 from .kit import PassKit
 
@@ -49,10 +49,9 @@ class SceneResources:
         self.mesh = depth_mesh(s, step=self.shadow_step)  # the shadow casters (decimated depth mesh)
         self.caster_points = caster_points(s, self.mesh).astype(np.float32)
         self.sphere = ss.bounding_sphere(self.caster_points.astype(np.float64))
-        rows, cols = np.nonzero(s.mask)
         self.depth_range = (float(s.depth[s.mask].min()), float(s.depth[s.mask].max()))
         # camera-pixel passes only touch the mask's bounding box (the rest stays cleared to zero)
-        self.mask_box = (int(cols.min()), int(rows.min()), int(cols.max() - cols.min() + 1), int(rows.max() - rows.min() + 1))
+        self.mask_box = bounding_box(s.mask)
         self.normals_by_axis = np.ascontiguousarray(s.normal[s.mask].T, dtype=np.float32)  # (3, P): see facing
         # Upper bound of (A S_diff + S_spec) per unit intensity and unit n.l over the scene:
         # S_spec = n.l F D G <= n.l * 1 * 1 / (pi alpha^2) * 1 / (n.l alpha) (G1(n.l) n.l <= 1,
