@@ -20,7 +20,7 @@ from pathlib import Path
 
 from viewer.lighting.envmap import load_envmap, save_envmap
 from viewer.lighting.lightfit import DEFAULT_METHOD
-from viewer.lighting.lightfit.cache import FIT_VERSION
+from viewer.lighting.lightfit.cache import fit_record
 from viewer.lighting.lightfit.fit import fit_lights
 
 
@@ -31,7 +31,7 @@ def bundle_envmap(source, out_dir, width: int, n_lights: int, method: str = DEFA
     hdr = save_envmap(out_dir / f"{name}.hdr", load_envmap(source).downsampled(width))
     fitted = fit_lights(load_envmap(hdr), n_lights, method)
     lights = out_dir / f"{name}.lights.json"
-    fitted.save(lights, fit={"source": hdr.name, "method": method, "n": n_lights, "version": FIT_VERSION})
+    fitted.save(lights, fit=fit_record(hdr, method, n_lights))
     return hdr, lights
 
 

@@ -252,9 +252,9 @@ def cmd_fit_lights(args) -> int:
         print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache (the map's folder is not "
               "writable; -o writes a light file)")
     else:
-        from ..lighting.lightfit.cache import FIT_VERSION
+        from ..lighting.lightfit.cache import fit_record
 
-        lights.save(out, fit={"source": Path(args.map).name, "method": args.method, "n": args.n, "version": FIT_VERSION})
+        lights.save(out, fit=fit_record(args.map, args.method, args.n))
         print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
     warn_if_dark(lights, args.map)
     if args.plot:

@@ -20,7 +20,7 @@ import numpy as np
 from viewer.gl import Engine, EngineOptions
 from viewer.ground import ground_plane
 from viewer.imageio import write_text
-from viewer.lighting.envmap import load_envmap
+from viewer.lighting.envmap import LUMINANCE as LUMA, load_envmap
 from viewer.lighting.light_size import region_sizes
 from viewer.lighting.lightfit.fit import fit_lights
 from viewer.lighting.lights import AreaLights
@@ -30,7 +30,6 @@ from viewer.scene_ops import resample_scene
 from viewer.settings import Look
 from viewer.lab.bench.ground import IN_SHADOW, engine_ratio, plane_ratio
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 VARIANTS = ("product", "sizes x 0.5", "sizes x 1", "sizes x 2", "zero")
 
 
@@ -74,13 +73,17 @@ def run_light_sizes_benchmark(maps_dir, output: str, size: int = 256, spp: int =
         truth_figure = reference["diffuse_shadowed"] @ LUMA
         on_figure = (reference["coverage"] > 0.99) & scene.mask
         truth_ground, seen = plane_ratio(scene, env, plane, spp)
+        measured = {}  # sigmas -> errors: a variant equal to another (the product's are the sizes) is rendered once
         for name, sigma in variant_sigmas(lights, sizes).items():
-            variant = AreaLights(lights.direction, sigma, lights.intensity)
-            figure = figure_diffuse(ctx, scene, variant)
-            figure_error = float(np.abs(figure - truth_figure)[on_figure].sum() / truth_figure[on_figure].sum())
-            left, _ = engine_ratio(ctx, scene, variant, "pcss", 1)
-            region = seen & ((truth_ground < IN_SHADOW) | (left < IN_SHADOW))
-            ground_error = float(np.abs(left - truth_ground)[region].mean()) if region.any() else 0.0
+            key = np.asarray(sigma, np.float32).tobytes()
+            if key not in measured:
+                variant = AreaLights(lights.direction, sigma, lights.intensity)
+                figure = figure_diffuse(ctx, scene, variant)
+                left, _ = engine_ratio(ctx, scene, variant, "pcss", 1)
+                region = seen & ((truth_ground < IN_SHADOW) | (left < IN_SHADOW))
+                measured[key] = (float(np.abs(figure - truth_figure)[on_figure].sum() / truth_figure[on_figure].sum()),
+                                 float(np.abs(left - truth_ground)[region].mean()) if region.any() else 0.0)
+            figure_error, ground_error = measured[key]
             brightest = np.argsort(-(lights.intensity @ LUMA))[:3]
             rows.append({"map": path.stem, "variant": name, "figure_rel_l1": figure_error, "ground_mae": ground_error,
                          "brightest_sigmas": [round(float(sigma[i]), 2) for i in brightest]})
