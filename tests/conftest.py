@@ -1,6 +1,7 @@
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -40,3 +41,18 @@ def tiny_networks(tiny_dataset, tmp_path_factory):
         assert main(["train", net, "--data", str(tiny_dataset[0]), "--out", str(out), "--res", "64", "--levels", "3",
                      "--width", "8", "--batch", "2", "--epochs", "1"]) == 0
     return out
+
+
+def render_by_units(eng, before, on_call=lambda calls: None, limit: int = 200) -> int:
+    """Budgeted renders of one unit of work each until the engine's frame is complete; until then
+    its display must still be ``before`` (never a half-updated frame). ``on_call(calls)`` runs after
+    each incomplete call. Returns the number of calls."""
+    calls = 0
+    while True:
+        eng.render(budget=0.0)
+        calls += 1
+        if eng.complete:
+            return calls
+        np.testing.assert_array_equal(eng.output.read_display(), before)
+        on_call(calls)
+        assert calls < limit
