@@ -47,16 +47,48 @@ def _fitted_normal(name, mirror=False):
         w = alpha.shape[1]
         fit = face.FaceLandmarks(fit.points * [-1, 1, 1] + [w, 0, 0], fit.box, fit.score)
         alpha = np.ascontiguousarray(alpha[:, ::-1])
-    surface = face.face_surface(fit, 1.0, alpha.shape, np.full(alpha.shape, 4.0, np.float32), alpha > 0.5, 800.0)
+    surface = face.face_surface(fit, 1.0, alpha.shape, alpha > 0.5)
     return surface.normal[surface.weight > 0.5].mean(axis=0)
 
 
-def test_the_mesh_has_the_face_models_triangles():
+def test_the_mesh_is_the_face_models_triangles_wound_one_way_and_closed():
+    """The tesselation's 3-cliques less the two at the nostrils that are not faces: the canonical
+    mesh's 852 triangles, each edge run once each way by its two triangles; closed over the eyes
+    and the mouth, one boundary loop is left (the face's outline) and the whole faces the camera."""
     tris = face.triangles()
-    assert tris.shape[1] == 3 and 852 <= len(tris) <= 860  # the canonical mesh's 852 and a few 3-cliques more
-    assert tris.min() == 0 and tris.max() == 467
+    assert tris.shape == (852, 3) and tris.min() == 0 and tris.max() == 467
+    directed = [(int(t[k]), int(t[(k + 1) % 3])) for t in tris for k in range(3)]
+    assert len(set(directed)) == len(directed)  # no edge runs the same way twice
+    rgb, alpha = _person("front")
+    points, closed = face.face_mesh(face.find_faces(rgb, alpha)[0].points)
+    assert points.shape == (471, 3) and closed.shape == (852 + 16 + 16 + 20, 3)
+    directed = {(int(t[k]), int(t[(k + 1) % 3])) for t in closed for k in range(3)}
+    boundary = [(u, v) for u, v in directed if (v, u) not in directed]
+    assert len(boundary) == 36  # the face oval alone
+    a, b, c = points[closed[:, 0]], points[closed[:, 1]], points[closed[:, 2]]
+    facing = np.cross(b - a, c - a)[:, 2] < 0  # MediaPipe's z points away from the camera
+    assert facing.mean() > 0.9
 
 
+def test_depth_integrated_from_a_spheres_normals_is_the_sphere():
+    """integrate_depth over a disc of a sphere's cap, held by the true depth around it, gives the
+    sphere back (within a small part of its relief) and never a step at the border."""
+    h = w = 96
+    focal, distance, radius = 800.0, 4.0, 0.2  # metres: a 20 cm ball at 4 m
+    yy, xx = np.mgrid[:h, :w]
+    mpp = distance / focal
+    x, y = (xx + 0.5 - w / 2) * mpp, -(yy + 0.5 - h / 2) * mpp
+    r2 = x ** 2 + y ** 2
+    ball = r2 < radius ** 2
+    z = np.sqrt(np.maximum(radius ** 2 - r2, 0))
+    depth = np.where(ball, distance - z, distance).astype(np.float32)
+    normal = np.where(ball[..., None], np.stack([x, y, z], -1) / radius, [0, 0, 1]).astype(np.float32)
+    region = r2 < (0.8 * radius) ** 2
+    flat = np.where(region, distance, depth).astype(np.float32)  # what is inside the region is unknown
+    out = face.integrate_depth(normal, flat, np.ones((h, w), bool), region, focal)
+    assert np.isfinite(out).all() and (out[~region] == flat[~region]).all()
+    relief = float(depth[region].max() - depth[region].min())
+    assert np.abs(out - depth)[region].max() < 0.1 * relief
 def test_a_front_face_is_fitted_and_faces_the_camera():
     rgb, alpha = _person("front")
     faces = face.find_faces(rgb, alpha)
@@ -72,7 +104,7 @@ def test_the_face_normals_point_up_on_the_forehead_and_down_under_the_chin():
     underside and the nose's tip down (MediaPipe landmarks 10: forehead, 152: chin, 1: nose tip)."""
     rgb, alpha = _person("front")
     fit = face.find_faces(rgb, alpha)[0]
-    surface = face.face_surface(fit, 1.0, alpha.shape, np.full(alpha.shape, 4.0, np.float32), alpha > 0.5, 800.0)
+    surface = face.face_surface(fit, 1.0, alpha.shape, alpha > 0.5)
     def normal_at(i, dy=0):
         x, y = fit.points[i, :2]
         return surface.normal[int(y) + dy, int(x)]
@@ -128,7 +160,7 @@ def test_the_blend_stays_bounded_and_local():
     assert np.isfinite(out.depth).all() and np.abs(out.depth - scene.depth).max() < 0.15
     nose = face.find_faces(rgb, alpha)[0].points[1]  # landmark 1: the tip of the nose
     assert out.depth[int(nose[1]), int(nose[0])] < 4.0  # in front of the face's median
-    surface = face.face_surface(face.find_faces(rgb, alpha)[0], 1.0, alpha.shape, scene.depth, m, scene.camera.focal_px)
+    surface = face.face_surface(face.find_faces(rgb, alpha)[0], 1.0, alpha.shape, m)
     assert surface.weight.min() >= 0.0 and surface.weight.max() == pytest.approx(1.0)
     edge = surface.region & ~np.pad(surface.region, 1)[2:, 1:-1]  # the outline's lowest row of each column
     assert surface.weight[edge].max() < 0.5
@@ -139,7 +171,7 @@ def test_a_face_too_small_for_the_work_frame_is_left_out():
     faces = face.find_faces(rgb, alpha)
     scene = _scene(alpha)
     small = face.MIN_FACE_WORK_PX / faces[0].width * 0.9  # the work frame at this scale of the photo
-    assert face.face_surface(faces[0], small, alpha.shape, scene.depth, scene.mask, scene.camera.focal_px) is None
+    assert face.face_surface(faces[0], small, alpha.shape, scene.mask) is None
     out, record, _ = face.with_face(scene, faces, small)
     assert out is scene and "skipped" in record
 
@@ -167,7 +199,7 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
             images.append(engine.render().output.read_work_hdr()[..., :3].copy())
         target = np.where(patch[..., None], images[1], images[0]).astype(np.float32)
         ramp = np.clip((np.minimum(xx - 0.62 * w, 0.12 * h - np.abs(yy - h / 2)) / 3.0), 0.0, 1.0) * patch  # 0 at its edge
-        surface = face.FaceSurface(scene.depth, scene.normal, ramp.astype(np.float32), patch)
+        surface = face.FaceSurface(scene.normal, ramp.astype(np.float32), patch)
         weight = face.light_fit_weight(surface, scene.mask)
         assert weight[ramp > 0].sum() / weight[scene.mask].sum() == pytest.approx(face.FIT_SHARE, rel=1e-3)
         assert weight.min() >= 1.0 and weight[~patch].max() == 1.0

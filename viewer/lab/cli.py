@@ -212,6 +212,14 @@ def cmd_bench(args) -> int:
         for name, t in result["targets"].items():
             print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
         print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
+    elif args.what == "photos" and args.set:
+        from .bench.photo_set import run_photo_set, set_table
+
+        out_dir = Path(args.output or "out/bench-photo-set")
+        result = run_photo_set(args.set, shared_folder(args.maps, "hdri", "--maps"), out_dir,
+                               before=args.before, progress=lambda what: print(what, flush=True))
+        print(set_table(result))
+        print(f"wrote {out_dir / 'photo_set.json'} and {len(result['photos'])} contact sheets in {result['seconds'] / 60:.1f} min")
     elif args.what == "photos":
         from .bench.photos import run_photos_benchmark
         from viewer.progress import StageBars
@@ -321,6 +329,10 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--count", type=int, default=20, help="batch: distinct photos (default 20)")
     p.add_argument("--photos", help="photos, matte, upsample: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
+    p.add_argument("--set", nargs="+", metavar="DIR", help="photos: every photo of these folders through the whole photo "
+                   "path (holes and speckle on skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
+                   "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/)")
+    p.add_argument("--before", help="photos --set: a photo_set.json of an earlier run, shown beside this one")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])

@@ -16,15 +16,19 @@ relative to the face (in the same units as x): a face surface, from a model trai
    again with its lightness equalized (CLAHE): under a key light the dark half of a face hides
    it from the detector (on the held-out key-light photos, 16 faces found instead of 13 of 24; no
    change on map-lit ones).
-2. ``face_surface``: the landmarks' triangles (the face mesh's tesselation, read from its edges)
-   rasterized into a frame of the work size with a depth buffer: per pixel the face's depth
-   relative to its median, and the normal interpolated from the mesh's vertex normals (camera
-   space: x right, y up, z towards the camera). The relative depth is scaled to metres at the
-   face's distance (weak perspective: a pixel at depth d spans d / focal metres).
-3. ``with_face``: inside the surface, the face's depth (its median put on the networks' median
-   over the same pixels) and normals replace the networks', with a weight that ramps from the
-   surface's outline (a pixel's worth of ramp on its outermost pixels) to 1 at ``RAMP`` of the
-   face's width inside it, so the face joins the head the networks made without a step.
+2. ``face_mesh``: the landmarks' triangles (the face mesh's tesselation, read from its edges and
+   wound consistently) closed over the eyes' and the mouth's openings, so the face has no holes.
+3. ``face_surface``: that mesh rasterized into a frame of the work size with a depth buffer: per
+   pixel the normal interpolated from the mesh's vertex normals (camera space: x right, y up, z
+   towards the camera), and a blend weight that ramps from the surface's outline (a pixel's worth
+   of ramp on its outermost pixels) to 1 at ``RAMP`` of the face's width inside it.
+4. ``with_face``: the face's normals replace the networks' by that weight, and the depth over the
+   face is made the surface those blended normals describe (``integrate_depth``: a Poisson solve
+   held by the networks' depth around the face), so depth and normals agree: a nose casts the
+   shadow its shading implies, and the face joins the head without a step or a ridge. (The
+   landmarks' own depth, placed on the networks' median, once stood in for it: its cliff under the
+   nose, a pixel high in the work frame, cast a black block onto the upper lip under a light from
+   the front and above.)
 
 Without a face on the person (turned away, in profile past what the detector finds, too small)
 nothing changes and the bundle's record says so. ``relight bench networks`` measures the normals and
@@ -46,6 +50,9 @@ CLAHE_TILES = 8
 MIN_FACE_WORK_PX = 12  # a face narrower than this in the work frame has no form to add: left to the networks
 RAMP = 0.2  # of the face's width: the blend goes from the networks' maps to the face's over this
 FIT_SHARE = 0.25  # of the photo's light fit that the face's pixels count for
+MIN_FACING = 0.1  # the least z a seen normal keeps (camera space): a surface the camera sees faces it
+SMOOTH = 0.06  # of the face's width: the sigma of the Gaussian that rounds the landmarks' normals
+ANCHOR = 1e-6  # the depth integration's pull to the networks' depth (a difference weighs 1): sets the level of a face with no border
 
 
 @dataclass(frozen=True)
@@ -69,19 +76,21 @@ class FaceLandmarks:
 
 @dataclass(frozen=True)
 class FaceSurface:
-    """A face rasterized into the work frame: ``depth`` (H, W) metres, ``normal`` (H, W, 3) camera
-    space, ``weight`` (H, W) in [0, 1] (0 outside the face), ``region`` (H, W) bool (the face's
-    pixels)."""
+    """A face rasterized into the work frame: ``normal`` (H, W, 3) camera space, ``weight`` (H, W)
+    in [0, 1] (0 outside the face), ``region`` (H, W) bool (the face's pixels)."""
 
-    depth: np.ndarray
     normal: np.ndarray
     weight: np.ndarray
     region: np.ndarray
 
 
 def triangles() -> np.ndarray:
-    """(T, 3) int: the face mesh's triangles, the 3-cliques of its tesselation's edges (MediaPipe
-    ships the edges, not the triangles)."""
+    """(T, 3) int: the face mesh's triangles, consistently wound (each shared edge runs one way in
+    one triangle and the other way in the other). MediaPipe ships the tesselation's edges, not its
+    triangles: the triangles are the edges' 3-cliques, less the few that are not faces (a clique
+    every edge of which already borders two other cliques: two at the nostrils, which folded the
+    nose's underside over itself), wound by a walk over the mesh. The mesh has four boundary loops:
+    the face's outline and the openings of the eyes and the mouth (closed by :func:`face_mesh`)."""
     from mediapipe.python.solutions.face_mesh_connections import FACEMESH_TESSELATION
 
     edges = {tuple(sorted(e)) for e in FACEMESH_TESSELATION}
@@ -89,8 +98,84 @@ def triangles() -> np.ndarray:
     for a, b in edges:
         neighbours.setdefault(a, set()).add(b)
         neighbours.setdefault(b, set()).add(a)
-    found = {tuple(sorted((a, b, c))) for a, b in edges for c in neighbours[a] & neighbours[b]}
-    return np.array(sorted(found), dtype=np.int64)
+    cliques = sorted({tuple(sorted((a, b, c))) for a, b in edges for c in neighbours[a] & neighbours[b]})
+    users: dict[tuple, int] = {}
+    for t in cliques:
+        for e in _edges(t):
+            users[e] = users.get(e, 0) + 1
+    faces = [t for t in cliques if min(users[e] for e in _edges(t)) <= 2]
+    return _wound(np.array(faces, dtype=np.int64))
+
+
+def _edges(t) -> tuple:
+    a, b, c = t
+    return tuple(tuple(sorted(e)) for e in ((a, b), (b, c), (a, c)))
+
+
+def _wound(tris: np.ndarray) -> np.ndarray:
+    """``tris`` reordered so that neighbours agree on their shared edge's direction (a walk from the
+    first triangle; the mesh is an orientable surface)."""
+    by_edge: dict[tuple, list] = {}
+    for i, t in enumerate(tris):
+        for e in _edges(t):
+            by_edge.setdefault(tuple(e), []).append(i)
+    out = tris.copy()
+    seen = np.zeros(len(tris), bool)
+    for root in range(len(tris)):
+        if seen[root]:
+            continue
+        seen[root] = True
+        stack = [root]
+        while stack:
+            i = stack.pop()
+            a, b, c = out[i]
+            for u, v in ((a, b), (b, c), (c, a)):
+                for j in by_edge[tuple(sorted((u, v)))]:
+                    if seen[j]:
+                        continue
+                    t = list(out[j])
+                    for k in range(3):  # the neighbour must run the shared edge v -> u
+                        if t[k] == u and t[(k + 1) % 3] == v:
+                            out[j] = (t[0], t[2], t[1])
+                            break
+                    seen[j] = True
+                    stack.append(j)
+    return out
+
+
+def face_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(points (V', 3), triangles (T', 3)): the landmarks ``points`` (468, 3) (x right, y down, z
+    away) as a closed surface facing the camera: :func:`triangles` wound so that the mesh's total
+    normal points at the camera, and each inner boundary loop (the eyes' and the mouth's openings)
+    closed by a fan around a vertex added at the loop's mean, so the face has no holes whose
+    pixels fall back to the networks' maps in the middle of the face."""
+    tris = triangles()
+    a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
+    if np.cross(b - a, c - a)[:, 2].sum() > 0:
+        tris = tris[:, [0, 2, 1]]
+    directed = [(int(u), int(v)) for t in tris for u, v in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))]
+    counts: dict[tuple, int] = {}
+    for u, v in directed:
+        counts[(min(u, v), max(u, v))] = counts.get((min(u, v), max(u, v)), 0) + 1
+    nxt = {u: v for u, v in directed if counts[(min(u, v), max(u, v))] == 1}  # the boundary, each loop one way
+    loops, left = [], set(nxt)
+    while left:
+        start = left.pop()
+        loop, v = [start], nxt[start]
+        while v != start and v in left:
+            left.discard(v)
+            loop.append(v)
+            v = nxt[v]
+        loops.append(loop)
+    loops.sort(key=len)
+    extra, fans = [], []
+    for loop in loops[:-1]:  # the longest loop is the face's outline
+        centre = len(points) + len(extra)
+        extra.append(points[loop].mean(axis=0))
+        fans += [(v, u, centre) for u, v in zip(loop, loop[1:] + loop[:1])]  # the loop's edge u -> v, reversed
+    if not extra:
+        return points, tris
+    return np.concatenate([points, np.array(extra)]), np.concatenate([tris, np.array(fans, np.int64)])
 
 
 def equalized(photo: np.ndarray) -> np.ndarray:
@@ -150,11 +235,11 @@ def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
 
 
 def _vertex_normals(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """(V, 3) unit vertex normals of the mesh in MediaPipe's axes (x right, y down, z away), each
-    facing the camera (negative z): area-weighted means of the triangles' normals."""
+    """(V, 3) unit vertex normals of the wound mesh (:func:`face_mesh`) in MediaPipe's axes (x
+    right, y down, z away): area-weighted means of its triangles' normals, each as wound (a fold
+    such as the nose's underside keeps its side, so the normals turn smoothly round it)."""
     a, b, c = points[tris[:, 0]], points[tris[:, 1]], points[tris[:, 2]]
     n = np.cross(b - a, c - a)
-    n *= np.where(n[:, 2:3] > 0, -1.0, 1.0)  # every triangle faces the camera (z < 0)
     acc = np.zeros_like(points)
     for k in range(3):
         np.add.at(acc, tris[:, k], n)
@@ -197,43 +282,102 @@ def _rasterize(points: np.ndarray, values: np.ndarray, tris: np.ndarray, shape: 
     return np.where(covered, zbuf, 0.0), out, covered
 
 
-def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], depth: np.ndarray, mask: np.ndarray,
-                 focal_px: float) -> FaceSurface | None:
+def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], mask: np.ndarray) -> FaceSurface | None:
     """``face`` (landmarks in the photo's pixels) in a work frame of ``shape`` (H, W) that is the
-    photo scaled by ``scale``: its surface placed on the networks' ``depth`` (H, W, metres) over
-    the person's ``mask``; ``focal_px`` the work camera's focal length in pixels. None when the
-    face is under ``MIN_FACE_WORK_PX`` wide there or does not fall on the person."""
+    photo scaled by ``scale``, over the person's ``mask``: its normals, interpolated from the
+    closed mesh's vertex normals, and the blend weight. None when the face is under
+    ``MIN_FACE_WORK_PX`` wide there or does not fall on the person."""
     import cv2
 
-    points = face.points * scale
     if face.width * scale < MIN_FACE_WORK_PX:
         return None
-    tris = triangles()
-    normals = _vertex_normals(points, tris)
-    z, n, covered = _rasterize(points, normals, tris, shape)
+    points, tris = face_mesh(face.points * scale)
+    _, n, covered = _rasterize(points, _vertex_normals(points, tris), tris, shape)
     region = covered & mask
     if region.sum() < max(MIN_FACE_WORK_PX ** 2 / 4, 0.5 * covered.sum()):
         return None  # too small, or mostly off the person's mask
-    metres_per_px = float(np.median(depth[region])) / focal_px
-    relative = (z - np.median(z[region])) * metres_per_px
-    placed = np.where(region, float(np.median(depth[region])) + relative, depth)
-    normal = np.stack([n[..., 0], -n[..., 1], -n[..., 2]], axis=-1)
+    if SMOOTH > 0:  # the landmarks' creases (eyelids, nostrils) rounded as skin over them is
+        n = _masked_blur(n, covered, SMOOTH * face.width * scale)
+    # camera space (y up, z towards the camera); what the camera sees of a surface faces it
+    normal = np.stack([n[..., 0], -n[..., 1], np.maximum(-n[..., 2], MIN_FACING)], axis=-1)
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
     # the distance from outside the face: 1 on its outermost pixels (a weight of 1 / (RAMP x width) there)
     inside = cv2.distanceTransform(np.pad(covered, 1).astype(np.uint8), cv2.DIST_L2, 5)[1:-1, 1:-1]
     weight = np.clip(inside / max(RAMP * face.width * scale, 1.0), 0.0, 1.0) * region
-    return FaceSurface(placed.astype(np.float32), np.where(region[..., None], normal, 0).astype(np.float32),
-                       weight.astype(np.float32), region)
+    return FaceSurface(np.where(region[..., None], normal, 0).astype(np.float32), weight.astype(np.float32), region)
 
 
-def blend(normal: np.ndarray, depth: np.ndarray, surface: FaceSurface) -> tuple[np.ndarray, np.ndarray]:
-    """(normal, depth) with the face's surface blended in by its weight (normals renormalized)."""
+def _masked_blur(values: np.ndarray, where: np.ndarray, sigma: float) -> np.ndarray:
+    """``values`` (H, W, C) blurred by a Gaussian of ``sigma`` pixels over the pixels ``where``
+    covers (a normalized convolution: nothing outside them leaks in)."""
+    import cv2
+
+    k = 2 * int(np.ceil(3 * sigma)) + 1
+    w = where.astype(np.float32)
+    num = cv2.GaussianBlur(values.astype(np.float32) * w[..., None], (k, k), sigma)
+    den = cv2.GaussianBlur(w, (k, k), sigma)
+    return np.where(where[..., None], num / np.maximum(den, 1e-6)[..., None], values)
+
+
+def blend(normal: np.ndarray, depth: np.ndarray, mask: np.ndarray, surface: FaceSurface,
+          focal_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """(normal, depth) with the face's surface blended in: the normals by its weight
+    (renormalized), the depth made the surface those normals describe (:func:`integrate_depth`),
+    held by the networks' depth around the face, so that a shadow cast by the nose matches the
+    shading the nose's normals give, and nothing steps or ridges where the face joins the head."""
     w = surface.weight[..., None]
     n = (1.0 - w) * normal + w * surface.normal
     length = np.linalg.norm(n, axis=-1, keepdims=True)
-    n = np.where(length > 1e-6, n / np.maximum(length, 1e-12), normal)
-    d = (1.0 - surface.weight) * depth + surface.weight * surface.depth
-    return n.astype(np.float32), d.astype(np.float32)
+    n = np.where(length > 1e-6, n / np.maximum(length, 1e-12), normal).astype(np.float32)
+    return n, integrate_depth(n, depth, mask, surface.weight > 0, focal_px)
+
+
+def integrate_depth(normal: np.ndarray, depth: np.ndarray, mask: np.ndarray, region: np.ndarray,
+                    focal_px: float) -> np.ndarray:
+    """``depth`` (H, W, metres) with its pixels in ``region`` replaced by the surface whose slopes
+    the camera-space ``normal`` gives (least squares over the pixels' 4-neighbour differences: a
+    Poisson solve), its values at the region's border those of ``depth`` on the ``mask`` outside
+    it. Weak perspective at the region's median depth: a pixel spans depth / ``focal_px`` metres;
+    a normal turned away past ``MIN_FACING`` gives the slope of that limit."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.linalg import spsolve
+
+    region = region & mask
+    if not region.any():
+        return depth
+    metres_per_px = float(np.median(depth[region])) / focal_px
+    nz = np.maximum(normal[..., 2], MIN_FACING)
+    slope_x = metres_per_px * normal[..., 0] / nz    # d depth / d column (depth grows away from the camera)
+    slope_y = -metres_per_px * normal[..., 1] / nz   # d depth / d row (rows go down, camera y up)
+    index = np.full(depth.shape, -1, np.int64)
+    index[region] = np.arange(int(region.sum()))
+    rows, cols, vals, rhs = [], [], [], np.zeros(int(region.sum()))
+    for slope, (dy, dx) in ((slope_x, (0, 1)), (slope_y, (1, 0))):
+        h, w = depth.shape
+        a = (slice(0, h - dy), slice(0, w - dx))
+        b = (slice(dy, h), slice(dx, w))
+        both = mask[a] & mask[b] & (region[a] | region[b])
+        ia, ib = index[a][both], index[b][both]
+        g = 0.5 * (slope[a] + slope[b])[both]  # depth[b] - depth[a] should be g
+        da, db = depth[a][both].astype(np.float64), depth[b][both].astype(np.float64)
+        # the normal equations of (x_b - x_a - g)^2, with a known depth for a pixel outside the region
+        for i, j, sign, known in ((ia, ib, 1.0, db), (ib, ia, -1.0, da)):
+            own = i >= 0
+            rows.append(i[own]); cols.append(i[own]); vals.append(np.ones(int(own.sum())))
+            other = own & (j >= 0)
+            rows.append(i[other]); cols.append(j[other]); vals.append(-np.ones(int(other.sum())))
+            fixed = own & (j < 0)
+            np.add.at(rhs, i[fixed], known[fixed])
+            np.add.at(rhs, i[own], -sign * g[own])
+    n = int(region.sum())
+    # a faint pull to the given depth keeps a region with no border on the person solvable
+    anchor = ANCHOR * np.ones(n)
+    rows.append(np.arange(n)); cols.append(np.arange(n)); vals.append(anchor)
+    rhs += anchor * depth[region]
+    matrix = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+    out = depth.astype(np.float32).copy()
+    out[region] = spsolve(matrix, rhs).astype(np.float32)
+    return out
 
 
 def with_face(scene, faces: list[FaceLandmarks], scale: float):
@@ -243,11 +387,11 @@ def with_face(scene, faces: list[FaceLandmarks], scale: float):
     record = {"faces_found": len(faces), "fitted": None}
     if not faces:
         return scene, record, None
-    surface = face_surface(faces[0], scale, scene.mask.shape, scene.depth, scene.mask, scene.camera.focal_px)
+    surface = face_surface(faces[0], scale, scene.mask.shape, scene.mask)
     if surface is None:
         record["skipped"] = f"the face is under {MIN_FACE_WORK_PX} work pixels wide, or mostly off the person's mask"
         return scene, record, None
-    normal, depth = blend(scene.normal, scene.depth, surface)
+    normal, depth = blend(scene.normal, scene.depth, scene.mask, surface, scene.camera.focal_px)
     record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
     return replace(scene, normal=normal, depth=depth).validate(), record, surface
 

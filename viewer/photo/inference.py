@@ -56,7 +56,7 @@ STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rend
                 "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-5"  # bundles cached by an older pipeline are inferred again (frame-5: bundles carry the marker of viewer.ownership)
+PIPELINE = "frame-6"  # bundles cached by an older pipeline are inferred again (frame-6: the face's depth integrated from its normals)
 
 
 @dataclass(frozen=True)

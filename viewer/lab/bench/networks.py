@@ -111,7 +111,7 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     if face:
         scene, _, surface = face_mod.with_face(scene, faces, 1.0)
     else:
-        surface = face_mod.face_surface(faces[0], 1.0, m.shape, scene.depth, m, cam.focal_px) if faces else None
+        surface = face_mod.face_surface(faces[0], 1.0, m.shape, m) if faces else None
     return scene.validate(), {"albedo": scene.albedo, "normal": scene.normal, "lights": lights,
                               "face_surface": surface if face else None,
                               "face_region": surface.region if surface is not None else None}
