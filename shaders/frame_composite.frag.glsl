@@ -9,7 +9,8 @@
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG.
 // Before / after (display only): left of compare_x pixels the original photo as it was, with a
 // two-pixel white line at the split. With ground, the background is darkened by the person's
-// shadow on the ground (ground_shadow.frag.glsl, work images' field of view, bilinear).
+// shadow on the ground (ground_shadow.frag.glsl, work images' field of view, bilinear). On the skin,
+// D is the light scattered under it (skin_scatter.frag.glsl) when that pass ran.
 #include "filled_sample.glsl"
 #include "tonemap.glsl"
 uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution
@@ -28,6 +29,11 @@ uniform int tonemap_op;
 uniform int output_mode;
 uniform sampler2D ground_occlusion;
 uniform bool ground;
+uniform bool skin_scatter;             // D replaced by its scattered self on the skin (skin_scatter.frag.glsl)
+uniform sampler2D skin_scattered;      // (D scattered x skin, skin) over the skin's box, coarser, bilinear
+uniform sampler2D skin;                // the share of skin per frame pixel
+uniform ivec4 skin_box;                // (x, y, width, height) of that box in frame pixels
+uniform vec2 skin_box_to_uv;           // 1 / the box's size in frame pixels, as the scattered image spans it
 layout(location = 0) out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
@@ -36,6 +42,12 @@ void main() {
     if (aa.a > 0.0) {
         vec2 uv = (vec2(px) + 0.5) * frame_to_uv;
         vec3 d = filled_sample(shading_diffuse, uv, max_lod);
+        ivec2 q = px - skin_box.xy;
+        if (skin_scatter && all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, skin_box.zw))) {
+            vec4 scattered = texture(skin_scattered, (vec2(q) + 0.5) * skin_box_to_uv);  // premultiplied by the skin
+            float own = texelFetch(skin, px, 0).r;
+            if (scattered.a > 1e-4) d = mix(d, scattered.rgb / scattered.a, own);
+        }
         vec3 s = filled_sample(shading_specular, uv, max_lod);
         fg = term_weights.x * (unit_albedo ? vec3(1.0) : aa.rgb) * d + term_weights.y * s;
     }

@@ -16,6 +16,7 @@ background.png     optional: the photo's background (person removed), sRGB
 frame_photo.png    optional (version 2): the photo at output resolution, sRGB
 frame_alpha.png    optional (version 2): the person's soft matte at output resolution, 16-bit
 frame_albedo.exr   optional (version 2): the detail albedo at output resolution, linear RGB
+frame_skin.png     optional in a frame: how much each frame pixel is skin (8-bit share), where light scatters
 =================  ===========================================================================
 
 Only pixels inside the mask carry data; loading zeroes everything outside it. The three
@@ -50,6 +51,8 @@ MAP_FILES = {
 }
 OPTIONAL_FILES = {"photo": "photo.png", "background": "background.png"}
 FRAME_FILES = {"photo": "frame_photo.png", "alpha": "frame_alpha.png", "albedo": "frame_albedo.exr"}
+FRAME_SKIN_FILE = "frame_skin.png"  # optional in a frame (version 2 bundles before it have none)
+MAX_SKIN_MM = 1e3  # millimetres a frame pixel may span (a person a few pixels tall)
 ASPECT_TOLERANCE_PX = 1.5  # the frame and the maps may differ by rounding only
 
 
@@ -73,6 +76,8 @@ class FrameLayer:
     alpha: np.ndarray  # (Hf, Wf) [0, 1]
     photo: np.ndarray  # (Hf, Wf, 3) linear
     background_blur: float = 0.0  # radians: the photo's own background defocus, a Gaussian's sigma (viewer.backdrop)
+    skin: np.ndarray | None = None  # (Hf, Wf) [0, 1]: how much each pixel is skin (viewer.photo.gloss); None: no skin known
+    skin_mm: float = 0.0  # millimetres of the person a frame pixel spans (the skin's light scatters millimetres); 0: unknown
 
     @property
     def height(self) -> int:
@@ -103,7 +108,9 @@ class FrameLayer:
         if size == (self.width, self.height):
             return self
         return FrameLayer(albedo=np.clip(resize(self.albedo, size), 0, 1), alpha=np.clip(resize(self.alpha, size), 0, 1),
-                          photo=np.maximum(resize(self.photo, size), 0), background_blur=self.background_blur)
+                          photo=np.maximum(resize(self.photo, size), 0), background_blur=self.background_blur,
+                          skin=None if self.skin is None else np.clip(resize(self.skin, size), 0, 1),
+                          skin_mm=self.skin_mm * self.width / size[0])
 
     def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> "FrameLayer":
         def file(name):
@@ -112,7 +119,9 @@ class FrameLayer:
         h, w = self.alpha.shape[:2] if self.alpha.ndim >= 2 else (0, 0)
         if self.alpha.ndim != 2 or h < 1 or w < 1:
             raise InputError(file("alpha"), f"the matte must be one channel with pixels, got shape {self.alpha.shape}")
-        for name, shape in (("albedo", (h, w, 3)), ("photo", (h, w, 3)), ("alpha", (h, w))):
+        for name, shape in (("albedo", (h, w, 3)), ("photo", (h, w, 3)), ("alpha", (h, w)), ("skin", (h, w))):
+            if getattr(self, name) is None and name == "skin":
+                continue
             arr = np.asarray(getattr(self, name), np.float32)
             if arr.ndim == 3 and arr.shape[-1] == 4:
                 arr = arr[..., :3]
@@ -129,6 +138,11 @@ class FrameLayer:
             raise InputError(base / "scene.json" if base is not None else "scene.json",
                              f"frame background_blur must be an angle in [0, 1] radians, got {blur!r}")
         self.background_blur = float(blur)
+        mm = self.skin_mm
+        if isinstance(mm, bool) or not isinstance(mm, (int, float)) or not 0.0 <= float(mm) <= MAX_SKIN_MM:
+            raise InputError(base / "scene.json" if base is not None else "scene.json",
+                             f"frame skin_mm must be millimetres per pixel in [0, {MAX_SKIN_MM:g}], got {mm!r}")
+        self.skin_mm = float(mm)
         mw, mh = maps_size
         if abs(w * mh / mw - h) > ASPECT_TOLERANCE_PX * max(1.0, h / mh):
             raise InputError(file("alpha"), f"the frame {w}x{h} does not have the aspect of the maps ({mw}x{mh})")
@@ -339,8 +353,13 @@ def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
         photo = np.repeat(photo[..., None], 3, axis=-1)
     alpha = read_png(bundle_file(path, files["alpha"], meta_path))
     albedo = read_exr(bundle_file(path, files["albedo"], meta_path))
+    skin = None
+    if "skin" in files:  # listed by the bundles that have one
+        skin = read_png(bundle_file(path, files["skin"], meta_path))
+        skin = skin if skin.ndim == 2 else skin[..., 0]
     frame = FrameLayer(albedo=albedo[..., :3] if albedo.ndim == 3 else albedo, alpha=alpha if alpha.ndim == 2 else alpha[..., 0],
-                       photo=srgb_to_linear(photo[..., :3]), background_blur=entry.get("background_blur", 0.0))
+                       photo=srgb_to_linear(photo[..., :3]), background_blur=entry.get("background_blur", 0.0),
+                       skin=skin, skin_mm=entry.get("skin_mm", 0.0))
     size = (entry.get("width"), entry.get("height"))
     if size != (frame.width, frame.height):
         raise InputError(meta_path, f"frame is {size[0]}x{size[1]} but {files['alpha']} is {frame.width}x{frame.height}")
@@ -363,6 +382,8 @@ def save_scene(scene: Scene, path) -> Path:
         write_png(path / FRAME_FILES["photo"], linear_to_srgb(frame.photo), compress_level=1)
         write_png(path / FRAME_FILES["alpha"], frame.alpha, bits=16, compress_level=1)
         write_exr(path / FRAME_FILES["albedo"], frame.albedo, half=True)
+        if frame.skin is not None:
+            write_png(path / FRAME_SKIN_FILE, frame.skin, compress_level=1)
     for name in OPTIONAL_FILES:
         img = getattr(scene, name)
         if img is not None and frame is None:  # with a frame, they are the frame photo's
@@ -380,8 +401,9 @@ def save_scene(scene: Scene, path) -> Path:
         "maps": maps,
     }
     if frame is not None:
-        meta["frame"] = {"width": frame.width, "height": frame.height, "maps": dict(FRAME_FILES),
-                         "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage"},
-                         "background_blur": frame.background_blur}
+        frame_maps = dict(FRAME_FILES) | ({"skin": FRAME_SKIN_FILE} if frame.skin is not None else {})
+        meta["frame"] = {"width": frame.width, "height": frame.height, "maps": frame_maps,
+                         "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage", "skin": "share"},
+                         "background_blur": frame.background_blur, "skin_mm": frame.skin_mm}
     write_text(path / "scene.json", json.dumps(meta, indent=2) + "\n")
     return path

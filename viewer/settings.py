@@ -54,6 +54,7 @@ class Look:
     shadows: str = "soft"  # soft (EngineOptions.soft: PCSS or CSM) | refined (network) | hard (shadow map) | none
     diffuse: bool = True  # the diffuse term shown
     specular: bool = True  # the specular term shown
+    skin: bool = True  # light scattered under the skin (a photo's skin map; viewer/gl/skin_pass.py)
     view: str = "final"  # VIEWS
     light: int = 0  # the selected light (its shadow in the "shadow" view)
     intensity: float = 1.0  # scales the map's lights
@@ -82,7 +83,7 @@ class Look:
             raise InputError(None, f"background colour must be three finite values >= 0, got {self.background_color!r}")
         object.__setattr__(self, "background_color", tuple(float(c) for c in color))
         _choice("shadows", self.shadows, VISIBILITY_MODES)
-        for name in ("diffuse", "specular"):
+        for name in ("diffuse", "specular", "skin"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise InputError(None, f"{name} must be true or false, got {getattr(self, name)!r}")
         if not isinstance(self.ground, (bool, np.bool_)) and self.ground != AUTO:

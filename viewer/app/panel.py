@@ -186,6 +186,12 @@ def _shading(app):
     changed, specular = imgui.checkbox("specular", lk.specular)
     if changed:
         s.update(specular=specular)
+    imgui.same_line()
+    changed, skin = imgui.checkbox("skin", lk.skin)  # light scattered under the skin (a photo's)
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("light scattered under the skin: soft, warm terminators on a photo's skin")
+    if changed:
+        s.update(skin=skin)
     labels = [VIEW_NAMES[v] for v in VIEWS]
     changed, i = imgui.combo("view", VIEWS.index(lk.view), labels)
     _remember(app, "view")

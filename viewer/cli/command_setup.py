@@ -105,7 +105,7 @@ def warn_if_dark(lights, source):
 # the look's fields and the options that set them (each default None: given or not)
 LOOK_OPTIONS = (("yaw", "yaw"), ("tilt", "tilt"), ("exposure", "exposure"), ("tonemap", "tonemap"),
                 ("background", "background"), ("shadows", "visibility"), ("preset", "preset"),
-                ("ground", "ground"), ("backdrop_blur", "backdrop_blur"))
+                ("ground", "ground"), ("backdrop_blur", "backdrop_blur"), ("skin", "skin"))
 
 
 def command_look(args, yaw_default: float = 0.0):

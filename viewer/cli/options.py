@@ -61,6 +61,12 @@ def add_view_args(p, yaw_default=0.0, yaws: bool = True):
                         help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
                              "by default shown when the feet are in the frame and the map is behind the person")
     ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    skin = p.add_mutually_exclusive_group()
+    skin.add_argument("--skin", action="store_const", const=True,
+                      help="light scattered under a photo's skin: soft, warm terminators and shadow edges on faces and "
+                           "limbs (the default)")
+    skin.add_argument("--no-skin", dest="skin", action="store_const", const=False,
+                      help="skin shaded as a surface, without the light scattered under it (to compare)")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
                    help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
                         "(refined), the shadow map (hard) or none")

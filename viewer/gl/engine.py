@@ -16,7 +16,8 @@ these declarations):
   a scene with a frame layer (frame_pass.py), in place of 6
     7 FrameBackgroundPass  inputs: background, environment
       FrameMipmapsPass     inputs: composite, view
-    8 FrameCompositePass   inputs: composite (matte's box); display, view, environment (whole frame)
+      SkinScatterPass      inputs: frame_mipmaps, skin (a frame with skin: skin_pass.py)
+    8 FrameCompositePass   inputs: composite, skin, skin_scatter (matte's box); display, view, environment (whole frame)
   the inspection views (InspectPass) draw in place of 6 / 8.
   with Look.ground (ground_pass.py), before 6 / 8
     9 GroundShadowPass   inputs: light_pass, intensity, activity, ground, visibility; 6 and 8 redraw the

@@ -119,7 +119,7 @@ class FrameCompositePass:
     display image."""
 
     name = "frame_composite"
-    inputs = ("composite",)  # redrawn over the matte's box only
+    inputs = ("composite", "skin", "skin_scatter")  # redrawn over the matte's box only
     whole_inputs = ("display", "view", "environment", "ground", "ground_shadow")  # redrawn over the whole frame
 
     def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture, ground: moderngl.Texture):
@@ -131,10 +131,16 @@ class FrameCompositePass:
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
         self.back = self.back_fbo = None  # the image drawn in bands while the front is shown (made when first needed)
         self.box = frame.box
+        self.skin = None  # use_skin
 
     def run(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, box=None):
         with self.kit.timed(self.name):
             self.draw(self.fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, box)
+
+    def use_skin(self, scatter):
+        """The skin pass (:class:`viewer.gl.skin_pass.SkinScatterPass`) whose image replaces D on the
+        skin whenever it was shown (None: no skin)."""
+        self.skin = scatter
 
     def draw_band(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, band: int,
                   bands: int):
@@ -167,6 +173,14 @@ class FrameCompositePass:
         self.ground.use(5)
         prog["ground_occlusion"] = 5
         prog["ground"] = look.ground
+        scattered = self.skin is not None and self.skin.shown
+        (self.skin.image if scattered else self.photo).use(6)  # textures bound either way
+        (self.skin.skin if scattered else self.photo).use(7)
+        prog["skin_scattered"] = 6
+        prog["skin"] = 7
+        prog["skin_scatter"] = scattered
+        prog["skin_box"] = self.skin.box if scattered else (0, 0, 0, 0)
+        prog["skin_box_to_uv"] = self.skin.box_to_uv if scattered else (0.0, 0.0)
         prog["frame_albedo_alpha"] = 0
         prog["shading_diffuse"] = 1
         prog["shading_specular"] = 2

@@ -95,6 +95,8 @@ class LookState:
             changed.append("visibility")  # lights whose light pass lacks what the mode needs redo it in render()
         if self.composite_terms() != terms:
             changed.append("terms")
+        if look.skin != old.skin:
+            changed.append("skin")
         if (look.view, look.light if look.view == "shadow" else 0) != (old.view, old.light if old.view == "shadow" else 0):
             changed.append("view")
         if any(not np.array_equal(getattr(look, f), getattr(old, f)) for f in DISPLAY_FIELDS):

@@ -4,7 +4,7 @@
   resolution over its background (``DisplayPass``).
 - :class:`FramePicture`, a scene with a frame layer (a photo's bundle): the shading sums upsampled
   to the photo's frame, over the frame's background (``FrameBackgroundPass``,
-  ``FrameMipmapsPass``, ``FrameCompositePass``).
+  ``FrameMipmapsPass``, ``SkinScatterPass`` where the frame has skin, ``FrameCompositePass``).
 
 The engine (the scheduler) decides when the picture is stale and hands it what it draws from: a
 :class:`PictureInputs` of the composite, the look shown and the composite's terms. Each kind owns
@@ -21,6 +21,7 @@ import numpy as np
 
 from .display_pass import DisplayPass
 from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass, OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR
+from .skin_pass import SkinScatterPass
 
 
 BANDS = 4  # a budgeted frame composite's bands (at 2048 pixels with one llvmpipe thread the whole is ~110 ms)
@@ -74,7 +75,9 @@ class FramePicture:
         self.background = FrameBackgroundPass(kit, frame, camera)
         self.mipmaps = FrameMipmapsPass(kit)
         self.last = FrameCompositePass(kit, frame, self.background.photo, ground)
-        self.passes = (self.mipmaps, self.background, self.last)
+        self.scatter = SkinScatterPass(kit, frame) if SkinScatterPass.applies(frame) else None
+        self.last.use_skin(self.scatter)
+        self.passes = (self.mipmaps, *([self.scatter] if self.scatter else []), self.background, self.last)
         self._bands = None  # a budgeted draw under way: the background's and the frame's bands drawn
 
     def _ready(self, i: PictureInputs):
@@ -85,6 +88,9 @@ class FramePicture:
         if i.stale(self.mipmaps.name):
             self.mipmaps.run(i.composite.shading)
             i.ran(self.mipmaps)
+        if self.scatter is not None and i.stale(self.scatter.name):
+            self.scatter.run(i.composite.shading[0], i.look.skin)
+            i.ran(self.scatter)
 
     def restart(self):
         """Something changed since a budgeted draw was left part-way: its bands start again."""
@@ -121,6 +127,12 @@ class FramePicture:
             self.mipmaps.run(i.composite.shading)
             i.ran(self.mipmaps)
             b["frame"] = 0
+        if self.scatter is not None and i.stale(self.scatter.name):
+            if work.spent("skin_scatter"):
+                return False
+            self.scatter.run(i.composite.shading[0], i.look.skin)
+            i.ran(self.scatter)
+            b["frame"] = 0
         while b["frame"] < BANDS:
             if work.spent("frame_band"):
                 return False
@@ -147,5 +159,6 @@ class FramePicture:
                 self._read(i, (0.0, 1.0, False), OUTPUT_PERSON_HDR)[..., :3])
 
     def release(self):
-        for p in (self.last, self.background):
-            p.release()
+        for p in (self.last, self.background, self.scatter):
+            if p is not None:
+                p.release()

@@ -23,6 +23,8 @@ MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and de
 SKIN_DISTANCE = 3.0  # Mahalanobis distance in the skin's log-chromaticity where skin turns to not skin
 MIN_FACE_PIXELS = 50  # fewer face pixels than this: no skin model
 SKIN_DARKEST = 0.2  # of the face's median luminance: darker is not skin (black cloth's chromaticity is noise)
+FACE_WIDTH_MM = 145.0  # an adult face's width across the face mesh's outline (at the ears: 140-150 mm)
+PERSON_HEIGHT_MM = 1700.0  # a standing adult, for the scale of a photo without a face
 
 
 def _log_chroma(rgb: np.ndarray) -> np.ndarray:
@@ -57,3 +59,12 @@ def matte_roughness(roughness: np.ndarray, skin_share: np.ndarray | None) -> np.
         return roughness
     floor = MATTE_ROUGHNESS * (1.0 - skin_share)
     return np.maximum(roughness, floor).astype(np.float32)
+
+
+def skin_mm(face_width_px: float | None, person_height_px: float) -> float:
+    """Millimetres of the person one frame pixel spans, for the light scattered under the skin
+    (:mod:`viewer.gl.skin_pass`): from the face's width when a face was found (the face mesh's
+    outline, ``FACE_WIDTH_MM``), else from the matte's height read as a standing adult's."""
+    if face_width_px is not None and face_width_px > 0:
+        return FACE_WIDTH_MM / float(face_width_px)
+    return PERSON_HEIGHT_MM / max(float(person_height_px), 1.0)

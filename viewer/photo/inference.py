@@ -56,7 +56,7 @@ STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rend
                 "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-6"  # bundles cached by an older pipeline are inferred again (frame-6: the face's depth integrated from its normals)
+PIPELINE = "frame-7"  # bundles cached by an older pipeline are inferred again (frame-7: the skin's share and scale in the frame)
 
 
 @dataclass(frozen=True)
@@ -355,7 +355,12 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
                     "matte_roughness": gloss.MATTE_ROUGHNESS if skin is not None else None}
     scene.validate()
     stage("maps to the work frame")
-    scene, face_record, face_surface = with_face(scene, find_faces(frame_photo, alpha), s)
+    faces = find_faces(frame_photo, alpha)
+    scene, face_record, face_surface = with_face(scene, faces, s)
+    if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
+        mm = gloss.skin_mm(faces[0].width if faces else None, person_box(alpha > 0.5)[2])
+        scene = replace(scene, frame=replace(scene.frame, skin=skin.astype(np.float32), skin_mm=mm)).validate()
+        gloss_record["skin_mm_per_pixel"] = round(mm, 4)
     stage("face")
 
     own_ctx = ctx is None

@@ -9,6 +9,8 @@ are meaningless on llvmpipe). Results go to stdout and a JSON file.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import json
 import platform
 import time
@@ -111,10 +113,45 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
     report["soft_methods"] = _soft_methods(ctx, base, repeats)
     report["sigma_sweep"] = _sigma_sweep(ctx, base, repeats)
     report["slider"] = _slider_effect(ctx, base)
+    report["skin"] = _skin_cost(ctx, repeats)
     if output:
         path = write_text(output, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return report
+
+
+def _skin_cost(ctx, repeats: int, lights_count: int = 16) -> dict:
+    """The light scattered under the skin (viewer/gl/skin_pass.py): the bundled photo's frame at its
+    own size and at twice it, a frame after a change of the lights' intensity (composite, mipmaps,
+    the scatter and the frame composite) with the scatter on and off (``--no-skin``), and the
+    scatter pass's own time (profiled frames); medians."""
+    from viewer.gl import Engine, EngineOptions
+    from viewer.photo.inference import infer_scene
+    from viewer.settings import Look
+
+    scene = infer_scene(asset_dir() / "photos" / "underpass.jpg", ctx=ctx)["scene"]
+    out = {"photo": "assets/photos/underpass.jpg", "skin_share": float((scene.frame.skin > 0.5).mean()) if scene.frame.skin is not None else 0.0,
+           "frames": []}
+    lights = bench_lights(lights_count)
+    for factor in (1, 2):
+        frame = scene.frame.resized((scene.frame.width * factor, scene.frame.height * factor))
+        sized = replace(scene, frame=frame)
+        row = {"frame": [frame.width, frame.height], "skin_mm_per_pixel": round(frame.skin_mm, 4)}
+        for on in (True, False):
+            engine = Engine(ctx, sized, EngineOptions(profile=True))
+            engine.set_look(Look(exposure=0.0, background="color", skin=on))
+            times = []
+            for i in range(repeats + 1):
+                times.append(frame_seconds(engine, ctx, lights.scaled(1.0 + 0.01 * i)))
+            label = "on" if on else "off"
+            row[f"frame_ms_{label}"] = _median_ms(times[1:])
+            if on:
+                row["skin_scatter_ms"] = _median_ms(engine.kit.timings.get("skin_scatter", [0.0])[1:] or [0.0])
+            engine.release()
+        out["frames"].append(row)
+        print(f"skin scatter at {frame.width}x{frame.height}: a frame {row['frame_ms_on']:.1f} ms on, "
+              f"{row['frame_ms_off']:.1f} ms off; the pass {row['skin_scatter_ms']:.1f} ms")
+    return out
 
 
 SWEEP_SIGMAS = (0.5, 2.0, 8.0, 20.0, 50.0)
