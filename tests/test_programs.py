@@ -49,7 +49,7 @@ def test_the_shipped_shaders_compile(ctx):
     cache = ProgramCache(ctx)
     for frag in sorted(p.name for p in shader_dir().glob("*.frag.glsl")):
         vert = "shadow_map.vert.glsl" if frag.startswith("shadow_map") else "fullscreen.vert.glsl"
-        cache.get(vert, frag, TERMS=4, MAX_LIGHTS=16, MAX_CONTACT_POINTS=64)
+        cache.get(vert, frag, TERMS=4, MAX_LIGHTS=16, MAX_CONTACT_POINTS=64, SCATTER_TAPS=13)
 
 
 def test_shared_constants_come_from_one_place():

@@ -44,6 +44,9 @@ MAX_RATIO = 4.0  # bound of the high-frequency ratio (a speck of glare over a da
 LOWPASS_SHRINK = 2.0  # a low-pass of sigma s runs on the image shrunk by s / this (at least 2 pixels of sigma remain)
 SHARED_SCALE = 0.25  # network pixels: the scale at which the quotient is compared with the network's albedo
 BRIGHT_SHARE = 0.5  # of a coarse excess of brightness over the network's albedo, the share (log) left to the light
+CLEAN_DARK = 0.35  # of the person's median D_old: shading darker than this has its albedo regularized (clean_in_shade)
+CLEAN_CONTRAST = 0.15  # ln-luminance: a step of the photo larger than this is kept through the regularization
+CLEAN_RADIUS = 2  # pixels: the regularization's reach
 LIGHT_COLOUR_SCALE = 3.0  # network pixels: the colour of the photo's shading is low-passed at this scale (smooth_colour)
 
 
@@ -95,6 +98,31 @@ def highpass_ratio(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.nda
     return np.where(alpha[..., None] > 0, np.clip(ratio, 0.0, MAX_RATIO), 1.0).astype(np.float32)
 
 
+def clean_in_shade(albedo: np.ndarray, photo: np.ndarray, diffuse: np.ndarray, person: np.ndarray) -> tuple[np.ndarray, float]:
+    """(``albedo`` regularized where the photo's own light was dim, the share of the person touched).
+
+    Where the photo's shading D_old is dark, the photo's grain is a large part of each pixel, and
+    the quotient keeps it as albedo: lit anew, a shaded leg or cheek comes out speckled. There the
+    albedo is replaced, by a weight from 0 at ``CLEAN_DARK`` of the person's median shading to 1 at
+    none, by its joint bilateral filter (OpenCV's ximgproc) guided by the photo's log-luminance: a
+    step the photo shows (an edge of cloth, a freckle of contrast beyond ``CLEAN_CONTRAST``) is kept,
+    grain under it is averaged over ``CLEAN_RADIUS`` pixels."""
+    import cv2
+
+    y = luminance(diffuse)
+    median = float(np.median(y[person])) if person.any() else 0.0
+    if median <= 0:
+        return albedo, 0.0
+    weight = np.clip(1.0 - y / (CLEAN_DARK * median), 0.0, 1.0) * person
+    if not (weight > 0).any():
+        return albedo, 0.0
+    guide = np.log(np.maximum(luminance(photo), 1e-4)).astype(np.float32)
+    smooth = cv2.ximgproc.jointBilateralFilter(guide, albedo.astype(np.float32), 2 * CLEAN_RADIUS + 1, CLEAN_CONTRAST,
+                                               CLEAN_RADIUS)
+    out = albedo + weight[..., None] * (smooth - albedo)
+    return out.astype(np.float32), float((weight[person] > 0).mean())
+
+
 def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_albedo: np.ndarray,
                   shading: tuple[np.ndarray, np.ndarray] | None, lowpass_sigma: float,
                   shared_scale: float | None = None) -> tuple[np.ndarray, dict]:
@@ -133,6 +161,8 @@ def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_alb
                 low_n = luminance(masked_lowpass(network_albedo, person, sigma))
                 excess = np.maximum(low_q, 1e-4) / np.maximum(low_n, 1e-4)
                 albedo = albedo / np.maximum(excess, 1.0)[..., None] ** BRIGHT_SHARE
+            if CLEAN_DARK > 0:
+                albedo, stats["cleaned_fraction"] = clean_in_shade(albedo, photo, diffuse, person)
             stats["dark_fraction"] = float((w[person] < 1).any(axis=-1).mean()) if person.any() else 0.0
             stats["highlight_removed"] = float((np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)[person]).mean()
                                               / max(float(photo[person].mean()), 1e-12)) if person.any() else 0.0

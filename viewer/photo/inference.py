@@ -280,7 +280,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     from ..lighting.lights import AreaLights
     from ..nets import depth as depth_net
     from ..nets import inverse as inverse_net
-    from .photo_lighting import fit_mask, fit_photo_lights
+    from .photo_lighting import fit_mask, fit_photo_lights, white_balanced
     from ..scene import FrameLayer, Scene
 
     stage = _Stages(progress)
@@ -375,6 +375,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         if not valid.any():
             valid = work_mask
         lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
+        lights, fit["white_balance_gains"] = white_balanced(lights)  # the camera balanced the photo's light
         stage("fit the photo's lights")
         engine.set_lights(lights)
         explained = engine.render().output.read_work_hdr()

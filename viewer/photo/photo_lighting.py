@@ -21,6 +21,14 @@ the shading under these lights, so they must reproduce the photo. They are fitte
    (:mod:`viewer.photo.face`), a quarter of the fit, since the networks' nearly flat normals elsewhere
    cannot tell a light from above from one in front, and the face's form can.
 Lights that end with no intensity are dropped (leave out what contributes nothing).
+
+A photo comes white-balanced by its camera: in its colours the light is, over all, about grey, and
+a colour the fit gives the light as a whole is mostly the networks' albedo being off colour (a
+cream blouse read as grey makes the light green, and then the blouse, divided by it, pink under
+any new light). :func:`white_balanced` takes ``NEUTRAL`` of that overall colour out (the lights'
+colours relative to each other stay: a warm key and a cool fill stay so), so the photo's colours
+stay the person's (inference applies it; the fit alone is what ``relight bench networks`` measures
+against synthetic truth, which no camera balanced).
 """
 
 from __future__ import annotations
@@ -38,6 +46,7 @@ HUBER = 1.345  # in robust standard deviations (95 % efficiency for Gaussian noi
 IRLS_STEPS = 4
 MAX_SAMPLES = 40_000  # pixels used for the fit (a regular subsample of the valid ones)
 SIGMA_MAX = 20.0
+NEUTRAL = 1.0  # the share (in log) of the fitted lights' overall colour taken out by white_balanced
 
 
 def basis_lights(n: int = BASIS) -> AreaLights:
@@ -133,3 +142,15 @@ def fit_photo_lights(engine, photo: np.ndarray, valid: np.ndarray, n: int = BASI
         "seconds_render": round(t_render, 3), "seconds": round(time.perf_counter() - t0, 3),
     }
     return lights, record
+
+
+def white_balanced(lights: AreaLights, share: float = NEUTRAL) -> tuple[AreaLights, list[float]]:
+    """(``lights`` with ``share`` of their overall colour taken out, the gains per channel): each
+    channel of every light scaled by (mean / channel)^share of the lights' summed intensity, which
+    keeps its mean and the lights' colours relative to each other."""
+    total = lights.intensity.astype(np.float64).sum(axis=0)
+    if not np.all(total > 0):
+        return lights, [1.0, 1.0, 1.0]
+    gains = (total.mean() / total) ** share
+    return AreaLights(lights.direction, lights.sigma, (lights.intensity * gains[None]).astype(np.float32)), \
+        [round(float(g), 4) for g in gains]

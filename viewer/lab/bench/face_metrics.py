@@ -12,8 +12,8 @@ speckle on face and limbs, of a relit image against its photo.
   image over the same in the photo: above 1, noise the photo does not have was amplified.
 - **Limb skin** (:func:`limb_skin`): pixels of the person, away from the face and from the matte's
   edge, whose log-chromaticity is the face skin's (a Gaussian of the skin's colour, as
-  :mod:`viewer.photo.gloss` tells skin, within 2 of its Mahalanobis distance), bright enough for a
-  chromaticity to mean anything.
+  :mod:`viewer.photo.gloss` tells skin, within 1.5 of its Mahalanobis distance), about as bright as
+  the face's skin.
 """
 
 from __future__ import annotations
@@ -24,7 +24,8 @@ HOLE_SHARE = 0.35  # of the median relit / photo ratio over the skin: below it, 
 HOLE_BLUR = 1.0  # px: both images blurred before the ratio
 FINE_SIGMA, COARSE_SIGMA = 1.5, 6.0  # px: the speckle's fine detail and its normalization
 FEATURE_GROW = 2  # px the eyes, brows and lips are grown before they are taken out of the skin
-SKIN_DISTANCE = 2.0  # Mahalanobis distance in log-chromaticity: limb skin is this near the face's
+SKIN_DISTANCE = 1.5  # Mahalanobis distance in log-chromaticity: limb skin is this near the face's
+SKIN_BRIGHTNESS = (0.35, 2.5)  # of the face skin's median luminance: limb skin lies between
 LIMB_EDGE = 6  # px: limb skin this far inside the matte at least
 MIN_PIXELS = 50  # a region of fewer pixels gives no figure
 
@@ -113,7 +114,8 @@ def limb_skin(photo: np.ndarray, alpha: np.ndarray, skin: np.ndarray, oval: np.n
     d = chroma - centre
     distance = np.sqrt(np.einsum("...i,ij,...j->...", d, np.linalg.inv(spread), d))
     y = luminance(photo)
-    lit = y > 0.25 * float(np.median(y[skin]))
+    face_y = float(np.median(y[skin]))
+    lit = (y > SKIN_BRIGHTNESS[0] * face_y) & (y < SKIN_BRIGHTNESS[1] * face_y)
     core = cv2.erode((alpha > 0.9).astype(np.uint8), np.ones((2 * LIMB_EDGE + 1,) * 2, np.uint8)) > 0
     face = cv2.dilate(oval.astype(np.uint8), np.ones((25, 25), np.uint8)) > 0
     return (distance < SKIN_DISTANCE) & lit & core & ~face

@@ -16,7 +16,8 @@ skin and on the limbs' skin. Per photo: *bleed* and *kept* on the final image (s
 rendered with a transparent background under ``potsdamer_platz_1k`` (overcast: nearly uniform), kept
 only meaningful on a plain backdrop (``plain``: the photo's border within ``PLAIN_DELTA_E`` of its
 median), *detail kept* under the two maps, *light moved* between a sun from the left and from the
-right (:mod:`viewer.lab.bench.metrics`).
+right (:mod:`viewer.lab.bench.metrics`), and *white shift*: how far the person's whites move in
+colour under a neutral white light (:func:`white_shift`).
 
 The set is split in two halves by a hash of each file's name (``half`` "tune" or "held", every
 other photo in the hash's order): constants
@@ -40,7 +41,7 @@ from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.imageio import linear_to_srgb, write_jpeg, write_text
 from viewer.lab.bench.face_metrics import face_skin, holes, limb_skin, speckle
 from viewer.lab.bench.metrics import bleed, detail_kept, kept_backdrop, light_moved
-from viewer.lab.bench.photos import sun_and_sky
+from viewer.lab.bench.photos import neutral_lights, sun_and_sky
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.lighting.lights import AreaLights, facing_yaw
@@ -52,6 +53,7 @@ PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 MAPS = {"studio": "studio_small_03_1k", "park": "rooitou_park_1k"}
 NEUTRAL = "potsdamer_platz_1k"
 CONTACT_MAPS = ("studio_small_03_1k", "rooitou_park_1k", "venice_sunset_1k", "st_fagans_interior_1k")
+WHITE_L, WHITE_C = 75.0, 15.0  # CIELAB: a photo pixel this light and at most this colourful is a white
 PLAIN_DELTA_E = 10.0  # the border's median distance to its median colour (CIE76): below, a plain backdrop
 CROP = 0.11  # of the person's height: the side of a contact-sheet crop (at 100 %)
 
@@ -98,6 +100,30 @@ def _plain(photo_srgb: np.ndarray) -> bool:
     lab[..., 1:] -= 128.0
     border = np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]])
     return bool(np.median(np.linalg.norm(border - np.median(border, axis=0), axis=-1)) < PLAIN_DELTA_E)
+
+
+def _lab(srgb8: np.ndarray) -> np.ndarray:
+    import cv2
+
+    lab = cv2.cvtColor(srgb8, cv2.COLOR_RGB2LAB).astype(np.float32)
+    lab[..., 0] *= 100.0 / 255.0
+    lab[..., 1:] -= 128.0
+    return lab
+
+
+def white_shift(relit8: np.ndarray, photo8: np.ndarray, alpha: np.ndarray) -> float | None:
+    """The mean CIELAB chroma distance (a*, b*) between the photo and the relit image over the
+    person's whites (the photo's pixels lighter than ``WHITE_L`` and less colourful than
+    ``WHITE_C``, inside the matte away from its edge): a white that stays white under a neutral
+    light keeps it near 0. None with fewer than 50 such pixels."""
+    import cv2
+
+    lab_p, lab_r = _lab(photo8), _lab(relit8)
+    core = cv2.erode((alpha > 0.95).astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    whites = core & (lab_p[..., 0] > WHITE_L) & (np.linalg.norm(lab_p[..., 1:], axis=-1) < WHITE_C)
+    if whites.sum() < 50:
+        return None
+    return float(np.linalg.norm(lab_r[whites][:, 1:] - lab_p[whites][:, 1:], axis=-1).mean())
 
 
 def _render(eng, scene, lights, env, yaw, **look) -> tuple[np.ndarray, np.ndarray]:
@@ -200,6 +226,8 @@ def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache,
         row["bleed"] = _round(bleed(person, a, photo))
         row["plain_backdrop"] = _plain(photo8)
         row["kept"] = _round(kept_backdrop(a, photo8, a > 0.5))
+        white = _render(eng, scene, neutral_lights(), None, 0.0, background="color")[1]
+        row["white_shift"] = _round(white_shift(white, photo8, alpha))
         sides = [_render(eng, scene, sun_and_sky((sx, 0.35, 0.49)), None, 0.0, background="color")[0] for sx in (-0.8, 0.8)]
         row["light_moved"] = _round(light_moved(sides[0], sides[1], alpha > 0.5))
         if out_dir is not None:
@@ -233,8 +261,8 @@ def summary(rows: list[dict]) -> dict:
                 vals = [r["lightings"][light][key] for r in chosen if r["lightings"][light][key] is not None]
                 if vals:
                     figures[f"{key} {light}"] = {"max": max(vals), "mean": round(float(np.mean(vals)), 4)}
-        for key in ("bleed", "light_moved", "infer_s_per_mp"):
-            vals = [r[key] for r in chosen if r[key] is not None]
+        for key in ("bleed", "white_shift", "light_moved", "infer_s_per_mp"):
+            vals = [r.get(key) for r in chosen if r.get(key) is not None]
             if vals:
                 figures[key] = {"max": max(vals), "min": min(vals), "mean": round(float(np.mean(vals)), 4)}
         vals = [r["kept"] for r in chosen if r["plain_backdrop"]]
@@ -290,6 +318,7 @@ COLUMNS = (("holes studio", lambda r: r["lightings"]["studio"]["holes"]),
            ("speckle limbs", lambda r: max(v["speckle_limbs"] for v in r["lightings"].values() if v["speckle_limbs"] is not None)),
            ("bleed", lambda r: r["bleed"]),
            ("kept (plain)", lambda r: r["kept"] if r["plain_backdrop"] else None),
+           ("white shift", lambda r: r.get("white_shift")),
            ("detail kept", lambda r: r["lightings"]["studio"]["detail_kept"]),
            ("light moved", lambda r: r["light_moved"]),
            ("infer s/MP", lambda r: r["infer_s_per_mp"]))
