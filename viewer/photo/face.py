@@ -24,7 +24,7 @@ relative to the face (in the same units as x): a face surface, from a model trai
    of ramp on its outermost pixels) to 1 at ``RAMP`` of the face's width inside it.
 4. ``with_face``: the face's normals replace the networks' by that weight, and the depth over the
    face is made the surface those blended normals describe (``integrate_depth``: a Poisson solve
-   held by the networks' depth around the face), so depth and normals agree: a nose casts the
+   held to the networks' depth along the blend's ramp), so depth and normals agree: a nose casts the
    shadow its shading implies, and the face joins the head without a step or a ridge. (The
    landmarks' own depth, placed on the networks' median, once stood in for it: its cliff under the
    nose, a pixel high in the work frame, cast a black block onto the upper lip under a light from
@@ -52,7 +52,8 @@ RAMP = 0.2  # of the face's width: the blend goes from the networks' maps to the
 FIT_SHARE = 0.25  # of the photo's light fit that the face's pixels count for
 MIN_FACING = 0.1  # the least z a seen normal keeps (camera space): a surface the camera sees faces it
 SMOOTH = 0.06  # of the face's width: the sigma of the Gaussian that rounds the landmarks' normals
-ANCHOR = 1e-6  # the depth integration's pull to the networks' depth (a difference weighs 1): sets the level of a face with no border
+HOLD = 1.0  # the depth integration's pull to the networks' depth where the face's blend begins (a difference weighs 1)
+ANCHOR = 1e-6  # ... and everywhere: sets the level of a face the ramp does not hold
 
 
 @dataclass(frozen=True)
@@ -323,57 +324,54 @@ def blend(normal: np.ndarray, depth: np.ndarray, mask: np.ndarray, surface: Face
           focal_px: float) -> tuple[np.ndarray, np.ndarray]:
     """(normal, depth) with the face's surface blended in: the normals by its weight
     (renormalized), the depth made the surface those normals describe (:func:`integrate_depth`),
-    held by the networks' depth around the face, so that a shadow cast by the nose matches the
-    shading the nose's normals give, and nothing steps or ridges where the face joins the head."""
+    held to the networks' depth along the blend's ramp (``HOLD`` where the face begins, nothing
+    where it is all face), so that a shadow cast by the nose matches the shading the nose's normals
+    give, and nothing steps or ridges where the face joins the head."""
     w = surface.weight[..., None]
     n = (1.0 - w) * normal + w * surface.normal
     length = np.linalg.norm(n, axis=-1, keepdims=True)
     n = np.where(length > 1e-6, n / np.maximum(length, 1e-12), normal).astype(np.float32)
-    return n, integrate_depth(n, depth, mask, surface.weight > 0, focal_px)
+    region = (surface.weight > 0) & mask
+    return n, integrate_depth(n, depth, region, HOLD * (1.0 - surface.weight), focal_px)
 
 
-def integrate_depth(normal: np.ndarray, depth: np.ndarray, mask: np.ndarray, region: np.ndarray,
+def integrate_depth(normal: np.ndarray, depth: np.ndarray, region: np.ndarray, hold: np.ndarray,
                     focal_px: float) -> np.ndarray:
     """``depth`` (H, W, metres) with its pixels in ``region`` replaced by the surface whose slopes
-    the camera-space ``normal`` gives (least squares over the pixels' 4-neighbour differences: a
-    Poisson solve), its values at the region's border those of ``depth`` on the ``mask`` outside
-    it. Weak perspective at the region's median depth: a pixel spans depth / ``focal_px`` metres;
-    a normal turned away past ``MIN_FACING`` gives the slope of that limit."""
+    the camera-space ``normal`` gives (least squares over the 4-neighbour differences within the
+    region: a Poisson solve), each pixel also pulled to ``depth`` by ``hold`` (H, W; a difference
+    weighs 1): where the face joins the head, its ramp holds it to the networks' depth; nothing
+    outside the region is pinned to it, so a hand in front of the face or hair beside it drags no
+    wall into it. Weak perspective at the region's median depth: a pixel spans depth / ``focal_px``
+    metres; a normal turned away past ``MIN_FACING`` gives the slope of that limit."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.linalg import spsolve
 
-    region = region & mask
     if not region.any():
         return depth
     metres_per_px = float(np.median(depth[region])) / focal_px
     nz = np.maximum(normal[..., 2], MIN_FACING)
     slope_x = metres_per_px * normal[..., 0] / nz    # d depth / d column (depth grows away from the camera)
     slope_y = -metres_per_px * normal[..., 1] / nz   # d depth / d row (rows go down, camera y up)
+    n = int(region.sum())
     index = np.full(depth.shape, -1, np.int64)
-    index[region] = np.arange(int(region.sum()))
-    rows, cols, vals, rhs = [], [], [], np.zeros(int(region.sum()))
+    index[region] = np.arange(n)
+    rows, cols, vals, rhs = [], [], [], np.zeros(n)
+    h, w = depth.shape
     for slope, (dy, dx) in ((slope_x, (0, 1)), (slope_y, (1, 0))):
-        h, w = depth.shape
         a = (slice(0, h - dy), slice(0, w - dx))
         b = (slice(dy, h), slice(dx, w))
-        both = mask[a] & mask[b] & (region[a] | region[b])
+        both = region[a] & region[b]
         ia, ib = index[a][both], index[b][both]
-        g = 0.5 * (slope[a] + slope[b])[both]  # depth[b] - depth[a] should be g
-        da, db = depth[a][both].astype(np.float64), depth[b][both].astype(np.float64)
-        # the normal equations of (x_b - x_a - g)^2, with a known depth for a pixel outside the region
-        for i, j, sign, known in ((ia, ib, 1.0, db), (ib, ia, -1.0, da)):
-            own = i >= 0
-            rows.append(i[own]); cols.append(i[own]); vals.append(np.ones(int(own.sum())))
-            other = own & (j >= 0)
-            rows.append(i[other]); cols.append(j[other]); vals.append(-np.ones(int(other.sum())))
-            fixed = own & (j < 0)
-            np.add.at(rhs, i[fixed], known[fixed])
-            np.add.at(rhs, i[own], -sign * g[own])
-    n = int(region.sum())
-    # a faint pull to the given depth keeps a region with no border on the person solvable
-    anchor = ANCHOR * np.ones(n)
-    rows.append(np.arange(n)); cols.append(np.arange(n)); vals.append(anchor)
-    rhs += anchor * depth[region]
+        g = 0.5 * (slope[a] + slope[b])[both]  # depth[b] - depth[a] should be g: the normal equations of (x_b - x_a - g)^2
+        for i, j, sign in ((ia, ib, 1.0), (ib, ia, -1.0)):
+            rows += [i, i]
+            cols += [i, j]
+            vals += [np.ones(i.size), -np.ones(i.size)]
+            np.add.at(rhs, i, -sign * g)
+    pull = np.maximum(hold[region], 0.0) + ANCHOR  # ANCHOR: a pixel with no pull still has a level
+    rows.append(np.arange(n)); cols.append(np.arange(n)); vals.append(pull)
+    rhs += pull * depth[region]
     matrix = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
     out = depth.astype(np.float32).copy()
     out[region] = spsolve(matrix, rhs).astype(np.float32)

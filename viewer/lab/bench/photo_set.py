@@ -306,7 +306,7 @@ def run_photo_set(dirs, maps_dir, out_dir="out/bench-photo-set", before=None, pr
 def _cell(row: dict | None, get) -> str:
     try:
         v = get(row)
-    except (KeyError, TypeError):
+    except (KeyError, TypeError, ValueError):  # a figure the row lacks (no face: no skin)
         return "-"
     return "-" if v is None else f"{v:.3f}".rstrip("0").rstrip(".") if isinstance(v, float) else str(v)
 
