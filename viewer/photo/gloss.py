@@ -32,6 +32,17 @@ def _log_chroma(rgb: np.ndarray) -> np.ndarray:
     return np.stack([np.log(rgb[..., 0] / rgb[..., 1]), np.log(rgb[..., 2] / rgb[..., 1])], axis=-1)
 
 
+def colour_distance(rgb: np.ndarray, sample: np.ndarray) -> np.ndarray:
+    """(H, W): each pixel's Mahalanobis distance, in log-chromaticity, from the colours of the
+    pixels ``sample`` (H, W) bool of ``rgb`` (a Gaussian of them about their median)."""
+    chroma = _log_chroma(rgb)
+    c = chroma[sample]
+    centre = np.median(c, axis=0)
+    spread = np.cov((c - centre).T) + np.eye(2) * 1e-3
+    d = chroma - centre
+    return np.sqrt(np.einsum("...i,ij,...j->...", d, np.linalg.inv(spread), d))
+
+
 def skin(foreground: np.ndarray, alpha: np.ndarray, landmarks: dict) -> np.ndarray | None:
     """(H, W) float32 in [0, 1]: how much each pixel of the person looks like the skin of its face
     (1 at the face's own colour, 0 beyond ``SKIN_DISTANCE``); None without a face to learn from."""
@@ -42,12 +53,7 @@ def skin(foreground: np.ndarray, alpha: np.ndarray, landmarks: dict) -> np.ndarr
     sample = face & (alpha > 0.9)
     if sample.sum() < MIN_FACE_PIXELS:
         return None
-    chroma = _log_chroma(foreground)
-    c = chroma[sample]
-    centre = np.median(c, axis=0)
-    spread = np.cov((c - centre).T) + np.eye(2) * 1e-3
-    d = chroma - centre
-    distance = np.sqrt(np.einsum("...i,ij,...j->...", d, np.linalg.inv(spread), d))
+    distance = colour_distance(foreground, sample)
     brightness = luminance(np.asarray(foreground, np.float64))
     lit = brightness >= SKIN_DARKEST * np.median(brightness[sample])  # a dark pixel's chromaticity is noise
     return (np.clip(1.0 - distance / SKIN_DISTANCE, 0.0, 1.0) * lit * (alpha > 0)).astype(np.float32)

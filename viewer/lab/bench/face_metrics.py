@@ -105,14 +105,9 @@ def limb_skin(photo: np.ndarray, alpha: np.ndarray, skin: np.ndarray, oval: np.n
     skin's colour (``photo`` linear RGB)."""
     import cv2
 
-    from viewer.photo.gloss import _log_chroma
+    from viewer.photo.gloss import colour_distance
 
-    chroma = _log_chroma(photo)
-    sample = chroma[skin]
-    centre = np.median(sample, axis=0)
-    spread = np.cov((sample - centre).T) + np.eye(2) * 1e-3
-    d = chroma - centre
-    distance = np.sqrt(np.einsum("...i,ij,...j->...", d, np.linalg.inv(spread), d))
+    distance = colour_distance(photo, skin)
     y = luminance(photo)
     face_y = float(np.median(y[skin]))
     lit = (y > SKIN_BRIGHTNESS[0] * face_y) & (y < SKIN_BRIGHTNESS[1] * face_y)

@@ -17,7 +17,8 @@ rendered with a transparent background under ``potsdamer_platz_1k`` (overcast: n
 only meaningful on a plain backdrop (``plain``: the photo's border within ``PLAIN_DELTA_E`` of its
 median), *detail kept* under the two maps, *light moved* between a sun from the left and from the
 right (:mod:`viewer.lab.bench.metrics`), and *white shift*: how far the person's whites move in
-colour under a neutral white light (:func:`white_shift`).
+colour under a neutral white light (:func:`white_shift`); under the key rig, what the light
+scattered under the skin does to the face's edges (:func:`terminator`: sharper or softer, warmer).
 
 The set is split in two halves by a hash of each file's name (``half`` "tune" or "held", every
 other photo in the hash's order): constants
@@ -126,9 +127,33 @@ def white_shift(relit8: np.ndarray, photo8: np.ndarray, alpha: np.ndarray) -> fl
     return float(np.linalg.norm(lab_r[whites][:, 1:] - lab_p[whites][:, 1:], axis=-1).mean())
 
 
+def terminator(on: np.ndarray, off: np.ndarray, skin: np.ndarray) -> dict | None:
+    """How the light scattered under the skin changes the face under a key light (``on`` and
+    ``off``: linear renders with and without it), on the 10 % of the face's skin with the steepest
+    edges without it: ``sharpness``, the mean relative luminance gradient |grad Y| / Y there, on
+    over off (below 1: softer edges), and ``warmth``, the mean red over blue there, on over off
+    (above 1: warmer edges). None on a face of under 50 skin pixels."""
+    import cv2
+
+    if skin.sum() < 50:
+        return None
+
+    def grad(img):
+        y = np.maximum(img[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32), 1e-4)
+        g = np.hypot(cv2.Sobel(y, cv2.CV_32F, 1, 0), cv2.Sobel(y, cv2.CV_32F, 0, 1)) / 8.0
+        return g / y
+
+    g_on, g_off = grad(on)[skin], grad(off)[skin]
+    edges = g_off >= np.percentile(g_off, 90)
+    rb = lambda img: (img[..., 0] / np.maximum(img[..., 2], 1e-6))[skin][edges]  # noqa: E731
+    return {"sharpness": _round(float(g_on[edges].mean()) / max(float(g_off[edges].mean()), 1e-9)),
+            "warmth": _round(float(rb(on).mean()) / max(float(rb(off).mean()), 1e-9))}
+
+
 def _render(eng, scene, lights, env, yaw, **look) -> tuple[np.ndarray, np.ndarray]:
     """(linear HDR RGB(A) of the output frame, display sRGB uint8) of one look."""
-    settings = Look(yaw=yaw, exposure="auto", **look)
+    look.setdefault("exposure", "auto")
+    settings = Look(yaw=yaw, **look)
     render_look(eng, scene, lights, settings, env)
     rgba = look.get("background") == "transparent"
     return eng.output.read_output_hdr()[..., :4 if rgba else 3].copy(), eng.output.read_display()
@@ -226,6 +251,10 @@ def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache,
         row["bleed"] = _round(bleed(person, a, photo))
         row["plain_backdrop"] = _plain(photo8)
         row["kept"] = _round(kept_backdrop(a, photo8, a > 0.5))
+        if skin is not None:
+            keyed = [_render(eng, scene, RIGS["key 60"], None, 0.0, background="color", exposure=0.0, skin=on)[0]
+                     for on in (True, False)]
+            row["terminator"] = terminator(keyed[0], keyed[1], skin)
         white = _render(eng, scene, neutral_lights(), None, 0.0, background="color")[1]
         row["white_shift"] = _round(white_shift(white, photo8, alpha))
         sides = [_render(eng, scene, sun_and_sky((sx, 0.35, 0.49)), None, 0.0, background="color")[0] for sx in (-0.8, 0.8)]
@@ -321,7 +350,8 @@ COLUMNS = (("holes studio", lambda r: r["lightings"]["studio"]["holes"]),
            ("white shift", lambda r: r.get("white_shift")),
            ("detail kept", lambda r: r["lightings"]["studio"]["detail_kept"]),
            ("light moved", lambda r: r["light_moved"]),
-           ("infer s/MP", lambda r: r["infer_s_per_mp"]))
+           ("infer s/MP", lambda r: r["infer_s_per_mp"]),
+           ("key: sharpness / warmth with skin", lambda r: f"{r['terminator']['sharpness']:.2f} / {r['terminator']['warmth']:.2f}"))
 
 
 def set_table(result: dict) -> str:
