@@ -152,3 +152,17 @@ def test_the_bundle_keeps_the_skin(tmp_path):
     assert np.abs(loaded.frame.skin - scene.frame.skin).max() <= 1 / 255 + 1e-6
     plain = load_scene(save_scene(replace(scene, frame=replace(scene.frame, skin=None, skin_mm=0.0)), tmp_path / "c"))
     assert plain.frame.skin is None and plain.frame.skin_mm == 0.0
+
+
+def test_a_bad_skin_map_is_one_line_naming_it(tmp_path):
+    """A frame_skin.png of another size than the frame: one InputError naming the file."""
+    from PIL import Image
+
+    from viewer.errors import InputError
+
+    n = SIZE * UP
+    bundle = save_scene(_scene(False, np.ones((n, n), np.float32)), tmp_path / "b")
+    Image.fromarray(np.zeros((n // 2, n), np.uint8)).save(bundle / "frame_skin.png")
+    with pytest.raises(InputError) as err:
+        load_scene(bundle)
+    assert "frame_skin.png" in str(err.value) and "does not match" in str(err.value)

@@ -114,7 +114,8 @@ class FrameLayer:
 
     def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> "FrameLayer":
         def file(name):
-            return base / FRAME_FILES[name] if base is not None else FRAME_FILES[name]
+            fname = FRAME_FILES.get(name, FRAME_SKIN_FILE)
+            return base / fname if base is not None else fname
 
         h, w = self.alpha.shape[:2] if self.alpha.ndim >= 2 else (0, 0)
         if self.alpha.ndim != 2 or h < 1 or w < 1:
