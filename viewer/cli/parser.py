@@ -69,6 +69,10 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                         help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
                              "by default shown when the feet are in the frame and the map is behind the person")
     ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    skin = p.add_mutually_exclusive_group()
+    skin.add_argument("--skin", action="store_const", const=True, help="light scattered under a photo's skin (default)")
+    skin.add_argument("--no-skin", dest="skin", action="store_const", const=False,
+                      help="start with skin shaded as a surface (the panel's skin box turns it back on)")
     p.add_argument("--backdrop-blur", type=auto_or("degrees"),
                    help="the map behind the person blurred, degrees, or auto (default): as the photo's own background")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
