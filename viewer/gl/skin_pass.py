@@ -35,7 +35,7 @@ SKIN_PROFILE = ((0.0064, (0.233, 0.455, 0.649)), (0.0484, (0.100, 0.336, 0.344))
 TAPS_EACH_SIDE = 6
 RANGE_SIGMAS = 3.0  # the kernel reaches this many of the widest Gaussian's sigmas
 MIN_PIXELS = 0.5  # the widest sigma in frame pixels below which the scatter is left out
-CELL_SIGMAS = 1.0  # the scatter's grid: cells of this many widest sigmas (at least a frame pixel, at most 4)
+CELL_SIGMAS = 1.0  # the scatter's grid: cells of this many widest sigmas, rounded up (1 to 4 frame pixels)
 
 
 def scatter_kernel(taps_each_side: int = TAPS_EACH_SIDE) -> tuple[np.ndarray, np.ndarray]:
@@ -71,7 +71,7 @@ class SkinScatterPass:
         self.frame_size = (frame.width, frame.height)
         self.px_per_mm = 1.0 / frame.skin_mm
         self.box = bounding_box(frame.skin > 0)
-        self.grid = float(np.clip(np.floor(CELL_SIGMAS * scatter_reach_px(frame)), 1, 4))
+        self.grid = float(np.clip(np.ceil(CELL_SIGMAS * scatter_reach_px(frame)), 1, 4))
         size = tuple(max(int(np.ceil(n / self.grid)), 1) for n in self.box[2:])
         self.skin = kit.texture(self.frame_size, 1, np.ascontiguousarray(frame.skin, np.float32).tobytes(), linear=True)
         # (D scattered x skin, skin) over the box: the first axis, then both (read bilinearly by the frame composite)
