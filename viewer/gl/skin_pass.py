@@ -73,7 +73,9 @@ class SkinScatterPass:
         self.box = bounding_box(frame.skin > 0)
         self.grid = float(np.clip(np.ceil(CELL_SIGMAS * scatter_reach_px(frame)), 1, 4))
         size = tuple(max(int(np.ceil(n / self.grid)), 1) for n in self.box[2:])
-        self.skin = kit.texture(self.frame_size, 1, np.ascontiguousarray(frame.skin, np.float32).tobytes(), linear=True)
+        # 8 bits, as the bundle stores it: a quarter of the upload on the thread that opens a photo
+        share = np.ascontiguousarray(np.round(np.clip(frame.skin, 0.0, 1.0) * 255.0).astype(np.uint8))
+        self.skin = kit.texture(self.frame_size, 1, share.tobytes(), dtype="f1", linear=True)
         # (D scattered x skin, skin) over the box: the first axis, then both (read bilinearly by the frame composite)
         self.across = kit.texture(size, 4, linear=True)
         self.image = kit.texture(size, 4, linear=True)
