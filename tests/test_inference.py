@@ -334,3 +334,34 @@ def test_inspection_views_keep_the_frame_size(landscape_bundle, ctx):
         wy, wx = min(int((y + 0.5) * sy), scene.height - 1), min(int((x + 0.5) * sx), scene.width - 1)
         if scene.mask[wy, wx]:
             np.testing.assert_allclose(normal[y, x] / 255.0, scene.normal[wy, wx] * 0.5 + 0.5, atol=1.5 / 255)
+
+
+def test_what_a_mask_file_includes_is_kept_and_lit_as_the_person(ctx, tmp_path):
+    """Something the user's --mask includes beyond the body (a bag held beside the thigh, drawn as
+    a block touching the person) is the person: in the frame's matte, in the work mask (so the depth
+    mesh casts and receives its shadows) and lit like the rest (finite, not black under a light)."""
+    from viewer.resources import asset_dir
+
+    photos = asset_dir() / "photos"
+    mask = np.asarray(Image.open(photos / "underpass.mask.png")) > 127
+    ys, xs = np.nonzero(mask)
+    held = np.zeros_like(mask)
+    top, left = int(ys.min() + 0.45 * (ys.max() - ys.min())), int(xs.max()) - 4  # beside the person's right edge
+    held[top:top + 90, left:left + 60] = True
+    path = tmp_path / "with_bag.png"
+    Image.fromarray(((mask | held) * 255).astype(np.uint8)).save(path)
+    result = infer_scene(photos / "underpass.jpg", path, ctx=ctx)
+    scene = result["scene"]
+    frame = scene.frame
+    sy, sx = frame.height / mask.shape[0], frame.width / mask.shape[1]
+    core = (slice(int((top + 10) * sy), int((top + 80) * sy)), slice(int((left + 14) * sx), int((left + 50) * sx)))
+    assert (frame.alpha[core] > 0.99).all()
+    wy, wx = scene.height / frame.height, scene.width / frame.width
+    work = (slice(int(core[0].start * wy) + 1, int(core[0].stop * wy) - 1), slice(int(core[1].start * wx) + 1, int(core[1].stop * wx) - 1))
+    assert scene.mask[work].all() and np.isfinite(scene.depth[work]).all()
+    eng = Engine(ctx, scene, EngineOptions())
+    apply_settings(eng, scene, result["lights"], Look(exposure=0.0, background="color"), False)
+    eng.render()
+    hdr = eng.output.read_output_hdr()[..., :3]
+    eng.release()
+    assert np.isfinite(hdr).all() and hdr[core].mean() > 0.1 * hdr[frame.alpha > 0.99].mean()
