@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from conftest import SHARED_DATA
 from viewer.lab.bench import face_metrics as fm
 from viewer.lab.bench.photo_set import halves, terminator, white_shift
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED = ROOT.parent / "shared" / "data"
 
 
 def _textured(h=96, w=96, seed=0):
@@ -78,7 +78,7 @@ def test_the_bench_runs_the_photo_path_on_a_real_photo(tmp_path):
     shutil.copy(ROOT / "assets" / "photos" / "underpass.jpg", photos / "underpass.jpg")
     out = tmp_path / "out"
     run = subprocess.run([sys.executable, "-m", "viewer.cli.main", "bench", "photos", "--set", str(photos), "--maps",
-                          str(SHARED / "hdri"), "-o", str(out)], capture_output=True, text=True, cwd=ROOT, timeout=600)
+                          str(SHARED_DATA / "hdri"), "-o", str(out)], capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert run.returncode == 0, run.stderr[-2000:]
     result = json.loads((out / "photo_set.json").read_text())
     (row,) = result["photos"]
