@@ -13,7 +13,8 @@ map's brightest light on the camera's side) and the automatic exposure, under
 
 Per photo and lighting: *holes* and *speckle* (:mod:`viewer.lab.bench.face_metrics`) on the face's
 skin and on the limbs' skin. Per photo: *bleed* and *kept* on the final image (specular included)
-rendered with a transparent background under ``potsdamer_platz_1k`` (overcast: nearly uniform), kept
+rendered with a transparent background under ``potsdamer_platz_1k`` (overcast: nearly uniform; and the
+bleed of the diffuse term alone, to tell the old background from a specular rim), kept
 only meaningful on a plain backdrop (``plain``: the photo's border within ``PLAIN_DELTA_E`` of its
 median), *detail kept* under the two maps, *light moved* between a sun from the left and from the
 right (:mod:`viewer.lab.bench.metrics`), and *white shift*: how far the person's whites move in
@@ -249,6 +250,8 @@ def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache,
         a = rgba[..., 3]
         person = rgba[..., :3] / np.maximum(a, 1e-6)[..., None]
         row["bleed"] = _round(bleed(person, a, photo))
+        rgba_d, _ = _render(eng, scene, neutral, env, facing_yaw(neutral), background="transparent", specular=False)
+        row["bleed_diffuse"] = _round(bleed(rgba_d[..., :3] / np.maximum(rgba_d[..., 3], 1e-6)[..., None], rgba_d[..., 3], photo))
         row["plain_backdrop"] = _plain(photo8)
         row["kept"] = _round(kept_backdrop(a, photo8, a > 0.5))
         if skin is not None:
@@ -290,7 +293,7 @@ def summary(rows: list[dict]) -> dict:
                 vals = [r["lightings"][light][key] for r in chosen if r["lightings"][light][key] is not None]
                 if vals:
                     figures[f"{key} {light}"] = {"max": max(vals), "mean": round(float(np.mean(vals)), 4)}
-        for key in ("bleed", "white_shift", "light_moved", "infer_s_per_mp"):
+        for key in ("bleed", "bleed_diffuse", "white_shift", "light_moved", "infer_s_per_mp"):
             vals = [r.get(key) for r in chosen if r.get(key) is not None]
             if vals:
                 figures[key] = {"max": max(vals), "min": min(vals), "mean": round(float(np.mean(vals)), 4)}
@@ -346,6 +349,7 @@ COLUMNS = (("holes studio", lambda r: r["lightings"]["studio"]["holes"]),
            ("speckle face", lambda r: max(v["speckle_face"] for v in r["lightings"].values() if v["speckle_face"] is not None)),
            ("speckle limbs", lambda r: max(v["speckle_limbs"] for v in r["lightings"].values() if v["speckle_limbs"] is not None)),
            ("bleed", lambda r: r["bleed"]),
+           ("bleed, diffuse term", lambda r: r.get("bleed_diffuse")),
            ("kept (plain)", lambda r: r["kept"] if r["plain_backdrop"] else None),
            ("white shift", lambda r: r.get("white_shift")),
            ("detail kept", lambda r: r["lightings"]["studio"]["detail_kept"]),
