@@ -114,7 +114,7 @@ class FrameLayer:
 
     def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> "FrameLayer":
         def file(name):
-            fname = FRAME_FILES.get(name, FRAME_SKIN_FILE)
+            fname = {**FRAME_FILES, "skin": FRAME_SKIN_FILE}[name]
             return base / fname if base is not None else fname
 
         h, w = self.alpha.shape[:2] if self.alpha.ndim >= 2 else (0, 0)

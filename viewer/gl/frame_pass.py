@@ -122,7 +122,7 @@ class FrameCompositePass:
     inputs = ("composite", "skin", "skin_scatter")  # redrawn over the matte's box only
     whole_inputs = ("display", "view", "environment", "ground", "ground_shadow")  # redrawn over the whole frame
 
-    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture, ground: moderngl.Texture):
+    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture, ground: moderngl.Texture, skin=None):
         self.kit, self.photo = kit, photo  # the photo (FrameBackgroundPass's): the "before" of look.compare
         self.ground = ground  # GroundShadowPass's: the background's darkening by the person's shadow
         size = self.size = (frame.width, frame.height)
@@ -131,16 +131,11 @@ class FrameCompositePass:
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
         self.back = self.back_fbo = None  # the image drawn in bands while the front is shown (made when first needed)
         self.box = frame.box
-        self.skin = None  # use_skin
+        self.skin = skin  # the SkinScatterPass whose image replaces D on the skin when shown (None: no skin)
 
     def run(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, box=None):
         with self.kit.timed(self.name):
             self.draw(self.fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, box)
-
-    def use_skin(self, scatter):
-        """The skin pass (:class:`viewer.gl.skin_pass.SkinScatterPass`) whose image replaces D on the
-        skin whenever it was shown (None: no skin)."""
-        self.skin = scatter
 
     def draw_band(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, band: int,
                   bands: int):

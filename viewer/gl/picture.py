@@ -74,9 +74,8 @@ class FramePicture:
     def __init__(self, kit, frame, camera, ground):
         self.background = FrameBackgroundPass(kit, frame, camera)
         self.mipmaps = FrameMipmapsPass(kit)
-        self.last = FrameCompositePass(kit, frame, self.background.photo, ground)
         self.scatter = SkinScatterPass(kit, frame) if SkinScatterPass.applies(frame) else None
-        self.last.use_skin(self.scatter)
+        self.last = FrameCompositePass(kit, frame, self.background.photo, ground, self.scatter)
         self.passes = (self.mipmaps, *([self.scatter] if self.scatter else []), self.background, self.last)
         self._bands = None  # a budgeted draw under way: the background's and the frame's bands drawn
 

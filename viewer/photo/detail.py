@@ -161,8 +161,7 @@ def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_alb
                 low_n = luminance(masked_lowpass(network_albedo, person, sigma))
                 excess = np.maximum(low_q, 1e-4) / np.maximum(low_n, 1e-4)
                 albedo = albedo / np.maximum(excess, 1.0)[..., None] ** BRIGHT_SHARE
-            if CLEAN_DARK > 0:
-                albedo, stats["cleaned_fraction"] = clean_in_shade(albedo, photo, diffuse, person)
+            albedo, stats["cleaned_fraction"] = clean_in_shade(albedo, photo, diffuse, person)
             stats["dark_fraction"] = float((w[person] < 1).any(axis=-1).mean()) if person.any() else 0.0
             stats["highlight_removed"] = float((np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)[person]).mean()
                                               / max(float(photo[person].mean()), 1e-12)) if person.any() else 0.0

@@ -42,6 +42,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .detail import masked_lowpass
+
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the face detector (it works at 192 px)
 DETECT_CONFIDENCE = 0.5
 MESH_INPUT = 384  # pixels of the square crop (twice the detected box) the landmark model sees
@@ -249,8 +251,8 @@ def _vertex_normals(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
 
 def _rasterize(points: np.ndarray, values: np.ndarray, tris: np.ndarray, shape: tuple[int, int]):
     """Depth-buffered rasterization of the mesh ``points`` (V, 3) (pixels x, y at pixel centres
-    +0.5, z away from the camera) into ``shape`` (H, W): (z (H, W), interpolated ``values`` (H, W,
-    C), covered (H, W) bool); the nearest triangle wins."""
+    +0.5, z away from the camera) into ``shape`` (H, W): (interpolated ``values`` (H, W, C),
+    covered (H, W) bool); the nearest triangle wins."""
     h, w = shape
     zbuf = np.full((h, w), np.inf)
     out = np.zeros((h, w, values.shape[1]))
@@ -279,8 +281,7 @@ def _rasterize(points: np.ndarray, values: np.ndarray, tris: np.ndarray, shape: 
         zbuf[y0:y1 + 1, x0:x1 + 1][win] = z[win]
         v = l0[..., None] * values[tri[0]] + l1[..., None] * values[tri[1]] + l2[..., None] * values[tri[2]]
         out[y0:y1 + 1, x0:x1 + 1][win] = v[win]
-    covered = np.isfinite(zbuf)
-    return np.where(covered, zbuf, 0.0), out, covered
+    return out, np.isfinite(zbuf)
 
 
 def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], mask: np.ndarray) -> FaceSurface | None:
@@ -293,12 +294,11 @@ def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], mask
     if face.width * scale < MIN_FACE_WORK_PX:
         return None
     points, tris = face_mesh(face.points * scale)
-    _, n, covered = _rasterize(points, _vertex_normals(points, tris), tris, shape)
+    n, covered = _rasterize(points, _vertex_normals(points, tris), tris, shape)
     region = covered & mask
     if region.sum() < max(MIN_FACE_WORK_PX ** 2 / 4, 0.5 * covered.sum()):
         return None  # too small, or mostly off the person's mask
-    if SMOOTH > 0:  # the landmarks' creases (eyelids, nostrils) rounded as skin over them is
-        n = _masked_blur(n, covered, SMOOTH * face.width * scale)
+    n = masked_lowpass(n, covered, SMOOTH * face.width * scale)  # the landmarks' creases (eyelids, nostrils) rounded
     # camera space (y up, z towards the camera); what the camera sees of a surface faces it
     normal = np.stack([n[..., 0], -n[..., 1], np.maximum(-n[..., 2], MIN_FACING)], axis=-1)
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
@@ -308,20 +308,7 @@ def face_surface(face: FaceLandmarks, scale: float, shape: tuple[int, int], mask
     return FaceSurface(np.where(region[..., None], normal, 0).astype(np.float32), weight.astype(np.float32), region)
 
 
-def _masked_blur(values: np.ndarray, where: np.ndarray, sigma: float) -> np.ndarray:
-    """``values`` (H, W, C) blurred by a Gaussian of ``sigma`` pixels over the pixels ``where``
-    covers (a normalized convolution: nothing outside them leaks in)."""
-    import cv2
-
-    k = 2 * int(np.ceil(3 * sigma)) + 1
-    w = where.astype(np.float32)
-    num = cv2.GaussianBlur(values.astype(np.float32) * w[..., None], (k, k), sigma)
-    den = cv2.GaussianBlur(w, (k, k), sigma)
-    return np.where(where[..., None], num / np.maximum(den, 1e-6)[..., None], values)
-
-
-def blend(normal: np.ndarray, depth: np.ndarray, mask: np.ndarray, surface: FaceSurface,
-          focal_px: float) -> tuple[np.ndarray, np.ndarray]:
+def blend(normal: np.ndarray, depth: np.ndarray, surface: FaceSurface, focal_px: float) -> tuple[np.ndarray, np.ndarray]:
     """(normal, depth) with the face's surface blended in: the normals by its weight
     (renormalized), the depth made the surface those normals describe (:func:`integrate_depth`),
     held to the networks' depth along the blend's ramp (``HOLD`` where the face begins, nothing
@@ -331,8 +318,7 @@ def blend(normal: np.ndarray, depth: np.ndarray, mask: np.ndarray, surface: Face
     n = (1.0 - w) * normal + w * surface.normal
     length = np.linalg.norm(n, axis=-1, keepdims=True)
     n = np.where(length > 1e-6, n / np.maximum(length, 1e-12), normal).astype(np.float32)
-    region = (surface.weight > 0) & mask
-    return n, integrate_depth(n, depth, region, HOLD * (1.0 - surface.weight), focal_px)
+    return n, integrate_depth(n, depth, surface.weight > 0, HOLD * (1.0 - surface.weight), focal_px)
 
 
 def integrate_depth(normal: np.ndarray, depth: np.ndarray, region: np.ndarray, hold: np.ndarray,
@@ -389,7 +375,7 @@ def with_face(scene, faces: list[FaceLandmarks], scale: float):
     if surface is None:
         record["skipped"] = f"the face is under {MIN_FACE_WORK_PX} work pixels wide, or mostly off the person's mask"
         return scene, record, None
-    normal, depth = blend(scene.normal, scene.depth, scene.mask, surface, scene.camera.focal_px)
+    normal, depth = blend(scene.normal, scene.depth, surface, scene.camera.focal_px)
     record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
     return replace(scene, normal=normal, depth=depth).validate(), record, surface
 

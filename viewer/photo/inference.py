@@ -359,7 +359,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     scene, face_record, face_surface = with_face(scene, faces, s)
     if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
         mm = gloss.skin_mm(faces[0].width if faces else None, person_box(alpha > 0.5)[2])
-        scene = replace(scene, frame=replace(scene.frame, skin=skin.astype(np.float32), skin_mm=mm)).validate()
+        scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm)).validate()
         gloss_record["skin_mm_per_pixel"] = round(mm, 4)
     stage("face")
 

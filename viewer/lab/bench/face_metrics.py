@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.lab.bench.metrics import luminance
+
 HOLE_SHARE = 0.35  # of the median relit / photo ratio over the skin: below it, a hole
 HOLE_BLUR = 1.0  # px: both images blurred before the ratio
 FINE_SIGMA, COARSE_SIGMA = 1.5, 6.0  # px: the speckle's fine detail and its normalization
@@ -63,10 +65,6 @@ def face_skin(photo_srgb: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, di
     skin = oval & ~features & (alpha > 0.5)
     return skin, {"faces": len(faces), "width_px": round(faces[0].width, 1), "skin_pixels": int(skin.sum()),
                   "oval": oval}
-
-
-def luminance(rgb: np.ndarray) -> np.ndarray:
-    return np.asarray(rgb, np.float32)[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def _blur(image: np.ndarray, sigma: float) -> np.ndarray:

@@ -54,8 +54,24 @@ def chroma(pred: np.ndarray, truth: np.ndarray, mask: np.ndarray, eps: float = 1
             "saturation_true": float(np.abs(ct - 1 / 3).sum(-1).mean())}
 
 
-def _luminance(rgb: np.ndarray) -> np.ndarray:
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    """Rec. 709 luminance of linear RGB (float64)."""
     return np.asarray(rgb, np.float64)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def cielab(srgb8: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 CIELAB (L* in [0, 100], a* and b* about 0) of an 8-bit sRGB image, by OpenCV."""
+    import cv2
+
+    lab = cv2.cvtColor(srgb8, cv2.COLOR_RGB2LAB).astype(np.float32)
+    lab[..., 0] *= 100.0 / 255.0
+    lab[..., 1:] -= 128.0
+    return lab
+
+
+def border(image: np.ndarray) -> np.ndarray:
+    """(N, C): the pixels of an image's four edges."""
+    return np.concatenate([image[0], image[-1], image[:, 0], image[:, -1]])
 
 
 def eroded(mask: np.ndarray, fraction: float = 0.005) -> np.ndarray:
@@ -71,7 +87,7 @@ def detail_level(image: np.ndarray, mask: np.ndarray) -> float:
     """Mean |Laplacian| of the luminance over ``mask`` divided by the mean luminance there."""
     import cv2
 
-    lum = _luminance(image)
+    lum = luminance(image)
     lap = np.abs(cv2.Laplacian(lum, cv2.CV_64F, ksize=1))
     return float(lap[mask].mean() / max(lum[mask].mean(), 1e-12))
 
@@ -89,7 +105,7 @@ def light_moved(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     the mean of (Y_a + Y_b) / 2, inside the eroded mask (linear HDR; 0 = the light changed
     nothing, 2 = each side lit only in one of them)."""
     m = eroded(mask)
-    ya, yb = _luminance(a)[m], _luminance(b)[m]
+    ya, yb = luminance(a)[m], luminance(b)[m]
     return float(np.abs(ya - yb).mean() / max(0.5 * (ya + yb).mean(), 1e-12))
 
 
@@ -156,7 +172,7 @@ def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
     background = _local_mean(cb, (outside > 0) & (outside <= BLEED_BACKGROUND), BLEED_SIGMA)
     interior = _local_mean(cp, (inside > BLEED_INTERIOR[0]) & (inside <= BLEED_INTERIOR[1]), BLEED_SIGMA)
     nearer = np.linalg.norm(cp - background, axis=-1) < np.linalg.norm(cp - interior, axis=-1)
-    brightness = _luminance(person)
+    brightness = luminance(person)
     person_pixels = inside > 0
     lit = brightness > BLEED_DARKEST * float(np.median(brightness[person_pixels])) if person_pixels.any() else brightness > 0
     band = (inside > 0) & (inside <= BLEED_BAND) & lit
@@ -170,13 +186,8 @@ def kept_backdrop(alpha: np.ndarray, photo_srgb: np.ndarray, truth: np.ndarray) 
     """For a photo on a plain backdrop: the pixels kept as the person (alpha > 0.5) whose colour
     is within ``KEPT_DELTA_E`` (CIE76) of the backdrop (the median of the photo's border), per
     pixel of the true mask's outline. ``photo_srgb`` (H, W, 3) uint8."""
-    import cv2
-
-    lab = cv2.cvtColor(photo_srgb, cv2.COLOR_RGB2LAB).astype(np.float32)
-    lab[..., 0] *= 100.0 / 255.0
-    lab[..., 1:] -= 128.0
-    border = np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]])
-    backdrop = np.median(border, axis=0)
+    lab = cielab(photo_srgb)
+    backdrop = np.median(border(lab), axis=0)
     near = np.linalg.norm(lab - backdrop, axis=-1) < KEPT_DELTA_E
     return float(((alpha > 0.5) & near).sum() / max(int(outline(truth > 0.5).sum()), 1))
 

@@ -42,7 +42,7 @@ import numpy as np
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.imageio import linear_to_srgb, write_jpeg, write_text
 from viewer.lab.bench.face_metrics import face_skin, holes, limb_skin, speckle
-from viewer.lab.bench.metrics import bleed, detail_kept, kept_backdrop, light_moved
+from viewer.lab.bench.metrics import bleed, border, cielab, detail_kept, kept_backdrop, light_moved, luminance
 from viewer.lab.bench.photos import neutral_lights, sun_and_sky
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
@@ -78,8 +78,7 @@ def collect(dirs) -> list[Path]:
     for d in dirs:
         d = Path(d)
         files = [d] if d.is_file() else sorted(d.iterdir())
-        photos += [p for p in files if p.suffix.lower() in PHOTO_SUFFIXES and not p.name.endswith(".mask.png")
-                   and not p.stem.endswith(".mask") and not p.stem.endswith(".auto-mask")]
+        photos += [p for p in files if p.suffix.lower() in PHOTO_SUFFIXES and not p.stem.endswith((".mask", ".auto-mask"))]
     return photos
 
 
@@ -95,22 +94,8 @@ def _srgb8(linear: np.ndarray) -> np.ndarray:
 
 
 def _plain(photo_srgb: np.ndarray) -> bool:
-    import cv2
-
-    lab = cv2.cvtColor(photo_srgb, cv2.COLOR_RGB2LAB).astype(np.float32)
-    lab[..., 0] *= 100.0 / 255.0
-    lab[..., 1:] -= 128.0
-    border = np.concatenate([lab[0], lab[-1], lab[:, 0], lab[:, -1]])
-    return bool(np.median(np.linalg.norm(border - np.median(border, axis=0), axis=-1)) < PLAIN_DELTA_E)
-
-
-def _lab(srgb8: np.ndarray) -> np.ndarray:
-    import cv2
-
-    lab = cv2.cvtColor(srgb8, cv2.COLOR_RGB2LAB).astype(np.float32)
-    lab[..., 0] *= 100.0 / 255.0
-    lab[..., 1:] -= 128.0
-    return lab
+    edge = border(cielab(photo_srgb))
+    return bool(np.median(np.linalg.norm(edge - np.median(edge, axis=0), axis=-1)) < PLAIN_DELTA_E)
 
 
 def white_shift(relit8: np.ndarray, photo8: np.ndarray, alpha: np.ndarray) -> float | None:
@@ -120,7 +105,7 @@ def white_shift(relit8: np.ndarray, photo8: np.ndarray, alpha: np.ndarray) -> fl
     light keeps it near 0. None with fewer than 50 such pixels."""
     import cv2
 
-    lab_p, lab_r = _lab(photo8), _lab(relit8)
+    lab_p, lab_r = cielab(photo8), cielab(relit8)
     core = cv2.erode((alpha > 0.95).astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
     whites = core & (lab_p[..., 0] > WHITE_L) & (np.linalg.norm(lab_p[..., 1:], axis=-1) < WHITE_C)
     if whites.sum() < 50:
@@ -140,7 +125,7 @@ def terminator(on: np.ndarray, off: np.ndarray, skin: np.ndarray) -> dict | None
         return None
 
     def grad(img):
-        y = np.maximum(img[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32), 1e-4)
+        y = np.maximum(luminance(img), 1e-4).astype(np.float32)
         g = np.hypot(cv2.Sobel(y, cv2.CV_32F, 1, 0), cv2.Sobel(y, cv2.CV_32F, 0, 1)) / 8.0
         return g / y
 
