@@ -14,6 +14,7 @@ from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
+from viewer.photo import matting
 from viewer.photo.detail import detail_albedo
 from viewer.photo.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, framing, infer, infer_scene, load_networks,
                               to_work_frame, write_bundle)
@@ -95,7 +96,11 @@ def _own_lights_error(ctx, scene, lights):
     finally:
         engine.release()
     photo = scene.frame.photo
-    solid = (scene.frame.alpha > 0.999) & (scene.frame.albedo.max(axis=-1) < 0.99) & (photo.min(axis=-1) > 0.01)
+    alpha = scene.frame.alpha
+    # where the matte's colours are the photo's own: half a soft band inside the opaque person (viewer.photo.matting)
+    depth, _ = matting.distances(alpha >= matting.OPAQUE)
+    own = depth > max(matting.MIN_EDGE, matting.EDGE * matting.person_height(alpha > 0.5))
+    solid = own & (scene.frame.albedo.max(axis=-1) < 0.99) & (photo.min(axis=-1) > 0.01)
     assert solid.sum() > 0.3 * (scene.frame.alpha > 0.5).sum()
     return float(np.abs(hdr[solid] - photo[solid]).mean() / photo[solid].mean())
 

@@ -21,9 +21,12 @@ So the matte is decided from the photo, in three steps (docs/photos.md measures 
    side of that outline) solved at the frame's resolution by closed-form matting
    (``pymatting``), chosen against KNN, large-kernel, random-walk and learning-based alpha by
    ``relight bench matte``: hair strands and motion blur come out semi-transparent.
-3. **The foreground colours** (:func:`foreground_colours`): ``pymatting``'s multilevel foreground
-   estimation (Germer et al. 2020) solves ``I = a F + (1 - a) B`` for smooth F and B, so no old
-   background colour survives in the person's colour at any alpha.
+3. **The foreground colours** (:func:`foreground_colours`): at the soft edge and half a band
+   inside it, the opaque person's own colour nearby (a normalized Gaussian from deeper inside),
+   the alpha carrying the edge's shape; ``pymatting``'s multilevel foreground estimation (Germer
+   et al. 2020, ``I = a F + (1 - a) B``) where no opaque person is near. Solved in the photo's
+   sRGB values, as the alpha is. No old background colour survives at the edge (issue 42 measured
+   the edge's bleed on twelve photos against the multilevel estimate alone: docs/photos.md).
 
 A mask file wins over all of this (:func:`mask_matte`): a soft one is the alpha; a binary one is
 the trimap's core, its outline softened by step 2. Either way step 3 gives the colours.
@@ -51,6 +54,9 @@ EDGE = 0.004  # half-width of the soft edge's band, of the person's height (8 px
 MIN_EDGE = 1.5  # pixels
 FLOW_SCALE = 256  # capacities are integers: costs times this
 HOLE_DEPTH = 1.0  # holes are punched deeper than this many soft-edge half-widths inside the person
+OPAQUE = 0.99  # alpha from which a pixel's colour is the person's own (foreground_colours)
+EDGE_COLOUR = 3.0  # soft-edge half-widths: the reach of the opaque person's colours into the soft edge
+MIN_REACH = 0.05  # the opaque person's weight within that reach below which the multilevel estimate stays
 HOLE = 9.0  # nats: a pixel of the person this much likelier the local background's colour than its own is background
 # The pose model's bones (MediaPipe's POSE_CONNECTIONS without the fingers, 17-22, which it guesses)
 BONES = ((0, 1), (0, 4), (1, 2), (2, 3), (3, 7), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12), (11, 13), (11, 23),
@@ -71,7 +77,8 @@ GAPS = ((11, 13, 15, 23), (12, 14, 16, 24),  # each arm and the side of the body
 class Matte:
     """The person's alpha (H, W) float32 in [0, 1] and foreground colours (H, W, 3) float32,
     linear RGB (the photo's colour with the old background taken out; the photo where alpha is 0
-    or 1), with how it was made (``record``: method, seconds)."""
+    and deeper than half a soft band inside the opaque person), with how it was made (``record``:
+    method, seconds)."""
 
     alpha: np.ndarray
     foreground: np.ndarray
@@ -380,22 +387,42 @@ def edge_alpha(photo: np.ndarray, person: np.ndarray, half_width: float, holes: 
     return alpha
 
 
-def foreground_colours(linear: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float32: the person's own colours F in ``I = a F + (1 - a) B`` (pymatting's
-    multilevel estimate) over the matte's soft pixels' box; the photo elsewhere."""
+def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) -> np.ndarray:
+    """(H, W, 3) float32: the person's own colours F in ``I = a F + (1 - a) B`` where the matte is
+    soft; the image where it is opaque. ``image`` in the values ``alpha`` was solved in (the photo's
+    sRGB-encoded values, as :func:`edge_alpha` solves it): F solved in other values (linear) than
+    its alpha goes below zero where a dark person meets a bright background, and the edge turns black.
+
+    F is the opaque person's colour nearby (a normalized Gaussian of ``EDGE_COLOUR`` soft-edge
+    half-widths over the pixels at least ``OPAQUE``): the soft edge is where the photo's colour is
+    least the person's, and the alpha carries its shape (hair strands, motion blur). Measured
+    against pymatting's multilevel estimate (Germer et al. 2020) alone, which keeps the old
+    background's colour in a band it cannot tell from the person (docs/photos.md, issue 42): that
+    estimate is what is left where no opaque person is within reach (a strand far from the head)."""
     from pymatting import estimate_foreground_ml
 
-    soft = (alpha > 0) & (alpha < 1)
-    out = linear.astype(np.float32).copy()
+    from .detail import masked_lowpass
+
+    soft = (alpha > 0) & (alpha < OPAQUE)
+    out = image.astype(np.float32).copy()
     if not soft.any():
         return out
     rows, cols = np.flatnonzero(soft.any(axis=1)), np.flatnonzero(soft.any(axis=0))
-    y0, y1 = max(rows[0] - 8, 0), min(rows[-1] + 9, alpha.shape[0])
-    x0, x1 = max(cols[0] - 8, 0), min(cols[-1] + 9, alpha.shape[1])
+    pad = int(np.ceil(3 * EDGE_COLOUR * half_width)) + 8
+    y0, y1 = max(rows[0] - pad, 0), min(rows[-1] + pad + 1, alpha.shape[0])
+    x0, x1 = max(cols[0] - pad, 0), min(cols[-1] + pad + 1, alpha.shape[1])
     box = (slice(y0, y1), slice(x0, x1))
-    scale = max(float(linear[box].max()), 1e-6)  # the estimate works on [0, 1] images
-    fg = estimate_foreground_ml((linear[box] / scale).astype(np.float32), alpha[box].astype(np.float32))
-    out[box] = np.where(soft[box][..., None], np.maximum(fg * scale, 0.0), out[box])
+    scale = max(float(image[box].max()), 1e-6)  # the estimate works on [0, 1] images
+    fg = estimate_foreground_ml((image[box] / scale).astype(np.float32), alpha[box].astype(np.float32)) * scale
+    depth, _ = distances(alpha[box] >= OPAQUE)  # how deep inside the opaque person
+    sigma = EDGE_COLOUR * half_width
+    deep = (depth > half_width).astype(np.float32)
+    near = masked_lowpass(out[box], deep, sigma)
+    reach = masked_lowpass(deep, np.ones_like(deep), sigma) > MIN_REACH
+    own = np.clip(depth / half_width, 0.0, 1.0)[..., None]  # the photo's own colour, from half a band inside
+    edge = np.where(soft[box][..., None], np.maximum(fg, 0.0), out[box])
+    edge = np.where(reach[..., None], near, edge)
+    out[box] = np.where((alpha[box] > 0)[..., None], own * out[box] + (1.0 - own) * edge, out[box])
     return out
 
 
@@ -424,7 +451,7 @@ def automatic_matte(photo: np.ndarray, person) -> Matte:
     t1 = time.perf_counter()
     alpha = edge_alpha(photo, decided, half_width, holes)
     t2 = time.perf_counter()
-    foreground = foreground_colours(srgb_to_linear(photo.astype(np.float32) / 255.0), alpha)
+    foreground = srgb_to_linear(foreground_colours(photo.astype(np.float32) / 255.0, alpha, half_width))
     t3 = time.perf_counter()
     return Matte(alpha, foreground, {"method": "automatic: pose segmentation, colour min cut, closed-form edge",
                                      "holes_px": int(holes.sum()),
@@ -444,8 +471,9 @@ def mask_matte(photo: np.ndarray, mask: np.ndarray) -> Matte:
     person = mask > 0.5
     inside, _ = distances(person)
     binary = int(((mask > 0.02) & (mask < 0.98)).sum()) < BINARY_GREY * int(((inside > 0) & (inside <= 1)).sum())
-    alpha = edge_alpha(photo, person, max(MIN_EDGE, EDGE * person_height(person))) if binary else mask.astype(np.float32)
+    half_width = max(MIN_EDGE, EDGE * person_height(person))
+    alpha = edge_alpha(photo, person, half_width) if binary else mask.astype(np.float32)
     t1 = time.perf_counter()
-    foreground = foreground_colours(srgb_to_linear(photo.astype(np.float32) / 255.0), alpha)
+    foreground = srgb_to_linear(foreground_colours(photo.astype(np.float32) / 255.0, alpha, half_width))
     return Matte(alpha, foreground, {"method": "mask file, " + ("binary: closed-form edge" if binary else "soft: as given"),
                                      "seconds": {"edge": round(t1 - t0, 3), "foreground": round(time.perf_counter() - t1, 3)}})

@@ -74,7 +74,7 @@ def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges,
         for edge in edges:
             half = max(matting.MIN_EDGE, edge * height)
             alpha, t_edge = _timed(lambda: matting.edge_alpha(photo, decided, half, holes, _solver(solver)), repeats)
-            fg, t_fg = _timed(lambda: matting.foreground_colours(linear, alpha), repeats)
+            fg, t_fg = _timed(lambda: srgb_to_linear(matting.foreground_colours(photo.astype(np.float32) / 255.0, alpha, half)), repeats)
             row["edges"].append({"solver": solver, "edge": edge, "half_width_px": round(half, 2),
                                  **_scores(alpha, fg, linear, hand, photo, backdrop),
                                  "seconds": {"edge": t_edge, "foreground": t_fg}})
