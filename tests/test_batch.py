@@ -260,3 +260,42 @@ def test_the_contact_sheet_keeps_a_users_file_and_skips_what_it_cannot_read(firs
     (out / "contact-sheet.png").write_bytes(b"my own sheet")
     assert contact_sheet(out, done, Ownership(Manifest(out))) is None
     assert (out / "contact-sheet.png").read_bytes() == b"my own sheet"
+
+
+def test_names_stay_inside_the_batch_folder_and_its_own_outputs_are_not_photos(tmp_path):
+    """A photo named ``...jpg`` (stem ``..``) or ``.hidden.jpg`` and a map named ``...hdr`` write inside
+    ``-o``; a batch whose ``-o`` is the folder of its photos, run twice, does not take its own contact
+    sheet or outputs for photos (the second run has nothing to do)."""
+    from viewer.batch.plan import collect_photos, look_specs, photo_names
+
+    names = photo_names([Path("a/...jpg"), Path("b/.hidden.jpg"), Path("c/.jpg")])
+    assert all(n and not n.startswith(".") and "/" not in n for n in names.values()) and len(set(names.values())) == 3
+    assert not look_specs(["m/...hdr"], [], None, [], None)[0].name.startswith(".")
+    folder = tmp_path / "shoot"
+    folder.mkdir()
+    shutil.copy(PHOTO, folder / "...jpg")
+    for run in range(2):
+        res = batch(tmp_path, folder, "--env", MAPS[0], "-o", folder)
+        assert res.returncode == 0, res.stderr
+    assert not (tmp_path / "venice_sunset_256.png").exists() and (folder / "photo" / "venice_sunset_256.png").is_file()
+    assert [p.name for p in collect_photos([folder])[0]] == ["...jpg"]
+    assert done_items(folder) == ["photo/venice_sunset_256"]  # the second run found it done
+
+
+def test_a_damaged_cached_bundle_is_inferred_again(tmp_path):
+    """A file of a cached bundle cut short or deleted fails no later batch: the bundle is made again."""
+    from viewer.photo.inference import cached_bundle
+
+    bundles = tmp_path / "cache" / "bundles"
+    first, cached = cached_bundle(PHOTO, max_size=256, bundles=bundles)
+    assert not cached
+    for damage in ("cut", "delete"):
+        victim = first / "albedo.exr"
+        if damage == "cut":
+            victim.write_bytes(victim.read_bytes()[:100])
+        else:
+            victim.unlink()
+        again, cached = cached_bundle(PHOTO, max_size=256, bundles=bundles)
+        assert again == first and not cached and (first / "albedo.exr").stat().st_size > 1000
+    assert cached_bundle(PHOTO, max_size=256, bundles=bundles)[1]
+    assert sorted(p.name for p in bundles.iterdir()) == [first.name]  # nothing left beside it

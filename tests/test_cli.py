@@ -106,6 +106,7 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
     # working folder); a stage of the fit that ran is one line on a log (stderr is not a terminal)
     import shutil
 
+    from viewer.lighting.envmap import load_envmap
     from viewer.lighting.map_lights import sidecar_lights
 
     (tmp_path / "maps").mkdir()
@@ -115,7 +116,7 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
                          capture_output=True, text=True, env=environ, cwd=tmp_path / "work")
     assert res.returncode == 0, res.stderr
     assert not any((tmp_path / "work").iterdir()) and f"-> {mine.with_suffix('.lights.json')}" in res.stdout
-    assert sidecar_lights(mine, 4, "instant") is not None  # the default method wrote it
+    assert sidecar_lights(load_envmap(mine), mine, 4, "instant") is not None  # the default method wrote it
     assert "fitting 4 lights to" in res.stderr and " in " in res.stderr.splitlines()[-1]
 
 
@@ -128,7 +129,7 @@ def test_fit_lights_bad_maps_give_one_line_errors(tmp_path):
     nan_map[2, 3] = np.nan
     write_exr(tmp_path / "nan.exr", nan_map)
     cv2.imwrite(str(tmp_path / "square.hdr"), np.ones((8, 8, 3), np.float32))
-    for name, message in (("nan.exr", "NaN or Inf"), ("square.hdr", "2:1 aspect"), ("missing.hdr", "file not found")):
+    for name, message in (("nan.exr", "NaN or Inf"), ("square.hdr", "2:1 aspect"), ("missing.hdr", "environment map not found")):
         res = run_cli("fit-lights", str(tmp_path / name), "-o", str(tmp_path / "l.json"))
         assert res.returncode == 2 and "Traceback" not in res.stderr
         assert message in res.stderr and str(tmp_path / name) in res.stderr

@@ -243,8 +243,10 @@ def test_bundled_environment_carries_its_fitted_lights(horn):
     record = json.loads(path.read_text())["fit"]
     from viewer.lighting.lightfit.cache import FIT_VERSION
 
-    assert len(bundled) == 16 and record == {"source": BUNDLED.with_suffix(".hdr").name, "method": "fast", "n": 16,
-                                             "version": FIT_VERSION}
+    from viewer.lighting.lightfit.cache import map_hash
+
+    assert len(bundled) == 16 and record == {"source": BUNDLED.with_suffix(".hdr").name, "map": map_hash(env), "method": "fast",
+                                             "n": 16, "version": FIT_VERSION}
     problem = build_problem(env, FitSettings(sphere_resolution=32, plane_resolution=48, shadow_resolution=64, samples=256))
     fitted, initial = shading_errors(problem, bundled), shading_errors(problem, median_cut_lights(env, 16))
     assert fitted["sphere"] < initial["sphere"] and fitted["plane"] < initial["plane"]

@@ -134,3 +134,87 @@ def test_a_failed_command_leaves_no_folder_behind(tmp_path):
                           str(asset_dir() / "envmaps" / "venice_sunset_256.hdr"), "-o", str(tmp_path / "a-file" / "x.png")],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "is a file, not a folder" in res.stderr and (tmp_path / "a-file").read_text() == "x"
+
+
+def test_every_file_written_carries_the_mark_and_only_marked_files_are_ours(tmp_path):
+    """PNG, JPEG, EXR, JSON light files and MP4 videos written by the program are its own; the same
+    formats written by anything else (or damaged) are not."""
+    import numpy as np
+    from PIL import Image
+
+    from viewer.imageio import write_exr, write_jpeg, write_png
+    from viewer.lighting.lights import load_lights
+    from viewer.output.video import VideoWriter
+    from viewer.ownership import file_is_ours
+
+    image = np.full((8, 8, 3), 0.5, np.float32)
+    ours = [write_png(tmp_path / "a.png", image), write_jpeg(tmp_path / "a.jpg", image), write_exr(tmp_path / "a.exr", image),
+            load_lights(asset_dir() / "envmaps" / "venice_sunset_256.lights.json").save(tmp_path / "a.json")]
+    with VideoWriter(tmp_path / "a.mp4", 16, 16, 10) as video:
+        video.write(np.zeros((16, 16, 3), np.uint8))
+    ours.append(tmp_path / "a.mp4")
+    assert all(file_is_ours(p) for p in ours)
+    Image.new("RGB", (8, 8)).save(tmp_path / "b.png")
+    Image.new("RGB", (8, 8)).save(tmp_path / "b.jpg")
+    (tmp_path / "b.json").write_text('{"format": "relight-lights", "lights": []}')
+    (tmp_path / "b.exr").write_bytes((tmp_path / "a.exr").read_bytes()[:40])
+    (tmp_path / "b.mp4").write_bytes(b"not a video")
+    (tmp_path / "b.txt").write_text("mine")
+    assert not any(file_is_ours(tmp_path / f"b{s}") for s in (".png", ".jpg", ".json", ".exr", ".mp4", ".txt"))
+    assert not file_is_ours(tmp_path / "missing.png")
+
+
+def test_render_replaces_its_own_files_and_refuses_a_users_file_beside_them(tmp_path):
+    """Rendering again to one -o replaces the PNG, EXR and passes sheet it wrote; a user's
+    portrait.exr or portrait_passes.png at those paths is refused in one line naming it (exit 2), kept
+    byte for byte, unless --force."""
+    from viewer.resources import sample_scene_dir
+
+    lights = str(asset_dir() / "envmaps" / "venice_sunset_256.lights.json")
+    out = tmp_path / "portrait.png"
+    cmd = [*RELIGHT, "render", str(sample_scene_dir()), lights, "--size", "64", "-o", str(out)]
+    for _ in range(2):
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+    for name in ("portrait.exr", "portrait_passes.png", "portrait.png"):
+        for p in tmp_path.iterdir():
+            p.unlink()
+        (tmp_path / name).write_bytes(b"the user's own")
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        assert res.returncode == 2 and name in res.stderr and "--force" in res.stderr and res.stderr.count("\n") == 1
+        assert (tmp_path / name).read_bytes() == b"the user's own" and sorted(p.name for p in tmp_path.iterdir()) == [name]
+    res = subprocess.run(cmd + ["--force"], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "portrait.png").read_bytes() != b"the user's own"
+
+
+def test_fit_lights_keeps_a_hand_written_light_file_and_stale_lights_are_not_used(tmp_path, monkeypatch):
+    """A MAP.lights.json the user wrote (no mark, no fit record) is kept: fit-lights puts the lights in
+    the cache and says so, and -o at it is refused. Lights fitted beside a map serve that map only:
+    the map replaced by another under the same name, they are not used (render fits the new map)."""
+    import json
+    import shutil
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
+    maps = asset_dir() / "envmaps"
+    sky = shutil.copyfile(maps / "venice_sunset_256.hdr", tmp_path / "sky.hdr")
+    mine = tmp_path / "sky.lights.json"
+    hand = {"format": "relight-lights", "note": "my key light", "lights": [{"direction": [0, 1, 0], "sigma": 1, "intensity": [1, 1, 1]}]}
+    mine.write_text(json.dumps(hand))
+    res = subprocess.run([*RELIGHT, "fit-lights", str(sky), "-n", "4"], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(mine.read_text()) == hand and "the fitting cache" in res.stdout and str(mine) in res.stdout
+    res = subprocess.run([*RELIGHT, "fit-lights", str(sky), "-n", "4", "-o", str(mine)], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "sky.lights.json" in res.stderr and json.loads(mine.read_text()) == hand
+    mine.unlink()
+    res = subprocess.run([*RELIGHT, "fit-lights", str(sky), "-n", "4"], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0 and f"-> {mine}" in res.stdout
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import sidecar_lights
+
+    assert sidecar_lights(load_envmap(sky), sky, 4, "instant") is not None
+    shutil.copyfile(maps / "immenstadter_horn_256.hdr", sky)  # another map under the same name
+    assert sidecar_lights(load_envmap(sky), sky, 4, "instant") is None
+    res = subprocess.run([*RELIGHT, "render", str(asset_dir() / "sample_scene"), "--env", str(sky), "-n", "4", "--size", "64",
+                          "-o", str(tmp_path / "r.png")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0 and "shipped beside the map" not in res.stdout, res.stdout + res.stderr

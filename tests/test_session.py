@@ -55,8 +55,9 @@ def test_session_final_and_preview(ctx):
 def test_light_jobs(tmp_path, monkeypatch):
     monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
     studio = MAPS / "studio_small_03_256.hdr"
-    assert sidecar_lights(studio, 16, "fast") is not None
-    assert sidecar_lights(studio, 8, "fast") is None and sidecar_lights(studio, 16, "paper") is None
+    env = load_envmap(studio)
+    assert sidecar_lights(env, studio, 16, "fast") is not None
+    assert sidecar_lights(env, studio, 8, "fast") is None and sidecar_lights(env, studio, 16, "paper") is None
     import json
     import shutil
 
@@ -64,7 +65,7 @@ def test_light_jobs(tmp_path, monkeypatch):
     record = json.loads(studio.with_suffix(".lights.json").read_text())
     record["fit"].pop("version")
     old.with_suffix(".lights.json").write_text(json.dumps(record))
-    assert sidecar_lights(old, 16, "fast") is None
+    assert sidecar_lights(env, old, 16, "fast") is None
     job = LightJob(studio, 16, "fast")
     job._thread.join(60)
     assert job.done and job.error is None and job.result.how == "bundled" and len(job.result.lights) == 16

@@ -29,9 +29,10 @@ def bundle_envmap(source, out_dir, width: int, n_lights: int, method: str = DEFA
     source, out_dir = Path(source), Path(out_dir)
     name = re.sub(r"_\d+k$", "", source.stem) + f"_{width}"
     hdr = save_envmap(out_dir / f"{name}.hdr", load_envmap(source).downsampled(width))
-    fitted = fit_lights(load_envmap(hdr), n_lights, method)
+    env = load_envmap(hdr)
+    fitted = fit_lights(env, n_lights, method)
     lights = out_dir / f"{name}.lights.json"
-    fitted.save(lights, fit=fit_record(hdr, method, n_lights))
+    fitted.save(lights, fit=fit_record(hdr, method, n_lights, env))
     return hdr, lights
 
 

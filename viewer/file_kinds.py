@@ -33,6 +33,26 @@ KINDS = {
 }
 
 
+def regular_file(path, what: str) -> Path:
+    """``path`` when it is a regular file (links followed); else one line: not found, a folder, or a
+    pipe, a socket or a device (``/dev/zero``, a FIFO, a shell's ``<(cat photo)``), refused before
+    it is opened: opening a pipe nobody writes to blocks for ever, and a device never ends."""
+    import stat
+
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise InputError(path, f"{what} not found") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read the {what} ({exc.strerror or exc})") from None
+    if stat.S_ISDIR(mode):
+        raise InputError(path, f"is a folder, not a {what}")
+    if not stat.S_ISREG(mode):
+        raise InputError(path, f"is a pipe or a device, not a regular file: save the {what} to a file and give that")
+    return path
+
+
 def kind_of(path) -> str | None:
     """``photo``, ``bundle``, a key of :data:`KINDS`, or None (missing or not recognized)."""
     path = Path(path)

@@ -15,6 +15,8 @@ import numpy as np
 from .errors import InputError
 from .stop_signals import deliver
 
+MARK = ("written_by", "relight")  # (key, value) inside every file this program writes (viewer.ownership)
+
 
 @contextlib.contextmanager
 def atomic_path(path):
@@ -76,6 +78,12 @@ def atomic_paths(*paths):
         for tmp in tmps:
             if tmp.exists():
                 tmp.unlink()
+
+
+def ffmpeg_file(path) -> str:
+    """``path`` as FFmpeg must be given a file: a ``file:`` URL of the absolute path, so a name with a
+    colon (``v1:final.mp4``, ``turntable-12:30.mp4``) is a file, never read as a protocol."""
+    return "file:" + os.fspath(Path(path).absolute())
 
 
 MAX_JSON_BYTES = 64 << 20  # no JSON file this program reads is near this
@@ -259,7 +267,7 @@ def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
         raise ValueError(f"cannot write an array of shape {arr.shape} as EXR")
     if arr.ndim == 3 and arr.shape[-1] == 1:
         arr = np.ascontiguousarray(arr[..., 0])
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, MARK[0]: MARK[1]}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as stream:  # Python's file: any name, and a failed write is the OSError it is
             OpenEXR.File(header, {name: arr}).write(stream)
@@ -304,8 +312,17 @@ def write_png(path, arr: np.ndarray, bits: int = 8, compress_level: int = 6) -> 
     else:
         im = Image.fromarray((np.clip(np.nan_to_num(arr), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8))
     with atomic_path(path) as tmp:
-        im.save(tmp, format="PNG", compress_level=compress_level)
+        im.save(tmp, format="PNG", compress_level=compress_level, pnginfo=png_mark())
     return path
+
+
+def png_mark():
+    """The PNG text chunk of :data:`MARK`, for every PNG this program writes."""
+    from PIL import PngImagePlugin
+
+    info = PngImagePlugin.PngInfo()
+    info.add_text(*MARK)
+    return info
 
 
 def write_jpeg(path, arr: np.ndarray, quality: int = 90) -> Path:
@@ -315,7 +332,7 @@ def write_jpeg(path, arr: np.ndarray, quality: int = 90) -> Path:
     path = Path(path)
     im = Image.fromarray((np.clip(np.nan_to_num(np.asarray(arr, np.float32)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8))
     with atomic_path(path) as tmp:
-        im.save(tmp, format="JPEG", quality=quality)
+        im.save(tmp, format="JPEG", quality=quality, comment=f"{MARK[0]}: {MARK[1]}")
     return path
 
 

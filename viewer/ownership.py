@@ -1,4 +1,9 @@
-"""What this program wrote, so that it replaces only that: a folder it writes (a scene bundle) carries a
+"""What this program wrote, so that it replaces only that.
+
+A file it writes carries its mark inside (``viewer.imageio.MARK``: a PNG text chunk, a JPEG comment, an EXR header
+attribute, a JSON field, an MP4's metadata), so rendering again to the same ``-o`` replaces its own files,
+while any other file at an output path, the one named or one written beside it, is refused in one line
+unless the user says ``--force`` (:func:`refuse_foreign`). A folder it writes (a scene bundle) carries a
 marker, ``.relight-written.json``, listing every file it holds with its SHA-256 and a hash of that list.
 A folder is replaced only when its marker is intact and it holds exactly the files listed, unchanged: a
 user's ``thesis.txt`` beside a ``scene.json``, a note added to an earlier bundle, or an edited map make it
@@ -15,6 +20,8 @@ import json
 import os
 import secrets
 from pathlib import Path
+
+from .imageio import MARK, ffmpeg_file, read_json
 
 MARKER = ".relight-written.json"
 FORMAT = "relight-written"
@@ -96,3 +103,47 @@ def folder_lock(folder):
         yield
     finally:
         os.close(fd)  # closing releases the lock
+
+
+def file_is_ours(path) -> bool:
+    """Whether the file at ``path`` carries this program's mark (anything unreadable does not)."""
+    path = Path(path)
+    if path.is_symlink() or not path.is_file():
+        return False
+    key, value = MARK
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".png", ".jpg", ".jpeg"):
+            from PIL import Image
+
+            with Image.open(path) as im:
+                if suffix == ".png":
+                    return getattr(im, "text", {}).get(key) == value
+                return im.info.get("comment") == f"{key}: {value}".encode()
+        if suffix == ".exr":
+            import OpenEXR
+
+            return OpenEXR.File(str(path), header_only=True).header().get(key) == value
+        if suffix == ".json":
+            data = read_json(path)
+            return isinstance(data, dict) and data.get(key) == value
+        if suffix == ".mp4":
+            import av
+
+            with av.open(ffmpeg_file(path)) as container:
+                return container.metadata.get("comment") == f"{key}: {value}"
+    except Exception:  # noqa: BLE001 -- a file it cannot read as its own is not its own
+        return False
+    return False
+
+
+def refuse_foreign(paths, force: bool = False) -> None:
+    """Before any work: every path of ``paths`` that holds a file this program did not write (no
+    ``MARK`` in it) is refused in one line naming it, unless ``force``."""
+    from .errors import InputError
+
+    for p in paths:
+        p = Path(p)
+        if (p.exists() or p.is_symlink()) and not force and not file_is_ours(p):
+            raise InputError(p, "is not a file relight wrote: refusing to replace it (move it away, choose another -o, "
+                                "or give --force to replace it)")

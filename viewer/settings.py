@@ -20,6 +20,7 @@ from .shader_modes import MODES
 from .lighting.lights import rotation_matrix
 
 AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.output.render.photo_exposure)
+MAX_BACKGROUND = 65504.0  # the background colour's largest value: the largest a half-float EXR holds
 MAX_BACKDROP_BLUR = 30.0  # degrees (viewer.backdrop.MAX_BLUR)
 EXPOSURE_LIMIT = 40.0  # stops either way
 TONEMAPS = MODES["TONEMAP"]
@@ -79,8 +80,9 @@ class Look:
             color = np.asarray(self.background_color, dtype=np.float64)
         except (TypeError, ValueError):
             color = np.zeros(0)
-        if color.shape != (3,) or not np.all(np.isfinite(color)) or np.any(color < 0):
-            raise InputError(None, f"background colour must be three finite values >= 0, got {self.background_color!r}")
+        if color.shape != (3,) or not np.all(np.isfinite(color)) or np.any(color < 0) or np.any(color > MAX_BACKGROUND):
+            raise InputError(None, f"background colour must be three values in [0, {MAX_BACKGROUND:g}] (linear; 1 is white), "
+                                   f"got {self.background_color!r}")
         object.__setattr__(self, "background_color", tuple(float(c) for c in color))
         _choice("shadows", self.shadows, VISIBILITY_MODES)
         for name in ("diffuse", "specular", "skin"):

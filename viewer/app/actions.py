@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..imageio import write_exr, write_png, write_text
+from ..imageio import MARK, write_exr, write_png, write_text
 from ..lighting.placed_lights import PlacedLight, level
 from ..scene import PHOTO_SUFFIXES
 from . import interaction as ix
@@ -54,7 +54,7 @@ class Actions:
         state = {"look": look_json(self.app), "map": str(self.app.env_path) if self.app.env_path else None, "preset": self.app.preset}
         state["lights"] = self.app.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
         state["rig"] = [asdict(p) for p in self.app.session.placed]
-        write_text(stem.with_suffix(".json"), json.dumps(state, indent=2) + "\n")
+        write_text(stem.with_suffix(".json"), json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n")
         self.app.captures.append(str(png))
         self.app.message = f"saved {png.name} (+ .exr, .json)"
         print(f"saved {png} {stem.with_suffix('.exr')} {stem.with_suffix('.json')}", flush=True)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..imageio import atomic_path
+from ..imageio import atomic_path, png_mark
 
 SHEET = "contact-sheet.png"
 THUMB = 256  # pixels of a thumbnail's height
@@ -58,7 +58,7 @@ def contact_sheet(folder: Path, done: dict[str, dict], ownership) -> Path | None
                 continue  # moved, changed or unreadable since: left blank
             sheet.paste(im, (x + (width - im.width) // 2, y + LABEL))
     with atomic_path(path) as tmp:
-        sheet.save(tmp, format="PNG")
+        sheet.save(tmp, format="PNG", pnginfo=png_mark())
     return path
 
 

@@ -29,16 +29,20 @@ def file_sha256(path) -> str:
 def collect_photos(paths) -> tuple[list[Path], list[str]]:
     """The photos named by ``paths`` (files, folders: their photos, sorted; globs), each once, and
     one line per path that named none. ``*.mask.png`` files (hand-made masks beside photos) are not
-    photos."""
+    photos, and neither are, in a folder or a glob, images this program wrote (a batch's contact
+    sheet and outputs, when a batch writes into the folder it reads: ``viewer.ownership``)."""
+    from ..ownership import file_is_ours
+
     photos, missing = [], []
     for given in paths:
         p = Path(given)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and is_photo(q))
+            found = sorted(q for q in p.iterdir() if q.is_file() and is_photo(q) and not file_is_ours(q))
         elif p.is_file():
             found = [p]
         else:
-            found = sorted(Path(q) for q in glob.glob(str(given)) if Path(q).is_file() and is_photo(Path(q)))
+            found = sorted(Path(q) for q in glob.glob(str(given))
+                           if Path(q).is_file() and is_photo(Path(q)) and not file_is_ours(Path(q)))
         if not found:
             missing.append(f"{given}: no photo there (PNG, JPEG, TIFF, WebP or BMP)")
         photos += [q for q in found if q.resolve() not in {r.resolve() for r in photos}]
@@ -85,7 +89,7 @@ def look_specs(envmaps, light_files, yaws, rigs, presets) -> list[LookSpec]:
         for yaw in (yaws or ["auto"]):
             for rig in (rigs or [None]):
                 for preset in (presets or [None]):
-                    stem = (envmap or lights_file).name.split(".")[0]
+                    stem = folder_name((envmap or lights_file).name.split(".")[0], "look")
                     name = stem + (f"_y{_yaw_text(yaw)}" if yaws else "") + (f"_{Path(rig).stem}" if rig else "") \
                         + (f"_{preset}" if preset else "")
                     base, count = name, 1
@@ -101,14 +105,22 @@ def _yaw_text(yaw) -> str:
     return "auto" if yaw == "auto" else f"{float(yaw):g}"
 
 
+def folder_name(stem: str, empty: str = "photo") -> str:
+    """A stem as a name inside the batch's folder: never ``.``, ``..`` or hidden (a photo named
+    ``...jpg`` wrote into the output's parent), never empty (``empty`` then)."""
+    name = stem.lstrip(".")
+    return name if name else empty
+
+
 def photo_names(photos: list[Path]) -> dict[Path, str]:
-    """A folder name per photo: its stem, or its stem and a short hash of its path where two photos
-    share a stem."""
-    stems: dict[str, int] = {}
-    for p in photos:
-        stems[p.stem] = stems.get(p.stem, 0) + 1
-    return {p: p.stem if stems[p.stem] == 1 else f"{p.stem}-{hashlib.sha256(str(p.resolve()).encode()).hexdigest()[:6]}"
-            for p in photos}
+    """A folder name per photo: its stem (:func:`folder_name`), or that and a short hash of its path
+    where two photos share it."""
+    names = {p: folder_name(p.stem) for p in photos}
+    counts: dict[str, int] = {}
+    for n in names.values():
+        counts[n] = counts.get(n, 0) + 1
+    return {p: n if counts[n] == 1 else f"{n}-{hashlib.sha256(str(p.resolve()).encode()).hexdigest()[:6]}"
+            for p, n in names.items()}
 
 
 def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, settings: dict) -> str:

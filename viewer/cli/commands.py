@@ -11,6 +11,7 @@ import numpy as np
 from .command_setup import command_lights, command_look, engine_options, first_look, fitted_lights, gl_threads, light_count_option, prepare, rig_lights, warn_if_dark
 from ..errors import InputError
 from .output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
+from ..ownership import file_is_ours, refuse_foreign
 from ..resources import asset_dir, sample_scene_dir
 from ..scene_ops import load_sized_scene
 from ..output.video import partial_path as video_partial, partial_taken
@@ -91,6 +92,7 @@ def cmd_render(args) -> int:
     writable(out)
     outputs = [out] if suffix == ".mp4" else [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
     not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
+    refuse_foreign(outputs, args.force)
     if suffix == ".mp4":
         check_video(args)
         if look.background == "transparent":  # H.264 has no alpha: it came out black (the option or a --look)
@@ -231,6 +233,9 @@ def cmd_infer(args) -> int:
 def cmd_fit_lights(args) -> int:
     from ..lighting.envmap import load_envmap
     out = Path(args.output) if args.output else beside_the_map(Path(args.map))
+    mine = None  # a light file beside the map that the user wrote: kept, the lights go to the cache
+    if not args.output and out is not None and out.exists() and not args.force and not file_is_ours(out):
+        out, mine = None, out
     if out is not None and out.suffix.lower() != ".json":
         raise InputError(out, "the light file is JSON: give a .json output path")
     if out is not None:
@@ -242,6 +247,7 @@ def cmd_fit_lights(args) -> int:
         if out is not None and Path(args.plot).resolve() == out.resolve():
             raise InputError(args.plot, "is the light file's path too: give the plot its own")
     not_an_input([p for p in (out, args.plot) if p], [args.map])
+    refuse_foreign([p for p in (out, args.plot) if p], args.force)
     n = light_count_option(args.n, args.method)
     env = load_envmap(args.map, repair=args.repair)
     start = time.perf_counter()
@@ -249,12 +255,13 @@ def cmd_fit_lights(args) -> int:
     seconds = time.perf_counter() - start
     how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
     if out is None:
-        print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache (the map's folder is not "
-              "writable; -o writes a light file)")
+        why = (f"{mine} is not a file relight wrote: kept; -o writes a light file, --force replaces it" if mine
+               else "the map's folder is not writable; -o writes a light file")
+        print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache ({why})")
     else:
         from ..lighting.lightfit.cache import fit_record
 
-        lights.save(out, fit=fit_record(args.map, args.method, args.n))
+        lights.save(out, fit=fit_record(args.map, args.method, args.n, env))
         print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
     warn_if_dark(lights, args.map)
     if args.plot:

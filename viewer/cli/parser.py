@@ -42,6 +42,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
+    p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)
     add_view_args(p)
     p.set_defaults(func=cmd_render)
@@ -110,6 +111,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                         "median-cut: initialization only")
     p.add_argument("--plot", help="also draw the lights on the map into this PNG")
     p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")
+    p.add_argument("--force", action="store_true", help="replace files at -o and --plot that relight did not write")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
 

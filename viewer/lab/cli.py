@@ -242,7 +242,7 @@ def cmd_bench(args) -> int:
                   f"{r['peak_mb']} MB)"
                   + ("" if r["clean"] else f": {'; '.join(r['problems'])}: {r['last_line']}"), flush=True)
 
-        result = run_robustness_benchmark(output=output, progress=show)
+        result = run_robustness_benchmark(output=output, progress=show, seed=args.campaign_seed)
         for group, g in result["groups"].items():
             print(f"{group:>20}: {g['clean']}/{g['tried']} clean, peak {g['peak_mb']} MB")
         print(f"{result['tried']} cases tried, {result['clean']} ended cleanly, {result['tracebacks']} tracebacks, "
@@ -333,6 +333,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                    "path (holes and speckle on skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
                    "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/)")
     p.add_argument("--before", help="photos --set: a photo_set.json of an earlier run, shown beside this one")
+    p.add_argument("--campaign-seed", type=int, default=17, help="robustness: the generators' seed (default 17; another seed "
+                                                                  "makes held-back variants of every generated class)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")
     p.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     p.add_argument("--lights", type=int, nargs="+", default=[8, 16, 32])

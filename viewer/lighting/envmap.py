@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..file_kinds import regular_file
 from ..imageio import atomic_path, check_pixels, read_exr, write_exr
 from .lights import rotation_matrix
 
@@ -238,8 +239,7 @@ def load_envmap(path, repair: bool = False) -> EnvMap:
     path = Path(path)
     if path.suffix.lower() not in SUFFIXES:
         raise InputError(path, f"unsupported environment map format {path.suffix!r} (use .hdr or .exr)")
-    if not path.is_file():
-        raise InputError(path, "file not found")
+    regular_file(path, "environment map")
     if path.suffix.lower() == ".exr":
         px = read_exr(path, MAX_MAP_PIXELS)
         if px.ndim == 2:

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..imageio import read_json, write_text
+from ..file_kinds import regular_file
+from ..imageio import MARK, read_json, write_text
 
 FORMAT = "relight-lights"
 VERSION = 1
@@ -133,7 +134,7 @@ class AreaLights:
         """Write the JSON light file; ``fit`` (optional) records how the lights were made."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        data = self.to_json()
+        data = {**self.to_json(), MARK[0]: MARK[1]}
         if fit is not None:
             data["fit"] = fit
         return write_text(path, json.dumps(data, indent=2) + "\n")
@@ -194,9 +195,7 @@ def _check_npy_header(path: Path):
 
 def load_lights(path) -> AreaLights:
     """Load a light file (.json, or the paper's .npy) and validate it."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "light file not found")
+    path = regular_file(path, "light file")
     if path.suffix.lower() == ".npy":
         _check_npy_header(path)  # before any allocation: a header may claim 1e12 rows
         try:

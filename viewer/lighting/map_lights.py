@@ -1,7 +1,7 @@
 """Where a map's area lights come from: the one rule the command line and the window share.
 
 In order: a light file the user gave; the lights shipped beside the map (``MAP.lights.json``, as
-the bundled maps have) when they were fitted for the same count by the method asked or one at
+the bundled maps have) when they were fitted to that very map (its content's hash), for the same count by the method asked or one at
 least as accurate; the fitting cache; a fit now (the caller's: in process with progress bars on
 the command line, in a niced child process in the window).
 """
@@ -14,15 +14,17 @@ from typing import Callable
 from .envmap import EnvMap
 from ..errors import InputError
 from ..imageio import read_json
-from .lightfit.cache import FIT_VERSION, cached_lights
+from .lightfit.cache import FIT_VERSION, cached_lights, map_hash
 from .lightfit.methods import serves
 from .lights import AreaLights, load_lights
 
 
-def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
-    """Lights shipped beside a map (``<map>.lights.json``) when they were fitted for the same count,
-    by the method asked or one at least as accurate (:func:`viewer.lighting.lightfit.methods.serves`),
-    by the fitters' current version (``FIT_VERSION``; a file without one is version 1)."""
+def sidecar_lights(env: EnvMap, env_path: Path, n: int, method: str) -> AreaLights | None:
+    """Lights shipped beside a map (``<map>.lights.json``) when they were fitted to this very map
+    (the hash of ``env``'s content in their fit record: a map replaced or edited since, or another
+    map of the same name and another suffix, is not served by them), for the same count, by the
+    method asked or one at least as accurate (:func:`viewer.lighting.lightfit.methods.serves`), by
+    the fitters' current version (``FIT_VERSION``; a file without one is version 1)."""
     side = Path(env_path).with_suffix(".lights.json")
     if not side.is_file():
         return None
@@ -30,6 +32,8 @@ def sidecar_lights(env_path: Path, n: int, method: str) -> AreaLights | None:
         fit = read_json(side, "light file").get("fit") or {}
     except (InputError, AttributeError):
         return None
+    if fit.get("map") != map_hash(env):
+        return None  # fitted to another map, or the map changed since
     if fit.get("n") != n or not serves(str(fit.get("method")), method) or fit.get("version", 1) != FIT_VERSION:
         return None  # another count or method, or fitted before the fitters last changed
     try:
@@ -43,7 +47,7 @@ def map_lights(env: EnvMap, env_path, n: int, method: str,
     """The lights of the map ``env`` (read from ``env_path``) and where they came from: "bundled"
     (beside the map), "cached" or "fitted" (``fit(env)`` returns the lights and whether they came
     from the cache after all: another process may have fitted them meanwhile)."""
-    side = sidecar_lights(env_path, n, method)
+    side = sidecar_lights(env, env_path, n, method)
     if side is not None:
         return side, "bundled"
     cached = cached_lights(env, n, method)  # a corrupt entry: warned, and fitted again

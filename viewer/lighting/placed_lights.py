@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..imageio import read_json, write_text
+from ..imageio import MARK, read_json, write_text
 from .lights import AreaLights, azimuth_elevation
 from .median_cut import LUMINANCE
 from ..shadow_space import ANGULAR_SIGMA
@@ -151,7 +151,7 @@ def rig(name: str, level: float) -> tuple[PlacedLight, ...]:
 
 def save_rig(path, placed) -> Path:
     """Write the rig as JSON (atomically)."""
-    return write_text(path, json.dumps({"format": FORMAT, "lights": [asdict(p) for p in placed]}, indent=2) + "\n")
+    return write_text(path, json.dumps({"format": FORMAT, "lights": [asdict(p) for p in placed], MARK[0]: MARK[1]}, indent=2) + "\n")
 
 
 def load_rig(path) -> tuple[PlacedLight, ...]:

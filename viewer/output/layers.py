@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..imageio import atomic_path
+from ..imageio import MARK, atomic_path
 
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
@@ -74,7 +74,7 @@ def write_layers(path, channels: dict[str, np.ndarray]):
     """One ZIP-compressed scanline EXR with every channel, written atomically."""
     import OpenEXR
 
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, MARK[0]: MARK[1]}
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as stream:
             OpenEXR.File(header, channels).write(stream)

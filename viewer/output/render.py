@@ -48,7 +48,7 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
     return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
 
 
-WHITE_SHARE = 0.9  # of the person's pixels clipped to white: the lights are far too bright for the exposure
+UNSEEN_SHARE = 0.9  # of the person's pixels clipped to white (or black): the lights far too bright (dim) for the exposure
 
 
 def warn_if_white(engine, scene: Scene, settings: Look) -> None:
@@ -61,7 +61,7 @@ def warn_if_white(engine, scene: Scene, settings: Look) -> None:
     if not scene.mask.any():
         return
     lum = luminance(engine.output.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
-    if np.mean(tonemap_curve(lum, settings.tonemap) >= 0.99) < WHITE_SHARE:
+    if np.mean(tonemap_curve(lum, settings.tonemap) >= 0.99) < UNSEEN_SHARE:
         return
     stops = float(np.log2(max(np.median(lum), 1e-30) / 0.18))
     lower = settings.exposure - stops
@@ -69,6 +69,36 @@ def warn_if_white(engine, scene: Scene, settings: Look) -> None:
               else f"lower the lights' intensities (--exposure goes down to -{EXPOSURE_LIMIT:.0f} stops)")
     warnings.warn(f"the person comes out white: the lights are about {stops:.0f} stops brighter than exposure "
                   f"{settings.exposure:+.1f} shows; {advice}", stacklevel=2)
+
+
+def warn_if_black(engine, scene: Scene, settings: Look, lit: bool) -> None:
+    """One warning line when the person comes out black though its lights are not all zero (all
+    zero, ``lit`` False: the command's own warning says so) (a map of 1e-30 everywhere, one lit texel in a black
+    map): how many stops too dark, and what to do. Uses the engine's current render."""
+    from ..photo.detail import luminance
+    from ..settings import EXPOSURE_LIMIT
+
+    if not scene.mask.any() or not lit:
+        return
+    lum = luminance(engine.output.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
+    if np.mean(tonemap_curve(lum, settings.tonemap) < 1.0 / 255.0) < UNSEEN_SHARE:
+        return
+    peak = float(np.max(lum)) if lum.size else 0.0
+    if not np.isfinite(peak) or peak <= 0.0:
+        warnings.warn("the person comes out black: no light reaches it (are the lights all behind the camera, or the map "
+                      "black?)", stacklevel=2)
+        return
+    stops = float(np.log2(0.18 / max(float(np.median(lum)), 1e-300)))
+    higher = settings.exposure + stops
+    advice = (f"try --exposure {higher:.0f}" if higher <= EXPOSURE_LIMIT
+              else f"the lights are too dim to show (--exposure goes up to {EXPOSURE_LIMIT:.0f} stops): is the map nearly black?")
+    warnings.warn(f"the person comes out black: the lights are about {stops:.0f} stops darker than exposure "
+                  f"{settings.exposure:+.1f} shows; {advice}", stacklevel=2)
+
+
+def _lit(lights: AreaLights, fixed: AreaLights | None) -> bool:
+    """Whether any light, the map's or a placed one, gives light."""
+    return bool(np.any(lights.intensity > 0) or (fixed is not None and np.any(fixed.intensity > 0)))
 
 
 def effective_background(settings: Look, scene: Scene, has_environment: bool) -> str:
@@ -137,6 +167,7 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     out_dir = Path(out_dir)
     settings, _ = render_look(engine, scene, lights, settings, environment, fixed, soft_planes=passes)
     warn_if_white(engine, scene, settings)
+    warn_if_black(engine, scene, settings, _lit(lights, fixed))
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.output.read_display_rgba() if transparent else engine.output.read_display()).astype(np.float32) / 255.0
     hdr = engine.output.read_output_hdr()
@@ -177,6 +208,7 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
             refiner = render_frame(engine, settings, refiner)
             if i == 0:
                 warn_if_white(engine, scene, settings)
+                warn_if_black(engine, scene, settings, _lit(lights, fixed))
             video.write(engine.output.read_display())
             if progress is not None:
                 progress(i + 1, frames)

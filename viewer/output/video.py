@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..imageio import MARK, ffmpeg_file
 
 TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
 FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
@@ -68,11 +69,13 @@ class VideoWriter:
         self._last_pts = -1
         # flush_packets: each finished fragment reaches the file at once, not when an I/O buffer fills
         try:
-            self._container = av.open(str(self.partial), "w", options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
+            self._container = av.open(ffmpeg_file(self.partial), "w", format="mp4",
+                                      options={"movflags": FRAGMENT_FLAGS, "flush_packets": "1"})
         except (OSError, av.FFmpegError) as exc:
             self.partial.unlink(missing_ok=True)  # the empty file made above
             raise InputError(self.path, f"cannot write the video ({exc})") from None
         try:
+            self._container.metadata["comment"] = f"{MARK[0]}: {MARK[1]}"  # viewer.ownership: the program's own file
             rate = Fraction(self.fps).limit_denominator(1001)
             self._time_base = 1 / (rate * TICKS_PER_FRAME)
             stream = self._container.add_stream("libx264", rate=rate)
@@ -145,8 +148,11 @@ class VideoWriter:
             self._thread.join()
 
     def close(self) -> Path:
-        """Flush the encoder, finish the file and put it in place of the target; returns its path."""
+        """Flush the encoder, finish the file and put it in place of the target; returns its path.
+        An encoding that failed leaves no partial file (this writer's own, and not a video)."""
         self._finish_encoding()
+        if self._error is not None:
+            self.partial.unlink(missing_ok=True)
         self._raise_pending()
         os.replace(self.partial, self.path)
         return self.path
@@ -175,7 +181,7 @@ def read_video(path) -> tuple[np.ndarray, float]:
     """All frames of a video as (T, H, W, 3) uint8, and its frame rate."""
     import av
 
-    with av.open(str(path)) as container:
+    with av.open(ffmpeg_file(path)) as container:
         stream = container.streams.video[0]
         frames = [f.to_ndarray(format="rgb24") for f in container.decode(stream)]
         rate = float(stream.average_rate or stream.guessed_rate or 0.0)

@@ -38,6 +38,8 @@ from . import detail as detail_mod
 from . import gloss
 from ..backdrop import photo_blur
 from ..errors import InputError
+from ..file_kinds import regular_file
+from ..imageio import read_json
 from .face import find_faces, light_fit_weight, with_face
 from .matting import automatic_matte, mask_matte
 from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
@@ -190,11 +192,8 @@ def bundle_key(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: in
     import hashlib
 
     h = hashlib.sha256((version or inference_version(networks_dir)).encode())
-    for path in (photo_path, *([mask_path] if mask_path is not None else [])):
-        path = Path(path)
-        if not path.is_file():
-            raise InputError(path, "not found")
-        h.update(path.read_bytes())
+    for path, what in ((photo_path, "photo"), *([(mask_path, "mask")] if mask_path is not None else [])):
+        h.update(regular_file(path, what).read_bytes())
     h.update(f"{size} {max_size} {mask_path is None}".encode())
     return h.hexdigest()
 
@@ -203,17 +202,43 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
                   networks_dir=None, progress=None, ctx=None, bundles=None) -> tuple[Path, bool]:
     """(bundle directory, whether it was cached): inference runs once per :func:`bundle_key`; the
     bundle is kept in ``bundles``, by default beside the light cache (``bundles/``; a batch on a
-    cluster names its shared folder)."""
+    cluster names its shared folder). A cached bundle is used only when it is whole (every file as
+    this program wrote it, :func:`viewer.ownership.written_here`) and was made from the very bytes
+    the key was (its record's ``inputs_sha256``); a damaged one is inferred again. A photo or mask
+    that changes while it is inferred is one line (run again), and its bundle is not kept."""
+    import hashlib
+    import shutil
+
     from ..lighting.lightfit.cache import cache_dir
 
     key = bundle_key(photo_path, mask_path, size, max_size, networks_dir)
+    expected = {"photo": hashlib.sha256(Path(photo_path).read_bytes()).hexdigest(),
+                **({"mask": hashlib.sha256(Path(mask_path).read_bytes()).hexdigest()} if mask_path is not None else {})}
     out = Path(bundles or cache_dir().with_name("bundles")) / f"{Path(photo_path).stem}-{key[:16]}"
-    if (out / "inference.json").is_file():
-        return out, True
+    if out.exists() or out.is_symlink():
+        if _made_from(out, expected):
+            return out, True
+        damaged = fresh_sibling(out, "damaged")  # the cache's own entry, damaged or of other bytes: taken away
+        out.rename(damaged / out.name)
+        shutil.rmtree(damaged, ignore_errors=True)
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
           networks=load_networks(device, networks_dir), progress=progress, ctx=ctx)
+    if not _made_from(out, expected):
+        shutil.rmtree(out, ignore_errors=True)
+        raise InputError(photo_path, "changed while it was being inferred: run again once it is in place")
     return out, False
+
+
+def _made_from(bundle: Path, inputs: dict) -> bool:
+    """Whether ``bundle`` is whole, as this program wrote it, and made from ``inputs`` (SHA-256 of
+    the photo's and the mask's bytes)."""
+    if not written_here(bundle):
+        return False
+    try:
+        return read_json(bundle / "inference.json", "inference record").get("inputs_sha256") == inputs
+    except (InputError, AttributeError):
+        return False
 
 
 class _Stages:
@@ -253,6 +278,8 @@ def _check_memory(photo_path, max_size: int) -> None:
 
     from .. import budget
 
+    if Path(photo_path).exists() and not Path(photo_path).is_dir():  # (a folder or none: read_photo's one line)
+        regular_file(photo_path, "photo")  # before it is opened: a pipe would block
     try:
         with warnings.catch_warnings():  # the size is all that is read here; read_photo checks the rest
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
@@ -285,8 +312,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
 
     stage = _Stages(progress)
     notes: list[str] = []
+    inputs: dict[str, str] = {}  # SHA-256 of the bytes decoded: what this bundle was made from
     _check_memory(photo_path, max_size)
-    photo = read_photo(photo_path, notes)
+    photo = read_photo(photo_path, notes, inputs)
     h, w = photo.shape[:2]
     frame = output_frame((w, h), max_size)
     frame_photo = resize(photo, frame)
@@ -294,7 +322,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     from .segmentation import find_person
 
     if mask_path is not None:
-        matte = mask_matte(frame_photo, np.clip(resize(read_mask(mask_path, (h, w), notes), frame), 0.0, 1.0))
+        matte = mask_matte(frame_photo, np.clip(resize(read_mask(mask_path, (h, w), notes, inputs), frame), 0.0, 1.0))
         mask_source = str(mask_path)
         try:  # the pose's landmarks still tell the face's skin (viewer.photo.gloss); a mask needs no person found
             landmarks = find_person(frame_photo, photo_path).landmarks
@@ -390,7 +418,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, matte.foreground, detail)
     stage("detail")
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
-    record = {"photo": str(photo_path), "mask": mask_source, "sizes": sizes.to_json(),
+    record = {"photo": str(photo_path), "mask": mask_source, "inputs_sha256": inputs, "sizes": sizes.to_json(),
               "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
               "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
               "matte": matte.record, "gloss": gloss_record, "face": face_record, "background_blur": {"pixels": round(blur_px, 3),

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..file_kinds import wrong_kind
+from ..file_kinds import regular_file, wrong_kind
 from ..imageio import MAX_IMAGE_PIXELS, check_pixels
 
 MAX_SIZE = 2048  # default longer side of every output
@@ -95,22 +95,34 @@ def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return out[..., None] if channels == 1 else out
 
 
-def read_image_u8(path, what: str, notes: list) -> np.ndarray:
+def read_image_u8(path, what: str, notes: list, digests: dict | None = None, colours: bool = True) -> np.ndarray:
     """An image file as uint8 (H, W[, C]), upright: the EXIF orientation applied (with a note),
-    16-bit images reduced to 8 bits (with a note), palette and other modes converted."""
+    16-bit images reduced to 8 bits (with a note), palette and other modes converted, colours in an
+    embedded ICC profile other than sRGB (Adobe RGB, Display P3, ProPhoto) converted to sRGB by
+    LittleCMS (Pillow's ImageCms; with a note; ``colours`` False: values, not colours, as a mask's,
+    never converted). The file is read once: ``digests[what]`` (when given)
+    is the SHA-256 of the very bytes decoded (a file replaced meanwhile cannot pass for another)."""
+    import hashlib
+    import io
+
     from PIL import Image, ImageOps
 
     Image.MAX_IMAGE_PIXELS = MAX_PIXELS
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, f"{what} not found")
+    path = regular_file(path, what)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(path, f"cannot read the {what} ({exc.strerror or exc})") from None
+    if digests is not None:
+        digests[what] = hashlib.sha256(data).hexdigest()
     try:
         with warnings.catch_warnings():  # the size check below refuses it in one line instead
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            opened = Image.open(path)
+            opened = Image.open(io.BytesIO(data))
         with opened as im:
             check_pixels(path, im.width, im.height, MAX_PIXELS)  # Pillow itself only refuses twice its limit
             orientation = im.getexif().get(0x0112, 1)
+            icc = im.info.get("icc_profile")
             upright = ImageOps.exif_transpose(im)
             upright.load()
             if orientation not in (1, None) and isinstance(orientation, int) and 2 <= orientation <= 8:
@@ -122,6 +134,8 @@ def read_image_u8(path, what: str, notes: list) -> np.ndarray:
             else:
                 if upright.mode not in ("L", "RGB", "RGBA"):
                     upright = upright.convert("RGBA" if "A" in upright.getbands() else "RGB")
+                if icc and colours and upright.mode in ("RGB", "RGBA"):
+                    upright = to_srgb(upright, icc, path, what, notes)
                 arr = np.asarray(upright, dtype=np.uint8)
     except InputError:
         raise
@@ -134,13 +148,40 @@ def read_image_u8(path, what: str, notes: list) -> np.ndarray:
     return arr
 
 
-def read_photo(path, notes: list) -> np.ndarray:
+def to_srgb(image, icc: bytes, path, what: str, notes: list):
+    """``image`` (RGB or RGBA) with colours in the ICC profile ``icc`` converted to sRGB (relative
+    colorimetric, LittleCMS); unchanged when the profile is sRGB's already. A profile LittleCMS
+    cannot read is one line naming the file."""
+    import io
+
+    from PIL import ImageCms
+
+    try:
+        source = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+        name = (ImageCms.getProfileDescription(source) or "").strip()
+    except (OSError, ImageCms.PyCMSError) as exc:
+        raise InputError(path, f"the {what}'s embedded colour profile cannot be read ({exc})") from None
+    if "srgb" in name.lower().replace(" ", ""):
+        return image
+    alpha = image.getchannel("A") if image.mode == "RGBA" else None
+    try:
+        rgb = ImageCms.profileToProfile(image.convert("RGB"), source, ImageCms.createProfile("sRGB"), outputMode="RGB",
+                                        renderingIntent=ImageCms.Intent.RELATIVE_COLORIMETRIC)
+    except ImageCms.PyCMSError as exc:
+        raise InputError(path, f"the {what}'s colours cannot be converted from its profile {name!r} to sRGB ({exc})") from None
+    notes.append(f"the {what}'s colours converted from its embedded profile {name!r} to sRGB")
+    if alpha is not None:
+        rgb.putalpha(alpha)
+    return rgb
+
+
+def read_photo(path, notes: list, digests: dict | None = None) -> np.ndarray:
     """The photo as (H, W, 3) uint8 sRGB, upright. Grayscale becomes RGB and alpha is dropped,
-    each with a note."""
+    each with a note. ``digests``: see :func:`read_image_u8`."""
     wrong = wrong_kind(path, "a photo")
     if wrong is not None:
         raise wrong
-    photo = read_image_u8(path, "photo", notes)
+    photo = read_image_u8(path, "photo", notes, digests)
     if min(photo.shape[:2]) < MIN_PERSON_PX:
         raise InputError(path, f"is {photo.shape[1]}x{photo.shape[0]} pixels: a photo of a person needs at least "
                                f"{MIN_PERSON_PX} pixels a side")
@@ -156,11 +197,11 @@ def read_photo(path, notes: list) -> np.ndarray:
 MAX_GREY_FRACTION = 0.25  # of a mask's pixels between 10 % and 90 %
 
 
-def read_mask(path, photo_shape: tuple[int, int], notes: list) -> np.ndarray:
+def read_mask(path, photo_shape: tuple[int, int], notes: list, digests: dict | None = None) -> np.ndarray:
     """A person mask file as a matte (H, W) float32 in [0, 1] matching the upright photo: grey
     or RGB (first channel). A mask drawn on the photo as stored (before its EXIF rotation) is
     refused with that hint."""
-    img = read_image_u8(path, "mask", notes)
+    img = read_image_u8(path, "mask", notes, digests, colours=False)
     if img.ndim == 3:
         img = img[..., 0]
     h, w = photo_shape

@@ -27,11 +27,13 @@ from ..lights import AreaLights, load_lights
 FIT_VERSION = 2  # bump when a change to the fitters changes their results
 
 
-def fit_record(source, method: str, n: int, **more) -> dict:
-    """What a light file says of its fit (its ``fit``): the map's file name, the method, the count and
-    the fitters' version (a light file beside a map serves a request only from the current fitters,
+def fit_record(source, method: str, n: int, env: EnvMap | None = None, **more) -> dict:
+    """What a light file says of its fit (its ``fit``): the map's file name, the hash of the map's
+    content (``map``, :func:`map_hash` of ``env``), the method, the count and the fitters' version (a
+    light file beside a map serves a request only for that very map and from the current fitters,
     :func:`viewer.lighting.map_lights.sidecar_lights`), and ``more``."""
-    return {"source": Path(source).name if source else None, "method": method, "n": n, **more, "version": FIT_VERSION}
+    return {"source": Path(source).name if source else None, **({"map": map_hash(env)} if env is not None else {}),
+            "method": method, "n": n, **more, "version": FIT_VERSION}
 
 
 def cache_dir() -> Path:
@@ -81,7 +83,7 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
 
     start = time.perf_counter()
     lights = fit_lights(env, n, method, progress=progress)
-    record = fit_record(env.source, method, n, seconds=round(time.perf_counter() - start, 3))
+    record = fit_record(env.source, method, n, env, seconds=round(time.perf_counter() - start, 3))
     if usable:
         try:
             lights.save(path, fit=record)

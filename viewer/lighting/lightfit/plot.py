@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..envmap import EnvMap, direction_to_uv
-from ...imageio import atomic_path, linear_to_srgb
+from ...imageio import MARK, atomic_path, linear_to_srgb
 from ..lights import AreaLights
 from ..median_cut import LUMINANCE
 
@@ -61,6 +61,6 @@ def plot_lights(env: EnvMap, lights: AreaLights, path, title: str | None = None)
     ax.set_title(title or f"{len(lights)} area lights on {name} (marker size: sigma {lights.sigma.min():.1f}-{lights.sigma.max():.1f})")
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
+        fig.savefig(tmp, format="png", metadata={MARK[0]: MARK[1]})  # a PNG text chunk: viewer.ownership
     plt.close(fig)
     return path

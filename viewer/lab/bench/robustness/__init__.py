@@ -31,13 +31,15 @@ from .case import Case, Scenario, run_case, run_scenario
 from .first_campaign import Campaign, first_campaign
 from .scenarios import scenarios
 from .second_campaign import second_campaign
+from .third_campaign import third_campaign
 
 
-def make_cases(work: Path) -> list[Case | Scenario]:
-    """Every case, its files made in ``work``."""
+def make_cases(work: Path, seed: int = 17) -> list[Case | Scenario]:
+    """Every case, its files made in ``work``; ``seed`` the generators' (another one: new variants of
+    every generated class)."""
     from .case import run_command
 
-    kit = Campaign(work)
+    kit = Campaign(work, seed)
     first_campaign(kit)
     photo_bundle = kit.work / "bundles" / "inferred"
     code, _, err, _, _ = run_command(["infer", kit.photo, "--mask", kit.mask, "--size", "64", "--max-size", "256", "-o",
@@ -45,17 +47,18 @@ def make_cases(work: Path) -> list[Case | Scenario]:
     if code != 0:
         raise RuntimeError(f"the campaign's photo bundle could not be inferred: {err[-300:]}")
     second_campaign(kit, photo_bundle)
+    third_campaign(kit)
     return kit.cases + scenarios()
 
 
-def run_robustness_benchmark(work=None, output="out/bench_robustness.json", jobs: int = 2, progress=None) -> dict:
+def run_robustness_benchmark(work=None, output="out/bench_robustness.json", jobs: int = 2, progress=None, seed: int = 17) -> dict:
     import tempfile
 
     budget = memory_budget()
     with tempfile.TemporaryDirectory(prefix="relight-robustness-") as tmp:
         work = Path(work or tmp)
         start = time.perf_counter()
-        cases = make_cases(work)
+        cases = make_cases(work, seed)
 
         def run(c):
             return run_scenario(c, work) if isinstance(c, Scenario) else run_case(c, work)
@@ -76,7 +79,7 @@ def run_robustness_benchmark(work=None, output="out/bench_robustness.json", jobs
             g["peak_mb"] = max(g["peak_mb"], c.result["peak_mb"])
         report = {"tried": len(cases), "clean": sum(c.result["clean"] for c in cases), "groups": groups,
                   "tracebacks": sum("traceback" in c.result["problems"] for c in cases),
-                  "memory_budget_mb": round(budget / 2**20), "seconds": round(time.perf_counter() - start, 1),
+                  "memory_budget_mb": round(budget / 2**20), "seed": seed, "seconds": round(time.perf_counter() - start, 1),
                   "cases": [_summary(c) for c in cases]}
     write_text(output, json.dumps(report, indent=1) + "\n")
     return report

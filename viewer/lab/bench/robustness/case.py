@@ -29,6 +29,7 @@ class Case:
     cache: str | None = None  # its own light cache (default: the campaign's)
     upright: tuple | None = None  # an inferred bundle's frame must come out this size (not sideways)
     watch: list[str] = field(default_factory=list)  # more files that must come out unchanged (a user's)
+    not_said: str | None = None  # words its output must not hold (e.g. stale lights used)
     result: dict = field(default_factory=dict)
 
 
@@ -143,10 +144,12 @@ def said_lines(err: str) -> list[str]:
     return [line for line in err.splitlines() if line.strip() and "%|" not in line]
 
 
-def judge(case: Case, code: int, err: str, lines: list[str], before: dict) -> list[str]:
+def judge(case: Case, code: int, err: str, lines: list[str], before: dict, out: str = "") -> list[str]:
     problems = []
     if "Traceback" in err:
         problems.append("traceback")
+    if case.not_said and case.not_said in out + err:
+        problems.append(f"said {case.not_said!r}")
     if case.expect == "error":
         if code != 2:
             problems.append(f"exit {code}, expected 2")
@@ -189,12 +192,12 @@ def inputs(case: Case) -> list[str]:
 def run_case(case: Case, work: Path) -> dict:
     watched = {p: digest(Path(p)) for p in inputs(case) + ([case.output] if case.output else [])}
     env = {**os.environ, "RELIGHT_CACHE": case.cache or str(work / "cache")}
-    code, _, err, seconds, peak = run_command(case.args, env)
+    code, out, err, seconds, peak = run_command(case.args, env)
     if code is None:
         return {"exit": None, "seconds": TIMEOUT, "clean": False, "problems": [f"no answer in {TIMEOUT:.0f} s"],
                 "last_line": "", "peak_mb": round(peak / 1024)}
     lines = said_lines(err)
-    problems = judge(case, code, err, lines, watched)
+    problems = judge(case, code, err, lines, watched, out)
     return {"exit": code, "seconds": round(seconds, 2), "clean": not problems, "problems": problems,
             "last_line": lines[-1][:300] if lines else "", "peak_mb": round(peak / 1024)}
 

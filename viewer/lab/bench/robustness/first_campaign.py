@@ -276,8 +276,9 @@ def options(kit: Campaign) -> None:
     for what, o in (("-o an existing folder", folder), ("-o a .txt", kit.work / "files" / "x.txt"),
                     ("-o under a file", kit.work / "files" / "existing.png" / "x.png"), ("-o in /proc", Path("/proc/nope/x.png"))):
         kit.cases.append(Case("option", what, ["render", str(kit.sample), str(kit.lights), "--size", "96", "-o", str(o)], "error", str(o)))
-    kit.cases.append(Case("option", "-o an existing PNG (replaced whole)", ["render", str(kit.sample), str(kit.lights), "--size", "96",
-                                                                         "-o", str(existing)], "ok", str(existing)))
+    kit.cases.append(Case("option", "-o a PNG the user made (refused, kept: issue 43)", ["render", str(kit.sample), str(kit.lights),
+                                                                                        "--size", "96", "-o", str(existing)],
+                          "error", str(existing)))
     for what, extra in (("fit-lights -n 0", ["-n", "0"]), ("fit-lights -n 100000", ["-n", "100000"]),
                         ("fit-lights -o .txt", ["-n", "4", "-o", str(kit.out / "l.txt")])):
         o = extra[-1] if "-o" in extra else str(kit.out / f"fit{next(kit.counter)}.json")
