@@ -12,7 +12,7 @@ import numpy as np
 from viewer.lab.bench.metrics import detail_kept
 from viewer.cli.main import main
 from viewer.imageio import read_exr, read_png
-from viewer.resources import asset_dir
+from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 
 
@@ -245,3 +245,22 @@ def test_a_photo_whose_frame_would_not_fit_memory_is_refused_from_its_header(tmp
     assert lines[0].startswith(f"relight: error: {photo}: a 16000x10000 frame from this photo would need about")
     assert budget.infer_bytes(16000 * 10000, side * side * 10000 // 16000) <= budget.memory_budget()
     assert not (tmp_path / "b").exists()
+
+
+def test_closed_full_or_abandoned_output_streams_never_stop_the_work(tmp_path):
+    """stdout closed (``>&-``), a full device (``>/dev/full``), a reader that leaves (``| head -1``)
+    and every standard stream closed: the render is written, exit 0; a full stdout is one warning
+    line, a closed one says nothing (issue 43)."""
+    import shlex
+
+    lights = asset_dir() / "envmaps" / "venice_sunset_256.lights.json"
+    base = " ".join(shlex.quote(a) for a in (sys.executable, "-m", "viewer.cli.main", "render", str(sample_scene_dir()), str(lights),
+                                                 "--size", "64", "-o"))
+    for k, redirect in enumerate((">&-", ">/dev/full", "| head -1", "2>&- >&- <&-")):
+        out = tmp_path / f"r{k}.png"
+        res = subprocess.run(["bash", "-o", "pipefail", "-c", f"{base} {shlex.quote(str(out))} {redirect}"],
+                             capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0 and out.is_file(), (redirect, res.stderr)
+        assert "Traceback" not in res.stderr
+        if redirect == ">/dev/full":
+            assert res.stderr.strip().splitlines()[-1].startswith("relight: warning: standard output refused its lines")

@@ -370,3 +370,30 @@ def test_what_a_mask_file_includes_is_kept_and_lit_as_the_person(ctx, tmp_path):
     hdr = eng.output.read_output_hdr()[..., :3]
     eng.release()
     assert np.isfinite(hdr).all() and hdr[core].mean() > 0.1 * hdr[frame.alpha > 0.99].mean()
+
+
+def test_an_inverted_mask_is_refused_in_one_line(tmp_path):
+    """A mask white on the background and black on the person (issue 43): refused, naming the mask
+    and saying what to do; the mask as given still works, and a mask of the whole photo is still
+    the user's choice."""
+    import subprocess
+    import sys
+
+    from viewer.resources import asset_dir
+
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    mask = np.asarray(Image.open(asset_dir() / "photos" / "underpass.mask.png").convert("L"))
+    Image.fromarray(255 - mask).save(tmp_path / "inverted.png")
+    res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "infer", str(photo), "--mask", str(tmp_path / "inverted.png"),
+                          "--max-size", "256", "-o", str(tmp_path / "b")], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and "inverted.png: looks inverted" in res.stderr and res.stderr.count("\n") == 1
+    assert not (tmp_path / "b").exists()
+    from viewer.photo.inference import check_not_inverted
+
+    check_not_inverted(mask / 255.0, {}, "m.png")
+    check_not_inverted(np.ones((40, 30)), {}, "full.png")
+    with pytest.raises(InputError, match="pose lies outside"):  # the border alone does not tell: the pose does
+        ring = np.zeros((60, 40))
+        ring[10:50, 5:35] = 1.0
+        ring[20:40, 12:28] = 0.0
+        check_not_inverted(ring, {i: (0.5, 0.3 + 0.4 * i / 10) for i in range(10)}, "ring.png")

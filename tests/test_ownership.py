@@ -218,3 +218,33 @@ def test_fit_lights_keeps_a_hand_written_light_file_and_stale_lights_are_not_use
     res = subprocess.run([*RELIGHT, "render", str(asset_dir() / "sample_scene"), "--env", str(sky), "-n", "4", "--size", "64",
                           "-o", str(tmp_path / "r.png")], capture_output=True, text=True, timeout=300)
     assert res.returncode == 0 and "shipped beside the map" not in res.stdout, res.stdout + res.stderr
+
+
+def test_two_renders_to_one_output_at_once_leave_one_renders_files(tmp_path):
+    """Two renders under different lights into one -o at once: the PNG, EXR and passes sheet left are
+    all one render's (each the same bytes as that render alone writes), never a mix (issue 43)."""
+    import hashlib
+
+    from viewer.resources import sample_scene_dir
+
+    maps = asset_dir() / "envmaps"
+    sets = [str(maps / "venice_sunset_256.lights.json"), str(maps / "studio_small_03_256.lights.json")]
+
+    def cmd(lights, out):
+        return [*RELIGHT, "render", str(sample_scene_dir()), lights, "--size", "64", "-o", str(out)]
+
+    def triplet(folder):
+        return tuple(hashlib.sha256((folder / n).read_bytes()).hexdigest() for n in ("r.png", "r.exr", "r_passes.png"))
+
+    alone = []
+    for k, lights in enumerate(sets):
+        (tmp_path / f"alone{k}").mkdir()
+        assert subprocess.run(cmd(lights, tmp_path / f"alone{k}" / "r.png"), capture_output=True, timeout=300).returncode == 0
+        alone.append(triplet(tmp_path / f"alone{k}"))
+    assert alone[0] != alone[1]
+    both = tmp_path / "both"
+    for _ in range(3):
+        procs = [subprocess.Popen(cmd(lights, both / "r.png"), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) for lights in sets]
+        assert all(p.wait(300) == 0 for p in procs)
+        assert triplet(both) in alone
+        assert sorted(p.name for p in both.iterdir()) == ["r.exr", "r.png", "r_passes.png"]

@@ -209,7 +209,8 @@ def _native_reason(exc: Exception, held: list[str]) -> str:
 
 
 def read_exr(path, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
-    """Float32 array, HxW for one channel (Y) or HxWxC for RGB / RGBA. The file is opened once, by
+    """Float32 array, HxW for luminance (Y) or HxWxC for RGB / RGBA (luminance and chroma, Y RY BY,
+    as RGB); any other channel set (alpha alone, depth) is one line naming the file. The file is opened once, by
     Python (any name the system takes, a byte name that is not UTF-8 included) and handed to
     OpenEXR as a stream; the data window is held to ``max_pixels`` (:func:`check_pixels`) before a pixel is
     read (a header may claim anything)."""
@@ -244,12 +245,37 @@ def _exr_pixels(stream, path: Path, max_pixels: int) -> np.ndarray:
     stream.seek(0)
     with OpenEXR.File(stream) as f:
         channels = f.channels()
-        for name in ("RGB", "RGBA", "Y"):
+        for name in ("RGB", "RGBA"):
             if name in channels:
                 return np.ascontiguousarray(channels[name].pixels, dtype=np.float32)
-        if len(channels) != 1:
-            raise InputError(path, f"unsupported EXR channels {sorted(channels)}")
-        return np.ascontiguousarray(next(iter(channels.values())).pixels, dtype=np.float32)
+        if {"Y", "RY", "BY"} <= set(channels):
+            return _from_luminance_chroma(*(channels[c].pixels for c in ("Y", "RY", "BY")))
+        if "Y" in channels:
+            return np.ascontiguousarray(channels["Y"].pixels, dtype=np.float32)
+        raise InputError(path, f"holds the EXR channels {sorted(channels)[:8]}: no colour (R, G, B), luminance (Y) or "
+                               "luminance and chroma (Y, RY, BY) to read")
+
+
+REC709_LUMINANCE = (0.2126, 0.7152, 0.0722)  # OpenEXR's luminance weights for its default (Rec. 709) primaries
+
+
+def _from_luminance_chroma(y: np.ndarray, ry: np.ndarray, by: np.ndarray) -> np.ndarray:
+    """RGB of an EXR stored as luminance and chroma (OpenEXR's RgbaYca: RY = (R - Y) / Y, BY =
+    (B - Y) / Y, chroma possibly at half resolution, brought to the luminance's)."""
+    y = np.asarray(y, np.float32)
+
+    def full(c):
+        c = np.asarray(c, np.float32)
+        if c.shape != y.shape:
+            c = np.repeat(np.repeat(c, -(-y.shape[0] // c.shape[0]), axis=0), -(-y.shape[1] // c.shape[1]), axis=1)
+            c = c[: y.shape[0], : y.shape[1]]
+        return c
+
+    wr, wg, wb = REC709_LUMINANCE
+    r = (full(ry) + 1.0) * y
+    b = (full(by) + 1.0) * y
+    g = (y - wr * r - wb * b) / wg
+    return np.ascontiguousarray(np.stack([r, g, b], axis=-1), dtype=np.float32)
 
 
 def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:

@@ -112,10 +112,11 @@ def folder_name(stem: str, empty: str = "photo") -> str:
     return name if name else empty
 
 
-def photo_names(photos: list[Path]) -> dict[Path, str]:
-    """A folder name per photo: its stem (:func:`folder_name`), or that and a short hash of its path
-    where two photos share it."""
+def photo_names(photos: list[Path], reserved: tuple = ()) -> dict[Path, str]:
+    """A folder name per photo: its stem (:func:`folder_name`; a name of ``reserved``, the batch's own
+    files, with ``-photo`` after it), or that and a short hash of its path where two photos share it."""
     names = {p: folder_name(p.stem) for p in photos}
+    names = {p: f"{n}-photo" if n in reserved else n for p, n in names.items()}
     counts: dict[str, int] = {}
     for n in names.values():
         counts[n] = counts.get(n, 0) + 1

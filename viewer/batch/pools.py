@@ -110,6 +110,26 @@ class LocalPool:
             slot["conn"].close()
 
 
+CONNECT_SECONDS = 5.0  # a cluster's head that does not answer within this is one line, not minutes of retries
+
+
+def reachable(address: str) -> None:
+    """One line when ``address`` (``HOST:PORT``, or ``auto``/``local`` left to Ray) names a head
+    that does not take a connection within :data:`CONNECT_SECONDS` (Ray retried a dead address for
+    minutes, deaf to SIGINT and SIGTERM)."""
+    import socket
+
+    if address in ("auto", "local") or ":" not in address:
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        with socket.create_connection((host or "127.0.0.1", int(port)), timeout=CONNECT_SECONDS):
+            pass
+    except (OSError, ValueError) as exc:
+        raise InputError(None, f"--ray {address}: no Ray head answers there ({getattr(exc, 'strerror', None) or exc}); "
+                               "start one (ray start --head) or give its address") from None
+
+
 class RayPool:
     """One Ray actor per worker, each holding its GL context (EGL; a GPU where its node has one and
     the actor asks for it), restarted by Ray when its process dies and its task retried there."""
@@ -123,6 +143,7 @@ class RayPool:
 
         self._ray = ray
         if not ray.is_initialized():
+            reachable(address)
             ray.init(address=address, include_dashboard=False, log_to_driver=False, logging_level="ERROR")
         cpus = int(ray.available_resources().get("CPU", 0))
         count = workers or max(1, cpus // threads)

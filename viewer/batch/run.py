@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .contact_sheet import SHEET, contact_sheet
-from .manifest import Manifest, OutputLock, Ownership, stamp, still_done
+from .manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
 from .plan import Item, LookSpec, file_sha256, item_key, photo_names
 
 
@@ -64,7 +64,7 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
     from ..errors import InputError
     from ..photo.inference import bundle_key, inference_version
 
-    names = photo_names(photos)
+    names = photo_names(photos, reserved=(MANIFEST, SHEET, LOCK))
     version = inference_version()
     shas, errors = {}, {}
     for p in photos:

@@ -60,13 +60,17 @@ def cmd_batch(args) -> int:
         raise InputError(None, "--per-light adds layers: give --layers too")
     if (args.workers is not None and args.workers < 1) or (args.threads is not None and args.threads < 1):
         raise InputError(None, "--workers and --threads must be at least 1")
+    if args.ray:
+        from ..batch.pools import reachable
+
+        reachable(args.ray)  # before the batch's folder, lock and manifest are made
+    workers, threads = worker_count(args)
     specs = look_specs(*([Path(p).resolve() for p in paths] for paths in (args.envmaps, args.light_files)),
                        args.yaws, [Path(p).resolve() for p in args.rigs], args.presets)
     check_sources(specs)
     folder = Path(args.output).resolve()
     writable(folder, folder=True)
     looks = resolve_looks(specs, args)
-    workers, threads = worker_count(args)
 
     def make_pool():
         from ..batch.pools import LocalPool, RayPool
@@ -104,7 +108,11 @@ def worker_count(args) -> tuple[int, int]:
     cores = work_threads()
     frame = args.max_size * args.max_size * 2 // 3
     per_worker = max(infer_bytes(WORKER_PHOTO_PIXELS, frame), render_bytes(WORKER_MAP_PIXELS, frame))
-    workers = args.workers or max(1, min(cores, int(memory_budget() // per_worker)))
+    fits = max(1, int(memory_budget() // per_worker))
+    if args.workers is not None and args.workers > fits and not args.ray:
+        raise InputError(None, f"--workers {args.workers}: this machine's memory holds {fits} (each needs about "
+                               f"{per_worker / 2**20:.0f} MB at --max-size {args.max_size}); give at most {fits}")
+    workers = args.workers or max(1, min(cores, fits))
     return workers, args.threads or max(1, cores // workers)
 
 

@@ -25,6 +25,14 @@ def main(argv=None) -> int:
 
 
 def _main(argv: list) -> int:
+    import os
+
+    try:
+        os.getcwd()
+    except OSError as exc:  # (numpy's MKL and path-less errors came later, deep inside)
+        print(f"relight: error: the working folder is gone ({exc.strerror}): cd to a folder that exists and run again",
+              file=sys.stderr)
+        return 2
     try:
         plugins = command_plugins()
         if argv and argv[0] in plugins:
@@ -42,7 +50,16 @@ def _main(argv: list) -> int:
     except KeyboardInterrupt as exc:
         print(_interrupted(exc), file=sys.stderr)
         return 130
+    except MemoryError:  # a limit on the process (ulimit -v) below what the budget checks foresee
+        print("relight: error: out of memory (is the process's memory limited, ulimit -v?): give it more, or a smaller "
+              "--max-size / --size", file=sys.stderr)
+        return 2
     except Exception as exc:
+        if type(exc).__module__.startswith(("moderngl", "_moderngl")):  # the GL driver refused (memory, limits)
+            said = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+            print(f"relight: error: OpenGL refused the work ({said}): out of memory (ulimit -v?), or a smaller "
+                  "--size / --max-size", file=sys.stderr)
+            return 2
         # native code that runs Python code (a module's initialisation) may turn the interruption
         # into its own exception ("ImportError: initialization failed", caused by the KeyboardInterrupt)
         cause = _interruption(exc)
@@ -70,6 +87,67 @@ def _interrupted(exc: KeyboardInterrupt) -> str:
     return f"relight: interrupted{by}" + "".join(f"; {note}" for note in getattr(exc, "__notes__", ()))
 
 
+class _Output:
+    """Standard output that never stops the work: a reader gone (``| head -1``: a broken pipe), a
+    full device (``>/dev/full``) or a closed descriptor (``>&-``) loses the lines, not the outputs
+    being written; the first refusal is said once on stderr when the program ends."""
+
+    def __init__(self, stream):
+        self._stream = stream
+        self.refused: str | None = None if stream is not None else "closed"
+
+    def write(self, text):
+        if self.refused is None:
+            try:
+                return self._stream.write(text)
+            except (OSError, ValueError) as exc:
+                self.refused = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        return len(text)
+
+    def flush(self):
+        if self.refused is None:
+            try:
+                self._stream.flush()
+            except (OSError, ValueError) as exc:
+                self.refused = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+
+    def isatty(self) -> bool:
+        try:
+            return self.refused is None and self._stream.isatty()
+        except (OSError, ValueError):
+            return False
+
+    def fileno(self):
+        if self._stream is None:
+            raise OSError("standard output is closed")
+        return self._stream.fileno()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _writable_streams():
+    """Descriptors 0-2 held (a closed one, ``>&-``, is given /dev/null: else the next file opened
+    takes its number, and what is printed, or captured from native code, lands in it), stdout
+    wrapped as :class:`_Output`, a closed stderr written to /dev/null (the exit code still says
+    what happened)."""
+    import os
+
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+    out = _Output(sys.stdout)
+    sys.stdout = out
+    if sys.stderr is None:
+        sys.stderr = open(os.devnull, "w")
+    return out
+
+
 def run() -> None:
     """The ``relight`` program: :func:`main`, then the exit handlers, then out at once. Python's own
     teardown of torch's and MediaPipe's modules took 1.2 s after a photo was inferred (the viewer
@@ -87,17 +165,20 @@ def run() -> None:
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, stop)
     route_to_main_thread()  # never inside native code: llvmpipe's shader compiler crashed on one
+    out = _writable_streams()
     try:
         code = main()
     except KeyboardInterrupt as exc:  # before main's own handling began
         print(_interrupted(exc), file=sys.stderr)
         code = 130
     atexit._run_exitfuncs()  # what registered for the exit (logging's flush, ...) still runs
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
+    out.flush()
+    if out.refused is not None and out.refused != "closed":
+        print(f"relight: warning: standard output refused its lines ({out.refused}); the outputs were written", file=sys.stderr)
+    try:
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        pass
     os._exit(code)
 
 

@@ -11,14 +11,22 @@ REQUIRED_VERSION = 410
 
 
 def create_headless_context() -> moderngl.Context:
-    """A standalone EGL context (OpenGL >= 4.1 core)."""
+    """A standalone EGL context (OpenGL >= 4.1 core); one line naming the likely causes when there
+    is none (the user's input is not one of them: an ``InputError`` without a file)."""
+    import os
+
+    from ..errors import InputError
+
     try:
         return moderngl.create_standalone_context(backend="egl", require=REQUIRED_VERSION)
     except Exception as exc:
-        raise RuntimeError(
-            "cannot create a headless OpenGL context through EGL "
-            f"({exc}); install Mesa's EGL (Debian: apt-get install libegl1 libgl1)"
-        ) from None
+        said = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        override = os.environ.get("MESA_GL_VERSION_OVERRIDE")
+        why = (f"MESA_GL_VERSION_OVERRIDE={override} asks Mesa for less than the OpenGL "
+               f"{REQUIRED_VERSION // 100}.{REQUIRED_VERSION % 100 // 10} this program needs: unset it" if override else
+               "is Mesa's EGL installed (Debian: apt-get install libegl1 libgl1)? is the process's memory limited "
+               "(ulimit -v)?")
+        raise InputError(None, f"cannot create a headless OpenGL context through EGL ({said}); {why}") from None
 
 
 def make_current(ctx: moderngl.Context):

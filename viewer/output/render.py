@@ -12,6 +12,7 @@ from ..constants import TONEMAP_INPUT_MAX
 from ..errors import InputError
 from ..imageio import atomic_paths, linear_to_srgb, write_exr, write_png
 from ..lighting.lights import AreaLights
+from ..ownership import folder_lock
 from ..scene import Scene
 from ..settings import AUTO, Look
 
@@ -171,12 +172,17 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     transparent = effective_background(settings, scene, environment is not None) == "transparent"
     display = (engine.output.read_display_rgba() if transparent else engine.output.read_display()).astype(np.float32) / 255.0
     hdr = engine.output.read_output_hdr()
-    written = [out_dir / (png_name or f"{name}.png"), out_dir / f"{name}.exr"]
-    with atomic_paths(*written) as (png, exr):  # both replaced together, or neither
-        write_png(png, display)
-        write_exr(exr, hdr if transparent else hdr[..., :3])
-    if passes:  # the sheet shows both visibilities: rendered with the soft one whatever the shadows shown
-        written.append(write_png(out_dir / f"{name}_passes.png", passes_sheet(engine, scene, display)))
+    # the sheet shows both visibilities: rendered with the soft one whatever the shadows shown
+    sheet = passes_sheet(engine, scene, display) if passes else None
+    written = [out_dir / (png_name or f"{name}.png"), out_dir / f"{name}.exr"] + ([out_dir / f"{name}_passes.png"] if passes else [])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    # all replaced together or none, and one render's set at a time (two renders to one -o at once:
+    # the last to finish leaves its PNG, EXR and sheet, never a mix)
+    with folder_lock(out_dir), atomic_paths(*written) as tmps:
+        write_png(tmps[0], display)
+        write_exr(tmps[1], hdr if transparent else hdr[..., :3])
+        if sheet is not None:
+            write_png(tmps[2], sheet)
     return written
 
 

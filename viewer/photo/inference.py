@@ -207,7 +207,6 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
     the key was (its record's ``inputs_sha256``); a damaged one is inferred again. A photo or mask
     that changes while it is inferred is one line (run again), and its bundle is not kept."""
     import hashlib
-    import shutil
 
     from ..lighting.lightfit.cache import cache_dir
 
@@ -228,6 +227,44 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
         shutil.rmtree(out, ignore_errors=True)
         raise InputError(photo_path, "changed while it was being inferred: run again once it is in place")
     return out, False
+
+
+def orientation_note(landmarks: dict) -> str | None:
+    """What to say when the pose lies sideways or upside down in the photo (its head beside or below
+    its hips: a photo whose EXIF rotation was lost), else None. The ground and its shadow take the
+    photo's bottom for the floor."""
+    needed = (0, 11, 12, 23, 24)  # nose, shoulders, hips
+    if not all(i in landmarks for i in needed):
+        return None
+    head = np.mean([landmarks[i] for i in (0, 11, 12)], axis=0)
+    hips = np.mean([landmarks[i] for i in (23, 24)], axis=0)
+    dx, dy = hips - head  # image coordinates: y down; upright, the hips are below the head
+    if dy > abs(dx):
+        return None
+    where = "upside down" if -dy > abs(dx) else f"sideways (head to the {'left' if dx > 0 else 'right'})"
+    return (f"the person is {where} in the photo: if the photo lost its rotation (EXIF), turn it upright; the ground "
+            "and its shadow take the photo's bottom for the floor")
+
+
+INVERTED_BORDER = 0.5  # a mask holding more of the image's border than this share is the background's
+INVERTED_POSE = 2 / 3  # or outside of which lie more than this share of the pose's landmarks
+
+
+def check_not_inverted(mask: np.ndarray, landmarks: dict, path) -> None:
+    """Refuse, in one line, a mask that is the background's (white where the person is not): most
+    of the image's border inside it (a mask of the whole photo is the user's choice: noted later),
+    or most of the pose's landmarks outside it."""
+    person = mask > 0.5
+    if person.all():
+        return
+    border = np.concatenate([person[0], person[-1], person[:, 0], person[:, -1]])
+    h, w = person.shape
+    inside = [person[min(int(y * h), h - 1), min(int(x * w), w - 1)] for x, y in landmarks.values() if 0 <= x < 1 and 0 <= y < 1]
+    if border.mean() > INVERTED_BORDER or (len(inside) >= 5 and 1 - np.mean(inside) > INVERTED_POSE):
+        why = (f"{border.mean():.0%} of the image's border is inside it" if border.mean() > INVERTED_BORDER
+               else f"{1 - np.mean(inside):.0%} of the person's pose lies outside it")
+        raise InputError(path, f"looks inverted: {why} (a person mask is white on the person, black elsewhere): "
+                               "invert it and give it again")
 
 
 def _made_from(bundle: Path, inputs: dict) -> bool:
@@ -322,12 +359,14 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     from .segmentation import find_person
 
     if mask_path is not None:
-        matte = mask_matte(frame_photo, np.clip(resize(read_mask(mask_path, (h, w), notes, inputs), frame), 0.0, 1.0))
-        mask_source = str(mask_path)
+        given = np.clip(resize(read_mask(mask_path, (h, w), notes, inputs), frame), 0.0, 1.0)
         try:  # the pose's landmarks still tell the face's skin (viewer.photo.gloss); a mask needs no person found
             landmarks = find_person(frame_photo, photo_path).landmarks
         except InputError:
             landmarks = {}
+        check_not_inverted(given, landmarks, mask_path)
+        matte = mask_matte(frame_photo, given)
+        mask_source = str(mask_path)
     else:
         found = find_person(frame_photo, photo_path, notes)
         matte = automatic_matte(frame_photo, found)
@@ -336,6 +375,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     alpha = matte.alpha
     person = alpha > 0.5
     check_person(person, mask_path if mask_path is not None else photo_path)
+    turned = orientation_note(landmarks)  # said now (a warning line); kept in the record's "orientation"
+    if turned:
+        warnings.warn(f"{photo_path}: {turned}", stacklevel=2)
     if person.all():
         notes.append("the mask covers the whole photo: there is no background to see the new lighting against")
     _, _, ph, pw = person_box(person)
@@ -418,7 +460,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, matte.foreground, detail)
     stage("detail")
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
-    record = {"photo": str(photo_path), "mask": mask_source, "inputs_sha256": inputs, "sizes": sizes.to_json(),
+    record = {"photo": str(photo_path), "mask": mask_source, "inputs_sha256": inputs, "orientation": turned, "sizes": sizes.to_json(),
               "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
               "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
               "matte": matte.record, "gloss": gloss_record, "face": face_record, "background_blur": {"pixels": round(blur_px, 3),
@@ -498,13 +540,15 @@ def write_bundle(result: dict, out_dir) -> Path:
                 old = fresh_sibling(out_dir, "old")
                 out_dir.replace(old / "bundle")
             tmp.rename(out_dir)
-    except OSError as exc:
+    except BaseException as exc:  # a full disk, or Ctrl-C / SIGTERM: no partial folder stays behind
         shutil.rmtree(tmp, ignore_errors=True)
         if old is not None and (old / "bundle").is_dir() and not out_dir.exists():
             (old / "bundle").rename(out_dir)  # the earlier bundle back in its place
         if old is not None and not any(old.iterdir()):
             old.rmdir()
-        raise InputError(out_dir, f"cannot write the scene bundle ({exc})") from None
+        if isinstance(exc, OSError):
+            raise InputError(out_dir, f"cannot write the scene bundle ({exc})") from None
+        raise
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)  # the folder made above, holding the bundle this program wrote
     return out_dir

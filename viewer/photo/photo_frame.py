@@ -128,6 +128,9 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
             if orientation not in (1, None) and isinstance(orientation, int) and 2 <= orientation <= 8:
                 notes.append(f"the {what} is stored rotated (EXIF orientation {orientation}): used upright, "
                              f"{upright.width}x{upright.height}")
+            if upright.mode == "F":
+                raise InputError(path, f"is a 32-bit floating-point image: this program reads 8- and 16-bit {what}s "
+                                       "(save it as an 8- or 16-bit PNG or TIFF)")
             if upright.mode in ("I;16", "I;16B", "I;16L", "I"):
                 notes.append(f"the {what} is 16-bit: reduced to 8 bits")
                 arr = (np.asarray(upright, dtype=np.float64) / 257.0).round().clip(0, 255).astype(np.uint8)

@@ -4,7 +4,8 @@ named, or one written beside it), files the program wrote there (replaced), a ha
 file beside a map, lights beside a map that was replaced since they were fitted (stale), and video
 names FFmpeg would read as a protocol, pipes and devices given as input files (which would block
 or never end), maps too dark to show (a warning, never a silent black image) and background colours
-past what an EXR holds (refused, never a NaN EXR)."""
+past what an EXR holds (refused, never a NaN EXR), inverted masks (refused) and EXR maps of other
+channel sets (luminance and chroma read as colour; alpha or depth alone refused)."""
 
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ VARIANTS = 5
 
 def third_campaign(kit: Campaign) -> None:
     for group in (users_files_at_outputs, own_files_at_outputs, hand_written_lights, stale_lights, protocol_names,
-                  pipes_and_devices, too_dark, out_of_range_colours):
+                  pipes_and_devices, too_dark, out_of_range_colours, inverted_masks, exr_channel_sets):
         group(kit)
 
 
@@ -214,3 +215,49 @@ def out_of_range_colours(kit: Campaign) -> None:
         o = kit.target()
         kit.cases.append(Case(group, f"background_color {value!r} ({k + 1})", ["render", str(kit.sample), str(kit.lights), "--look",
                                                                                str(look), "--size", "64", "-o", o], "error", o))
+
+
+def inverted_masks(kit: Campaign) -> None:
+    """The bundled mask inverted (white on the background), softened, noised or thresholded at a
+    generated level: refused in one line, never a relit background."""
+    from PIL import Image, ImageFilter
+
+    group = "an inverted mask"
+    with Image.open(kit.mask) as im:
+        mask = np.asarray(im.convert("L"), np.float32)
+    for k in range(VARIANTS):
+        m = 255.0 - mask
+        if k % 3 == 1:
+            m = np.asarray(Image.fromarray(m.astype(np.uint8)).filter(ImageFilter.GaussianBlur(float(kit.rng.uniform(0.5, 3)))), np.float32)
+        elif k % 3 == 2:
+            m = np.where(m > kit.rng.uniform(60, 200), 255.0, 0.0)
+        path = kit.work / "files" / _name(kit, ".png")
+        Image.fromarray(np.clip(m, 0, 255).astype(np.uint8)).save(path)
+        kit.cases.append(Case(group, f"--mask inverted ({k + 1})", ["infer", str(kit.photo), "--mask", str(path), "--size", "64",
+                                                                   "--max-size", "256", "-o", str(kit.out / f"bundle_inv{k}")],
+                              "error", str(kit.out / f"bundle_inv{k}")))
+
+
+def exr_channel_sets(kit: Campaign) -> None:
+    """EXR maps of other channel sets than RGB: luminance and chroma (Y, RY, BY) read as colour; alpha
+    alone, depth alone or unknown names refused in one line (alpha alone lit the person white)."""
+    import OpenEXR
+
+    group = "an EXR map's channel set"
+    rgb = load_envmap(kit.env).pixels
+    y = rgb @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    for k in range(VARIANTS):
+        kind = ("Y RY BY", "A", "Z", "Y RY BY", "depth")[k % 5]
+        if kind == "Y RY BY":
+            safe = np.maximum(y, 1e-6)
+            channels = {"Y": y, "RY": (rgb[..., 0] - y) / safe, "BY": (rgb[..., 2] - y) / safe}
+        else:
+            channels = {kind: np.full(y.shape, float(kit.rng.uniform(0.5, 5)), np.float32)}
+        path = kit.work / "files" / _name(kit, ".exr")
+        with open(path, "wb") as f:
+            OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                         {n: np.ascontiguousarray(v, np.float32) for n, v in channels.items()}).write(f)
+        o = kit.target()
+        kit.cases.append(Case(group, f"a map of channels {kind} ({k + 1})", ["render", str(kit.sample), "--env", str(path), "-n", "4",
+                                                                             "--size", "64", "-o", o],
+                              "ok" if kind == "Y RY BY" else "error", o))
