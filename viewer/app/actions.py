@@ -30,9 +30,14 @@ class Actions:
         self.turn_frames = app.config.record_frames  # a 360 turn's frames (relight view --record-frames; the panel's slider)
 
     def _capture_stem(self) -> Path:
-        self._capture_index += 1
+        """A name no file has yet (another window saving in the same second, a user's file): a capture
+        never replaces anything."""
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        return self.app.config.out_dir / f"relight-{stamp}-{self._capture_index:03d}"
+        while True:
+            self._capture_index += 1
+            stem = self.app.config.out_dir / f"relight-{stamp}-{self._capture_index:03d}"
+            if not any(stem.with_suffix(s).exists() for s in (".png", ".exr", ".json", ".mp4")):
+                return stem
 
     def report(self, what: str, exc: Exception):
         """An error in an action: shown in the panel and printed; the viewer goes on."""
@@ -227,8 +232,8 @@ class Actions:
 
         try:
             self.app.config.out_dir.mkdir(parents=True, exist_ok=True)
-            path = save_rig(self._capture_stem().with_name(f"rig-{time.strftime('%Y%m%d-%H%M%S')}.json"),
-                            self.app.session.placed)
+            stem = self._capture_stem()  # a name no file has
+            path = save_rig(stem.with_name(f"rig-{stem.name.removeprefix('relight-')}.json"), self.app.session.placed)
         except OSError as exc:
             self.report("saving the rig failed", exc)
             return

@@ -34,6 +34,10 @@ def scenarios(seed: int = 33) -> list[Scenario]:
         fraction = rng.uniform(0.3, 0.9)
         cases.append(Scenario("interrupted outputs", f"{sig.name} at {fraction:.0%} of a video's render",
                               partial(_signal_a_video, sig, fraction)))
+    for k in range(5):
+        sig, fraction = (signal.SIGTERM, signal.SIGINT)[k % 2], rng.uniform(0.3, 1.0)
+        cases.append(Scenario("interrupted bundles (issue 43)", f"{sig.name} at {fraction:.0%} of an infer over an earlier bundle",
+                              partial(_signal_an_infer, sig, fraction)))
     cases.append(Scenario("interrupted outputs", "a full disk while a frame is written", _full_disk))
     cases.append(Scenario("read-only folders", "fit-lights --plot beside a map in a read-only folder", _read_only_map))
     for k in range(2):
@@ -64,8 +68,9 @@ def _interrupted(sig, code: int, err: str) -> list[str]:
     """What an interrupted command may end with: done before the signal (0), the one interrupted line
     (130), or ended by it while Python itself was starting, before anything was written."""
     lines = err.strip().splitlines()
+    said = "relight: interrupted" if sig == signal.SIGINT else f"relight: interrupted ({sig.name})"  # Ctrl-C has no name
     if code == 130:
-        return [] if lines and lines[-1].startswith(f"relight: interrupted ({sig.name})") and "Traceback" not in err \
+        return [] if lines and lines[-1].startswith(said) and "Traceback" not in err \
             else [f"exit 130 without the one line: {err[-200:]!r}"]
     return [] if code in (0, -sig) and "Traceback" not in err else [f"exit {code}: {err[-200:]!r}"]
 
@@ -112,6 +117,34 @@ def _signal_a_video(sig, fraction: float, work: Path):
     leftovers = [n for n in _leftovers(folder, {"v.mp4", "v.partial.mp4"})]
     if leftovers:
         problems.append(f"files left: {leftovers}")
+    return problems, max(peak, peak2), code
+
+
+def _signal_an_infer(sig, fraction: float, work: Path):
+    """``infer`` over an earlier bundle, signalled at a moment of its run (late moments fall while the
+    bundle is written): the earlier bundle whole or the new one, and no partial folder beside it
+    (``.bundle.partial.PID.hex`` stayed for ever)."""
+    from viewer.errors import InputError
+    from viewer.scene import load_scene
+
+    folder = work / "scenarios" / f"infer_{sig.name}_{fraction:.3f}"
+    folder.mkdir(parents=True)
+    out = folder / "bundle"
+    args = ["infer", PHOTO, "--mask", MASK, "--size", "64", "--max-size", "256", "-o", out]
+    code, _, err, seconds, peak = run_command(args)
+    if code != 0:
+        return [f"the first infer failed: {err[-200:]}"], peak, code
+    proc = _start(args, folder)
+    time.sleep(seconds * fraction)
+    proc.send_signal(sig)
+    code, err, peak2 = _reap(proc)
+    problems = _interrupted(sig, code, err)
+    try:
+        load_scene(out)
+    except InputError as exc:
+        problems.append(f"the bundle left does not load: {exc}")
+    if _leftovers(folder, {"bundle"}):
+        problems.append(f"files left: {_leftovers(folder, {'bundle'})}")
     return problems, max(peak, peak2), code
 
 

@@ -5,7 +5,9 @@ file beside a map, lights beside a map that was replaced since they were fitted 
 names FFmpeg would read as a protocol, pipes and devices given as input files (which would block
 or never end), maps too dark to show (a warning, never a silent black image) and background colours
 past what an EXR holds (refused, never a NaN EXR), inverted masks (refused) and EXR maps of other
-channel sets (luminance and chroma read as colour; alpha or depth alone refused)."""
+channel sets (luminance and chroma read as colour; alpha or depth alone refused), photos in wide-gamut
+colour profiles (read in sRGB), and batches asking for more workers than the memory holds or a Ray
+head that is not there (one line at once)."""
 
 from __future__ import annotations
 
@@ -28,7 +30,8 @@ VARIANTS = 5
 
 def third_campaign(kit: Campaign) -> None:
     for group in (users_files_at_outputs, own_files_at_outputs, hand_written_lights, stale_lights, protocol_names,
-                  pipes_and_devices, too_dark, out_of_range_colours, inverted_masks, exr_channel_sets):
+                  pipes_and_devices, too_dark, out_of_range_colours, inverted_masks, exr_channel_sets, wide_gamut_photos,
+                  cluster_and_workers):
         group(kit)
 
 
@@ -261,3 +264,43 @@ def exr_channel_sets(kit: Campaign) -> None:
         kit.cases.append(Case(group, f"a map of channels {kind} ({k + 1})", ["render", str(kit.sample), "--env", str(path), "-n", "4",
                                                                              "--size", "64", "-o", o],
                               "ok" if kind == "Y RY BY" else "error", o))
+
+
+def wide_gamut_photos(kit: Campaign) -> None:
+    """The bundled photo in Adobe RGB or Display P3 (profiles written from their primaries, a
+    generated gamma), as PNG or JPEG, its profile embedded: inferred (read in sRGB, with a note)."""
+    import io
+
+    from PIL import Image, ImageCms
+
+    from viewer.lab.icc_profiles import ADOBE_RGB, DISPLAY_P3, matrix_trc_profile
+
+    group = "a photo in a wide-gamut colour profile"
+    with Image.open(kit.photo) as im:
+        photo = im.convert("RGB")
+        photo.thumbnail((300, 450))
+    for k in range(VARIANTS):
+        name, primaries, white, _ = (ADOBE_RGB, DISPLAY_P3)[k % 2]
+        space = (name, primaries, white, float(kit.rng.uniform(1.8, 2.6)))
+        icc = matrix_trc_profile(space)
+        wide = ImageCms.profileToProfile(photo, ImageCms.createProfile("sRGB"), ImageCms.ImageCmsProfile(io.BytesIO(icc)),
+                                         outputMode="RGB")
+        path = kit.work / "files" / _name(kit, (".png", ".jpg")[k % 2])
+        wide.save(path, icc_profile=icc)
+        o = str(kit.out / f"bundle_icc{k}")
+        kit.cases.append(Case(group, f"{name}, gamma {space[3]:.2f}, {path.suffix} ({k + 1})",
+                              ["infer", str(path), "--size", "64", "--max-size", "256", "-o", o], "ok", o))
+
+
+def cluster_and_workers(kit: Campaign) -> None:
+    """``batch --ray HOST:PORT`` where no head answers (generated ports) and ``--workers`` past what
+    the memory holds (generated counts): one line at once, no batch folder made."""
+    group = "a batch's cluster and workers"
+    for k in range(VARIANTS):
+        o = str(kit.out / f"batch_bad{k}")
+        if k % 2:
+            extra = ["--ray", f"127.0.0.1:{int(kit.rng.integers(1, 1000))}"]
+        else:
+            extra = ["--workers", str(int(kit.rng.integers(10_000, 100_000)))]
+        kit.cases.append(Case(group, f"batch {' '.join(extra)} ({k + 1})", ["batch", str(kit.photo), "--env", str(kit.env), "-o", o,
+                                                                          *extra], "error", o))
