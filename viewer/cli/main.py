@@ -162,13 +162,14 @@ def run() -> None:
     def stop(signum, _frame):  # SIGTERM and SIGHUP end the work as Ctrl-C does: temporary files removed, old outputs kept
         raise KeyboardInterrupt(signal.Signals(signum).name)
 
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, stop)
-    route_to_main_thread()  # never inside native code: llvmpipe's shader compiler crashed on one
     out = _writable_streams()
-    try:
+    try:  # a signal from the first handler set on is an interruption, said in one line
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, stop)
+        route_to_main_thread()  # never inside native code: llvmpipe's shader compiler crashed on one
         code = main()
-    except KeyboardInterrupt as exc:  # before main's own handling began
+    except KeyboardInterrupt as exc:  # before main's own handling began (the campaign's held-back seed
+        # caught one while the signals' thread was starting)
         print(_interrupted(exc), file=sys.stderr)
         code = 130
     atexit._run_exitfuncs()  # what registered for the exit (logging's flush, ...) still runs

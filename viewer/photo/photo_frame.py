@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import warnings
-from pathlib import Path
 
 import numpy as np
 

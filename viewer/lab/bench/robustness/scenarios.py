@@ -38,6 +38,18 @@ def scenarios(seed: int = 33) -> list[Scenario]:
         sig, fraction = (signal.SIGTERM, signal.SIGINT)[k % 2], rng.uniform(0.3, 1.0)
         cases.append(Scenario("interrupted bundles (issue 43)", f"{sig.name} at {fraction:.0%} of an infer over an earlier bundle",
                               partial(_signal_an_infer, sig, fraction)))
+    for k, stem in enumerate(rng.sample(["..", ".", ".hidden", "manifest.jsonl", "contact-sheet", "...", ".relight-batch"], 5)):
+        cases.append(Scenario("a batch's names (issue 43)", f"a photo named {stem}.jpg, run twice into its own folder",
+                              partial(_batch_names, stem)))
+    for k, how in enumerate(("stdout closed", "stderr closed", "stdout a full device", "every stream closed", "stdin closed")):
+        cases.append(Scenario("closed and full streams (issue 43)", how, partial(_streams, how)))
+    for k in range(5):
+        version = rng.choice(["2.1", "3.0", "3.3", "1.5", "4.0", "4.5", "4.6"])
+        cases.append(Scenario("the process's surroundings (issue 43)", f"MESA_GL_VERSION_OVERRIDE={version} ({k + 1})",
+                              partial(_surroundings, "gl", f"{version}", k)))
+    for k in range(3):
+        cases.append(Scenario("the process's surroundings (issue 43)", f"a deleted working folder ({k + 1})",
+                              partial(_surroundings, "cwd", "", k)))
     cases.append(Scenario("interrupted outputs", "a full disk while a frame is written", _full_disk))
     cases.append(Scenario("read-only folders", "fit-lights --plot beside a map in a read-only folder", _read_only_map))
     for k in range(2):
@@ -146,6 +158,87 @@ def _signal_an_infer(sig, fraction: float, work: Path):
     if _leftovers(folder, {"bundle"}):
         problems.append(f"files left: {_leftovers(folder, {'bundle'})}")
     return problems, max(peak, peak2), code
+
+
+def _batch_names(stem: str, work: Path):
+    """A photo whose stem is ``..``, ``.``, hidden or one of the batch's own names, in the folder the
+    batch writes into, run twice: everything inside that folder, the second run finds it done."""
+    folder = work / "scenarios" / f"batch_names_{stem.strip('.') or 'dots'}_{len(stem)}" / "shoot"
+    folder.mkdir(parents=True)
+    shutil.copy(PHOTO, folder / f"{stem}.jpg")
+    env = {**os.environ, "RELIGHT_CACHE": str(folder.parent / "cache" / "lights")}
+    args = ["batch", folder, "--env", asset_dir() / "envmaps" / "venice_sunset_256.hdr", "-o", folder, "--max-size", "256",
+            "--workers", "1"]
+    problems, peak, code = [], 0, None
+    for run in range(2):
+        code, out, err, _, p = run_command(args, env)
+        peak = max(peak, p)
+        if code != 0 or "Traceback" in err:
+            problems.append(f"run {run + 1}: exit {code}: {err[-200:]!r}")
+    outside = sorted(p.name for p in folder.parent.iterdir() if p.name not in ("shoot", "cache"))
+    if outside:
+        problems.append(f"written beside the batch's folder: {outside}")
+    if code == 0 and "already done" not in out:
+        problems.append(f"the second run did not find the item done: {out.strip().splitlines()[-1:]}")
+    return problems, peak, code
+
+
+def _streams(how: str, work: Path):
+    """A render with a standard stream closed or full (``>&-``, ``2>&-``, ``>/dev/full``): the
+    frame written, exit 0, no traceback."""
+    folder = work / "scenarios" / f"streams_{how.replace(' ', '_')}"
+    folder.mkdir(parents=True)
+
+    def rearrange():
+        if how in ("stdout closed", "every stream closed"):
+            os.close(1)
+        if how in ("stderr closed", "every stream closed"):
+            os.close(2)
+        if how in ("stdin closed", "every stream closed"):
+            os.close(0)
+        if how == "stdout a full device":
+            full = os.open("/dev/full", os.O_WRONLY)
+            os.dup2(full, 1)
+            os.close(full)
+
+    code, _, err, _, peak = run_command(["render", SCENE, LIGHTS, "--size", "64", "-o", folder / "x.png"], preexec=rearrange)
+    problems = [] if code == 0 and "Traceback" not in err and (folder / "x.png").is_file() else [f"exit {code}: {err[-200:]!r}"]
+    return problems, peak, code
+
+
+def _surroundings(what: str, value: str, k: int, work: Path):
+    """``MESA_GL_VERSION_OVERRIDE`` set (below 4.1: one line naming it; else the render runs), or a
+    working folder deleted before the command starts (one line)."""
+    folder = work / "scenarios" / f"surroundings_{what}_{value}_{k}"
+    folder.mkdir(parents=True)
+    args = ["render", SCENE, LIGHTS, "--size", "64", "-o", folder / "x.png"]
+    if what == "gl":
+        code, _, err, _, peak = run_command(args, {**os.environ, "MESA_GL_VERSION_OVERRIDE": value})
+        low = float(value) < 4.1
+        lines = err.strip().splitlines()
+        if low:
+            ok = code == 2 and len(lines) == 1 and "MESA_GL_VERSION_OVERRIDE" in lines[0]
+        else:
+            ok = code in (0, 2) and "Traceback" not in err and (code == 0 or len(lines) == 1)
+        return ([] if ok else [f"exit {code}: {err[-200:]!r}"]), peak, code
+    gone = folder / "gone"
+    gone.mkdir()
+
+    def leave():
+        os.chdir(gone)
+        os.rmdir(gone)
+
+    # the installed ``relight`` script itself (an absolute path): the campaign's ``python -c`` wrapper
+    # cannot start in a deleted folder (Python computes its path from there), the program can
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # a relative entry there stops Python itself
+    res = subprocess.run([Path(sys.executable).with_name("relight"), *map(str, args)], capture_output=True, text=True,
+                         preexec_fn=leave, timeout=180, env=env)
+    code, err, peak = res.returncode, res.stderr, 0
+    lines = err.strip().splitlines()
+    ok = code == 2 and len(lines) == 1 and "working folder is gone" in lines[0]
+    return ([] if ok else [f"exit {code}: {err[-200:]!r}"]), peak, code
 
 
 def _full_disk(work: Path):
