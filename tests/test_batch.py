@@ -299,3 +299,30 @@ def test_a_damaged_cached_bundle_is_inferred_again(tmp_path):
         assert again == first and not cached and (first / "albedo.exr").stat().st_size > 1000
     assert cached_bundle(PHOTO, max_size=256, bundles=bundles)[1]
     assert sorted(p.name for p in bundles.iterdir()) == [first.name]  # nothing left beside it
+
+
+def test_a_photo_swapped_while_it_is_inferred_leaves_no_bundle(tmp_path, monkeypatch):
+    """The photo's bytes replaced after its key was taken and before the networks read it (issue
+    43: a batch had kept the other photo's output as done): one line, and no cached bundle under the
+    old key."""
+    import viewer.photo.inference as inference
+    from viewer.errors import InputError
+
+    photo = tmp_path / "p.jpg"
+    shutil.copy(PHOTO, photo)
+    other = asset_dir() / "photos" / "street.jpg"
+    other = other if other.is_file() else PHOTO
+    real = inference.infer
+
+    def swapped(photo_path, *args, **kwargs):
+        from PIL import Image
+
+        with Image.open(other) as im:
+            im.transpose(Image.FLIP_LEFT_RIGHT).save(photo_path)  # other bytes, still a photo
+        return real(photo_path, *args, **kwargs)
+
+    monkeypatch.setattr(inference, "infer", swapped)
+    bundles = tmp_path / "bundles"
+    with pytest.raises(InputError, match="changed while it was being inferred"):
+        inference.cached_bundle(photo, max_size=256, bundles=bundles)
+    assert not bundles.exists() or not any(bundles.iterdir())

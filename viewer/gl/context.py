@@ -8,6 +8,20 @@ from __future__ import annotations
 import moderngl
 
 REQUIRED_VERSION = 410
+MIN_ADDRESS_SPACE_MB = 1536  # llvmpipe's threads and JIT: a render crashed (SIGSEGV) under ulimit -v 1143 MB, ran at 1200
+
+
+def check_address_space() -> None:
+    """One line, before any native GL code runs, when the process's address space is limited (``ulimit
+    -v``) below what Mesa needs: there it crashes in native code, where no message can be given."""
+    import resource
+
+    from ..errors import InputError
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE_MB << 20:
+        raise InputError(None, f"the process's address space is limited to {soft >> 20} MB (ulimit -v): OpenGL on Mesa needs "
+                               f"at least {MIN_ADDRESS_SPACE_MB} MB; raise the limit (ulimit -v unlimited)")
 
 
 def create_headless_context() -> moderngl.Context:
@@ -17,6 +31,7 @@ def create_headless_context() -> moderngl.Context:
 
     from ..errors import InputError
 
+    check_address_space()
     try:
         return moderngl.create_standalone_context(backend="egl", require=REQUIRED_VERSION)
     except Exception as exc:

@@ -30,6 +30,7 @@ class Case:
     upright: tuple | None = None  # an inferred bundle's frame must come out this size (not sideways)
     watch: list[str] = field(default_factory=list)  # more files that must come out unchanged (a user's)
     not_said: str | None = None  # words its output must not hold (e.g. stale lights used)
+    said: str | None = None  # words its stderr must hold (a warning the case is about)
     result: dict = field(default_factory=dict)
 
 
@@ -150,6 +151,8 @@ def judge(case: Case, code: int, err: str, lines: list[str], before: dict, out: 
         problems.append("traceback")
     if case.not_said and case.not_said in out + err:
         problems.append(f"said {case.not_said!r}")
+    if case.said and case.said not in err:
+        problems.append(f"did not say {case.said!r}")
     if case.expect == "error":
         if code != 2:
             problems.append(f"exit {code}, expected 2")

@@ -50,6 +50,10 @@ def scenarios(seed: int = 33) -> list[Scenario]:
     for k in range(3):
         cases.append(Scenario("the process's surroundings (issue 43)", f"a deleted working folder ({k + 1})",
                               partial(_surroundings, "cwd", "", k)))
+    for k in range(5):
+        limit = rng.randint(450, 1400)
+        cases.append(Scenario("the process's surroundings (issue 43)", f"ulimit -v {limit} MB ({k + 1})",
+                              partial(_memory_limit, limit, k)))
     cases.append(Scenario("interrupted outputs", "a full disk while a frame is written", _full_disk))
     cases.append(Scenario("read-only folders", "fit-lights --plot beside a map in a read-only folder", _read_only_map))
     for k in range(2):
@@ -239,6 +243,24 @@ def _surroundings(what: str, value: str, k: int, work: Path):
     lines = err.strip().splitlines()
     ok = code == 2 and len(lines) == 1 and "working folder is gone" in lines[0]
     return ([] if ok else [f"exit {code}: {err[-200:]!r}"]), peak, code
+
+
+def _memory_limit(limit_mb: int, k: int, work: Path):
+    """A render under an address-space limit (``ulimit -v``): done, or one line (numpy's MemoryError
+    and OpenGL's refusals were tracebacks)."""
+    import resource
+
+    folder = work / "scenarios" / f"ulimit_{limit_mb}_{k}"
+    folder.mkdir(parents=True)
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (limit_mb << 20, limit_mb << 20))
+
+    code, _, err, _, peak = run_command(["render", SCENE, "--env", asset_dir() / "envmaps" / "venice_sunset_256.hdr", "--size", "128",
+                                         "-o", folder / "x.png"], preexec=limit)
+    lines = [line for line in err.strip().splitlines() if not line.startswith(("  ", "fitting "))]
+    ok = "Traceback" not in err and (code == 0 or (code == 2 and len(lines) == 1 and lines[0].startswith("relight: error:")))
+    return ([] if ok else [f"exit {code}: {err[-300:]!r}"]), peak, code
 
 
 def _full_disk(work: Path):

@@ -31,7 +31,7 @@ VARIANTS = 5
 def third_campaign(kit: Campaign) -> None:
     for group in (users_files_at_outputs, own_files_at_outputs, hand_written_lights, stale_lights, protocol_names,
                   pipes_and_devices, too_dark, out_of_range_colours, inverted_masks, exr_channel_sets, wide_gamut_photos,
-                  cluster_and_workers):
+                  cluster_and_workers, float_and_turned_photos):
         group(kit)
 
 
@@ -304,3 +304,28 @@ def cluster_and_workers(kit: Campaign) -> None:
             extra = ["--workers", str(int(kit.rng.integers(10_000, 100_000)))]
         kit.cases.append(Case(group, f"batch {' '.join(extra)} ({k + 1})", ["batch", str(kit.photo), "--env", str(kit.env), "-o", o,
                                                                           *extra], "error", o))
+
+
+def float_and_turned_photos(kit: Campaign) -> None:
+    """A 32-bit floating-point TIFF (generated values) as the photo: refused in one line ("no person
+    found" before); the photo turned by 90, 180 or 270 degrees with no EXIF to say so: inferred, with
+    a warning line that the person lies sideways or upside down."""
+    from PIL import Image
+
+    group = "a float or a turned photo"
+    with Image.open(kit.photo) as im:
+        photo = im.convert("RGB")
+        photo.thumbnail((300, 450))
+    for k in range(VARIANTS):
+        path = kit.work / "files" / _name(kit, ".tif")
+        grey = np.asarray(photo.convert("L"), np.float32) / 255.0 * float(kit.rng.uniform(0.5, 100))
+        Image.fromarray(grey, mode="F").save(path)
+        kit.cases.append(Case(group, f"a float TIFF ({k + 1})", ["infer", str(path), "--size", "64", "--max-size", "256", "-o",
+                                                               str(kit.out / f"bundle_float{k}")], "error", str(kit.out / f"bundle_float{k}")))
+    for k in range(VARIANTS):
+        angle = int(kit.rng.choice([90, 180, 270]))
+        path = kit.work / "files" / _name(kit, ".jpg")
+        photo.rotate(angle, expand=True).save(path)
+        kit.cases.append(Case(group, f"the photo turned {angle} degrees, no EXIF ({k + 1})",
+                              ["infer", str(path), "--size", "64", "--max-size", "256", "-o", str(kit.out / f"bundle_turned{k}")],
+                              "ok", str(kit.out / f"bundle_turned{k}"), said="if the photo lost its rotation"))
