@@ -140,9 +140,6 @@ def _signal_an_infer(sig, fraction: float, work: Path):
     """``infer`` over an earlier bundle, signalled at a moment of its run (late moments fall while the
     bundle is written): the earlier bundle whole or the new one, and no partial folder beside it
     (``.bundle.partial.PID.hex`` stayed for ever)."""
-    from viewer.errors import InputError
-    from viewer.scene import load_scene
-
     folder = work / "scenarios" / f"infer_{sig.name}_{fraction:.3f}"
     folder.mkdir(parents=True)
     out = folder / "bundle"
@@ -154,14 +151,7 @@ def _signal_an_infer(sig, fraction: float, work: Path):
     time.sleep(seconds * fraction)
     proc.send_signal(sig)
     code, err, peak2 = _reap(proc)
-    problems = _interrupted(sig, code, err)
-    try:
-        load_scene(out)
-    except InputError as exc:
-        problems.append(f"the bundle left does not load: {exc}")
-    if _leftovers(folder, {"bundle"}):
-        problems.append(f"files left: {_leftovers(folder, {'bundle'})}")
-    return problems, max(peak, peak2), code
+    return _interrupted(sig, code, err) + _bundle_left_whole(out, folder), max(peak, peak2), code
 
 
 def _batch_names(stem: str, work: Path):
@@ -300,12 +290,24 @@ def _file_size_limit():
     resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
 
 
-def _two_writers(k: int, work: Path):
-    """Two ``infer`` into one ``-o`` at once: they take turns (both done) or one is refused; the
-    bundle left is whole and loads."""
+def _bundle_left_whole(out: Path, folder: Path) -> list[str]:
+    """Problems of the bundle ``out`` left in ``folder``: it does not load, or something is beside it."""
     from viewer.errors import InputError
     from viewer.scene import load_scene
 
+    problems = []
+    try:
+        load_scene(out)
+    except InputError as exc:
+        problems.append(f"the bundle left does not load: {exc}")
+    if _leftovers(folder, {"bundle"}):
+        problems.append(f"files left: {_leftovers(folder, {'bundle'})}")
+    return problems
+
+
+def _two_writers(k: int, work: Path):
+    """Two ``infer`` into one ``-o`` at once: they take turns (both done) or one is refused; the
+    bundle left is whole and loads."""
     folder = work / "scenarios" / f"race_{k}"
     folder.mkdir(parents=True)
     out = folder / "bundle"
@@ -315,12 +317,7 @@ def _two_writers(k: int, work: Path):
     problems = [f"exit {code}: {err[-200:]!r}" for code, err, _ in results if code not in (0, 2) or "Traceback" in err]
     if not any(code == 0 for code, _, _ in results):
         problems.append("neither writer finished")
-    try:
-        load_scene(out)
-    except InputError as exc:
-        problems.append(f"the bundle left does not load: {exc}")
-    if _leftovers(folder, {"bundle"}):
-        problems.append(f"files left: {_leftovers(folder, {'bundle'})}")
+    problems += _bundle_left_whole(out, folder)
     return problems, max(peak for _, _, peak in results), max(code for code, _, _ in results)
 
 
