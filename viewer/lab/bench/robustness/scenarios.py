@@ -222,14 +222,28 @@ def _surroundings(what: str, value: str, k: int, work: Path):
         os.chdir(gone)
         os.rmdir(gone)
 
-    # the installed ``relight`` script itself (an absolute path): the campaign's ``python -c`` wrapper
-    # cannot start in a deleted folder (Python computes its path from there), the program can
+    # the installed ``relight`` script itself (an absolute path), forked here and waited for with its
+    # peak (wait4): the campaign's ``python -c`` wrapper cannot start in a deleted folder (Python
+    # computes its path from there), the program can
     import sys
 
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # a relative entry there stops Python itself
-    res = subprocess.run([Path(sys.executable).with_name("relight"), *map(str, args)], capture_output=True, text=True,
-                         preexec_fn=leave, timeout=180, env=env)
-    code, err, peak = res.returncode, res.stderr, 0
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: into the folder, the folder deleted, then the program
+        try:
+            os.dup2(write_end, 2)
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, 1)
+            leave()
+            os.execve(str(Path(sys.executable).with_name("relight")), ["relight", *map(str, args)], env)
+        finally:
+            os._exit(127)
+    os.close(write_end)
+    with os.fdopen(read_end, "rb") as stream:
+        err = stream.read().decode("utf-8", "replace")
+    _, status, usage = os.wait4(pid, 0)
+    code, peak = os.waitstatus_to_exitcode(status), usage.ru_maxrss
     lines = err.strip().splitlines()
     ok = code == 2 and len(lines) == 1 and "working folder is gone" in lines[0]
     return ([] if ok else [f"exit {code}: {err[-200:]!r}"]), peak, code
