@@ -141,10 +141,18 @@ def _writable_streams():
             if null != fd:
                 os.dup2(null, fd)
                 os.close(null)
-    out = _Output(sys.stdout)
+    # Python's streams on private copies of descriptors 1 and 2: code that points 1 and 2 elsewhere
+    # for a while (imageio.native_output, catching OpenEXR's C++ lines) and is interrupted before it
+    # points them back cannot take the program's own lines with it (an interrupted video render
+    # exited 130 without its one line, 2 times in 650)
+    def private(stream, fd):
+        if stream is None:
+            return None
+        return open(os.dup(fd), "w", buffering=1, encoding=stream.encoding, errors=stream.errors, closefd=True)
+
+    out = _Output(private(sys.stdout, 1))
     sys.stdout = out
-    if sys.stderr is None:
-        sys.stderr = open(os.devnull, "w")
+    sys.stderr = private(sys.stderr, 2) or open(os.devnull, "w")
     return out
 
 
