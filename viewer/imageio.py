@@ -13,9 +13,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .file_kinds import regular_file
 from .stop_signals import deliver
 
 MARK = ("written_by", "relight")  # (key, value) inside every file this program writes (viewer.ownership)
+MARK_TEXT = f"{MARK[0]}: {MARK[1]}"  # the mark where a format holds one text (a JPEG comment, an MP4's comment)
 
 
 @contextlib.contextmanager
@@ -125,9 +127,7 @@ def read_json(path, what: str = "JSON file"):
     or big) is one :class:`InputError` naming the file and ``what`` it should have been."""
     import json
 
-    path = Path(path)
-    if path.exists() and not path.is_dir() and not path.is_file():
-        raise InputError(path, f"is not a regular file (a device or a pipe), not a {what}")
+    path = regular_file(path, what)  # missing, a folder, a pipe or a device: one line, nothing opened
     try:
         if path.stat().st_size > MAX_JSON_BYTES:
             raise InputError(path, f"is {path.stat().st_size >> 20} MB: too big for a {what}")
@@ -358,7 +358,7 @@ def write_jpeg(path, arr: np.ndarray, quality: int = 90) -> Path:
     path = Path(path)
     im = Image.fromarray((np.clip(np.nan_to_num(np.asarray(arr, np.float32)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8))
     with atomic_path(path) as tmp:
-        im.save(tmp, format="JPEG", quality=quality, comment=f"{MARK[0]}: {MARK[1]}")
+        im.save(tmp, format="JPEG", quality=quality, comment=MARK_TEXT)
     return path
 
 

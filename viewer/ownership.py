@@ -21,7 +21,7 @@ import os
 import secrets
 from pathlib import Path
 
-from .imageio import MARK, ffmpeg_file, read_json
+from .imageio import MARK, MARK_TEXT, ffmpeg_file, read_json
 
 MARKER = ".relight-written.json"
 FORMAT = "relight-written"
@@ -119,7 +119,7 @@ def file_is_ours(path) -> bool:
             with Image.open(path) as im:
                 if suffix == ".png":
                     return getattr(im, "text", {}).get(key) == value
-                return im.info.get("comment") == f"{key}: {value}".encode()
+                return im.info.get("comment") == MARK_TEXT.encode()
         if suffix == ".exr":
             import OpenEXR
 
@@ -131,7 +131,7 @@ def file_is_ours(path) -> bool:
             import av
 
             with av.open(ffmpeg_file(path)) as container:
-                return container.metadata.get("comment") == f"{key}: {value}"
+                return container.metadata.get("comment") == MARK_TEXT
     except Exception:  # noqa: BLE001 -- a file it cannot read as its own is not its own
         return False
     return False

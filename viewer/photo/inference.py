@@ -185,15 +185,19 @@ def inference_version(networks_dir=None) -> str:
 
 
 def bundle_key(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, networks_dir=None,
-               version: str | None = None) -> str:
+               version: str | None = None, digests: dict | None = None) -> str:
     """What a photo's bundle is made from, hashed: the photo's and mask's bytes, the sizes and the
     :func:`inference_version` (``version``: already computed, for many photos); a missing file is
-    one line naming it."""
+    one line naming it. ``digests`` (when given) gets the SHA-256 of each file's bytes as read here,
+    under "photo" and "mask" (each file is read once)."""
     import hashlib
 
     h = hashlib.sha256((version or inference_version(networks_dir)).encode())
     for path, what in ((photo_path, "photo"), *([(mask_path, "mask")] if mask_path is not None else [])):
-        h.update(regular_file(path, what).read_bytes())
+        data = regular_file(path, what).read_bytes()
+        h.update(data)
+        if digests is not None:
+            digests[what] = hashlib.sha256(data).hexdigest()
     h.update(f"{size} {max_size} {mask_path is None}".encode())
     return h.hexdigest()
 
@@ -206,13 +210,10 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
     this program wrote it, :func:`viewer.ownership.written_here`) and was made from the very bytes
     the key was (its record's ``inputs_sha256``); a damaged one is inferred again. A photo or mask
     that changes while it is inferred is one line (run again), and its bundle is not kept."""
-    import hashlib
-
     from ..lighting.lightfit.cache import cache_dir
 
-    key = bundle_key(photo_path, mask_path, size, max_size, networks_dir)
-    expected = {"photo": hashlib.sha256(Path(photo_path).read_bytes()).hexdigest(),
-                **({"mask": hashlib.sha256(Path(mask_path).read_bytes()).hexdigest()} if mask_path is not None else {})}
+    expected: dict[str, str] = {}  # the SHA-256 of the photo's and mask's bytes, as the key read them
+    key = bundle_key(photo_path, mask_path, size, max_size, networks_dir, digests=expected)
     out = Path(bundles or cache_dir().with_name("bundles")) / f"{Path(photo_path).stem}-{key[:16]}"
     if out.exists() or out.is_symlink():
         if _made_from(out, expected):
