@@ -160,8 +160,8 @@ def write_text(path, text: str) -> Path:
 
 @contextlib.contextmanager
 def native_output():
-    """Collect what native code writes to the process's stdout and stderr during the block (OpenEXR
-    prints its own C++ lines before it raises). Yields a list that holds the text after the block;
+    """Collect what native code and the bindings write to the process's stdout and stderr during the
+    block (OpenEXR prints its own lines before it raises). Yields a list that holds the text after the block;
     the caller folds it into its one line on failure, or hands it back with :func:`replay` (another
     thread may have printed meanwhile)."""
     import ctypes
@@ -175,11 +175,18 @@ def native_output():
     libc.fflush(None)
     with tempfile.TemporaryFile() as sink:
         saved = [os.dup(1), os.dup(2)]
+        # the bindings' own lines (pybind11's py::print) go to Python's sys.stdout, which the
+        # program keeps on a private copy of descriptor 1 (cli.main): it is pointed at the sink too
+        streams = sys.stdout, sys.stderr
+        caught = open(os.dup(sink.fileno()), "w", encoding="utf-8", errors="replace", closefd=True)
         try:
             os.dup2(sink.fileno(), 1)
             os.dup2(sink.fileno(), 2)
+            sys.stdout = sys.stderr = caught
             yield held
         finally:
+            sys.stdout, sys.stderr = streams
+            caught.close()
             libc.fflush(None)  # C stdio's buffer (std::cout) to the sink before the descriptors go back
             for fd, old in zip((1, 2), saved):
                 os.dup2(old, fd)
