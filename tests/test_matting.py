@@ -155,3 +155,10 @@ def test_a_mask_file_wins():
     assert (hard.alpha[inside > half + 1] == 1).all() and (hard.alpha[outside > half + 1] == 0).all()
     assert ((hard.alpha > 0.05) & (hard.alpha < 0.95)).sum() > 1000
     assert spill_cut(hard.alpha, hand)["spill"] < 0.05 and spill_cut(hard.alpha, hand)["cut"] < 0.05
+
+
+def test_nothing_held_is_nothing_added(matted):
+    """Neither shared photo's person holds anything apart from her clothes: the held objects'
+    search (viewer/photo/held_objects.py) adds nothing to the decided outline."""
+    _, _, _, matte = matted
+    assert matte.record["held_px"] <= 0.001 * int((matte.alpha > 0.5).sum())

@@ -28,6 +28,9 @@ So the matte is decided from the photo, in three steps (docs/photos.md measures 
    sRGB values, as the alpha is. No old background colour survives at the edge (issue 42 measured
    the edge's bleed on twelve photos against the multilevel estimate alone: docs/photos.md).
 
+What the person holds or stands on and the segmentation left out (skis, poles) joins the
+decided outline before step 2 (:mod:`viewer.photo.held_objects`).
+
 A mask file wins over all of this (:func:`mask_matte`): a soft one is the alpha; a binary one is
 the trimap's core, its outline softened by step 2. Either way step 3 gives the colours.
 """
@@ -40,6 +43,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+
+from .held_objects import held_objects
 
 CORE = 0.02  # of the person's height: deeper than this inside the segmentation is the person for sure
 OUTER = 0.012  # of the person's height: farther than this outside it is the background for sure
@@ -448,13 +453,15 @@ def automatic_matte(photo: np.ndarray, person) -> Matte:
 
     t0 = time.perf_counter()
     decided, holes, half_width = decided_outline(photo, person)
+    held = held_objects(photo, decided, person.landmarks, person_height(decided)) & ~decided
+    decided = decided | held
     t1 = time.perf_counter()
     alpha = edge_alpha(photo, decided, half_width, holes)
     t2 = time.perf_counter()
     foreground = srgb_to_linear(foreground_colours(photo.astype(np.float32) / 255.0, alpha, half_width))
     t3 = time.perf_counter()
     return Matte(alpha, foreground, {"method": "automatic: pose segmentation, colour min cut, closed-form edge",
-                                     "holes_px": int(holes.sum()),
+                                     "holes_px": int(holes.sum()), "held_px": int(held.sum()),
                                      "seconds": {"band": round(t1 - t0, 3), "edge": round(t2 - t1, 3),
                                                  "foreground": round(t3 - t2, 3)}})
 

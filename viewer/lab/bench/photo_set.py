@@ -19,7 +19,9 @@ only meaningful on a plain backdrop (``plain``: the photo's border within ``PLAI
 median), *detail kept* under the two maps, *light moved* between a sun from the left and from the
 right (:mod:`viewer.lab.bench.metrics`), and *white shift*: how far the person's whites move in
 colour under a neutral white light (:func:`white_shift`); under the key rig, what the light
-scattered under the skin does to the face's edges (:func:`terminator`: sharper or softer, warmer).
+scattered under the skin does to the face's edges (:func:`terminator`: sharper or softer, warmer);
+*held*: the share of the person's pixels that are objects it holds or stands on, added to the
+segmentation's person by :mod:`viewer.photo.held_objects` (0 where nothing is held).
 
 The set is split in two halves by a hash of each file's name (``half`` "tune" or "held", every
 other photo in the hash's order): constants
@@ -207,7 +209,8 @@ def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache,
     photo8 = _srgb8(photo)
     row = {"photo": path.name, "half": part, "photo_size": [w0, h0], "frame": [alpha.shape[1], alpha.shape[0]],
            "infer_s": round(infer_s, 2), "infer_s_per_mp": round(infer_s / (w0 * h0 / 1e6), 3),
-           "face_record": result["record"].get("face")}
+           "face_record": result["record"].get("face"),
+           "held": _round(result["record"]["matte"].get("held_px", 0) / max(int((scene.frame.alpha > 0.5).sum()), 1))}
     found = face_skin(photo8, alpha)
     skin, rec = found if found is not None else (None, None)
     row["face"] = None if rec is None else {k: v for k, v in rec.items() if k != "oval"}
@@ -340,6 +343,7 @@ COLUMNS = (("holes studio", lambda r: r["lightings"]["studio"]["holes"]),
            ("detail kept", lambda r: r["lightings"]["studio"]["detail_kept"]),
            ("light moved", lambda r: r["light_moved"]),
            ("infer s/MP", lambda r: r["infer_s_per_mp"]),
+           ("held (of the person)", lambda r: r["held"]),
            ("key: sharpness / warmth with skin", lambda r: f"{r['terminator']['sharpness']:.2f} / {r['terminator']['warmth']:.2f}"))
 
 
