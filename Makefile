@@ -10,6 +10,7 @@ demo: setup
 	.venv/bin/relight demo
 
 test: setup
+	.venv/bin/ruff check .
 	.venv/bin/python -m pytest -q tests
 
 bench: setup

@@ -9,6 +9,7 @@ import math
 import cv2
 import numpy as np
 import pytest
+from test_ground import person  # noqa: F401  (the sample person at 128 px, a fixture)
 
 from viewer.backdrop import blurred_map, photo_blur
 from viewer.errors import InputError
@@ -16,8 +17,6 @@ from viewer.gl import Engine, EngineOptions
 from viewer.lighting.lights import AreaLights
 from viewer.scene import FrameLayer
 from viewer.settings import Look
-
-from test_ground import person  # noqa: F401  (the sample person at 128 px, a fixture)
 
 
 def _checker_photo(blur: float):

@@ -88,7 +88,8 @@ def test_a_rerun_does_nothing(first_run):
 
 def test_a_changed_input_or_setting_is_done_again_and_a_foreign_file_kept(first_run, tmp_path):
     tmp, photos, out, res = first_run
-    again = batch(tmp, photos / "underpass.jpg", "--env", MAPS[0], "-o", out, "--workers", "1", "--layers", "--per-light", "--exposure", "1")
+    again = batch(tmp, photos / "underpass.jpg", "--env", MAPS[0], "-o", out, "--workers", "1", "--layers", "--per-light", "--exposure",
+                  "1")
     assert "batch: 1 done, 0 failed, 0 already done" in again.stdout, again.stdout  # another exposure: another key
     (out / "underpass" / "studio_small_03_256.png").write_bytes(b"the user's own file")
     kept = batch(tmp, photos / "underpass.jpg", "--env", MAPS[1], "-o", out, "--workers", "1", "--layers", "--per-light", "--exposure", "1")
@@ -223,7 +224,8 @@ def test_what_an_item_wrote_before_failing_stays_ours(tmp_path):
     png.write_bytes(b"half of a batch's work")
     with Manifest(tmp_path) as m:
         m.add("start", item="p/look", outputs=["p/look.png", "p/look.exr"])
-        m.add("failed", item="p/look", key="k", error="disk full", sha256={"p/look.png": __import__("hashlib").sha256(png.read_bytes()).hexdigest()})
+        m.add("failed", item="p/look", key="k", error="disk full",
+              sha256={"p/look.png": __import__("hashlib").sha256(png.read_bytes()).hexdigest()})
     own = Ownership(Manifest(tmp_path))
     assert own.ours(tmp_path, "p/look.png")
     png.write_bytes(b"the user's file now")
@@ -274,7 +276,7 @@ def test_names_stay_inside_the_batch_folder_and_its_own_outputs_are_not_photos(t
     folder = tmp_path / "shoot"
     folder.mkdir()
     shutil.copy(PHOTO, folder / "...jpg")
-    for run in range(2):
+    for _ in range(2):
         res = batch(tmp_path, folder, "--env", MAPS[0], "-o", folder)
         assert res.returncode == 0, res.stderr
     assert not (tmp_path / "venice_sunset_256.png").exists() and (folder / "photo" / "venice_sunset_256.png").is_file()

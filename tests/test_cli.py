@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 
-from viewer.lab.bench.metrics import detail_kept
 from viewer.cli.main import main
 from viewer.imageio import read_exr, read_png
+from viewer.lab.bench.metrics import detail_kept
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 

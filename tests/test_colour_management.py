@@ -12,13 +12,12 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 from PIL import Image, ImageCms
 
 from viewer.lab.icc_profiles import ADOBE_RGB, DISPLAY_P3, matrix_trc_profile
 from viewer.photo.photo_frame import read_mask, read_photo
 from viewer.resources import asset_dir
-
-from conftest import SHARED_DATA
 
 PHOTO = asset_dir() / "photos" / "underpass.jpg"
 SRGB = ImageCms.createProfile("sRGB")

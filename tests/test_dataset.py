@@ -9,10 +9,10 @@ import pytest
 import torch
 
 from viewer.cli.main import main
-from viewer.lab.data.dataset import DatasetConfig, make_sample, map_pool, sample_dir
-from viewer.lab.data.loader import RelightDataset
 from viewer.errors import InputError
 from viewer.imageio import read_exr
+from viewer.lab.data.dataset import DatasetConfig, make_sample, map_pool, sample_dir
+from viewer.lab.data.loader import RelightDataset
 
 
 def test_layout_and_manifests(tiny_dataset):

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import render_by_units
-from viewer.lab.scenes import plane_and_box
+
 from viewer.gl import Engine, EngineOptions
 from viewer.gl.prefilter import blur_plan
+from viewer.lab.scenes import plane_and_box
 from viewer.lighting.lights import AreaLights
 
 
@@ -184,13 +184,15 @@ def test_cache_rules(ctx, scene):
         eng.render()
         return {k: v - start.get(k, 0) for k, v in eng.kit.counters.items() if v - start.get(k, 0)}
 
-    assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1, "display": 1}
+    assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0))) == {"csm_basis": 1, "prefilter": 1, "light_pass": 1, "composite": 1,
+                                                                        "display": 1}
     assert delta(lambda: eng.set_lights(lights.with_sigma(1, 9.0).scaled(2.0))) == {"composite": 1, "display": 1}
     assert delta(lambda: relook(eng, exposure=1.0)) == {"display": 1}
     assert delta(lambda: relook(eng, exposure=1.0, yaw=0.0)) == {}  # unchanged: nothing redone
     assert delta(lambda: eng.render()) == {}
     rotated = lights.with_sigma(1, 9.0).scaled(2.0).rotated(20.0)
-    assert delta(lambda: eng.set_lights(rotated)) == {"shadow_map": 3, "csm_basis": 2, "prefilter": 2, "light_pass": 1, "composite": 1, "display": 1}
+    assert delta(lambda: eng.set_lights(rotated)) == {"shadow_map": 3, "csm_basis": 2, "prefilter": 2, "light_pass": 1, "composite": 1,
+                                                      "display": 1}
     # going back reproduces the first frame exactly (nothing stale survives in the cache)
     eng.set_lights(lights)
     eng.render()

@@ -5,6 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from viewer.errors import InputError
+from viewer.imageio import write_exr
 from viewer.lighting.envmap import (
     EnvMap,
     direction_to_uv,
@@ -13,8 +15,6 @@ from viewer.lighting.envmap import (
     save_envmap,
     solid_angles,
 )
-from viewer.errors import InputError
-from viewer.imageio import write_exr
 from viewer.lighting.lights import load_lights, rotation_matrix
 from viewer.lighting.median_cut import median_cut_lights
 from viewer.resources import asset_dir
@@ -68,8 +68,9 @@ def test_known_directions():
     d = pixel_directions(h, w)
     np.testing.assert_allclose(np.linalg.norm(d, axis=-1), 1.0, atol=1e-12)
     # pixels around the image centre look along -z, around u = 3W/4 on the equator along +x
-    np.testing.assert_allclose(d[h // 2 - 1 : h // 2 + 1, w // 2 - 1 : w // 2 + 1].mean(axis=(0, 1)) / np.cos(np.pi / (2 * h)) ** 2, [0, 0, -1], atol=1e-9)
-    np.testing.assert_allclose(d[h // 2 - 1 : h // 2 + 1, 3 * w // 4 - 1 : 3 * w // 4 + 1].mean(axis=(0, 1)) / np.cos(np.pi / (2 * h)) ** 2, [1, 0, 0], atol=1e-9)
+    scale = np.cos(np.pi / (2 * h)) ** 2
+    np.testing.assert_allclose(d[h // 2 - 1 : h // 2 + 1, w // 2 - 1 : w // 2 + 1].mean(axis=(0, 1)) / scale, [0, 0, -1], atol=1e-9)
+    np.testing.assert_allclose(d[h // 2 - 1 : h // 2 + 1, 3 * w // 4 - 1 : 3 * w // 4 + 1].mean(axis=(0, 1)) / scale, [1, 0, 0], atol=1e-9)
     assert (d[0, :, 1] >= np.cos(np.pi / h)).all() and (d[-1, :, 1] <= -np.cos(np.pi / h)).all()
 
 
@@ -241,9 +242,7 @@ def test_bundled_environment_carries_its_fitted_lights(horn):
     path = BUNDLED.with_suffix(".lights.json")
     bundled = load_lights(path)
     record = json.loads(path.read_text())["fit"]
-    from viewer.lighting.lightfit.cache import FIT_VERSION
-
-    from viewer.lighting.lightfit.cache import map_hash
+    from viewer.lighting.lightfit.cache import FIT_VERSION, map_hash
 
     assert len(bundled) == 16 and record == {"source": BUNDLED.with_suffix(".hdr").name, "map": map_hash(env), "method": "fast",
                                              "n": 16, "version": FIT_VERSION}

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from viewer.photo import face
 from viewer.camera import Camera
+from viewer.photo import face
 from viewer.photo.photo_frame import read_photo
 from viewer.scene import Scene
 
@@ -31,7 +31,8 @@ def _scene(alpha, depth=4.0):
     mask = alpha > 0.5
     normal = np.zeros((h, w, 3), np.float32)
     normal[mask] = (0.0, 0.0, 1.0)
-    return Scene(albedo=np.where(mask[..., None], np.float32(0.5), np.zeros(3, np.float32)).astype(np.float32), specular=np.full((h, w), 0.5, np.float32),
+    return Scene(albedo=np.where(mask[..., None], np.float32(0.5), np.zeros(3, np.float32)).astype(np.float32),
+                 specular=np.full((h, w), 0.5, np.float32),
                  roughness=np.full((h, w), 0.5, np.float32), normal=normal,
                  depth=np.where(mask, depth, 4.0).astype(np.float32), mask=mask, camera=Camera(w, h)).validate()
 

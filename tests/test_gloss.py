@@ -4,13 +4,12 @@ network's roughness; dark cloth and the rest become matte; without a face nothin
 from __future__ import annotations
 
 import numpy as np
+from conftest import SHARED_DATA
 
-from viewer.photo import gloss
 from viewer.imageio import srgb_to_linear
+from viewer.photo import gloss
 from viewer.photo.photo_frame import read_photo, resize
 from viewer.photo.segmentation import find_person
-
-from conftest import SHARED_DATA
 
 
 def test_skin_is_told_from_cloth_by_the_faces_colour():

@@ -10,8 +10,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from conftest import render_by_units
+
 from viewer.camera import Camera
 from viewer.gl import Engine, EngineOptions
 from viewer.ground import MAX_TILT, contacts, ground_plane
@@ -296,7 +296,7 @@ def test_a_budgeted_photo_frame_comes_in_by_units_and_never_shows_half_a_frame(c
         before = eng.output.read_display().copy()
         eng.set_lights(lights.rotated(60.0))
 
-        def half_way(calls):
+        def half_way(calls, eng=eng):
             if calls == 18:
                 relook(eng, exposure=0.7)  # the look changes half-way (in the frame's bands)
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.engine import bench_lights
 from viewer.lab.bench.groundtruth import RayTracedVisibility
 from viewer.lab.bench.shadows import weighted_error
-from viewer.gl import Engine, EngineOptions
 from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
 from viewer.scene import load_scene

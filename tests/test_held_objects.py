@@ -6,9 +6,9 @@ and things that touch no hand or foot are not kept; a mask file that includes an
 from __future__ import annotations
 
 import numpy as np
-from viewer.photo import held_objects, matting
-
 from conftest import SHARED_DATA
+
+from viewer.photo import held_objects, matting
 
 H, W = 400, 300
 

@@ -10,21 +10,31 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
+from conftest import SHARED_DATA
 from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
+from viewer.lighting.lights import load_lights
+from viewer.output.render import apply_settings
 from viewer.photo import matting
 from viewer.photo.detail import detail_albedo
-from viewer.photo.inference import (FILL, NETWORK_RES, Framing, cached_bundle, crop, framing, infer, infer_scene, load_networks,
-                              to_work_frame, write_bundle)
-from viewer.lighting.lights import load_lights
+from viewer.photo.inference import (
+    FILL,
+    NETWORK_RES,
+    Framing,
+    cached_bundle,
+    crop,
+    framing,
+    infer,
+    infer_scene,
+    load_networks,
+    to_work_frame,
+    write_bundle,
+)
 from viewer.photo.photo_frame import frame_sizes, resize
-from viewer.output.render import apply_settings
 from viewer.scene import load_scene
 from viewer.settings import Look
-
-from conftest import SHARED_DATA
 
 PHOTOS = SHARED_DATA / "photos"
 LANDSCAPE = "unsplash-1535323700481"  # 1950 x 1302, its hand-made mask is RGB
@@ -188,7 +198,7 @@ def test_exif_rotated_photos_come_out_upright(tiny_networks, tmp_path, ctx):
 
 def test_grayscale_and_16_bit_inputs_are_handled(tiny_networks, tmp_path, ctx):
     photo, mask, _ = _person(tmp_path, mode="L")
-    Image.fromarray((np.asarray(Image.open(mask)).astype(np.uint16) * 257)).save(tmp_path / "mask16.png")
+    Image.fromarray(np.asarray(Image.open(mask)).astype(np.uint16) * 257).save(tmp_path / "mask16.png")
     nets = load_networks("cpu", tiny_networks)
     record = infer(photo, tmp_path / "mask16.png", tmp_path / "b", size=64, networks=nets, ctx=ctx)
     assert any("grayscale" in n for n in record["notes"]) and any("16-bit" in n for n in record["notes"])

@@ -4,15 +4,15 @@ gives back its own sigma, the studio map's lamp keeps its width, a sun stays sha
 
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 from hypothesis import given, settings, strategies as st
 
-from conftest import SHARED_DATA
+from viewer.lab.bench.contact import gaussian_light
 from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions
 from viewer.lighting.light_size import SIGMA_MAX, region_sizes
 from viewer.lighting.lightfit.fit import fit_lights
 from viewer.lighting.median_cut import median_cut_lights
 from viewer.shadow_space import ANGULAR_SIGMA
-from viewer.lab.bench.contact import gaussian_light
 
 HDRI = SHARED_DATA / "hdri"
 TOWARDS = np.array([0.5, 0.6, 0.62]) / np.linalg.norm([0.5, 0.6, 0.62])

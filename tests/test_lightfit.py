@@ -6,11 +6,11 @@ import warnings
 import numpy as np
 import pytest
 import torch
-
 from conftest import SHARED_DATA
+
+from viewer.lab.bench.lightfit_evaluate import held_out, relative_l1, shading_errors
 from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions, save_envmap
 from viewer.lighting.lightfit import cache_path, lights_for_map, map_hash
-from viewer.lab.bench.lightfit_evaluate import held_out, relative_l1, shading_errors
 from viewer.lighting.lightfit.fit import fit_lights
 from viewer.lighting.lightfit.problem import FitSettings, VisibilityTable, build_problem, shadowed_views
 from viewer.lighting.lightfit.reference import plane_reference, sphere_reference

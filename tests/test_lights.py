@@ -58,8 +58,8 @@ def test_bad_light_files_are_named(tmp_path, edit, message):
 
 
 def test_facing_yaw_turns_the_brightest_light_to_the_camera():
-    from viewer.cli.parser import build_parser
     from viewer.cli.command_setup import first_look
+    from viewer.cli.parser import build_parser
     from viewer.lighting.lights import AreaLights, facing_yaw
     from viewer.settings import Look
 

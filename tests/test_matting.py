@@ -7,14 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 
-from viewer.photo import matting
 from viewer.imageio import srgb_to_linear
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
+from viewer.photo import matting
 from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
 from viewer.photo.segmentation import find_person
-
-from conftest import SHARED_DATA
 
 PHOTOS = SHARED_DATA / "photos"
 STEMS = ("unsplash-1507274733827", "unsplash-1535323700481")
@@ -118,7 +117,8 @@ def test_a_dark_person_on_a_bright_background_keeps_its_colour_to_the_edge():
     rng = np.random.default_rng(1)
     linear = np.where(person[..., None], navy, street) * (1 + 0.05 * rng.standard_normal((h, w, 1)))
     linear = cv2.GaussianBlur(linear.astype(np.float32), (0, 0), 1.2)
-    photo = np.clip(np.round(255 * (np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.maximum(linear, 0) ** (1 / 2.4) - 0.055))), 0, 255).astype(np.uint8)
+    photo = np.clip(np.round(255 * (np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.maximum(linear, 0) ** (1 / 2.4) - 0.055))), 0,
+                    255).astype(np.uint8)
     matte = matting.mask_matte(photo, person.astype(np.float32))
     soft = (matte.alpha > 0.3) & (matte.alpha < matting.OPAQUE)
     assert soft.sum() > 100

@@ -11,11 +11,10 @@ import torch
 
 from viewer.cli.main import main
 from viewer.errors import InputError
-from viewer.nets import depth as dn
-from viewer.nets import inverse as inv
+from viewer.nets import depth as dn, inverse as inv
 from viewer.nets.photo import photo_input
-from viewer.nets.weights import load_network
 from viewer.nets.unet import UNet
+from viewer.nets.weights import load_network
 
 
 def test_unet_outputs():
@@ -144,12 +143,12 @@ def test_the_body_prior_experiment_trains_and_the_product_refuses_its_weights(ti
     """The lab's body-prior experiment (lab/data/body_prior.py): the prior is made once per sample,
     lines up with the person, trains, and weights that read it are refused by the product (which
     has no body fit) in one line."""
+    import shutil
+
     import numpy as np
 
     from viewer.lab.data.loader import RelightDataset, body_channels
     from viewer.scene import load_scene
-
-    import shutil
 
     data = tmp_path / "data"  # a copy: the priors are written into the samples
     shutil.copytree(tiny_dataset[0], data)

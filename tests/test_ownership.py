@@ -12,8 +12,8 @@ import threading
 import pytest
 
 from viewer.errors import InputError
-from viewer.photo.inference import bundle_target
 from viewer.ownership import MARKER, folder_lock, fresh_sibling, mark_written, written_here
+from viewer.photo.inference import bundle_target
 from viewer.resources import asset_dir
 
 RELIGHT = [sys.executable, "-m", "viewer.cli.main"]

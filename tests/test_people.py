@@ -3,10 +3,10 @@ real anny body model (the first construction on a machine builds its cache: a mi
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
-
-from dataclasses import replace
 
 from viewer.lab.data.geometry import subdivide, vertex_normals
 from viewer.lab.data.humans import POSE_STYLES, build_body, fold, sample_phenotype, sample_pose
@@ -86,7 +86,8 @@ def test_long_hair_falls_down_the_back_and_folds_stay_on_cloth():
     assert shift[regions["skin"] & (at["fields"][:, 5] > 0.5)].max() < 1e-9  # the face is not folded
     assert np.allclose(np.linalg.norm(n2, axis=1), 1.0)
     bent = np.degrees(np.arccos(np.clip((n2 * n).sum(1), -1, 1)))
-    assert 2.0 < np.median(bent[regions["shirt"]]) < 30.0 and np.percentile(bent[regions["skin"] & (at["fields"][:, 5] > 0.5)], 90) < 1e-3  # (only the ring next to the hair turns)
+    assert 2.0 < np.median(bent[regions["shirt"]]) < 30.0 and np.percentile(bent[regions["skin"] & (at["fields"][:, 5] > 0.5)],
+                                                                            90) < 1e-3  # (only the ring next to the hair turns)
 
 
 def test_preview_draws_people_and_maps(tmp_path, capsys):

@@ -11,8 +11,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
 from conftest import SHARED_DATA
+
 from viewer.lab.bench import face_metrics as fm
 from viewer.lab.bench.photo_set import halves, terminator, white_shift
 

@@ -10,8 +10,18 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.lighting.placed_lights import (MIN_SEPARATION, History, PlacedLight, free_spot, kelvin_to_rgb, level, load_rig, rig,
-                                   save_rig, to_area_lights)
+from viewer.lighting.placed_lights import (
+    MIN_SEPARATION,
+    History,
+    PlacedLight,
+    free_spot,
+    kelvin_to_rgb,
+    level,
+    load_rig,
+    rig,
+    save_rig,
+    to_area_lights,
+)
 from viewer.shadow_space import ANGULAR_SIGMA
 
 

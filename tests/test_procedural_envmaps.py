@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.lab.data.envmaps import KINDS, interior, key_light, outdoor, random_map, sky, studio, overcast
+from viewer.lab.data.envmaps import KINDS, interior, key_light, outdoor, overcast, random_map, sky, studio
 from viewer.lighting.envmap import pixel_directions, solid_angles
 from viewer.lighting.median_cut import median_cut_lights
 

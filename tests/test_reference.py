@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.lab.scenes import plane_and_box
-from viewer.lab.data.reference import envmap_emitter, mitsuba, render_bundle_reference
-from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions
 from viewer.gl import Engine, EngineOptions
+from viewer.lab.data.reference import envmap_emitter, mitsuba, render_bundle_reference
+from viewer.lab.scenes import plane_and_box
+from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions
 from viewer.lighting.lights import load_lights, rotation_matrix
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene

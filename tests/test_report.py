@@ -11,10 +11,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from viewer.lab.bench.methods import Method
-from viewer.lab.bench.report import choose_presets, pareto
 from viewer.gl import EngineOptions
 from viewer.imageio import read_png
+from viewer.lab.bench.methods import Method
+from viewer.lab.bench.report import choose_presets, pareto
 from viewer.presets import DEFAULT_PRESET, PRESETS
 
 
@@ -62,8 +62,8 @@ def test_soft_shadow_targets():
 
 def test_balanced_preset_is_the_default():
     assert DEFAULT_PRESET == "balanced" and PRESETS["balanced"].options == EngineOptions()
-    from viewer.cli.parser import build_parser
     from viewer.cli.command_setup import command_look, engine_options, lights_count
+    from viewer.cli.parser import build_parser
 
     def options(*argv):
         args = build_parser().parse_args(list(argv))
@@ -118,8 +118,8 @@ def test_quick_report_measures_what_it_claims(quick_report):
 
 
 def test_cases_helpers(tmp_path):
-    from viewer.lab.bench.cases import find_maps, interior
     from viewer.errors import InputError
+    from viewer.lab.bench.cases import find_maps, interior
 
     mask = np.zeros((6, 7), bool)
     mask[1:5, 1:6] = True

@@ -7,12 +7,11 @@ import json
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
-from viewer.lighting.envmap import load_envmap
 from viewer.errors import InputError
 from viewer.imageio import read_json
+from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lights import load_lights
 from viewer.photo.photo_frame import read_mask
 from viewer.settings import Look
@@ -117,16 +116,16 @@ def test_numbers_of_thousands_of_digits_are_one_line_in_every_file_kind(tmp_path
     big = "7" * digits + (".5" if fraction else "")
     if kind == "lights":
         path = d / "l.json"
-        path.write_text('{"format": "relight-lights", "version": 1, "lights": [{"direction": [0, 1, 0], "sigma": %s, '
-                        '"intensity": [1, 1, 1]}]}' % big)
+        path.write_text('{"format": "relight-lights", "version": 1, "lights": [{"direction": [0, 1, 0], "sigma": BIG, '
+                        '"intensity": [1, 1, 1]}]}'.replace("BIG", big))
         load = load_lights
     elif kind == "rig":
         path = d / "r.json"
-        path.write_text('{"format": "relight-rig", "lights": [{"azimuth": %s}]}' % big)
+        path.write_text('{"format": "relight-rig", "lights": [{"azimuth": BIG}]}'.replace("BIG", big))
         load = load_rig
     elif kind == "look":
         path = d / "look.json"
-        path.write_text('{"look": {"yaw": %s}}' % big)
+        path.write_text('{"look": {"yaw": BIG}}'.replace("BIG", big))
         load = read_json
     else:
         bundle = shutil.copytree(sample_scene_dir(), d / "bundle")

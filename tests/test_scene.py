@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from dataclasses import replace
-
-from viewer.lab.scenes import plane_and_box
 from viewer.errors import InputError
 from viewer.imageio import read_exr, write_exr, write_png
+from viewer.lab.scenes import plane_and_box
 from viewer.mesh import depth_mesh
 from viewer.resources import sample_scene_dir
 from viewer.scene import load_scene, save_scene

@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 
-from viewer.lab.bench.photos import mask_iou, read_reference_mask
-from viewer.lighting.envmap import load_envmap
 from viewer.errors import InputError
 from viewer.imageio import linear_to_srgb
+from viewer.lab.bench.photos import mask_iou, read_reference_mask
+from viewer.lighting.envmap import load_envmap
 from viewer.photo.photo_frame import read_photo, resize
 from viewer.photo.segmentation import find_person
-
-from conftest import SHARED_DATA
 
 PHOTOS = SHARED_DATA / "photos"
 

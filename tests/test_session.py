@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.app.jobs import LightJob
-from viewer.lighting.map_lights import sidecar_lights
 from viewer.app.session import PREVIEW_SIZE, Session
-from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions
+from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lights import load_lights
+from viewer.lighting.map_lights import sidecar_lights
 from viewer.output.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from viewer.gl import Engine, EngineOptions
-from viewer.lighting.lights import AreaLights
 from viewer.lab.bench.contact import LIGHT, ContactConfig, penumbra_widths
 from viewer.lab.scenes import plane_and_box
+from viewer.lighting.lights import AreaLights
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.lab.scenes import sphere
-from viewer.lab.bench.contact import gaussian_light
 from viewer.gl import Engine, EngineOptions
+from viewer.lab.bench.contact import gaussian_light
+from viewer.lab.scenes import sphere
 from viewer.lighting.lights import AreaLights
 from viewer.shadow_space import ANGULAR_SIGMA
 

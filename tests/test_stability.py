@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
+from viewer.lab.scenes import plane_and_box
 from viewer.lighting.lights import AreaLights
 
 

@@ -9,15 +9,25 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from viewer.lab.scenes import plane_and_box
 from viewer import shadow_space
 from viewer.camera import Camera
+from viewer.lab.scenes import plane_and_box
 from viewer.lighting.lights import AreaLights
 from viewer.mesh import caster_points, depth_mesh
 from viewer.scene import Scene
-from viewer.twin import (LightTensors, SceneTensors, diffuse_shading, gaussian_filter, light_frames,
-                         project_vertices, rasterize_depth, receiver_coordinates, render, sample_bilinear,
-                         specular_shading)
+from viewer.twin import (
+    LightTensors,
+    SceneTensors,
+    diffuse_shading,
+    gaussian_filter,
+    light_frames,
+    project_vertices,
+    rasterize_depth,
+    receiver_coordinates,
+    render,
+    sample_bilinear,
+    specular_shading,
+)
 
 PLANE_DEPTH = 4.0
 BOX_DEPTH = 3.0

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.gl import Engine, EngineOptions
-from viewer.photo.inference import infer_scene
 from viewer.lab.bench.upsample import _gradient, lightings, render
+from viewer.photo.inference import infer_scene
 from viewer.resources import asset_dir
 
 # display RMSE ([0, 1] sRGB) over the person, here a 512-px output with the person 160 px tall in the work

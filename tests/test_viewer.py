@@ -14,18 +14,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viewer.lab.bench.viewer import x_display
 from viewer.cli.commands import DEMO_LIGHTS
 from viewer.gl import Engine, EngineOptions
-from viewer.lab.bench.metrics import detail_kept
 from viewer.imageio import read_exr, read_png
+from viewer.lab.bench.metrics import detail_kept
+from viewer.lab.bench.viewer import x_display
 from viewer.lighting.lights import facing_yaw, load_lights
 from viewer.output.render import apply_settings
+from viewer.output.video import partial_path, read_video
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import Look
-from viewer.output.video import partial_path, read_video
 
 # the viewer opens with the brightest light turned toward the camera (no --yaw given)
 FIRST_YAW = facing_yaw(load_lights(asset_dir() / DEMO_LIGHTS))
@@ -173,7 +173,7 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     s = v.wait_for(lambda s: s["window_size"] == [900, 700] and s["image_rect"][2] == pytest.approx(594.0), 30)
     time.sleep(0.5)
     s = v.state()
-    for name, (x0, y0, x1, y1) in s["widgets"].items():
+    for name, (x0, _, x1, _) in s["widgets"].items():
         assert 594.0 <= x0 and x1 <= 900.0, (name, x0, x1)
     assert v.quit() == 0
 

@@ -38,8 +38,8 @@ glfw.terminate()
 
 
 def test_engine_in_glfw_context_matches_headless(ctx, tmp_path):
-    from viewer.lab.scenes import plane_and_box
     from viewer.gl import Engine, EngineOptions
+    from viewer.lab.scenes import plane_and_box
     from viewer.lighting.lights import AreaLights
 
     out = tmp_path / "window.npy"

@@ -4,8 +4,8 @@
 to ``width`` x ``width / 2`` with the energy-preserving :meth:`viewer.lighting.envmap.EnvMap.downsampled`,
 writes it as ``<name>_<width>.hdr`` (``<name>`` is the source's stem without a resolution suffix such
 as ``_1k``), reads that file back and writes its ``n_lights`` lights fitted by ``method`` (the
-default method unless given; the bundled maps use ``fast``, :func:`viewer.lighting.lightfit.fit.fit_lights`) as ``<name>_<width>.lights.json``, so the demo shows
-fitted lights without fitting (and without importing torch).
+default method unless given; the bundled maps use ``fast``, :func:`viewer.lighting.lightfit.fit.fit_lights`) as
+``<name>_<width>.lights.json``, so the demo shows fitted lights without fitting (and without importing torch).
 
 Run from the project root (positional arguments, no options)::
 

@@ -68,8 +68,8 @@ def crop_boxes(photo: np.ndarray) -> dict:
 def figure(groups: list, out: Path, tile: int = 300, parts=PARTS) -> Path:
     """Rows of (photo, {label: image}): per photo and part, the crop of each render side by side."""
     from viewer.imageio import read_png, write_jpeg
-    from viewer.photo.photo_frame import read_photo, resize, output_frame
     from viewer.output.render import _label
+    from viewer.photo.photo_frame import output_frame, read_photo, resize
 
     rows = []
     for photo_path, renders in groups:

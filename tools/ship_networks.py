@@ -96,7 +96,8 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
         for net in staged:
             stages = [*reversed(cards[net]["lineage"]), training_stage(cards[net])]
             lines.append(f"  - {net}: " + "; then ".join(
-                f"{st['epochs']} epoch{'' if st['epochs'] == 1 else 's'} on {st['train_items']} pairs ({', '.join(st['data'] if isinstance(st['data'], list) else [st['data']])}), "
+                f"{st['epochs']} epoch{'' if st['epochs'] == 1 else 's'} on {st['train_items']} pairs "
+                f"({', '.join(st['data'] if isinstance(st['data'], list) else [st['data']])}), "
                 f"lr {st['lr'][0]:g} to {st['lr'][1]:g}, {(st['seconds'] or 0) / 60:.0f} min" for st in stages) + ".")
     for net in ("depth", "inverse"):
         last = cards[net]["history"][-1]

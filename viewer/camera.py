@@ -37,7 +37,7 @@ class Camera:
         return d
 
     @staticmethod
-    def from_json(d: dict) -> "Camera":
+    def from_json(d: dict) -> Camera:
         """Raises ValueError for anything but a perspective camera with positive finite values."""
         if d.get("model", "perspective") != "perspective":
             raise ValueError(f"camera model must be 'perspective', got {d.get('model')!r}")

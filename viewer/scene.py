@@ -101,7 +101,7 @@ class FrameLayer:
     def width(self) -> int:
         return int(self.alpha.shape[1])
 
-    def resized(self, size: tuple[int, int]) -> "FrameLayer":
+    def resized(self, size: tuple[int, int]) -> FrameLayer:
         """The layer at ``size`` = (width, height) (area average down, bilinear up)."""
         from .photo.photo_frame import resize
 
@@ -112,7 +112,7 @@ class FrameLayer:
                           skin=None if self.skin is None else np.clip(resize(self.skin, size), 0, 1),
                           skin_mm=self.skin_mm * self.width / size[0])
 
-    def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> "FrameLayer":
+    def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> FrameLayer:
         def file(name):
             fname = {**FRAME_FILES, "skin": FRAME_SKIN_FILE}[name]
             return base / fname if base is not None else fname
@@ -190,7 +190,7 @@ class Scene:
         """Camera-space positions (H, W, 3) of every pixel's depth."""
         return self.camera.unproject(self.depth)
 
-    def validate(self, where: Path | None = None) -> "Scene":
+    def validate(self, where: Path | None = None) -> Scene:
         """Check shapes, ranges, unit normals, finiteness and a non-empty mask.
 
         Raises :class:`InputError` naming the offending file. Values outside the mask are
@@ -221,7 +221,8 @@ class Scene:
             inside = arr[m]
             bad = ~np.isfinite(inside)
             if bad.any():
-                raise InputError(file(name), f"{int(bad.any(axis=-1).sum() if bad.ndim > 1 else bad.sum())} pixel(s) inside the mask are NaN or Inf")
+                raise InputError(file(name),
+                                 f"{int(bad.any(axis=-1).sum() if bad.ndim > 1 else bad.sum())} pixel(s) inside the mask are NaN or Inf")
             arr = np.where(m[..., None] if arr.ndim == 3 else m, arr, 0.0).astype(np.float32)
             setattr(self, name, np.ascontiguousarray(arr))
         for name in ("albedo", "specular", "roughness"):
@@ -235,7 +236,8 @@ class Scene:
         if worst > NORMAL_TOLERANCE:
             n_bad = int((np.abs(lengths - 1.0) > NORMAL_TOLERANCE).sum())
             raise InputError(file("normal"), f"{n_bad} normal(s) inside the mask are not unit length (worst | |n|-1 | = {worst:.3g})")
-        self.normal = np.where(m[..., None], self.normal / np.maximum(np.linalg.norm(self.normal, axis=-1, keepdims=True), 1e-12), 0.0).astype(np.float32)
+        self.normal = np.where(m[..., None], self.normal / np.maximum(np.linalg.norm(self.normal, axis=-1, keepdims=True), 1e-12),
+                               0.0).astype(np.float32)
         dmin, dmax = float(self.depth[m].min()), float(self.depth[m].max())
         if dmin <= 0.0:
             raise InputError(file("depth"), f"depth must be > 0 inside the mask, found {dmin:.4g}")
@@ -254,7 +256,8 @@ class Scene:
                 raise InputError(file(name), "contains NaN or Inf")
             setattr(self, name, np.ascontiguousarray(arr))
         if (self.camera.width, self.camera.height) != (w, h):
-            raise InputError(file("scene.json"), f"camera resolution {self.camera.width}x{self.camera.height} does not match the maps' {w}x{h}")
+            raise InputError(file("scene.json"),
+                             f"camera resolution {self.camera.width}x{self.camera.height} does not match the maps' {w}x{h}")
         if self.frame is not None:
             self.frame.validate((w, h), base)
             if self.photo is None:  # the maps' photo and background are the frame's, at their resolution
@@ -271,7 +274,8 @@ def load_scene(path) -> Scene:
     path = Path(path)
     if path.is_file() and path.suffix.lower() in PHOTO_SUFFIXES:
         raise InputError(path, "is a photo: relighting needs its scene bundle (a directory of maps); make one with "
-                         f"`relight infer {path.name} --mask MASK.png -o BUNDLE`, or view it with `relight view {path.name} --mask MASK.png`")
+                         f"`relight infer {path.name} --mask MASK.png -o BUNDLE`, or view it with "
+                         f"`relight view {path.name} --mask MASK.png`")
     if not path.is_dir():
         wrong = wrong_kind(path, "a photo or a scene bundle")
         raise wrong if wrong is not None else InputError(path, "scene bundle directory not found")

@@ -16,8 +16,8 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 
 from .errors import InputError
-from .shader_modes import MODES
 from .lighting.lights import rotation_matrix
+from .shader_modes import MODES
 
 AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.output.render.photo_exposure)
 MAX_BACKGROUND = 65504.0  # the background colour's largest value: the largest a half-float EXR holds
@@ -115,14 +115,14 @@ class Look:
         """The exposure to display with: 0 stops while "auto" is not resolved yet."""
         return 0.0 if self.exposure == AUTO else float(self.exposure)
 
-    def fitted(self, n_lights: int) -> "Look":
+    def fitted(self, n_lights: int) -> Look:
         """This look for a set of ``n_lights`` lights: a selected light past the set (a look saved
         with more lights) becomes light 0, and its shadow view the relit image."""
         if self.light < n_lights:
             return self
         return replace(self, light=0, view="final" if self.view == "shadow" else self.view)
 
-    def replace(self, **changes) -> "Look":
+    def replace(self, **changes) -> Look:
         return replace(self, **changes)
 
     def to_json(self) -> dict:
@@ -131,7 +131,7 @@ class Look:
         return out
 
     @classmethod
-    def from_json(cls, data, where=None) -> "Look":
+    def from_json(cls, data, where=None) -> Look:
         """A look saved by :meth:`to_json`, or by an older version (``visibility`` for ``shadows``);
         unknown keys are ignored, a bad value is one line naming ``where``."""
         if not isinstance(data, dict):

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import cache, cached_property
 
 import numpy as np
 
@@ -179,7 +179,7 @@ def sigma_in_pixels(sigma: float, resolution: int) -> float:
     return float(sigma) * resolution / SIGMA_REFERENCE_RESOLUTION
 
 
-@lru_cache(maxsize=None)
+@cache
 def csm_constants(terms: int) -> tuple[float, float]:
     """(offset, clamp) for CSM reconstruction with ``terms`` Fourier terms.
 
@@ -219,7 +219,7 @@ def csm_empty_basis(empty_depth: float, terms: int) -> np.ndarray:
     return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def pcss_taps(count: int = PCSS_TAPS) -> np.ndarray:
     """(count, 2) offsets of unit Gaussian sigma: a Vogel spiral (golden-angle turns) whose radii
     are the Gaussian's radial quantiles, so ``count`` taps sample the Gaussian evenly."""

@@ -67,7 +67,8 @@ class Actions:
     def toggle_recording(self, kind: str):
         rec = self.app.recording
         if isinstance(rec, InteractionRecording) and rec.capturing:
-            rec.stop(self.app.session.look, self.app.session.placed, self.app.session.sigma)  # the capture ends: its frames are rendered from the next pass on
+            rec.stop(self.app.session.look, self.app.session.placed,
+                     self.app.session.sigma)  # the capture ends: its frames are rendered from the next pass on
             self.app.message = f"rendering {rec.total} frames of {rec.path.name}"
             return
         if rec is not None:

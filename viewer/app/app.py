@@ -26,8 +26,8 @@ from .controls import Controls
 from .job_polling import JobPolling
 from .jobs import ChildWorker, LightJob, SceneJob
 from .layout import PANEL_WIDTH, image_area_size, panel_width
-from .recording import InteractionRecording, TurntableRecording
 from .panel import PanelState
+from .recording import InteractionRecording, TurntableRecording
 from .session import Session
 from .state_file import StateFile
 

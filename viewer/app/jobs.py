@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..lighting.envmap import EnvMap, load_envmap
 from ..errors import InputError
+from ..lighting.envmap import EnvMap, load_envmap
 from ..lighting.lights import AreaLights
 from ..lighting.map_lights import map_lights
 
@@ -273,8 +273,8 @@ class SceneJob(ChildJob):
             bundle, how = Path(said["bundle"]), "cached" if said.get("cached") else "inferred"
             self.stage = "reading the maps"
         scene = load_sized_scene(bundle, None, self.max_size)
-        if scene.frame is not None:  # packed here, not in the frame that shows the person
-            scene.frame.texels, scene.frame.box
+        if scene.frame is not None:  # packed here (cached properties), not in the frame that shows the person
+            _ = scene.frame.texels, scene.frame.box
         return SceneResult(scene, self.path, how)
 
 

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..progress import TimeLeft
 from ..output.render import turntable_yaws
-from ..settings import Look
 from ..output.video import VideoWriter
+from ..progress import TimeLeft
+from ..settings import Look
 
 
 class TurntableRecording:

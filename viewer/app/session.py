@@ -20,8 +20,8 @@ from ..gl import Engine, EngineOptions
 from ..lighting.lights import AreaLights
 from ..lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
 from ..output.render import effective_background
-from ..scene import Scene
 from ..photo.photo_frame import scaled_size
+from ..scene import Scene
 from ..scene_ops import resample_scene
 from ..settings import Look
 

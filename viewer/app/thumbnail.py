@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..lighting.envmap import EnvMap, direction_to_uv, uv_to_direction
 from ..imageio import linear_to_srgb
+from ..lighting.envmap import EnvMap, direction_to_uv, uv_to_direction
 from ..lighting.lights import rotation_matrix
 from ..lighting.median_cut import LUMINANCE
 

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import os
 
-from imgui_bundle import imgui, implot  # noqa: I001  (before glfw, see above)
 import glfw
 import moderngl
+from imgui_bundle import imgui, implot  # noqa: I001  (before glfw, see above)
 
 from ..errors import InputError
 from ..gl.programs import shared_programs
-
 
 SHORTCUTS = {glfw.KEY_Z: "undo", glfw.KEY_Y: "redo"}  # with Ctrl
 

@@ -3,7 +3,8 @@
 ``manifest.jsonl`` gets one JSON line per event, flushed to the disk before the next item counts:
 ``inferred`` (a photo's bundle), ``start`` (an item about to be handed to a worker, with the outputs
 it will write), ``done`` or ``failed`` (its outputs with their SHA-256, the seconds of each stage,
-the one-line error), ``sheet`` (the contact sheet written). A batch killed at any moment leaves whole lines but perhaps the last; that line is ignored.
+the one-line error), ``sheet`` (the contact sheet written). A batch killed at any moment leaves whole
+lines but perhaps the last; that line is ignored.
 A rerun skips the items whose last ``done`` has the same key and whose outputs are still the files
 it wrote. The lock (``.relight-batch.lock``, an flock the kernel drops when the process dies, even
 by SIGKILL) keeps a second batch out of the folder."""

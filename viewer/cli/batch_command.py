@@ -139,7 +139,7 @@ def resolve_looks(specs, args) -> list:
                 try:
                     if spec.envmap is not None:
                         env = load_envmap(spec.envmap)
-                        lights, how = map_lights(env, spec.envmap, n, args.method, lambda e: fitted_lights(e, n, args.method))
+                        lights, how = map_lights(env, spec.envmap, n, args.method, lambda e, n=n: fitted_lights(e, n, args.method))
                         print(f"{len(lights)} lights for {spec.envmap}: {HOW[how]}")
                     else:
                         lights = load_lights(spec.lights_file)

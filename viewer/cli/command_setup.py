@@ -20,7 +20,8 @@ def engine_options(args, look):
 
     from ..presets import DEFAULT_PRESET, preset
 
-    given = {k: getattr(args, k) for k in ("soft", "shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args, k) is not None}
+    given = {k: getattr(args, k) for k in ("soft", "shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args,
+                                                                                                                        k) is not None}
     try:
         return replace(preset(look.preset or DEFAULT_PRESET).options, **given)
     except InputError as exc:  # name the option
@@ -58,7 +59,8 @@ def fitted_lights(env, n, method, refit=False):
     from ..progress import StageBars
 
     name = Path(env.source).name if env.source else "the map"
-    with StageBars(prefix=f"fitting {n} lights to {name}: ", shares=STAGE_SHARES.get(method or DEFAULT_METHOD)) as bars, warnings.catch_warnings():
+    with StageBars(prefix=f"fitting {n} lights to {name}: ",
+                   shares=STAGE_SHARES.get(method or DEFAULT_METHOD)) as bars, warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*the map is black")
         lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit)
     return lights, cached

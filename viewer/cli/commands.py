@@ -8,14 +8,24 @@ from pathlib import Path
 
 import numpy as np
 
-from .command_setup import command_lights, command_look, engine_options, first_look, fitted_lights, gl_threads, light_count_option, prepare, rig_lights, warn_if_dark
 from ..errors import InputError
-from .output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
+from ..output.video import partial_path as video_partial, partial_taken
 from ..ownership import file_is_ours, refuse_foreign
 from ..resources import asset_dir, sample_scene_dir
 from ..scene_ops import load_sized_scene
-from ..output.video import partial_path as video_partial, partial_taken
-
+from .command_setup import (
+    command_lights,
+    command_look,
+    engine_options,
+    first_look,
+    fitted_lights,
+    gl_threads,
+    light_count_option,
+    prepare,
+    rig_lights,
+    warn_if_dark,
+)
+from .output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
 
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 DEMO_LIGHTS = "envmaps/immenstadter_horn_256.lights.json"
@@ -42,13 +52,13 @@ def cmd_demo(args) -> int:
     photo beside its relightings."""
     from dataclasses import replace
 
-    from ..lighting.envmap import load_envmap
     from ..gl import Engine, create_headless_context
     from ..imageio import read_png, write_png
-    from ..photo.inference import infer
+    from ..lighting.envmap import load_envmap
     from ..lighting.lights import load_lights
-    from ..photo.photo_frame import read_photo, resize
     from ..output.render import render_to_files
+    from ..photo.inference import infer
+    from ..photo.photo_frame import read_photo, resize
 
     assets = asset_dir()
     look = command_look(args, DEMO_YAW)
@@ -91,7 +101,8 @@ def cmd_render(args) -> int:
         raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
     writable(out)
     outputs = [out] if suffix == ".mp4" else [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
-    not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
+    not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look,
+                                                                                getattr(args, "rig", None)])
     refuse_foreign(outputs, args.force)
     if suffix == ".mp4":
         check_video(args)

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import sys
 
-from .parser import build_parser, command_plugins
 from ..cores import size_pools, work_threads
 from ..errors import InputError
+from .parser import build_parser, command_plugins
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import argparse
 
+from ..lighting.lightfit import DEFAULT_METHOD, METHODS
 from .batch_command import add_batch_parser
 from .commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
 from .options import add_engine_args, add_view_args, auto_or
-from ..lighting.lightfit import DEFAULT_METHOD, METHODS
-
 
 COMMAND_GROUP = "relight.commands"
 
@@ -40,7 +39,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, help="video frames (default 120 for a .mp4)")
     p.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
     p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
-    p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
+    p.add_argument("--size", type=int,
+                   help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)

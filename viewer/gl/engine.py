@@ -26,10 +26,11 @@ these declarations):
 Reading results back is the other half of the interface (``output``, outputs.py); the final
 picture, an image or a photo's frame, is one object with one interface (picture.py); the look and
 the map behind are look_state.py's; what is stale is staleness.py's: when a pass runs, what it made
-counts as changed in turn, which is how a new direction reaches the composite. Left out on purpose: lights that cannot contribute (zero intensity, facing no
-pixel, or an upper bound below ``skip_threshold`` of the scene's diffuse level), soft filtering where
-sigma ~ 0 (soft = hard visibility) and whenever the soft visibility is not shown, shadow maps when no
-shadows are shown, and the specular code on a scene without specular reflectance.
+counts as changed in turn, which is how a new direction reaches the composite. Left out on purpose:
+lights that cannot contribute (zero intensity, facing no pixel, or an upper bound below
+``skip_threshold`` of the scene's diffuse level), soft filtering where sigma ~ 0 (soft = hard
+visibility) and whenever the soft visibility is not shown, shadow maps when no shadows are shown,
+and the specular code on a scene without specular reflectance.
 """
 
 from __future__ import annotations
@@ -56,8 +57,8 @@ from .picture import FramePicture, ImagePicture, PictureInputs
 from .programs import shared_programs
 from .scene_resources import SceneResources
 from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
-from .work_budget import WorkBudget
 from .staleness import Staleness
+from .work_budget import WorkBudget
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
 
@@ -244,7 +245,7 @@ class Engine:
         return self.options.leave_out and l.sigma < self.options.hard_sigma
 
     @in_context
-    def render(self, budget: float | None = None, display: bool = True, soft_planes: bool = False) -> "Engine":
+    def render(self, budget: float | None = None, display: bool = True, soft_planes: bool = False) -> Engine:
         """Bring every output up to date, redoing only the passes whose inputs changed. Each stage
         runs for all lights before the next starts: llvmpipe waits once per stage, not per pass.
 

@@ -19,7 +19,6 @@ from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from .light_pass import LIGHTS_PER_PASS, LightShadingPass
 from .scene_resources import SceneResources
 
-
 GROUND_PIXELS = 100_000
 
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
 from .. import shadow_space as ss
+from ..errors import InputError
 from .kit import PassKit
 from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from .scene_resources import SceneResources

@@ -14,15 +14,14 @@ what makes them stale.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from .display_pass import DisplayPass
-from .frame_pass import FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass, OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR
+from .frame_pass import OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
 from .skin_pass import SkinScatterPass
-
 
 BANDS = 4  # a budgeted frame composite's bands (at 2048 pixels with one llvmpipe thread the whole is ~110 ms)
 

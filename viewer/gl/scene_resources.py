@@ -8,11 +8,10 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from .. import shadow_space as ss
 from ..mesh import caster_points, depth_mesh, resolve_step
 from ..scene import Scene, bounding_box
-from .. import shadow_space as ss
 from .kit import PassKit
-
 
 MAX_ENVIRONMENT_WIDTH = 8192  # texels of the background's map: a bigger map is box-averaged down to it
 

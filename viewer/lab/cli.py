@@ -33,8 +33,9 @@ def shared_folder(given: str | None, part: str, option: str) -> Path:
 
 
 def cmd_dataset(args) -> int:
-    from .data.dataset import DatasetConfig, make_dataset, parse_shard
     from viewer.progress import StageBars
+
+    from .data.dataset import DatasetConfig, make_dataset, parse_shard
 
     cfg = DatasetConfig(out=Path(args.out), count=args.count, res=args.res, seed=args.seed, shard=parse_shard(args.shard),
                         spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool,
@@ -62,8 +63,9 @@ def cmd_dataset_preview(args) -> int:
 
 
 def cmd_train(args) -> int:
-    from .train import TrainConfig, train
     from viewer.progress import StageBars
+
+    from .train import TrainConfig, train
 
     data = [Path(d) for d in args.data]
     cfg = TrainConfig(task=args.network, data=data if len(data) > 1 else data[0], out=Path(args.out), res=args.res,
@@ -150,8 +152,9 @@ def cmd_bench(args) -> int:
         print(table(result))
         print(f"wrote {out_dir / 'upsample.json'}, {out_dir / 'upsample.jpg'}")
     elif args.what == "batch":
-        from .bench.batch import BATCH_MAPS, run_batch_benchmark
         from viewer.batch.plan import collect_photos
+
+        from .bench.batch import BATCH_MAPS, run_batch_benchmark
 
         maps = shared_folder(args.maps, "hdri", "--maps")
         photos, _ = collect_photos([shared_folder(args.photos, "photos", "--photos")])
@@ -169,8 +172,9 @@ def cmd_bench(args) -> int:
 
         run_temporal_benchmark(output=output)
     elif args.what == "networks":
-        from .bench.networks import run_networks_benchmark, table
         from viewer.progress import StageBars
+
+        from .bench.networks import run_networks_benchmark, table
 
         if not args.data:
             raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
@@ -180,8 +184,9 @@ def cmd_bench(args) -> int:
                                             progress=bars, face=not args.no_face)
         print(table(result))
     elif args.what == "bodyfit":
-        from .bench.body_fit import run_body_fit_benchmark
         from viewer.progress import StageBars
+
+        from .bench.body_fit import run_body_fit_benchmark
 
         if not args.data or len(args.data) > 1:
             raise InputError(None, "bench bodyfit needs --data and one dataset made by relight dataset make")
@@ -221,14 +226,16 @@ def cmd_bench(args) -> int:
         print(set_table(result))
         print(f"wrote {out_dir / 'photo_set.json'} and {len(result['photos'])} contact sheets in {result['seconds'] / 60:.1f} min")
     elif args.what == "photos":
-        from .bench.photos import run_photos_benchmark
         from viewer.progress import StageBars
+
+        from .bench.photos import run_photos_benchmark
 
         out_dir = Path(args.output or "out/bench-photos")
         if args.data and len(args.data) > 1:
             raise InputError(None, "bench photos takes one held-out dataset (--data DIR)")
         start = time.perf_counter()
-        result = run_photos_benchmark(shared_folder(args.photos, "photos", "--photos"), shared_folder(args.maps, "hdri", "--maps"), args.data[0] if args.data else None, out_dir, limit=args.limit,
+        result = run_photos_benchmark(shared_folder(args.photos, "photos", "--photos"), shared_folder(args.maps, "hdri", "--maps"),
+                                      args.data[0] if args.data else None, out_dir, limit=args.limit,
                                       progress=lambda what: print(f"  {what} ({time.perf_counter() - start:.0f} s)", flush=True))
         print(photos_table(result))
         print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.jpg'}, {out_dir / 'photos_detail.jpg'} "
@@ -252,9 +259,9 @@ def cmd_bench(args) -> int:
 
         run_shadow_benchmark(repeats=args.repeats, output=output)
     else:
-        from .bench.lights import COUNTS, run_lights_benchmark
-
         from viewer.lighting.lightfit.methods import METHODS
+
+        from .bench.lights import COUNTS, run_lights_benchmark
 
         run_lights_benchmark(maps_dir=shared_folder(args.maps, "hdri", "--maps"), counts=args.counts or COUNTS,
                              methods=tuple(args.methods or METHODS), output=output)
@@ -264,7 +271,8 @@ def cmd_bench(args) -> int:
 def build_parsers() -> dict[str, argparse.ArgumentParser]:
     """One parser per lab command, each named ``relight <command>``."""
     commands: dict[str, argparse.ArgumentParser] = {}
-    p = commands["dataset"] = argparse.ArgumentParser(prog="relight dataset", description="synthetic training data: people relit by a ray tracer (see docs/dataset.md)")
+    p = commands["dataset"] = argparse.ArgumentParser(
+        prog="relight dataset", description="synthetic training data: people relit by a ray tracer (see docs/dataset.md)")
     dsub = p.add_subparsers(dest="action", required=True)
     q = dsub.add_parser("make", help="make (or resume) a dataset in a directory")
     q.add_argument("--out", required=True, help="dataset directory (outside the repository)")
@@ -286,7 +294,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     q.add_argument("--count", type=int, default=8, help="people (default 8)")
     q.set_defaults(func=cmd_dataset_preview)
 
-    p = commands["train"] = argparse.ArgumentParser(prog="relight train", description="train a network on a dataset made by `relight dataset make`")
+    p = commands["train"] = argparse.ArgumentParser(prog="relight train",
+                                                    description="train a network on a dataset made by `relight dataset make`")
     p.add_argument("network", choices=("inverse", "depth", "refine"), help="which network")
     p.add_argument("--data", required=True, nargs="+", help="dataset directory (or several: shards, datasets)")
     p.add_argument("--out", default="runs", help="where checkpoints, loss curves and weights go (default runs/)")
@@ -309,7 +318,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.set_defaults(func=cmd_train)
 
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
-    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos", "robustness",
+    p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
+                                    "robustness",
                                     "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
@@ -321,7 +331,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
                         "a dataset's photos, as a depth prior (--data, --limit people); ground: the person's shadow on the "
                         "ground against Mitsuba (error and the ground pass's time per shadow method); light-sizes: the area lights' sigmas "
-                        "(each light's size on the map, scaled, and 0) against Mitsuba on the person and the ground under --maps; matte: the person's matte "
+                        "(each light's size on the map, scaled, and 0) against Mitsuba on the person and the ground under --maps; "
+                        "matte: the person's matte "
                         "against the hand-made masks (--photos), every step and matting solver, quality and time; upsample: "
                         "the work shading brought to the frame (bilinear) against a work frame as large as the frame; "
                         "batch: relight batch's throughput on --count photos made from --photos x three of --maps, "

@@ -29,7 +29,8 @@ GROUPS = (
      "GL passes, programs, context, the shaders' modes; quality presets; the backdrop"),
     ("twin", ("viewer.twin",), "the engine in differentiable torch"),
     ("lighting", ("viewer.lighting",), "environment maps, area lights, light fitting, your lights, where a map's lights come from"),
-    ("scene", ("viewer.scene", "viewer.scene_ops", "viewer.camera", "viewer.mesh", "viewer.shadow_space", "viewer.settings", "viewer.ground"),
+    ("scene", ("viewer.scene", "viewer.scene_ops", "viewer.camera", "viewer.mesh", "viewer.shadow_space", "viewer.settings",
+               "viewer.ground"),
      "scene bundle, camera, geometry, the ground, the Look"),
     ("base", ("viewer",), "errors, files, assets, constants, progress, memory budgets, cores, signals"),
 )

@@ -1,4 +1,5 @@
-"""Small synthetic scene bundles with exact geometry and known answers: the tests' and the contact-shadow benchmark's (viewer.lab.bench.contact)."""
+"""Small synthetic scene bundles with exact geometry and known answers: the tests' and the contact-shadow
+benchmark's (viewer.lab.bench.contact)."""
 
 from __future__ import annotations
 

@@ -22,11 +22,9 @@ import torch
 from torch.nn import functional as F
 
 from viewer.errors import InputError
-from viewer.lab.data.loader import FIELDS
 from viewer.imageio import atomic_path, read_json, write_text
-from viewer.nets import depth as depth_net
-from viewer.nets import inverse as inverse_net
-from viewer.nets import refine as refine_net
+from viewer.lab.data.loader import FIELDS
+from viewer.nets import depth as depth_net, inverse as inverse_net, refine as refine_net
 from viewer.nets.photo import exposure_scale, in_channels, photo_input
 from viewer.nets.unet import UNet
 
@@ -288,7 +286,8 @@ def train(cfg: TrainConfig, progress=None) -> dict:
                                          drop_last=len(train_idx) > cfg.batch * world,
                                          generator=torch.Generator().manual_seed(cfg.seed))
     model = UNet(task.in_channels, task.outputs, cfg.width, cfg.levels, task.vectors,
-                 list(task.inputs) if task.inputs and (cfg.silhouette or cfg.body_prior) else None).to(device)  # cards name inputs beyond photo and mask
+                 # the cards name inputs beyond photo and mask
+                 list(task.inputs) if task.inputs and (cfg.silhouette or cfg.body_prior) else None).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, betas=(0.5, 0.999))
     steps = cfg.epochs * max(len(loader), 1)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=steps, eta_min=cfg.lr_min)

@@ -118,7 +118,7 @@ class EnvMap:
         omega = solid_angles(self.height, self.width)
         return np.einsum("ijc,i->c", self.pixels.astype(np.float64), omega)
 
-    def rotated(self, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> "EnvMap":
+    def rotated(self, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> EnvMap:
         """The map rotated by R = ``rotation_matrix(yaw_deg, tilt_deg)``: the radiance arriving from
         R d is the original's from d. Resampled with bilinear lookups (wrapping in longitude, clamped
         at the poles); a pure yaw by a whole number of texels is an exact column shift."""
@@ -137,7 +137,7 @@ class EnvMap:
         r = rotation_matrix(yaw_deg, tilt_deg)
         return _bilinear(self.pixels, direction_to_uv(camera.view_directions() @ r))
 
-    def downsampled(self, max_width: int) -> "EnvMap":
+    def downsampled(self, max_width: int) -> EnvMap:
         """The map area-averaged to width ``2 * (max_width // 2)`` (unchanged if already no wider).
 
         Each new texel is the solid-angle weighted mean of the old texels it overlaps (exact

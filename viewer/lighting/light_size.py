@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from ..shadow_space import ANGULAR_SIGMA
+from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 
 SIGMA_MAX = 20.0  # the paper's upper bound on sigma (its Step 3's 20 sigmoid(s)); 256-px units
 SIZE_MAP_WIDTH = 512  # the map is area-averaged to this width first (the fit's own samples use 512 x 256)

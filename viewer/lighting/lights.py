@@ -54,12 +54,13 @@ class AreaLights:
     def __len__(self) -> int:
         return int(self.direction.shape[0])
 
-    def validate(self, where=None) -> "AreaLights":
+    def validate(self, where=None) -> AreaLights:
         n = len(self)
         if n > MAX_LIGHTS:
             raise InputError(where, f"{n} lights: at most {MAX_LIGHTS} (the presets use 8 to 64)")
         if self.sigma.shape != (n,) or self.intensity.shape != (n, 3):
-            raise InputError(where, f"inconsistent light counts: {n} directions, {self.sigma.shape[0]} sigmas, {self.intensity.shape[0]} intensities")
+            raise InputError(where, f"inconsistent light counts: {n} directions, {self.sigma.shape[0]} sigmas, "
+                                    f"{self.intensity.shape[0]} intensities")
         for name in ("direction", "sigma", "intensity"):
             arr = getattr(self, name)
             if not np.isfinite(arr).all():
@@ -85,16 +86,16 @@ class AreaLights:
         return self
 
     # ----------------------------------------------------------------- transforms
-    def rotated(self, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> "AreaLights":
+    def rotated(self, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> AreaLights:
         """Rotate the whole set: ``yaw`` about the vertical (+y) axis, then ``tilt`` about +x."""
         return AreaLights(self.direction @ rotation_matrix(yaw_deg, tilt_deg).T, self.sigma, self.intensity)
 
-    def with_sigma(self, index: int, sigma: float) -> "AreaLights":
+    def with_sigma(self, index: int, sigma: float) -> AreaLights:
         s = self.sigma.copy()
         s[index] = sigma
         return AreaLights(self.direction, s, self.intensity)
 
-    def scaled(self, factor) -> "AreaLights":
+    def scaled(self, factor) -> AreaLights:
         return AreaLights(self.direction, self.sigma, self.intensity * np.asarray(factor, dtype=np.float32))
 
     @property
@@ -102,7 +103,7 @@ class AreaLights:
         """The index of the light with the largest RGB intensity sum."""
         return int(np.argmax(self.intensity.sum(axis=1)))
 
-    def followed_by(self, other: "AreaLights") -> "AreaLights":
+    def followed_by(self, other: AreaLights) -> AreaLights:
         """These lights, then ``other``'s."""
         return AreaLights(np.concatenate([self.direction, other.direction]), np.concatenate([self.sigma, other.sigma]),
                           np.concatenate([self.intensity, other.intensity]))
@@ -112,7 +113,7 @@ class AreaLights:
         return np.concatenate([self.direction, self.sigma[:, None], self.intensity], axis=1).astype(np.float32)
 
     @staticmethod
-    def from_array(arr) -> "AreaLights":
+    def from_array(arr) -> AreaLights:
         arr = np.asarray(arr, dtype=np.float32)
         if arr.ndim != 2 or arr.shape[1] != 7:
             raise InputError(None, f"area lights must be an N x 7 array, got shape {arr.shape}")

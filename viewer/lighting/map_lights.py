@@ -8,12 +8,12 @@ the command line, in a niced child process in the window).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
-from .envmap import EnvMap
 from ..errors import InputError
 from ..imageio import read_json
+from .envmap import EnvMap
 from .lightfit.cache import FIT_VERSION, cached_lights, map_hash
 from .lightfit.methods import serves
 from .lights import AreaLights, load_lights

@@ -24,8 +24,8 @@ import heapq
 
 import numpy as np
 
-from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from ..errors import InputError
+from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from .light_size import SIGMA_MAX, cell_sigma
 from .lights import AreaLights
 

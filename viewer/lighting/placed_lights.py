@@ -28,9 +28,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..imageio import MARK, read_json, write_text
+from ..shadow_space import ANGULAR_SIGMA
 from .lights import AreaLights, azimuth_elevation
 from .median_cut import LUMINANCE
-from ..shadow_space import ANGULAR_SIGMA
 
 FORMAT = "relight-rig"
 KELVIN_RANGE = (1000.0, 15000.0)  # where the Planckian locus approximation below holds
@@ -63,7 +63,7 @@ class PlacedLight:
         return np.array([math.cos(e) * math.sin(a), math.sin(e), math.cos(e) * math.cos(a)])
 
     @staticmethod
-    def aimed(direction, **fields_) -> "PlacedLight":
+    def aimed(direction, **fields_) -> PlacedLight:
         """A light from the direction towards it (the azimuth and elevation of the light table)."""
         azimuth, elevation = azimuth_elevation(direction)
         return PlacedLight(azimuth=azimuth, elevation=elevation, **fields_)

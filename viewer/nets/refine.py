@@ -16,7 +16,6 @@ lights comes from the GL engine and is cached beside each lighting (``visibility
 
 from __future__ import annotations
 
-
 import torch
 
 from ..lighting.median_cut import SIGMA_MAX

@@ -107,7 +107,8 @@ class VideoWriter:
         self._last_pts = pts
         sw, sh = self._stream.width, self._stream.height
         if (sw, sh) != (w, h):
-            rgb = rgb[:sh, :sw] if sw <= w and sh <= h else np.pad(rgb, ((0, max(sh - h, 0)), (0, max(sw - w, 0)), (0, 0)), mode="edge")[:sh, :sw]
+            rgb = rgb[:sh, :sw] if sw <= w and sh <= h else np.pad(rgb, ((0, max(sh - h, 0)), (0, max(sw - w, 0)), (0, 0)),
+                                                                   mode="edge")[:sh, :sw]
         self._queue.put((np.ascontiguousarray(rgb), pts))
         self.frames += 1
 
@@ -165,7 +166,7 @@ class VideoWriter:
             self.partial.unlink(missing_ok=True)
         return self.partial
 
-    def __enter__(self) -> "VideoWriter":
+    def __enter__(self) -> VideoWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb):

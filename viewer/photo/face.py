@@ -356,7 +356,9 @@ def integrate_depth(normal: np.ndarray, depth: np.ndarray, region: np.ndarray, h
             vals += [np.ones(i.size), -np.ones(i.size)]
             np.add.at(rhs, i, -sign * g)
     pull = np.maximum(hold[region], 0.0) + ANCHOR  # ANCHOR: a pixel with no pull still has a level
-    rows.append(np.arange(n)); cols.append(np.arange(n)); vals.append(pull)
+    rows.append(np.arange(n))
+    cols.append(np.arange(n))
+    vals.append(pull)
     rhs += pull * depth[region]
     matrix = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
     out = depth.astype(np.float32).copy()

@@ -34,18 +34,16 @@ from pathlib import Path
 
 import numpy as np
 
-from . import detail as detail_mod
-from . import gloss
 from ..backdrop import photo_blur
 from ..errors import InputError
 from ..file_kinds import regular_file
 from ..imageio import read_json
-from .face import find_faces, light_fit_weight, with_face
-from .matting import automatic_matte, mask_matte
-from .photo_frame import (MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo,
-                          resize, square)
 from ..ownership import folder_lock, fresh_sibling, mark_written, written_here
 from ..resources import network_dir
+from . import detail as detail_mod, gloss
+from .face import find_faces, light_fit_weight, with_face
+from .matting import automatic_matte, mask_matte
+from .photo_frame import MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo, resize, square
 
 NETWORK_RES = 256
 # the stages infer() reports to its progress callback, in order
@@ -343,10 +341,9 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     from ..gl import Engine, EngineOptions, create_headless_context
     from ..imageio import srgb_to_linear
     from ..lighting.lights import AreaLights
-    from ..nets import depth as depth_net
-    from ..nets import inverse as inverse_net
-    from .photo_lighting import fit_mask, fit_photo_lights, white_balanced
+    from ..nets import depth as depth_net, inverse as inverse_net
     from ..scene import FrameLayer, Scene
+    from .photo_lighting import fit_mask, fit_photo_lights, white_balanced
 
     stage = _Stages(progress)
     notes: list[str] = []

@@ -16,8 +16,8 @@ the middle), so a pixel (x, y) of the frame is the point (x s, y s) of the work 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -7,8 +7,7 @@ Modules: :mod:`.brdf` (per-light shading), :mod:`.shadow_space` (light frames, r
 """
 
 from .brdf import diffuse_shading, specular_shading
-from .csm import (fourier_basis, gaussian_filter, gaussian_kernels, hard_visibility, reconstruct_visibility,
-                  sample_bilinear, soft_visibility)
+from .csm import fourier_basis, gaussian_filter, gaussian_kernels, hard_visibility, reconstruct_visibility, sample_bilinear, soft_visibility
 from .render import LightTensors, Rendering, SceneTensors, as_light_tensors, render
 from .shadow_map import project_vertices, rasterize_depth, shadow_maps
 from .shadow_space import LightFrames, light_frames, receiver_coordinates

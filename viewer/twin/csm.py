@@ -13,7 +13,8 @@ respect to each light's sigma.
   1e-3 is the identity filter (its gradient is then zero).
 - Soft visibility: the filtered basis is sampled bilinearly at the receiver's (u, v) (texel centres
   at (j + 0.5) / R, clamp-to-edge), S = sum_k (2 / c_k) [cos(c_k d') F[sin c_k z] - sin(c_k d')
-  F[cos c_k z]] with d' = clamp(d, 0, 1) - offset (so a receiver pushed past the range never wraps), and V = clamp((S + a) / 2a, 0, 1); (offset, a) from
+  F[cos c_k z]] with d' = clamp(d, 0, 1) - offset (so a receiver pushed past the range never wraps), and
+  V = clamp((S + a) / 2a, 0, 1); (offset, a) from
   :func:`viewer.shadow_space.csm_constants`.
 - Hard visibility: the texel containing (u, v) (floor, clamp-to-edge); lit when d - bias <= z.
 """

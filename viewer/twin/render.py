@@ -23,10 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from .. import shadow_space as rule
 from ..lighting.lights import AreaLights
 from ..mesh import DepthMesh, caster_points, depth_mesh, resolve_step
 from ..scene import Scene
-from .. import shadow_space as rule
 from . import csm, pcss
 from .brdf import diffuse_shading, specular_shading
 from .shadow_map import shadow_maps
@@ -82,7 +82,7 @@ class SceneTensors:
         return self.points.device
 
     @staticmethod
-    def from_scene(scene: Scene, shadow_step: int = 0, device=None, dtype=torch.float32) -> "SceneTensors":
+    def from_scene(scene: Scene, shadow_step: int = 0, device=None, dtype=torch.float32) -> SceneTensors:
         """``shadow_step`` 0 picks the GL engine's automatic decimation (:func:`viewer.mesh.resolve_step`)."""
         device = torch.device(device) if device is not None else torch.get_default_device()
         mask = scene.mask

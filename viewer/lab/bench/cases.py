@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.errors import InputError
 from viewer.imageio import read_exr, write_exr
+from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.lighting.lightfit.cache import cache_dir, map_hash
 from viewer.scene import Scene, load_scene
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -89,7 +89,8 @@ def run_contention_benchmark(hdri: Path, repeats: int = 3, output: str = "out/be
     return result
 
 
-STAGE_LINE = re.compile(r": (?P<stage>[^:]+): \d+/\d+ in (?P<seconds>[\d.]+) s(?:, (?P<left>about (?P<n>[\d.]+) s left|under a second left))?$")
+STAGE_LINE = re.compile(r": (?P<stage>[^:]+): \d+/\d+ in (?P<seconds>[\d.]+) s"
+                        r"(?:, (?P<left>about (?P<n>[\d.]+) s left|under a second left))?$")
 
 
 def time_left_checks(lines: list) -> list:

@@ -9,11 +9,10 @@ are meaningless on llvmpipe). Results go to stdout and a JSON file.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import json
 import platform
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -56,8 +55,10 @@ def _time_engine(engine, ctx, lights: AreaLights, repeats: int) -> dict:
     brightest = int(np.argmax(lights.intensity.max(axis=1)))
     changes = {
         "full": lambda i: lights.rotated(7.0 * (i + 1)),
-        "sigma": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest, float(lights.sigma.max() * (1.5 if i % 2 == 0 else 1.0) + 1.0)),
-        "intensity": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest, float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
+        "sigma": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest,
+                                                                    float(lights.sigma.max() * (1.5 if i % 2 == 0 else 1.0) + 1.0)),
+        "intensity": lambda i: lights.rotated(7.0 * repeats).with_sigma(brightest,
+                                                                        float(lights.sigma.max() + 1.0)).scaled(1.0 + 0.1 * (i + 1)),
     }
     for kind, make in changes.items():
         engine.set_lights(make(-1))  # settle on this series' base state before timing it
@@ -130,7 +131,8 @@ def _skin_cost(ctx, repeats: int, lights_count: int = 16) -> dict:
     from viewer.settings import Look
 
     scene = infer_scene(asset_dir() / "photos" / "underpass.jpg", ctx=ctx)["scene"]
-    out = {"photo": "assets/photos/underpass.jpg", "skin_share": float((scene.frame.skin > 0.5).mean()) if scene.frame.skin is not None else 0.0,
+    out = {"photo": "assets/photos/underpass.jpg",
+           "skin_share": float((scene.frame.skin > 0.5).mean()) if scene.frame.skin is not None else 0.0,
            "frames": []}
     lights = bench_lights(lights_count)
     for factor in (1, 2):

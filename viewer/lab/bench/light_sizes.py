@@ -20,6 +20,7 @@ import numpy as np
 from viewer.gl import Engine, EngineOptions
 from viewer.ground import ground_plane
 from viewer.imageio import write_text
+from viewer.lab.bench.ground import IN_SHADOW, engine_ratio, plane_ratio
 from viewer.lighting.envmap import LUMINANCE as LUMA, load_envmap
 from viewer.lighting.light_size import region_sizes
 from viewer.lighting.lightfit.fit import fit_lights
@@ -28,7 +29,6 @@ from viewer.resources import sample_scene_dir
 from viewer.scene import load_scene
 from viewer.scene_ops import resample_scene
 from viewer.settings import Look
-from viewer.lab.bench.ground import IN_SHADOW, engine_ratio, plane_ratio
 
 VARIANTS = ("product", "sizes x 0.5", "sizes x 1", "sizes x 2", "zero")
 
@@ -57,9 +57,9 @@ def variant_sigmas(lights: AreaLights, sizes: np.ndarray) -> dict[str, np.ndarra
 
 
 def run_light_sizes_benchmark(maps_dir, output: str, size: int = 256, spp: int = 256, n: int = 16) -> dict:
-    from viewer.lab.data.reference import render_bundle_reference
     from viewer.gl import create_headless_context
     from viewer.gl.context import describe
+    from viewer.lab.data.reference import render_bundle_reference
 
     ctx = create_headless_context()
     scene = resample_scene(load_scene(sample_scene_dir()), size)

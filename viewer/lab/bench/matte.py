@@ -19,14 +19,15 @@ from __future__ import annotations
 
 import json
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from viewer.photo import matting
 from viewer.imageio import srgb_to_linear, write_text
-from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
+from viewer.photo import matting
+from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
 
 SOLVERS = ("cf", "knn", "lkm", "rw", "lbdm")
 EDGES = (0.0016, 0.003, 0.004, 0.006)  # half-widths of the soft edge's band, of the person's height
@@ -73,8 +74,9 @@ def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges,
     for solver in solvers:
         for edge in edges:
             half = max(matting.MIN_EDGE, edge * height)
-            alpha, t_edge = _timed(lambda: matting.edge_alpha(photo, decided, half, holes, _solver(solver)), repeats)
-            fg, t_fg = _timed(lambda: srgb_to_linear(matting.foreground_colours(photo.astype(np.float32) / 255.0, alpha, half)), repeats)
+            alpha, t_edge = _timed(partial(matting.edge_alpha, photo, decided, half, holes, _solver(solver)), repeats)
+            fg, t_fg = _timed(lambda alpha=alpha, half=half: srgb_to_linear(
+                matting.foreground_colours(photo.astype(np.float32) / 255.0, alpha, half)), repeats)
             row["edges"].append({"solver": solver, "edge": edge, "half_width_px": round(half, 2),
                                  **_scores(alpha, fg, linear, hand, photo, backdrop),
                                  "seconds": {"edge": t_edge, "foreground": t_fg}})

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.gl import Engine, EngineOptions
-from viewer.lighting.lights import AreaLights
 from viewer.lab.bench.engine import frame_seconds
+from viewer.lighting.lights import AreaLights
 
 KINDS = ("engine", "directional", "sh", "twin")
 
@@ -48,7 +48,7 @@ class Method:
             object.__setattr__(self, "prefilter", "pyramid")
 
     @staticmethod
-    def from_preset(preset) -> "Method":
+    def from_preset(preset) -> Method:
         o = preset.options
         return Method("engine", preset.lights, o.shadow_resolution, o.shadow_step, o.terms, o.prefilter, o.leave_out,
                       soft=o.soft)

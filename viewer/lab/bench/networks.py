@@ -32,13 +32,13 @@ from pathlib import Path
 import numpy as np
 
 from viewer.camera import Camera
-from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import atomic_path, read_exr, write_text
+from viewer.lab.bench.metrics import chroma, metrics, srgb
+from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lights import AreaLights, load_lights
 from viewer.scene import Scene, load_scene
-from viewer.lab.bench.metrics import chroma, metrics, srgb
 
 # label: (the engine's shadow mode, its soft-shadow method); refined reads the hard and soft visibility
 SHADOW_MODES = {"SM": ("hard", "csm"), "CSM": ("soft", "csm"), "PCSS": ("soft", "pcss"),
@@ -81,13 +81,11 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     import torch
     from torch.nn import functional as F
 
-    from viewer.photo import face as face_mod
     from viewer.imageio import linear_to_srgb
+    from viewer.nets import depth as depth_net, inverse as inverse_net
     from viewer.nets.photo import exposure_scale
-
+    from viewer.photo import face as face_mod
     from viewer.photo.inference import NETWORK_RES, extend, map_stack, scene_maps
-    from viewer.nets import depth as depth_net
-    from viewer.nets import inverse as inverse_net
 
     h, w = mask.shape[-2:]
     cam = Camera(w, h)
@@ -180,11 +178,11 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
 def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.json", figure=None,
                            limit: int | None = None, progress=None, face: bool = True) -> dict:
     from viewer.lab.data.loader import RelightDataset
-    from viewer.photo.inference import NETWORK_RES, load_networks
-    from viewer.resources import network_dir
-    from viewer.nets.photo import exposure_scale
-    from viewer.photo.refinement import Refiner
     from viewer.lighting.sh import relight as sh_relight
+    from viewer.nets.photo import exposure_scale
+    from viewer.photo.inference import NETWORK_RES, load_networks
+    from viewer.photo.refinement import Refiner
+    from viewer.resources import network_dir
 
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     nets = load_networks("cpu", networks_dir)
@@ -268,7 +266,8 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
     summary = {name: _summarize(values) for name, values in rows.items()}
     result = {"machine": describe(ctx), "data": [str(d) for d in (data if isinstance(data, (list, tuple)) else [data])],
               "networks": str(networks_dir), "face": face, "pairs": len(pairs), "people": len({ds.items[a][0] for a, _ in pairs}),
-              "resolution": int(ds[0]["image"].shape[-1]), "network_resolution": NETWORK_RES, "seconds": round(time.perf_counter() - start, 1), "metrics": summary,
+              "resolution": int(ds[0]["image"].shape[-1]), "network_resolution": NETWORK_RES, "seconds": round(time.perf_counter() - start,
+                                                                                                               1), "metrics": summary,
               "per_pair": per_pair}
     if output:
         write_text(output, json.dumps(result, indent=1) + "\n")
@@ -362,10 +361,12 @@ def table(result: dict) -> str:
               f"networks {m['seconds_networks']['mean'] * 1000:.0f} ms per photo"]
     if "normal_face" in m:
         f, fd = m["normal_face"], m["depth_face"]
-        lines += ["", f"In the face region ({'the face fitted to the photo blended in' if result.get('face', True) else 'the networks alone'}; "
+        lines += ["",
+                  f"In the face region ({'the face fitted to the photo blended in' if result.get('face', True) else 'the networks alone'}; "
                       f"{f['count']} of {result['pairs']} inputs with a face found, "
                       f"{f['pixels']['mean']:.0f} pixels): normal angle {f['degrees']['mean']:.1f} deg (median "
-                      f"{f['degrees']['median']:.1f}); depth L1 {fd['l1_cm']['mean']:.2f} cm (a flat face: {fd['flat_l1_cm']['mean']:.2f} cm)"]
+                      f"{f['degrees']['median']:.1f}); depth L1 {fd['l1_cm']['mean']:.2f} cm "
+                      f"(a flat face: {fd['flat_l1_cm']['mean']:.2f} cm)"]
     if "terminator_face" in m:
         t = m["terminator_face"]
         lines += [f"The strongest target light's terminator in the face region: {100 * t['wrong_side']['mean']:.1f} % of "

@@ -188,7 +188,8 @@ def _contact(path: Path, photo8: np.ndarray, tiles: dict, boxes: dict, out_dir: 
     for r, (label, image) in enumerate(rows):
         draw.text((4, r * cell + 4), label, fill=(230, 230, 230))
         for c, (x, y, s) in enumerate(boxes.values()):
-            crop = Image.fromarray(np.ascontiguousarray(image[y:y + s, x:x + s])).resize((cell, cell), Image.NEAREST if s < cell else Image.LANCZOS)
+            crop = Image.fromarray(np.ascontiguousarray(image[y:y + s, x:x + s])).resize((cell, cell),
+                                                                                         Image.NEAREST if s < cell else Image.LANCZOS)
             sheet.paste(crop, (110 + c * cell, r * cell))
     for c, name in enumerate(boxes):
         draw.text((110 + c * cell + 4, 4), name, fill=(255, 255, 0))

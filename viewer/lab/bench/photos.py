@@ -38,18 +38,18 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.photo import detail as detail_mod
-from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import linear_to_srgb, write_jpeg, write_png, write_text
-from viewer.photo.inference import infer_scene, load_networks, with_detail
+from viewer.lab.bench.metrics import detail_kept, light_moved, metrics
+from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.lighting.lights import AreaLights
-from viewer.photo.photo_frame import read_photo, resize
 from viewer.output.render import apply_settings, render_look
+from viewer.photo import detail as detail_mod
+from viewer.photo.inference import infer_scene, load_networks, with_detail
+from viewer.photo.photo_frame import read_photo, resize
 from viewer.settings import Look
-from viewer.lab.bench.metrics import detail_kept, light_moved, metrics
 
 FIGURE_MAPS = (("venice_sunset_1k", 200.0), ("studio_small_03_1k", 30.0), ("immenstadter_horn_1k", 180.0))
 BEFORE = "before"  # the network's maps alone at the maps' resolution, upsampled: the output before this step
@@ -89,7 +89,7 @@ def sun_and_sky(direction) -> AreaLights:
     return AreaLights(dirs, sigma, inten)
 
 
-def _with_detail(result: dict, label: str) -> "object":
+def _with_detail(result: dict, label: str) -> object:
     """The inferred scene with the detail albedo of the variant ``label`` (the frame's and the maps')."""
     sc = result["scene"]
     if label == BEFORE:
@@ -344,7 +344,8 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
         # against the network's albedo alone, pair by pair: mean difference and its standard error
         for k in values[0]:
             d = np.array([v[k] for v in values]) - np.array([b[k] for b in base])
-            out[method][k]["vs_network"] = {"mean": float(d.mean()), "stderr": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0,
+            out[method][k]["vs_network"] = {"mean": float(d.mean()),
+                                            "stderr": float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else 0.0,
                                              "better_pairs": int((d < 0).sum() if k != "ssim" else (d > 0).sum())}
     return out
 

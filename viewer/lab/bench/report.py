@@ -33,20 +33,32 @@ from pathlib import Path
 import numpy as np
 
 from viewer.imageio import write_text
-from viewer.progress import StageBars
-from viewer.resources import asset_dir, sample_scene_dir
-from viewer.lighting.lightfit.cache import cache_dir
-from viewer.lab.bench.cases import REFERENCE_VERSION, Case, Lighting, MapStore, find_maps, heldout_cases, interior, photo_case, reference, sample_case, scene_hash
+from viewer.lab.bench.cases import (
+    REFERENCE_VERSION,
+    Case,
+    Lighting,
+    MapStore,
+    find_maps,
+    heldout_cases,
+    interior,
+    photo_case,
+    reference,
+    sample_case,
+    scene_hash,
+)
 from viewer.lab.bench.contact import ContactConfig, contact_errors, penumbra_widths
 from viewer.lab.bench.methods import Method, Renderer
 from viewer.lab.bench.sweep import sweep
+from viewer.lighting.lightfit.cache import cache_dir
+from viewer.progress import StageBars
+from viewer.resources import asset_dir, sample_scene_dir
 
 INTERACTIVE_MS = 90.0  # interactive preset: full frame within this (>= 10 fps with margin)
 FINAL_MS = 1000.0  # final preset: full frame within this
 ROWS_VERSION = 1  # bump when the error rows change meaning in this module (masks, exposure); code elsewhere is hashed
-BALANCED_SLACK = 0.05
+BALANCED_SLACK = 0.05  # balanced preset: error within this fraction of the 64-light setting's
 QUICK_CONTACT = ContactConfig(heights=(0.05, 0.3), size=64, spp=64)
-REFERENCE = "reference (Mitsuba)"  # the reference's picture among the examples  # balanced preset: error within this fraction of the 64-light setting's
+REFERENCE = "reference (Mitsuba)"  # the reference's picture among the examples
 
 
 @dataclass(frozen=True)
@@ -353,12 +365,12 @@ def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced
 
 def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
     """dRMSE of the presets and baselines against the ray-traced turntable of each map."""
+    from viewer.lab.bench.metrics import srgb
     from viewer.lab.data.reference import render_bundle_reference
     from viewer.output.render import turntable_yaws
+    from viewer.output.temporal import drmse
     from viewer.scene import load_scene
     from viewer.scene_ops import resample_scene
-    from viewer.output.temporal import drmse
-    from viewer.lab.bench.metrics import srgb
 
     scene = resample_scene(load_scene(sample_scene_dir()), config.temporal_size)
     key = scene_hash(scene)
@@ -399,9 +411,17 @@ def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
 
 def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> dict:
     from viewer.gl import create_headless_context
+    from viewer.lab.bench.report_doc import (
+        COMPARISON_FIGURE,
+        CONTACT_FIGURE,
+        EXAMPLES_FIGURE,
+        write_comparison,
+        write_contact_figure,
+        write_examples,
+        write_figures,
+        write_markdown,
+    )
     from viewer.presets import PRESETS
-    from viewer.lab.bench.report_doc import (COMPARISON_FIGURE, CONTACT_FIGURE, EXAMPLES_FIGURE, write_comparison,
-                                             write_contact_figure, write_examples, write_figures, write_markdown)
 
     config = QUICK if quick else FULL
     out_dir = Path(out_dir or ("out/report-quick" if quick else "out/report"))

@@ -235,9 +235,11 @@ def write_markdown(result: dict, path: Path):
         "",
         "| case | group | size | lightings | with dataset truth |",
         "|---|---|---|---|---|",
-        *[f"| {c['name']} | {c['group']} | {c['size'][0]}x{c['size'][1]} | {c['lightings']} | {c['with_truth']} |" for c in result["cases"]],
+        *[f"| {c['name']} | {c['group']} | {c['size'][0]}x{c['size'][1]} | {c['lightings']} | {c['with_truth']} |"
+          for c in result["cases"]],
         "",
-        f"- **Lightings**: area lights fitted by `{config['fit_method']}` (cached), the maps {', '.join(result['maps'])}; the sample scene at yaws {', '.join(f'{y:g}' for y in config['yaws'])}, "
+        f"- **Lightings**: area lights fitted by `{config['fit_method']}` (cached), the maps {', '.join(result['maps'])}; "
+        f"the sample scene at yaws {', '.join(f'{y:g}' for y in config['yaws'])}, "
         "the photo at yaw 0, each held-out person at one random yaw plus its dataset records' own lightings.",
         f"- **Reference**: Mitsuba 3 (`direct` integrator, `principled` BSDF, {config['spp']} spp) of each bundle's own depth mesh "
         "and maps under the whole turned map (docs/reference.md): the exact image the engine approximates. Where a lighting is "

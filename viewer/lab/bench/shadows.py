@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from viewer.imageio import atomic_path, write_text
+from viewer.lab.bench.engine import _median_ms, bench_lights, frame_seconds
 from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
-from viewer.lab.bench.engine import _median_ms, bench_lights, frame_seconds
 
 YAWS = (0.0, 120.0, 240.0)  # the lighting is measured at these rotations and averaged
 
@@ -51,8 +51,8 @@ def weighted_error(scene, lights: AreaLights, vis, ref) -> float:
 def run_shadow_benchmark(repeats: int = 3, output="out/bench_shadows.json", n_lights: int = 16) -> dict:
     from viewer.gl import Engine, EngineOptions, create_headless_context
     from viewer.gl.context import describe
-    from viewer.scene import load_scene
     from viewer.lab.bench.groundtruth import RayTracedVisibility
+    from viewer.scene import load_scene
 
     ctx = create_headless_context()
     scene = load_scene(sample_scene_dir())
@@ -62,7 +62,8 @@ def run_shadow_benchmark(repeats: int = 3, output="out/bench_shadows.json", n_li
     tracer = RayTracedVisibility(scene)
     truth = [[tracer.visibility(d) for d in l.direction] for l in light_sets]
     default = EngineOptions()
-    report = {"machine": describe(ctx), "scene": "assets/sample_scene (512x512)", "lights": f"{n_lights} median-cut lights of the bundled map at yaws {YAWS}",
+    report = {"machine": describe(ctx), "scene": "assets/sample_scene (512x512)",
+              "lights": f"{n_lights} median-cut lights of the bundled map at yaws {YAWS}",
               "default": {"shadow_resolution": default.shadow_resolution, "shadow_step": default.shadow_step, "terms": default.terms,
                           "prefilter": default.prefilter},
               "knobs": {}}

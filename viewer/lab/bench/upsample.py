@@ -24,16 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.lighting.envmap import load_envmap
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
 from viewer.imageio import write_jpeg, write_text
-from viewer.photo.inference import infer_scene, load_networks
+from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.lighting.lights import AreaLights
-from viewer.photo.photo_frame import WORK_PERSON
 from viewer.lighting.placed_lights import PlacedLight, to_area_lights
 from viewer.output.render import render_look
+from viewer.photo.inference import infer_scene, load_networks
+from viewer.photo.photo_frame import WORK_PERSON
 from viewer.resources import asset_dir
 from viewer.settings import Look
 
@@ -160,7 +160,7 @@ def _figure(crops, path):
         cy, cx = np.unravel_index(np.argmax(heat), heat.shape)
         box = (slice(max(cy - 160, 0), max(cy - 160, 0) + 320), slice(max(cx - 160, 0), max(cx - 160, 0) + 320))
 
-        def tile(img, text):
+        def tile(img, text, box=box):
             rgb = img[..., :3] * img[..., 3:] + 0.5 * (1 - img[..., 3:])
             return _label(rgb[box], text)
 

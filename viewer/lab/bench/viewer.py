@@ -258,7 +258,8 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                 print(f"{label} ({r['image'][0]}x{r['image'][1]}), beside {busy} busy: drag {r['drag_ms_median']:.0f} ms median "
                       f"({r['drag_fps']:.1f} fps, p90 {r['drag_ms_p90']:.0f} ms, {r['drag_frames']} frames), the first "
                       f"{r['first_drag_ms']:.0f} ms; full frame when the mouse stops {r['converge_ms'] or 0:.0f} ms; sigma "
-                      f"slider {r['sigma_ms_median'] or 0:.0f} ms (its full frame {r['sigma_full_ms_median'] or 0:.0f} ms); idle {r['idle_ms_median'] or 0:.0f} ms; while 12 lights "
+                      f"slider {r['sigma_ms_median'] or 0:.0f} ms (its full frame {r['sigma_full_ms_median'] or 0:.0f} ms); "
+                      f"idle {r['idle_ms_median'] or 0:.0f} ms; while 12 lights "
                       f"are fitted: {r['load_frames']} UI frames, longest {r['load_ms_max'] or 0:.0f} ms; quit {r['quit_s']:.2f} s",
                       flush=True)
                 for what in ("new_map", "new_photo"):

@@ -29,7 +29,8 @@ from viewer.camera import Camera
 JOINTS = {11: "upperarm01.L", 12: "upperarm01.R", 13: "lowerarm01.L", 14: "lowerarm01.R", 15: "wrist.L", 16: "wrist.R",
           23: "upperleg01.L", 24: "upperleg01.R", 25: "lowerleg01.L", 26: "lowerleg01.R", 27: "foot.L", 28: "foot.R",
           2: "eye.L", 5: "eye.R"}
-POSED = [f"{b}.{s}" for b in ("upperarm01", "lowerarm01", "upperleg01", "lowerleg01") for s in ("L", "R")] + ["spine03", "spine01", "neck01"]
+POSED = [f"{b}.{s}" for b in ("upperarm01", "lowerarm01", "upperleg01", "lowerleg01") for s in ("L", "R")] + ["spine03", "spine01",
+                                                                                                              "neck01"]
 STEPS = 120
 WORLD_WEIGHT = 1.0  # metres^2 against image heights^2: both about 0.01 for a 10 cm / 10 % miss
 REST_WEIGHT = 1e-3

@@ -31,8 +31,8 @@ def body_prior(seed: int, size: int, rng: np.random.Generator, meta: dict | None
     ``meta``: the sample's ``meta.json``; the person is remade from the seed by today's generator,
     so a sample made by an older one (another pose for the same seed) is refused in one line."""
     from viewer.errors import InputError
-    from viewer.lab.data.humans import build_body, dress, placement, rasterize
     from viewer.lab.data.geometry import vertex_normals
+    from viewer.lab.data.humans import build_body, dress, placement, rasterize
     from viewer.lab.data.people import person_draws
 
     phenotype, style, pose, outfit, turn, fill = person_draws(seed)

@@ -18,7 +18,8 @@ maps (default ``POOL``) made from the dataset seed; the held-out split uses the 
 the folder given (``--maps``, by default ``$RELIGHT_DATA/hdri``: the shared CC0 maps) only, and they never appear in training. The ``key``
 split lights people with ``pool`` key-light maps (:func:`.envmaps.key_light`: one small light, and
 a rim light in half of them, no fill), which are not turned; made with the held-out split's seed it
-holds the same people. Every other lighting turns its map by a random longitude, as in the paper; the lights are fitted once per map (the cache of
+holds the same people. Every other lighting turns its map by a random longitude, as in the paper; the
+lights are fitted once per map (the cache of
 :mod:`viewer.lighting.lightfit`) and turned with it (fitting commutes with rotation, docs/lights.md).
 Everything is a function of (seed, index): a sample is reproduced bit for bit, and ``--shard i/n``
 takes indices i, i + n, ... so machines can share a dataset without talking to each other.
@@ -35,9 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.errors import InputError
 from viewer.imageio import write_exr, write_text
+from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.lighting.lights import AreaLights, load_lights
 from viewer.scene import save_scene
 
@@ -93,8 +94,8 @@ def parse_shard(text: str) -> tuple[int, int]:
 
 def map_pool(cfg: DatasetConfig, progress=None) -> list[PoolMap]:
     """The maps of this split, each with its fitted lights (fitted once, kept in DIR/maps/)."""
-    from viewer.lighting.lightfit import lights_for_map
     from viewer.lab.data.envmaps import key_light, random_map
+    from viewer.lighting.lightfit import lights_for_map
 
     maps_dir = Path(cfg.out) / "maps"
     maps_dir.mkdir(parents=True, exist_ok=True)

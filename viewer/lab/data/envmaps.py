@@ -34,9 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.lighting.envmap import EnvMap, direction_to_uv, pixel_directions, solid_angles
 from viewer.imageio import srgb_to_linear
 from viewer.lab.data.materials import fbm
+from viewer.lighting.envmap import EnvMap, direction_to_uv, pixel_directions, solid_angles
 
 KINDS = ("sky", "studio", "overcast", "outdoor", "interior")
 SUPERSAMPLE = 4

@@ -17,7 +17,7 @@ def icosphere(level: int):
     for _ in range(level):
         cache, nf = {}, []
 
-        def mid(a, b):
+        def mid(a, b, cache=cache):
             key = (min(a, b), max(a, b))
             if key not in cache:
                 m = verts[a] + verts[b]

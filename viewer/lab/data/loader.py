@@ -28,8 +28,8 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.imageio import read_exr
+from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.lighting.lights import load_lights
 from viewer.nets.refine import SHADOW_RESOLUTION
 from viewer.scene import load_scene

@@ -11,6 +11,7 @@ import numpy as np
 
 from viewer.imageio import srgb_to_linear
 
+
 def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:
     """Smooth 3D value noise in [-1, 1] at points p (..., 3), lattice spacing ``scale`` metres."""
     rng = np.random.default_rng(seed)
@@ -23,7 +24,8 @@ def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:
     for dx in (0, 1):
         for dy in (0, 1):
             for dz in (0, 1):
-                wgt = (fr[..., 0] if dx else 1 - fr[..., 0]) * (fr[..., 1] if dy else 1 - fr[..., 1]) * (fr[..., 2] if dz else 1 - fr[..., 2])
+                wgt = (fr[..., 0] if dx else 1 - fr[..., 0]) * (fr[..., 1] if dy else 1 - fr[..., 1]) * (fr[..., 2] if dz else 1 - fr[...,
+                                                                                                                                      2])
                 out += wgt * table[(i[..., 0] + dx) % 64, (i[..., 1] + dy) % 64, (i[..., 2] + dz) % 64]
     return out
 

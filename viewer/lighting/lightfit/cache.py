@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envmap import EnvMap
 from ...errors import InputError
+from ..envmap import EnvMap
 from ..lights import AreaLights, load_lights
 
 FIT_VERSION = 2  # bump when a change to the fitters changes their results

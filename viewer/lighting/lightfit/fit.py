@@ -42,17 +42,20 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+
 import numpy as np
 import torch
 
-from ..envmap import EnvMap
 from ...errors import InputError
+from ..envmap import EnvMap
 from ..light_size import SIGMA_MAX, region_sizes
 from ..lights import AreaLights
 from ..median_cut import median_cut_lights
 from .adam import CosineAdam
 from .methods import DEFAULT_METHOD, METHODS, check_light_count
 from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
+
+DEFAULT_SETTINGS = FitSettings()  # frozen: one default shared by every call
 
 FAST_STEPS = 300
 FAST_LR = 0.15
@@ -74,7 +77,7 @@ TAU = 0.65
 LAPLACIAN_KERNELS = (15, 21, 33)  # at 256 px (the paper's view size)
 
 
-def fit_lights(env: EnvMap, n: int, method: str = DEFAULT_METHOD, settings: FitSettings = FitSettings(),
+def fit_lights(env: EnvMap, n: int, method: str = DEFAULT_METHOD, settings: FitSettings = DEFAULT_SETTINGS,
                progress=None, problem: Problem | None = None) -> AreaLights:
     """``n`` area lights approximating ``env`` with ``method`` (see the module docstring).
 
@@ -168,7 +171,7 @@ class Step3Target:
     laplacians: tuple
 
     @staticmethod
-    def of(problem: Problem) -> "Step3Target":
+    def of(problem: Problem) -> Step3Target:
         kernels = laplacian_kernels(problem.plane.resolution)
         ref = srgb(_as_images(problem, problem.plane_shadowed))
         return Step3Target(kernels, tuple(laplacian(ref, k) for k in kernels))

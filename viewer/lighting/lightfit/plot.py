@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..envmap import EnvMap, direction_to_uv
 from ...imageio import MARK, atomic_path, linear_to_srgb
+from ..envmap import EnvMap, direction_to_uv
 from ..lights import AreaLights
 from ..median_cut import LUMINANCE
 

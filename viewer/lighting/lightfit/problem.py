@@ -21,14 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..envmap import EnvMap
-from ..median_cut import LUMINANCE
+from ... import shadow_space as rule
 from ...twin import csm
 from ...twin.brdf import diffuse_shading, specular_shading
 from ...twin.render import SceneTensors
 from ...twin.shadow_map import shadow_maps
 from ...twin.shadow_space import light_frames, receiver_coordinates
-from ... import shadow_space as rule
+from ..envmap import EnvMap
+from ..median_cut import LUMINANCE
 from .reference import ROTATIONS, STEP2_MATERIAL, plane_reference, rotation_matrices, sphere_reference
 from .samples import MapSamples, map_samples
 from .views import PlaneView, SphereView, plane_view, sphere_view
@@ -152,7 +152,7 @@ class VisibilityTable:
         return self.views.lights
 
     @staticmethod
-    def of(views: ShadowedViews, grid) -> "VisibilityTable":
+    def of(views: ShadowedViews, grid) -> VisibilityTable:
         grid = torch.as_tensor(grid, dtype=torch.float32)
         with torch.no_grad():
             values = torch.stack([views.soft_visibility(torch.full((views.lights,), float(g))) for g in grid])

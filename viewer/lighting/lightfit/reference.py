@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..lights import rotation_matrix
 from ...twin.brdf import diffuse_shading, specular_shading
+from ..lights import rotation_matrix
 from .samples import MapSamples
 from .views import PlaneView, SphereView
 

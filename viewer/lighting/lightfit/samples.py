@@ -47,7 +47,7 @@ class MapSamples:
     def energy(self) -> np.ndarray:
         return self.flux.sum(axis=0)
 
-    def rotated(self, matrix: np.ndarray) -> "MapSamples":
+    def rotated(self, matrix: np.ndarray) -> MapSamples:
         """The samples of the map rotated by ``matrix`` (L'(R d) = L(d), :meth:`EnvMap.rotated`)."""
         return MapSamples(self.direction @ np.asarray(matrix, dtype=np.float64).T, self.flux)
 

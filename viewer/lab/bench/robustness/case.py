@@ -9,9 +9,9 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 TIMEOUT = 180.0
 # lines a command may print besides its one error line: progress (bars, infer's stages, the fit's

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.imageio import read_exr, write_exr, write_png
+from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.lighting.lightfit.cache import cache_path
 from viewer.resources import asset_dir, network_dir, sample_scene_dir
 
@@ -132,7 +132,8 @@ def environment_maps(kit: Campaign) -> None:
     neg = px.copy()
     neg[3, 5] = -1.0
     write_exr(kit.work / "files" / "negative.exr", neg)
-    kit.render("environment map", "negative pixels", kit.sample, "--env", kit.work / "files" / "negative.exr", "-n", "4", "--method", "median-cut")
+    kit.render("environment map", "negative pixels", kit.sample, "--env", kit.work / "files" / "negative.exr", "-n", "4", "--method",
+               "median-cut")
     save_envmap(kit.work / "files" / "black.hdr", EnvMap(np.zeros((32, 64, 3), np.float32)))
     kit.render("environment map", "an all-black map", kit.sample, "--env", kit.work / "files" / "black.hdr", "-n", "4",
            "--method", "median-cut", expect="black")
@@ -293,8 +294,9 @@ def outputs_over_inputs(kit: Campaign) -> None:
     kit.render("output over input", "the EXR beside -o is the map", kit.sample, "--env", exr_map, "-n", "4", "--method", "median-cut")
     kit.cases[-1].args[-1] = kit.cases[-1].output = str(exr_map.with_suffix(".png"))
     inside = kit.bundle("written_into")
-    kit.cases.append(Case("output over input", "-o inside the scene bundle", ["render", str(inside), str(kit.lights), "--size", "96",
-                                                                          "-o", str(inside / "depth.png")], "error", str(inside / "depth.png")))
+    depth_png = str(inside / "depth.png")
+    kit.cases.append(Case("output over input", "-o inside the scene bundle",
+                          ["render", str(inside), str(kit.lights), "--size", "96", "-o", depth_png], "error", depth_png))
     photo_home = kit.bundle("photo_home")
     shutil.copy(kit.photo, photo_home / "my_photo.jpg")
     shutil.copy(kit.mask, photo_home / "my_mask.png")
@@ -312,7 +314,8 @@ def outputs_over_inputs(kit: Campaign) -> None:
                                                                str(kit.out / name)], "error", str(kit.out / name)))
     sibling = kit.out / "sibling"
     (sibling / "x.exr").mkdir(parents=True, exist_ok=True)
-    kit.cases.append(Case("output over input", "-o whose EXR is a folder", ["render", str(kit.sample), str(kit.lights), "--size", "96", "-o",
+    kit.cases.append(Case("output over input", "-o whose EXR is a folder", ["render", str(kit.sample), str(kit.lights), "--size", "96",
+                                                                            "-o",
                                                                          str(sibling / "x.png")], "error", str(sibling / "x.png")))
     for what, extra in (("--fps 1e-9", ["--frames", "2", "--fps", "1e-9"]), ("--fps 1e9", ["--frames", "2", "--fps", "1e9"]),
                         ("--frames 1e12", ["--frames", "1000000000000"]), ("--turn 1e300", ["--frames", "2", "--turn", "1e300"]),
@@ -341,7 +344,8 @@ def outputs_over_inputs(kit: Campaign) -> None:
         kit.render("scene bundle", what, kit.bundle(what.replace(" ", "_")[:20], edit), kit.lights)
     bright = np.full((32, 64, 3), 3e38, np.float32)
     write_exr(kit.work / "files" / "bright.exr", bright)
-    kit.render("environment map", "every pixel 3e38", kit.sample, "--env", kit.work / "files" / "bright.exr", "-n", "4", "--method", "median-cut")
+    kit.render("environment map", "every pixel 3e38", kit.sample, "--env", kit.work / "files" / "bright.exr", "-n", "4", "--method",
+               "median-cut")
     for what, change in (("width -1", {"width": -1}), ("levels 0", {"levels": 0}), ("width 100000", {"width": 100000})):
         nets = kit.work / "networks" / what.replace(" ", "_")
         shutil.copytree(network_dir(), nets)

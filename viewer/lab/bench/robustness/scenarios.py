@@ -27,7 +27,7 @@ def scenarios(seed: int = 33) -> list[Scenario]:
     rng = random.Random(seed)
     cases = []
     for sig in (signal.SIGTERM, signal.SIGHUP):
-        for k in range(3):
+        for _ in range(3):
             fraction = rng.uniform(0.1, 1.0)
             cases.append(Scenario("interrupted outputs", f"{sig.name} at {fraction:.0%} of a frame's render",
                                   partial(_signal_a_frame, sig, fraction)))
@@ -38,10 +38,10 @@ def scenarios(seed: int = 33) -> list[Scenario]:
         sig, fraction = (signal.SIGTERM, signal.SIGINT)[k % 2], rng.uniform(0.3, 1.0)
         cases.append(Scenario("interrupted bundles (issue 43)", f"{sig.name} at {fraction:.0%} of an infer over an earlier bundle",
                               partial(_signal_an_infer, sig, fraction)))
-    for k, stem in enumerate(rng.sample(["..", ".", ".hidden", "manifest.jsonl", "contact-sheet", "...", ".relight-batch"], 5)):
+    for stem in (rng.sample(["..", ".", ".hidden", "manifest.jsonl", "contact-sheet", "...", ".relight-batch"], 5)):
         cases.append(Scenario("a batch's names (issue 43)", f"a photo named {stem}.jpg, run twice into its own folder",
                               partial(_batch_names, stem)))
-    for k, how in enumerate(("stdout closed", "stderr closed", "stdout a full device", "every stream closed", "stdin closed")):
+    for how in (("stdout closed", "stderr closed", "stdout a full device", "every stream closed", "stdin closed")):
         cases.append(Scenario("closed and full streams (issue 43)", how, partial(_streams, how)))
     for k in range(5):
         version = rng.choice(["2.1", "3.0", "3.3", "1.5", "4.0", "4.5", "4.6"])

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.lighting.envmap import EnvMap, save_envmap
 from viewer.imageio import write_exr
+from viewer.lighting.envmap import EnvMap, save_envmap
 from viewer.lighting.placed_lights import PlacedLight, save_rig
 from viewer.resources import network_dir
 from viewer.scene import FRAME_FILES, MAP_FILES, OPTIONAL_FILES
@@ -136,7 +136,7 @@ def parsers(kit: Campaign) -> None:
                    "--method", "median-cut", expect="ok")
     kit.render(group, "a .hdr header without its end", kit.sample, "--env",
                kit.write("endless.hdr", b"#?RADIANCE\n" + b"# x\n" * 5_000_000), "-n", "4", "--method", "median-cut")
-    for k, byte in enumerate(int(b) for b in kit.rng.integers(0x80, 0x100, 2)):  # names that are not UTF-8
+    for byte in (int(b) for b in kit.rng.integers(0x80, 0x100, 2)):  # names that are not UTF-8
         name = bytes([byte])
         map_path = Path(os.fsdecode(os.fsencode(kit.work / "files") + b"/m" + name + b".hdr"))
         shutil.copy(kit.env, map_path)

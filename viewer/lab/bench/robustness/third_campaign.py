@@ -154,7 +154,8 @@ def protocol_names(kit: Campaign) -> None:
     written as files."""
     group = "a video named like a URL"
     for k in range(VARIANTS):
-        name = f"{_name(kit, '')}:{_name(kit, '.mp4')}" if k % 2 else f"{_name(kit, '')}-{int(kit.rng.integers(24))}:{int(kit.rng.integers(60)):02d}.mp4"
+        name = (f"{_name(kit, '')}:{_name(kit, '.mp4')}" if k % 2
+                else f"{_name(kit, '')}-{int(kit.rng.integers(24))}:{int(kit.rng.integers(60)):02d}.mp4")
         o = str(kit.out / name)
         kit.cases.append(Case(group, f"render -o {name} ({k + 1})", ["render", str(kit.sample), str(kit.lights), "--size", "64",
                                                                     "--frames", "2", "-o", o], "ok", o))
@@ -320,8 +321,9 @@ def float_and_turned_photos(kit: Campaign) -> None:
         path = kit.work / "files" / _name(kit, ".tif")
         grey = np.asarray(photo.convert("L"), np.float32) / 255.0 * float(kit.rng.uniform(0.5, 100))
         Image.fromarray(grey, mode="F").save(path)
-        kit.cases.append(Case(group, f"a float TIFF ({k + 1})", ["infer", str(path), "--size", "64", "--max-size", "256", "-o",
-                                                               str(kit.out / f"bundle_float{k}")], "error", str(kit.out / f"bundle_float{k}")))
+        bundle = str(kit.out / f"bundle_float{k}")
+        kit.cases.append(Case(group, f"a float TIFF ({k + 1})", ["infer", str(path), "--size", "64", "--max-size", "256", "-o", bundle],
+                              "error", bundle))
     for k in range(VARIANTS):
         angle = int(kit.rng.choice([90, 180, 270]))
         path = kit.work / "files" / _name(kit, ".jpg")
