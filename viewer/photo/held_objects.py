@@ -19,7 +19,10 @@ by step (issue 42; docs/photos.md shows the skier before and after):
    part that runs on to the reach's rim or out of the frame is background structure as far as can
    be told: a stair's edge, a kerb, a lamp post; an object the frame cuts is left out), is large
    enough (``MIN_AREA`` of the person) and stands out clearly (its 90th percentile of contrast at
-   least ``SURE``: the edges of stairs and the contact shadow around a shoe stand out less).
+   least ``SURE``: the edges of stairs and the contact shadow around a shoe stand out less). Of a
+   kept part, the object is what stands out above ``CORE`` and the pixels beside it (its edge, mixed
+   with the background): the weak pixels join the pieces, they are mostly the snow or the shadow
+   around a ski.
 
 What cannot be told from the background by colour (a dark barbell plate against dark bricks) is
 left out, as before; a mask file that includes the object keeps it whatever it looks like
@@ -36,6 +39,7 @@ WINDOW = 0.3  # of the person's height: the background's median and deviation ar
 FLOOR = 0.02  # added to the background's deviation (colours in [0, 1]): a flat backdrop still has noise
 WEAK = 3.0  # contrast (background deviations) above which a pixel may be part of an object
 SURE = 8.0  # an object's 90th percentile of contrast is at least this
+CORE = 6.0  # of a kept part, the pixels above this contrast and their neighbours are the object
 REACH = 0.8  # of the person's height: objects lie within this distance of a hand or a foot
 SEED = 0.15  # of the person's height: an object touches the person this near a hand or a foot landmark
 GAP = 0.04  # of the person's height: pieces of one object this far apart are joined
@@ -120,7 +124,9 @@ def find_objects(image: np.ndarray, person: np.ndarray, landmarks: dict, height:
     for i in np.flatnonzero(keep):
         keep[i] = area[i] >= MIN_AREA * person.sum() and np.percentile(z[labels == i], 90) >= SURE
     keep[0] = False
-    return keep[labels]
+    found = keep[labels]
+    core = (found & (z > CORE)).astype(np.uint8)  # the weak pixels joined the parts; the object is their clear core
+    return found & (cv2.dilate(core, np.ones((3, 3), np.uint8)) > 0)
 
 
 def held_objects(photo: np.ndarray, person: np.ndarray, landmarks: dict, height: int) -> np.ndarray:

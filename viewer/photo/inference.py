@@ -83,14 +83,18 @@ def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
     return square(image, f.top, f.left, f.side, mode)
 
 
-def extend(values, mask, steps: int = 6):
-    """Fill the pixels next to the mask with the mean of their filled neighbours, ``steps`` rings."""
+def extend(values, mask):
+    """Fill the pixels outside the mask, ring by ring, with the mean of their filled neighbours:
+    the whole square, so that what the person holds beyond the networks' view (the framing is the
+    body's, ``Matte.body``) has maps, those of the nearest part the networks saw."""
     import torch
     from torch.nn import functional as F
 
     known = mask.clone()
     v = values * known
-    for _ in range(steps):
+    for _ in range(max(values.shape[-2:])):
+        if bool((known > 0.5).all()):
+            break
         total = F.avg_pool2d(v, 3, 1, 1, count_include_pad=False)
         weight = F.avg_pool2d(known, 3, 1, 1, count_include_pad=False)
         grow = (weight > 0) & (known < 0.5)
@@ -378,11 +382,12 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         warnings.warn(f"{photo_path}: {turned}", stacklevel=2)
     if person.all():
         notes.append("the mask covers the whole photo: there is no background to see the new lighting against")
-    _, _, ph, pw = person_box(person)
+    body = matte.body if matte.body.any() else person  # what it holds frames nothing (Matte.body)
+    _, _, ph, pw = person_box(body)
     sizes = frame_sizes((w, h), (pw * w / frame[0], ph * h / frame[1]), max_size, size)
     stage("mask")
 
-    f = framing(person)
+    f = framing(body)
     square = crop(frame_photo, f, "edge")
     small = srgb_to_linear(resize(square, (NETWORK_RES, NETWORK_RES)).astype(np.float32) / 255.0)
     small_mask = resize(crop(alpha, f, "constant"), (NETWORK_RES, NETWORK_RES)) > 0.5
@@ -426,7 +431,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     faces = find_faces(frame_photo, alpha)
     scene, face_record, face_surface = with_face(scene, faces, s)
     if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
-        mm = gloss.skin_mm(faces[0].width if faces else None, person_box(alpha > 0.5)[2])
+        mm = gloss.skin_mm(faces[0].width if faces else None, person_box(body)[2])
         scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm)).validate()
         gloss_record["skin_mm_per_pixel"] = round(mm, 4)
     stage("face")

@@ -83,11 +83,19 @@ class Matte:
     """The person's alpha (H, W) float32 in [0, 1] and foreground colours (H, W, 3) float32,
     linear RGB (the photo's colour with the old background taken out; the photo where alpha is 0
     and deeper than half a soft band inside the opaque person), with how it was made (``record``:
-    method, seconds)."""
+    method, seconds) and what of it the person holds (``held``)."""
 
     alpha: np.ndarray
     foreground: np.ndarray
     record: dict
+    held: np.ndarray | None = None  # (H, W) bool: what the person holds or stands on (automatic mattes)
+
+    @property
+    def body(self) -> np.ndarray:
+        """(H, W) bool: the person less what it holds: what frames the networks' view and sizes the
+        maps (skis or a barbell wider than the person would shrink the person in both)."""
+        person = self.alpha > 0.5
+        return person & ~self.held if self.held is not None else person
 
 
 def person_height(mask: np.ndarray) -> int:
@@ -463,7 +471,7 @@ def automatic_matte(photo: np.ndarray, person) -> Matte:
     return Matte(alpha, foreground, {"method": "automatic: pose segmentation, colour min cut, closed-form edge",
                                      "holes_px": int(holes.sum()), "held_px": int(held.sum()),
                                      "seconds": {"band": round(t1 - t0, 3), "edge": round(t2 - t1, 3),
-                                                 "foreground": round(t3 - t2, 3)}})
+                                                 "foreground": round(t3 - t2, 3)}}, held)
 
 
 BINARY_GREY = 0.25  # a mask with fewer grey pixels (2 % to 98 %) than this share of its outline is binary
