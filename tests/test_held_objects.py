@@ -117,7 +117,9 @@ def test_the_skiers_poles_stay_with_her():
         near = np.array([matte.alpha[y - 1:y + 2, x - 1:x + 2].max() for x, y in zip(xs, ys)])
         assert (near > 0.5).mean() > 0.8, near
         assert person.segmentation[ys, xs].mean() < 0.2  # what the pose model's segmentation says
-    assert matte.record["held_px"] > 0
+    assert matte.record["held_px"] == int(matte.held.sum()) > 0
+    # what she holds frames nothing: the networks' square and the maps' size are her body's
+    assert not (matte.body & matte.held).any() and (matte.body | matte.held).sum() >= (matte.alpha > 0.5).sum()
 
 
 def test_a_mask_that_includes_an_object_keeps_it():
