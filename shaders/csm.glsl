@@ -33,7 +33,7 @@ vec4 csm_fetch(sampler2D atlas, int t, vec2 uv) {
 }
 
 // Soft visibility of a receiver at normalised depth d from the filtered basis atlas.
-// offset and clamp_value come from viewer.shadow_space.csm_constants(TERMS).
+// offset and clamp_value come from viewer.scene.shadow_space.csm_constants(TERMS).
 float csm_visibility(sampler2D atlas, vec2 uv, float d, float offset, float clamp_value) {
     float dd = clamp(d, 0.0, 1.0) - offset;  // receivers pushed past the range must not wrap
     float t0 = PI * dd;

@@ -1,4 +1,4 @@
-// The ground plane under the person (viewer/ground.py): normal . p = offset in camera space, seen
+// The ground plane under the person (viewer/scene/ground.py): normal . p = offset in camera space, seen
 // through the pixels of a pass at some fraction of the work resolution (its own focal length and
 // centre, rows from the top).
 uniform vec3 ground_normal;    // unit, pointing up

@@ -21,7 +21,7 @@
 uniform sampler2D shadow_map0, shadow_map1, shadow_map2, shadow_map3;
 uniform sampler2D filtered_basis0, filtered_basis1, filtered_basis2, filtered_basis3;  // CSM
 #ifndef MAX_CONTACT_POINTS
-#error MAX_CONTACT_POINTS is defined by the engine (viewer.ground)
+#error MAX_CONTACT_POINTS is defined by the engine (viewer.scene.ground)
 #endif
 uniform vec4 contact_points[MAX_CONTACT_POINTS];  // camera space (xyz), area in m^2 (w)
 uniform int contact_count;

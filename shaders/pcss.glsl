@@ -8,9 +8,9 @@
 // filter) and compare each tap against the receiver's tangent plane, so a sloped lit surface does
 // not shadow itself; a texel no triangle covers (empty_depth) is never a blocker, however far the
 // tangent plane of a grazing receiver (the ground under a low sun) reaches. No blocker: lit. Needs
-// shadow_test.glsl. Mirrored by viewer/twin/pcss.py; the taps and constants are viewer.shadow_space's.
+// shadow_test.glsl. Mirrored by viewer/twin/pcss.py; the taps and constants are viewer.scene.shadow_space's.
 #if !defined(PCSS_TAPS) || !defined(PCSS_SEARCH_TAPS)
-#error PCSS_TAPS and PCSS_SEARCH_TAPS are defined by the engine (viewer.shadow_space)
+#error PCSS_TAPS and PCSS_SEARCH_TAPS are defined by the engine (viewer.scene.shadow_space)
 #endif
 
 uniform vec2 pcss_taps[PCSS_TAPS];

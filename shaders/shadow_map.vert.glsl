@@ -1,4 +1,4 @@
-// Shadow map: orthographic view of the depth mesh from one light (viewer.shadow_space frame).
+// Shadow map: orthographic view of the depth mesh from one light (viewer.scene.shadow_space frame).
 in vec3 position;
 uniform mat4 light_frame;
 out float depth;

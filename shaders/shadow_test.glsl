@@ -1,6 +1,6 @@
 // Receiver coordinates in a light's shadow map and the hard shadow test, robust at grazing angles:
 // the receiver is pushed along its normal and the depth bias grows with the slope.
-// The numpy statement of this rule is viewer.shadow_space.receiver_coordinates.
+// The numpy statement of this rule is viewer.scene.shadow_space.receiver_coordinates.
 
 uniform float texel_world;    // world size of one shadow-map texel (the same for every light)
 uniform float hard_threshold;

@@ -10,14 +10,37 @@ from pathlib import Path
 import pytest
 
 from viewer.errors import InputError
-from viewer.lab.modules import LAB, cycles, import_graph, markdown
-from viewer.settings import PRESET_NAMES, Look
+from viewer.lab.modules import LAB, LAYERS, cycles, folder_problems, import_graph, markdown, modules
+from viewer.scene.look import PRESET_NAMES, Look
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_no_import_cycles():
     assert cycles(import_graph()) == []
+
+
+def test_folders_depend_one_way_and_downwards():
+    """The folder-level graph of every import (inside functions and under TYPE_CHECKING too): no
+    two folders import each other, and no arrow climbs the layers (viewer.lab.modules.LAYERS)."""
+    assert folder_problems(import_graph()) == []
+    assert set(LAYERS) >= {".".join(m.split(".")[:2]) for m in modules() if m.count(".") >= 2}
+
+
+def test_folder_problems_are_found():
+    graph = {"viewer.scene.bundle": {"viewer.photo.frame"}, "viewer.photo.frame": {"viewer.scene.bundle"},
+             "viewer.files.imageio": {"viewer.gl.engine"}, "viewer.gl.engine": set()}
+    problems = folder_problems(graph)
+    assert any("import each other" in p for p in problems)
+    assert any("viewer.files -> viewer.gl climbs" in p for p in problems)
+
+
+def test_product_file_names_are_unique_and_the_root_is_small():
+    """No two modules of the product share a file name; at most ten loose modules at the root."""
+    product = [m for m in modules() if not (m == LAB or m.startswith(LAB + ".")) and not m.endswith("__init__")]
+    names = [m.rsplit(".", 1)[-1] for m in product if m.count(".") >= 1 and m not in LAYERS]
+    assert sorted({n for n in names if names.count(n) > 1}) == []
+    assert len([m for m in product if m.count(".") == 1 and m not in LAYERS]) <= 10
 
 
 def test_cycles_are_found():
@@ -44,7 +67,7 @@ def test_no_shared_data_path_inside_the_package():
 
 
 def test_preset_names_match_the_presets():
-    from viewer.presets import DEFAULT_PRESET, PRESETS
+    from viewer.gl.presets import DEFAULT_PRESET, PRESETS
 
     assert PRESET_NAMES == tuple(PRESETS) and Look().preset == DEFAULT_PRESET
 
@@ -96,7 +119,7 @@ def test_a_saved_look_renders_what_the_options_render(tmp_path):
     """``--look`` with a frame's saved JSON gives the same pixels as the same options spelled out;
     an option given beside it wins."""
     from viewer.cli.main import main
-    from viewer.imageio import read_png
+    from viewer.files.imageio import read_png
 
     env = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
     lights = ROOT / "assets" / "envmaps" / "venice_sunset_256.lights.json"
@@ -134,7 +157,7 @@ def test_a_saved_looks_intensity_and_selected_light_are_rendered(tmp_path):
     """A capture saved at x2 intensity renders brighter than at x1; one whose selected light is
     past the light file's count renders (the relit image) instead of failing."""
     from viewer.cli.main import main
-    from viewer.imageio import read_exr
+    from viewer.files.imageio import read_exr
 
     env = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
     lights = ROOT / "assets" / "envmaps" / "venice_sunset_256.lights.json"

@@ -1,4 +1,4 @@
-"""The backdrop behind the relit person (viewer/backdrop.py, shaders/envmap.glsl): the photo's own
+"""The backdrop behind the relit person (viewer/scene/backdrop.py, shaders/envmap.glsl): the photo's own
 background defocus is measured, the map is blurred by an angle on the sphere, and a map magnified
 in a large frame shows no texel's square or crease."""
 
@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from test_ground import person  # noqa: F401  (the sample person at 128 px, a fixture)
 
-from viewer.backdrop import blurred_map, photo_blur
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.lighting.lights import AreaLights
-from viewer.scene import FrameLayer
-from viewer.settings import Look
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.backdrop import blurred_map, photo_blur
+from viewer.scene.bundle import FrameLayer
+from viewer.scene.look import Look
 
 
 def _checker_photo(blur: float):

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 from conftest import SHARED_DATA
 
-from viewer.camera import Camera
 from viewer.lab.data.body_fit import JOINTS, fit_body, landmarks
 from viewer.lab.data.body_prior import AVERAGE
 from viewer.lab.data.geometry import vertex_normals
 from viewer.lab.data.humans import build_body, placement, rasterize
+from viewer.scene.camera import Camera
 
 
 def test_landmarks_of_a_real_photo():

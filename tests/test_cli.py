@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from viewer.cli.main import main
-from viewer.imageio import read_exr, read_png
+from viewer.files.imageio import read_exr, read_png
 from viewer.lab.bench.metrics import detail_kept
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
+from viewer.scene.bundle import load_scene
 
 
 def test_demo_writes_png_and_exr(tmp_path, capsys):
@@ -123,7 +123,7 @@ def test_fit_lights_writes_lights_and_picture_and_caches(tmp_path):
 def test_fit_lights_bad_maps_give_one_line_errors(tmp_path):
     import cv2
 
-    from viewer.imageio import write_exr
+    from viewer.files.imageio import write_exr
 
     nan_map = np.ones((8, 16, 3), np.float32)
     nan_map[2, 3] = np.nan
@@ -148,8 +148,8 @@ def test_benchmarks_leave_the_checkout_clean(tmp_path):
 
 
 def test_a_file_of_the_wrong_kind_is_one_line_saying_what_it_is(tmp_path):
-    from viewer.lighting.lights import AreaLights
     from viewer.lighting.placed_lights import rig, save_rig
+    from viewer.scene.area_lights import AreaLights
 
     notes = tmp_path / "notes.txt"
     notes.write_text("not a photo\n")
@@ -219,12 +219,12 @@ def test_work_past_the_memory_and_time_budgets_is_refused_before_it_starts(tmp_p
 
 
 def test_the_render_estimate_holds_the_largest_size_it_offers_within_the_budget():
-    from viewer import budget
+    from viewer import memory_needs
 
     for aspect, frame in ((1.0, 0), (0.665, 1362 * 2048), (0.3, 4096 * 4096)):
-        side = budget.largest_render_size(aspect, frame)
-        assert budget.render_bytes(side * side * aspect, frame) <= budget.memory_budget()
-        assert budget.render_bytes((side + 256) ** 2 * aspect, frame) > budget.memory_budget() or side >= 8192
+        side = memory_needs.largest_render_size(aspect, frame)
+        assert memory_needs.render_bytes(side * side * aspect, frame) <= memory_needs.memory_budget()
+        assert memory_needs.render_bytes((side + 256) ** 2 * aspect, frame) > memory_needs.memory_budget() or side >= 8192
 
 
 def test_a_photo_whose_frame_would_not_fit_memory_is_refused_from_its_header(tmp_path):
@@ -234,7 +234,7 @@ def test_a_photo_whose_frame_would_not_fit_memory_is_refused_from_its_header(tmp
 
     from PIL import Image
 
-    from viewer import budget
+    from viewer import memory_needs
 
     photo = tmp_path / "wide.png"
     Image.new("RGB", (16000, 10000), (90, 80, 70)).save(photo)  # 16000x10000: 120 MB decoded, a few KB on disk
@@ -243,7 +243,7 @@ def test_a_photo_whose_frame_would_not_fit_memory_is_refused_from_its_header(tmp
     assert res.returncode == 2 and len(lines) == 1, res.stderr
     side = int(re.search(r"--max-size (\d+) or less fits", lines[0]).group(1))
     assert lines[0].startswith(f"relight: error: {photo}: a 16000x10000 frame from this photo would need about")
-    assert budget.infer_bytes(16000 * 10000, side * side * 10000 // 16000) <= budget.memory_budget()
+    assert memory_needs.infer_bytes(16000 * 10000, side * side * 10000 // 16000) <= memory_needs.memory_budget()
     assert not (tmp_path / "b").exists()
 
 

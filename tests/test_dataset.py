@@ -10,7 +10,7 @@ import torch
 
 from viewer.cli.main import main
 from viewer.errors import InputError
-from viewer.imageio import read_exr
+from viewer.files.imageio import read_exr
 from viewer.lab.data.dataset import DatasetConfig, make_sample, map_pool, sample_dir
 from viewer.lab.data.loader import RelightDataset
 

@@ -9,7 +9,7 @@ from conftest import render_by_units
 from viewer.gl import Engine, EngineOptions
 from viewer.gl.prefilter import blur_plan
 from viewer.lab.scenes import plane_and_box
-from viewer.lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 
 
 def relook(eng, **changes):
@@ -458,7 +458,7 @@ def test_frame_cache_rules(ctx, scene):
     it touches (the frame background only for the background, its colour, the map or its turn)."""
     from dataclasses import replace
 
-    from viewer.scene import FrameLayer
+    from viewer.scene.bundle import FrameLayer
 
     up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
     frame = FrameLayer(albedo=up(scene.albedo), alpha=up(scene.mask.astype(np.float32)), photo=up(scene.albedo) * 0.5)
@@ -494,7 +494,7 @@ def test_before_and_after_shows_the_photo_left_of_the_split(ctx, scene):
     unchanged, and the split costs one frame composite."""
     from dataclasses import replace
 
-    from viewer.scene import FrameLayer
+    from viewer.scene.bundle import FrameLayer
 
     up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
     photo = up(scene.albedo) * 0.5
@@ -610,7 +610,7 @@ def test_a_budgeted_render_keeps_the_last_frame_until_it_is_complete_then_matche
 def test_shading_views_are_exposed_for_display_not_clipped_to_white(ctx, scene):
     """The diffuse-shading view (albedo 1) under a look exposed for albedos of a few tenths clipped
     to white; it is shown so that every light head-on is white."""
-    from viewer.settings import Look
+    from viewer.scene.look import Look
 
     eng = make_engine(ctx, scene)
     eng.set_lights(AreaLights(unit([[0.3, 0.5, 1.0], [-0.4, 0.3, 1.0]]), [2.0, 4.0], [[30.0, 30.0, 30.0], [10.0, 9.0, 8.0]]))

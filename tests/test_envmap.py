@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.imageio import write_exr
+from viewer.files.imageio import write_exr
 from viewer.lighting.envmap import (
     EnvMap,
     direction_to_uv,
@@ -15,9 +15,9 @@ from viewer.lighting.envmap import (
     save_envmap,
     solid_angles,
 )
-from viewer.lighting.lights import load_lights, rotation_matrix
 from viewer.lighting.median_cut import median_cut_lights
 from viewer.resources import asset_dir
+from viewer.scene.area_lights import load_lights, rotation_matrix
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 HORN = SHARED / "hdri" / "immenstadter_horn_1k.hdr"

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from viewer.camera import Camera
 from viewer.photo import face
 from viewer.photo.photo_frame import read_photo
-from viewer.scene import Scene
+from viewer.scene.bundle import Scene
+from viewer.scene.camera import Camera
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"
@@ -192,8 +192,8 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
     unweighted, and the weights give the patch ``FIT_SHARE`` of the fit."""
     from viewer.gl import Engine, EngineOptions
     from viewer.lab.scenes import sphere
-    from viewer.lighting.lights import AreaLights
     from viewer.photo.photo_lighting import fit_photo_lights
+    from viewer.scene.area_lights import AreaLights
 
     scene = sphere(64, albedo=0.6, specular=0.0)
     h, w = scene.mask.shape

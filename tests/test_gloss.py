@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 from conftest import SHARED_DATA
 
-from viewer.imageio import srgb_to_linear
+from viewer.files.imageio import srgb_to_linear
 from viewer.photo import gloss
-from viewer.photo.photo_frame import read_photo, resize
+from viewer.photo.photo_frame import read_photo
 from viewer.photo.segmentation import find_person
+from viewer.resize import resize
 
 
 def test_skin_is_told_from_cloth_by_the_faces_colour():

@@ -1,4 +1,4 @@
-"""The ground shadow (Look.ground, viewer/gl/ground_pass.py, viewer/ground.py): the person's shadow
+"""The ground shadow (Look.ground, viewer/gl/ground_pass.py, viewer/scene/ground.py): the person's shadow
 on the ground at the feet darkens the background where the person blocks the light, and only
 there; it runs only while shown and only when the lights change; the plane goes through the feet,
 each foot darkens the ground it stands on, and the shadow is on by default when the feet are in
@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 from conftest import render_by_units
 
-from viewer.camera import Camera
 from viewer.gl import Engine, EngineOptions
-from viewer.ground import MAX_TILT, contacts, ground_plane
-from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
-from viewer.scene import FrameLayer, Scene, load_scene
-from viewer.scene_ops import resample_scene
-from viewer.settings import Look
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import FrameLayer, Scene, load_scene
+from viewer.scene.camera import Camera
+from viewer.scene.ground import MAX_TILT, contacts, ground_plane
+from viewer.scene.look import Look
+from viewer.scene.resampling import resample_scene
 
 SUN = np.array([0.5, 0.6, 0.45]) / np.linalg.norm([0.5, 0.6, 0.45])  # above, right, in front
 

@@ -8,9 +8,9 @@ from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.engine import bench_lights
 from viewer.lab.bench.groundtruth import RayTracedVisibility
 from viewer.lab.bench.shadows import weighted_error
-from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
-from viewer.scene import load_scene
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import load_scene
 
 
 def test_hard_shadows_match_ray_tracing(ctx):

@@ -15,7 +15,6 @@ from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.lighting.lights import load_lights
 from viewer.output.render import apply_settings
 from viewer.photo import matting
 from viewer.photo.detail import detail_albedo
@@ -32,9 +31,11 @@ from viewer.photo.inference import (
     to_work_frame,
     write_bundle,
 )
-from viewer.photo.photo_frame import frame_sizes, resize
-from viewer.scene import load_scene
-from viewer.settings import Look
+from viewer.photo.photo_frame import frame_sizes
+from viewer.resize import resize
+from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.look import Look
 
 PHOTOS = SHARED_DATA / "photos"
 LANDSCAPE = "unsplash-1535323700481"  # 1950 x 1302, its hand-made mask is RGB
@@ -187,7 +188,7 @@ def test_exif_rotated_photos_come_out_upright(tiny_networks, tmp_path, ctx):
     assert scene.output_size == (80, 120)
     # upright: the frame's photo is the photo as seen, not its stored pixels
     seen = np.asarray(Image.open(photo), np.float32) / 255.0
-    from viewer.imageio import linear_to_srgb
+    from viewer.files.imageio import linear_to_srgb
 
     assert np.abs(linear_to_srgb(scene.frame.photo) - seen).mean() < 0.03
     # a mask drawn on the stored (sideways) pixels is refused with a hint
@@ -303,7 +304,7 @@ def test_render_outputs_keep_the_photo_frame(landscape_bundle, tmp_path, capsys)
     background gives RGBA files whose alpha is the person's matte; --max-size caps a video, whose
     frames keep the photo's aspect (an odd side loses its last row, never padded)."""
     from viewer.cli.main import main
-    from viewer.imageio import read_exr, read_png
+    from viewer.files.imageio import read_exr, read_png
     from viewer.output.video import read_video
 
     out, _ = landscape_bundle

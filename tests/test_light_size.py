@@ -12,7 +12,7 @@ from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions
 from viewer.lighting.light_size import SIGMA_MAX, region_sizes
 from viewer.lighting.lightfit.fit import fit_lights
 from viewer.lighting.median_cut import median_cut_lights
-from viewer.shadow_space import ANGULAR_SIGMA
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 HDRI = SHARED_DATA / "hdri"
 TOWARDS = np.array([0.5, 0.6, 0.62]) / np.linalg.norm([0.5, 0.6, 0.62])

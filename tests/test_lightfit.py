@@ -16,7 +16,7 @@ from viewer.lighting.lightfit.problem import FitSettings, VisibilityTable, build
 from viewer.lighting.lightfit.reference import plane_reference, sphere_reference
 from viewer.lighting.lightfit.samples import all_texels, map_samples
 from viewer.lighting.lightfit.views import PlaneView, SphereView, plane_view, sphere_view
-from viewer.lighting.lights import PAPER_TO_CAMERA, load_lights
+from viewer.scene.area_lights import PAPER_TO_CAMERA, load_lights
 
 HDRI = SHARED_DATA / "hdri"
 SMALL = FitSettings(sphere_resolution=32, plane_resolution=48, shadow_resolution=64, samples=256)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.lighting.lights import AreaLights, load_lights, rotation_matrix
+from viewer.scene.area_lights import AreaLights, load_lights, rotation_matrix
 
 
 def sample_lights():
@@ -60,8 +60,8 @@ def test_bad_light_files_are_named(tmp_path, edit, message):
 def test_facing_yaw_turns_the_brightest_light_to_the_camera():
     from viewer.cli.command_setup import first_look
     from viewer.cli.parser import build_parser
-    from viewer.lighting.lights import AreaLights, facing_yaw
-    from viewer.settings import Look
+    from viewer.scene.area_lights import AreaLights, facing_yaw
+    from viewer.scene.look import Look
 
     rng = np.random.default_rng(5)
     for _ in range(20):

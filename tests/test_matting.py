@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 from conftest import SHARED_DATA
 
-from viewer.imageio import srgb_to_linear
+from viewer.files.imageio import srgb_to_linear
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
 from viewer.photo import matting
-from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
+from viewer.photo.photo_frame import output_frame, read_mask, read_photo
 from viewer.photo.segmentation import find_person
+from viewer.resize import resize
 
 PHOTOS = SHARED_DATA / "photos"
 STEMS = ("unsplash-1507274733827", "unsplash-1535323700481")

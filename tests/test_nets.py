@@ -148,7 +148,7 @@ def test_the_body_prior_experiment_trains_and_the_product_refuses_its_weights(ti
     import numpy as np
 
     from viewer.lab.data.loader import RelightDataset, body_channels
-    from viewer.scene import load_scene
+    from viewer.scene.bundle import load_scene
 
     data = tmp_path / "data"  # a copy: the priors are written into the samples
     shutil.copytree(tiny_dataset[0], data)

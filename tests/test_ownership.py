@@ -1,4 +1,4 @@
-"""The program replaces only what it wrote (viewer/ownership.py): a scene bundle's folder is replaced
+"""The program replaces only what it wrote (viewer/files/ownership.py): a scene bundle's folder is replaced
 when it holds exactly the files this program put there; a user's file beside a scene.json, a note added
 to a bundle or an edited map make it the user's. Temporary folders never collide, and two writers to one
 output take turns."""
@@ -12,7 +12,7 @@ import threading
 import pytest
 
 from viewer.errors import InputError
-from viewer.ownership import MARKER, folder_lock, fresh_sibling, mark_written, written_here
+from viewer.files.ownership import MARKER, folder_lock, fresh_sibling, mark_written, written_here
 from viewer.photo.inference import bundle_target
 from viewer.resources import asset_dir
 
@@ -142,10 +142,10 @@ def test_every_file_written_carries_the_mark_and_only_marked_files_are_ours(tmp_
     import numpy as np
     from PIL import Image
 
-    from viewer.imageio import write_exr, write_jpeg, write_png
-    from viewer.lighting.lights import load_lights
+    from viewer.files.imageio import write_exr, write_jpeg, write_png
+    from viewer.files.ownership import file_is_ours
     from viewer.output.video import VideoWriter
-    from viewer.ownership import file_is_ours
+    from viewer.scene.area_lights import load_lights
 
     image = np.full((8, 8, 3), 0.5, np.float32)
     ours = [write_png(tmp_path / "a.png", image), write_jpeg(tmp_path / "a.jpg", image), write_exr(tmp_path / "a.exr", image),

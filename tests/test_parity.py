@@ -15,7 +15,7 @@ import torch
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.engine import bench_lights
 from viewer.resources import sample_scene_dir
-from viewer.scene import load_scene
+from viewer.scene.bundle import load_scene
 from viewer.twin import render as twin_render
 
 

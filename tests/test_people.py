@@ -12,7 +12,7 @@ from viewer.lab.data.geometry import subdivide, vertex_normals
 from viewer.lab.data.humans import POSE_STYLES, build_body, fold, sample_phenotype, sample_pose
 from viewer.lab.data.materials import SAMPLE_OUTFIT, classify, sample_outfit
 from viewer.lab.data.people import make_person
-from viewer.scene_ops import depth_normal_angle
+from viewer.scene.resampling import depth_normal_angle
 
 
 @pytest.fixture(scope="module")

@@ -22,7 +22,7 @@ from viewer.lighting.placed_lights import (
     save_rig,
     to_area_lights,
 )
-from viewer.shadow_space import ANGULAR_SIGMA
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 
 def test_directions_follow_the_light_table():
@@ -80,7 +80,7 @@ def test_history_undo_and_redo():
 def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
     from viewer.app.session import Session
     from viewer.lab.scenes import plane_and_box
-    from viewer.lighting.lights import AreaLights
+    from viewer.scene.area_lights import AreaLights
 
     scene = plane_and_box(48)
     env = AreaLights(np.array([[0.0, 0.6, 0.8]]), [2.0], [[1.0, 1.0, 1.0]])
@@ -101,7 +101,7 @@ def test_session_renders_placed_lights_fixed_to_the_camera(ctx):
 def test_your_lights_keep_their_share_when_the_map_changes_and_their_own_intensity(ctx):
     from viewer.app.session import Session
     from viewer.lab.scenes import plane_and_box
-    from viewer.lighting.lights import AreaLights
+    from viewer.scene.area_lights import AreaLights
 
     bright = AreaLights(np.array([[0.0, 0.6, 0.8]]), [2.0], [[40.0, 40.0, 40.0]])
     dim = AreaLights(np.array([[0.6, 0.6, 0.0], [0.0, 1.0, 0.0]]), [2.0, 4.0], [[0.3, 0.3, 0.3], [0.1, 0.1, 0.1]])

@@ -9,10 +9,10 @@ from viewer.gl import Engine, EngineOptions
 from viewer.lab.data.reference import envmap_emitter, mitsuba, render_bundle_reference
 from viewer.lab.scenes import plane_and_box
 from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions
-from viewer.lighting.lights import load_lights, rotation_matrix
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
+from viewer.scene.area_lights import load_lights, rotation_matrix
+from viewer.scene.bundle import load_scene
+from viewer.scene.resampling import resample_scene
 
 
 def test_envmap_frame_matches_the_project_convention():
@@ -36,9 +36,9 @@ def test_envmap_frame_matches_the_project_convention():
 def test_background_seen_through_the_camera_matches_mitsuba():
     """EnvMap.seen_through (the input photo's background in training) against Mitsuba's camera
     looking at the turned map with nothing in front of it."""
-    from viewer.camera import Camera
     from viewer.lab.data.reference import camera_sensor
-    from viewer.scene import Scene
+    from viewer.scene.bundle import Scene
+    from viewer.scene.camera import Camera
 
     mi = mitsuba()
     env = load_envmap(asset_dir() / "envmaps" / "studio_small_03_256.hdr")

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from viewer.gl import Engine, EngineOptions
-from viewer.lighting.lights import load_lights
 from viewer.photo.refinement import Refiner, light_visibility, refine_engine
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
+from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.resampling import resample_scene
 
 
 @pytest.fixture

@@ -11,16 +11,16 @@ import pytest
 from viewer.app import interaction as ix
 from viewer.cli.main import main
 from viewer.errors import InputError
+from viewer.files.imageio import read_exr, read_png
 from viewer.gl import Engine, EngineOptions
-from viewer.imageio import read_exr, read_png
-from viewer.lighting.lights import load_lights
 from viewer.output.render import apply_settings, render_turntable, turntable_yaws
 from viewer.output.temporal import drmse, flicker_ratio
 from viewer.output.video import VideoWriter, read_video
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
-from viewer.settings import EXPOSURE_LIMIT, Look
+from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.look import EXPOSURE_LIMIT, Look
+from viewer.scene.resampling import resample_scene
 
 DATA = Path(__file__).parent / "data"
 MAP = asset_dir() / "envmaps/immenstadter_horn_256.hdr"

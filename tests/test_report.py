@@ -11,11 +11,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from viewer.files.imageio import read_png
 from viewer.gl import EngineOptions
-from viewer.imageio import read_png
+from viewer.gl.presets import DEFAULT_PRESET, PRESETS
 from viewer.lab.bench.methods import Method
 from viewer.lab.bench.report import choose_presets, pareto
-from viewer.presets import DEFAULT_PRESET, PRESETS
 
 
 def test_pareto_front():

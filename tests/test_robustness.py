@@ -10,11 +10,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from viewer.errors import InputError
-from viewer.imageio import read_json
+from viewer.files.imageio import read_json
 from viewer.lighting.envmap import load_envmap
-from viewer.lighting.lights import load_lights
 from viewer.photo.photo_frame import read_mask
-from viewer.settings import Look
+from viewer.scene.area_lights import load_lights
+from viewer.scene.look import Look
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD_LIGHTS = json.loads((ROOT / "assets" / "envmaps" / "venice_sunset_256.lights.json").read_text())
@@ -106,11 +106,11 @@ def test_numbers_of_thousands_of_digits_are_one_line_in_every_file_kind(tmp_path
     import json
     import shutil
 
-    from viewer.imageio import read_json
-    from viewer.lighting.lights import load_lights
+    from viewer.files.imageio import read_json
     from viewer.lighting.placed_lights import load_rig
     from viewer.resources import sample_scene_dir
-    from viewer.scene import load_scene
+    from viewer.scene.area_lights import load_lights
+    from viewer.scene.bundle import load_scene
 
     d = tmp_path_factory.mktemp("numbers")
     big = "7" * digits + (".5" if fraction else "")
@@ -162,7 +162,7 @@ def test_an_exr_header_claiming_a_huge_image_is_refused_before_decoding(tmp_path
 
     import numpy as np
 
-    from viewer.imageio import MAX_IMAGE_PIXELS, read_exr, write_exr
+    from viewer.files.imageio import MAX_IMAGE_PIXELS, read_exr, write_exr
 
     d = tmp_path_factory.mktemp("exr")
     path = write_exr(d / "map.exr", np.ones((20, 30, 3), np.float32))

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.imageio import read_exr, write_exr, write_png
+from viewer.files.imageio import read_exr, write_exr, write_png
 from viewer.lab.scenes import plane_and_box
-from viewer.mesh import depth_mesh
 from viewer.resources import sample_scene_dir
-from viewer.scene import load_scene, save_scene
+from viewer.scene.bundle import load_scene, save_scene
+from viewer.scene.depth_mesh import depth_mesh
 
 
 @pytest.fixture
@@ -147,7 +147,7 @@ def test_a_bundle_is_a_closed_box_no_file_is_read_through_a_link(tmp_path):
     files included: a symbolic link to a file outside it is refused in one line naming the file."""
     import shutil
 
-    from viewer.scene import FRAME_FILES, MAP_FILES, OPTIONAL_FILES, FrameLayer
+    from viewer.scene.bundle import FRAME_FILES, MAP_FILES, OPTIONAL_FILES, FrameLayer
 
     base = load_scene(sample_scene_dir())
     h, w = base.height, base.width

@@ -9,11 +9,12 @@ import pytest
 from conftest import SHARED_DATA
 
 from viewer.errors import InputError
-from viewer.imageio import linear_to_srgb
+from viewer.files.imageio import linear_to_srgb
 from viewer.lab.bench.photos import mask_iou, read_reference_mask
 from viewer.lighting.envmap import load_envmap
-from viewer.photo.photo_frame import read_photo, resize
+from viewer.photo.photo_frame import read_photo
 from viewer.photo.segmentation import find_person
+from viewer.resize import resize
 
 PHOTOS = SHARED_DATA / "photos"
 

@@ -8,12 +8,12 @@ from viewer.app.jobs import LightJob
 from viewer.app.session import PREVIEW_SIZE, Session
 from viewer.gl import Engine, EngineOptions
 from viewer.lighting.envmap import load_envmap
-from viewer.lighting.lights import load_lights
 from viewer.lighting.map_lights import sidecar_lights
 from viewer.output.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.settings import Look
+from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.look import Look
 
 MAPS = asset_dir() / "envmaps"
 
@@ -85,7 +85,7 @@ def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
     import time
 
     from viewer.photo.refinement import Refiner
-    from viewer.scene_ops import resample_scene
+    from viewer.scene.resampling import resample_scene
 
     scene = resample_scene(load_scene(sample_scene_dir()), 96)
     s = Session(ctx, scene, load_lights(MAPS / "venice_sunset_256.lights.json"), None, EngineOptions(shadow_resolution=256))

@@ -10,12 +10,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from viewer.camera import Camera
 from viewer.gl import Engine, EngineOptions
 from viewer.gl.skin_pass import SKIN_PROFILE, scatter_kernel
-from viewer.lighting.lights import AreaLights
-from viewer.scene import FrameLayer, Scene, load_scene, save_scene
-from viewer.settings import Look
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import FrameLayer, Scene, load_scene, save_scene
+from viewer.scene.camera import Camera
+from viewer.scene.look import Look
 
 SIZE, UP = 48, 4  # work pixels, frame pixels per work pixel
 

@@ -10,7 +10,7 @@ import pytest
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.contact import LIGHT, ContactConfig, penumbra_widths
 from viewer.lab.scenes import plane_and_box
-from viewer.lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +38,7 @@ def test_csm_is_too_soft_near_contact(widths):
 
 def test_extreme_lights_stay_finite_and_bounded(ctx):
     """Sigma 0, tiny and the largest allowed, a grazing and a below-horizon light: visibility in [0, 1]."""
-    from viewer.lighting.lights import MAX_SIGMA
+    from viewer.scene.area_lights import MAX_SIGMA
 
     scene = plane_and_box(48)
     grazing = np.array([np.cos(np.radians(2.0)), 0.0, np.sin(np.radians(2.0))])
@@ -59,7 +59,7 @@ def test_a_sharp_shadows_edge_is_filtered_not_a_staircase(ctx):
     shadow-map texels wide, the edge has intermediate values and no jump from lit to shadowed
     between neighbours (the staircase a work pixel then shows as a block in a larger output);
     the hard test keeps its binary edge."""
-    from viewer import shadow_space
+    from viewer.scene import shadow_space
 
     scene = plane_and_box(96)
     eng = Engine(ctx, scene, EngineOptions(soft="pcss", shadow_step=1, shadow_resolution=128))

@@ -11,8 +11,8 @@ import pytest
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.contact import gaussian_light
 from viewer.lab.scenes import sphere
-from viewer.lighting.lights import AreaLights
-from viewer.shadow_space import ANGULAR_SIGMA
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 LIGHT = np.array([0.35, 0.25, 1.0]) / np.linalg.norm([0.35, 0.25, 1.0])
 

@@ -7,7 +7,7 @@ import pytest
 
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.scenes import plane_and_box
-from viewer.lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 
 
 def unit(v):

@@ -9,12 +9,12 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from viewer import shadow_space
-from viewer.camera import Camera
 from viewer.lab.scenes import plane_and_box
-from viewer.lighting.lights import AreaLights
-from viewer.mesh import caster_points, depth_mesh
-from viewer.scene import Scene
+from viewer.scene import shadow_space
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import Scene
+from viewer.scene.camera import Camera
+from viewer.scene.depth_mesh import caster_points, depth_mesh
 from viewer.twin import (
     LightTensors,
     SceneTensors,

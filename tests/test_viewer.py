@@ -15,17 +15,17 @@ import numpy as np
 import pytest
 
 from viewer.cli.commands import DEMO_LIGHTS
+from viewer.files.imageio import read_exr, read_png
 from viewer.gl import Engine, EngineOptions
-from viewer.imageio import read_exr, read_png
 from viewer.lab.bench.metrics import detail_kept
 from viewer.lab.bench.viewer import x_display
-from viewer.lighting.lights import facing_yaw, load_lights
 from viewer.output.render import apply_settings
 from viewer.output.video import partial_path, read_video
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
-from viewer.settings import Look
+from viewer.scene.area_lights import facing_yaw, load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.look import Look
+from viewer.scene.resampling import resample_scene
 
 # the viewer opens with the brightest light turned toward the camera (no --yaw given)
 FIRST_YAW = facing_yaw(load_lights(asset_dir() / DEMO_LIGHTS))
@@ -294,10 +294,10 @@ from pathlib import Path
 from viewer.app import ViewerConfig
 from viewer.app.app import ViewerApp
 from viewer.lighting.envmap import load_envmap
-from viewer.lighting.lights import load_lights
+from viewer.scene.area_lights import load_lights
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
+from viewer.scene.bundle import load_scene
+from viewer.scene.resampling import resample_scene
 
 tmp, dropped = Path(sys.argv[1]), sys.argv[2:]
 maps = asset_dir() / "envmaps"
@@ -482,7 +482,7 @@ def test_view_without_a_display_says_so(tmp_path):
 def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, tmp_path):
     """Choosing the interactive preset in the panel refits its number of lights and renders with its
     engine options: the saved frame is the headless engine's with that preset."""
-    from viewer.presets import PRESETS
+    from viewer.gl.presets import PRESETS
 
     v = viewer_factory()
     s = v.state()

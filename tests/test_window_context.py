@@ -16,7 +16,7 @@ import imgui_bundle  # sets PYGLFW_LIBRARY to its own libglfw, which has the nul
 import glfw, moderngl
 from viewer.lab.scenes import plane_and_box
 from viewer.gl import Engine, EngineOptions
-from viewer.lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 glfw.init_hint(glfw.PLATFORM, glfw.PLATFORM_NULL)
 assert glfw.init(), "glfw init failed"
 glfw.window_hint(glfw.CONTEXT_CREATION_API, glfw.EGL_CONTEXT_API)
@@ -40,7 +40,7 @@ glfw.terminate()
 def test_engine_in_glfw_context_matches_headless(ctx, tmp_path):
     from viewer.gl import Engine, EngineOptions
     from viewer.lab.scenes import plane_and_box
-    from viewer.lighting.lights import AreaLights
+    from viewer.scene.area_lights import AreaLights
 
     out = tmp_path / "window.npy"
     res = subprocess.run([sys.executable, "-c", SCRIPT, str(Path(__file__).parent), str(out)], capture_output=True, text=True,

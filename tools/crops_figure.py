@@ -67,9 +67,10 @@ def crop_boxes(photo: np.ndarray) -> dict:
 
 def figure(groups: list, out: Path, tile: int = 300, parts=PARTS) -> Path:
     """Rows of (photo, {label: image}): per photo and part, the crop of each render side by side."""
-    from viewer.imageio import read_png, write_jpeg
+    from viewer.files.imageio import read_png, write_jpeg
     from viewer.output.render import _label
-    from viewer.photo.photo_frame import output_frame, read_photo, resize
+    from viewer.photo.photo_frame import output_frame, read_photo
+    from viewer.resize import resize
 
     rows = []
     for photo_path, renders in groups:

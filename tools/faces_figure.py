@@ -39,7 +39,7 @@ def looks(maps: Path) -> dict:
     from viewer.lab.bench.photo_set import FRONT_FILL, MAPS, RIGS
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.lightfit import lights_for_map
-    from viewer.lighting.lights import facing_yaw
+    from viewer.scene.area_lights import facing_yaw
 
     env = load_envmap(maps / f"{MAPS['studio']}.hdr")
     studio = lights_for_map(env)[0]
@@ -55,10 +55,10 @@ def main(argv=None):
     args = p.parse_args(argv)
     from PIL import Image, ImageDraw
 
+    from viewer.files.imageio import write_jpeg
     from viewer.gl import Engine, EngineOptions, create_headless_context
-    from viewer.imageio import write_jpeg
     from viewer.lab.bench.photo_set import _render
-    from viewer.scene import load_scene
+    from viewer.scene.bundle import load_scene
 
     ctx = create_headless_context()
     chosen = looks(Path(args.maps))

@@ -9,7 +9,7 @@ What it does
    (weight on the right leg) and the head turned a little, so that arms shade the torso and the legs
    shade each other. Clothes and hair get some thickness: the body under the cloth is smoothed
    along the normals and each region stands off the skin by a few millimetres (``STANDOFF``).
-2. Places it in the project's camera (``viewer.camera.Camera``: 512x512, 50 mm lens on a 36 mm
+2. Places it in the project's camera (``viewer.scene.camera.Camera``: 512x512, 50 mm lens on a 36 mm
    sensor, camera at the origin looking along -z, y up), turned ``--turn`` degrees about the vertical,
    its centre ``--distance`` metres in front of the camera, scaled uniformly so that it spans
    ``--fill`` of the image height (feet near the bottom, head near the top). A real-size person at
@@ -27,8 +27,8 @@ What it does
    skin on the face, neck, forearms and hands, shoes with light soles, short dark hair, eyes.
    Albedo is linear RGB; specular / roughness follow the Disney convention of docs/conventions.md.
 5. Checks the depth map against rays cast through pixel centres (as ``Camera.unproject`` defines
-   them) into the mesh, writes the bundle with ``viewer.scene.save_scene``, loads it back with
-   ``viewer.scene.load_scene`` (which validates it), compares the stored normals with normals computed from the depth map by
+   them) into the mesh, writes the bundle with ``viewer.scene.bundle.save_scene``, loads it back with
+   ``viewer.scene.bundle.load_scene`` (which validates it), compares the stored normals with normals computed from the depth map by
    finite differences (median angle printed), and writes a contact sheet of the maps (``--sheet``).
 
 The bundled asset was produced from the project root with::
@@ -53,12 +53,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from viewer.camera import Camera  # noqa: E402
 from viewer.lab.data.geometry import vertex_normals  # noqa: E402
 from viewer.lab.data.humans import build_body, dress, place_in_camera, rasterize  # noqa: E402
 from viewer.lab.data.materials import make_materials  # noqa: E402
-from viewer.scene import Scene, load_scene, save_scene  # noqa: E402
-from viewer.scene_ops import depth_normal_angle  # noqa: E402
+from viewer.scene.bundle import Scene, load_scene, save_scene  # noqa: E402
+from viewer.scene.camera import Camera  # noqa: E402
+from viewer.scene.resampling import depth_normal_angle  # noqa: E402
 
 T0 = time.perf_counter()
 
@@ -134,7 +134,7 @@ def ray_cast_check(cam: Camera, pos: np.ndarray, faces: np.ndarray, depth: np.nd
 def contact_sheet(scene: Scene, angle: np.ndarray, valid: np.ndarray, path: Path) -> Path:
     from PIL import Image, ImageDraw
 
-    from viewer.imageio import linear_to_srgb
+    from viewer.files.imageio import linear_to_srgb
 
     m = scene.mask
     d = scene.depth

@@ -38,7 +38,7 @@ def main() -> int:
     if total > LIMIT_MB:
         raise SystemExit(f"the weights take {total:.1f} MB, over the {LIMIT_MB:.0f} MB budget")
     from viewer.errors import InputError
-    from viewer.imageio import write_text
+    from viewer.files.imageio import write_text
     from viewer.nets.weights import load_network
 
     with tempfile.TemporaryDirectory(dir=dest) as staging:  # nothing replaced until all of them load

@@ -3,7 +3,7 @@
 Every entry of :data:`GLSL_CONSTANTS` reaches every shader as a generated ``#define``
 (:func:`viewer.gl.programs.shader_source`), and the torch twin and the numpy code import the same
 names, so the two sides cannot drift apart. (Values that vary per draw, such as the CSM offset and
-clamp of ``viewer.shadow_space.csm_constants``, are uniforms set from Python instead.)
+clamp of ``viewer.scene.shadow_space.csm_constants``, are uniforms set from Python instead.)
 """
 
 from __future__ import annotations

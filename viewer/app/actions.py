@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..imageio import MARK, write_exr, write_png, write_text
-from ..lighting.placed_lights import PlacedLight, level
-from ..scene import PHOTO_SUFFIXES
-from . import interaction as ix
-from .jobs import LightJob, SceneJob
-from .recording import InteractionRecording, TurntableRecording
-from .state_file import look_json
+from viewer.app import interaction as ix
+from viewer.app.jobs import LightJob, SceneJob
+from viewer.app.recording import InteractionRecording, TurntableRecording
+from viewer.app.state_file import look_json
+from viewer.files.imageio import MARK, write_exr, write_png, write_text
+from viewer.lighting.placed_lights import PlacedLight, level
+from viewer.scene.bundle import PHOTO_SUFFIXES
 
 
 class Actions:
@@ -147,10 +147,10 @@ class Actions:
         folder or its scene.json) becomes the person shown; an environment map is fitted and
         switched to with its lights; a rig's lights are placed. Anything else is one line saying
         what the window opens."""
-        from ..errors import InputError
-        from ..file_kinds import kind_of, wrong_kind
-        from ..lighting.placed_lights import load_rig
-        from .files import is_bundle
+        from viewer.app.files import is_bundle
+        from viewer.errors import InputError
+        from viewer.files.file_kinds import kind_of, wrong_kind
+        from viewer.lighting.placed_lights import load_rig
 
         suffix = path.suffix.lower()
         if is_bundle(path):
@@ -211,7 +211,7 @@ class Actions:
 
     def use_rig(self, name: str):
         """The placed lights of rig ``name`` in place of the user's (undoable)."""
-        from ..lighting.placed_lights import rig
+        from viewer.lighting.placed_lights import rig
 
         s = self.app.session
         replaced = len(s.placed)
@@ -229,7 +229,7 @@ class Actions:
         return level(self.app.session.base_lights)
 
     def save_rig(self):
-        from ..lighting.placed_lights import save_rig
+        from viewer.lighting.placed_lights import save_rig
 
         try:
             self.app.config.out_dir.mkdir(parents=True, exist_ok=True)
@@ -254,7 +254,7 @@ class Actions:
     def set_preset(self, name: str):
         """A quality preset: its engine options now, its number of lights refitted (cached) when the
         lights came from a map."""
-        from ..presets import preset
+        from viewer.gl.presets import preset
 
         p = preset(name)
         self.app.preset = name

@@ -15,21 +15,21 @@ from pathlib import Path
 
 import numpy as np
 
-from ..lighting.lightfit.methods import DEFAULT_METHOD
-from ..lighting.lights import AreaLights
-from ..output.render import photo_exposure
-from ..scene import PHOTO_SUFFIXES, Scene
-from ..settings import AUTO, Look
-from . import interaction as ix
-from .actions import Actions
-from .controls import Controls
-from .job_polling import JobPolling
-from .jobs import ChildWorker, LightJob, SceneJob
-from .layout import PANEL_WIDTH, image_area_size, panel_width
-from .panel import PanelState
-from .recording import InteractionRecording, TurntableRecording
-from .session import Session
-from .state_file import StateFile
+from viewer.app import interaction as ix
+from viewer.app.actions import Actions
+from viewer.app.controls import Controls
+from viewer.app.job_polling import JobPolling
+from viewer.app.jobs import ChildWorker, LightJob, SceneJob
+from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
+from viewer.app.panel import PanelState
+from viewer.app.recording import InteractionRecording, TurntableRecording
+from viewer.app.session import Session
+from viewer.app.state_file import StateFile
+from viewer.lighting.lightfit.methods import DEFAULT_METHOD
+from viewer.output.render import photo_exposure
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import PHOTO_SUFFIXES, Scene
+from viewer.scene.look import AUTO, Look
 
 STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
 SWAP_BUDGET = 0.06  # seconds of engine work a frame gives a new map or person before the frame is shown
@@ -53,7 +53,7 @@ class ViewerConfig:
     fps: float = 30.0
     state_file: Path | None = None  # state, widget positions and frame times as JSON (scripts, tests, benchmarks)
     bundled_maps: tuple = ()
-    preset: str = "balanced"  # the quality preset the options came from (viewer/presets.py)
+    preset: str = "balanced"  # the quality preset the options came from (viewer/gl/presets.py)
     window: object = None  # a window already open (a photo's inference ran in its context), else one is made
     rig: tuple = ()  # placed lights to start with (viewer.lighting.placed_lights; relight view --rig)
     max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
@@ -63,9 +63,9 @@ class ViewerConfig:
 
 class ViewerApp:
     def __init__(self, config: ViewerConfig):
-        from .files import FileBrowser
-        from .thumbnail import MapThumbnail
-        from .window import Window
+        from viewer.app.files import FileBrowser
+        from viewer.app.thumbnail import MapThumbnail
+        from viewer.app.window import Window
 
         self.config = config
         sc = config.scene
@@ -222,7 +222,7 @@ class ViewerApp:
         return eng, ("drag" if moving else "adjust") if preview else "update"
 
     def run(self) -> int:
-        from .panel import draw_panel
+        from viewer.app.panel import draw_panel
 
         w = self.window
         previous = signal.signal(signal.SIGTERM, lambda *_: w.close()) if os.name == "posix" else None

@@ -26,7 +26,7 @@ def _say(**fields):
 
 
 def _photo(req: dict):
-    from ..photo.inference import cached_bundle
+    from viewer.photo.inference import cached_bundle
 
     bundle, cached = cached_bundle(req["photo"], None, max_size=int(req["max_size"]), device=req.get("device", "cpu"),
                                    progress=lambda stage: _say(stage=stage))
@@ -34,8 +34,8 @@ def _photo(req: dict):
 
 
 def _lights(req: dict):
-    from ..lighting.envmap import load_envmap
-    from ..lighting.lightfit import lights_for_map
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.lightfit import lights_for_map
 
     lights, cached = lights_for_map(load_envmap(req["map"]), int(req["n"]), req["method"],
                                     progress=lambda stage, done, total: _say(stage=stage, done=done, total=total))
@@ -47,8 +47,8 @@ SOURCE = {"photo": "photo", "lights": "map"}  # the file an error names
 
 
 def serve(lines) -> None:
-    from ..cores import WINDOW_CORES, size_pools, work_threads
-    from ..errors import InputError
+    from viewer.cores import WINDOW_CORES, size_pools, work_threads
+    from viewer.errors import InputError
 
     for line in lines:
         try:

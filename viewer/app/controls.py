@@ -7,7 +7,7 @@ from __future__ import annotations
 import time
 from dataclasses import replace
 
-from . import interaction as ix
+from viewer.app import interaction as ix
 
 
 class Controls:

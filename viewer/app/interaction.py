@@ -1,5 +1,5 @@
 """What the mouse and wheel do, as plain functions (no window, no GL): testable. The lighting's
-rotation and the exposure belong to the look (:class:`viewer.settings.Look`); where the image sits
+rotation and the exposure belong to the look (:class:`viewer.scene.look.Look`); where the image sits
 in the window (zoom, pan) to :class:`ViewState`.
 
 Dragging on the image turns the lighting as if grabbing the environment map: the map behind the
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..settings import EXPOSURE_LIMIT, Look
+from viewer.scene.look import EXPOSURE_LIMIT, Look
 
 DEGREES_PER_PIXEL = 0.5  # of mouse motion, in window pixels
 EXPOSURE_PER_NOTCH = 0.25  # stops per wheel notch

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import sys
 
-from ..lighting.lights import facing_yaw
-from . import interaction as ix
+from viewer.app import interaction as ix
+from viewer.scene.area_lights import facing_yaw
 
 
 class JobPolling:

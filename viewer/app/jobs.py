@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..lighting.envmap import EnvMap, load_envmap
-from ..lighting.lights import AreaLights
-from ..lighting.map_lights import map_lights
+from viewer.errors import InputError
+from viewer.lighting.envmap import EnvMap, load_envmap
+from viewer.lighting.map_lights import map_lights
+from viewer.scene.area_lights import AreaLights
 
 
 @dataclass
@@ -204,8 +204,8 @@ class LightJob(ChildJob):
         super().__init__(wake, worker)
 
     def _stage(self, said: dict):
-        from ..lighting.lightfit.methods import STAGE_SHARES
-        from ..progress import TimeLeft
+        from viewer.lighting.lightfit.methods import STAGE_SHARES
+        from viewer.progress import TimeLeft
 
         if self._left is None:
             self._left = TimeLeft(STAGE_SHARES.get(self.method) or {str(said["stage"]): 1.0})
@@ -227,7 +227,7 @@ class LightJob(ChildJob):
 
 @dataclass
 class SceneResult:
-    scene: object  # viewer.scene.Scene
+    scene: object  # viewer.scene.bundle.Scene
     path: Path  # what was opened: a photo or a bundle
     how: str  # "inferred", "cached" or "bundle"
 
@@ -240,7 +240,7 @@ class SceneJob(ChildJob):
     thread_name = "open-scene"
 
     def __init__(self, path, max_size: int, device: str = "cpu", wake=lambda: None, worker: ChildWorker | None = None):
-        from ..scene import PHOTO_SUFFIXES
+        from viewer.scene.bundle import PHOTO_SUFFIXES
 
         self.path = Path(path)
         self.photo = self.path.suffix.lower() in PHOTO_SUFFIXES
@@ -249,14 +249,14 @@ class SceneJob(ChildJob):
         self.stage = "starting the inference" if self.photo else "reading the maps"
         self.fraction = 0.0
         self._done = 0
-        from ..photo.inference import STAGE_SHARES
-        from ..progress import TimeLeft
+        from viewer.photo.inference import STAGE_SHARES
+        from viewer.progress import TimeLeft
 
         self._left = TimeLeft(STAGE_SHARES)
         super().__init__(wake, worker)
 
     def _stage(self, said: dict):
-        from ..photo.inference import STAGES
+        from viewer.photo.inference import STAGES
 
         self._done += 1
         self.fraction = self._left.update(str(said["stage"]), 1, 1)
@@ -264,7 +264,7 @@ class SceneJob(ChildJob):
         self.stage = f"{said['stage']} done ({self._done} of {len(STAGES)})" + (f", {words}" if words else "")
 
     def work(self) -> SceneResult:
-        from ..scene_ops import load_sized_scene
+        from viewer.scene.resampling import load_sized_scene
 
         bundle, how = self.path, "bundle"
         if self.photo:

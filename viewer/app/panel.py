@@ -12,15 +12,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from imgui_bundle import imgui, implot
 
-from ..lighting.lights import azimuth_elevation
-from ..lighting.median_cut import LUMINANCE
-from ..lighting.placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb
-from ..presets import PRESETS
-from ..settings import VIEWS
-from ..shadow_space import ANGULAR_SIGMA
-from .interaction import exposed
-from .layout import KEYS, SMALL_HEIGHT, panel_width
-from .session import SHADOW_MODES, VIEW_NAMES
+from viewer.app.interaction import exposed
+from viewer.app.layout import KEYS, SMALL_HEIGHT, panel_width
+from viewer.app.session import SHADOW_MODES, VIEW_NAMES
+from viewer.gl.presets import PRESETS
+from viewer.lighting.median_cut import LUMINANCE
+from viewer.lighting.placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb
+from viewer.scene.area_lights import azimuth_elevation
+from viewer.scene.look import VIEWS
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 MAX_LIGHTS = 64
 SIGMA_MAX = 30.0  # slider range (256-px units; the fitted lights use 0 to 20)
@@ -378,7 +378,7 @@ def _thumbnail(app):
 
 
 def _record(app):
-    from .recording import InteractionRecording
+    from viewer.app.recording import InteractionRecording
 
     if not imgui.collapsing_header("Record", _open(app, False)):
         return

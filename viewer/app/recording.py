@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..output.render import turntable_yaws
-from ..output.video import VideoWriter
-from ..progress import TimeLeft
-from ..settings import Look
+from viewer.output.render import turntable_yaws
+from viewer.output.video import VideoWriter
+from viewer.progress import TimeLeft
+from viewer.scene.look import Look
 
 
 class TurntableRecording:

@@ -16,14 +16,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..gl import Engine, EngineOptions
-from ..lighting.lights import AreaLights
-from ..lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
-from ..output.render import effective_background
-from ..photo.photo_frame import scaled_size
-from ..scene import Scene
-from ..scene_ops import resample_scene
-from ..settings import Look
+from viewer.gl import Engine, EngineOptions
+from viewer.lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
+from viewer.output.render import effective_background
+from viewer.resize import scaled_size
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import Scene
+from viewer.scene.look import Look
+from viewer.scene.resampling import resample_scene
 
 PREVIEW_SIZE = 256
 PREVIEW_SHADOW_RESOLUTION = 256
@@ -230,8 +230,8 @@ class Session:
     def _start_refinement(self, eng: Engine):
         """Run the refinement network for the final engine's current lights on a thread (the soft
         visibility is shown meanwhile); :meth:`poll_refinement` hands its result to the engine."""
-        from ..photo.refinement import Refiner, light_visibility
-        from .jobs import RefineJob
+        from viewer.app.jobs import RefineJob
+        from viewer.photo.refinement import Refiner, light_visibility
 
         key = self._lights_key(eng)
         if self.refine_job is not None and (self.refine_job.key == key or not self.refine_job.done):

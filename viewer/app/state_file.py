@@ -9,7 +9,7 @@ import time
 from dataclasses import asdict, replace
 from pathlib import Path
 
-from ..imageio import write_text
+from viewer.files.imageio import write_text
 
 
 def look_json(app) -> dict:

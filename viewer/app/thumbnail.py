@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..imageio import linear_to_srgb
-from ..lighting.envmap import EnvMap, direction_to_uv, uv_to_direction
-from ..lighting.lights import rotation_matrix
-from ..lighting.median_cut import LUMINANCE
+from viewer.files.imageio import linear_to_srgb
+from viewer.lighting.envmap import EnvMap, direction_to_uv, uv_to_direction
+from viewer.lighting.median_cut import LUMINANCE
+from viewer.scene.area_lights import rotation_matrix
 
 WIDTH = 256  # texels across (height: half)
 

@@ -13,8 +13,8 @@ import glfw
 import moderngl
 from imgui_bundle import imgui, implot  # noqa: I001  (before glfw, see above)
 
-from ..errors import InputError
-from ..gl.programs import shared_programs
+from viewer.errors import InputError
+from viewer.gl.programs import shared_programs
 
 SHORTCUTS = {glfw.KEY_Z: "undo", glfw.KEY_Y: "redo"}  # with Ctrl
 

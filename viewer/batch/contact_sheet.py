@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..imageio import atomic_path, png_mark
+from viewer.files.imageio import atomic_path, png_mark
 
 SHEET = "contact-sheet.png"
 THUMB = 256  # pixels of a thumbnail's height

@@ -17,8 +17,8 @@ import os
 import time
 from pathlib import Path
 
-from ..errors import InputError
-from .plan import file_sha256
+from viewer.batch.plan import file_sha256
+from viewer.errors import InputError
 
 MANIFEST = "manifest.jsonl"
 LOCK = ".relight-batch.lock"

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..file_kinds import PHOTO_SUFFIXES
+from viewer.errors import InputError
+from viewer.files.file_kinds import PHOTO_SUFFIXES
 
 KEY_VERSION = "batch-1"  # outputs of an older batch code are made again
 
@@ -30,8 +30,8 @@ def collect_photos(paths) -> tuple[list[Path], list[str]]:
     """The photos named by ``paths`` (files, folders: their photos, sorted; globs), each once, and
     one line per path that named none. ``*.mask.png`` files (hand-made masks beside photos) are not
     photos, and neither are, in a folder or a glob, images this program wrote (a batch's contact
-    sheet and outputs, when a batch writes into the folder it reads: ``viewer.ownership``)."""
-    from ..ownership import file_is_ours
+    sheet and outputs, when a batch writes into the folder it reads: ``viewer.files.ownership``)."""
+    from viewer.files.ownership import file_is_ours
 
     photos, missing = [], []
     for given in paths:
@@ -129,7 +129,7 @@ def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, 
     the networks, the pipeline: viewer.photo.inference.bundle_key), the map's or light file's bytes,
     the rig's, the lights themselves (the fit's method and count), the look and the options, and
     this code's key version."""
-    from ..photo.inference import PIPELINE
+    from viewer.photo.inference import PIPELINE
 
     h = hashlib.sha256()
     h.update(json.dumps({"photo": photo_key, "source": source_sha, "rig": rig_sha, "settings": settings,

@@ -11,7 +11,7 @@ import time
 from collections import deque
 from multiprocessing.connection import wait
 
-from ..errors import InputError
+from viewer.errors import InputError
 
 RETRIES = 2
 
@@ -23,7 +23,7 @@ class LocalPool:
     and its task run again, and no lock shared between processes can be left held."""
 
     def __init__(self, workers: int, threads: int):
-        from .worker import serve
+        from viewer.batch.worker import serve
 
         self._mp = multiprocessing.get_context("spawn")
         self._serve, self.threads = serve, threads
@@ -139,7 +139,7 @@ class RayPool:
             import ray
         except ImportError:
             raise InputError(None, "--ray needs Ray: pip install 'ray==2.60.0' (the project's cluster extra)") from None
-        from .worker import Worker
+        from viewer.batch.worker import Worker
 
         self._ray = ray
         if not ray.is_initialized():

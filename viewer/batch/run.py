@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .contact_sheet import SHEET, contact_sheet
-from .manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
-from .plan import Item, LookSpec, file_sha256, item_key, photo_names
+from viewer.batch.contact_sheet import SHEET, contact_sheet
+from viewer.batch.manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
+from viewer.batch.plan import Item, LookSpec, file_sha256, item_key, photo_names
 
 
 @dataclass
@@ -61,8 +61,8 @@ KEYLESS = ("bundles",)  # settings that do not change an output (where the bundl
 def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) -> tuple[list[Item], dict[Path, str]]:
     """Every (photo, look) item with its outputs and key; the photos' bundle keys (what their bundles
     are made from: viewer.photo.inference.bundle_key), or for a photo that cannot be read its line."""
-    from ..errors import InputError
-    from ..photo.inference import bundle_key, inference_version
+    from viewer.errors import InputError
+    from viewer.photo.inference import bundle_key, inference_version
 
     names = photo_names(photos, reserved=(MANIFEST, SHEET, LOCK))
     version = inference_version()
@@ -91,7 +91,7 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
 
 def remove_leftovers(folder: Path, items: list[Item]) -> None:
     """Temporary files a killed batch left beside the outputs it plans (``.NAME.PID.tmp``, the
-    atomic writes' names: viewer.imageio.atomic_paths); nothing else is touched. Each folder is
+    atomic writes' names: viewer.files.imageio.atomic_paths); nothing else is touched. Each folder is
     listed once."""
     planned: dict[Path, set] = {}
     for item in items:

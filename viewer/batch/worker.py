@@ -9,12 +9,12 @@ import os
 import time
 from pathlib import Path
 
-from ..errors import InputError
+from viewer.errors import InputError
 
 
 class Worker:
     def __init__(self, threads: int):
-        from ..cores import size_pools
+        from viewer.cores import size_pools
 
         os.environ["LP_NUM_THREADS"] = str(threads)  # llvmpipe reads it when the context is made
         size_pools(threads)
@@ -25,7 +25,7 @@ class Worker:
     @property
     def ctx(self):
         if self._ctx is None:
-            from ..gl import create_headless_context
+            from viewer.gl import create_headless_context
 
             self._ctx = create_headless_context()
         return self._ctx
@@ -55,22 +55,22 @@ class Worker:
         self._engine_key, self._engine, self._scene = None, None, None
 
     def infer(self, task: dict) -> dict:
-        from ..photo.inference import cached_bundle
+        from viewer.photo.inference import cached_bundle
 
         bundle, cached = cached_bundle(task["photo"], None, max_size=task["max_size"], device=task.get("device", "cpu"),
                                        ctx=self.ctx, bundles=task["bundles"])
         return {"bundle": str(bundle), "cached": cached}
 
     def render(self, task: dict) -> dict:
-        from ..gl import Engine
-        from ..gl.options import EngineOptions
-        from ..lighting.envmap import load_envmap
-        from ..lighting.lights import AreaLights
-        from ..output.layers import layer_channels, write_layers
-        from ..output.render import render_to_files
-        from ..scene_ops import load_sized_scene
-        from ..settings import Look
-        from .plan import file_sha256
+        from viewer.batch.plan import file_sha256
+        from viewer.gl import Engine
+        from viewer.gl.options import EngineOptions
+        from viewer.lighting.envmap import load_envmap
+        from viewer.output.layers import layer_channels, write_layers
+        from viewer.output.render import render_to_files
+        from viewer.scene.area_lights import AreaLights
+        from viewer.scene.look import Look
+        from viewer.scene.resampling import load_sized_scene
 
         times = {}
         t = time.perf_counter()

@@ -7,12 +7,12 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..errors import InputError
-from .options import add_engine_args, add_view_args, auto_or
+from viewer.cli.shared_options import add_engine_args, add_view_args, auto_or
+from viewer.errors import InputError
 
 
 def add_batch_parser(sub) -> None:
-    from ..lighting.lightfit import DEFAULT_METHOD, METHODS
+    from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 
     p = sub.add_parser("batch", help="relight folders of photos under several looks: every photo inferred once, every "
                        "map fitted once, renders on worker processes or a Ray cluster, a manifest, resumable")
@@ -42,9 +42,9 @@ def add_batch_parser(sub) -> None:
 
 
 def cmd_batch(args) -> int:
-    from ..batch.plan import check_sources, collect_photos, look_specs
-    from ..batch.run import run_batch
-    from .output_paths import writable
+    from viewer.batch.plan import check_sources, collect_photos, look_specs
+    from viewer.batch.run import run_batch
+    from viewer.cli.output_paths import writable
 
     photos, missing = collect_photos(args.photos)
     photos = [p.resolve() for p in photos]  # workers elsewhere (Ray) read and write the same paths, not relative ones
@@ -61,7 +61,7 @@ def cmd_batch(args) -> int:
     if (args.workers is not None and args.workers < 1) or (args.threads is not None and args.threads < 1):
         raise InputError(None, "--workers and --threads must be at least 1")
     if args.ray:
-        from ..batch.pools import reachable
+        from viewer.batch.pools import reachable
 
         reachable(args.ray)  # before the batch's folder, lock and manifest are made
     workers, threads = worker_count(args)
@@ -73,13 +73,13 @@ def cmd_batch(args) -> int:
     looks = resolve_looks(specs, args)
 
     def make_pool():
-        from ..batch.pools import LocalPool, RayPool
+        from viewer.batch.pools import LocalPool, RayPool
 
         if args.ray:  # the cluster's cores, not this machine's: one thread an actor unless told
             return RayPool(args.ray, args.workers, args.threads or 1, gpus=args.gpus_per_worker)
         return LocalPool(workers, threads)
 
-    from ..lighting.lightfit.cache import cache_dir
+    from viewer.lighting.lightfit.cache import cache_dir
 
     # the bundles' folder as this process sees it: workers on other machines need it shared (docs/batch.md)
     settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device,
@@ -102,8 +102,8 @@ def worker_count(args) -> tuple[int, int]:
     thread made 36-37 photo-looks a minute here, one of two threads 23-25; docs/batch.md), as many as the
     memory budget holds (a worker infers a 12-MP photo, or renders a bundle's maps of about a megapixel,
     into a frame of --max-size), or as given."""
-    from ..budget import infer_bytes, memory_budget, render_bytes
-    from ..cores import work_threads
+    from viewer.cores import work_threads
+    from viewer.memory_needs import infer_bytes, memory_budget, render_bytes
 
     cores = work_threads()
     frame = args.max_size * args.max_size * 2 // 3
@@ -119,13 +119,13 @@ def worker_count(args) -> tuple[int, int]:
 def resolve_looks(specs, args) -> list:
     """Each look's lights (a map's found once per count), yaw, rig, look and engine options; a map
     or light file that cannot be used fails its own looks, with its line."""
-    from ..batch.plan import file_sha256
-    from ..batch.run import ResolvedLook
-    from ..lighting.envmap import load_envmap
-    from ..lighting.lights import facing_yaw, load_lights
-    from ..lighting.map_lights import map_lights
-    from ..lighting.placed_lights import load_rig, to_area_lights
-    from .command_setup import HOW, command_look, engine_options, fitted_lights, lights_count, warn_if_dark
+    from viewer.batch.plan import file_sha256
+    from viewer.batch.run import ResolvedLook
+    from viewer.cli.command_setup import HOW, command_look, engine_options, fitted_lights, lights_count, warn_if_dark
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import map_lights
+    from viewer.lighting.placed_lights import load_rig, to_area_lights
+    from viewer.scene.area_lights import facing_yaw, load_lights
 
     base = command_look(args)
     found: dict = {}  # (source, n) -> (lights, sha) or the error line

@@ -9,16 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..lighting.lightfit import DEFAULT_METHOD
-from ..scene_ops import load_sized_scene
+from viewer.errors import InputError
+from viewer.lighting.lightfit import DEFAULT_METHOD
+from viewer.scene.resampling import load_sized_scene
 
 
 def engine_options(args, look):
     """The look's preset's engine options with the knobs given on the command line in place of its values."""
     from dataclasses import replace
 
-    from ..presets import DEFAULT_PRESET, preset
+    from viewer.gl.presets import DEFAULT_PRESET, preset
 
     given = {k: getattr(args, k) for k in ("soft", "shadow_resolution", "shadow_step", "terms", "prefilter") if getattr(args,
                                                                                                                         k) is not None}
@@ -31,7 +31,7 @@ def engine_options(args, look):
 
 def lights_count(args, look) -> int:
     """``-n``, or the look's preset's count."""
-    from ..presets import DEFAULT_PRESET, preset
+    from viewer.gl.presets import DEFAULT_PRESET, preset
 
     if args.lights_count is None:
         return preset(look.preset or DEFAULT_PRESET).lights
@@ -40,8 +40,8 @@ def lights_count(args, look) -> int:
 
 def light_count_option(n: int, method: str | None) -> int:
     """``-n``, checked before a map is read: the engine's limit, and the method's."""
-    from ..lighting.lightfit.methods import check_light_count
-    from ..lighting.lights import MAX_LIGHTS
+    from viewer.lighting.lightfit.methods import check_light_count
+    from viewer.scene.area_lights import MAX_LIGHTS
 
     if not 1 <= n <= MAX_LIGHTS:
         raise InputError(None, f"-n: the number of lights must be in [1, {MAX_LIGHTS}], got {n}")
@@ -54,9 +54,9 @@ def fitted_lights(env, n, method, refit=False):
     by the caller on every run, cached or not: the fitter's own warning is left out)."""
     import warnings
 
-    from ..lighting.lightfit import lights_for_map
-    from ..lighting.lightfit.methods import STAGE_SHARES
-    from ..progress import StageBars
+    from viewer.lighting.lightfit import lights_for_map
+    from viewer.lighting.lightfit.methods import STAGE_SHARES
+    from viewer.progress import StageBars
 
     name = Path(env.source).name if env.source else "the map"
     with StageBars(prefix=f"fitting {n} lights to {name}: ",
@@ -68,7 +68,7 @@ def fitted_lights(env, n, method, refit=False):
 
 def prepare(scene_path, lights_path, envmap_path, args, look):
     """Scene (resampled to ``--size``), lights (a file, or fitted to the map) and map pixels."""
-    from ..lighting.envmap import load_envmap
+    from viewer.lighting.envmap import load_envmap
 
     scene = load_sized_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
@@ -80,8 +80,8 @@ def prepare(scene_path, lights_path, envmap_path, args, look):
 def command_lights(args, look, lights_path, env, env_path):
     """The light file given, or the map's lights by the one rule (:mod:`viewer.lighting.map_lights`), the
     fit in this process with its progress bars; said on a line when they come from the map."""
-    from ..lighting.lights import load_lights
-    from ..lighting.map_lights import map_lights
+    from viewer.lighting.map_lights import map_lights
+    from viewer.scene.area_lights import load_lights
 
     if lights_path is not None:
         lights = load_lights(lights_path)
@@ -114,7 +114,7 @@ def command_look(args, yaw_default: float = 0.0):
     """The look of a command: a saved one (``--look FILE``: a frame saved by the viewer, its state
     file, or a bare look object) or the defaults, with every option given on the command line in
     its place (the preset among them: what the engine options and the lights' count follow)."""
-    from ..settings import AUTO, Look
+    from viewer.scene.look import AUTO, Look
 
     base = read_look(args.look) if getattr(args, "look", None) else Look(yaw=yaw_default, exposure=AUTO)
     given = {field: getattr(args, option) for field, option in LOOK_OPTIONS if getattr(args, option, None) is not None}
@@ -128,8 +128,8 @@ def command_look(args, yaw_default: float = 0.0):
 
 def read_look(path):
     """The look in a JSON file (``{"look": {...}}`` as the viewer saves it, or the look itself)."""
-    from ..imageio import read_json
-    from ..settings import Look
+    from viewer.files.imageio import read_json
+    from viewer.scene.look import Look
 
     data = read_json(path, "JSON look file")
     return Look.from_json(data.get("look", data) if isinstance(data, dict) else data, where=path)
@@ -137,7 +137,7 @@ def read_look(path):
 
 def rig_lights(args):
     """The placed lights of ``--rig`` as area lights (fixed to the camera), or None."""
-    from ..lighting.placed_lights import load_rig, to_area_lights
+    from viewer.lighting.placed_lights import load_rig, to_area_lights
 
     return to_area_lights(load_rig(args.rig)) if getattr(args, "rig", None) else None
 
@@ -145,7 +145,7 @@ def rig_lights(args):
 def first_look(args, look, lights):
     """The viewer's first look: the brightest light turned to the camera's side (a photo must not
     open lit from behind) unless a yaw was given (``--yaw``, or a saved ``--look``)."""
-    from ..lighting.lights import facing_yaw
+    from viewer.scene.area_lights import facing_yaw
 
     if args.yaw is not None or getattr(args, "look", None):
         return look

@@ -8,12 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..output.video import partial_path as video_partial, partial_taken
-from ..ownership import file_is_ours, refuse_foreign
-from ..resources import asset_dir, sample_scene_dir
-from ..scene_ops import load_sized_scene
-from .command_setup import (
+from viewer.cli.command_setup import (
     command_lights,
     command_look,
     engine_options,
@@ -25,7 +20,12 @@ from .command_setup import (
     rig_lights,
     warn_if_dark,
 )
-from .output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
+from viewer.cli.output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
+from viewer.errors import InputError
+from viewer.files.ownership import file_is_ours, refuse_foreign
+from viewer.output.video import partial_path as video_partial, partial_taken
+from viewer.resources import asset_dir, sample_scene_dir
+from viewer.scene.resampling import load_sized_scene
 
 DEMO_ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 DEMO_LIGHTS = "envmaps/immenstadter_horn_256.lights.json"
@@ -34,8 +34,8 @@ DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it ligh
 
 
 def render_files(scene_path, lights_path, envmap_path, out_dir, name, args, look, png_name=None) -> list[Path]:
-    from ..gl import Engine, create_headless_context
-    from ..output.render import render_to_files
+    from viewer.gl import Engine, create_headless_context
+    from viewer.output.render import render_to_files
 
     scene, lights, env = prepare(scene_path, lights_path, envmap_path, args, look)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
@@ -52,13 +52,14 @@ def cmd_demo(args) -> int:
     photo beside its relightings."""
     from dataclasses import replace
 
-    from ..gl import Engine, create_headless_context
-    from ..imageio import read_png, write_png
-    from ..lighting.envmap import load_envmap
-    from ..lighting.lights import load_lights
-    from ..output.render import render_to_files
-    from ..photo.inference import infer
-    from ..photo.photo_frame import read_photo, resize
+    from viewer.files.imageio import read_png, write_png
+    from viewer.gl import Engine, create_headless_context
+    from viewer.lighting.envmap import load_envmap
+    from viewer.output.render import render_to_files
+    from viewer.photo.inference import infer
+    from viewer.photo.photo_frame import read_photo
+    from viewer.resize import resize
+    from viewer.scene.area_lights import load_lights
 
     assets = asset_dir()
     look = command_look(args, DEMO_YAW)
@@ -120,8 +121,8 @@ def cmd_render(args) -> int:
 
     from tqdm import tqdm
 
-    from ..gl import Engine, create_headless_context
-    from ..output.render import render_turntable
+    from viewer.gl import Engine, create_headless_context
+    from viewer.output.render import render_turntable
 
     frames = 120 if args.frames is None else args.frames
     scene, lights, env = prepare(args.scene, args.lights, args.envmap, args, look)
@@ -141,8 +142,8 @@ def cmd_render(args) -> int:
 
 
 def cmd_view(args) -> int:
-    from ..lighting.envmap import load_envmap
-    from ..scene import PHOTO_SUFFIXES
+    from viewer.lighting.envmap import load_envmap
+    from viewer.scene.bundle import PHOTO_SUFFIXES
 
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
@@ -153,13 +154,13 @@ def cmd_view(args) -> int:
     look = command_look(args)  # its yaw: first_look, once the lights are known
     if args.record_frames < 1:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
-    from ..lighting.placed_lights import load_rig
+    from viewer.lighting.placed_lights import load_rig
 
     rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
     check_fps(args)
     window = None
     if photo:
-        from ..app.window import Window
+        from viewer.app.window import Window
 
         # the window first: its GL context also serves the inference (a headless EGL context made
         # before the window's would make the window fail, ../shared/docs/STACK.md)
@@ -178,7 +179,7 @@ def cmd_view(args) -> int:
             window.release()
         raise
     look = first_look(args, look, lights)
-    from ..app import ViewerConfig, run_viewer
+    from viewer.app import ViewerConfig, run_viewer
 
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
                           env_path=Path(env_path) if env_path is not None else None, method=args.method,
@@ -194,7 +195,7 @@ def cmd_view(args) -> int:
 def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
     """The scene bundle of a photo: inferred once (its stages shown in the window), then taken
     from the cache."""
-    from ..photo.inference import cached_bundle
+    from viewer.photo.inference import cached_bundle
 
     start = time.perf_counter()
 
@@ -210,8 +211,8 @@ def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
 
 
 def cmd_infer(args) -> int:
-    from ..photo.inference import STAGE_SHARES, bundle_target, infer, load_networks
-    from ..progress import TimeLeft
+    from viewer.photo.inference import STAGE_SHARES, bundle_target, infer, load_networks
+    from viewer.progress import TimeLeft
 
     target = bundle_target(args.output)
     writable(target.parent, folder=True)
@@ -242,7 +243,7 @@ def cmd_infer(args) -> int:
 
 
 def cmd_fit_lights(args) -> int:
-    from ..lighting.envmap import load_envmap
+    from viewer.lighting.envmap import load_envmap
     out = Path(args.output) if args.output else beside_the_map(Path(args.map))
     mine = None  # a light file beside the map that the user wrote: kept, the lights go to the cache
     if not args.output and out is not None and out.exists() and not args.force and not file_is_ours(out):
@@ -270,13 +271,13 @@ def cmd_fit_lights(args) -> int:
                else "the map's folder is not writable; -o writes a light file")
         print(f"{len(lights)} area lights ({args.method}, {how}) -> the fitting cache ({why})")
     else:
-        from ..lighting.lightfit.cache import fit_record
+        from viewer.lighting.lightfit.cache import fit_record
 
         lights.save(out, fit=fit_record(args.map, args.method, args.n, env))
         print(f"{len(lights)} area lights ({args.method}, {how}) -> {out}")
     warn_if_dark(lights, args.map)
     if args.plot:
-        from ..lighting.lightfit.plot import plot_lights
+        from viewer.lighting.lightfit.plot import plot_lights
 
         print(f"wrote {plot_lights(env, lights, args.plot)}")
     return 0

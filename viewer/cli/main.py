@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import sys
 
-from ..cores import size_pools, work_threads
-from ..errors import InputError
-from .parser import build_parser, command_plugins
+from viewer.cli.parser import build_parser, command_plugins
+from viewer.cores import size_pools, work_threads
+from viewer.errors import InputError
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
@@ -165,7 +165,7 @@ def run() -> None:
     import os
     import signal
 
-    from ..stop_signals import route_to_main_thread
+    from viewer.stop_signals import route_to_main_thread
 
     def stop(signum, _frame):  # SIGTERM and SIGHUP end the work as Ctrl-C does: temporary files removed, old outputs kept
         raise KeyboardInterrupt(signal.Signals(signum).name)

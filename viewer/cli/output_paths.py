@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from viewer.errors import InputError
 
 
 def beside_the_map(map_path: Path) -> Path | None:

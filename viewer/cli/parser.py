@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import argparse
 
-from ..lighting.lightfit import DEFAULT_METHOD, METHODS
-from .batch_command import add_batch_parser
-from .commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
-from .options import add_engine_args, add_view_args, auto_or
+from viewer.cli.batch_command import add_batch_parser
+from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
+from viewer.cli.shared_options import add_engine_args, add_view_args, auto_or
+from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 
 COMMAND_GROUP = "relight.commands"
 

@@ -1,7 +1,7 @@
 """The OpenGL engine: per-light shadow maps, convolutional shadow maps, shading and composite."""
 
-from .context import create_headless_context
-from .engine import Engine
-from .options import EngineOptions
+from viewer.gl.context import create_headless_context
+from viewer.gl.engine import Engine
+from viewer.gl.options import EngineOptions
 
 __all__ = ["Engine", "EngineOptions", "create_headless_context"]

@@ -7,11 +7,11 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from ..shader_modes import code
-from .kit import PassKit
-from .light import Light
-from .light_pass import LIGHTS_PER_PASS, LightAtlas, RefinedVisibility
-from .scene_resources import SceneResources
+from viewer.gl.kit import PassKit
+from viewer.gl.light import Light
+from viewer.gl.light_pass import LIGHTS_PER_PASS, LightAtlas, RefinedVisibility
+from viewer.gl.scene_resources import SceneResources
+from viewer.shader_modes import code
 
 MAX_LIGHTS_PER_COMPOSITE = 64
 

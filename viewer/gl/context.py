@@ -16,7 +16,7 @@ def check_address_space() -> None:
     -v``) below what Mesa needs: there it crashes in native code, where no message can be given."""
     import resource
 
-    from ..errors import InputError
+    from viewer.errors import InputError
 
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE_MB << 20:
@@ -29,7 +29,7 @@ def create_headless_context() -> moderngl.Context:
     is none (the user's input is not one of them: an ``InputError`` without a file)."""
     import os
 
-    from ..errors import InputError
+    from viewer.errors import InputError
 
     check_address_space()
     try:

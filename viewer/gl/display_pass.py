@@ -7,13 +7,13 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from ..camera import Camera
-from ..settings import Look
-from ..shader_modes import MODES, code
-from .kit import PassKit
-from .light import PASS_OFF, Light
-from .light_pass import LightAtlas
-from .scene_resources import SceneResources
+from viewer.gl.kit import PassKit
+from viewer.gl.light import PASS_OFF, Light
+from viewer.gl.light_pass import LightAtlas
+from viewer.gl.scene_resources import SceneResources
+from viewer.scene.camera import Camera
+from viewer.scene.look import Look
+from viewer.shader_modes import MODES, code
 
 INSPECT_VIEWS = MODES["INSPECT"]
 

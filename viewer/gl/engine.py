@@ -38,27 +38,27 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from ..errors import InputError
-from ..ground import ground_plane
-from ..lighting.lights import AreaLights
-from ..scene import Scene
-from ..settings import VIEWS, VISIBILITY_MODES, Look
-from .composite_pass import CompositePass
-from .context import make_current
-from .display_pass import INSPECT_VIEWS, InspectPass
-from .ground_pass import GroundShadowPass
-from .kit import PassKit
-from .light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light, frame_lights, needed_pass, update_activity
-from .light_pass import LIGHTS_PER_PASS, LightAtlas, LightShadingPass, RefinedVisibility
-from .look_state import LookState
-from .options import EngineOptions
-from .outputs import Readback, in_context
-from .picture import FramePicture, ImagePicture, PictureInputs
-from .programs import shared_programs
-from .scene_resources import SceneResources
-from .shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
-from .staleness import Staleness
-from .work_budget import WorkBudget
+from viewer.errors import InputError
+from viewer.gl.composite_pass import CompositePass
+from viewer.gl.context import make_current
+from viewer.gl.display_pass import INSPECT_VIEWS, InspectPass
+from viewer.gl.ground_pass import GroundShadowPass
+from viewer.gl.kit import PassKit
+from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, PASS_UNSHADOWED, Light, frame_lights, needed_pass, update_activity
+from viewer.gl.light_pass import LIGHTS_PER_PASS, LightAtlas, LightShadingPass, RefinedVisibility
+from viewer.gl.look_state import LookState
+from viewer.gl.options import EngineOptions
+from viewer.gl.outputs import Readback, in_context
+from viewer.gl.picture import FramePicture, ImagePicture, PictureInputs
+from viewer.gl.programs import shared_programs
+from viewer.gl.scene_resources import SceneResources
+from viewer.gl.shadow_passes import CsmBasisPass, PrefilterPass, ShadowMapPass
+from viewer.gl.staleness import Staleness
+from viewer.gl.work_budget import WorkBudget
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import Scene
+from viewer.scene.ground import ground_plane
+from viewer.scene.look import VIEWS, VISIBILITY_MODES, Look
 
 __all__ = ["Engine", "EngineOptions", "VIEWS", "LIGHTS_PER_PASS"]
 
@@ -162,7 +162,7 @@ class Engine:
             self.stale.changed("activity")
 
     def set_look(self, look: Look):
-        """What the user sees (:class:`viewer.settings.Look`, validated there): the display settings,
+        """What the user sees (:class:`viewer.scene.look.Look`, validated there): the display settings,
         the shadow mode, the terms and the view. The lights' rotation and intensity are the caller's
         (``set_lights``); here yaw and tilt turn the environment background."""
         self.looks.check(look, len(self._lights))
@@ -178,7 +178,7 @@ class Engine:
 
     @property
     def feet(self) -> bool:
-        """Whether the person's feet are in the frame (viewer.ground)."""
+        """Whether the person's feet are in the frame (viewer.scene.ground)."""
         return self.looks.feet
 
     @property

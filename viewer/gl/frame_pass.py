@@ -1,6 +1,6 @@
 """The frame passes: the final composite and display at the output frame's resolution.
 
-A scene made from a photo carries a :class:`viewer.scene.FrameLayer`: the photo's frame at its
+A scene made from a photo carries a :class:`viewer.scene.bundle.FrameLayer`: the photo's frame at its
 own resolution (the detail albedo, the person's soft matte, the photo). The engine does all of
 its per-light work (shadow maps, filtering, shading) at the maps' work resolution; the work
 composite also writes the two shading sums ``D = sum_l V_l I_l S_diff_l`` and
@@ -28,12 +28,12 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from ..camera import Camera
-from ..scene import FrameLayer
-from ..settings import Look
-from ..shader_modes import code
-from .display_pass import set_background
-from .kit import PassKit
+from viewer.gl.display_pass import set_background
+from viewer.gl.kit import PassKit
+from viewer.scene.bundle import FrameLayer
+from viewer.scene.camera import Camera
+from viewer.scene.look import Look
+from viewer.shader_modes import code
 
 MAX_FILL_LOD = 4  # mip levels the frame composite may reach past the mask (16 work pixels)
 OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR = (code("OUTPUT", n) for n in ("display", "person_hdr", "composited_hdr"))

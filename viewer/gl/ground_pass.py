@@ -1,5 +1,5 @@
 """9. The ground shadow (ground_shadow.frag.glsl): the person's shadow on the ground plane at the
-feet (:mod:`viewer.ground`: through the feet's contacts, or level at the person's lowest point), a
+feet (:mod:`viewer.scene.ground`: through the feet's contacts, or level at the person's lowest point), a
 shadow catcher lit by the same lights, at half the work resolution (the shadow of a person on the
 ground is soft; the display samples it bilinearly), with each foot's contact shadow. What it
 holds, per pixel, is the share of the plane's light the person takes away (RGB); the display and
@@ -13,11 +13,11 @@ import math
 import moderngl
 import numpy as np
 
-from ..ground import CONTACT_BOUND, MAX_CONTACT_POINTS, GroundPlane, contact_spread
-from .kit import PassKit
-from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
-from .light_pass import LIGHTS_PER_PASS, LightShadingPass
-from .scene_resources import SceneResources
+from viewer.gl.kit import PassKit
+from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
+from viewer.gl.light_pass import LIGHTS_PER_PASS, LightShadingPass
+from viewer.gl.scene_resources import SceneResources
+from viewer.scene.ground import CONTACT_BOUND, MAX_CONTACT_POINTS, GroundPlane, contact_spread
 
 GROUND_PIXELS = 100_000
 

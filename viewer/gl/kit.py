@@ -10,7 +10,7 @@ from contextlib import contextmanager
 import moderngl
 import numpy as np
 
-from .programs import ProgramCache
+from viewer.gl.programs import ProgramCache
 
 
 class PassKit:

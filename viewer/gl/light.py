@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
-from .. import shadow_space as ss
-from ..shader_modes import code
-from .kit import PassKit
-from .prefilter import BlurPlan
+from viewer.gl.kit import PassKit
+from viewer.gl.prefilter import BlurPlan
+from viewer.scene import shadow_space as ss
+from viewer.shader_modes import code
 
 # light-pass modes per light (shaders/light_pass.frag.glsl): what the light atlas holds for it
 PASS_OFF, PASS_HARD, PASS_SOFT, PASS_UNSHADOWED = (code("PASS", n) for n in ("off", "hard", "soft", "unshadowed"))

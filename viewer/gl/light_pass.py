@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import shadow_space as ss
-from ..errors import InputError
-from .kit import PassKit
-from .light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
-from .scene_resources import SceneResources
+from viewer.errors import InputError
+from viewer.gl.kit import PassKit
+from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
+from viewer.gl.scene_resources import SceneResources
+from viewer.scene import shadow_space as ss
 
 LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each)
 

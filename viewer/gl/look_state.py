@@ -1,4 +1,4 @@
-"""What the engine shows apart from the lights: the user's :class:`~viewer.settings.Look`, the map
+"""What the engine shows apart from the lights: the user's :class:`~viewer.scene.look.Look`, the map
 behind the person (uploaded blurred as the look's backdrop asks), and which of the passes' inputs a
 new look changes. The engine marks those inputs changed; this module decides nothing else."""
 
@@ -8,12 +8,12 @@ import math
 
 import numpy as np
 
-from ..backdrop import blurred_map
-from ..errors import InputError
-from ..lighting.median_cut import LUMINANCE
-from ..scene import Scene
-from ..settings import AUTO, EXPOSURE_LIMIT, Look
-from .scene_resources import SceneResources
+from viewer.errors import InputError
+from viewer.gl.scene_resources import SceneResources
+from viewer.lighting.median_cut import LUMINANCE
+from viewer.scene.backdrop import blurred_map
+from viewer.scene.bundle import Scene
+from viewer.scene.look import AUTO, EXPOSURE_LIMIT, Look
 
 SHADING_VIEWS = ("diffuse_shading", "specular_shading")  # one term of the composite, shown alone
 DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color", "compare")

@@ -1,12 +1,12 @@
-"""The engine's quality options (what a preset chooses, viewer/presets.py), validated on creation."""
+"""The engine's quality options (what a preset chooses, viewer/gl/presets.py), validated on creation."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import InputError
-from ..shadow_space import PCSS_MIN_TEXELS, SOFT_METHODS
-from .prefilter import METHODS
+from viewer.errors import InputError
+from viewer.gl.prefilter import METHODS
+from viewer.scene.shadow_space import PCSS_MIN_TEXELS, SOFT_METHODS
 
 
 @dataclass(frozen=True)

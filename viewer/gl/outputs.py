@@ -9,9 +9,9 @@ import functools
 
 import numpy as np
 
-from .context import make_current
-from .kit import PassKit
-from .light import PASS_OFF
+from viewer.gl.context import make_current
+from viewer.gl.kit import PassKit
+from viewer.gl.light import PASS_OFF
 
 
 def in_context(method):

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .display_pass import DisplayPass
-from .frame_pass import OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
-from .skin_pass import SkinScatterPass
+from viewer.gl.display_pass import DisplayPass
+from viewer.gl.frame_pass import OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
+from viewer.gl.skin_pass import SkinScatterPass
 
 BANDS = 4  # a budgeted frame composite's bands (at 2048 pixels with one llvmpipe thread the whole is ~110 ms)
 

@@ -34,7 +34,7 @@ def blur_plan(sigma_px: float, resolution: int, method: str = "pyramid") -> Blur
     """Plan for a Gaussian of ``sigma_px`` shadow-map texels on a map of ``resolution`` texels."""
     if method not in METHODS:
         raise ValueError(f"unknown prefilter method {method!r} (choose from {', '.join(METHODS)})")
-    # at most the map's width (what viewer.lighting.lights.MAX_SIGMA allows): bounds the exact kernel's cost
+    # at most the map's width (what viewer.scene.area_lights.MAX_SIGMA allows): bounds the exact kernel's cost
     sigma_px = min(max(float(sigma_px), 0.0), float(resolution))
     if method == "exact" or sigma_px < 2.0:
         return BlurPlan(0, sigma_px, int(math.ceil(3.0 * sigma_px)) if sigma_px > 1e-3 else 0)

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import moderngl
 
-from ..constants import glsl_defines
-from ..resources import shader_dir
-from ..shader_modes import glsl_mode_defines
+from viewer.constants import glsl_defines
+from viewer.resources import shader_dir
+from viewer.shader_modes import glsl_mode_defines
 
 GLSL_VERSION = "#version 410 core"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)

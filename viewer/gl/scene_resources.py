@@ -8,10 +8,10 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import shadow_space as ss
-from ..mesh import caster_points, depth_mesh, resolve_step
-from ..scene import Scene, bounding_box
-from .kit import PassKit
+from viewer.gl.kit import PassKit
+from viewer.scene import shadow_space as ss
+from viewer.scene.bundle import Scene, bounding_box
+from viewer.scene.depth_mesh import caster_points, depth_mesh, resolve_step
 
 MAX_ENVIRONMENT_WIDTH = 8192  # texels of the background's map: a bigger map is box-averaged down to it
 
@@ -63,7 +63,7 @@ class SceneResources:
     def facing(self, directions: np.ndarray) -> np.ndarray:
         """Each direction's best n.l over the person's pixels (0 when none faces it): the bound that
         leaves out lights facing away. It runs for every moved light in every dragged frame
-        (:func:`viewer.shadow_space.projections`: 2048^2, 64 lights: 18 -> 5 ms; 1024^2, 16
+        (:func:`viewer.scene.shadow_space.projections`: 2048^2, 64 lights: 18 -> 5 ms; 1024^2, 16
         lights: 4.2 -> 0.3 ms)."""
         best = np.zeros(len(directions), np.float32)
         for proj in ss.projections(directions, self.normals_by_axis):

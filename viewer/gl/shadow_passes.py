@@ -8,11 +8,11 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import shadow_space as ss
-from .kit import PassKit
-from .light import Light
-from .prefilter import blur_plan
-from .scene_resources import SceneResources
+from viewer.gl.kit import PassKit
+from viewer.gl.light import Light
+from viewer.gl.prefilter import blur_plan
+from viewer.gl.scene_resources import SceneResources
+from viewer.scene import shadow_space as ss
 
 SMALL_ATLAS_TILE = 64  # tiles up to this size are drawn whole, in one draw
 BASIS_MAX_BLOCK_LEVEL = 3  # deeper pyramid levels come from a box_reduce pass (keeps the basis pass parallel)

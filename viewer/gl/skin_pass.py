@@ -25,9 +25,9 @@ import math
 import moderngl
 import numpy as np
 
-from ..scene import FrameLayer, bounding_box
-from .frame_pass import MAX_FILL_LOD
-from .kit import PassKit
+from viewer.gl.frame_pass import MAX_FILL_LOD
+from viewer.gl.kit import PassKit
+from viewer.scene.bundle import FrameLayer, bounding_box
 
 # d'Eon & Luebke 2007: skin's diffusion profile as Gaussians, (variance in mm^2, RGB weight)
 SKIN_PROFILE = ((0.0064, (0.233, 0.455, 0.649)), (0.0484, (0.100, 0.336, 0.344)), (0.187, (0.118, 0.198, 0.0)),

@@ -33,9 +33,8 @@ def shared_folder(given: str | None, part: str, option: str) -> Path:
 
 
 def cmd_dataset(args) -> int:
+    from viewer.lab.data.dataset import DatasetConfig, make_dataset, parse_shard
     from viewer.progress import StageBars
-
-    from .data.dataset import DatasetConfig, make_dataset, parse_shard
 
     cfg = DatasetConfig(out=Path(args.out), count=args.count, res=args.res, seed=args.seed, shard=parse_shard(args.shard),
                         spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool,
@@ -53,7 +52,7 @@ def cmd_dataset(args) -> int:
 
 
 def cmd_dataset_preview(args) -> int:
-    from .data.preview import preview
+    from viewer.lab.data.preview import preview
 
     if not 1 <= args.count <= 32:
         raise InputError(None, f"--count must be 1 to 32, got {args.count}")
@@ -63,9 +62,8 @@ def cmd_dataset_preview(args) -> int:
 
 
 def cmd_train(args) -> int:
+    from viewer.lab.train import TrainConfig, train
     from viewer.progress import StageBars
-
-    from .train import TrainConfig, train
 
     data = [Path(d) for d in args.data]
     cfg = TrainConfig(task=args.network, data=data if len(data) > 1 else data[0], out=Path(args.out), res=args.res,
@@ -121,30 +119,30 @@ def photos_table(result: dict) -> str:
 
 
 def cmd_bench(args) -> int:
-    from .bench.engine import run_engine_benchmark
+    from viewer.lab.bench.engine import run_engine_benchmark
 
     output = args.output or f"out/bench_{args.what}.json"  # report and photos take a folder (below)
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
                              output=output, twin=not args.no_twin, twin_device=args.twin_device)
     elif args.what == "contention":
-        from .bench.contention import run_contention_benchmark, table
+        from viewer.lab.bench.contention import run_contention_benchmark, table
 
         print(table(run_contention_benchmark(shared_folder(args.maps, "hdri", "--maps"), repeats=args.repeats, output=output)))
     elif args.what == "viewer":
-        from .bench.viewer import run_viewer_benchmark
+        from viewer.lab.bench.viewer import run_viewer_benchmark
 
         photos = shared_folder(args.photos, "photos", "--photos") if args.photos or os.environ.get(DATA_VARIABLE) else None
         run_viewer_benchmark(sizes=args.sizes, photos=photos, output=output)
     elif args.what == "matte":
-        from .bench.matte import run_matte_benchmark, table
+        from viewer.lab.bench.matte import run_matte_benchmark, table
 
         result = run_matte_benchmark(shared_folder(args.photos, "photos", "--photos"), output=output,
                                      repeats=args.repeats, progress=lambda what: print(f"  measured {what}", flush=True))
         print(table(result))
         print(f"wrote {output}")
     elif args.what == "upsample":
-        from .bench.upsample import run_upsample_benchmark, table
+        from viewer.lab.bench.upsample import run_upsample_benchmark, table
 
         out_dir = Path(args.output or "out/bench-upsample")
         result = run_upsample_benchmark(shared_folder(args.photos, "photos", "--photos"), out_dir, repeats=args.repeats,
@@ -153,28 +151,26 @@ def cmd_bench(args) -> int:
         print(f"wrote {out_dir / 'upsample.json'}, {out_dir / 'upsample.jpg'}")
     elif args.what == "batch":
         from viewer.batch.plan import collect_photos
-
-        from .bench.batch import BATCH_MAPS, run_batch_benchmark
+        from viewer.lab.bench.batch import BATCH_MAPS, run_batch_benchmark
 
         maps = shared_folder(args.maps, "hdri", "--maps")
         photos, _ = collect_photos([shared_folder(args.photos, "photos", "--photos")])
         run_batch_benchmark(photos, [maps / m for m in BATCH_MAPS], count=args.count, output=output)
     elif args.what == "ground":
-        from .bench.ground import run_ground_benchmark
+        from viewer.lab.bench.ground import run_ground_benchmark
 
         run_ground_benchmark(output=output, repeats=args.repeats)
     elif args.what == "light-sizes":
-        from .bench.light_sizes import run_light_sizes_benchmark
+        from viewer.lab.bench.light_sizes import run_light_sizes_benchmark
 
         run_light_sizes_benchmark(shared_folder(args.maps, "hdri", "--maps"), output=output)
     elif args.what == "temporal":
-        from .bench.temporal import run_temporal_benchmark
+        from viewer.lab.bench.temporal import run_temporal_benchmark
 
         run_temporal_benchmark(output=output)
     elif args.what == "networks":
+        from viewer.lab.bench.networks import run_networks_benchmark, table
         from viewer.progress import StageBars
-
-        from .bench.networks import run_networks_benchmark, table
 
         if not args.data:
             raise InputError(None, "bench networks needs --data: a held-out dataset (relight dataset make --split heldout)")
@@ -184,9 +180,8 @@ def cmd_bench(args) -> int:
                                             progress=bars, face=not args.no_face)
         print(table(result))
     elif args.what == "bodyfit":
+        from viewer.lab.bench.body_fit import run_body_fit_benchmark
         from viewer.progress import StageBars
-
-        from .bench.body_fit import run_body_fit_benchmark
 
         if not args.data or len(args.data) > 1:
             raise InputError(None, "bench bodyfit needs --data and one dataset made by relight dataset make")
@@ -205,7 +200,7 @@ def cmd_bench(args) -> int:
               f"{num(d['flat'], ' cm')}; mask IoU {num(s['iou']['fitted'])} (prior {num(s['iou']['experiment_prior'])}); "
               f"reprojection {num(s['reprojection_px'], ' px')}; {num(s['seconds_per_fit'], ' s')} per fit; wrote {output}")
     elif args.what == "report":
-        from .bench.report import run_report
+        from viewer.lab.bench.report import run_report
 
         if args.data and len(args.data) > 1:
             raise InputError(None, "bench report takes one held-out dataset (--data DIR)")
@@ -218,7 +213,7 @@ def cmd_bench(args) -> int:
             print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
         print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
     elif args.what == "photos" and args.set:
-        from .bench.photo_set import run_photo_set, set_table
+        from viewer.lab.bench.photo_set import run_photo_set, set_table
 
         out_dir = Path(args.output or "out/bench-photo-set")
         result = run_photo_set(args.set, shared_folder(args.maps, "hdri", "--maps"), out_dir,
@@ -226,9 +221,8 @@ def cmd_bench(args) -> int:
         print(set_table(result))
         print(f"wrote {out_dir / 'photo_set.json'} and {len(result['photos'])} contact sheets in {result['seconds'] / 60:.1f} min")
     elif args.what == "photos":
+        from viewer.lab.bench.photos import run_photos_benchmark
         from viewer.progress import StageBars
-
-        from .bench.photos import run_photos_benchmark
 
         out_dir = Path(args.output or "out/bench-photos")
         if args.data and len(args.data) > 1:
@@ -241,7 +235,7 @@ def cmd_bench(args) -> int:
         print(f"wrote {out_dir / 'photos.json'}, {out_dir / 'photos_relit.jpg'}, {out_dir / 'photos_detail.jpg'} "
               f"in {result['seconds'] / 60:.1f} min")
     elif args.what == "robustness":
-        from .bench.robustness import run_robustness_benchmark
+        from viewer.lab.bench.robustness import run_robustness_benchmark
 
         def show(case):
             r = case.result
@@ -255,13 +249,12 @@ def cmd_bench(args) -> int:
         print(f"{result['tried']} cases tried, {result['clean']} ended cleanly, {result['tracebacks']} tracebacks, "
               f"memory budget {result['memory_budget_mb']} MB, in {result['seconds'] / 60:.1f} min; wrote {output}")
     elif args.what == "shadows":
-        from .bench.shadows import run_shadow_benchmark
+        from viewer.lab.bench.shadows import run_shadow_benchmark
 
         run_shadow_benchmark(repeats=args.repeats, output=output)
     else:
+        from viewer.lab.bench.lights import COUNTS, run_lights_benchmark
         from viewer.lighting.lightfit.methods import METHODS
-
-        from .bench.lights import COUNTS, run_lights_benchmark
 
         run_lights_benchmark(maps_dir=shared_folder(args.maps, "hdri", "--maps"), counts=args.counts or COUNTS,
                              methods=tuple(args.methods or METHODS), output=output)

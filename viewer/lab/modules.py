@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import re
 import sys
 from pathlib import Path
 
@@ -25,14 +26,12 @@ GROUPS = (
     ("output", ("viewer.output",), "headless frames, layers for compositors, MP4, temporal metrics"),
     ("batch", ("viewer.batch",), "photos x looks on worker processes or a Ray cluster, the manifest, resumable"),
     ("photo", ("viewer.photo", "viewer.nets"), "photo to scene bundle: its frame, the matte, the networks, the face, refinement"),
-    ("engine", ("viewer.gl", "viewer.presets", "viewer.backdrop", "viewer.shader_modes"),
-     "GL passes, programs, context, the shaders' modes; quality presets; the backdrop"),
+    ("engine", ("viewer.gl", "viewer.shader_modes"), "GL passes, programs, context, the shaders' modes"),
     ("twin", ("viewer.twin",), "the engine in differentiable torch"),
-    ("lighting", ("viewer.lighting",), "environment maps, area lights, light fitting, your lights, where a map's lights come from"),
-    ("scene", ("viewer.scene", "viewer.scene_ops", "viewer.camera", "viewer.mesh", "viewer.shadow_space", "viewer.settings",
-               "viewer.ground"),
-     "scene bundle, camera, geometry, the ground, the Look"),
-    ("base", ("viewer",), "errors, files, assets, constants, progress, memory budgets, cores, signals"),
+    ("lighting", ("viewer.lighting",), "environment maps, light fitting, your lights, where a map's lights come from"),
+    ("scene", ("viewer.scene",), "scene bundle, camera, geometry, the ground, area lights, the Look, presets, the backdrop"),
+    ("files", ("viewer.files",), "files in standard formats, what a given file is, what this program wrote"),
+    ("base", ("viewer",), "errors, assets, constants, progress, memory needs, cores, signals"),
 )
 
 
@@ -116,11 +115,53 @@ def group_of(name: str) -> str:
     return best
 
 
+SENTENCE_END = re.compile(r"(?<![0-9])(?<!\bal)(?<!e\.g)(?<!i\.e)(?<!\bvs)\.\s+(?=[A-Z(`*])")
+
+
 def summary(path: Path) -> str:
-    """The first sentence of a module's docstring."""
+    """The first sentence of a module's docstring, whole: a full stop ends it when a capital follows
+    and it does not close a number ("Step 5."), "et al." or "e.g."."""
     doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
     first = " ".join(doc.split("\n\n")[0].split())
-    return first.split(". ")[0].rstrip(".") if first else ""
+    return SENTENCE_END.split(first, maxsplit=1)[0].rstrip(".") if first else ""
+
+
+# The folders, bottom first: a folder imports only folders below it (tests/test_architecture.py)
+LAYERS = ("viewer", "viewer.files", "viewer.scene", "viewer.twin", "viewer.lighting", "viewer.gl", "viewer.nets",
+          "viewer.photo", "viewer.output", "viewer.batch", "viewer.app", "viewer.cli", "viewer.lab")
+
+
+def folder_of(name: str) -> str:
+    """The folder (a package directly under ``viewer``, or the root's loose modules) a module is in."""
+    parts = name.split(".")
+    folder = ".".join(parts[:2])
+    return folder if len(parts) > 2 or folder in LAYERS else PACKAGE
+
+
+def folder_graph(graph: dict[str, set[str]]) -> dict[tuple[str, str], list[tuple[str, str]]]:
+    """(folder, folder it imports) -> the module imports behind the arrow, from every import of
+    :func:`import_graph` (those inside functions and under ``TYPE_CHECKING`` included)."""
+    out: dict[tuple[str, str], list[tuple[str, str]]] = {}
+    for a, deps in graph.items():
+        for b in deps:
+            fa, fb = folder_of(a), folder_of(b)
+            if fa != fb:
+                out.setdefault((fa, fb), []).append((a, b))
+    return out
+
+
+def folder_problems(graph: dict[str, set[str]]) -> list[str]:
+    """Two-way pairs of folders and arrows that climb ``LAYERS`` (a folder missing from it climbs)."""
+    arrows = folder_graph(graph)
+    rank = {f: i for i, f in enumerate(LAYERS)}
+    out = []
+    for (a, b), why in sorted(arrows.items()):
+        if (b, a) in arrows and a < b:
+            out.append(f"{a} and {b} import each other ({why[0][0]} -> {why[0][1]}; "
+                       f"{arrows[(b, a)][0][0]} -> {arrows[(b, a)][0][1]})")
+        if rank.get(a, -1) <= rank.get(b, len(LAYERS)):
+            out.append(f"{a} -> {b} climbs ({why[0][0]} imports {why[0][1]})")
+    return out
 
 
 def markdown(root: Path | None = None) -> str:
@@ -144,7 +185,7 @@ def markdown(root: Path | None = None) -> str:
 
 def update(doc: Path, root: Path | None = None) -> bool:
     """Replace the generated part of ``doc``; True if it changed."""
-    from viewer.imageio import write_text
+    from viewer.files.imageio import write_text
 
     text = doc.read_text(encoding="utf-8")
     start, end = text.index(BEGIN), text.index(END) + len(END)

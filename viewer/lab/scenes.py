@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.camera import Camera
-from viewer.scene import Scene
+from viewer.scene.bundle import Scene
+from viewer.scene.camera import Camera
 
 
 def plane_and_box(size: int = 96, box: bool = True, albedo: float = 0.5, specular: float = 0.5,

@@ -22,7 +22,7 @@ import torch
 from torch.nn import functional as F
 
 from viewer.errors import InputError
-from viewer.imageio import atomic_path, read_json, write_text
+from viewer.files.imageio import atomic_path, read_json, write_text
 from viewer.lab.data.loader import FIELDS
 from viewer.nets import depth as depth_net, inverse as inverse_net, refine as refine_net
 from viewer.nets.photo import exposure_scale, in_channels, photo_input

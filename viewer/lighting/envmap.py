@@ -17,14 +17,14 @@ A texel spans the longitude interval 2 pi / W and the latitudes between its top 
 its exact solid angle is ``(2 pi / W) (cos(pi i / H) - cos(pi (i + 1) / H))`` (:func:`solid_angles`;
 the sum over the map is 4 pi). The *energy* of a map is ``sum(L * solid angle)`` per RGB channel:
 the irradiance its light gives a small white Lambertian patch facing all of it, the same unit as an
-area light's intensity (:mod:`viewer.lighting.lights`).
+area light's intensity (:mod:`viewer.scene.area_lights`).
 
-Rotating a map by the rotation R of :func:`viewer.lighting.lights.rotation_matrix` (yaw about +y, then tilt
+Rotating a map by the rotation R of :func:`viewer.scene.area_lights.rotation_matrix` (yaw about +y, then tilt
 about +x) gives the map L' with L'(R d) = L(d): its lights are the original lights rotated by R
-(:meth:`viewer.lighting.lights.AreaLights.rotated`).
+(:meth:`viewer.scene.area_lights.AreaLights.rotated`).
 
 Pixels are linear RGB, float32, finite and non-negative. ``.hdr`` (Radiance RGBE) files are read and
-written with OpenCV, ``.exr`` with :mod:`viewer.imageio`. Every failure is an
+written with OpenCV, ``.exr`` with :mod:`viewer.files.imageio`. Every failure is an
 :class:`~viewer.errors.InputError` naming the file.
 """
 
@@ -36,10 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..file_kinds import regular_file
-from ..imageio import atomic_path, check_pixels, read_exr, write_exr
-from .lights import rotation_matrix
+from viewer.errors import InputError
+from viewer.files.file_kinds import regular_file
+from viewer.files.imageio import atomic_path, check_pixels, read_exr, write_exr
+from viewer.scene.area_lights import rotation_matrix
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 weights of linear RGB
 

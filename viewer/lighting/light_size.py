@@ -12,7 +12,7 @@ centroid, measured robustly: the angle within which half the cell's energy lies 
 ``alpha * sqrt(2 ln 2)`` for a 2-D Gaussian of per-axis sigma ``alpha`` (a dim halo far out, the
 room's walls, moves the median little while it would dominate a second moment), with the texels'
 own width added in quadrature (a light that owns a single texel is a texel wide). In the engine's
-unit (:data:`viewer.shadow_space.ANGULAR_SIGMA` radians a sigma unit, the factor the contact
+unit (:data:`viewer.scene.shadow_space.ANGULAR_SIGMA` radians a sigma unit, the factor the contact
 benchmark checks against Mitsuba) that is ``alpha / ANGULAR_SIGMA``.
 
 That size is the sigma the ``instant``, ``fast`` and ``median-cut`` fits give each light (the
@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from ..shadow_space import ANGULAR_SIGMA
-from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
+from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 SIGMA_MAX = 20.0  # the paper's upper bound on sigma (its Step 3's 20 sigmoid(s)); 256-px units
 SIZE_MAP_WIDTH = 512  # the map is area-averaged to this width first (the fit's own samples use 512 x 256)

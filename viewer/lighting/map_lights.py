@@ -11,12 +11,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from ..errors import InputError
-from ..imageio import read_json
-from .envmap import EnvMap
-from .lightfit.cache import FIT_VERSION, cached_lights, map_hash
-from .lightfit.methods import serves
-from .lights import AreaLights, load_lights
+from viewer.errors import InputError
+from viewer.files.imageio import read_json
+from viewer.lighting.envmap import EnvMap
+from viewer.lighting.lightfit.cache import FIT_VERSION, cached_lights, map_hash
+from viewer.lighting.lightfit.methods import serves
+from viewer.scene.area_lights import AreaLights, load_lights
 
 
 def sidecar_lights(env: EnvMap, env_path: Path, n: int, method: str) -> AreaLights | None:

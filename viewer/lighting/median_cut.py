@@ -24,10 +24,10 @@ import heapq
 
 import numpy as np
 
-from ..errors import InputError
-from .envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
-from .light_size import SIGMA_MAX, cell_sigma
-from .lights import AreaLights
+from viewer.errors import InputError
+from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
+from viewer.lighting.light_size import SIGMA_MAX, cell_sigma
+from viewer.scene.area_lights import AreaLights
 
 __all__ = ["LUMINANCE", "SIGMA_MAX", "median_cut_lights"]
 

@@ -26,11 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..imageio import MARK, read_json, write_text
-from ..shadow_space import ANGULAR_SIGMA
-from .lights import AreaLights, azimuth_elevation
-from .median_cut import LUMINANCE
+from viewer.errors import InputError
+from viewer.files.imageio import MARK, read_json, write_text
+from viewer.lighting.median_cut import LUMINANCE
+from viewer.scene.area_lights import AreaLights, azimuth_elevation
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 FORMAT = "relight-rig"
 KELVIN_RANGE = (1000.0, 15000.0)  # where the Planckian locus approximation below holds

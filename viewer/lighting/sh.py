@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .envmap import EnvMap, pixel_directions, solid_angles
+from viewer.lighting.envmap import EnvMap, pixel_directions, solid_angles
 
 BAND_FACTORS = np.array([np.pi] + [2.0 * np.pi / 3.0] * 3 + [np.pi / 4.0] * 5)
 

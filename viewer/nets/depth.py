@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import torch
 
-from .photo import photo_input, reads_silhouette
+from viewer.nets.photo import photo_input, reads_silhouette
 
 DEPTH_RANGE = 1.0  # metres spanned by normalized depth 0..1 (a standing person is well under 1 m deep)
 SLOPE_WEIGHT = 0.01  # the paper's lambda_slope
-GAP = 0.03 / DEPTH_RANGE  # normalized depth jump treated as a gap (viewer.mesh.GAP_MIN)
+GAP = 0.03 / DEPTH_RANGE  # normalized depth jump treated as a gap (viewer.scene.depth_mesh.GAP_MIN)
 
 
 def predict(model, photo: torch.Tensor, mask: torch.Tensor, distance: float) -> torch.Tensor:

@@ -30,10 +30,10 @@ from __future__ import annotations
 import torch
 from torch.nn import functional as F
 
-from ..lighting.lightfit.fit import fibonacci_sphere
-from ..lighting.median_cut import SIGMA_MAX
-from ..twin.brdf import diffuse_shading, specular_shading
-from .photo import photo_input, reads_silhouette
+from viewer.lighting.lightfit.fit import fibonacci_sphere
+from viewer.lighting.median_cut import SIGMA_MAX
+from viewer.nets.photo import photo_input, reads_silhouette
+from viewer.twin.brdf import diffuse_shading, specular_shading
 
 N_LIGHTS = 16
 PERCEPTUAL_WEIGHT = 0.1  # the paper's lambda_vgg, for the Laplacian-pyramid replacement
@@ -137,9 +137,9 @@ def sigma_loss(batch: dict, scale: torch.Tensor, direction, sigma, intensity, it
     """The paper's Equation 7 on the first ``items`` images of the batch: the twin's soft
     visibility of the true depth mesh (detached directions) times Lambert shading with the true
     normals (detached directions and intensities), against the ray-traced shadowed diffuse shading."""
-    from ..camera import Camera
-    from ..scene import Scene
-    from ..twin import SceneTensors, render
+    from viewer.scene.bundle import Scene
+    from viewer.scene.camera import Camera
+    from viewer.twin import SceneTensors, render
 
     total = scale.new_zeros(())
     count = 0

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import torch
 
-from .silhouette import CHANNELS as SILHOUETTE_CHANNELS, silhouette_input
+from viewer.nets.silhouette import CHANNELS as SILHOUETTE_CHANNELS, silhouette_input
 
 EXPOSED_PERCENTILE = 0.99
 EXPOSED_LEVEL = 0.9

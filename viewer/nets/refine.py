@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import torch
 
-from ..lighting.median_cut import SIGMA_MAX
-from ..twin.brdf import diffuse_shading
-from . import depth as depth_net
-from .inverse import masked_l1
+from viewer.lighting.median_cut import SIGMA_MAX
+from viewer.nets import depth as depth_net
+from viewer.nets.inverse import masked_l1
+from viewer.twin.brdf import diffuse_shading
 
 REFINED_LIGHTS = 4
 SHADOW_RESOLUTION = 512  # the engine's default shadow maps

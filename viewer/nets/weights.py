@@ -6,10 +6,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
-from ..imageio import read_json
-from .photo import INPUTS, in_channels
-from .unet import UNet
+from viewer.errors import InputError
+from viewer.files.imageio import read_json
+from viewer.nets.photo import INPUTS, in_channels
+from viewer.nets.unet import UNet
 
 
 def load_network(path, device="cpu") -> UNet:

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
-from ..imageio import MARK, atomic_path
+from viewer.errors import InputError
+from viewer.files.imageio import MARK, atomic_path
 
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
@@ -65,7 +65,7 @@ def _rgb(prefix: str, image: np.ndarray) -> dict[str, np.ndarray]:
 
 def _to_frame(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """A map of the scene's work resolution at the frame's ``size`` (width, height), bilinear."""
-    from ..photo.photo_frame import resize
+    from viewer.resize import resize
 
     return np.asarray(resize(np.asarray(image, np.float32), size), np.float32)
 

@@ -8,13 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..constants import TONEMAP_INPUT_MAX
-from ..errors import InputError
-from ..imageio import atomic_paths, linear_to_srgb, write_exr, write_png
-from ..lighting.lights import AreaLights
-from ..ownership import folder_lock
-from ..scene import Scene
-from ..settings import AUTO, Look
+from viewer.constants import TONEMAP_INPUT_MAX
+from viewer.errors import InputError
+from viewer.files.imageio import atomic_paths, linear_to_srgb, write_exr, write_png
+from viewer.files.ownership import folder_lock
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import Scene
+from viewer.scene.look import AUTO, Look
 
 
 def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
@@ -32,7 +32,7 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
     photo's own median luminance over the person: the photo's exposure carried over, so a
     brighter map does not wash out black clothes nor a dim one sink the person (0 for a scene
     without a photo). Uses the engine's current work-resolution render."""
-    from ..photo.detail import luminance
+    from viewer.photo.detail import luminance
 
     if scene.photo is None:
         return 0.0
@@ -56,8 +56,8 @@ def warn_if_white(engine, scene: Scene, settings: Look) -> None:
     """One warning line when the person comes out white: lights far brighter than the exposure can
     show (light files allow intensities up to 1e20; a silhouette was all one got). Uses the engine's
     current render."""
-    from ..photo.detail import luminance
-    from ..settings import EXPOSURE_LIMIT
+    from viewer.photo.detail import luminance
+    from viewer.scene.look import EXPOSURE_LIMIT
 
     if not scene.mask.any():
         return
@@ -76,8 +76,8 @@ def warn_if_black(engine, scene: Scene, settings: Look, lit: bool) -> None:
     """One warning line when the person comes out black though its lights are not all zero (all
     zero, ``lit`` False: the command's own warning says so) (a map of 1e-30 everywhere, one lit texel in a black
     map): how many stops too dark, and what to do. Uses the engine's current render."""
-    from ..photo.detail import luminance
-    from ..settings import EXPOSURE_LIMIT
+    from viewer.photo.detail import luminance
+    from viewer.scene.look import EXPOSURE_LIMIT
 
     if not scene.mask.any() or not lit:
         return
@@ -138,7 +138,7 @@ def render_frame(engine, settings: Look, refiner=None, soft_planes: bool = False
     ``soft_planes``: see ``Engine.render``."""
     engine.render(soft_planes=soft_planes)
     if settings.shadows == "refined" and not engine.refined_current:
-        from ..photo.refinement import Refiner, refine_engine
+        from viewer.photo.refinement import Refiner, refine_engine
 
         refiner = refiner if refiner is not None else Refiner()
         refine_engine(engine, refiner)
@@ -198,7 +198,7 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
     """A relit video of the lighting turning about the vertical axis (``frames`` frames over
     ``turn`` degrees, starting at ``settings.yaw``) written to ``path`` (H.264 MP4).
     ``progress(done, total)`` is called after every frame. Returns the video's (width, height)."""
-    from .video import VideoWriter
+    from viewer.output.video import VideoWriter
 
     if frames < 1:
         raise InputError(path, f"a video needs at least one frame, got {frames}")
@@ -259,7 +259,7 @@ def passes_sheet(engine, scene: Scene, final: np.ndarray) -> np.ndarray:
     if final.shape[-1] == 4:  # a transparent background, shown over grey
         final = tiles[-1] = final[..., :3] * final[..., 3:] + 0.5 * (1.0 - final[..., 3:])
     if final.shape[:2] != m.shape:  # the frame's image, shown at the maps' size
-        from ..photo.photo_frame import resize
+        from viewer.resize import resize
 
         tiles[-1] = resize(final.astype(np.float32), (m.shape[1], m.shape[0]))
     names = ["albedo", "normal", "depth", "specular", "soft shadows", "hard shadows (shadow map)",

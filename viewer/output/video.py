@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..imageio import MARK_TEXT, ffmpeg_file
+from viewer.errors import InputError
+from viewer.files.imageio import MARK_TEXT, ffmpeg_file
 
 TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
 FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
@@ -75,7 +75,7 @@ class VideoWriter:
             self.partial.unlink(missing_ok=True)  # the empty file made above
             raise InputError(self.path, f"cannot write the video ({exc})") from None
         try:
-            self._container.metadata["comment"] = MARK_TEXT  # viewer.ownership: the program's own file
+            self._container.metadata["comment"] = MARK_TEXT  # viewer.files.ownership: the program's own file
             rate = Fraction(self.fps).limit_denominator(1001)
             self._time_base = 1 / (rate * TICKS_PER_FRAME)
             stream = self._container.add_stream("libx264", rate=rate)

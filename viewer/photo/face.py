@@ -42,7 +42,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .detail import masked_lowpass
+from viewer.photo.detail import masked_lowpass
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the face detector (it works at 192 px)
 DETECT_CONFIDENCE = 0.5
@@ -202,8 +202,9 @@ def find_faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
 def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
     import cv2
 
-    from .photo_frame import resize, scaled_size, square
-    from .segmentation import quiet_native_stderr
+    from viewer.photo.photo_frame import square
+    from viewer.photo.segmentation import quiet_native_stderr
+    from viewer.resize import resize, scaled_size
 
     with quiet_native_stderr():
         from mediapipe.python.solutions import face_detection, face_mesh

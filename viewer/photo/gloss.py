@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .detail import luminance
-from .matting import face_mask
+from viewer.photo.detail import luminance
+from viewer.photo.matting import face_mask
 
 MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)
 SKIN_DISTANCE = 3.0  # Mahalanobis distance in the skin's log-chromaticity where skin turns to not skin

@@ -66,7 +66,7 @@ def contrast(image: np.ndarray, person: np.ndarray, height: int) -> np.ndarray:
     it, in the background's median absolute deviations (``image`` float RGB in [0, 1])."""
     import cv2
 
-    from .detail import masked_lowpass
+    from viewer.photo.detail import masked_lowpass
 
     near = cv2.dilate(person.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     filled = np.where(near[..., None], masked_lowpass(image, (~near).astype(np.float32), 0.05 * height), image)
@@ -132,7 +132,7 @@ def find_objects(image: np.ndarray, person: np.ndarray, landmarks: dict, height:
 def held_objects(photo: np.ndarray, person: np.ndarray, landmarks: dict, height: int) -> np.ndarray:
     """(H, W) bool at ``photo``'s size (uint8 sRGB): :func:`find_objects`, run where the person
     (``person`` bool, ``height`` pixels tall) is ``SOLVE_HEIGHT`` pixels tall or less."""
-    from .photo_frame import resize, scaled_size
+    from viewer.resize import resize, scaled_size
 
     h, w = person.shape
     size = (w, h) if height <= SOLVE_HEIGHT else scaled_size((w, h), int(round(max(w, h) * SOLVE_HEIGHT / height)))

@@ -34,16 +34,27 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backdrop import photo_blur
-from ..errors import InputError
-from ..file_kinds import regular_file
-from ..imageio import read_json
-from ..ownership import folder_lock, fresh_sibling, mark_written, written_here
-from ..resources import network_dir
-from . import detail as detail_mod, gloss
-from .face import find_faces, light_fit_weight, with_face
-from .matting import automatic_matte, mask_matte
-from .photo_frame import MAX_SIZE, WORK_PERSON, check_person, frame_sizes, output_frame, person_box, read_mask, read_photo, resize, square
+from viewer.errors import InputError
+from viewer.files.file_kinds import regular_file
+from viewer.files.imageio import read_json
+from viewer.files.ownership import folder_lock, fresh_sibling, mark_written, written_here
+from viewer.photo import detail as detail_mod, gloss
+from viewer.photo.face import find_faces, light_fit_weight, with_face
+from viewer.photo.matting import automatic_matte, mask_matte
+from viewer.photo.photo_frame import (
+    MAX_SIZE,
+    WORK_PERSON,
+    check_person,
+    frame_sizes,
+    output_frame,
+    person_box,
+    read_mask,
+    read_photo,
+    square,
+)
+from viewer.resize import resize
+from viewer.resources import network_dir
+from viewer.scene.backdrop import photo_blur
 
 NETWORK_RES = 256
 # the stages infer() reports to its progress callback, in order
@@ -166,7 +177,7 @@ def check_device(device: str) -> str:
 
 
 def load_networks(device="cpu", directory=None) -> dict:
-    from ..nets.weights import load_network
+    from viewer.nets.weights import load_network
 
     check_device(device)
     directory = Path(directory) if directory is not None else network_dir()
@@ -209,10 +220,10 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
     """(bundle directory, whether it was cached): inference runs once per :func:`bundle_key`; the
     bundle is kept in ``bundles``, by default beside the light cache (``bundles/``; a batch on a
     cluster names its shared folder). A cached bundle is used only when it is whole (every file as
-    this program wrote it, :func:`viewer.ownership.written_here`) and was made from the very bytes
+    this program wrote it, :func:`viewer.files.ownership.written_here`) and was made from the very bytes
     the key was (its record's ``inputs_sha256``); a damaged one is inferred again. A photo or mask
     that changes while it is inferred is one line (run again), and its bundle is not kept."""
-    from ..lighting.lightfit.cache import cache_dir
+    from viewer.lighting.lightfit.cache import cache_dir
 
     expected: dict[str, str] = {}  # the SHA-256 of the photo's and mask's bytes, as the key read them
     key = bundle_key(photo_path, mask_path, size, max_size, networks_dir, digests=expected)
@@ -313,10 +324,10 @@ def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int
 
 def _check_memory(photo_path, max_size: int) -> None:
     """Refuse, from the photo's header, a frame whose inference would not fit this machine's memory
-    (a 12000x8011 photo at --max-size 12000 was killed by the kernel at 24.4 GB): viewer.budget."""
+    (a 12000x8011 photo at --max-size 12000 was killed by the kernel at 24.4 GB): viewer.memory_needs."""
     from PIL import Image, UnidentifiedImageError
 
-    from .. import budget
+    from viewer import memory_needs
 
     if Path(photo_path).exists() and not Path(photo_path).is_dir():  # (a folder or none: read_photo's one line)
         regular_file(photo_path, "photo")  # before it is opened: a pipe would block
@@ -328,8 +339,8 @@ def _check_memory(photo_path, max_size: int) -> None:
     except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError):
         return  # not an image this program reads: read_photo says so in its one line
     fw, fh = output_frame((w, h), max_size)
-    budget.require(budget.infer_bytes(w * h, fw * fh), f"a {fw}x{fh} frame from this photo",
-                   f"--max-size {budget.largest_frame_side(w * h, min(fw, fh) / max(fw, fh))} or less fits",
+    memory_needs.require(memory_needs.infer_bytes(w * h, fw * fh), f"a {fw}x{fh} frame from this photo",
+                   f"--max-size {memory_needs.largest_frame_side(w * h, min(fw, fh) / max(fw, fh))} or less fits",
                    photo_path)
 
 
@@ -341,13 +352,13 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     network's maps and the photo's shading at the frame (for the benchmarks)."""
     import torch
 
-    from ..camera import Camera
-    from ..gl import Engine, EngineOptions, create_headless_context
-    from ..imageio import srgb_to_linear
-    from ..lighting.lights import AreaLights
-    from ..nets import depth as depth_net, inverse as inverse_net
-    from ..scene import FrameLayer, Scene
-    from .photo_lighting import fit_mask, fit_photo_lights, white_balanced
+    from viewer.files.imageio import srgb_to_linear
+    from viewer.gl import Engine, EngineOptions, create_headless_context
+    from viewer.nets import depth as depth_net, inverse as inverse_net
+    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights, white_balanced
+    from viewer.scene.area_lights import AreaLights
+    from viewer.scene.bundle import FrameLayer, Scene
+    from viewer.scene.camera import Camera
 
     stage = _Stages(progress)
     notes: list[str] = []
@@ -358,7 +369,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     frame = output_frame((w, h), max_size)
     frame_photo = resize(photo, frame)
     stage("read")
-    from .segmentation import find_person
+    from viewer.photo.segmentation import find_person
 
     if mask_path is not None:
         given = np.clip(resize(read_mask(mask_path, (h, w), notes, inputs), frame), 0.0, 1.0)
@@ -493,7 +504,7 @@ def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarr
 
 def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float:
     """PSNR (dB) of a render against the photo's low-pass over ``valid``, in display sRGB."""
-    from ..imageio import linear_to_srgb
+    from viewer.files.imageio import linear_to_srgb
 
     a, b = linear_to_srgb(render[valid]), linear_to_srgb(target[valid])
     mse = float(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2))
@@ -502,7 +513,7 @@ def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float
 
 def bundle_target(out_dir) -> Path:
     """``out_dir`` as a place for a scene bundle: new, empty, or a bundle this program wrote there and
-    nothing else (:mod:`viewer.ownership`), which is replaced. Anything else is refused in one line:
+    nothing else (:mod:`viewer.files.ownership`), which is replaced. Anything else is refused in one line:
     replacing it would delete or change the user's files."""
     out_dir = Path(out_dir).resolve()
     if out_dir.exists() and not out_dir.is_dir():
@@ -519,8 +530,8 @@ def write_bundle(result: dict, out_dir) -> Path:
     this program wrote, :func:`bundle_target`) is replaced only once the new one is complete. The
     new bundle is written into a folder of its own (a name no one else has) and swapped into place
     under a lock on the parent folder, so two writers to one output take turns."""
-    from ..imageio import write_text
-    from ..scene import save_scene
+    from viewer.files.imageio import write_text
+    from viewer.scene.bundle import save_scene
 
     out_dir = bundle_target(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)

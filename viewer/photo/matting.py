@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .held_objects import held_objects
+from viewer.photo.held_objects import held_objects
 
 CORE = 0.02  # of the person's height: deeper than this inside the segmentation is the person for sure
 OUTER = 0.012  # of the person's height: farther than this outside it is the background for sure
@@ -414,7 +414,7 @@ def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) 
     estimate is what is left where no opaque person is within reach (a strand far from the head)."""
     from pymatting import estimate_foreground_ml
 
-    from .detail import masked_lowpass
+    from viewer.photo.detail import masked_lowpass
 
     soft = (alpha > 0) & (alpha < OPAQUE)
     out = image.astype(np.float32).copy()
@@ -442,7 +442,7 @@ def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) 
 def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, float]:
     """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
     decided by colour; the background's holes in it; the soft edge's half-width, pixels)."""
-    from .photo_frame import resize, scaled_size
+    from viewer.resize import resize, scaled_size
 
     h, w = photo.shape[:2]
     height = person_height(person.segmentation > 0.5)
@@ -457,7 +457,7 @@ def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, 
 
 def automatic_matte(photo: np.ndarray, person) -> Matte:
     """The matte of ``photo`` (H, W, 3) uint8 sRGB from the pose model's :class:`viewer.photo.segmentation.Person`."""
-    from ..imageio import srgb_to_linear
+    from viewer.files.imageio import srgb_to_linear
 
     t0 = time.perf_counter()
     decided, holes, half_width = decided_outline(photo, person)
@@ -480,7 +480,7 @@ BINARY_GREY = 0.25  # a mask with fewer grey pixels (2 % to 98 %) than this shar
 def mask_matte(photo: np.ndarray, mask: np.ndarray) -> Matte:
     """The matte of a mask file (H, W) in [0, 1]: a soft mask is the alpha as it is; a binary one
     is the trimap's core, its outline softened by :func:`edge_alpha`. Foreground colours either way."""
-    from ..imageio import srgb_to_linear
+    from viewer.files.imageio import srgb_to_linear
 
     t0 = time.perf_counter()
     person = mask > 0.5

@@ -21,9 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..file_kinds import regular_file, wrong_kind
-from ..imageio import MAX_IMAGE_PIXELS, check_pixels
+from viewer.errors import InputError
+from viewer.files.file_kinds import regular_file, wrong_kind
+from viewer.files.imageio import MAX_IMAGE_PIXELS, check_pixels
+from viewer.resize import scaled_size
 
 MAX_SIZE = 2048  # default longer side of every output
 WORK_PERSON = 512  # default pixels of the person's longer side in the work frame
@@ -50,13 +51,6 @@ class FrameSizes:
         return {"photo": list(self.photo), "frame": list(self.frame), "work": list(self.work)}
 
 
-def scaled_size(size: tuple[int, int], longest: int) -> tuple[int, int]:
-    """``size`` (w, h) scaled so the longer side is ``longest`` (never below 1 pixel)."""
-    w, h = size
-    s = longest / max(w, h)
-    return max(int(round(w * s)), 1), max(int(round(h * s)), 1)
-
-
 def output_frame(photo_size: tuple[int, int], max_size: int = MAX_SIZE) -> tuple[int, int]:
     """The output frame (width, height): the photo's own size, its longer side capped at ``max_size``."""
     if not MIN_FRAME <= max_size <= 16384:
@@ -76,22 +70,6 @@ def frame_sizes(photo_size: tuple[int, int], person_box: tuple[int, int], max_si
     work_long = min(max(frame), MAX_WORK, int(round(max(frame) * work_person / max(person, 1.0))))
     work = frame if work_long >= max(frame) else scaled_size(frame, work_long)
     return FrameSizes(tuple(photo_size), tuple(frame), tuple(work))
-
-
-def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """``image`` (H, W[, C]) resized to ``size`` = (w, h): area average when shrinking, bilinear
-    when enlarging (OpenCV; float32 or uint8 kept)."""
-    import cv2
-
-    h, w = image.shape[:2]
-    if (w, h) == tuple(size):
-        return image
-    shrink = size[0] <= w and size[1] <= h
-    channels = image.shape[2] if image.ndim == 3 else 0
-    if channels > 4:  # OpenCV resizes up to 4 channels at a time
-        return np.concatenate([resize(image[..., i:i + 4], size) for i in range(0, channels, 4)], axis=-1)
-    out = cv2.resize(image, tuple(int(v) for v in size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-    return out[..., None] if channels == 1 else out
 
 
 def read_image_u8(path, what: str, notes: list, digests: dict | None = None, colours: bool = True) -> np.ndarray:

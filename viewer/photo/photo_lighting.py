@@ -37,7 +37,7 @@ import time
 
 import numpy as np
 
-from ..lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 
 BASIS = 48  # directions on the sphere
 SATURATED = 0.98  # sRGB value from which a photo pixel is a clipped highlight
@@ -53,7 +53,7 @@ def basis_lights(n: int = BASIS) -> AreaLights:
     """``n`` unit-intensity lights on a Fibonacci sphere; sigma = the median-cut rule
     ``min(20, 40 * RMS angle)`` for a cell of solid angle 4 pi / n (RMS angle r / sqrt(2) of a cap
     of angular radius r)."""
-    from ..lighting.lightfit.fit import fibonacci_sphere
+    from viewer.lighting.lightfit.fit import fibonacci_sphere
 
     directions = fibonacci_sphere(n).astype(np.float32)
     cap = np.arccos(1.0 - 2.0 / n)  # a cap of solid angle 4 pi / n
@@ -65,7 +65,7 @@ def fit_mask(scene, photo: np.ndarray, erode: int = 2) -> np.ndarray:
     """Pixels of the work frame that inform the fit: inside the eroded mask, not clipped."""
     import cv2
 
-    from ..imageio import linear_to_srgb
+    from viewer.files.imageio import linear_to_srgb
 
     inside = cv2.erode(scene.mask.astype(np.uint8), np.ones((2 * erode + 1, 2 * erode + 1), np.uint8)) > 0
     clipped = (linear_to_srgb(photo) >= SATURATED).any(axis=-1)

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..resources import network_dir
+from viewer.errors import InputError
+from viewer.resources import network_dir
 
 LIGHTS_PER_BATCH = 4
 
@@ -23,7 +23,7 @@ class Refiner:
     """Loads the refinement network once; ``__call__`` gives the refined visibility (N, H, W)."""
 
     def __init__(self, path=None, device: str = "cpu"):
-        from ..nets.weights import load_network
+        from viewer.nets.weights import load_network
 
         self.path = Path(path) if path is not None else network_dir() / "refine.safetensors"
         if not self.path.is_file():
@@ -37,7 +37,7 @@ class Refiner:
         ``cancelled()``, if given, is called before each batch of lights (it raises to stop)."""
         import torch
 
-        from ..nets.refine import refined_visibility
+        from viewer.nets.refine import refined_visibility
 
         n = hard.shape[0]
         multiple = self.model.multiple

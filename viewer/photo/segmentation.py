@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from viewer.errors import InputError
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person
@@ -75,7 +75,7 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
     note). Raises :class:`InputError` naming ``photo_path`` when no person is found."""
     import cv2
 
-    from .photo_frame import resize, scaled_size
+    from viewer.resize import resize, scaled_size
 
     notes = notes if notes is not None else []
     h, w = photo.shape[:2]

@@ -15,7 +15,7 @@ import math
 
 import torch
 
-from ..constants import MIN_ALPHA, SPECULAR_SCALE  # the shaders' values (generated #defines)
+from viewer.constants import MIN_ALPHA, SPECULAR_SCALE  # the shaders' values (generated #defines)
 
 
 def _cosines(normal: torch.Tensor, light_dir: torch.Tensor) -> torch.Tensor:

@@ -7,7 +7,7 @@ respect to each light's sigma.
 - Fourier basis of a shadow map z: 2M maps, channel 2k = cos(c_k z), channel 2k + 1 = sin(c_k z),
   c_k = pi (2k + 1) for k = 0 .. M - 1 (the GL engine packs the same order into RGBA textures).
 - Pre-filtering: a separable Gaussian of sigma_px = sigma R / 256 texels (the area light's sigma,
-  :func:`viewer.shadow_space.sigma_in_pixels`), discrete weights exp(-t^2 / (2 sigma_px^2)) for
+  :func:`viewer.scene.shadow_space.sigma_in_pixels`), discrete weights exp(-t^2 / (2 sigma_px^2)) for
   |t| <= ceil(3 sigma_px) (kernel size 2 ceil(3 sigma_px) + 1, as the paper), normalised to sum 1.
   Borders are clamp-to-edge (replicate padding), like the GL engine's texel fetches. sigma_px below
   1e-3 is the identity filter (its gradient is then zero).
@@ -15,7 +15,7 @@ respect to each light's sigma.
   at (j + 0.5) / R, clamp-to-edge), S = sum_k (2 / c_k) [cos(c_k d') F[sin c_k z] - sin(c_k d')
   F[cos c_k z]] with d' = clamp(d, 0, 1) - offset (so a receiver pushed past the range never wraps), and
   V = clamp((S + a) / 2a, 0, 1); (offset, a) from
-  :func:`viewer.shadow_space.csm_constants`.
+  :func:`viewer.scene.shadow_space.csm_constants`.
 - Hard visibility: the texel containing (u, v) (floor, clamp-to-edge); lit when d - bias <= z.
 """
 
@@ -24,7 +24,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from .. import shadow_space as rule
+from viewer.scene import shadow_space as rule
 
 MIN_SIGMA_PX = 1e-3  # below this many texels the pre-filter is the identity
 

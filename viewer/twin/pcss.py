@@ -1,9 +1,9 @@
 """Contact-hardening soft shadows: torch twin of ``shaders/pcss.glsl``, batched over lights.
 
 Percentage-closer soft shadows on the hard shadow map, with the light's sigma read as an angle
-(alpha = sigma x :data:`viewer.shadow_space.ANGULAR_SIGMA` radians):
+(alpha = sigma x :data:`viewer.scene.shadow_space.ANGULAR_SIGMA` radians):
 
-1. blocker search: PCSS_SEARCH_TAPS :func:`viewer.shadow_space.pcss_taps` offsets scaled to alpha x
+1. blocker search: PCSS_SEARCH_TAPS :func:`viewer.scene.shadow_space.pcss_taps` offsets scaled to alpha x
    PCSS_SEARCH shadow-map windows; a tap is a blocker when its depth is nearer than the receiver's tangent
    plane there (minus the hard test's bias) and its texel is not empty (``empty_depth``); the gap is the
    mean of (plane - depth) over blockers;
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import torch
 
-from .. import shadow_space as rule
-from .csm import shadow_depth
-from .shadow_space import LightFrames
+from viewer.scene import shadow_space as rule
+from viewer.twin.csm import shadow_depth
+from viewer.twin.shadow_geometry import LightFrames
 
 
 def receiver_gradient(frames: LightFrames, normals: torch.Tensor) -> torch.Tensor:

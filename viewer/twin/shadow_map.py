@@ -1,7 +1,7 @@
 """Shadow maps: the depth mesh rasterized orthographically from each light, vectorized in torch.
 
 A light's shadow map has R x R texels; a point with shadow-map coordinates (u, v, z) (see
-:mod:`viewer.shadow_space`) lies at pixel position x = u R, y = v R, and texel (i, j) covers
+:mod:`viewer.scene.shadow_space`) lies at pixel position x = u R, y = v R, and texel (i, j) covers
 [j, j + 1) x [i, i + 1), so row i = floor(v R) and row 0 is at v = 0 (an OpenGL texture's first
 row). Each texel stores the smallest normalised depth z of the triangles covering its centre
 (j + 0.5, i + 0.5), z interpolated linearly over the triangle as OpenGL does under an orthographic
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import torch
 
-from ..mesh import DepthMesh
-from .shadow_space import LightFrames
+from viewer.scene.depth_mesh import DepthMesh
+from viewer.twin.shadow_geometry import LightFrames
 
 CANDIDATES_PER_CHUNK = 1 << 22  # texel candidates tested at once (bounds the memory)
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import atomic_path, write_text
+from viewer.files.imageio import atomic_path, write_text
 
 BATCH_MAPS = ("rooitou_park_1k.hdr", "studio_small_03_1k.hdr", "dikhololo_night_1k.hdr")
 CONFIGS = (("1 worker, 2 threads", ["--workers", "1", "--threads", "2"]),

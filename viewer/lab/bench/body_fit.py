@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from viewer.camera import Camera
-from viewer.imageio import write_text
+from viewer.files.imageio import write_text
+from viewer.scene.camera import Camera
 
 
 def _scores(depth: np.ndarray, mask: np.ndarray, truth) -> dict:
@@ -35,7 +35,7 @@ def run_body_fit_benchmark(data, limit: int = 12, output="out/bench_bodyfit.json
     from viewer.lab.data.humans import rasterize
     from viewer.lab.data.loader import RelightDataset
     from viewer.nets.photo import exposure_scale, linear_to_srgb
-    from viewer.scene import load_scene
+    from viewer.scene.bundle import load_scene
 
     ds = RelightDataset(data, fields=("image", "background", "mask"))
     people = []

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.imageio import read_exr, write_exr
+from viewer.files.imageio import read_exr, write_exr
 from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.lighting.lightfit.cache import cache_dir, map_hash
-from viewer.scene import Scene, load_scene
+from viewer.scene.bundle import Scene, load_scene
 
 REFERENCE_VERSION = 1  # bump when the reference renderer changes its images
 

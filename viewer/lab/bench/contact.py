@@ -15,8 +15,8 @@ import numpy as np
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.scenes import plane_and_box
 from viewer.lighting.envmap import EnvMap, pixel_directions
-from viewer.lighting.lights import AreaLights
-from viewer.shadow_space import ANGULAR_SIGMA
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 LIGHT = np.array([1.0, 0.3, 0.8]) / np.linalg.norm([1.0, 0.3, 0.8])  # from the right, towards the camera
 SIGMA = 7.0  # 256-px units: an angular sigma of SIGMA * ANGULAR_SIGMA radians (~8 degrees)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import write_text
+from viewer.files.imageio import write_text
 
 LOADS = (0, 1, 2)
 TARGET_RATIO = 2.5  # beside two busy processes, at most this times the idle time (issue 32)

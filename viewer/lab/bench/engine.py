@@ -16,10 +16,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from viewer.imageio import write_text
-from viewer.lighting.lights import AreaLights
-from viewer.mesh import resolve_step
+from viewer.files.imageio import write_text
 from viewer.resources import asset_dir, sample_scene_dir
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.depth_mesh import resolve_step
 
 ENVMAP = "envmaps/immenstadter_horn_256.hdr"
 
@@ -82,8 +82,8 @@ def run_engine_benchmark(sizes=(512, 1024), light_counts=(8, 16, 32), repeats: i
                          twin: bool = True, twin_device: str = "cpu") -> dict:
     from viewer.gl import Engine, EngineOptions, create_headless_context
     from viewer.gl.context import describe
-    from viewer.scene import load_scene
-    from viewer.scene_ops import resample_scene
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.resampling import resample_scene
 
     ctx = create_headless_context()
     base = load_scene(sample_scene_dir())  # 512^2
@@ -128,7 +128,7 @@ def _skin_cost(ctx, repeats: int, lights_count: int = 16) -> dict:
     scatter pass's own time (profiled frames); medians."""
     from viewer.gl import Engine, EngineOptions
     from viewer.photo.inference import infer_scene
-    from viewer.settings import Look
+    from viewer.scene.look import Look
 
     scene = infer_scene(asset_dir() / "photos" / "underpass.jpg", ctx=ctx)["scene"]
     out = {"photo": "assets/photos/underpass.jpg",

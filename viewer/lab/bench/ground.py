@@ -18,17 +18,17 @@ import time
 
 import numpy as np
 
+from viewer.files.imageio import write_text
 from viewer.gl import Engine, EngineOptions
-from viewer.ground import GroundPlane, ground_plane
-from viewer.imageio import write_text
 from viewer.lab.bench.contact import gaussian_light
 from viewer.lighting.envmap import EnvMap, load_envmap
-from viewer.lighting.lights import AreaLights, load_lights
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
-from viewer.settings import Look
-from viewer.shadow_space import ANGULAR_SIGMA
+from viewer.scene.area_lights import AreaLights, load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.ground import GroundPlane, ground_plane
+from viewer.scene.look import Look
+from viewer.scene.resampling import resample_scene
+from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 SUN = np.array([0.6, 0.45, 0.66]) / np.linalg.norm([0.6, 0.45, 0.66])  # low, from the right and in front
 SUN_SIGMA = 3.0  # 256-px units (~5 degrees)
@@ -141,7 +141,7 @@ def run_ground_benchmark(output: str, size: int = 256, spp: int = 256, repeats: 
             print(f"{name}, {method}: mean |error| {err:.3f} of the ground's light over the shadow; ground pass "
                   f"{ms:.1f} ms; darkest {left[seen].min():.2f} (truth {truth[seen].min():.2f})", flush=True)
     out = {"machine": describe(ctx), "size": size, "spp": spp, "repeats": repeats,
-           "method": "the sample person's depth mesh on a white ground plane (viewer.ground: through the feet's contacts); "
+           "method": "the sample person's depth mesh on a white ground plane (viewer.scene.ground: through the feet's contacts); "
                      "truth: Mitsuba's shadowed "
                      "diffuse of the plane with the person over without (direct light, the whole map); engine: "
                      "1 - read_ground_shadow(), bilinear to the work size; error: mean |difference| over plane pixels "

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.mesh import depth_mesh
-from viewer.scene import Scene
+from viewer.scene.bundle import Scene
+from viewer.scene.depth_mesh import depth_mesh
 
 RAY_OFFSET = 2e-3  # metres along the normal and the light direction
 

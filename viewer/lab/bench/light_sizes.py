@@ -17,18 +17,18 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.files.imageio import write_text
 from viewer.gl import Engine, EngineOptions
-from viewer.ground import ground_plane
-from viewer.imageio import write_text
 from viewer.lab.bench.ground import IN_SHADOW, engine_ratio, plane_ratio
 from viewer.lighting.envmap import LUMINANCE as LUMA, load_envmap
 from viewer.lighting.light_size import region_sizes
 from viewer.lighting.lightfit.fit import fit_lights
-from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
-from viewer.settings import Look
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import load_scene
+from viewer.scene.ground import ground_plane
+from viewer.scene.look import Look
+from viewer.scene.resampling import resample_scene
 
 VARIANTS = ("product", "sizes x 0.5", "sizes x 1", "sizes x 2", "zero")
 

@@ -20,7 +20,7 @@ import torch
 from viewer.lighting.lightfit.problem import Problem, shadowed_views
 from viewer.lighting.lightfit.reference import plane_reference
 from viewer.lighting.lightfit.views import PlaneView, plane_view
-from viewer.lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from viewer.imageio import atomic_path, write_text
+from viewer.files.imageio import atomic_path, write_text
 from viewer.lab.bench.lightfit_evaluate import held_out, shading_errors
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit.fit import METHODS, fit_lights

@@ -24,10 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import srgb_to_linear, write_text
+from viewer.files.imageio import srgb_to_linear, write_text
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
 from viewer.photo import matting
-from viewer.photo.photo_frame import output_frame, read_mask, read_photo, resize
+from viewer.photo.photo_frame import output_frame, read_mask, read_photo
+from viewer.resize import resize
 
 SOLVERS = ("cf", "knn", "lkm", "rw", "lbdm")
 EDGES = (0.0016, 0.003, 0.004, 0.006)  # half-widths of the soft edge's band, of the person's height

@@ -25,7 +25,7 @@ import numpy as np
 
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.engine import frame_seconds
-from viewer.lighting.lights import AreaLights
+from viewer.scene.area_lights import AreaLights
 
 KINDS = ("engine", "directional", "sh", "twin")
 
@@ -99,7 +99,7 @@ class Renderer:
             self.engine = Engine(ctx, scene, method.options())
             self.engine.set_visibility("hard" if method.kind == "directional" else "soft")
         elif method.kind == "twin":
-            from viewer.twin.render import SceneTensors
+            from viewer.twin.relight import SceneTensors
 
             self._twin_scene = SceneTensors.from_scene(scene, method.shadow_step, "cpu")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.imageio import linear_to_srgb
+from viewer.files.imageio import linear_to_srgb
 
 
 def srgb(x):

@@ -31,14 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.camera import Camera
+from viewer.files.imageio import atomic_path, read_exr, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
-from viewer.imageio import atomic_path, read_exr, write_text
 from viewer.lab.bench.metrics import chroma, metrics, srgb
 from viewer.lighting.envmap import load_envmap
-from viewer.lighting.lights import AreaLights, load_lights
-from viewer.scene import Scene, load_scene
+from viewer.scene.area_lights import AreaLights, load_lights
+from viewer.scene.bundle import Scene, load_scene
+from viewer.scene.camera import Camera
 
 # label: (the engine's shadow mode, its soft-shadow method); refined reads the hard and soft visibility
 SHADOW_MODES = {"SM": ("hard", "csm"), "CSM": ("soft", "csm"), "PCSS": ("soft", "pcss"),
@@ -50,7 +50,7 @@ def _engine_images(ctx, scene: Scene, lights, wanted, refiner) -> dict:
     :data:`SHADOW_MODES`, view); one engine per soft-shadow method (refined: the refinement network
     on that engine's own visibility)."""
     from viewer.output.render import render_frame
-    from viewer.settings import Look
+    from viewer.scene.look import Look
 
     out = {}
     for soft in dict.fromkeys(SHADOW_MODES[label][1] for label, _ in wanted):
@@ -81,7 +81,7 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     import torch
     from torch.nn import functional as F
 
-    from viewer.imageio import linear_to_srgb
+    from viewer.files.imageio import linear_to_srgb
     from viewer.nets import depth as depth_net, inverse as inverse_net
     from viewer.nets.photo import exposure_scale
     from viewer.photo import face as face_mod

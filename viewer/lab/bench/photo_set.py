@@ -41,17 +41,17 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.files.imageio import linear_to_srgb, write_jpeg, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
-from viewer.imageio import linear_to_srgb, write_jpeg, write_text
 from viewer.lab.bench.face_metrics import face_skin, holes, limb_skin, speckle
 from viewer.lab.bench.metrics import bleed, border, cielab, detail_kept, kept_backdrop, light_moved, luminance
 from viewer.lab.bench.photos import neutral_lights, sun_and_sky
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
-from viewer.lighting.lights import AreaLights, facing_yaw
 from viewer.output.render import render_look
 from viewer.photo.inference import infer_scene, load_networks
-from viewer.settings import Look
+from viewer.scene.area_lights import AreaLights, facing_yaw
+from viewer.scene.look import Look
 
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png")
 MAPS = {"studio": "studio_small_03_1k", "park": "rooitou_park_1k"}

@@ -38,18 +38,19 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.files.imageio import linear_to_srgb, write_jpeg, write_png, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
-from viewer.imageio import linear_to_srgb, write_jpeg, write_png, write_text
 from viewer.lab.bench.metrics import detail_kept, light_moved, metrics
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
-from viewer.lighting.lights import AreaLights
 from viewer.output.render import apply_settings, render_look
 from viewer.photo import detail as detail_mod
 from viewer.photo.inference import infer_scene, load_networks, with_detail
-from viewer.photo.photo_frame import read_photo, resize
-from viewer.settings import Look
+from viewer.photo.photo_frame import read_photo
+from viewer.resize import resize
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.look import Look
 
 FIGURE_MAPS = (("venice_sunset_1k", 200.0), ("studio_small_03_1k", 30.0), ("immenstadter_horn_1k", 180.0))
 BEFORE = "before"  # the network's maps alone at the maps' resolution, upsampled: the output before this step
@@ -227,7 +228,7 @@ def transparent_render(ctx, scene, specular: bool = True) -> np.ndarray:
 
 def _matte_in_output(path: Path, photo: np.ndarray, frame_size, ctx, nets, result: dict, reference: Path) -> dict:
     """Spill, cut and bleed of the output's matte and colours; kept on a pink backdrop."""
-    from viewer.imageio import srgb_to_linear
+    from viewer.files.imageio import srgb_to_linear
     from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
     from viewer.photo.photo_frame import read_mask
 
@@ -299,8 +300,8 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
     from PIL import Image
 
     from viewer.lab.data.loader import RelightDataset
-    from viewer.lighting.lights import load_lights
     from viewer.nets.photo import exposure_scale
+    from viewer.scene.area_lights import load_lights
 
     ds = RelightDataset(data, fields=("image", "background", "mask"))
     by_sample: dict = {}

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import write_text
+from viewer.files.imageio import write_text
 from viewer.lab.bench.cases import (
     REFERENCE_VERSION,
     Case,
@@ -114,8 +114,8 @@ def _lights_by_map(maps: MapStore, names, counts, method: str, progress) -> dict
 
 
 def _cases(config: ReportConfig, maps: MapStore, names, data) -> list[Case]:
-    from viewer.scene import load_scene
-    from viewer.scene_ops import resample_scene
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.resampling import resample_scene
 
     scene = load_scene(sample_scene_dir())
     if max(scene.width, scene.height) != config.sample_size:
@@ -163,7 +163,7 @@ def _saved_rows(key: str, method: Method, case: Case, config: ReportConfig, code
 def _error_rows(ctx, cases, methods, maps: MapStore, lights, config, progress, examples: dict) -> list[dict]:
     """Every method's errors on every case and lighting; ``examples`` ({label: None}) gets the
     display images of the first case's first lighting for its labels (``REFERENCE``: the reference)."""
-    from viewer.imageio import read_exr
+    from viewer.files.imageio import read_exr
     from viewer.lab.bench.metrics import metrics, srgb
 
     rows = []
@@ -258,7 +258,7 @@ def pareto(points) -> list[bool]:
 
 
 def choose_presets(summaries: list[dict], n64_label: str) -> dict:
-    """The presets' rules (viewer/presets.py) applied to the engine's measured settings."""
+    """The presets' rules (viewer/gl/presets.py) applied to the engine's measured settings."""
     # a preset keeps the fitted sigmas (the viewer's sliders tune them), so scaled ones are not candidates
     engine = [s for s in summaries if s["method"]["kind"] == "engine" and s["method"]["sigma_scale"] == 1.0]
     n64 = next(s for s in engine if s["label"] == n64_label)
@@ -369,8 +369,8 @@ def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
     from viewer.lab.data.reference import render_bundle_reference
     from viewer.output.render import turntable_yaws
     from viewer.output.temporal import drmse
-    from viewer.scene import load_scene
-    from viewer.scene_ops import resample_scene
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.resampling import resample_scene
 
     scene = resample_scene(load_scene(sample_scene_dir()), config.temporal_size)
     key = scene_hash(scene)
@@ -411,6 +411,7 @@ def _temporal(ctx, config, maps: MapStore, lights, presets, progress) -> dict:
 
 def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> dict:
     from viewer.gl import create_headless_context
+    from viewer.gl.presets import PRESETS
     from viewer.lab.bench.report_doc import (
         COMPARISON_FIGURE,
         CONTACT_FIGURE,
@@ -421,7 +422,6 @@ def run_report(quick: bool = False, data=None, out_dir=None, maps_dir=None) -> d
         write_figures,
         write_markdown,
     )
-    from viewer.presets import PRESETS
 
     config = QUICK if quick else FULL
     out_dir = Path(out_dir or ("out/report-quick" if quick else "out/report"))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import atomic_path, write_text
+from viewer.files.imageio import atomic_path, write_text
 
 KNOBS = ("lights", "shadow_resolution", "shadow_step", "terms", "prefilter", "leave_out", "sigma_scale", "soft")
 KIND_STYLE = {"engine": ("tab:blue", "o"), "directional": ("tab:orange", "s"), "sh": ("tab:green", "D"), "twin": ("tab:red", "^")}
@@ -274,7 +274,7 @@ def write_markdown(result: dict, path: Path):
     lines += [
         "",
         "Balanced is the default of the engine (`EngineOptions()`), the viewer and `relight render` "
-        "(`--preset` picks another). Where a shipped preset differs from its rule's pick, viewer/presets.py says why.",
+        "(`--preset` picks another). Where a shipped preset differs from its rule's pick, viewer/gl/presets.py says why.",
         "",
         "## Targets",
         "",

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import atomic_path, write_text
+from viewer.files.imageio import atomic_path, write_text
 from viewer.lab.bench.engine import _median_ms, bench_lights, frame_seconds
-from viewer.lighting.lights import AreaLights
 from viewer.resources import sample_scene_dir
+from viewer.scene.area_lights import AreaLights
 
 YAWS = (0.0, 120.0, 240.0)  # the lighting is measured at these rotations and averaged
 
@@ -52,7 +52,7 @@ def run_shadow_benchmark(repeats: int = 3, output="out/bench_shadows.json", n_li
     from viewer.gl import Engine, EngineOptions, create_headless_context
     from viewer.gl.context import describe
     from viewer.lab.bench.groundtruth import RayTracedVisibility
-    from viewer.scene import load_scene
+    from viewer.scene.bundle import load_scene
 
     ctx = create_headless_context()
     scene = load_scene(sample_scene_dir())

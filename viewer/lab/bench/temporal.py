@@ -11,16 +11,16 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.files.imageio import write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
-from viewer.imageio import write_text
-from viewer.lighting.lights import load_lights
 from viewer.output.render import apply_settings, turntable_yaws
 from viewer.output.temporal import drmse, flicker_ratio
 from viewer.resources import asset_dir, sample_scene_dir
-from viewer.scene import load_scene
-from viewer.scene_ops import resample_scene
-from viewer.settings import Look
+from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
+from viewer.scene.look import Look
+from viewer.scene.resampling import resample_scene
 
 FRAMES = 128
 SIZE = 256

@@ -24,18 +24,18 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.files.imageio import write_jpeg, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
-from viewer.imageio import write_jpeg, write_text
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
-from viewer.lighting.lights import AreaLights
 from viewer.lighting.placed_lights import PlacedLight, to_area_lights
 from viewer.output.render import render_look
 from viewer.photo.inference import infer_scene, load_networks
 from viewer.photo.photo_frame import WORK_PERSON
 from viewer.resources import asset_dir
-from viewer.settings import Look
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.look import Look
 
 MAP = "venice_sunset_256"  # a bundled map, turned so its sun lights the person from the side
 KEY = PlacedLight(azimuth=60.0, elevation=35.0, size=1.0, intensity=6.0)  # a hard key light

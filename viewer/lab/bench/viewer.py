@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import write_text
+from viewer.files.imageio import write_text
 
 DRAG_SECONDS = 4.0
 DRAG_STEP_PX = 3  # per motion event

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.camera import Camera
+from viewer.scene.camera import Camera
 
 JOINTS = {11: "upperarm01.L", 12: "upperarm01.R", 13: "lowerarm01.L", 14: "lowerarm01.R", 15: "wrist.L", 16: "wrist.R",
           23: "upperleg01.L", 24: "upperleg01.R", 25: "lowerleg01.L", 26: "lowerleg01.R", 27: "foot.L", 28: "foot.R",

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.camera import Camera
+from viewer.scene.camera import Camera
 
 POSE_NOISE = 0.08  # radians per rotation-vector axis (about 8 degrees per joint and axis)
 AVERAGE = dict(gender=0.5, age=0.75, muscle=0.5, weight=0.5, height=0.5, proportions=0.5)
@@ -59,7 +59,7 @@ def cached_body_prior(sample: Path, size: int) -> dict:
     as ``body_prior.npz`` in it (made again when the kept one has another size)."""
     import json
 
-    from viewer.imageio import atomic_path
+    from viewer.files.imageio import atomic_path
 
     path = Path(sample) / FILE
     if path.is_file():

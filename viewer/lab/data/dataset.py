@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.imageio import write_exr, write_text
+from viewer.files.imageio import write_exr, write_text
 from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
-from viewer.lighting.lights import AreaLights, load_lights
-from viewer.scene import save_scene
+from viewer.scene.area_lights import AreaLights, load_lights
+from viewer.scene.bundle import save_scene
 
 POOL = 32  # procedural training maps per dataset
 SPLITS = ("train", "heldout", "key")

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.imageio import srgb_to_linear
+from viewer.files.imageio import srgb_to_linear
 from viewer.lab.data.materials import fbm
 from viewer.lighting.envmap import EnvMap, direction_to_uv, pixel_directions, solid_angles
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.camera import Camera
 from viewer.lab.data.geometry import icosphere, mesh_edges, neighbour_mean, signed_volume, vertex_normals
 from viewer.lab.data.materials import SAMPLE_OUTFIT, Outfit, classify
+from viewer.scene.camera import Camera
 
 ARM_BONES = ("upperarm", "lowerarm", "wrist", "finger", "metacarpal")
 HEAD_BONES = ("neck01", "neck02", "neck03", "head", "eye.L", "eye.R")

@@ -28,11 +28,11 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from viewer.imageio import read_exr
+from viewer.files.imageio import read_exr
 from viewer.lighting.envmap import EnvMap, load_envmap
-from viewer.lighting.lights import load_lights
 from viewer.nets.refine import SHADOW_RESOLUTION
-from viewer.scene import load_scene
+from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
 
 EXPOSURE_RANGE = (0.5, 2.0)
 FIELDS = ("image", "background", "mask", "albedo", "normal", "specular", "roughness", "depth", "diffuse",

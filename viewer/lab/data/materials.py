@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.imageio import srgb_to_linear
+from viewer.files.imageio import srgb_to_linear
 
 
 def value_noise(p: np.ndarray, scale: float, seed: int) -> np.ndarray:

@@ -14,12 +14,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from viewer.camera import Camera
 from viewer.lab.data.accessories import bag_mesh, sample_accessories
 from viewer.lab.data.geometry import subdivide, vertex_normals
 from viewer.lab.data.humans import build_body, dress, fold, place_in_camera, rasterize, sample_phenotype, sample_pose, seat
 from viewer.lab.data.materials import Outfit, make_materials, sample_outfit
-from viewer.scene import Scene
+from viewer.scene.bundle import Scene
+from viewer.scene.camera import Camera
 
 TURN_RANGE = (-60.0, 60.0)  # degrees the person is turned from facing the camera
 FILL_RANGE = (0.8, 0.92)  # of the image height the figure spans (a full body, as in the paper)

@@ -18,7 +18,7 @@ KEY_LIGHT = np.array([-0.5, 0.6, 0.6]) / np.linalg.norm([-0.5, 0.6, 0.6])
 
 
 def _srgb8(linear: np.ndarray) -> np.ndarray:
-    from viewer.imageio import linear_to_srgb
+    from viewer.files.imageio import linear_to_srgb
 
     return (np.clip(linear_to_srgb(np.clip(linear, 0.0, 1.0)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
@@ -94,7 +94,7 @@ def _save(fig, path: Path) -> Path:
     """Lay out ``fig``, write it as a PNG at ``path`` (atomically) and close it."""
     import matplotlib.pyplot as plt
 
-    from viewer.imageio import atomic_path
+    from viewer.files.imageio import atomic_path
 
     fig.tight_layout()
     with atomic_path(path) as tmp:

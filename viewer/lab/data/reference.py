@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from viewer.lighting.envmap import EnvMap
-from viewer.lighting.lights import rotation_matrix
-from viewer.mesh import depth_mesh
-from viewer.scene import Scene
+from viewer.scene.area_lights import rotation_matrix
+from viewer.scene.bundle import Scene
+from viewer.scene.depth_mesh import depth_mesh
 
 LLVM = Path("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
 SPECULAR_LEVELS = 16  # per-face specular is quantized to this many materials (principled takes one float)

@@ -23,8 +23,8 @@ import numpy as np
 
 from viewer.lab.data.reference import SPECULAR_LEVELS, camera_sensor, direct_scene, envmap_emitter, mi_mesh, mitsuba, specular_levels
 from viewer.lighting.envmap import EnvMap
-from viewer.lighting.lights import rotation_matrix
-from viewer.scene import Scene
+from viewer.scene.area_lights import rotation_matrix
+from viewer.scene.bundle import Scene
 
 UNSHADOWED_SAMPLES = 2048
 EVAL_CHUNK = 1 << 21  # pixel x sample pairs per BSDF evaluation

@@ -8,7 +8,7 @@ Importing this package does not import torch (only fitting does), so viewing cac
 stays light.
 """
 
-from .cache import cache_dir, cache_path, lights_for_map, map_hash
-from .methods import DEFAULT_METHOD, METHODS
+from viewer.lighting.lightfit.cache import cache_dir, cache_path, lights_for_map, map_hash
+from viewer.lighting.lightfit.methods import DEFAULT_METHOD, METHODS
 
 __all__ = ["DEFAULT_METHOD", "METHODS", "cache_dir", "cache_path", "lights_for_map", "map_hash"]

@@ -1,6 +1,6 @@
 """Fitted lights cached by map content, so the viewer never fits the same map twice.
 
-A cache entry is a light file (``viewer.lighting.lights`` JSON, with a ``fit`` record of the source map,
+A cache entry is a light file (``viewer.scene.area_lights`` JSON, with a ``fit`` record of the source map,
 method, N and fitting time) named ``<hash>-n<N>-<method>-v<FIT_VERSION>.json``, the hash being the
 SHA-256 of the decoded map (shape and float32 pixels: the same map saved as .hdr or .exr, or under
 another name, hits the same entry; a map edited by one pixel does not). The directory is
@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import InputError
-from ..envmap import EnvMap
-from ..lights import AreaLights, load_lights
+from viewer.errors import InputError
+from viewer.lighting.envmap import EnvMap
+from viewer.scene.area_lights import AreaLights, load_lights
 
 FIT_VERSION = 2  # bump when a change to the fitters changes their results
 
@@ -69,7 +69,7 @@ def cached_lights(env: EnvMap, n: int, method: str, directory=None) -> AreaLight
 def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, directory=None, progress=None,
                    refit: bool = False) -> tuple[AreaLights, bool]:
     """The fitted lights of ``env`` and whether they came from the cache (else they are fitted now)."""
-    from .methods import DEFAULT_METHOD
+    from viewer.lighting.lightfit.methods import DEFAULT_METHOD
 
     method = method or DEFAULT_METHOD
     path = cache_path(env, n, method, directory)
@@ -79,7 +79,7 @@ def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, director
     cached = None if refit else cached_lights(env, n, method, directory)
     if cached is not None:
         return cached, True
-    from .fit import fit_lights  # torch: imported only when fitting
+    from viewer.lighting.lightfit.fit import fit_lights  # torch: imported only when fitting
 
     start = time.perf_counter()
     lights = fit_lights(env, n, method, progress=progress)

@@ -46,14 +46,14 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ...errors import InputError
-from ..envmap import EnvMap
-from ..light_size import SIGMA_MAX, region_sizes
-from ..lights import AreaLights
-from ..median_cut import median_cut_lights
-from .adam import CosineAdam
-from .methods import DEFAULT_METHOD, METHODS, check_light_count
-from .problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
+from viewer.errors import InputError
+from viewer.lighting.envmap import EnvMap
+from viewer.lighting.light_size import SIGMA_MAX, region_sizes
+from viewer.lighting.lightfit.adam import CosineAdam
+from viewer.lighting.lightfit.methods import DEFAULT_METHOD, METHODS, check_light_count
+from viewer.lighting.lightfit.problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
+from viewer.lighting.median_cut import median_cut_lights
+from viewer.scene.area_lights import AreaLights
 
 DEFAULT_SETTINGS = FitSettings()  # frozen: one default shared by every call
 

@@ -17,7 +17,7 @@ MAX_LIGHTS_FOR = {"paper": 64}
 
 def check_light_count(method: str, n: int, source=None) -> None:
     """Refuse in one line a light count a method does not fit (its stated limit)."""
-    from ...errors import InputError
+    from viewer.errors import InputError
 
     limit = MAX_LIGHTS_FOR.get(method)
     if limit is not None and n > limit:

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ...imageio import MARK, atomic_path, linear_to_srgb
-from ..envmap import EnvMap, direction_to_uv
-from ..lights import AreaLights
-from ..median_cut import LUMINANCE
+from viewer.files.imageio import MARK, atomic_path, linear_to_srgb
+from viewer.lighting.envmap import EnvMap, direction_to_uv
+from viewer.lighting.median_cut import LUMINANCE
+from viewer.scene.area_lights import AreaLights
 
 
 def display_map(env: EnvMap) -> np.ndarray:
@@ -61,6 +61,6 @@ def plot_lights(env: EnvMap, lights: AreaLights, path, title: str | None = None)
     ax.set_title(title or f"{len(lights)} area lights on {name} (marker size: sigma {lights.sigma.min():.1f}-{lights.sigma.max():.1f})")
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", metadata={MARK[0]: MARK[1]})  # a PNG text chunk: viewer.ownership
+        fig.savefig(tmp, format="png", metadata={MARK[0]: MARK[1]})  # a PNG text chunk: viewer.files.ownership
     plt.close(fig)
     return path

@@ -21,17 +21,17 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ... import shadow_space as rule
-from ...twin import csm
-from ...twin.brdf import diffuse_shading, specular_shading
-from ...twin.render import SceneTensors
-from ...twin.shadow_map import shadow_maps
-from ...twin.shadow_space import light_frames, receiver_coordinates
-from ..envmap import EnvMap
-from ..median_cut import LUMINANCE
-from .reference import ROTATIONS, STEP2_MATERIAL, plane_reference, rotation_matrices, sphere_reference
-from .samples import MapSamples, map_samples
-from .views import PlaneView, SphereView, plane_view, sphere_view
+from viewer.lighting.envmap import EnvMap
+from viewer.lighting.lightfit.reference import ROTATIONS, STEP2_MATERIAL, plane_reference, rotation_matrices, sphere_reference
+from viewer.lighting.lightfit.samples import MapSamples, map_samples
+from viewer.lighting.lightfit.views import PlaneView, SphereView, plane_view, sphere_view
+from viewer.lighting.median_cut import LUMINANCE
+from viewer.scene import shadow_space as rule
+from viewer.twin import csm
+from viewer.twin.brdf import diffuse_shading, specular_shading
+from viewer.twin.relight import SceneTensors
+from viewer.twin.shadow_geometry import light_frames, receiver_coordinates
+from viewer.twin.shadow_map import shadow_maps
 
 
 @dataclass(frozen=True)

@@ -20,10 +20,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ...twin.brdf import diffuse_shading, specular_shading
-from ..lights import rotation_matrix
-from .samples import MapSamples
-from .views import PlaneView, SphereView
+from viewer.lighting.lightfit.samples import MapSamples
+from viewer.lighting.lightfit.views import PlaneView, SphereView
+from viewer.scene.area_lights import rotation_matrix
+from viewer.twin.brdf import diffuse_shading, specular_shading
 
 # the paper's seven views of the map: five yaws 72 degrees apart, and tilted +-90 degrees
 ROTATIONS = tuple((72.0 * k, 0.0) for k in range(5)) + ((0.0, 90.0), (0.0, -90.0))

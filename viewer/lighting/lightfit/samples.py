@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..envmap import EnvMap, pixel_directions, solid_angles
-from ..median_cut import LUMINANCE
+from viewer.lighting.envmap import EnvMap, pixel_directions, solid_angles
+from viewer.lighting.median_cut import LUMINANCE
 
 COARSE_WIDTH = 16  # the hierarchy's top grid is 16 x 8 blocks (coarser when the budget is smaller)
 MAX_WIDTH = 512  # working resolution: 0.7 degree texels

@@ -7,7 +7,7 @@
   sensor) looks down at ``ELEVATION`` degrees onto an infinite plane carrying one object: the
   fitting scene has a unit sphere resting on the plane (the paper's "sphere on a plane"); the
   *held-out* scene, used only to measure, has a box rotated about the plane's normal. Each view is
-  also a :class:`~viewer.scene.Scene` (white diffuse, depth and normals from the ray casting) so the
+  also a :class:`~viewer.scene.bundle.Scene` (white diffuse, depth and normals from the ray casting) so the
   torch twin and the GL engine render it exactly as they render a person.
 
 Visibility is analytic. A point on the (convex) object sees direction d when n.d > 0 and d is above
@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ...camera import Camera
-from ...scene import Scene
+from viewer.scene.bundle import Scene
+from viewer.scene.camera import Camera
 
 ELEVATION = 35.0  # degrees between the view direction and the plane
 SPHERE_DISTANCE = 7.0  # camera to sphere-centre distance, in sphere radii (the plane views)

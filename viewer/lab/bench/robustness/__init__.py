@@ -10,7 +10,7 @@ case is judged (:func:`.case.judge`):
   user's file beside the outputs unchanged;
 - a successful render is not black unless the case says so (a black map, with its warning line);
 - its peak memory (the kernel's count for that process) under the budget the program holds itself
-  to (:func:`viewer.budget.memory_budget`).
+  to (:func:`viewer.memory_needs.memory_budget`).
 
 Scenarios (:mod:`.scenarios`) kill real processes at random moments, fill a disk and race two
 writers. Prints how many cases were tried and how many ended cleanly, and writes them to JSON.
@@ -24,20 +24,19 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
-from viewer.budget import memory_budget
-from viewer.imageio import write_text
-
-from .case import Case, Scenario, run_case, run_scenario
-from .first_campaign import Campaign, first_campaign
-from .scenarios import scenarios
-from .second_campaign import second_campaign
-from .third_campaign import third_campaign
+from viewer.files.imageio import write_text
+from viewer.lab.bench.robustness.case import Case, Scenario, run_case, run_scenario
+from viewer.lab.bench.robustness.first_campaign import Campaign, first_campaign
+from viewer.lab.bench.robustness.scenarios import scenarios
+from viewer.lab.bench.robustness.second_campaign import second_campaign
+from viewer.lab.bench.robustness.third_campaign import third_campaign
+from viewer.memory_needs import memory_budget
 
 
 def make_cases(work: Path, seed: int = 17) -> list[Case | Scenario]:
     """Every case, its files made in ``work``; ``seed`` the generators' (another one: new variants of
     every generated class)."""
-    from .case import run_command
+    from viewer.lab.bench.robustness.case import run_command
 
     kit = Campaign(work, seed)
     first_campaign(kit)

@@ -172,7 +172,7 @@ def judge(case: Case, code: int, err: str, lines: list[str], before: dict, out: 
             if abs(frame["width"] - case.upright[0]) > 1 or abs(frame["height"] - case.upright[1]) > 1:
                 problems.append(f"frame {frame['width']}x{frame['height']}, expected {case.upright[0]}x{case.upright[1]} upright")
         elif case.output and case.output.lower().endswith(".png"):
-            from viewer.imageio import read_png
+            from viewer.files.imageio import read_png
 
             img = read_png(case.output)
             bright = float(img[..., :3].mean())

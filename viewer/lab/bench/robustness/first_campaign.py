@@ -11,12 +11,11 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from viewer.imageio import read_exr, write_exr, write_png
+from viewer.files.imageio import read_exr, write_exr, write_png
+from viewer.lab.bench.robustness.case import Case, truncations
 from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.lighting.lightfit.cache import cache_path
 from viewer.resources import asset_dir, network_dir, sample_scene_dir
-
-from .case import Case, truncations
 
 
 class Campaign:

@@ -13,9 +13,8 @@ import time
 from functools import partial
 from pathlib import Path
 
+from viewer.lab.bench.robustness.case import Scenario, peak_of, run_command, start_command
 from viewer.resources import asset_dir, sample_scene_dir
-
-from .case import Scenario, peak_of, run_command, start_command
 
 SCENE = sample_scene_dir()
 LIGHTS = asset_dir() / "envmaps" / "venice_sunset_256.lights.json"
@@ -307,7 +306,7 @@ def _file_size_limit():
 def _bundle_left_whole(out: Path, folder: Path) -> list[str]:
     """Problems of the bundle ``out`` left in ``folder``: it does not load, or something is beside it."""
     from viewer.errors import InputError
-    from viewer.scene import load_scene
+    from viewer.scene.bundle import load_scene
 
     problems = []
     try:

@@ -13,14 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.imageio import write_exr
+from viewer.files.imageio import write_exr
+from viewer.lab.bench.robustness.case import Case
+from viewer.lab.bench.robustness.first_campaign import Campaign
 from viewer.lighting.envmap import EnvMap, save_envmap
 from viewer.lighting.placed_lights import PlacedLight, save_rig
 from viewer.resources import network_dir
-from viewer.scene import FRAME_FILES, MAP_FILES, OPTIONAL_FILES
-
-from .case import Case
-from .first_campaign import Campaign
+from viewer.scene.bundle import FRAME_FILES, MAP_FILES, OPTIONAL_FILES
 
 
 def second_campaign(kit: Campaign, photo_bundle: Path) -> None:

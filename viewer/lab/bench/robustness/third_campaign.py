@@ -16,14 +16,13 @@ import shutil
 
 import numpy as np
 
-from viewer.imageio import write_exr, write_png
+from viewer.files.imageio import write_exr, write_png
+from viewer.lab.bench.robustness.case import Case
+from viewer.lab.bench.robustness.first_campaign import Campaign
+from viewer.lab.bench.robustness.second_campaign import _name
 from viewer.lighting.envmap import EnvMap, load_envmap, save_envmap
 from viewer.lighting.lightfit.cache import fit_record
-from viewer.lighting.lights import load_lights
-
-from .case import Case
-from .first_campaign import Campaign
-from .second_campaign import _name
+from viewer.scene.area_lights import load_lights
 
 VARIANTS = 5
 

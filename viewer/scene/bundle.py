@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Camera
-from .errors import InputError
-from .file_kinds import PHOTO_SUFFIXES, wrong_kind
-from .imageio import linear_to_srgb, read_exr, read_json, read_png, srgb_to_linear, write_exr, write_png, write_text
+from viewer.errors import InputError
+from viewer.files.file_kinds import PHOTO_SUFFIXES, wrong_kind
+from viewer.files.imageio import linear_to_srgb, read_exr, read_json, read_png, srgb_to_linear, write_exr, write_png, write_text
+from viewer.scene.camera import Camera
 
 FORMAT = "relight-scene"
 VERSION = 2  # 2: the frame layer (version 1 bundles load as before)
@@ -75,7 +75,7 @@ class FrameLayer:
     albedo: np.ndarray  # (Hf, Wf, 3) linear, [0, 1]
     alpha: np.ndarray  # (Hf, Wf) [0, 1]
     photo: np.ndarray  # (Hf, Wf, 3) linear
-    background_blur: float = 0.0  # radians: the photo's own background defocus, a Gaussian's sigma (viewer.backdrop)
+    background_blur: float = 0.0  # radians: the photo's own background defocus, a Gaussian's sigma (viewer.scene.backdrop)
     skin: np.ndarray | None = None  # (Hf, Wf) [0, 1]: how much each pixel is skin (viewer.photo.gloss); None: no skin known
     skin_mm: float = 0.0  # millimetres of the person a frame pixel spans (the skin's light scatters millimetres); 0: unknown
 
@@ -103,7 +103,7 @@ class FrameLayer:
 
     def resized(self, size: tuple[int, int]) -> FrameLayer:
         """The layer at ``size`` = (width, height) (area average down, bilinear up)."""
-        from .photo.photo_frame import resize
+        from viewer.resize import resize
 
         if size == (self.width, self.height):
             return self
@@ -261,7 +261,7 @@ class Scene:
         if self.frame is not None:
             self.frame.validate((w, h), base)
             if self.photo is None:  # the maps' photo and background are the frame's, at their resolution
-                from .photo.photo_frame import resize
+                from viewer.resize import resize
 
                 self.photo = np.maximum(resize(self.frame.photo, (w, h)), 0).astype(np.float32)
             if self.background is None:

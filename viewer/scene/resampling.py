@@ -5,15 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import Camera
-from .errors import InputError
-from .scene import Scene, load_scene
+from viewer.errors import InputError
+from viewer.scene.bundle import Scene, load_scene
+from viewer.scene.camera import Camera
 
 
 def load_sized_scene(path, size: int | None = None, max_size: int | None = None) -> Scene:
     """The scene bundle at ``path``, its maps resampled to ``size`` pixels on the longer side when
     given (``--size``), its frame capped to ``max_size`` (``--max-size``)."""
-    from .photo.photo_frame import scaled_size
+    from viewer.resize import scaled_size
 
     scene = load_scene(path)
     if size is not None and not 16 <= size <= 8192:
@@ -33,9 +33,9 @@ def load_sized_scene(path, size: int | None = None, max_size: int | None = None)
 
 def _check_render_memory(scene: Scene, size: int | None, max_size: int | None) -> None:
     """Refuse, before resampling, maps and a frame whose render would not fit this machine's memory
-    (``render --size 8192`` was killed by the kernel at 23.6 GB): see :mod:`viewer.budget`."""
-    from . import budget
-    from .photo.photo_frame import scaled_size
+    (``render --size 8192`` was killed by the kernel at 23.6 GB): see :mod:`viewer.memory_needs`."""
+    from viewer import memory_needs
+    from viewer.resize import scaled_size
 
     h, w = scene.height, scene.width
     long_side = size if size is not None else max(h, w)
@@ -48,8 +48,8 @@ def _check_render_memory(scene: Scene, size: int | None, max_size: int | None) -
         frame = (long_side, long_side * aspect)
     map_pixels = long_side * long_side * aspect
     frame_pixels = int(frame[0] * frame[1])
-    budget.require(budget.render_bytes(map_pixels, frame_pixels), f"rendering maps of {long_side} px",
-                   f"--size {budget.largest_render_size(aspect, frame_pixels)} or less fits")
+    memory_needs.require(memory_needs.render_bytes(map_pixels, frame_pixels), f"rendering maps of {long_side} px",
+                   f"--size {memory_needs.largest_render_size(aspect, frame_pixels)} or less fits")
 
 
 def resample_scene(scene: Scene, size: int, keep_frame: bool = False) -> Scene:

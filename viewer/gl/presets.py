@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .gl.options import EngineOptions
+from viewer.gl.options import EngineOptions
 
 
 @dataclass(frozen=True)

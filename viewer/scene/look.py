@@ -15,13 +15,13 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-from .errors import InputError
-from .lighting.lights import rotation_matrix
-from .shader_modes import MODES
+from viewer.errors import InputError
+from viewer.scene.area_lights import rotation_matrix
+from viewer.shader_modes import MODES
 
 AUTO = "auto"  # exposure: the photo's own brightness (resolved by viewer.output.render.photo_exposure)
 MAX_BACKGROUND = 65504.0  # the background colour's largest value: the largest a half-float EXR holds
-MAX_BACKDROP_BLUR = 30.0  # degrees (viewer.backdrop.MAX_BLUR)
+MAX_BACKDROP_BLUR = 30.0  # degrees (viewer.scene.backdrop.MAX_BLUR)
 EXPOSURE_LIMIT = 40.0  # stops either way
 TONEMAPS = MODES["TONEMAP"]
 BACKGROUNDS = MODES["BACKGROUND"]
@@ -29,7 +29,7 @@ VISIBILITY_MODES = MODES["VISIBILITY"]
 # What the display image shows: the relit frame, the diffuse or specular shading alone (composited
 # from the same light atlas), or an inspection view of the bundle's maps or of one light's shadow.
 VIEWS = ("final", "diffuse_shading", "specular_shading", "albedo", "normal", "depth", "specular", "roughness", "shadow")
-PRESET_NAMES = ("interactive", "balanced", "final")  # viewer.presets.PRESETS (tested equal)
+PRESET_NAMES = ("interactive", "balanced", "final")  # viewer.gl.presets.PRESETS (tested equal)
 MAX_INTENSITY = 1e6
 
 
@@ -60,12 +60,12 @@ class Look:
     light: int = 0  # the selected light (its shadow in the "shadow" view)
     intensity: float = 1.0  # scales the map's lights
     placed_intensity: float = 1.0  # scales your lights (viewer.lighting.placed_lights), apart from the map's
-    preset: str = "balanced"  # quality preset (viewer.presets)
+    preset: str = "balanced"  # quality preset (viewer.gl.presets)
     compare: float = 0.0  # before / after: the share of the frame, from the left, showing the original photo (0: off)
     ground: bool | str = AUTO  # the person's shadow on a ground plane at the feet, over the background (a shadow
     # catcher); "auto": shown when the feet are in the frame and the map is behind the person (ground_shown)
     backdrop_blur: float | str = AUTO  # degrees: the map behind the person blurred like a defocused background;
-    # "auto": as much as the photo's own background is (viewer.backdrop), 0 for a scene without a photo
+    # "auto": as much as the photo's own background is (viewer.scene.backdrop), 0 for a scene without a photo
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")

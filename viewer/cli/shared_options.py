@@ -8,8 +8,8 @@ import argparse
 
 def add_engine_args(p, presets: bool = False):
     """The engine's options; ``presets``: several presets (``--preset A B``, dest ``presets``: a batch's looks)."""
-    from ..presets import DEFAULT_PRESET, PRESETS
-    from ..shadow_space import SOFT_METHODS
+    from viewer.gl.presets import DEFAULT_PRESET, PRESETS
+    from viewer.scene.shadow_space import SOFT_METHODS
 
     p.add_argument("--preset", dest="presets" if presets else "preset", choices=tuple(PRESETS), nargs="+" if presets else None,
                    help=f"quality preset{'s (each look once with each)' if presets else ''}: lights and engine options from "
@@ -23,7 +23,7 @@ def add_engine_args(p, presets: bool = False):
 
 
 def auto_or(unit: str):
-    """An option's parser: "auto" or a number of ``unit`` (its range is the look's to check, viewer.settings.Look)."""
+    """An option's parser: "auto" or a number of ``unit`` (its range is the look's to check, viewer.scene.look.Look)."""
     def parse(text: str):
         if text.strip().lower() == "auto":
             return "auto"

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..file_kinds import regular_file
-from ..imageio import MARK, read_json, write_text
+from viewer.errors import InputError
+from viewer.files.file_kinds import regular_file
+from viewer.files.imageio import MARK, read_json, write_text
 
 FORMAT = "relight-lights"
 VERSION = 1

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .errors import InputError
+from viewer.errors import InputError
 
 BUDGET_SHARE = 0.8
 GB = 1e9

@@ -1,6 +1,6 @@
 """Shadow-map geometry in torch: the light frames and the receivers' shadow-map coordinates.
 
-Torch twin of :mod:`viewer.shadow_space`, batched over lights, on any device and differentiable
+Torch twin of :mod:`viewer.scene.shadow_space`, batched over lights, on any device and differentiable
 with respect to the light directions. The numpy module states the rules; the formulas here are the
 same (tests compare the two), see its docstring for the frame of a light's orthographic shadow map.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import torch
 
-from .. import shadow_space as rule
+from viewer.scene import shadow_space as rule
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,7 @@ class LightFrames:
 
 
 def bounding_sphere(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Centre and radius around (K, 3) points, as :func:`viewer.shadow_space.bounding_sphere`."""
+    """Centre and radius around (K, 3) points, as :func:`viewer.scene.shadow_space.bounding_sphere`."""
     c = 0.5 * (points.amin(dim=0) + points.amax(dim=0))
     r = ((points - c) ** 2).sum(dim=1).max().sqrt().clamp(min=1e-6)
     return c, r
@@ -66,7 +66,7 @@ def bounding_sphere(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 def light_frames(points: torch.Tensor, directions: torch.Tensor, resolution: int, terms: int = 4) -> LightFrames:
     """Frames of the lights ``directions`` (N, 3) for the points ``points`` (K, 3) they enclose.
 
-    Same construction as :func:`viewer.shadow_space.light_frames`: the reference axis for ``right``
+    Same construction as :func:`viewer.scene.shadow_space.light_frames`: the reference axis for ``right``
     is +y unless the light is within ~25 degrees of it, then +x; the depth range leaves
     ``depth_pad(terms)`` free at both ends.
     """
@@ -92,7 +92,7 @@ def light_frames(points: torch.Tensor, directions: torch.Tensor, resolution: int
 def receiver_coordinates(points: torch.Tensor, normals: torch.Tensor, frames: LightFrames, resolution: int):
     """Shadow-map coordinates (u, v, d) and the hard-test bias of receivers, each (N, P).
 
-    The rule of :func:`viewer.shadow_space.receiver_coordinates`: the receiver is pushed along its
+    The rule of :func:`viewer.scene.shadow_space.receiver_coordinates`: the receiver is pushed along its
     normal by NORMAL_OFFSET_TEXELS texels, and the bias is HARD_SHADOW_THRESHOLD + SLOPE_BIAS_TEXELS
     texel min(tan(theta), MAX_SLOPE) / depth range. The only departure is a 1e-12 floor under the
     square root of sin^2(theta), which keeps the gradient finite at normal incidence (a bias change

@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .file_kinds import regular_file
-from .stop_signals import deliver
+from viewer.errors import InputError
+from viewer.files.file_kinds import regular_file
+from viewer.stop_signals import deliver
 
-MARK = ("written_by", "relight")  # (key, value) inside every file this program writes (viewer.ownership)
+MARK = ("written_by", "relight")  # (key, value) inside every file this program writes (viewer.files.ownership)
 MARK_TEXT = f"{MARK[0]}: {MARK[1]}"  # the mark where a format holds one text (a JPEG comment, an MP4's comment)
 
 
@@ -50,7 +50,7 @@ def atomic_paths(*paths):
     import signal
     import threading
 
-    from .stop_signals import STOP_SIGNALS
+    from viewer.stop_signals import STOP_SIGNALS
 
     paths = [Path(p) for p in paths]
     for p in paths:

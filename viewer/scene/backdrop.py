@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .settings import MAX_BACKDROP_BLUR
+from viewer.scene.look import MAX_BACKDROP_BLUR
 
 REBLUR = 2.0  # pixels: the known Gaussian of the gradient ratio
 PRESMOOTH = 1.0  # pixels: against the sensor's noise, taken back out of the estimate

@@ -1,6 +1,6 @@
 """What this program wrote, so that it replaces only that.
 
-A file it writes carries its mark inside (``viewer.imageio.MARK``: a PNG text chunk, a JPEG comment, an EXR header
+A file it writes carries its mark inside (``viewer.files.imageio.MARK``: a PNG text chunk, a JPEG comment, an EXR header
 attribute, a JSON field, an MP4's metadata), so rendering again to the same ``-o`` replaces its own files,
 while any other file at an output path, the one named or one written beside it, is refused in one line
 unless the user says ``--force`` (:func:`refuse_foreign`). A folder it writes (a scene bundle) carries a
@@ -21,7 +21,7 @@ import os
 import secrets
 from pathlib import Path
 
-from .imageio import MARK, MARK_TEXT, ffmpeg_file, read_json
+from viewer.files.imageio import MARK, MARK_TEXT, ffmpeg_file, read_json
 
 MARKER = ".relight-written.json"
 FORMAT = "relight-written"
@@ -140,7 +140,7 @@ def file_is_ours(path) -> bool:
 def refuse_foreign(paths, force: bool = False) -> None:
     """Before any work: every path of ``paths`` that holds a file this program did not write (no
     ``MARK`` in it) is refused in one line naming it, unless ``force``."""
-    from .errors import InputError
+    from viewer.errors import InputError
 
     for p in paths:
         p = Path(p)

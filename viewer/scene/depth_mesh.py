@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scene import Scene
+from viewer.scene.bundle import Scene
 
 GAP_MIN = 0.03  # metres
 GAP_SLOPE = 8.0  # depth jump per pixel footprint (a surface at ~83 degrees to the view ray)

@@ -23,14 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from .. import shadow_space as rule
-from ..lighting.lights import AreaLights
-from ..mesh import DepthMesh, caster_points, depth_mesh, resolve_step
-from ..scene import Scene
-from . import csm, pcss
-from .brdf import diffuse_shading, specular_shading
-from .shadow_map import shadow_maps
-from .shadow_space import light_frames, receiver_coordinates
+from viewer.scene import shadow_space as rule
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.bundle import Scene
+from viewer.scene.depth_mesh import DepthMesh, caster_points, depth_mesh, resolve_step
+from viewer.twin import csm, pcss
+from viewer.twin.brdf import diffuse_shading, specular_shading
+from viewer.twin.shadow_geometry import light_frames, receiver_coordinates
+from viewer.twin.shadow_map import shadow_maps
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,7 @@ class SceneTensors:
     """A scene's masked pixels on a device and its decimated depth mesh, ready for repeated renders.
 
     Per masked pixel (P of them, row-major order): camera-space point, normal, albedo, specular,
-    roughness; ``casters`` are what the shadow-map frames enclose (:func:`viewer.mesh.caster_points`).
+    roughness; ``casters`` are what the shadow-map frames enclose (:func:`viewer.scene.depth_mesh.caster_points`).
     """
 
     height: int
@@ -83,7 +83,7 @@ class SceneTensors:
 
     @staticmethod
     def from_scene(scene: Scene, shadow_step: int = 0, device=None, dtype=torch.float32) -> SceneTensors:
-        """``shadow_step`` 0 picks the GL engine's automatic decimation (:func:`viewer.mesh.resolve_step`)."""
+        """``shadow_step`` 0 picks the GL engine's automatic decimation (:func:`viewer.scene.depth_mesh.resolve_step`)."""
         device = torch.device(device) if device is not None else torch.get_default_device()
         mask = scene.mask
 

@@ -1,0 +1,30 @@
+"""Images resized and sizes scaled, the one way every stage does it: an area average when shrinking,
+bilinear when enlarging (OpenCV), sizes scaled to a longer side. At the bottom of the package: the
+scene bundle resamples its maps with it, the photo stages their frames."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def scaled_size(size: tuple[int, int], longest: int) -> tuple[int, int]:
+    """``size`` (w, h) scaled so the longer side is ``longest`` (never below 1 pixel)."""
+    w, h = size
+    s = longest / max(w, h)
+    return max(int(round(w * s)), 1), max(int(round(h * s)), 1)
+
+
+def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``image`` (H, W[, C]) resized to ``size`` = (w, h): area average when shrinking, bilinear
+    when enlarging (OpenCV; float32 or uint8 kept)."""
+    import cv2
+
+    h, w = image.shape[:2]
+    if (w, h) == tuple(size):
+        return image
+    shrink = size[0] <= w and size[1] <= h
+    channels = image.shape[2] if image.ndim == 3 else 0
+    if channels > 4:  # OpenCV resizes up to 4 channels at a time
+        return np.concatenate([resize(image[..., i:i + 4], size) for i in range(0, channels, 4)], axis=-1)
+    out = cv2.resize(image, tuple(int(v) for v in size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+    return out[..., None] if channels == 1 else out
