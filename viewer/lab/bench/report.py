@@ -141,7 +141,7 @@ def renderer_code_hash() -> str:
 
     product, here = Path(__file__).resolve().parents[2], Path(__file__).resolve().parent
     files = sorted(shader_dir().glob("*.glsl")) + sorted((product / "gl").rglob("*.py")) + sorted((product / "twin").rglob("*.py"))
-    files += [product / name for name in ("mesh.py", "shadow_space.py", "lighting/sh.py", "lighting/lights.py", "scene.py", "scene_ops.py")]
+    files += sorted((product / "scene").rglob("*.py")) + [product / "lighting" / "sh.py"]
     files += [here / name for name in ("methods.py", "metrics.py", "cases.py")]
     h = hashlib.sha256()
     for f in files:
