@@ -10,6 +10,7 @@ from viewer.gl import Engine, EngineOptions
 from viewer.gl.prefilter import blur_plan
 from viewer.lab.scenes import plane_and_box
 from viewer.scene.area_lights import AreaLights
+from viewer.scene.look import Look
 
 
 def relook(eng, **changes):
@@ -479,7 +480,10 @@ def test_frame_cache_rules(ctx, scene):
 
     assert delta(lambda: relook(eng, exposure=1.0)) == {"frame_composite": 1}
     assert delta(lambda: relook(eng, background_color=(0.5, 0.2, 0.1))) == {"frame_background": 1, "frame_composite": 1}
-    assert delta(lambda: relook(eng, yaw=30.0)) == {"frame_background": 1, "frame_composite": 1}
+    # the yaw turns the lights and the map behind together (Engine.set_look): the lights' shadows and
+    # their light pass, then the frame
+    assert delta(lambda: relook(eng, yaw=30.0)) == {"shadow_map": 2, "light_pass": 1, "composite": 1, "frame_mipmaps": 1,
+                                                     "frame_background": 1, "frame_composite": 1}
     assert delta(lambda: eng.set_environment(np.ones((8, 16, 3), np.float32))) == {"frame_background": 1, "frame_composite": 1}
     assert delta(lambda: eng.set_lights(lights.scaled(2.0))) == {"composite": 1, "frame_mipmaps": 1, "frame_composite": 1}
     assert delta(lambda: eng.set_view("albedo")) == {"display": 1}  # an inspection view: the frame passes wait
@@ -624,3 +628,37 @@ def test_shading_views_are_exposed_for_display_not_clipped_to_white(ctx, scene):
     shading = eng.output.read_display()[scene.mask].astype(np.float32)
     assert (shading >= 254).all(axis=-1).mean() < 0.01 and shading.max() > 120  # ...which shows, unclipped
     eng.release()
+
+
+def test_the_engine_applies_the_whole_look(ctx, scene):
+    """The look's yaw and tilt turn the map's lights (with the map behind), its intensity scales
+    them, its placed intensity the placed lights, which stay fixed to the camera; the background
+    falls back to what the scene has. Callers hand the lights as fitted and the look as asked."""
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.5, 0.2, 1.0]]), [3.0, 6.0], [[1, 1, 1], [0.5, 0.4, 0.3]])
+    placed = AreaLights(unit([[0.0, 0.2, 1.0]]), [2.0], [[0.7, 0.7, 0.7]])
+    eng = make_engine(ctx, scene)
+    eng.set_lights(lights, placed)
+    eng.set_look(Look(yaw=40.0, tilt=-10.0, intensity=2.0, placed_intensity=0.5, background="color"))
+    want = lights.rotated(40.0, -10.0).scaled(2.0).followed_by(placed.scaled(0.5))
+    np.testing.assert_array_equal(eng.lights.direction, want.direction)
+    np.testing.assert_array_equal(eng.lights.intensity, want.intensity)
+    eng.render()
+    turned = eng.output.read_hdr()
+    eng.set_look(Look(background="color"))  # back to yaw 0: the lights as given
+    np.testing.assert_array_equal(eng.lights.direction, lights.followed_by(placed).direction)
+    other = make_engine(ctx, scene)  # the same picture from the lights turned by hand, as callers did before
+    other.set_lights(want)
+    other.set_look(Look(background="color"))
+    np.testing.assert_array_equal(other.render().output.read_hdr(), turned)
+    # no map and no photo behind: the background asked for falls back, no error
+    assert scene.background is None
+    for asked in ("environment", "photo"):
+        eng.set_look(Look(background=asked))
+        assert eng.look.background == "color" and eng.looks.asked.background == asked
+    eng.set_environment(np.ones((8, 16, 3), np.float32))
+    eng.set_look(Look(background="environment"))
+    assert eng.look.background == "environment"
+    eng.set_environment(None)  # a look lit by a light file after one with a map
+    assert eng.look.background == "color"
+    eng.release()
+    other.release()

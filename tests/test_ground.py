@@ -215,6 +215,9 @@ def test_the_ground_shows_by_default_when_the_feet_are_in_the_frame(ctx, person)
     eng = Engine(ctx, person, EngineOptions(shadow_resolution=256))
     eng.set_lights(sun_and_sky())
     assert eng.feet
+    eng.set_look(Look(background="environment"))
+    assert not eng.ground_shown and eng.look.background != "environment"  # no map yet: the background falls back
+    eng.set_environment(np.ones((8, 16, 3), np.float32))
     for background, ground, shown in (("environment", "auto", True), ("color", "auto", False),
                                       ("environment", False, False), ("color", True, True)):
         eng.set_look(Look(background=background, ground=ground))

@@ -15,7 +15,6 @@ from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.output.render import apply_settings
 from viewer.photo import matting
 from viewer.photo.detail import detail_albedo
 from viewer.photo.inference import (
@@ -101,7 +100,8 @@ def test_a_real_photo_becomes_a_bundle_in_its_own_frame(landscape_bundle, ctx):
 def _own_lights_error(ctx, scene, lights):
     engine = Engine(ctx, scene, EngineOptions())
     try:
-        apply_settings(engine, scene, lights, Look(exposure=0.0, background="photo"), has_environment=False)
+        engine.set_lights(lights)
+        engine.set_look(Look(exposure=0.0, background="photo"))
         hdr = engine.render().output.read_hdr()
         assert engine.output.read_display().shape == (1302, 1950, 3)
     finally:
@@ -333,7 +333,8 @@ def test_inspection_views_keep_the_frame_size(landscape_bundle, ctx):
     scene = load_scene(out)
     eng = Engine(ctx, scene, EngineOptions())
     try:
-        apply_settings(eng, scene, load_lights(out / "lights.json"), Look(exposure=0.0), has_environment=False)
+        eng.set_lights(load_lights(out / "lights.json"))
+        eng.set_look(Look(exposure=0.0))
         final = eng.render().output.read_display()
         eng.set_view("normal")
         normal = eng.render().output.read_display()
@@ -376,7 +377,8 @@ def test_what_a_mask_file_includes_is_kept_and_lit_as_the_person(ctx, tmp_path):
     work = (slice(int(core[0].start * wy) + 1, int(core[0].stop * wy) - 1), slice(int(core[1].start * wx) + 1, int(core[1].stop * wx) - 1))
     assert scene.mask[work].all() and np.isfinite(scene.depth[work]).all()
     eng = Engine(ctx, scene, EngineOptions())
-    apply_settings(eng, scene, result["lights"], Look(exposure=0.0, background="color"), False)
+    eng.set_lights(result["lights"])
+    eng.set_look(Look(exposure=0.0, background="color"))
     eng.render()
     hdr = eng.output.read_output_hdr()[..., :3]
     eng.release()

@@ -13,7 +13,7 @@ from viewer.cli.main import main
 from viewer.errors import InputError
 from viewer.files.imageio import read_exr, read_png
 from viewer.gl import Engine, EngineOptions
-from viewer.output.render import apply_settings, render_turntable, turntable_yaws
+from viewer.output.render import render_turntable, turntable_yaws
 from viewer.output.temporal import drmse, flicker_ratio
 from viewer.output.video import VideoWriter, read_video
 from viewer.resources import asset_dir, sample_scene_dir
@@ -62,7 +62,8 @@ def test_turntable_is_temporally_stable(ctx, tmp_path):
         eng = Engine(ctx, scene, options)
         out = []
         for yaw in turntable_yaws(180.0, 360.0, 32):
-            apply_settings(eng, scene, lights, Look(yaw=float(yaw), background="color"), False)
+            eng.set_lights(lights)
+            eng.set_look(Look(yaw=float(yaw), background="color"))
             eng.render()
             out.append(eng.output.read_display().astype(np.float32) / 255.0)
         eng.release()

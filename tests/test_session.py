@@ -9,7 +9,6 @@ from viewer.app.session import PREVIEW_SIZE, Session
 from viewer.gl import Engine, EngineOptions
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.map_lights import sidecar_lights
-from viewer.output.render import apply_settings
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene.area_lights import load_lights
 from viewer.scene.bundle import load_scene
@@ -28,7 +27,8 @@ def test_session_final_and_preview(ctx):
     final = s.render(preview=False)
     ref = Engine(ctx, scene, EngineOptions())
     ref.set_environment(env)
-    apply_settings(ref, scene, lights.with_sigma(0, 12.0), Look(yaw=150.0, exposure=0.5), True)
+    ref.set_lights(lights.with_sigma(0, 12.0))
+    ref.set_look(Look(yaw=150.0, exposure=0.5))
     ref.render()
     np.testing.assert_array_equal(final.output.read_display(), ref.output.read_display())
     ref.release()

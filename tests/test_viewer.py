@@ -19,7 +19,6 @@ from viewer.files.imageio import read_exr, read_png
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.metrics import detail_kept
 from viewer.lab.bench.viewer import x_display
-from viewer.output.render import apply_settings
 from viewer.output.video import partial_path, read_video
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene.area_lights import facing_yaw, load_lights
@@ -129,7 +128,8 @@ def headless(ctx):
 
 def render_hdr(headless, yaw, lights=None):
     scene, base, engine = headless
-    apply_settings(engine, scene, lights or base, Look(yaw=yaw), True)
+    engine.set_lights(lights or base)
+    engine.set_look(Look(yaw=yaw))
     engine.render()
     return engine.output.read_output_hdr()[..., :3]  # what a saved frame's EXR holds: the display's HDR, background included
 
@@ -510,7 +510,8 @@ def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, 
     engine = Engine(ctx, scene, p.options)
     engine.set_environment(load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr").pixels)
     yaw = saved["look"]["yaw"]  # the saved lights are turned by the look's yaw (tilt 0)
-    apply_settings(engine, scene, lights.rotated(-yaw), Look(yaw=yaw), True)
+    engine.set_lights(lights.rotated(-yaw))
+    engine.set_look(Look(yaw=yaw))
     engine.render()
     expected = engine.output.read_output_hdr()[..., :3]
     engine.release()

@@ -18,7 +18,6 @@ import numpy as np
 
 from viewer.gl import Engine, EngineOptions
 from viewer.lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
-from viewer.output.render import effective_background
 from viewer.resize import scaled_size
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import Scene
@@ -160,7 +159,7 @@ class Session:
     @property
     def ground_shown(self) -> bool:
         """Whether the ground shadow shows (the look's "auto" resolved for this scene and background)."""
-        return self.look.ground_shown(self.final.feet, effective_background(self.look, self.scene, self.environment is not None))
+        return self.look.ground_shown(self.final.feet, self.final.looks.resolved(self.look).background)
 
     # ------------------------------------------------------------------ engines
     def _engines(self):
@@ -207,11 +206,11 @@ class Session:
         shadows = lk.shadows
         if preview and shadows in ("soft", "refined"):
             shadows = "hard" if hard else "soft"
-        eng.set_lights(self.rendered_lights())
+        # the engine turns and scales them by the look (its yaw, tilt and intensities)
+        eng.set_lights(AreaLights(self.base_lights.direction, self.sigma, self.base_lights.intensity), to_area_lights(self.placed))
         # the drag preview leaves the light scattered under the skin out: ~20 ms a frame for a change
         # of at most 2 % at a face's steepest edges (docs/photos.md)
-        eng.set_look(replace(lk, background=effective_background(lk, self.scene, self.environment is not None),
-                             shadows=shadows, skin=lk.skin and not preview))
+        eng.set_look(replace(lk, shadows=shadows, skin=lk.skin and not preview))
         eng.render(budget, display)
         if not eng.complete:
             return self._outgoing if self._outgoing is not None and not preview else eng

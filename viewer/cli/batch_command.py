@@ -152,7 +152,7 @@ def resolve_looks(specs, args) -> list:
                 continue
             lights, sha = found[(source, n)]
             yaw = facing_yaw(lights) if spec.yaw == "auto" else float(spec.yaw)
-            look = look.replace(yaw=yaw)  # no map behind a light file's look: the photo's background (render.effective_background)
+            look = look.replace(yaw=yaw)  # no map behind a light file's look: the engine falls back to the photo's background
             rig = to_area_lights(load_rig(spec.rig)).to_array() if spec.rig is not None else None
             looks.append(ResolvedLook(spec, look.to_json(), _options(engine_options(args, look)), lights.to_array(), rig, sha,
                                       file_sha256(spec.rig) if spec.rig is not None else ""))

@@ -1,27 +1,9 @@
 """The GL engine: renders a scene bundle under a set of area lights, redoing only what changed.
 
 The engine only orders the passes and tracks what changed; each pass is an object that owns its GL
-resources and names, in ``inputs``, what makes its result stale (docs/engine.md's cache table is
-these declarations):
-
-  per light (each light owns its shadow map and CSM atlases, viewer/gl/light.py)
-    1 ShadowMapPass      inputs: direction              (shadow_passes.py)
-    2 CsmBasisPass       inputs: shadow_map, sigma
-    3 PrefilterPass      inputs: csm_basis
-    4 LightShadingPass   inputs: direction, shadow_map, prefilter (CSM) or sigma (PCSS: no 2 and 3); four lights per
-                         pass (light_pass.py)
-  for the frame
-    5 CompositePass      inputs: light_pass, intensity, activity, visibility, refined_visibility, terms
-    6 DisplayPass        inputs: composite (mask's box); display, view, environment (whole image)
-  a scene with a frame layer (frame_pass.py), in place of 6
-    7 FrameBackgroundPass  inputs: background, environment
-      FrameMipmapsPass     inputs: composite, view
-      SkinScatterPass      inputs: frame_mipmaps, skin (a frame with skin: skin_pass.py)
-    8 FrameCompositePass   inputs: composite, skin, skin_scatter (matte's box); display, view, environment (whole frame)
-  the inspection views (InspectPass) draw in place of 6 / 8.
-  with Look.ground (ground_pass.py), before 6 / 8
-    9 GroundShadowPass   inputs: light_pass, intensity, activity, ground, visibility; 6 and 8 redraw the
-                         whole image when it ran
+resources and names, in ``inputs``, what makes its result stale. The passes, their order and their
+inputs are written in one place, docs/engine.md's cache table, which ``tests/test_engine.py`` holds
+to these declarations.
 
 Reading results back is the other half of the interface (``output``, outputs.py); the final
 picture, an image or a photo's frame, is one object with one interface (picture.py); the look and
@@ -80,6 +62,7 @@ class Engine:
         res = self.resources = SceneResources(kit, scene, o.shadow_step)
         self.shadow_step = res.shadow_step
         self._lights: list[Light] = []
+        self._given: tuple[AreaLights, AreaLights | None] | None = None  # set_lights' map and placed lights
         self._specular = scene.has_specular or not o.leave_out
         # the passes, in the order they run
         self.shadow_map_pass = ShadowMapPass(kit, res, o.shadow_resolution)
@@ -123,9 +106,13 @@ class Engine:
                           np.array([l.intensity for l in ls]).reshape(-1, 3))
 
     @in_context
-    def set_lights(self, lights: AreaLights):
-        """Replace the light set; only what changed is marked for recomputation."""
-        lights.validate()
+    def set_lights(self, lights: AreaLights, placed: AreaLights | None = None):
+        """The map's lights as fitted, which the look turns (yaw, tilt) and scales (intensity) with the
+        map behind, and ``placed`` lights fixed to the camera; only what changed is redone."""
+        self._given = (lights.validate(), placed if placed is None else placed.validate())
+        self._set_turned(self.looks.turned(lights, placed).validate())  # together within MAX_LIGHTS too
+
+    def _set_turned(self, lights: AreaLights):
         if len(lights) != len(self._lights):
             for l in self._lights:
                 l.release()
@@ -162,11 +149,15 @@ class Engine:
             self.stale.changed("activity")
 
     def set_look(self, look: Look):
-        """What the user sees (:class:`viewer.scene.look.Look`, validated there): the display settings,
-        the shadow mode, the terms and the view. The lights' rotation and intensity are the caller's
-        (``set_lights``); here yaw and tilt turn the environment background."""
+        """What the user sees (:class:`viewer.scene.look.Look`, validated there), all of it: yaw and
+        tilt turn the map's lights and the map behind together, the intensities scale the lights,
+        the background falls back to what the scene has (:meth:`LookState.resolved`), and the
+        display settings, shadow mode, terms and view follow."""
         self.looks.check(look, len(self._lights))
+        turns = self.looks.turns(look)
         self._apply_look(look)
+        if turns and self._given is not None:
+            self._set_turned(self.looks.turned(*self._given).validate())
 
     def _apply_look(self, look: Look):
         for what in self.looks.replace(look):
@@ -191,9 +182,9 @@ class Engine:
         return self.looks.shown([l.intensity for l in self._lights if l.active])
 
     @in_context
-    def set_environment(self, pixels: np.ndarray):
+    def set_environment(self, pixels: np.ndarray | None):
         """Upload an equirectangular map (H, W, 3) linear RGB for the 'environment' background
-        (blurred by the look's backdrop blur)."""
+        (blurred by the look's backdrop blur); None: no map behind (the look's background falls back)."""
         for what in self.looks.set_environment(pixels):
             self.stale.changed(what)
 
@@ -202,14 +193,14 @@ class Engine:
         'refined' (the refinement network's, see ``set_refined_visibility``; soft until it is set)."""
         if mode not in VISIBILITY_MODES:
             raise ValueError(f"visibility must be one of {', '.join(VISIBILITY_MODES)}, got {mode!r}")
-        self.set_look(self.look.replace(shadows=mode))
+        self.set_look(self.looks.asked.replace(shadows=mode))
 
     def set_view(self, view: str = "final", light: int = 0):
         """What the display image shows (``VIEWS``): the relit frame; the diffuse or specular shading
         alone; the albedo, normal, depth, specular or roughness map; or light ``light``'s shadow
         (its visibility under the current shadow mode, soft when no shadows are shown). Checked
         where every look is: ``Look`` (the view) and ``set_look`` (the light's index)."""
-        self.set_look(self.look.replace(view=view, light=int(light) if view == "shadow" else self.look.light))
+        self.set_look(self.looks.asked.replace(view=view, light=int(light) if view == "shadow" else self.look.light))
 
     def _drop_refined(self):
         """The lights' shadows changed: the refined visibility no longer applies (the composite

@@ -1,6 +1,7 @@
-"""What the engine shows apart from the lights: the user's :class:`~viewer.scene.look.Look`, the map
-behind the person (uploaded blurred as the look's backdrop asks), and which of the passes' inputs a
-new look changes. The engine marks those inputs changed; this module decides nothing else."""
+"""What the engine shows: the user's :class:`~viewer.scene.look.Look` applied whole (the lights turned
+and scaled by it, its background fallen back to what the scene has), the map behind the person
+(uploaded blurred as the look's backdrop asks), and which of the passes' inputs a new look changes.
+The engine marks those inputs changed."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.gl.scene_resources import SceneResources
 from viewer.lighting.median_cut import LUMINANCE
+from viewer.scene.area_lights import AreaLights
 from viewer.scene.backdrop import blurred_map
 from viewer.scene.bundle import Scene
 from viewer.scene.look import AUTO, EXPOSURE_LIMIT, Look
@@ -18,6 +20,7 @@ from viewer.scene.look import AUTO, EXPOSURE_LIMIT, Look
 SHADING_VIEWS = ("diffuse_shading", "specular_shading")  # one term of the composite, shown alone
 DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color", "compare")
 BACKGROUND_FIELDS = ("yaw", "tilt", "background", "background_color")  # what the frame background shows
+LIGHT_FIELDS = ("yaw", "tilt", "intensity", "placed_intensity")  # what turns or scales the lights
 
 
 class LookState:
@@ -25,8 +28,31 @@ class LookState:
 
     def __init__(self, scene: Scene, resources: SceneResources, feet: bool):
         self.scene, self.resources, self.feet = scene, resources, feet
-        self.look = Look(background="color", background_color=(0.0, 0.0, 0.0))  # no background until one is set
+        # the look as asked, and as shown: its background fallen back to what the scene has (resolved)
+        self.asked = self.look = Look(background="color", background_color=(0.0, 0.0, 0.0))  # no background until one is set
         self._environment, self._uploaded_sigma = None, None  # the map as given; the blur it was uploaded with
+
+    def resolved(self, look: Look) -> Look:
+        """``look`` with the background it asks for, or what the scene has: the map behind, else
+        the photo's background, else a plain colour."""
+        background = look.background
+        if background == "environment" and self._environment is None:
+            background = "photo" if self.scene.background is not None else "color"
+        if background == "photo" and self.scene.background is None:
+            background = "color"
+        return look if background == look.background else look.replace(background=background)
+
+    def turns(self, look: Look) -> bool:
+        """Whether ``look`` turns or scales the lights differently from the current one."""
+        return any(getattr(look, f) != getattr(self.asked, f) for f in LIGHT_FIELDS)
+
+    def turned(self, lights: AreaLights, placed: AreaLights | None) -> AreaLights:
+        """The lights the engine renders under the current look: the map's turned by its yaw and
+        tilt and scaled by its intensity, then the placed ones, fixed to the camera, scaled by its
+        placed intensity."""
+        look = self.asked
+        out = lights.rotated(look.yaw, look.tilt).scaled(look.intensity)
+        return out if placed is None else out.followed_by(placed.scaled(look.placed_intensity))
 
     @property
     def ground_shown(self) -> bool:
@@ -63,10 +89,16 @@ class LookState:
             return self.scene.frame.background_blur if self.scene.frame is not None else 0.0
         return float(np.radians(blur))
 
-    def set_environment(self, pixels: np.ndarray) -> list[str]:
-        """A new map behind the person (H, W, 3) linear RGB; returns the inputs it changed."""
+    def set_environment(self, pixels: np.ndarray | None) -> list[str]:
+        """A new map behind the person (H, W, 3) linear RGB, or None: none (a look lit by a light
+        file); returns the inputs it changed (the background too where the look's falls back
+        differently)."""
+        had = self._environment is not None
+        if pixels is None:
+            self._environment = None
+            return self.replace(self.asked) if had else []
         self._environment = np.asarray(pixels, dtype=np.float32)
-        return self._upload()
+        return self._upload() + ([] if had else self.replace(self.asked))
 
     def _upload(self) -> list[str]:
         sigma = self.backdrop_sigma
@@ -75,17 +107,15 @@ class LookState:
         return ["environment"]
 
     def check(self, look: Look, light_count: int):
-        """What a look may ask of this scene: a photo behind it only if the bundle has one, the
-        shadow view of a light that exists."""
-        if look.background == "photo" and self.scene.background is None and self.scene.frame is None:
-            raise InputError(None, "this scene bundle has no background image (background.png)")
+        """What a look may ask of this scene: the shadow view of a light that exists."""
         if look.view == "shadow" and not look.light < light_count:
             raise InputError(None, f"no light {look.light}: there are {light_count}")
 
     def replace(self, look: Look) -> list[str]:
-        """Show ``look`` from now on; returns the passes' inputs it changed, in order."""
+        """Show ``look`` (:meth:`resolved`) from now on; returns the passes' inputs it changed, in order."""
         old, terms, ground = self.look, self.composite_terms(), self.ground_shown
-        self.look = look
+        self.asked, self.look = look, self.resolved(look)
+        look = self.look
         changed = []
         if self._environment is not None and self.backdrop_sigma != self._uploaded_sigma:
             changed += self._upload()

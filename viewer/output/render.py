@@ -102,27 +102,6 @@ def _lit(lights: AreaLights, fixed: AreaLights | None) -> bool:
     return bool(np.any(lights.intensity > 0) or (fixed is not None and np.any(fixed.intensity > 0)))
 
 
-def effective_background(settings: Look, scene: Scene, has_environment: bool) -> str:
-    """The requested background, falling back to the photo's, then to a plain colour."""
-    background = settings.background
-    if background == "environment" and not has_environment:
-        background = "photo" if scene.background is not None else "color"
-    if background == "photo" and scene.background is None:
-        background = "color"
-    return background
-
-
-def apply_settings(engine, scene: Scene, lights: AreaLights, settings: Look, has_environment: bool,
-                   fixed: AreaLights | None = None):
-    """Set the engine's lights (rotated by yaw / tilt, the environment background with them; then
-    the ``fixed`` ones, placed lights that do not turn), shadow mode and display; the caller renders."""
-    turned = lights.rotated(settings.yaw, settings.tilt).scaled(settings.intensity)
-    if fixed is not None:
-        turned = turned.followed_by(fixed.scaled(settings.placed_intensity))
-    engine.set_lights(turned)
-    engine.set_look(replace(settings.fitted(len(turned)), background=effective_background(settings, scene, has_environment)))
-
-
 def resolve_exposure(engine, scene: Scene, settings: Look, soft_planes: bool = False) -> Look:
     """``settings`` with an "auto" exposure replaced by :func:`photo_exposure` of a render of
     them up to the display (which the exposure changes alone)."""
@@ -152,11 +131,12 @@ def render_look(engine, scene: Scene, lights: AreaLights, settings: Look, enviro
     look ``settings``, the map ``environment`` behind (None: none given); returns (the look with an
     "auto" exposure resolved, the refiner :func:`render_frame` used). ``soft_planes``: see
     ``Engine.render``."""
-    if environment is not None:
-        engine.set_environment(environment)
-    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
+    engine.set_environment(environment)
+    engine.set_lights(lights, fixed)
+    settings = settings.fitted(len(engine.lights))  # a look saved with more lights than these
+    engine.set_look(settings)
     settings = resolve_exposure(engine, scene, settings, soft_planes)
-    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
+    engine.set_look(settings)
     return settings, render_frame(engine, settings, refiner, soft_planes)
 
 
@@ -164,12 +144,12 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
                     environment: np.ndarray | None = None, passes: bool = True, fixed: AreaLights | None = None,
                     png_name: str | None = None) -> list[Path]:
     """Render and write ``name.png`` (display; ``png_name``: the name as the user typed it, its case
-    kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, see :func:`apply_settings`)."""
+    kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, ``Engine.set_lights``)."""
     out_dir = Path(out_dir)
     settings, _ = render_look(engine, scene, lights, settings, environment, fixed, soft_planes=passes)
     warn_if_white(engine, scene, settings)
     warn_if_black(engine, scene, settings, _lit(lights, fixed))
-    transparent = effective_background(settings, scene, environment is not None) == "transparent"
+    transparent = engine.look.background == "transparent"
     display = (engine.output.read_display_rgba() if transparent else engine.output.read_display()).astype(np.float32) / 255.0
     hdr = engine.output.read_output_hdr()
     # the sheet shows both visibilities: rendered with the soft one whatever the shadows shown
@@ -202,15 +182,16 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
 
     if frames < 1:
         raise InputError(path, f"a video needs at least one frame, got {frames}")
-    if environment is not None:
-        engine.set_environment(environment)
+    engine.set_environment(environment)
     refiner = None
-    apply_settings(engine, scene, lights, settings, environment is not None, fixed)
+    engine.set_lights(lights, fixed)
+    settings = settings.fitted(len(engine.lights))
+    engine.set_look(settings)
     settings = resolve_exposure(engine, scene, settings)  # one exposure for the whole turn
     width, height = engine.output_size
     with VideoWriter(path, width, height, fps=fps) as video:
         for i, yaw in enumerate(turntable_yaws(settings.yaw, turn, frames)):
-            apply_settings(engine, scene, lights, replace(settings, yaw=float(yaw)), environment is not None, fixed)
+            engine.set_look(replace(settings, yaw=float(yaw)))
             refiner = render_frame(engine, settings, refiner)
             if i == 0:
                 warn_if_white(engine, scene, settings)

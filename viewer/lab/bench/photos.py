@@ -44,7 +44,7 @@ from viewer.gl.context import describe
 from viewer.lab.bench.metrics import detail_kept, light_moved, metrics
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
-from viewer.output.render import apply_settings, render_look
+from viewer.output.render import render_look
 from viewer.photo import detail as detail_mod
 from viewer.photo.inference import infer_scene, load_networks, with_detail
 from viewer.photo.photo_frame import read_photo
@@ -217,7 +217,8 @@ def transparent_render(ctx, scene, specular: bool = True) -> np.ndarray:
     eng = Engine(ctx, scene, EngineOptions())
     try:
         look = Look(exposure=0.0, background="transparent", ground=False, specular=specular)
-        apply_settings(eng, scene, neutral_lights(), look, False)
+        eng.set_lights(neutral_lights())
+        eng.set_look(look)
         eng.render()
         hdr = eng.output.read_output_hdr()
         alpha = hdr[..., 3:]
@@ -254,7 +255,8 @@ def _matte_in_output(path: Path, photo: np.ndarray, frame_size, ctx, nets, resul
 def _own_lights(eng, scene, lights) -> dict:
     """The output relit under the photo's own fitted lights against the photo, over the solid
     matte (alpha > 0.99): PSNR (display sRGB) and mean relative error (linear)."""
-    apply_settings(eng, scene, lights, Look(exposure=0.0, background="photo"), False)
+    eng.set_lights(lights)
+    eng.set_look(Look(exposure=0.0, background="photo"))
     hdr = eng.render().output.read_hdr()
     m = scene.frame.alpha > 0.99
     a, b = np.clip(linear_to_srgb(hdr[m]), 0, 1), np.clip(linear_to_srgb(scene.frame.photo[m]), 0, 1)
@@ -267,17 +269,18 @@ def _frame_times(eng, lights, env_lights) -> dict:
     one light's sigma (the sliders)."""
     env, lights = env_lights
     eng.set_environment(env.pixels)
-    state = {"yaw": 0.0, "k": 0}
+    eng.set_lights(lights)
+    state = {"yaw": eng.looks.asked.yaw, "k": 0}
 
-    def turn():
+    def turn():  # the engine turns the lights by the look's yaw
         state["yaw"] += 7.0
-        eng.set_lights(lights.rotated(state["yaw"]))
+        eng.set_look(eng.looks.asked.replace(yaw=state["yaw"]))
         eng.render()
         eng.output.read_display()
 
     def intensity():
         state["k"] += 1
-        eng.set_lights(AreaLights(lights.direction, lights.sigma, lights.intensity * (1.0 + 0.01 * state["k"])).rotated(state["yaw"]))
+        eng.set_lights(AreaLights(lights.direction, lights.sigma, lights.intensity * (1.0 + 0.01 * state["k"])))
         eng.render()
         eng.ctx.finish()
 
@@ -286,7 +289,7 @@ def _frame_times(eng, lights, env_lights) -> dict:
         s = lights.sigma.copy()
         shading = [i for i in np.argsort(-lights.intensity.sum(axis=1)) if eng.light_active(int(i))]
         s[int(shading[0])] = 2.0 + state["k"] % 7
-        eng.set_lights(AreaLights(lights.direction, s, lights.intensity).rotated(state["yaw"]))
+        eng.set_lights(AreaLights(lights.direction, s, lights.intensity))
         eng.render()
         eng.ctx.finish()
 
@@ -330,7 +333,8 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
                 sc = _with_detail(result, method)
                 eng = Engine(ctx, sc, EngineOptions())
                 try:
-                    apply_settings(eng, sc, lights, Look(exposure=0.0, shadows="soft", background="color"), False)
+                    eng.set_lights(lights)
+                    eng.set_look(Look(exposure=0.0, shadows="soft", background="color"))
                     relit = resize(eng.render().output.read_hdr(), (truth.shape[1], truth.shape[0]))
                 finally:
                     eng.release()

@@ -14,7 +14,7 @@ import numpy as np
 from viewer.files.imageio import write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.gl.context import describe
-from viewer.output.render import apply_settings, turntable_yaws
+from viewer.output.render import turntable_yaws
 from viewer.output.temporal import drmse, flicker_ratio
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene.area_lights import load_lights
@@ -38,7 +38,8 @@ def _turn(ctx, scene, lights, options, visibility):
     eng = Engine(ctx, scene, options)
     frames, times = [], []
     for yaw in turntable_yaws(0.0, 360.0, FRAMES):
-        apply_settings(eng, scene, lights, Look(yaw=float(yaw), background="color", shadows=visibility), False)
+        eng.set_lights(lights)
+        eng.set_look(Look(yaw=float(yaw), background="color", shadows=visibility))
         t = time.perf_counter()
         eng.render()
         ctx.finish()

@@ -71,11 +71,12 @@ def _times(engine, lighting, repeats: int) -> dict:
     for name in ("turn", "sigma"):
         times = []
         for i in range(repeats):
-            turned = lights.rotated(yaw + (0.5 * (i % 2 + 1) if name == "turn" else 0.0))
+            changed = lights
             if name == "sigma":
-                k = turned.brightest
-                turned = turned.with_sigma(k, float(turned.sigma[k]) * (1.0 + 0.05 * (i % 2 + 1)))
-            engine.set_lights(turned.followed_by(fixed) if fixed is not None else turned)
+                k = lights.brightest
+                changed = lights.with_sigma(k, float(lights.sigma[k]) * (1.0 + 0.05 * (i % 2 + 1)))
+            engine.set_lights(changed, fixed)  # turned by the look's yaw, in the engine
+            engine.set_look(engine.looks.asked.replace(yaw=yaw + (0.5 * (i % 2 + 1) if name == "turn" else 0.0)))
             t0 = time.perf_counter()
             engine.render()
             engine.ctx.finish()
