@@ -22,8 +22,8 @@ from viewer.scene.area_lights import azimuth_elevation
 from viewer.scene.look import VIEWS
 from viewer.scene.shadow_space import ANGULAR_SIGMA
 
-MAX_LIGHTS = 64
-SIGMA_MAX = 30.0  # slider range (256-px units; the fitted lights use 0 to 20)
+LIGHT_COUNT_SLIDER = 64  # the map's lights the slider offers (the final preset's count; a light file holds up to area_lights.MAX_LIGHTS)
+SIGMA_SLIDER = 30.0  # the size sliders' top, sigma units (the fits give at most light_size.SIGMA_MAX, 20)
 DEG_PER_SIGMA = math.degrees(ANGULAR_SIGMA)  # the slider shows a light's size: its angular sigma in degrees
 
 
@@ -206,7 +206,7 @@ def _lights(app):
         return
     imgui.set_next_item_width(140)
     shown = app.panel.light_count if app.panel.light_count is not None else app.n_lights
-    changed, count = imgui.slider_int("number of lights", shown, 1, MAX_LIGHTS)
+    changed, count = imgui.slider_int("number of lights", shown, 1, LIGHT_COUNT_SLIDER)
     _remember(app, "number of lights")
     if changed:
         app.panel.light_count = count
@@ -239,7 +239,7 @@ def _lights(app):
             s.update(view="shadow", light=i) if not selected else s.update(view="final")
         imgui.same_line()
         imgui.set_next_item_width(-1)
-        changed, size = imgui.slider_float("##sigma", float(s.sigma[i]) * DEG_PER_SIGMA, 0.0, SIGMA_MAX * DEG_PER_SIGMA,
+        changed, size = imgui.slider_float("##sigma", float(s.sigma[i]) * DEG_PER_SIGMA, 0.0, SIGMA_SLIDER * DEG_PER_SIGMA,
                                            "%.1f deg")
         _remember(app, f"sigma {i}")
         if changed:

@@ -7,12 +7,11 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from viewer.cli.shared_options import add_engine_args, add_view_args, auto_or
+from viewer.cli.shared_options import add_engine_args, add_map_light_args, add_view_args, auto_or
 from viewer.errors import InputError
 
 
 def add_batch_parser(sub) -> None:
-    from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 
     p = sub.add_parser("batch", help="relight folders of photos under several looks: every photo inferred once, every "
                        "map fitted once, renders on worker processes or a Ray cluster, a manifest, resumable")
@@ -23,8 +22,7 @@ def add_batch_parser(sub) -> None:
                    help="yaws of every look, degrees, or auto (default): the brightest light turned to the camera")
     p.add_argument("--rig", dest="rigs", nargs="+", default=[], help="rigs (placed lights saved by the viewer): each look "
                    "once with each rig")
-    p.add_argument("-n", "--lights-count", type=int, help="lights fitted to each map (default: the preset's)")
-    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    add_map_light_args(p, repair=False)
     p.add_argument("-o", "--output", required=True, help="the batch's folder: PHOTO/LOOK.png and .exr, manifest.jsonl")
     p.add_argument("--workers", type=int, help="worker processes (default: one per idle core, as many as the memory holds)")
     p.add_argument("--threads", type=int, help="threads of each worker (default: the idle cores shared among the workers)")
@@ -121,11 +119,10 @@ def resolve_looks(specs, args) -> list:
     or light file that cannot be used fails its own looks, with its line."""
     from viewer.batch.plan import file_sha256
     from viewer.batch.run import ResolvedLook
-    from viewer.cli.command_setup import HOW, command_look, engine_options, fitted_lights, lights_count, warn_if_dark
+    from viewer.cli.command_setup import command_lights, command_look, engine_options, lights_count
     from viewer.lighting.envmap import load_envmap
-    from viewer.lighting.map_lights import map_lights
     from viewer.lighting.placed_lights import load_rig, to_area_lights
-    from viewer.scene.area_lights import facing_yaw, load_lights
+    from viewer.scene.area_lights import facing_yaw
 
     base = command_look(args)
     found: dict = {}  # (source, n) -> (lights, sha) or the error line
@@ -137,13 +134,8 @@ def resolve_looks(specs, args) -> list:
             source = spec.envmap or spec.lights_file
             if (source, n) not in found:
                 try:
-                    if spec.envmap is not None:
-                        env = load_envmap(spec.envmap)
-                        lights, how = map_lights(env, spec.envmap, n, args.method, lambda e, n=n: fitted_lights(e, n, args.method))
-                        print(f"{len(lights)} lights for {spec.envmap}: {HOW[how]}")
-                    else:
-                        lights = load_lights(spec.lights_file)
-                    warn_if_dark(lights, source)
+                    env = load_envmap(spec.envmap) if spec.envmap is not None else None
+                    lights = command_lights(args, look, spec.lights_file, env, spec.envmap)  # the one rule, as render's
                     found[(source, n)] = (lights, file_sha256(source))
                 except InputError as exc:
                     found[(source, n)] = str(exc)

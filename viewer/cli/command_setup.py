@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.lighting.lightfit import DEFAULT_METHOD
 from viewer.scene.resampling import load_sized_scene
 
 
@@ -38,14 +37,14 @@ def lights_count(args, look) -> int:
     return light_count_option(args.lights_count, args.method)
 
 
-def light_count_option(n: int, method: str | None) -> int:
+def light_count_option(n: int, method: str) -> int:
     """``-n``, checked before a map is read: the engine's limit, and the method's."""
     from viewer.lighting.lightfit.methods import check_light_count
     from viewer.scene.area_lights import MAX_LIGHTS
 
     if not 1 <= n <= MAX_LIGHTS:
         raise InputError(None, f"-n: the number of lights must be in [1, {MAX_LIGHTS}], got {n}")
-    check_light_count(method or DEFAULT_METHOD, n)
+    check_light_count(method, n)
     return n
 
 
@@ -60,21 +59,23 @@ def fitted_lights(env, n, method, refit=False):
 
     name = Path(env.source).name if env.source else "the map"
     with StageBars(prefix=f"fitting {n} lights to {name}: ",
-                   shares=STAGE_SHARES.get(method or DEFAULT_METHOD)) as bars, warnings.catch_warnings():
+                   shares=STAGE_SHARES.get(method)) as bars, warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*the map is black")
         lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit)
     return lights, cached
 
 
-def prepare(scene_path, lights_path, envmap_path, args, look):
-    """Scene (resampled to ``--size``), lights (a file, or fitted to the map) and map pixels."""
+def prepare(scene_path, lights_path, envmap_path, args, look, automatic_yaw: bool = False):
+    """Scene (resampled to ``--size``), lights (a file, or the map's by the one rule), map pixels
+    and the look (``automatic_yaw``: turned as :func:`first_look` turns it)."""
     from viewer.lighting.envmap import load_envmap
 
     scene = load_sized_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
     if lights_path is None and env is None:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
-    return scene, command_lights(args, look, lights_path, env, envmap_path), (env.pixels if env is not None else None)
+    lights = command_lights(args, look, lights_path, env, envmap_path)
+    return scene, lights, (env.pixels if env is not None else None), (first_look(args, look, lights) if automatic_yaw else look)
 
 
 def command_lights(args, look, lights_path, env, env_path):
@@ -87,8 +88,7 @@ def command_lights(args, look, lights_path, env, env_path):
         lights = load_lights(lights_path)
     else:
         n = lights_count(args, look)
-        lights, how = map_lights(env, env_path, n, args.method or DEFAULT_METHOD,
-                                 lambda e: fitted_lights(e, n, args.method))
+        lights, how = map_lights(env, env_path, n, args.method, lambda e: fitted_lights(e, n, args.method))
         print(f"{len(lights)} lights for {env_path}: {HOW[how]}")
     warn_if_dark(lights, lights_path or env_path)
     return lights
@@ -143,8 +143,9 @@ def rig_lights(args):
 
 
 def first_look(args, look, lights):
-    """The viewer's first look: the brightest light turned to the camera's side (a photo must not
-    open lit from behind) unless a yaw was given (``--yaw``, or a saved ``--look``)."""
+    """The look of ``render`` and ``view`` (``batch``'s yaw "auto" is the same rule): the brightest
+    light turned to the camera's side (a photo must not be lit from behind) unless a yaw was given
+    (``--yaw``, or a saved ``--look``)."""
     from viewer.scene.area_lights import facing_yaw
 
     if args.yaw is not None or getattr(args, "look", None):

@@ -33,11 +33,12 @@ DEMO_PHOTO = "photos/underpass.jpg"
 DEMO_YAW = 180.0  # the map's sun is behind the figure at yaw 0; turned, it lights the front
 
 
-def render_files(scene_path, lights_path, envmap_path, out_dir, name, args, look, png_name=None) -> list[Path]:
+def render_files(scene_path, lights_path, envmap_path, out_dir, name, args, look, png_name=None,
+                 automatic_yaw: bool = False) -> list[Path]:
     from viewer.gl import Engine, create_headless_context
     from viewer.output.render import render_to_files
 
-    scene, lights, env = prepare(scene_path, lights_path, envmap_path, args, look)
+    scene, lights, env, look = prepare(scene_path, lights_path, envmap_path, args, look, automatic_yaw)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     try:
         return render_to_files(engine, scene, lights, out_dir, name, look, environment=env, fixed=rig_lights(args),
@@ -59,7 +60,6 @@ def cmd_demo(args) -> int:
     from viewer.photo.inference import infer
     from viewer.photo.photo_frame import read_photo
     from viewer.resize import resize
-    from viewer.scene.area_lights import load_lights
 
     assets = asset_dir()
     look = command_look(args, DEMO_YAW)
@@ -82,8 +82,10 @@ def cmd_demo(args) -> int:
     try:
         for env_path in sorted((assets / "envmaps").glob("*.hdr")):
             t0 = time.perf_counter()
-            files = render_to_files(engine, scene, load_lights(env_path.with_suffix(".lights.json")), out,
-                                    f"photo_{env_path.stem}", settings, environment=load_envmap(env_path).pixels, passes=False)
+            env = load_envmap(env_path)
+            lights = command_lights(args, settings, None, env, env_path)  # those shipped beside each map
+            files = render_to_files(engine, scene, lights, out, f"photo_{env_path.stem}", settings, environment=env.pixels,
+                                    passes=False)
             pictures.append(read_png(files[0])[..., :3])
             print(f"  relit under {env_path.name} (refined shadows), {scene.output_size[0]}x{scene.output_size[1]}, "
                   f"in {time.perf_counter() - t0:.1f} s: {files[0]}")
@@ -115,7 +117,8 @@ def cmd_render(args) -> int:
     if suffix == ".png":
         if args.frames is not None:
             raise InputError(out, "--frames makes a video: give a .mp4 output path")
-        for path in render_files(args.scene, args.lights, args.envmap, out.parent, out.stem, args, look, png_name=out.name):
+        for path in render_files(args.scene, args.lights, args.envmap, out.parent, out.stem, args, look, png_name=out.name,
+                                 automatic_yaw=True):
             print(f"wrote {path}")
         return 0
 
@@ -125,7 +128,7 @@ def cmd_render(args) -> int:
     from viewer.output.render import render_turntable
 
     frames = 120 if args.frames is None else args.frames
-    scene, lights, env = prepare(args.scene, args.lights, args.envmap, args, look)
+    scene, lights, env, look = prepare(args.scene, args.lights, args.envmap, args, look, automatic_yaw=True)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     start = time.perf_counter()
     try:

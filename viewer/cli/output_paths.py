@@ -15,7 +15,9 @@ def beside_the_map(map_path: Path) -> Path | None:
     """``MAP.lights.json`` beside the map (what the viewer reads for that map) when its folder is
     writable, else None (the lights then stay in the fitting cache)."""
     folder = map_path.parent
-    return map_path.with_suffix(".lights.json") if os.access(folder, os.W_OK | os.X_OK) else None
+    from viewer.lighting.map_lights import lights_beside
+
+    return lights_beside(map_path) if os.access(folder, os.W_OK | os.X_OK) else None
 
 
 def writable(path, folder: bool = False) -> Path:

@@ -7,7 +7,7 @@ import argparse
 
 from viewer.cli.batch_command import add_batch_parser
 from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
-from viewer.cli.shared_options import add_engine_args, add_view_args, auto_or
+from viewer.cli.shared_options import add_engine_args, add_map_light_args, add_view_args, auto_or
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 
 COMMAND_GROUP = "relight.commands"
@@ -20,6 +20,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="the whole path: the sample scene, then the bundled photo inferred and relit under "
                                     "the bundled maps")
     p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
+    add_map_light_args(p, repair=False)
     add_engine_args(p)
     add_view_args(p, yaw_default=DEMO_YAW)
     p.set_defaults(func=cmd_demo)
@@ -31,9 +32,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    "default: lights fitted to --env (cached)")
     p.add_argument("--env", "--envmap", dest="envmap",
                    help="environment map (.hdr/.exr): the background, and the lights when no light file is given")
-    p.add_argument("-n", "--lights-count", type=int, help="lights to fit to --env (default: the preset's, balanced 16)")
-    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
-    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    add_map_light_args(p)
     p.add_argument("-o", "--out", "--output", dest="output", default="out/render.png",
                    help="a .png (one frame; the HDR EXR goes beside it) or a .mp4 (turntable video); default out/render.png")
     p.add_argument("--frames", type=int, help="video frames (default 120 for a .mp4)")
@@ -54,9 +53,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu", help="device for a photo's inference (default cpu)")
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
-    p.add_argument("-n", "--lights-count", type=int, help="lights fitted to the map (default: the preset's, balanced 16; cached)")
-    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
-    p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+    add_map_light_args(p)
     p.add_argument("--rig", help="placed lights to start with: a rig saved from the viewer's panel (JSON)")
     p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
                    "options below override its values")

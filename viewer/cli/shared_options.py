@@ -34,14 +34,27 @@ def auto_or(unit: str):
     return parse
 
 
-def add_view_args(p, yaw_default=0.0, yaws: bool = True):
+def add_map_light_args(p, repair: bool = True):
+    """How a map's lights are found (viewer/lighting/map_lights.py): their count, the fitting method
+    (its default decided here, once, for every command) and what to do with a damaged map."""
+    from viewer.lighting.lightfit.methods import DEFAULT_METHOD, METHODS
+
+    p.add_argument("-n", "--lights-count", type=int, help="lights fitted to each map (default: the preset's, balanced 16; "
+                   "cached, or shipped beside the map)")
+    p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD, help=f"fitting method (default {DEFAULT_METHOD})")
+    if repair:
+        p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
+
+
+def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
     """What the user sees; ``yaws`` False: no ``--yaw`` here (a batch takes several)."""
     p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
                    "object (docs/architecture.md); the options below override its values")
     if yaws:
         p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
-                       help=f"rotate the lighting (and the map behind) about the vertical axis, degrees (default {yaw_default:g}); "
-                            "a video starts there")
+                       help="rotate the lighting (and the map behind) about the vertical axis, degrees (default "
+                            + (f"{yaw_default:g}" if yaw_default is not None else "automatic: the map's brightest light on the "
+                               "camera's side") + "); a video starts there")
     p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
     p.add_argument("--exposure", type=auto_or("stops"),
                    help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "

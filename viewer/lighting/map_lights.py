@@ -18,6 +18,13 @@ from viewer.lighting.lightfit.cache import FIT_VERSION, cached_lights, map_hash
 from viewer.lighting.lightfit.methods import serves
 from viewer.scene.area_lights import AreaLights, load_lights
 
+LIGHTS_SUFFIX = ".lights.json"  # a map's lights beside it: MAP.lights.json
+
+
+def lights_beside(map_path) -> Path:
+    """Where a map's lights are kept beside it (``MAP.lights.json``)."""
+    return Path(map_path).with_suffix(LIGHTS_SUFFIX)
+
 
 def sidecar_lights(env: EnvMap, env_path: Path, n: int, method: str) -> AreaLights | None:
     """Lights shipped beside a map (``<map>.lights.json``) when they were fitted to this very map
@@ -25,7 +32,7 @@ def sidecar_lights(env: EnvMap, env_path: Path, n: int, method: str) -> AreaLigh
     map of the same name and another suffix, is not served by them), for the same count, by the
     method asked or one at least as accurate (:func:`viewer.lighting.lightfit.methods.serves`), by
     the fitters' current version (``FIT_VERSION``; a file without one is version 1)."""
-    side = Path(env_path).with_suffix(".lights.json")
+    side = lights_beside(env_path)
     if not side.is_file():
         return None
     try:

@@ -26,10 +26,10 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
-from viewer.lighting.light_size import SIGMA_MAX, cell_sigma
+from viewer.lighting.light_size import cell_sigma
 from viewer.scene.area_lights import AreaLights
 
-__all__ = ["LUMINANCE", "SIGMA_MAX", "median_cut_lights"]
+__all__ = ["LUMINANCE", "median_cut_lights"]
 
 
 def median_cut_lights(env: EnvMap, n: int, max_width: int = 256) -> AreaLights:

@@ -30,8 +30,8 @@ from __future__ import annotations
 import torch
 from torch.nn import functional as F
 
+from viewer.lighting.light_size import SIGMA_MAX
 from viewer.lighting.lightfit.fit import fibonacci_sphere
-from viewer.lighting.median_cut import SIGMA_MAX
 from viewer.nets.photo import photo_input, reads_silhouette
 from viewer.twin.brdf import diffuse_shading, specular_shading
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import torch
 
-from viewer.lighting.median_cut import SIGMA_MAX
+from viewer.lighting.light_size import SIGMA_MAX
 from viewer.nets import depth as depth_net
 from viewer.nets.inverse import masked_l1
 from viewer.twin.brdf import diffuse_shading

@@ -22,6 +22,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.lighting.envmap import EnvMap
+from viewer.lighting.lightfit.methods import DEFAULT_METHOD
 from viewer.scene.area_lights import AreaLights, load_lights
 
 FIT_VERSION = 2  # bump when a change to the fitters changes their results
@@ -66,12 +67,9 @@ def cached_lights(env: EnvMap, n: int, method: str, directory=None) -> AreaLight
         return None
 
 
-def lights_for_map(env: EnvMap, n: int = 16, method: str | None = None, directory=None, progress=None,
+def lights_for_map(env: EnvMap, n: int = 16, method: str = DEFAULT_METHOD, directory=None, progress=None,
                    refit: bool = False) -> tuple[AreaLights, bool]:
     """The fitted lights of ``env`` and whether they came from the cache (else they are fitted now)."""
-    from viewer.lighting.lightfit.methods import DEFAULT_METHOD
-
-    method = method or DEFAULT_METHOD
     path = cache_path(env, n, method, directory)
     usable = not path.exists() or path.is_file()
     if not usable:
