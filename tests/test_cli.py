@@ -264,3 +264,20 @@ def test_closed_full_or_abandoned_output_streams_never_stop_the_work(tmp_path):
         assert "Traceback" not in res.stderr
         if redirect == ">/dev/full":
             assert res.stderr.strip().splitlines()[-1].startswith("relight: warning: standard output refused its lines")
+
+
+def test_render_turns_the_map_as_view_and_batch_do(tmp_path):
+    """render's default yaw is the automatic one (issue 44): the map's brightest light on the
+    camera's side, as the window and batch open; --yaw 0 gives the old default's picture."""
+    from viewer.scene.area_lights import facing_yaw, load_lights
+
+    env = asset_dir() / "envmaps" / "venice_sunset_256.hdr"
+    common = ["render", str(sample_scene_dir()), "--env", str(env), "--size", "96", "--max-size", "192"]
+    yaw = facing_yaw(load_lights(env.with_suffix(".lights.json")))  # the 16 lights shipped beside the map
+    assert abs(yaw) > 1.0
+    pictures = {}
+    for name, extra in (("auto", []), ("given", ["--yaw", str(yaw)]), ("zero", ["--yaw", "0"])):
+        assert main([*common, *extra, "-o", str(tmp_path / f"{name}.png")]) == 0
+        pictures[name] = read_png(tmp_path / f"{name}.png")
+    np.testing.assert_array_equal(pictures["auto"], pictures["given"])
+    assert np.abs(pictures["auto"] - pictures["zero"]).mean() > 0.01
