@@ -91,3 +91,21 @@ def test_sizes_are_finite_and_in_range(seed, n, h):
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     sizes = region_sizes(EnvMap(px), directions)
     assert sizes.shape == (n,) and np.isfinite(sizes).all() and (sizes >= 0).all() and (sizes <= SIGMA_MAX).all()
+
+
+def test_a_light_spread_over_a_cap_has_the_size_the_map_rule_gives():
+    """cap_sigma (the photo's own basis lights) is cell_sigma's rule for light spread evenly over a
+    cap: measured on a fine grid of the cap's directions, the two agree."""
+    import math
+
+    from viewer.lighting.light_size import SIGMA_MAX, cap_sigma, cell_sigma
+
+    radius = math.acos(1.0 - 2.0 / 48)  # the photo lighting's 48 cells
+    rng = np.random.default_rng(0)
+    z = 1.0 - rng.random(200_000) * (1.0 - math.cos(radius))  # uniform over the cap's solid angle
+    phi = rng.random(z.size) * 2 * math.pi
+    r = np.sqrt(1 - z * z)
+    dirs = np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    tiny = np.full(z.size, 1e-12)  # texels too small to add their own width
+    assert abs(cell_sigma(dirs, np.ones(z.size), tiny) - cap_sigma(radius)) < 0.02 * cap_sigma(radius)
+    assert cap_sigma(math.pi) == SIGMA_MAX and cap_sigma(0.0) == 0.0

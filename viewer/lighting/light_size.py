@@ -58,6 +58,14 @@ def cell_sigma(directions: np.ndarray, weight: np.ndarray, omega: np.ndarray) ->
     return float(min(SIGMA_MAX, math.sqrt(spread * spread + texel) / ANGULAR_SIGMA))
 
 
+def cap_sigma(radius: float) -> float:
+    """The size of light spread evenly over a cap of angular ``radius`` (radians), by the rule of
+    :func:`cell_sigma`: the angle holding half its energy (half its solid angle) as a Gaussian sigma,
+    in the engine's unit, at most ``SIGMA_MAX``."""
+    half = math.acos(1.0 - 0.5 * (1.0 - math.cos(radius)))
+    return float(min(SIGMA_MAX, half / R50_PER_SIGMA / ANGULAR_SIGMA))
+
+
 def region_sizes(env: EnvMap, direction: np.ndarray, max_width: int = SIZE_MAP_WIDTH) -> np.ndarray:
     """(N,) each light's size (:func:`cell_sigma`) over the map's texels nearer to it than to any
     other light (see the module docstring); a light that owns no texel (stacked on another) takes

@@ -37,6 +37,7 @@ import time
 
 import numpy as np
 
+from viewer.lighting.light_size import cap_sigma
 from viewer.scene.area_lights import AreaLights
 
 BASIS = 48  # directions on the sphere
@@ -45,19 +46,17 @@ RIDGE = 1e-3  # of the Gram matrix's mean diagonal
 HUBER = 1.345  # in robust standard deviations (95 % efficiency for Gaussian noise)
 IRLS_STEPS = 4
 MAX_SAMPLES = 40_000  # pixels used for the fit (a regular subsample of the valid ones)
-SIGMA_MAX = 20.0
 NEUTRAL = 1.0  # the share (in log) of the fitted lights' overall colour taken out by white_balanced
 
 
 def basis_lights(n: int = BASIS) -> AreaLights:
-    """``n`` unit-intensity lights on a Fibonacci sphere; sigma = the median-cut rule
-    ``min(20, 40 * RMS angle)`` for a cell of solid angle 4 pi / n (RMS angle r / sqrt(2) of a cap
-    of angular radius r)."""
+    """``n`` unit-intensity lights on a Fibonacci sphere, each as large as the map's lights' own rule
+    makes a light spread evenly over its cell, a cap of solid angle 4 pi / n
+    (:func:`viewer.lighting.light_size.cap_sigma`)."""
     from viewer.lighting.lightfit.fit import fibonacci_sphere
 
     directions = fibonacci_sphere(n).astype(np.float32)
-    cap = np.arccos(1.0 - 2.0 / n)  # a cap of solid angle 4 pi / n
-    sigma = min(SIGMA_MAX, 40.0 * cap / np.sqrt(2.0))
+    sigma = cap_sigma(float(np.arccos(1.0 - 2.0 / n)))  # each light owns a cap of solid angle 4 pi / n
     return AreaLights(directions, np.full(n, sigma, np.float32), np.ones((n, 3), np.float32))
 
 
