@@ -410,3 +410,15 @@ def test_an_inverted_mask_is_refused_in_one_line(tmp_path):
         ring[10:50, 5:35] = 1.0
         ring[20:40, 12:28] = 0.0
         check_not_inverted(ring, {i: (0.5, 0.3 + 0.4 * i / 10) for i in range(10)}, "ring.png")
+
+
+def test_a_cached_bundle_is_tied_to_the_code_that_made_it():
+    """The bundle cache's key holds the photo path's code (photo, networks, scene, lighting, the
+    engine and its shaders), not only a hand-kept version label: a change there infers again."""
+    from viewer.photo.inference import code_digest, code_files
+
+    names = {f"{f.parent.name}/{f.name}" for f in code_files()}
+    assert {"photo/matting.py", "photo/held_objects.py", "gl/engine.py", "scene/bundle.py", "lighting/light_size.py",
+            "photo/photo_lighting.py"} <= names
+    assert any(n.endswith(".glsl") for n in names) and not any(n.startswith(("app/", "cli/", "lab/")) for n in names)
+    assert code_digest() == code_digest()

@@ -184,11 +184,38 @@ def load_networks(device="cpu", directory=None) -> dict:
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
 
 
-def inference_version(networks_dir=None) -> str:
-    """The networks' weights and the pipeline's version, hashed: what every bundle is made with."""
+# the code a bundle's maps come from: the photo path, the networks, the scene types, the lighting and
+# the engine that renders the photo's own shading, and the shaders
+CODE = ("photo", "nets", "scene", "lighting", "gl", "twin", "files")
+
+
+def code_files() -> list[Path]:
+    """Every ``.py`` of ``CODE`` and of the package's root, and the shaders."""
+    from viewer.resources import shader_dir
+
+    package = Path(__file__).resolve().parents[1]
+    return (sorted(package.glob("*.py")) + sorted(f for part in CODE for f in (package / part).rglob("*.py"))
+            + sorted(shader_dir().glob("*.glsl")))
+
+
+def code_digest() -> str:
+    """The SHA-256 of :func:`code_files`: a bundle cached by other code is inferred again, whether
+    or not someone remembered to change ``PIPELINE``."""
     import hashlib
 
-    h = hashlib.sha256(f"{PIPELINE} {detail_mod.DEFAULT}".encode())
+    h = hashlib.sha256()
+    for f in code_files():
+        h.update(f"{f.parent.name}/{f.name}".encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def inference_version(networks_dir=None) -> str:
+    """The networks' weights, the pipeline's version and its code (:func:`code_digest`), hashed:
+    what every bundle is made with."""
+    import hashlib
+
+    h = hashlib.sha256(f"{PIPELINE} {detail_mod.DEFAULT} {code_digest()}".encode())
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     for path in (networks_dir / f"{n}.safetensors" for n in NETWORKS):
         if not path.is_file():
