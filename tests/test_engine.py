@@ -662,3 +662,34 @@ def test_the_engine_applies_the_whole_look(ctx, scene):
     assert eng.look.background == "color"
     eng.release()
     other.release()
+
+
+def test_the_pass_table_in_the_docs_is_the_passes_declarations(ctx, scene):
+    """docs/engine.md's cache table is the one place the passes and their inputs are written (the
+    engine's docstring points there): every pass of an image scene and of a frame scene (CSM and
+    PCSS) has its row, every input it declares is named in the row, and the row names no input
+    that the pass does not declare."""
+    import re
+    from dataclasses import replace
+    from pathlib import Path
+
+    from viewer.scene.bundle import FrameLayer
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "engine.md").read_text(encoding="utf-8")
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^\|[^|`]*`(\w+Pass)`[^|]*\|[^|]*\|([^|]*)\|", text, re.M)}
+    up = lambda a: np.repeat(np.repeat(a, 2, axis=0), 2, axis=1)  # noqa: E731
+    framed = replace(scene, frame=FrameLayer(albedo=up(scene.albedo), alpha=up(scene.mask.astype(np.float32)),
+                                             photo=up(scene.albedo) * 0.5, skin=up(scene.mask.astype(np.float32))))
+    declared: dict[str, set] = {}
+    for sc in (scene, framed):
+        for soft in ("csm", "pcss"):
+            eng = make_engine(ctx, sc, soft=soft)
+            for p in (*eng.stale.light_passes, *eng.stale.frame_passes):
+                declared.setdefault(type(p).__name__, set()).update(p.inputs, getattr(p, "whole_inputs", ()))
+            eng.release()
+    names = set().union(*declared.values()) | {p for p in declared}
+    for cls, inputs in declared.items():
+        assert cls in rows, f"docs/engine.md has no row for {cls}"
+        words = set(re.findall(r"[a-z_]+", rows[cls]))
+        assert inputs <= words, (cls, inputs - words)
+        assert (words & set().union(*declared.values())) <= inputs, (cls, (words & names) - inputs)
