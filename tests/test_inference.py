@@ -422,3 +422,27 @@ def test_a_cached_bundle_is_tied_to_the_code_that_made_it():
             "photo/photo_lighting.py"} <= names
     assert any(n.endswith(".glsl") for n in names) and not any(n.startswith(("app/", "cli/", "lab/")) for n in names)
     assert code_digest() == code_digest()
+
+
+def test_the_stages_declare_what_they_read_and_make():
+    """infer_scene is its list of stages (viewer.photo.inference.STAGE_LIST): each reads only what
+    is given or an earlier stage makes, each name has its share of the time-left estimate, and a
+    stage that makes other than it declares is refused."""
+    import pytest
+
+    from viewer.photo import inference
+
+    known = {"photo_path", "mask_path", "size", "max_size", "device", "networks", "detail", "engine"}
+    for st in inference.STAGE_LIST:
+        assert set(st.inputs) <= known, (st.name, set(st.inputs) - known)
+        known |= set(st.outputs)
+    assert set(inference.STAGES) == set(inference.STAGE_SHARES) and inference.STAGES[-1] == "write"
+    assert set(inference.ENGINE_STAGES) <= {st.name for st in inference.STAGE_LIST}
+    wrong = inference.Stage("read", lambda photo_path, max_size: {"photo": None}, ("photo_path", "max_size"), ("photo", "frame"))
+    saved = inference.STAGE_LIST
+    try:
+        inference.STAGE_LIST = (wrong,)
+        with pytest.raises(RuntimeError, match="declared"):
+            inference.run_stages({"photo_path": "x", "max_size": 64}, lambda name: None)
+    finally:
+        inference.STAGE_LIST = saved

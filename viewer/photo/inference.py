@@ -57,9 +57,6 @@ from viewer.resources import network_dir
 from viewer.scene.backdrop import photo_blur
 
 NETWORK_RES = 256
-# the stages infer() reports to its progress callback, in order
-STAGES = ("read", "mask", "load networks", "inverse rendering", "depth", "maps to the work frame", "face",
-          "fit the photo's lights", "render the photo's shading", "detail", "write")
 # each stage's share of the time, for the time-left estimate (viewer.progress.TimeLeft): seconds measured
 # for assets/photos/underpass.jpg (681x1024) on the 2-core CPU machine, 2026-11-25
 STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rendering": 0.21, "depth": 0.07,
@@ -371,33 +368,33 @@ def _check_memory(photo_path, max_size: int) -> None:
                    photo_path)
 
 
-def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
-                networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
-                keep_intermediate: bool = False) -> dict:
-    """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
-    (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
-    network's maps and the photo's shading at the frame (for the benchmarks)."""
-    import torch
+@dataclass(frozen=True)
+class Stage:
+    """One step of :func:`infer_scene`: ``run(**inputs)`` returns a dict of exactly its ``outputs``
+    (names of the values the stages share; an output may replace a value, as each stage that
+    touches the scene returns it anew). ``name`` is what the progress callback is told when it
+    ends (``STAGE_SHARES`` holds its share of the time)."""
 
-    from viewer.files.imageio import srgb_to_linear
-    from viewer.gl import Engine, EngineOptions, create_headless_context
-    from viewer.nets import depth as depth_net, inverse as inverse_net
-    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights, white_balanced
-    from viewer.scene.area_lights import AreaLights
-    from viewer.scene.bundle import FrameLayer, Scene
-    from viewer.scene.camera import Camera
+    name: str
+    run: object
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
 
-    stage = _Stages(progress)
+
+def _read(photo_path, max_size):
     notes: list[str] = []
     inputs: dict[str, str] = {}  # SHA-256 of the bytes decoded: what this bundle was made from
     _check_memory(photo_path, max_size)
     photo = read_photo(photo_path, notes, inputs)
     h, w = photo.shape[:2]
     frame = output_frame((w, h), max_size)
-    frame_photo = resize(photo, frame)
-    stage("read")
+    return {"photo": photo, "frame": frame, "frame_photo": resize(photo, frame), "notes": notes, "inputs": inputs}
+
+
+def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size):
     from viewer.photo.segmentation import find_person
 
+    h, w = photo.shape[:2]
     if mask_path is not None:
         given = np.clip(resize(read_mask(mask_path, (h, w), notes, inputs), frame), 0.0, 1.0)
         try:  # the pose's landmarks still tell the face's skin (viewer.photo.gloss); a mask needs no person found
@@ -423,94 +420,198 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     body = matte.body if matte.body.any() else person  # what it holds frames nothing (Matte.body)
     _, _, ph, pw = person_box(body)
     sizes = frame_sizes((w, h), (pw * w / frame[0], ph * h / frame[1]), max_size, size)
-    stage("mask")
+    return {"matte": matte, "landmarks": landmarks, "mask_source": mask_source, "alpha": alpha, "person": person,
+            "body": body, "turned": turned, "sizes": sizes}
+
+
+def _load_networks(photo_path, mask_path, frame_photo, alpha, body, networks, device):
+    from viewer.files.imageio import srgb_to_linear
 
     f = framing(body)
-    square = crop(frame_photo, f, "edge")
-    small = srgb_to_linear(resize(square, (NETWORK_RES, NETWORK_RES)).astype(np.float32) / 255.0)
+    square_photo = crop(frame_photo, f, "edge")
+    small = srgb_to_linear(resize(square_photo, (NETWORK_RES, NETWORK_RES)).astype(np.float32) / 255.0)
     small_mask = resize(crop(alpha, f, "constant"), (NETWORK_RES, NETWORK_RES)) > 0.5
     if not small_mask.any():
         raise InputError(mask_path or photo_path, "the person is too thin to be seen at the networks' resolution")
-    nets = networks if networks is not None else load_networks(device)
-    stage("load networks")
-    dev = torch.device(device)
-    s = sizes.work_scale
+    return {"framing": f, "small": small, "small_mask": small_mask,
+            "nets": networks if networks is not None else load_networks(device)}
+
+
+def _inverse_rendering(photo_path, mask_path, alpha, sizes, framing, small, small_mask, nets, device):
+    import torch
+
+    from viewer.nets import inverse as inverse_net
+    from viewer.scene.camera import Camera
+
     work_mask = resize(alpha, sizes.work) > 0.5
     if not work_mask.any():
         raise InputError(mask_path or photo_path, "the person vanishes at the work resolution; give a larger --size")
-    side_work = f.side * s
+    side_work = framing.side * sizes.work_scale
     # the framing's square sees what the training camera sees: 50 mm on 36 mm across the square
-    cam = Camera(sizes.work[0], sizes.work[1], sensor_mm=36.0 * max(sizes.work) / side_work)
-    with torch.no_grad():
-        linear = torch.from_numpy(small).permute(2, 0, 1)[None].to(dev)
-        m = torch.from_numpy(small_mask.astype(np.float32))[None, None].to(dev)
-        maps, (direction, sigma, intensity), scale = inverse_net.predict(nets["inverse"], linear, m)
-        stage("inverse rendering")
-        depth = depth_net.predict(nets["depth"], linear, m, cam.distance)
-        stage("depth")
-        work = to_work_frame(extend(map_stack(maps, depth), m).cpu().double(), f, sizes.work, s).astype(np.float32)
+    camera = Camera(sizes.work[0], sizes.work[1], sensor_mm=36.0 * max(sizes.work) / side_work)
+    dev = torch.device(device)
+    linear = torch.from_numpy(small).permute(2, 0, 1)[None].to(dev)
+    m = torch.from_numpy(small_mask.astype(np.float32))[None, None].to(dev)
+    maps, network_lights, scale = inverse_net.predict(nets["inverse"], linear, m)
+    return {"work_mask": work_mask, "side_work": side_work, "camera": camera, "linear": linear, "m": m, "maps": maps,
+            "network_lights": network_lights, "exposure_scale": scale}
+
+
+def _depth(nets, linear, m, camera):
+    from viewer.nets import depth as depth_net
+
+    return {"depth": depth_net.predict(nets["depth"], linear, m, camera.distance)}
+
+
+def _maps_to_work_frame(frame_photo, alpha, person, matte, landmarks, sizes, framing, maps, depth, m, camera, work_mask):
+    from viewer.files.imageio import srgb_to_linear
+    from viewer.scene.bundle import FrameLayer, Scene
+
+    s = sizes.work_scale
+    work = to_work_frame(extend(map_stack(maps, depth), m).cpu().double(), framing, sizes.work, s).astype(np.float32)
     frame_linear = srgb_to_linear(frame_photo.astype(np.float32) / 255.0)
     # upsampled from the maps extended past the mask, not from the zeroed ones: zeros mixed in at
     # the outline would darken the matte's edge (frame pixels whose work pixel is outside the mask)
     frame_network_albedo = np.where(alpha[..., None] > 0, np.clip(resize(np.clip(work[..., :3], 0, 1), sizes.frame), 0, 1),
                                     0).astype(np.float32)
     blur_px = photo_blur(frame_photo, alpha)  # the photo's own background defocus: the backdrop's "auto" blur
-    scene = Scene(**scene_maps(work, work_mask, cam.distance), mask=work_mask, camera=cam,
+    scene = Scene(**scene_maps(work, work_mask, camera.distance), mask=work_mask, camera=camera,
                   frame=FrameLayer(albedo=frame_network_albedo, alpha=alpha.astype(np.float32), photo=frame_linear,
-                                   background_blur=blur_px * s / cam.focal_px))
+                                   background_blur=blur_px * s / camera.focal_px))
     skin = gloss.skin(matte.foreground, alpha, landmarks)  # skin keeps the network's sheen, the rest is matte
     if skin is not None:
         scene = replace(scene, roughness=np.where(work_mask, gloss.matte_roughness(
             scene.roughness, mask_normalized_resize(skin[..., None], alpha, sizes.work)[..., 0]), 0).astype(np.float32))
     gloss_record = {"skin_share": float((skin[person] > 0.5).mean()) if skin is not None else None,
                     "matte_roughness": gloss.MATTE_ROUGHNESS if skin is not None else None}
-    scene.validate()
-    stage("maps to the work frame")
+    return {"scene": scene.validate(), "frame_linear": frame_linear, "frame_network_albedo": frame_network_albedo,
+            "blur_px": blur_px, "skin": skin, "gloss_record": gloss_record}
+
+
+def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record):
     faces = find_faces(frame_photo, alpha)
-    scene, face_record, face_surface = with_face(scene, faces, s)
+    scene, face_record, face_surface = with_face(scene, faces, sizes.work_scale)
     if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
         mm = gloss.skin_mm(faces[0].width if faces else None, person_box(body)[2])
         scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm)).validate()
-        gloss_record["skin_mm_per_pixel"] = round(mm, 4)
-    stage("face")
+        gloss_record = {**gloss_record, "skin_mm_per_pixel": round(mm, 4)}
+    return {"scene": scene, "face_record": face_record, "face_surface": face_surface, "gloss_record": gloss_record}
 
-    own_ctx = ctx is None
-    ctx = create_headless_context() if own_ctx else ctx
-    engine = None
+
+def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface):
+    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights, white_balanced
+
+    # the photo at the maps' level of detail: one network pixel of low-pass
+    target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, side_work / NETWORK_RES)
+    valid = fit_mask(scene, resize(frame_linear, sizes.work))
+    if not valid.any():
+        valid = work_mask
+    lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
+    lights, fit["white_balance_gains"] = white_balanced(lights)  # the camera balanced the photo's light
+    return {"lights": lights, "fit": fit, "target": target, "valid": valid}
+
+
+def _photo_shading(engine, lights, fit, target, valid):
+    engine.set_lights(lights)
+    explained = engine.render().output.read_work_hdr()
+    diffuse, specular = engine.output.read_frame_shading()
+    return {"explained": explained, "shading": (diffuse, specular), "fit": {**fit, "psnr_db": fit_psnr(explained, target, valid)}}
+
+
+def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
+    scene, detail_stats = with_detail(scene, frame_network_albedo, shading, framing.side, matte.foreground, detail)
+    return {"scene": scene, "detail_stats": detail_stats}
+
+
+# infer_scene's stages, in order: each declares the values it reads and makes (the engine's passes
+# do the same); ``engine`` is the GL engine over the scene the face stage left, made for the two
+# stages that read it. A new stage: its work in a module of viewer/photo/ (as face.py, detail.py),
+# and one line here.
+STAGE_LIST = (
+    Stage("read", _read, ("photo_path", "max_size"), ("photo", "frame", "frame_photo", "notes", "inputs")),
+    Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size"),
+          ("matte", "landmarks", "mask_source", "alpha", "person", "body", "turned", "sizes")),
+    Stage("load networks", _load_networks, ("photo_path", "mask_path", "frame_photo", "alpha", "body", "networks", "device"),
+          ("framing", "small", "small_mask", "nets")),
+    Stage("inverse rendering", _inverse_rendering,
+          ("photo_path", "mask_path", "alpha", "sizes", "framing", "small", "small_mask", "nets", "device"),
+          ("work_mask", "side_work", "camera", "linear", "m", "maps", "network_lights", "exposure_scale")),
+    Stage("depth", _depth, ("nets", "linear", "m", "camera"), ("depth",)),
+    Stage("maps to the work frame", _maps_to_work_frame,
+          ("frame_photo", "alpha", "person", "matte", "landmarks", "sizes", "framing", "maps", "depth", "m", "camera", "work_mask"),
+          ("scene", "frame_linear", "frame_network_albedo", "blur_px", "skin", "gloss_record")),
+    Stage("face", _face, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record"),
+          ("scene", "face_record", "face_surface", "gloss_record")),
+    Stage("fit the photo's lights", _fit_photo_lights, ("engine", "scene", "frame_linear", "sizes", "work_mask", "side_work",
+                                                        "face_surface"), ("lights", "fit", "target", "valid")),
+    Stage("render the photo's shading", _photo_shading, ("engine", "lights", "fit", "target", "valid"),
+          ("explained", "shading", "fit")),
+    Stage("detail", _detail, ("scene", "frame_network_albedo", "shading", "framing", "matte", "detail"), ("scene", "detail_stats")),
+)
+ENGINE_STAGES = ("fit the photo's lights", "render the photo's shading")  # the stages that read ``engine``
+STAGES = tuple(st.name for st in STAGE_LIST) + ("write",)  # what infer() reports to its progress callback, in order
+
+
+def run_stages(values: dict, stage, ctx=None) -> dict:
+    """Run :data:`STAGE_LIST` over ``values`` (the given ones: photo_path, mask_path, size,
+    max_size, device, networks, detail), reporting each to ``stage``; returns every value. Under
+    ``torch.no_grad`` (nothing here learns); the engine the two engine stages share is made over
+    the scene before them and released after them, whatever happens."""
+    import torch
+
+    from viewer.gl import Engine, EngineOptions, create_headless_context
+
+    own_ctx, engine = ctx is None, None
     try:
-        engine = Engine(ctx, scene, EngineOptions())
-        # the photo at the maps' level of detail: one network pixel of low-pass
-        net_px_work = side_work / NETWORK_RES
-        target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, net_px_work)
-        valid = fit_mask(scene, resize(frame_linear, sizes.work))
-        if not valid.any():
-            valid = work_mask
-        lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
-        lights, fit["white_balance_gains"] = white_balanced(lights)  # the camera balanced the photo's light
-        stage("fit the photo's lights")
-        engine.set_lights(lights)
-        explained = engine.render().output.read_work_hdr()
-        fit["psnr_db"] = fit_psnr(explained, target, valid)
-        diffuse, specular = engine.output.read_frame_shading()
+        with torch.no_grad():
+            for st in STAGE_LIST:
+                if st.name in ENGINE_STAGES and engine is None:
+                    ctx = create_headless_context() if ctx is None else ctx
+                    engine = values["engine"] = Engine(ctx, values["scene"], EngineOptions())
+                out = st.run(**{k: values[k] for k in st.inputs})
+                if set(out) != set(st.outputs):
+                    raise RuntimeError(f"stage {st.name!r} made {sorted(out)}, declared {sorted(st.outputs)}")
+                values.update(out)
+                if st.name == ENGINE_STAGES[-1]:
+                    engine.release()
+                    engine = values["engine"] = None
+                stage(st.name)
     finally:
         if engine is not None:
             engine.release()
-        if own_ctx:
+        if own_ctx and ctx is not None:
             ctx.release()
-    stage("render the photo's shading")
-    scene, detail_stats = with_detail(scene, frame_network_albedo, (diffuse, specular), f.side, matte.foreground, detail)
-    stage("detail")
+    return values
+
+
+def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+                networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
+                keep_intermediate: bool = False) -> dict:
+    """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
+    (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
+    network's maps and the photo's shading at the frame (for the benchmarks). The work is
+    :data:`STAGE_LIST`, run by :func:`run_stages`."""
+    import torch
+
+    from viewer.scene.area_lights import AreaLights
+
+    stage = _Stages(progress)
+    v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size, "device": device,
+                    "networks": networks, "detail": detail}, stage, ctx)
+    scene, sizes, f = v["scene"], v["sizes"], v["framing"]
+    direction, sigma, intensity = v["network_lights"]
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
-    record = {"photo": str(photo_path), "mask": mask_source, "inputs_sha256": inputs, "orientation": turned, "sizes": sizes.to_json(),
-              "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES, "framing": f.to_json(),
-              "notes": notes, "exposure_scale": float(scale[0, 0, 0]), "device": str(dev),
-              "matte": matte.record, "gloss": gloss_record, "face": face_record, "background_blur": {"pixels": round(blur_px, 3),
-                                                         "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
-              "photo_lighting": fit, "detail": detail_stats, "pipeline": PIPELINE}
-    result = {"scene": scene, "lights": lights, "network_lights": network_lights, "record": record, "stages": stage}
+    record = {"photo": str(photo_path), "mask": v["mask_source"], "inputs_sha256": v["inputs"], "orientation": v["turned"],
+              "sizes": sizes.to_json(), "photo_size": list(sizes.photo), "network_resolution": NETWORK_RES,
+              "framing": f.to_json(), "notes": v["notes"], "exposure_scale": float(v["exposure_scale"][0, 0, 0]),
+              "device": str(torch.device(device)), "matte": v["matte"].record, "gloss": v["gloss_record"],
+              "face": v["face_record"], "background_blur": {"pixels": round(v["blur_px"], 3),
+                                                            "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
+              "photo_lighting": v["fit"], "detail": v["detail_stats"], "pipeline": PIPELINE}
+    result = {"scene": scene, "lights": v["lights"], "network_lights": network_lights, "record": record, "stages": stage}
     if keep_intermediate:
-        result.update(network_albedo_frame=frame_network_albedo, shading=(diffuse, specular), target=target,
-                      valid=valid, explained=explained, foreground=matte.foreground)
+        result.update(network_albedo_frame=v["frame_network_albedo"], shading=v["shading"], target=v["target"],
+                      valid=v["valid"], explained=v["explained"], foreground=v["matte"].foreground)
     return result
 
 
