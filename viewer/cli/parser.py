@@ -7,7 +7,7 @@ import argparse
 
 from viewer.cli.batch_command import add_batch_parser
 from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
-from viewer.cli.shared_options import add_engine_args, add_map_light_args, add_view_args, auto_or
+from viewer.cli.shared_options import add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 
 COMMAND_GROUP = "relight.commands"
@@ -62,11 +62,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
     p.add_argument("--exposure", type=auto_or("stops"),
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
-    ground = p.add_mutually_exclusive_group()
-    ground.add_argument("--ground", action="store_const", const=True,
-                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
-                             "by default shown when the feet are in the frame and the map is behind the person")
-    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    add_ground_args(p)
     skin = p.add_mutually_exclusive_group()
     skin.add_argument("--skin", action="store_const", const=True, help="light scattered under a photo's skin (default)")
     skin.add_argument("--no-skin", dest="skin", action="store_const", const=False,

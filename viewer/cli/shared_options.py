@@ -46,6 +46,15 @@ def add_map_light_args(p, repair: bool = True):
         p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
 
 
+def add_ground_args(p):
+    """``--ground`` / ``--no-ground``: the person's shadow on the ground (the view and the headless commands)."""
+    ground = p.add_mutually_exclusive_group()
+    ground.add_argument("--ground", action="store_const", const=True,
+                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
+                             "by default shown when the feet are in the frame and the map is behind the person")
+    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+
+
 def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
     """What the user sees; ``yaws`` False: no ``--yaw`` here (a batch takes several)."""
     p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
@@ -69,11 +78,7 @@ def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
     p.add_argument("--max-size", type=int, default=2048,
                    help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
                         "the photo's own size up to this)")
-    ground = p.add_mutually_exclusive_group()
-    ground.add_argument("--ground", action="store_const", const=True,
-                        help="the person's shadow on the ground at the feet, over the background (a shadow catcher); "
-                             "by default shown when the feet are in the frame and the map is behind the person")
-    ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
+    add_ground_args(p)
     skin = p.add_mutually_exclusive_group()
     skin.add_argument("--skin", action="store_const", const=True,
                       help="light scattered under a photo's skin: soft, warm terminators and shadow edges on faces and "
