@@ -175,6 +175,7 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     s = v.state()
     for name, (x0, _, x1, _) in s["widgets"].items():
         assert 594.0 <= x0 and x1 <= 900.0, (name, x0, x1)
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 
 
@@ -202,6 +203,7 @@ def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_
     assert np.abs(split[:, 345:] - shot[:, 345:]).mean() < 1e-6  # the relit frame beside it
     v.xdotool("key", "b")
     v.wait_for(lambda s: s["look"]["compare"] == 0.0)
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 
 
@@ -232,6 +234,7 @@ def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
         return int(((vis > 0.05) & (vis < 0.95)).sum())
 
     assert penumbra(softer) > 1.5 * penumbra(base)  # the shadow's edges are wider: softer
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 
 
@@ -277,6 +280,7 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, hea
     assert s["message"].endswith(f"{col}, {row}") and np.dot(got, scene.normal[row, col]) > 0.999
     rig = tmp_path / "rig.json"
     rig.write_text(json.dumps({"format": "relight-rig", "lights": saved["rig"]}))
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
     v.state_path.unlink()  # the next viewer writes the same state file
     again = viewer_factory("--rig", str(rig))
@@ -384,6 +388,7 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     click("browser open")
     s = v.wait_for(lambda s: s["message"].startswith("opened"), 60)
     assert "a scene bundle" in s["message"] and s["scene_size"] == [512, 512]
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 
 
@@ -444,6 +449,7 @@ def test_record_a_turn(viewer_factory, headless):
     change = np.abs(np.diff(live.astype(np.float32), axis=0)).mean(axis=(1, 2, 3))
     assert change.max() > 1.0  # the drag turned the lighting in the video
     assert v.state()["look"]["yaw"] == pytest.approx(s["look"]["yaw"])  # the user's own turn, after the rendering
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 
 
@@ -516,6 +522,7 @@ def test_quality_preset_switches_engine_options_and_lights(viewer_factory, ctx, 
     expected = engine.output.read_output_hdr()[..., :3]
     engine.release()
     assert rel_l1(read_exr(shot.with_suffix(".exr")), expected) < 1e-3
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 
 
@@ -532,4 +539,27 @@ def test_the_light_count_slider_refits_the_map_when_let_go(viewer_factory):
     s = v.wait_for(lambda s: s["n_lights"] != before and not s["fitting"], 120)
     assert 1 <= s["n_lights"] < before and len(s["sigma"]) == s["n_lights"]
     assert "lights (" in s["message"] and s["error"] == ""
+    assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
+    assert v.quit() == 0
+
+
+def test_a_value_typed_into_a_slider_is_that_value(viewer_factory):
+    """Ctrl+click turns a slider into a text field: the typed value is the slider's, and the keys
+    typed do not reach the window's shortcuts (a typed 0 reset the longitude, issue 45)."""
+    v = viewer_factory()
+    s = v.wait_for(lambda s: "intensity" in s["widgets"] and "longitude" in s["widgets"])
+    yaw = s["look"]["yaw"]
+    x0, y0, x1, y1 = s["widgets"]["intensity"]
+    v.xdotool("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2))
+    time.sleep(0.3)
+    v.xdotool("keydown", "ctrl")
+    v.xdotool("click", 1)
+    v.xdotool("keyup", "ctrl")
+    time.sleep(0.3)
+    v.xdotool("key", "ctrl+a")
+    v.xdotool("type", "0.5")
+    v.xdotool("key", "Return")
+    s = v.wait_for(lambda s: abs(s["look"]["intensity"] - 0.5) < 1e-6, 20)
+    assert s["look"]["yaw"] == pytest.approx(yaw)  # the typed 0 did not reach the window's keys
+    assert s["id_conflicts"] == []
     assert v.quit() == 0

@@ -38,11 +38,21 @@ class PanelState:
     show_browser: bool = False
     rig_choice: int = 0  # the rig the combo shows
     light_count: int | None = None  # the count slider's value while it is held
+    ids: dict = field(default_factory=dict)  # imgui's ID of each widget drawn this frame -> its name
+    id_conflicts: list = field(default_factory=list)  # names of widgets that shared an ID with another (imgui's "conflicting ID")
 
 
 def _remember(app, name: str):
+    """Where the widget just drawn is (the state file's ``widgets``), and whether its imgui ID is
+    another widget's this frame: two widgets with one ID take each other's clicks (the map chooser
+    never opened beside the "map" intensity slider, issue 45); the state file lists them."""
     lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
     app.panel.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
+    other = app.panel.ids.setdefault(imgui.get_item_id(), name)
+    if other != name:
+        pair = " / ".join(sorted((other, name)))
+        if pair not in app.panel.id_conflicts:
+            app.panel.id_conflicts.append(pair)
 
 
 def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
@@ -53,6 +63,7 @@ def _swatch(intensity: np.ndarray, peak: float) -> imgui.ImVec4:
 def draw_panel(app):
     w, h = app.window.size
     app.panel.widgets = {}  # the widgets drawn this frame (a collapsed section's are not there)
+    app.panel.ids = {}
     width = panel_width(w)
     imgui.set_next_window_pos(imgui.ImVec2(w - width, 0))
     imgui.set_next_window_size(imgui.ImVec2(width, h))
@@ -131,7 +142,8 @@ def _lighting(app):
     _remember(app, "exposure")
     if changed:
         s.look = exposed(s.look, exposure)
-    changed, intensity = imgui.slider_float("map", s.look.intensity, 0.0, 8.0, "map's lights x %.2f", imgui.SliderFlags_.logarithmic)
+    changed, intensity = imgui.slider_float("map##intensity", s.look.intensity, 0.0, 8.0, "map's lights x %.2f",
+                                            imgui.SliderFlags_.logarithmic)
     _remember(app, "intensity")
     if changed:
         s.update(intensity=intensity)
