@@ -144,7 +144,11 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     before = tops(v.state())
     first = v.save()
     s = v.state()
-    assert s["message"].startswith("saved") and tops(s) == before  # a message moves no widget down
+    moved = {k: v for k, v in tops(s).items() if k in before}
+    assert s["message"].startswith("saved") and moved == before  # a message moves no widget down
+    # it says the folder (--out-dir, whole), and the panel copies it (issue 45)
+    assert s["message"].endswith(f" in {s['out_dir']}") and Path(s["out_dir"]) == first.parent.resolve()
+    assert "copy folder" in s["widgets"]
     x, y, w, h = s["image_rect"]
     v.drag(int(x + w * 0.4), int(y + h * 0.5), 60, 0)
     # 0.5 degrees per pixel; dragging right turns the map (and its lights) to the right

@@ -61,7 +61,7 @@ class Actions:
         state["rig"] = [asdict(p) for p in self.app.session.placed]
         write_text(stem.with_suffix(".json"), json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n")
         self.app.captures.append(str(png))
-        self.app.message = f"saved {png.name} (+ .exr, .json)"
+        self.app.message = f"saved {png.name} (+ .exr, .json) in {png.parent.resolve()}"
         print(f"saved {png} {stem.with_suffix('.exr')} {stem.with_suffix('.json')}", flush=True)
 
     def toggle_recording(self, kind: str):
@@ -119,7 +119,7 @@ class Actions:
             return
         how = "stopped after" if stopped and not rec.finished else "recorded"
         self.app.videos.append(str(path))
-        self.app.message = f"{how} {rec.done} frames: {path.name}"
+        self.app.message = f"{how} {rec.done} frames: {path.name} in {Path(path).parent.resolve()}"
         print(f"{how} {rec.done} frames to {path}", flush=True)
 
     def open_map(self, path: Path, n: int | None = None):

@@ -122,6 +122,10 @@ def _status(app):
     job = app.scene_job or app.job  # one bar: the person being opened first, else the map being fitted
     if job is not None:  # the file's name is in the message above; the bar names the stage (a long label is cut)
         imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), job.stage)
+    elif app.captures or app.videos:  # where S and R write (--out-dir), one click to paste it elsewhere
+        if imgui.small_button("copy the folder's path"):
+            imgui.set_clipboard_text(str(app.config.out_dir.resolve()))
+        _remember(app, "copy folder")
     imgui.end_child()
 
 

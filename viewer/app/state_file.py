@@ -50,6 +50,7 @@ class StateFile:
             "refined": app.session.final.refined_current,
             "refine_error": app.session.refine_error,
             "captures": app.captures,
+            "out_dir": str(app.config.out_dir.resolve()),  # where S and R write (--out-dir)
             "videos": app.videos,
             "message": app.message,
             "error": app.error,
