@@ -254,8 +254,13 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, hea
     v.xdotool("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2))
     time.sleep(0.2)
     v.xdotool("click", 1)
+    s_before = s
     s = v.wait_for(lambda s: len(s["placed"]) == 1, 30)
     assert s["placed"][0]["azimuth"] == 45.0
+    # nothing moved under the cursor (issue 45): every widget drawn before is where it was; the
+    # new light's rows are in their own box
+    moved = {k: (r[1], s["widgets"][k][1]) for k, r in s_before["widgets"].items() if k in s["widgets"] and r[1] != s["widgets"][k][1]}
+    assert moved == {}
     shot = v.save()
     saved = json.loads(shot.with_suffix(".json").read_text())
     assert len(saved["lights"]["lights"]) == n + 1 and saved["rig"] == s["placed"]

@@ -17,6 +17,7 @@ class FileBrowser:
         self.dir = Path(start).resolve()
         self.suffixes = tuple(suffixes)
         self.path_text = ""
+        self.selected: Path | None = None  # the entry one click chose: its path in the field, opened by Enter or Open
 
     def _entries(self):
         try:
@@ -26,21 +27,22 @@ class FileBrowser:
         return [p for p in items if not p.name.startswith(".") and (p.is_dir() or p.suffix.lower() in self.suffixes)]
 
     def draw(self, remember=lambda name: None) -> Path | None:
-        """Draw the browser; returns a file (or a bundle's folder) the user chose this frame.
-        ``remember(name)`` is called after the path field and its button (scripts click them)."""
+        """Draw the browser; returns a file (or a bundle's folder) the user chose this frame. One
+        click on an entry selects it (its path goes into the field); a double click, or Enter or
+        Open after it, opens it (a folder: enters it), so a click that lands on a wrong entry opens
+        nothing. ``remember(name)`` is called after the path field and its button (scripts click them)."""
         chosen = None
         imgui.text_wrapped(str(self.dir))
         imgui.begin_child("files", imgui.ImVec2(0, 140), imgui.ChildFlags_.borders)
-        if imgui.selectable("..", False)[0]:
+        if imgui.selectable("..", False, imgui.SelectableFlags_.allow_double_click)[0] and imgui.is_mouse_double_clicked(0):
             self.dir = self.dir.parent
         for entry in self._entries():
             bundle = is_bundle(entry)
             label = f"{entry.name} (scene bundle)" if bundle else f"[{entry.name}]" if entry.is_dir() else entry.name
-            if imgui.selectable(label, False)[0]:
-                if entry.is_dir() and not bundle:
-                    self.dir = entry
-                else:
-                    chosen = entry
+            if imgui.selectable(label, entry == self.selected, imgui.SelectableFlags_.allow_double_click)[0]:
+                self.selected, self.path_text = entry, str(entry)
+                if imgui.is_mouse_double_clicked(0):
+                    chosen = self._open(entry)
         imgui.end_child()
         imgui.set_next_item_width(-60)
         # a click selects the whole path, so what is typed replaces it; Enter opens it
@@ -49,10 +51,13 @@ class FileBrowser:
         remember("path")
         imgui.same_line()
         if (imgui.button("Open") or entered) and self.path_text.strip():
-            p = Path(self.path_text.strip()).expanduser()
-            if p.is_dir() and not is_bundle(p):
-                self.dir = p.resolve()
-            else:
-                chosen = p
+            chosen = self._open(Path(self.path_text.strip()).expanduser())
         remember("open")
         return chosen
+
+    def _open(self, p: Path) -> Path | None:
+        """A folder is entered (nothing chosen); a file or a bundle's folder is chosen."""
+        if p.is_dir() and not is_bundle(p):
+            self.dir, self.selected, self.path_text = p.resolve(), None, ""
+            return None
+        return p

@@ -48,6 +48,8 @@ def _remember(app, name: str):
     never opened beside the "map" intensity slider, issue 45); the state file lists them."""
     lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
     app.panel.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
+    if not imgui.is_item_visible():  # scrolled out of its box: imgui keeps no ID of its own for it
+        return
     other = app.panel.ids.setdefault(imgui.get_item_id(), name)
     if other != name:
         pair = " / ".join(sorted((other, name)))
@@ -151,12 +153,6 @@ def _lighting(app):
     _remember(app, "intensity")
     if changed:
         s.update(intensity=intensity)
-    if s.placed:
-        changed, placed = imgui.slider_float("yours", s.look.placed_intensity, 0.0, 8.0, "your lights x %.2f",
-                                             imgui.SliderFlags_.logarithmic)
-        _remember(app, "placed intensity")
-        if changed:
-            s.update(placed_intensity=placed)
     if s.scene.frame is not None:  # before / after: the original photo left of the split (B toggles)
         changed, compare = imgui.slider_float("before | after", s.look.compare, 0.0, 1.0,
                                               "photo %.2f" if s.look.compare > 0.0 else "off")
@@ -272,6 +268,15 @@ def _placed(app):
     if not imgui.collapsing_header(f"Your lights ({len(s.placed)})", _open(app, False)):
         return
     level = app.actions.placed_level()
+    # always drawn (greyed out without lights of yours), here with them: a rig that adds the first
+    # light moves nothing (the map's thumbnail and "open a file" took clicks meant for each other)
+    imgui.begin_disabled(not s.placed)
+    changed, placed_level = imgui.slider_float("yours", s.look.placed_intensity, 0.0, 8.0,
+                                               "all x %.2f" if s.placed else "none yet", imgui.SliderFlags_.logarithmic)
+    imgui.end_disabled()
+    _remember(app, "placed intensity")
+    if changed and s.placed:
+        s.update(placed_intensity=placed_level)
     names = list(RIGS)
     imgui.set_next_item_width(140)
     _, app.panel.rig_choice = imgui.combo("##rig", app.panel.rig_choice, names)
@@ -298,6 +303,12 @@ def _placed(app):
     if imgui.button("save rig") and s.placed:
         app.actions.save_rig()
     placed = list(s.placed)
+    # in a box of its own height (a light in view, the rest scroll): lights added or deleted move
+    # nothing below it (a click meant for one widget would land on another)
+    one = 3 * imgui.get_frame_height_with_spacing() + imgui.get_style().item_spacing.y
+    imgui.begin_child("placed lights", imgui.ImVec2(0, one), imgui.ChildFlags_.borders)
+    if not placed:
+        imgui.text_disabled("none yet: use a rig, add a light,\nor click the map's thumbnail")
     for j, p in enumerate(placed):
         imgui.push_id(f"placed{j}")
         imgui.separator()
@@ -334,6 +345,7 @@ def _placed(app):
             s.set_placed(placed, record=False)
         imgui.pop_id()
 
+    imgui.end_child()
 
 def _map(app):
     if not imgui.collapsing_header("Environment map", _open(app, True)):
