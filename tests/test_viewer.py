@@ -172,13 +172,17 @@ def test_drag_turns_the_lighting_and_the_map(viewer_factory, headless):
     v.xdotool("windowsize", wid, 700, 600)
     s = v.wait_for(lambda s: s["image_rect"][2] == pytest.approx(400.0), 30)  # 700 - the panel, 300 pixels there
     assert s["image_rect"][3] == pytest.approx(400.0)
-    # at 900 x 700 the panel narrows to a third of the window and every widget stays inside it
-    v.xdotool("windowsize", wid, 900, 700)
-    s = v.wait_for(lambda s: s["window_size"] == [900, 700] and s["image_rect"][2] == pytest.approx(594.0), 30)
-    time.sleep(0.5)
-    s = v.state()
-    for name, (x0, _, x1, _) in s["widgets"].items():
-        assert 594.0 <= x0 and x1 <= 900.0, (name, x0, x1)
+    # at 900 x 700 the panel narrows to a third of the window and every widget stays inside it, its
+    # label too (issue 45: "before | afte" was cut at 973 pixels), at three sizes
+    for size in ((900, 700), (973, 760), (1280, 1000)):
+        v.xdotool("windowsize", wid, *size)
+        s = v.wait_for(lambda s, size=size: s["window_size"] == list(size), 30)
+        time.sleep(0.5)
+        s = v.state()
+        left = s["image_rect"][0] + s["image_rect"][2]
+        for name, (x0, _, x1, _) in s["widgets"].items():
+            assert left <= x0 and x1 <= s["panel_right"] + 0.5, (size, name, x0, x1, s["panel_right"])
+    assert s["image_rect"][2] >= 594.0
     assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 

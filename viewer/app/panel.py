@@ -22,6 +22,9 @@ from viewer.scene.area_lights import azimuth_elevation
 from viewer.scene.look import VIEWS
 from viewer.scene.shadow_space import ANGULAR_SIGMA
 
+# the labels drawn beside sliders and combos (each widget leaves the longest one's room: none is cut)
+LABELS = ("longitude", "tilt", "exposure", "map", "yours", "before | after", "quality", "shadows", "view",
+          "number of lights", "turn frames")
 LIGHT_COUNT_SLIDER = 64  # the map's lights the slider offers (the final preset's count; a light file holds up to area_lights.MAX_LIGHTS)
 SIGMA_SLIDER = 30.0  # the size sliders' top, sigma units (the fits give at most light_size.SIGMA_MAX, 20)
 DEG_PER_SIGMA = math.degrees(ANGULAR_SIGMA)  # the slider shows a light's size: its angular sigma in degrees
@@ -39,6 +42,7 @@ class PanelState:
     rig_choice: int = 0  # the rig the combo shows
     light_count: int | None = None  # the count slider's value while it is held
     ids: dict = field(default_factory=dict)  # imgui's ID of each widget drawn this frame -> its name
+    content_right: float = 0.0  # the panel's content's right edge (screen x): no widget or label past it
     id_conflicts: list = field(default_factory=list)  # names of widgets that shared an ID with another (imgui's "conflicting ID")
 
 
@@ -48,9 +52,10 @@ def _remember(app, name: str):
     never opened beside the "map" intensity slider, issue 45); the state file lists them."""
     lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
     app.panel.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
-    if not imgui.is_item_visible():  # scrolled out of its box: imgui keeps no ID of its own for it
+    item = imgui.get_item_id()
+    if not item or not imgui.is_item_visible():  # text and images take no clicks; a widget scrolled out of its box has no ID of its own
         return
-    other = app.panel.ids.setdefault(imgui.get_item_id(), name)
+    other = app.panel.ids.setdefault(item, name)
     if other != name:
         pair = " / ".join(sorted((other, name)))
         if pair not in app.panel.id_conflicts:
@@ -74,6 +79,10 @@ def draw_panel(app):
     flags = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
              | imgui.WindowFlags_.always_vertical_scrollbar)
     imgui.begin("relight", None, flags)
+    # every widget leaves its label's room at the right: the longest label fits whatever the width
+    # ("before | after" was cut at 973 pixels)
+    app.panel.content_right = imgui.get_cursor_screen_pos().x + imgui.get_content_region_avail().x
+    imgui.push_item_width(-(max(imgui.calc_text_size(label).x for label in LABELS) + imgui.get_style().item_inner_spacing.x))
     _status(app)
     _lighting(app)
     _map(app)
@@ -84,6 +93,7 @@ def draw_panel(app):
     _frame_time(app)
     if imgui.collapsing_header("Keys and mouse"):
         _keys()
+    imgui.pop_item_width()
     app.panel.height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
     if imgui.is_any_item_active():  # a slider held (or a click): the preview until it is let go (app._render)
         app.panel.adjusted = time.perf_counter()
@@ -258,7 +268,10 @@ def _lights(app):
             s.set_sigma(i, size / DEG_PER_SIGMA)
         imgui.pop_id()
     imgui.end_child()
+    imgui.push_text_wrap_pos(0.0)
     imgui.text_disabled("click a light to see its shadow; sorted by brightness")
+    imgui.pop_text_wrap_pos()
+    _remember(app, "lights hint")
 
 
 def _placed(app):

@@ -40,6 +40,7 @@ class StateFile:
             "window_size": list(app.window.size),
             "panel_height": app.panel.height,
             "widgets": app.panel.widgets,
+            "panel_right": app.panel.content_right,  # no widget or label past it
             "id_conflicts": app.panel.id_conflicts,
             "recording": None if rec is None else {"kind": rec.kind, "frames": rec.done, "total": rec.total, "path": str(rec.path),
                                                    "capturing": getattr(rec, "capturing", False),
