@@ -434,7 +434,14 @@ def test_files_dropped_on_the_window_open_a_map_a_rig_and_a_photo(display, tmp_p
 def test_record_a_turn(viewer_factory, headless):
     v = viewer_factory("--record-frames", "12")
     v.xdotool("key", "t")
+    # while it renders, its bar is over the image, whatever the window's size (issue 45)
+    s = v.wait_for(lambda s: "progress" in s["widgets"] or len(s["videos"]) == 1, 120)
+    if not s["videos"]:
+        x, y, w, h = s["image_rect"]
+        px0, py0, px1, _ = s["widgets"]["progress"]
+        assert x <= px0 and px1 <= x + w and y <= py0 < y + h / 3
     s = v.wait_for(lambda s: len(s["videos"]) == 1, 120)
+    v.wait_for(lambda s: "progress" not in s["widgets"], 10)  # gone once the video is written
     frames, fps = read_video(s["videos"][0])
     assert frames.shape == (12, SIZE, SIZE, 3) and fps == pytest.approx(30.0)
     # the first frame is the current view (H.264 is lossy: compare loosely)
@@ -549,8 +556,10 @@ def test_the_light_count_slider_refits_the_map_when_let_go(viewer_factory):
     v.xdotool("mousemove", int(x0 + 0.04 * (x1 - x0)), int((y0 + y1) / 2))  # near the slider's low end
     time.sleep(0.2)
     v.xdotool("click", 1)
+    seen = v.wait_for(lambda s: "progress" in s["widgets"] or (s["n_lights"] != before and not s["fitting"]), 120)
     s = v.wait_for(lambda s: s["n_lights"] != before and not s["fitting"], 120)
     assert 1 <= s["n_lights"] < before and len(s["sigma"]) == s["n_lights"]
+    assert "progress" in seen["widgets"] or seen["n_lights"] != before  # the fit's bar over the image, while it ran
     assert "lights (" in s["message"] and s["error"] == ""
     assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0

@@ -222,7 +222,7 @@ class ViewerApp:
         return eng, ("drag" if moving else "adjust") if preview else "update"
 
     def run(self) -> int:
-        from viewer.app.panel import draw_panel
+        from viewer.app.panel import draw_panel, draw_progress
 
         w = self.window
         previous = signal.signal(signal.SIGTERM, lambda *_: w.close()) if os.name == "posix" else None
@@ -239,6 +239,7 @@ class ViewerApp:
                 for path in w.take_dropped():
                     self.actions.open_file(Path(path))
                 draw_panel(self)
+                draw_progress(self)
                 if self.frame_count == 0:
                     self._fit_panel()
                 self.jobs.poll()

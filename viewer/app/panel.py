@@ -100,6 +100,39 @@ def draw_panel(app):
     imgui.end()
 
 
+def draw_progress(app):
+    """Every wait the user would otherwise watch without knowing (a photo or a map opening, lights
+    fitted, a recording rendered): a bar with its stage and the time left over the image's top
+    edge, in view at every window size (the panel's own bars can be scrolled away or below the
+    window's edge)."""
+    from viewer.app.recording import InteractionRecording
+
+    rec = app.recording
+    job = app.scene_job or app.job
+    rendering = rec is not None and not (isinstance(rec, InteractionRecording) and rec.capturing) and rec.total
+    if job is None and not rendering:
+        return
+    x, y, w, _ = app.image_rect()
+    area_x, area_y, area_w, _ = app.image_area()
+    left, top = max(x, area_x) + 8, max(y, area_y) + 8
+    width = max(min(x + w, area_x + area_w) - left - 8, 120)
+    imgui.set_next_window_pos(imgui.ImVec2(left, top))
+    imgui.set_next_window_size(imgui.ImVec2(min(width, 460), 0))
+    imgui.set_next_window_bg_alpha(0.8)
+    flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_saved_settings
+             | imgui.WindowFlags_.no_focus_on_appearing | imgui.WindowFlags_.always_auto_resize | imgui.WindowFlags_.no_inputs)
+    imgui.begin("progress", None, flags)
+    if job is not None:
+        imgui.text_wrapped(app.message or "working")
+        imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), job.stage)
+    if rendering:
+        words = rec.time_left.words()
+        imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0),
+                           f"rendering {rec.done} / {rec.total} frames" + (f", {words}" if words else ""))
+    _remember(app, "progress")
+    imgui.end()
+
+
 def _keys():
     """The keys and the mouse, a row each, the words wrapped to the panel's width."""
     if imgui.begin_table("keys", 2, imgui.TableFlags_.sizing_fixed_fit):
@@ -307,14 +340,21 @@ def _placed(app):
     if imgui.is_item_hovered():
         imgui.set_tooltip("on: your lights keep their intensities when the map changes\n"
                           "off: they keep their share of the light (scaled with the map's brightness)")
-    if imgui.button("undo (Ctrl+Z)"):
+    if imgui.button("undo"):  # short labels: the row fits the narrowest panel (the keys in the tooltips)
         s.undo()
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("Ctrl+Z")
+    _remember(app, "undo")
     imgui.same_line()
-    if imgui.button("redo (Ctrl+Y)"):
+    if imgui.button("redo"):
         s.redo()
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("Ctrl+Y")
+    _remember(app, "redo")
     imgui.same_line()
     if imgui.button("save rig") and s.placed:
         app.actions.save_rig()
+    _remember(app, "save rig")
     placed = list(s.placed)
     # in a box of its own height (a light in view, the rest scroll): lights added or deleted move
     # nothing below it (a click meant for one widget would land on another)
