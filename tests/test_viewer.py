@@ -211,6 +211,30 @@ def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_
     assert np.abs(split[:, 345:] - shot[:, 345:]).mean() < 1e-6  # the relit frame beside it
     v.xdotool("key", "b")
     v.wait_for(lambda s: s["look"]["compare"] == 0.0)
+    # a new map keeps the exposure chosen when the photo opened, so a dark map looks dark; "level"
+    # exposes for the photo's brightness under it (issue 45)
+    from viewer.files.imageio import write_exr
+    from viewer.lighting.envmap import load_envmap
+
+    dark = write_exr(tmp_path / "dark.exr", load_envmap(asset_dir() / "envmaps" / "venice_sunset_256.hdr").pixels / 32.0)
+    opened = v.state()["look"]["exposure"]
+
+    def click(name):
+        x0, y0, x1, y1 = v.state()["widgets"][name]
+        v.xdotool("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2))
+        time.sleep(0.2)
+        v.xdotool("click", 1)
+
+    click("open a file")
+    v.wait_for(lambda s: "browser path" in s["widgets"], 30)
+    click("browser path")
+    v.xdotool("type", str(dark))
+    click("browser open")
+    s = v.wait_for(lambda s: s["map"] == str(dark) and not s["fitting"], 120)
+    assert s["look"]["exposure"] == pytest.approx(opened)
+    click("level exposure")
+    s = v.wait_for(lambda s: s["look"]["exposure"] != pytest.approx(opened), 30)
+    assert s["look"]["exposure"] > opened + 3.0  # 32 times darker: about 5 stops more
     assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
     assert v.quit() == 0
 

@@ -122,6 +122,12 @@ class Actions:
         self.app.message = f"{how} {rec.done} frames: {path.name} in {Path(path).parent.resolve()}"
         print(f"{how} {rec.done} frames to {path}", flush=True)
 
+    def level_exposure(self):
+        """The exposure that keeps the photo's brightness under the lights now (what a photo gets
+        when it opens): a new map keeps the exposure it had until this is asked."""
+        self.app._apply_auto_exposure()
+        self.app.message = f"exposure levelled to the photo: {self.app.session.look.exposure_stops:+.2f} stops"
+
     def open_map(self, path: Path, n: int | None = None):
         if self.app.job is not None:
             self.app.message = "still fitting the previous map"

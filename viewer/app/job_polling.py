@@ -58,6 +58,7 @@ class JobPolling:
             self.app.session.update(yaw=facing_yaw(res.lights))
         self.app.env_path = job.path
         self.app.n_lights = len(res.lights)
-        self.app.exposed_again()
+        # the exposure stays (chosen when the photo opened): a night map looks like night, a bright
+        # one bright (issue 45); the panel's "level" button exposes for the new light
         self.app.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
         print(self.app.message, flush=True)

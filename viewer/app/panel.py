@@ -187,10 +187,21 @@ def _lighting(app):
     _remember(app, "tilt")
     if changed:
         s.update(tilt=tilt)
-    changed, exposure = imgui.slider_float("exposure", v.exposure_stops, -10.0, 10.0, "%+.2f stops")
+    # the slider leaves room for "level" (the photo's brightness under the lights now) and its label
+    level = imgui.calc_text_size("level").x + 2 * imgui.get_style().frame_padding.x + imgui.get_style().item_spacing.x
+    imgui.set_next_item_width(imgui.calc_item_width() - level)
+    changed, exposure = imgui.slider_float("##exposure", v.exposure_stops, -10.0, 10.0, "%+.2f stops")
     _remember(app, "exposure")
     if changed:
         s.look = exposed(s.look, exposure)
+    imgui.same_line()
+    if imgui.button("level"):
+        app.actions.level_exposure()
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("expose for the photo's brightness under the lights now\n(a new map keeps the exposure you had)")
+    _remember(app, "level exposure")
+    imgui.same_line(0, imgui.get_style().item_inner_spacing.x)
+    imgui.text("exposure")
     changed, intensity = imgui.slider_float("map##intensity", s.look.intensity, 0.0, 8.0, "map's lights x %.2f",
                                             imgui.SliderFlags_.logarithmic)
     _remember(app, "intensity")
