@@ -115,3 +115,29 @@ def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
     assert s.refining and s.refine_job is not old
     s.release()  # stops the running job at its next batch: a thread left inside torch aborts the exit
     assert s.refine_job.done
+
+
+def test_the_preview_is_the_final_picture_coarser(ctx, tmp_path):
+    """While the lighting is dragged the window shows the preview engine's frame: it differs from the
+    full-quality frame of the same look only in resolution and shadow softness (issue 45): the same
+    backdrop, exposure and horizon. Both downsampled to the preview's size, per pixel (0-255)."""
+    import cv2
+
+    from viewer.photo.inference import cached_bundle
+    from viewer.scene.area_lights import facing_yaw
+    from viewer.scene.resampling import load_sized_scene
+
+    bundle, _ = cached_bundle(asset_dir() / "photos" / "underpass.jpg", max_size=768, ctx=ctx, bundles=tmp_path)
+    scene = load_sized_scene(bundle, None, 768)
+    lights = load_lights(MAPS / "immenstadter_horn_256.lights.json")
+    s = Session(ctx, scene, lights, load_envmap(MAPS / "immenstadter_horn_256.hdr").pixels)
+    s.update(yaw=facing_yaw(lights) + 20.0, exposure=0.5)
+    final = s.render(preview=False).output.read_display().astype(np.float32)
+    preview = s.render(preview=True).output.read_display().astype(np.float32)
+    h, w = preview.shape[:2]
+    small = cv2.resize(final, (w, h), interpolation=cv2.INTER_AREA)
+    alpha = cv2.resize(scene.frame.alpha, (w, h), interpolation=cv2.INTER_AREA)
+    error = np.abs(small - preview).mean(axis=-1)
+    assert error[alpha < 0.01].mean() < 1.5  # the backdrop: the same map, blur, exposure and horizon
+    assert abs(float(small[alpha < 0.01].mean() - preview[alpha < 0.01].mean())) < 0.5  # not darker
+    assert error.mean() < 2.5  # the person: finer and softer shadows in the final frame, nothing else
