@@ -154,9 +154,10 @@ class Window:
     def resize(self, width: int, height: int):
         glfw.set_window_size(self.handle, int(width), int(height))
 
-    def show_message(self, text: str):
+    def show_message(self, text: str, fraction: float | None = None, bar: str = ""):
         """Draw one frame holding only ``text`` (progress while the window waits on work that
-        blocks its thread, such as a photo's inference)."""
+        blocks its thread, such as a photo's inference), with a bar of ``fraction`` done labelled
+        ``bar`` (the stage and the time left) when given."""
         self.wait(None)
         self.begin_frame()
         w, h = self.size
@@ -167,6 +168,10 @@ class Window:
         size = imgui.calc_text_size(text)
         imgui.set_cursor_pos(imgui.ImVec2(max((w - size.x) / 2, 8.0), max((h - size.y) / 2, 8.0)))
         imgui.text(text)
+        if fraction is not None:
+            width = min(w - 16.0, 480.0)
+            imgui.set_cursor_pos(imgui.ImVec2(max((w - width) / 2, 8.0), max((h - size.y) / 2, 8.0) + 2 * size.y))
+            imgui.progress_bar(float(fraction), imgui.ImVec2(width, 0), bar)
         imgui.end()
         fw, fh = self.framebuffer_size
         self.ctx.screen.use()

@@ -198,15 +198,21 @@ def cmd_view(args) -> int:
 def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
     """The scene bundle of a photo: inferred once (its stages shown in the window), then taken
     from the cache."""
-    from viewer.photo.inference import cached_bundle
+    from viewer.photo.inference import STAGE_SHARES, STAGES, cached_bundle
+    from viewer.progress import TimeLeft
 
     start = time.perf_counter()
+    left = TimeLeft(STAGE_SHARES)
+    name = Path(photo).name
 
     def progress(stage):
         print(f"  {stage} done ({time.perf_counter() - start:.1f} s)", flush=True)
-        window.show_message(f"Preparing {Path(photo).name}: {stage} done")
+        fraction = left.update(stage, 1, 1)
+        words = left.words()
+        k = STAGES.index(stage) + 1 if stage in STAGES else 0
+        window.show_message(f"Preparing {name}", fraction, f"{stage} done ({k} of {len(STAGES)})" + (f", {words}" if words else ""))
 
-    window.show_message(f"Preparing {Path(photo).name}: reading the photo, finding the person...")
+    window.show_message(f"Preparing {name}", 0.0, "reading the photo, finding the person...")
     bundle, cached = cached_bundle(photo, mask, max_size=max_size, device=device, progress=progress, ctx=window.ctx)
     print(f"scene bundle of {photo}: {bundle} ({'from the cache' if cached else 'inferred now, cached for next time'}; "
           f"{time.perf_counter() - start:.1f} s)")
