@@ -420,7 +420,25 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     assert changed[~mask].sum() > 100 and not changed[mask].any()
     click("open a file")
     v.wait_for(lambda s: "browser path" in s["widgets"], 30)
+    # a map: the panel shows it (name, thumbnail, dots) the frame the picture does, never before (issue 45)
+    new_map = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")
+    old_map = v.state()["shown_map"]
     click("browser path")
+    v.xdotool("type", new_map)
+    click("browser open")
+    seen = []
+    end = time.monotonic() + 60
+    while time.monotonic() < end and (not seen or seen[-1]["shown_map"] != new_map):
+        st = v.state()
+        if st is not None:
+            seen.append(st)
+        time.sleep(0.02)
+    assert seen[-1]["shown_map"] == new_map and seen[-1]["map"] == new_map
+    assert all(st["shown_map"] in (old_map, new_map) for st in seen)
+    assert not any(st["shown_map"] == new_map and st["map"] != new_map for st in seen)
+    assert seen[-1]["frames"][-1][1] == "switch"  # it changed on the frame that shows the new map's picture
+    click("browser path")
+    v.xdotool("key", "ctrl+a")
     v.xdotool("type", str(sample_scene_dir()))
     click("browser open")
     s = v.wait_for(lambda s: s["message"].startswith("opened"), 60)
@@ -448,6 +466,7 @@ def test_files_dropped_on_the_window_open_a_map_a_rig_and_a_photo(display, tmp_p
     assert res.returncode == 0, res.stderr[-2000:]
     state = json.loads((tmp_path / "state.json").read_text())
     assert state["map"] == str(new_map) and state["n_lights"] == 16
+    assert state["shown_map"] == state["map"]  # the panel shows the picture's map (issue 45)
     assert len(state["placed"]) == 2 and state["placed"][1]["azimuth"] == -50.0
     assert state["scene_size"] == [170, 256] and "opened underpass.jpg (inferred now" in res.stdout
     assert str(notes) in state["error"] and "scene bundles" in state["error"]

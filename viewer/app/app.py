@@ -111,10 +111,16 @@ class ViewerApp:
         self.videos: list[str] = []
         self.state_file = StateFile(config.state_file) if config.state_file is not None else None
         self.thumbnail = MapThumbnail(self.window.ctx)
+        self.shown = self._showing()  # the map the picture on screen was made under: what the panel shows
         self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd(), OPENS)
         self.actions = Actions(self)
         self.jobs = JobPolling(self)
         self.controls = Controls(self)
+
+    def _showing(self) -> tuple:
+        """(map path, its pixels, the map's lights) of the state now: the panel draws the map's name,
+        thumbnail and light dots from the picture's, so they change the frame the picture does."""
+        return self.env_path, self.session.environment, self.session.lights
 
     def _apply_auto_exposure(self):
         """Exposure from the photo's own brightness under the current lights (a no-op, 0 stops,
@@ -210,6 +216,7 @@ class ViewerApp:
             return eng, "record"
         if self.switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
             self.switched = False
+            self.shown = self._showing()  # the panel changes with the picture, not before (issue 45)
             if self._expose_pending:  # switched while recording, at full quality: exposed from the next frame on
                 self._expose_pending = False
                 self._apply_auto_exposure()

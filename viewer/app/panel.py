@@ -110,7 +110,7 @@ def draw_progress(app):
     rec = app.recording
     job = app.scene_job or app.job
     rendering = rec is not None and not (isinstance(rec, InteractionRecording) and rec.capturing) and rec.total
-    if job is None and not rendering:
+    if job is None and not rendering and not app.switched:
         return
     x, y, w, _ = app.image_rect()
     area_x, area_y, area_w, _ = app.image_area()
@@ -125,6 +125,8 @@ def draw_progress(app):
     if job is not None:
         imgui.text_wrapped(app.message or "working")
         imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), job.stage)
+    elif app.switched:  # the job's result being drawn (its shadows, over frames): the panel changes with it
+        imgui.progress_bar(-imgui.get_time(), imgui.ImVec2(-1, 0), "drawing the new light")
     if rendering:
         words = rec.time_left.words()
         imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0),
@@ -416,8 +418,9 @@ def _map(app):
         return
     maps = list(app.config.bundled_maps)
     names = [p.stem for p in maps]
-    current = maps.index(app.env_path) if app.env_path in maps else -1
-    label = app.env_path.name if app.env_path else "(none)"
+    shown = app.shown[0]  # the picture's map: a new one shows here the frame it shows there
+    current = maps.index(shown) if shown in maps else -1
+    label = shown.name if shown else "(none)"
     if imgui.begin_combo("map", label):
         for i, name in enumerate(names):
             if imgui.selectable(name, i == current)[0] and i != current:
@@ -439,11 +442,12 @@ def _thumbnail(app):
     """The map as its light arrives now, a dot on each light (hollow: the map's; filled and
     numbered: yours). A click aims the light being aimed there, or adds a light there."""
     s = app.session
-    if s.environment is None:
+    _, environment, map_lights = app.shown  # the picture's map and lights (a new map: once its frame shows)
+    if environment is None:
         return
     yaw, tilt = s.look.yaw, s.look.tilt
     thumb = app.thumbnail
-    tex = thumb.update(s.environment)
+    tex = thumb.update(environment)
     width = imgui.get_content_region_avail().x
     size = imgui.ImVec2(width, width / 2)
     uv0, uv1 = thumb.uv_range(yaw)
@@ -458,7 +462,7 @@ def _thumbnail(app):
                           "click: aim the light being aimed here, or add one here")
     draw = imgui.get_window_draw_list()
     ring = imgui.get_color_u32(imgui.ImVec4(1.0, 1.0, 1.0, 0.9))
-    for u, v in thumb.points(s.rotated_lights().direction, yaw, tilt):
+    for u, v in thumb.points(map_lights.rotated(yaw, tilt).direction, yaw, tilt):
         draw.add_circle(imgui.ImVec2(lo.x + u * size.x, lo.y + v * size.y), 4.0, ring)
     first = len(s.base_lights)
     for j, ((u, v), p) in enumerate(zip(thumb.points([p.direction for p in s.placed], yaw, tilt), s.placed)):

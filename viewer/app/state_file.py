@@ -36,6 +36,7 @@ class StateFile:
             "n_lights": len(app.session.sigma),
             "preset": app.preset,
             "map": str(app.env_path) if app.env_path else None,
+            "shown_map": str(app.shown[0]) if app.shown[0] else None,  # the picture's (the panel shows it)
             "image_rect": list(app.image_rect()),
             "window_size": list(app.window.size),
             "panel_height": app.panel.height,
