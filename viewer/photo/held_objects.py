@@ -27,7 +27,7 @@ by step (issue 42; docs/photos.md shows the skier before and after):
 What cannot be told from the background by colour (a dark barbell plate against dark bricks) is
 left out, as before; a mask file that includes the object keeps it whatever it looks like
 (:func:`viewer.photo.matting.mask_matte`). Everything runs where the person is ``SOLVE_HEIGHT``
-pixels tall (0.1-0.4 s on the evaluation set).
+pixels tall (0.03-0.3 s a photo on the evaluation set, docs/photos.md).
 """
 
 from __future__ import annotations
