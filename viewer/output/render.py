@@ -52,37 +52,27 @@ def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
 UNSEEN_SHARE = 0.9  # of the person's pixels clipped to white (or black): the lights far too bright (dim) for the exposure
 
 
-def warn_if_white(engine, scene: Scene, settings: Look) -> None:
-    """One warning line when the person comes out white: lights far brighter than the exposure can
-    show (light files allow intensities up to 1e20; a silhouette was all one got). Uses the engine's
-    current render."""
+def warn_if_unseen(engine, scene: Scene, settings: Look, lit: bool) -> None:
+    """One warning line when the person comes out white (lights far brighter than the exposure can
+    show: light files allow intensities up to 1e20; a silhouette was all one got) or black though
+    its lights are not all zero (``lit`` False: the command's own warning says so; a map of 1e-30
+    everywhere, one lit texel in a black map): how many stops off, and what to do. Reads the
+    engine's current render once."""
     from viewer.photo.detail import luminance
     from viewer.scene.look import EXPOSURE_LIMIT
 
     if not scene.mask.any():
         return
     lum = luminance(engine.output.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
-    if np.mean(tonemap_curve(lum, settings.tonemap) >= 0.99) < UNSEEN_SHARE:
-        return
-    stops = float(np.log2(max(np.median(lum), 1e-30) / 0.18))
-    lower = settings.exposure - stops
-    advice = (f"try --exposure {lower:.0f}" if lower >= -EXPOSURE_LIMIT
-              else f"lower the lights' intensities (--exposure goes down to -{EXPOSURE_LIMIT:.0f} stops)")
-    warnings.warn(f"the person comes out white: the lights are about {stops:.0f} stops brighter than exposure "
-                  f"{settings.exposure:+.1f} shows; {advice}", stacklevel=2)
-
-
-def warn_if_black(engine, scene: Scene, settings: Look, lit: bool) -> None:
-    """One warning line when the person comes out black though its lights are not all zero (all
-    zero, ``lit`` False: the command's own warning says so) (a map of 1e-30 everywhere, one lit texel in a black
-    map): how many stops too dark, and what to do. Uses the engine's current render."""
-    from viewer.photo.detail import luminance
-    from viewer.scene.look import EXPOSURE_LIMIT
-
-    if not scene.mask.any() or not lit:
-        return
-    lum = luminance(engine.output.read_work_hdr()[scene.mask]).astype(np.float64) * 2.0 ** settings.exposure
-    if np.mean(tonemap_curve(lum, settings.tonemap) < 1.0 / 255.0) < UNSEEN_SHARE:
+    shown = tonemap_curve(lum, settings.tonemap)
+    if np.mean(shown >= 0.99) >= UNSEEN_SHARE:
+        stops = float(np.log2(max(np.median(lum), 1e-30) / 0.18))
+        lower = settings.exposure - stops
+        advice = (f"try --exposure {lower:.0f}" if lower >= -EXPOSURE_LIMIT
+                  else f"lower the lights' intensities (--exposure goes down to -{EXPOSURE_LIMIT:.0f} stops)")
+        warnings.warn(f"the person comes out white: the lights are about {stops:.0f} stops brighter than exposure "
+                      f"{settings.exposure:+.1f} shows; {advice}", stacklevel=2)
+    if not lit or np.mean(shown < 1.0 / 255.0) < UNSEEN_SHARE:
         return
     peak = float(np.max(lum)) if lum.size else 0.0
     if not np.isfinite(peak) or peak <= 0.0:
@@ -147,8 +137,7 @@ def render_to_files(engine, scene: Scene, lights: AreaLights, out_dir, name: str
     kept), ``name.exr`` (HDR) and ``name_passes.png`` (``fixed``: placed lights, ``Engine.set_lights``)."""
     out_dir = Path(out_dir)
     settings, _ = render_look(engine, scene, lights, settings, environment, fixed, soft_planes=passes)
-    warn_if_white(engine, scene, settings)
-    warn_if_black(engine, scene, settings, _lit(lights, fixed))
+    warn_if_unseen(engine, scene, settings, _lit(lights, fixed))
     transparent = engine.look.background == "transparent"
     display = (engine.output.read_display_rgba() if transparent else engine.output.read_display()).astype(np.float32) / 255.0
     hdr = engine.output.read_output_hdr()
@@ -194,8 +183,7 @@ def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: L
             engine.set_look(replace(settings, yaw=float(yaw)))
             refiner = render_frame(engine, settings, refiner)
             if i == 0:
-                warn_if_white(engine, scene, settings)
-                warn_if_black(engine, scene, settings, _lit(lights, fixed))
+                warn_if_unseen(engine, scene, settings, _lit(lights, fixed))
             video.write(engine.output.read_display())
             if progress is not None:
                 progress(i + 1, frames)
