@@ -14,6 +14,13 @@ def scaled_size(size: tuple[int, int], longest: int) -> tuple[int, int]:
     return max(int(round(w * s)), 1), max(int(round(h * s)), 1)
 
 
+def height_capped(size: tuple[int, int], height: float, at_most: int) -> tuple[int, int]:
+    """``size`` (w, h) as it is, or scaled down so that something ``height`` pixels tall in it is
+    ``at_most`` pixels tall (where a person is solved at a bounded size)."""
+    w, h = size
+    return (w, h) if height <= at_most else scaled_size((w, h), int(round(max(w, h) * at_most / height)))
+
+
 def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """``image`` (H, W[, C]) resized to ``size`` = (w, h): area average when shrinking, bilinear
     when enlarging (OpenCV; float32 or uint8 kept)."""

@@ -132,13 +132,11 @@ def find_objects(image: np.ndarray, person: np.ndarray, landmarks: dict, height:
 def held_objects(photo: np.ndarray, person: np.ndarray, landmarks: dict, height: int) -> np.ndarray:
     """(H, W) bool at ``photo``'s size (uint8 sRGB): :func:`find_objects`, run where the person
     (``person`` bool, ``height`` pixels tall) is ``SOLVE_HEIGHT`` pixels tall or less."""
-    from viewer.resize import resize, scaled_size
+    from viewer.resize import height_capped, resize
 
     h, w = person.shape
-    size = (w, h) if height <= SOLVE_HEIGHT else scaled_size((w, h), int(round(max(w, h) * SOLVE_HEIGHT / height)))
+    size = height_capped((w, h), height, SOLVE_HEIGHT)
     small = resize(person.astype(np.float32), size) > 0.5
     found = find_objects(resize(photo, size).astype(np.float32) / 255.0, small, landmarks,
                          max(1, int(round(height * size[0] / w))))
-    if not found.any():
-        return found if size == (w, h) else np.zeros((h, w), bool)
-    return resize(found.astype(np.float32), (w, h)) > 0.5 if size != (w, h) else found
+    return found if size == (w, h) else resize(found.astype(np.float32), (w, h)) > 0.5

@@ -442,11 +442,11 @@ def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) 
 def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, float]:
     """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
     decided by colour; the background's holes in it; the soft edge's half-width, pixels)."""
-    from viewer.resize import resize, scaled_size
+    from viewer.resize import height_capped, resize
 
     h, w = photo.shape[:2]
     height = person_height(person.segmentation > 0.5)
-    size = (w, h) if height <= SOLVE_HEIGHT else scaled_size((w, h), int(round(max(w, h) * SOLVE_HEIGHT / height)))
+    size = height_capped((w, h), height, SOLVE_HEIGHT)
     tri = trimap(resize(person.segmentation, size), person.landmarks)
     small = resize(photo, size).astype(np.float32) / 255.0
     models = colour_models(small, tri.samples, tri.sure_background, ~tri.sure_background, MODEL_RADIUS * tri.height)
