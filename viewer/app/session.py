@@ -69,17 +69,22 @@ class Session:
 
     # ------------------------------------------------------------------ state
     @property
+    def map_lights(self) -> AreaLights:
+        """The map's lights with the user's sigmas, as the engine takes them (the look turns and scales them)."""
+        return AreaLights(self.base_lights.direction, self.sigma, self.base_lights.intensity)
+
+    @property
     def lights(self) -> AreaLights:
         """The map's lights as rendered: the user's sigmas and the map's intensity, before the rotation."""
-        return AreaLights(self.base_lights.direction, self.sigma, self.base_lights.intensity * np.float32(self.look.intensity))
+        return self.map_lights.scaled(self.look.intensity)
 
     def rotated_lights(self) -> AreaLights:
         return self.lights.rotated(self.look.yaw, self.look.tilt)
 
     def rendered_lights(self) -> AreaLights:
-        """The map's lights turned by the look, then the placed lights (fixed to the camera); the
-        look's intensity scales the map's, its placed intensity the placed ones."""
-        return self.rotated_lights().followed_by(to_area_lights(self.placed).scaled(self.look.placed_intensity))
+        """What the engines render (:meth:`Look.turned`): the map's lights turned and scaled by the
+        look, then the placed lights (fixed to the camera) scaled by its placed intensity."""
+        return self.look.turned(self.map_lights, to_area_lights(self.placed))
 
     def set_placed(self, placed, record: bool = True):
         """The user's lights (a rig, an added, moved or deleted light); ``record``: undo brings back
@@ -207,7 +212,7 @@ class Session:
         if preview and shadows in ("soft", "refined"):
             shadows = "hard" if hard else "soft"
         # the engine turns and scales them by the look (its yaw, tilt and intensities)
-        eng.set_lights(AreaLights(self.base_lights.direction, self.sigma, self.base_lights.intensity), to_area_lights(self.placed))
+        eng.set_lights(self.map_lights, to_area_lights(self.placed))
         # the drag preview leaves the light scattered under the skin out: ~20 ms a frame for a change
         # of at most 2 % at a face's steepest edges (docs/photos.md)
         eng.set_look(replace(lk, shadows=shadows, skin=lk.skin and not preview))

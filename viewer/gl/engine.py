@@ -200,7 +200,7 @@ class Engine:
         alone; the albedo, normal, depth, specular or roughness map; or light ``light``'s shadow
         (its visibility under the current shadow mode, soft when no shadows are shown). Checked
         where every look is: ``Look`` (the view) and ``set_look`` (the light's index)."""
-        self.set_look(self.looks.asked.replace(view=view, light=int(light) if view == "shadow" else self.look.light))
+        self.set_look(self.looks.asked.replace(view=view, light=int(light) if view == "shadow" else self.looks.asked.light))
 
     def _drop_refined(self):
         """The lights' shadows changed: the refined visibility no longer applies (the composite

@@ -47,12 +47,8 @@ class LookState:
         return any(getattr(look, f) != getattr(self.asked, f) for f in LIGHT_FIELDS)
 
     def turned(self, lights: AreaLights, placed: AreaLights | None) -> AreaLights:
-        """The lights the engine renders under the current look: the map's turned by its yaw and
-        tilt and scaled by its intensity, then the placed ones, fixed to the camera, scaled by its
-        placed intensity."""
-        look = self.asked
-        out = lights.rotated(look.yaw, look.tilt).scaled(look.intensity)
-        return out if placed is None else out.followed_by(placed.scaled(look.placed_intensity))
+        """The lights the engine renders under the current look (:meth:`Look.turned`)."""
+        return self.asked.turned(lights, placed)
 
     @property
     def ground_shown(self) -> bool:

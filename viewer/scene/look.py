@@ -115,6 +115,13 @@ class Look:
         """The exposure to display with: 0 stops while "auto" is not resolved yet."""
         return 0.0 if self.exposure == AUTO else float(self.exposure)
 
+    def turned(self, lights, placed=None):
+        """The lights this look renders (:class:`viewer.scene.area_lights.AreaLights`): the map's
+        ``lights`` turned by its yaw and tilt and scaled by its intensity, then the ``placed`` ones,
+        fixed to the camera, scaled by its placed intensity."""
+        out = lights.rotated(self.yaw, self.tilt).scaled(self.intensity)
+        return out if placed is None else out.followed_by(placed.scaled(self.placed_intensity))
+
     def fitted(self, n_lights: int) -> Look:
         """This look for a set of ``n_lights`` lights: a selected light past the set (a look saved
         with more lights) becomes light 0, and its shadow view the relit image."""
