@@ -73,6 +73,24 @@ class Viewer:
     def xdotool(self, *args):
         subprocess.run(["xdotool", *map(str, args)], env=self.env, check=True)
 
+    def click(self, name, fx=0.5, fy=0.5, until=None):
+        """Click a widget of the panel (its place in the state file); with ``until``, wait for the
+        state it should bring, clicking again when a click went unseen (once in a full run the 29x13
+        "aim" button's click changed nothing for 30 s; it did not happen again in 5 runs of this
+        file; the cause is not found)."""
+        for attempt in range(3):
+            x0, y0, x1, y1 = self.state()["widgets"][name]
+            self.xdotool("mousemove", int(x0 + fx * (x1 - x0)), int(y0 + fy * (y1 - y0)))
+            time.sleep(0.2)
+            self.xdotool("click", 1)
+            if until is None:
+                return None
+            try:
+                return self.wait_for(until, 10)
+            except AssertionError:
+                if attempt == 2:
+                    raise
+
     def drag(self, x, y, dx, dy, steps=10):
         self.xdotool("mousemove", x, y)
         time.sleep(0.2)
@@ -219,20 +237,14 @@ def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_
     dark = write_exr(tmp_path / "dark.exr", load_envmap(asset_dir() / "envmaps" / "venice_sunset_256.hdr").pixels / 32.0)
     opened = v.state()["look"]["exposure"]
 
-    def click(name):
-        x0, y0, x1, y1 = v.state()["widgets"][name]
-        v.xdotool("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2))
-        time.sleep(0.2)
-        v.xdotool("click", 1)
-
-    click("open a file")
+    v.click("open a file")
     v.wait_for(lambda s: "browser path" in s["widgets"], 30)
-    click("browser path")
+    v.click("browser path")
     v.xdotool("type", str(dark))
-    click("browser open")
+    v.click("browser open")
     s = v.wait_for(lambda s: s["map"] == str(dark) and not s["fitting"], 120)
     assert s["look"]["exposure"] == pytest.approx(opened)
-    click("level exposure")
+    v.click("level exposure")
     s = v.wait_for(lambda s: s["look"]["exposure"] != pytest.approx(opened), 30)
     assert s["look"]["exposure"] > opened + 3.0  # 32 times darker: about 5 stops more
     assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
@@ -381,23 +393,6 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
 
     v = viewer_factory()
 
-    def click(name, fx=0.5, fy=0.5, until=None):
-        """Click a widget; with ``until``, wait for the state it should bring, clicking again when a
-        click went unseen (once in a full run the 29x13 "aim" button's click changed nothing for
-        30 s; it did not happen again in 5 runs of this file; the cause is not found)."""
-        for attempt in range(3):
-            x0, y0, x1, y1 = v.state()["widgets"][name]
-            v.xdotool("mousemove", int(x0 + fx * (x1 - x0)), int(y0 + fy * (y1 - y0)))
-            time.sleep(0.2)
-            v.xdotool("click", 1)
-            if until is None:
-                return None
-            try:
-                return v.wait_for(until, 10)
-            except AssertionError:
-                if attempt == 2:
-                    raise
-
     s = v.state()
     assert s["panel_height"] <= s["window_size"][1]  # the window opens tall enough for the whole panel (1200-px screen)
     lights = load_lights(asset_dir() / DEMO_LIGHTS).rotated(s["look"]["yaw"], s["look"]["tilt"])
@@ -405,11 +400,11 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     inner = np.nonzero((uv[:, 0] > 0.15) & (uv[:, 0] < 0.85) & (uv[:, 1] > 0.1) & (uv[:, 1] < 0.9))[0]
     k = inner[np.argmax(lights.intensity[inner].sum(axis=1))]
     sun, (u, w) = lights.direction[k], uv[k]
-    s = click("thumbnail", u, w, until=lambda s: len(s["placed"]) == 1)
+    s = v.click("thumbnail", u, w, until=lambda s: len(s["placed"]) == 1)
     assert "added at" in s["message"]
     assert np.degrees(np.arccos(np.clip(PlacedLight(**s["placed"][0]).direction @ sun, -1, 1))) < 2.0
-    click("placed 0 aim", until=lambda s: s["message"].startswith("click on the person or the map"))
-    s = click("thumbnail", 0.5, 0.9, until=lambda s: "aimed at" in s["message"])  # behind the person, low
+    v.click("placed 0 aim", until=lambda s: s["message"].startswith("click on the person or the map"))
+    s = v.click("thumbnail", 0.5, 0.9, until=lambda s: "aimed at" in s["message"])  # behind the person, low
     assert len(s["placed"]) == 1 and s["placed"][0]["elevation"] < -60
     before = read_png(v.save())
     v.xdotool("key", "g")
@@ -418,14 +413,14 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     mask = headless[0].mask
     changed = np.abs(after - before).max(axis=-1) > 4 / 255
     assert changed[~mask].sum() > 100 and not changed[mask].any()
-    click("open a file")
+    v.click("open a file")
     v.wait_for(lambda s: "browser path" in s["widgets"], 30)
     # a map: the panel shows it (name, thumbnail, dots) the frame the picture does, never before (issue 45)
     new_map = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")
     old_map = v.state()["shown_map"]
-    click("browser path")
+    v.click("browser path")
     v.xdotool("type", new_map)
-    click("browser open")
+    v.click("browser open")
     seen = []
     end = time.monotonic() + 60
     while time.monotonic() < end and (not seen or seen[-1]["shown_map"] != new_map):
@@ -437,10 +432,10 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     assert all(st["shown_map"] in (old_map, new_map) for st in seen)
     assert not any(st["shown_map"] == new_map and st["map"] != new_map for st in seen)
     assert seen[-1]["frames"][-1][1] == "switch"  # it changed on the frame that shows the new map's picture
-    click("browser path")
+    v.click("browser path")
     v.xdotool("key", "ctrl+a")
     v.xdotool("type", str(sample_scene_dir()))
-    click("browser open")
+    v.click("browser open")
     s = v.wait_for(lambda s: s["message"].startswith("opened"), 60)
     assert "a scene bundle" in s["message"] and s["scene_size"] == [512, 512]
     assert v.state()["id_conflicts"] == []  # no two widgets share an imgui ID (issue 45)
