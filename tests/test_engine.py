@@ -219,6 +219,28 @@ def test_lights_that_contribute_nothing_are_skipped(ctx, scene):
     full.release()
 
 
+@pytest.mark.parametrize("soft", ["pcss", "csm"])
+def test_a_light_going_out_binds_a_stand_in_sampled_like_the_real_maps(ctx, scene, soft):
+    """llvmpipe compiles a shader variant per kind of texture bound at each unit (format, filter,
+    wrap, power-of-two sides): a slot whose light went out binds a stand-in of the same kind as the
+    shadow maps and pre-filtered bases, or dragging a light below the horizon froze the window for
+    0.6-1.5 s while a new variant compiled (issue 45)."""
+    def kind(tex):
+        pot = tuple(v & (v - 1) == 0 for v in tex.size)
+        return tex.components, tex.dtype, tex.filter, tex.repeat_x, tex.repeat_y, pot
+
+    eng = make_engine(ctx, scene, soft=soft, terms=6)  # 6 terms: atlases 3 tiles wide, sides not powers of two
+    lights = AreaLights(unit([[0.3, 0.4, 1.0], [-0.3, 0.2, 1.0]]), [2.0, 2.0], [[1, 1, 1], [1, 1, 1]])
+    eng.set_lights(lights)
+    eng.set_look(Look(shadows="soft"))
+    eng.render()
+    real = eng._lights[0]
+    assert kind(eng.light_pass.stand_in_shadow_map) == kind(real.shadow_map)
+    if soft == "csm":
+        assert kind(eng.light_pass.stand_in_filtered) == kind(real.filtered)
+    eng.release()
+
+
 def used_programs(eng, fragment: str) -> list:
     """The cache keys of the programs with this fragment shader that the engine drew with (the
     context's program cache is shared by every engine on it)."""

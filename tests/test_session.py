@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.app.jobs import LightJob
-from viewer.app.session import PREVIEW_SIZE, Session
+from viewer.app.preview import FRAME_BUDGET_MS, PREVIEW_LEVELS, SAMPLES, START_LEVEL, PreviewPace
+from viewer.app.session import Session
 from viewer.gl import Engine, EngineOptions
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.map_lights import sidecar_lights
@@ -33,7 +34,7 @@ def test_session_final_and_preview(ctx):
     np.testing.assert_array_equal(final.output.read_display(), ref.output.read_display())
     ref.release()
     preview = s.render(preview=True)
-    assert preview is not final and preview.scene.width == PREVIEW_SIZE
+    assert preview is not final and preview.scene.width == PREVIEW_LEVELS[START_LEVEL].work
     assert preview.kit.counters["csm_basis"] == 0 and preview.kit.counters["shadow_map"] > 0  # hard shadows while dragging
     # shading and inspection views and switches go to the same engines
     s.update(view="albedo")
@@ -133,11 +134,63 @@ def test_the_preview_is_the_final_picture_coarser(ctx, tmp_path):
     s = Session(ctx, scene, lights, load_envmap(MAPS / "immenstadter_horn_256.hdr").pixels)
     s.update(yaw=facing_yaw(lights) + 20.0, exposure=0.5)
     final = s.render(preview=False).output.read_display().astype(np.float32)
-    preview = s.render(preview=True).output.read_display().astype(np.float32)
-    h, w = preview.shape[:2]
-    small = cv2.resize(final, (w, h), interpolation=cv2.INTER_AREA)
-    alpha = cv2.resize(scene.frame.alpha, (w, h), interpolation=cv2.INTER_AREA)
-    error = np.abs(small - preview).mean(axis=-1)
-    assert error[alpha < 0.01].mean() < 1.5  # the backdrop: the same map, blur, exposure and horizon
-    assert abs(float(small[alpha < 0.01].mean() - preview[alpha < 0.01].mean())) < 0.5  # not darker
-    assert error.mean() < 2.5  # the person: finer and softer shadows in the final frame, nothing else
+    for level in range(len(PREVIEW_LEVELS)):  # every level the window's pace may pick
+        s.preview_level = level
+        preview = s.render(preview=True).output.read_display().astype(np.float32)
+        h, w = preview.shape[:2]
+        small = cv2.resize(final, (w, h), interpolation=cv2.INTER_AREA)
+        alpha = cv2.resize(scene.frame.alpha, (w, h), interpolation=cv2.INTER_AREA)
+        error = np.abs(small - preview).mean(axis=-1)
+        assert error[alpha < 0.01].mean() < 1.5  # the backdrop: the same map, blur, exposure and horizon
+        assert abs(float(small[alpha < 0.01].mean() - preview[alpha < 0.01].mean())) < 0.5  # not darker
+        assert error.mean() < 2.5  # the person: finer and softer shadows in the final frame, nothing else
+
+
+def test_the_drag_preview_paces_itself_to_the_frame_budget():
+    """Slower frames than the budget: one level coarser after SAMPLES of them (never past the
+    coarsest); a drag that had room: the next one starts a level finer; noise in one frame moves nothing."""
+    pace = PreviewPace()
+    assert pace.level == START_LEVEL
+    pace.start_drag()
+    for _ in range(SAMPLES):
+        pace.record(2.0 * FRAME_BUDGET_MS)
+    assert pace.level == START_LEVEL + 1
+    for _ in range(10 * SAMPLES):
+        pace.record(2.0 * FRAME_BUDGET_MS)
+    assert pace.level == len(PREVIEW_LEVELS) - 1
+    for ms in (0.3, 3.0, 0.3):  # one slow frame among fast ones: the median stays under the budget
+        pace.record(ms * FRAME_BUDGET_MS)
+    assert pace.level == len(PREVIEW_LEVELS) - 1
+    pace.start_drag()  # the last drag's frames took 0.3 of the budget: room for a finer level
+    assert pace.level == len(PREVIEW_LEVELS) - 2
+    for _ in range(SAMPLES):
+        pace.record(0.7 * FRAME_BUDGET_MS)  # fits, but no room for another step
+    pace.start_drag()
+    assert pace.level == len(PREVIEW_LEVELS) - 2
+    for _ in range(SAMPLES):
+        pace.record(0.2 * FRAME_BUDGET_MS)
+    for _ in range(len(PREVIEW_LEVELS)):
+        pace.start_drag()
+        for _ in range(SAMPLES):
+            pace.record(0.2 * FRAME_BUDGET_MS)
+    assert pace.level == 0
+    pace.start_drag()
+    assert pace.level == 0
+
+
+def test_preview_engines_are_kept_for_the_level_and_its_neighbours(ctx):
+    scene = load_scene(sample_scene_dir())
+    lights = load_lights(MAPS / "immenstadter_horn_256.lights.json")
+    s = Session(ctx, scene, lights, load_envmap(MAPS / "immenstadter_horn_256.hdr").pixels)
+    s.preview_level = 1
+    made = 0
+    while s.warm_preview():
+        made += 1
+    assert made == 3 and sorted(s.previews.engines) == [0, 1, 2]
+    assert all(e.complete for e in s.previews.engines.values())  # each drawn once: its first dragged frame pays nothing
+    s.preview_level = 3
+    assert s.warm_preview() and sorted(s.previews.engines) == [2, 3]  # far levels released, the new ones made
+    assert not s.warm_preview()
+    widths = [PREVIEW_LEVELS[lv].work for lv in (2, 3)]
+    assert [s.previews.engines[lv].scene.width for lv in (2, 3)] == widths
+    s.release()

@@ -73,14 +73,14 @@ def work_threads(reserve: int = 0) -> int:
     return max(1, free - reserve)
 
 
-def size_pools(threads: int) -> None:
+def size_pools(threads: int, gl_threads: int | None = None) -> None:
     """Size every compute pool of this process to ``threads``: the libraries loaded now directly,
     those loaded later through the environment they read at load (torch and OpenMP: OMP_NUM_THREADS,
     numba: NUMBA_NUM_THREADS, OpenCV: OPENCV_FOR_THREADS_NUM, llvmpipe: LP_NUM_THREADS, unless the
-    user set it)."""
+    user set it, to ``gl_threads`` when given)."""
     for name in ("OMP_NUM_THREADS", "NUMBA_NUM_THREADS", "OPENCV_FOR_THREADS_NUM"):
         os.environ[name] = str(threads)
-    os.environ.setdefault("LP_NUM_THREADS", str(threads))
+    os.environ.setdefault("LP_NUM_THREADS", str(gl_threads or threads))
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(threads)
     if "cv2" in sys.modules:

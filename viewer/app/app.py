@@ -22,6 +22,7 @@ from viewer.app.job_polling import JobPolling
 from viewer.app.jobs import ChildWorker, LightJob, SceneJob
 from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
 from viewer.app.panel import PanelState
+from viewer.app.preview import PreviewPace
 from viewer.app.recording import InteractionRecording, TurntableRecording
 from viewer.app.session import Session
 from viewer.app.state_file import StateFile
@@ -36,6 +37,7 @@ SWAP_BUDGET = 0.06  # seconds of engine work a frame gives a new map or person b
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
 JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
 FRAME_HISTORY = 600
+START_FRAMES = 3  # the first frames draw the whole scene once (not counted in the longest frame)
 OPENS = (".hdr", ".exr", ".json", *PHOTO_SUFFIXES)  # what the window opens (and a bundle's folder)
 
 
@@ -58,7 +60,7 @@ class ViewerConfig:
     rig: tuple = ()  # placed lights to start with (viewer.lighting.placed_lights; relight view --rig)
     max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
     device: str = "cpu"  # ... and where its inference runs (relight view --device)
-    gl_threads: int = 2  # llvmpipe's threads (viewer/cores.py): with one, the drag preview is lighter
+    gl_threads: int = 2  # llvmpipe's threads (the cores this process may use, viewer/cli/main.py)
 
 
 class ViewerApp:
@@ -79,8 +81,9 @@ class ViewerApp:
         self.auto_exposure = config.look.exposure == AUTO
         self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
-        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look,
-                               light_preview=config.gl_threads < 2)
+        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look)
+        self.pace = PreviewPace()  # the drag preview's level, from the dragged frames' times (viewer/app/preview.py)
+        self._last_kind = ""
         self.session.set_placed(config.rig, record=False)
         self.session.wake = self.window.wake
         self.env_path = config.env_path
@@ -103,6 +106,8 @@ class ViewerApp:
         self.error = ""
         self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
         self.switched = False  # a finished job was applied (a new map's lights, a new person) and is not shown yet
+        self.switched_at: float | None = None  # wall clock (time.time) of the last frame that showed one
+        self.longest_frame = (0.0, "")  # (ms, kind) of the longest frame since the first ones (the start-up's)
         self._frame_start = time.perf_counter()
         self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
         self.frame_count = 0
@@ -183,6 +188,9 @@ class ViewerApp:
         adjusting = not moving and now - self.panel.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
         switching = self.switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
         preview = (moving or adjusting) and (rec is None or capturing) and not switching
+        if preview and moving and self._last_kind != "drag":
+            self.pace.start_drag()
+        s.preview_level = self.pace.level
         rendered = s.preview if preview else s.final
         before = sum(rendered.kit.counters.values())
         budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching else None  # what the frame has left
@@ -254,7 +262,15 @@ class ViewerApp:
                 eng, kind = self._render()
                 w.draw_image(eng.display, self.image_rect(), self.image_area())
                 w.end_frame()
-                self.frames.append(((time.perf_counter() - start) * 1000.0, kind))
+                ms = (time.perf_counter() - start) * 1000.0
+                self.frames.append((ms, kind))
+                if kind == "drag":
+                    self.pace.record(ms)
+                elif kind == "switch":
+                    self.switched_at = time.time()  # on screen: swapped
+                if self.frame_count >= START_FRAMES and ms > self.longest_frame[0]:
+                    self.longest_frame = (ms, kind)
+                self._last_kind = kind
                 self.frame_count += 1
                 self._write_state()
         finally:

@@ -14,6 +14,7 @@ from imgui_bundle import imgui, implot
 
 from viewer.app.interaction import exposed
 from viewer.app.layout import KEYS, SMALL_HEIGHT, panel_width
+from viewer.app.preview import PREVIEW_LEVELS
 from viewer.app.session import SHADOW_MODES, VIEW_NAMES
 from viewer.gl.presets import PRESETS
 from viewer.lighting.median_cut import LUMINANCE
@@ -522,7 +523,9 @@ def _frame_time(app):
     imgui.text(f"last {last[0]:.0f} ms ({last[1]}), median of updates {med:.0f} ms")
     if "drag" in kinds:
         imgui.push_text_wrap_pos(0.0)
-        imgui.text_disabled(f"while dragging: {app.session.preview_sizes[0]} px, hard shadows; full quality when the mouse stops")
+        level = PREVIEW_LEVELS[app.pace.level]  # chosen from the dragged frames' times (viewer/app/preview.py)
+        imgui.text_disabled(f"while dragging: {level.work} px, a {level.frame} px frame, hard shadows; "
+                            "full quality when the mouse stops")
         imgui.pop_text_wrap_pos()
     if implot.begin_plot("##frame time", imgui.ImVec2(-1, 120), implot.Flags_.no_legend | implot.Flags_.no_menus):
         implot.setup_axes("", "ms", implot.AxisFlags_.no_tick_labels, 0)

@@ -1,13 +1,13 @@
-"""The relighting session behind the window: one scene, its lights, two engines, one context.
+"""The relighting session behind the window: one scene, its lights, the engines, one context.
 
 The *final* engine renders at the bundle's resolution with the chosen options; the *preview*
-engine renders the same scene resampled to ``PREVIEW_SIZE`` pixels (shadow maps of
-``PREVIEW_SHADOW_RESOLUTION``, hard shadows in place of soft ones: filtering the soft shadows of 16
-lights costs more than everything else at that size; a photo's frame, which carries the
-photo's detail, is kept at up to ``PREVIEW_FRAME_SIZE`` pixels) and is used only while the lighting is
-being dragged, so a drag stays interactive; when the drag stops the final engine renders the same state, so what stays on screen is
-always the full-quality frame of the current state. Each frame shown is one complete engine render
-of one state: never a mix of old and new lights.
+engines (:mod:`viewer.app.preview`) render the same scene resampled to a coarser level, with hard
+shadows in place of soft ones (filtering the soft shadows of 16 lights costs more than everything
+else at that size), and are used only while the lighting is being dragged, so a drag stays
+interactive: the window's pace picks the level from the dragged frames' times
+(:attr:`Session.preview_level`). When the drag stops the final engine renders the same state, so
+what stays on screen is always the full-quality frame of the current state. Each frame shown is one
+complete engine render of one state: never a mix of old and new lights.
 """
 
 from __future__ import annotations
@@ -16,25 +16,13 @@ from dataclasses import replace
 
 import numpy as np
 
+from viewer.app.preview import START_LEVEL, PreviewEngines
 from viewer.gl import Engine, EngineOptions
 from viewer.lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
-from viewer.resize import scaled_size
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import Scene
 from viewer.scene.look import Look
-from viewer.scene.resampling import resample_scene
 
-PREVIEW_SIZE = 256
-PREVIEW_SHADOW_RESOLUTION = 256
-# the preview's shadow casters: the depth mesh decimated to a triangle every PREVIEW_SHADOW_STEP pixels
-# of a 256-pixel preview, in proportion at other sizes (the final engine's auto step gives 2 there; 3
-# takes 10-25 % off a dragged frame, docs/viewer.md: hard shadows while the light moves, their fine
-# detail back when it stops)
-PREVIEW_SHADOW_STEP = 3
-# with one GL thread (the window opened on a busy machine, viewer/cores.py) the preview takes about twice
-# as long: its work and frame sizes shrink to keep dragging fluid (about half the pixels)
-LIGHT_PREVIEW_SIZE, LIGHT_PREVIEW_FRAME_SIZE = 192, 512
-PREVIEW_FRAME_SIZE = 768  # a photo's frame during a drag: the photo's detail stays (the window shows it at ~860 px or less)
 SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
     "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
@@ -45,14 +33,13 @@ VIEW_NAMES = {
 
 class Session:
     def __init__(self, ctx, scene: Scene, lights: AreaLights, environment: np.ndarray | None,
-                 options: EngineOptions | None = None, look: Look | None = None, light_preview: bool = False):
+                 options: EngineOptions | None = None, look: Look | None = None):
         self.ctx = ctx
-        self.preview_sizes = ((LIGHT_PREVIEW_SIZE, LIGHT_PREVIEW_FRAME_SIZE) if light_preview
-                              else (PREVIEW_SIZE, PREVIEW_FRAME_SIZE))  # (work, frame) pixels of the drag preview
         self.scene = scene
         self.options = options or EngineOptions()
         self.final = Engine(ctx, scene, self.options)
-        self._preview: Engine | None = None
+        self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
+        self.previews = PreviewEngines(ctx, scene, self.options)
         self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
         self.environment = environment
         self.base_lights = lights
@@ -62,6 +49,7 @@ class Session:
         self.keep_absolute = False  # placed lights keep their absolute intensities when the map changes
         self.look = (look or Look()).fitted(len(lights))
         self._set_environment(self.final)
+        self.previews.set_environment(environment)
         self.wake = lambda: None  # called when background work finishes (the window's wake)
         self._refiner = None
         self.refine_job = None
@@ -121,8 +109,8 @@ class Session:
         self.sigma = lights.sigma.copy()
         if environment is not None:
             self.environment = environment
-            for eng in self._engines():
-                self._set_environment(eng)
+            self._set_environment(self.final)
+            self.previews.set_environment(environment)
         self.look = self.look.fitted(len(lights) + len(self.placed))
 
     def set_scene(self, scene: Scene):
@@ -131,15 +119,15 @@ class Session:
         engine stays (:meth:`render` shows it) until the new one has a complete frame."""
         if self.refine_job is not None:
             self.refine_job.stop()
-        if self._preview is not None:
-            self._preview.release()
-            self._preview = None
+        self.previews.release()
         if self._outgoing is not None:
             self._outgoing.release()
         self._outgoing = self.final
         self.scene = scene
         self.final = Engine(self.ctx, scene, self.options)
         self._set_environment(self.final)
+        self.previews = PreviewEngines(self.ctx, scene, self.options)
+        self.previews.set_environment(self.environment)
         self.refine_job = None
         if scene.frame is None:
             self.look = replace(self.look, compare=0.0)
@@ -153,6 +141,8 @@ class Session:
         self.options = options
         self.final = Engine(self.ctx, self.scene, options)
         self._set_environment(self.final)
+        self.previews = PreviewEngines(self.ctx, self.scene, options)
+        self.previews.set_environment(self.environment)
         self.refine_job = None  # a running refinement was for the old engine's shadow maps
 
     def set_sigma(self, index: int, sigma: float):
@@ -167,30 +157,19 @@ class Session:
         return self.look.ground_shown(self.final.feet, self.final.looks.resolved(self.look).background)
 
     # ------------------------------------------------------------------ engines
-    def _engines(self):
-        return [e for e in (self.final, self._preview) if e is not None]
-
     @property
     def preview(self) -> Engine:
-        if self._preview is None:
-            small = self.scene
-            work, frame = self.preview_sizes
-            if max(small.width, small.height) > work:
-                small = resample_scene(small, work, keep_frame=True)
-            if small.frame is not None and max(small.output_size) > frame:
-                small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, frame)))
-            res = min(PREVIEW_SHADOW_RESOLUTION, self.options.shadow_resolution)
-            step = max(1, round(PREVIEW_SHADOW_STEP * max(small.width, small.height) / PREVIEW_SIZE))
-            self._preview = Engine(self.ctx, small, replace(self.options, shadow_resolution=res, shadow_step=step, ground_scale=4))
-            self._set_environment(self._preview)
-        return self._preview
+        """The drag preview's engine at the current level."""
+        return self.previews.engine(self.preview_level)
 
     def warm_preview(self) -> bool:
-        """Make and render the preview engine before the first drag needs it (its first frame would
-        otherwise pay ~0.2 s for it at 2048 pixels); True when there was something to do."""
-        if self._preview is not None:
+        """Make and draw one preview engine the next drag may need (the current level's or a
+        neighbour's: its first frame would otherwise pay ~0.1-0.2 s in a dragged frame); True when
+        there was one to make."""
+        level = self.previews.cold(self.preview_level)
+        if level is None:
             return False
-        self.render(preview=True)
+        self._render_preview(self.previews.engine(level), True, None, True)
         return True
 
     def _set_environment(self, eng: Engine):
@@ -206,24 +185,31 @@ class Session:
         soft and refined ones (the lighting dragged), or with ``hard`` False soft ones (a light's
         size or an intensity being changed: what the slider changes shows). ``display`` False: all
         but the display (``Engine.render``), the last complete frame still shown."""
-        eng = self.preview if preview else self.final
+        if preview:
+            return self._render_preview(self.preview, hard, budget, display)
+        eng = self.final
         lk = self.look
-        shadows = lk.shadows
-        if preview and shadows in ("soft", "refined"):
-            shadows = "hard" if hard else "soft"
         # the engine turns and scales them by the look (its yaw, tilt and intensities)
+        eng.set_lights(self.map_lights, to_area_lights(self.placed))
+        eng.set_look(lk)
+        eng.render(budget, display)
+        if not eng.complete:
+            return self._outgoing if self._outgoing is not None else eng
+        if self._outgoing is not None:
+            self._outgoing.release()  # the new person's first frame is complete
+            self._outgoing = None
+        if lk.shadows == "refined" and not eng.refined_current:
+            self._start_refinement(eng)
+        return eng
+
+    def _render_preview(self, eng: Engine, hard: bool, budget: float | None, display: bool) -> Engine:
+        lk = self.look
+        shadows = ("hard" if hard else "soft") if lk.shadows in ("soft", "refined") else lk.shadows
         eng.set_lights(self.map_lights, to_area_lights(self.placed))
         # the drag preview leaves the light scattered under the skin out: ~20 ms a frame for a change
         # of at most 2 % at a face's steepest edges (docs/photos.md)
-        eng.set_look(replace(lk, shadows=shadows, skin=lk.skin and not preview))
+        eng.set_look(replace(lk, shadows=shadows, skin=False))
         eng.render(budget, display)
-        if not eng.complete:
-            return self._outgoing if self._outgoing is not None and not preview else eng
-        if self._outgoing is not None and not preview:
-            self._outgoing.release()  # the new person's first frame is complete
-            self._outgoing = None
-        if not preview and lk.shadows == "refined" and not eng.refined_current:
-            self._start_refinement(eng)
         return eng
 
     # ------------------------------------------------------------------ refined shadows
@@ -274,8 +260,8 @@ class Session:
     def release(self):
         if self.refine_job is not None:
             self.refine_job.stop()
-        for eng in self._engines():
-            eng.release()
+        self.final.release()
+        self.previews.release()
         if self._outgoing is not None:
             self._outgoing.release()
-        self._preview = self._outgoing = None
+        self._outgoing = None

@@ -56,7 +56,10 @@ class StateFile:
             "videos": app.videos,
             "message": app.message,
             "error": app.error,
-            "gl_threads": app.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cores.py)
+            "gl_threads": app.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cli/main.py)
+            "preview_level": app.pace.level,  # the drag preview's level (viewer/app/preview.py)
+            "switched_at": app.switched_at,  # wall clock (time.time) of the frame that last showed a new map or photo
+            "longest_frame": app.longest_frame,  # (ms, kind) since the start-up's frames
         }
         text = json.dumps(state)
         now = time.monotonic()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 
 from viewer.cli.parser import build_parser, command_plugins
-from viewer.cores import size_pools, work_threads
+from viewer.cores import allowed_cores, size_pools, work_threads
 from viewer.errors import InputError
 
 
@@ -38,7 +38,10 @@ def _main(argv: list) -> int:
         if argv and argv[0] in plugins:
             return plugins[argv[0]].load()(argv[1:])
         args = build_parser(plugins).parse_args(argv)
-        size_pools(work_threads())  # the cores idle now, not the machine's count (viewer/cores.py)
+        # the cores idle now, not the machine's count (viewer/cores.py); the window's frames are short
+        # bursts, not barrier-bound: llvmpipe takes every core allowed there, which measured faster
+        # even beside a busy process (docs/viewer.md, "A fluid drag")
+        size_pools(work_threads(), allowed_cores() if getattr(args, "window", False) else None)
         return args.func(args)
     except InputError as exc:
         print(f"relight: error: {exc}", file=sys.stderr)

@@ -78,7 +78,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--state-file", help="write the viewer's state, widget positions and frame times to this JSON "
                    "after every change (for scripts and tests)")
     add_engine_args(p)
-    p.set_defaults(func=cmd_view)
+    p.set_defaults(func=cmd_view, window=True)
 
     p = sub.add_parser("infer", help="photo -> scene bundle (the networks' maps, the photo's own lighting, its detail)")
     p.add_argument("photo", help="photo (PNG/JPEG, sRGB; EXIF rotation applied)")

@@ -340,7 +340,7 @@ class Engine:
         for l in self._lights:
             l.release()
         self._lights = []
-        for owner in (self.atlas, self.refined, self.picture, self.composite_pass,
+        for owner in (self.atlas, self.refined, self.picture, self.composite_pass, self.light_pass,
                       self.ground_pass, self.shadow_map_pass, self.resources, self.kit):
             if owner is not None:
                 owner.release()

@@ -98,7 +98,7 @@ class GroundShadowPass:
                              else l.pass_mode for l in group]
                     if not any(m in (PASS_HARD, PASS_SOFT) for m in modes):
                         continue  # no shadows from these lights (or none shown)
-                    self.light_pass.bind_lights(prog, group, modes, self.scene.positions)
+                    self.light_pass.bind_lights(prog, group, modes)
                     block = np.zeros((LIGHTS_PER_PASS, 3), "f4")
                     block[:len(group)] = share[g:g + len(group)]
                     prog["light_share"].write(block.tobytes())

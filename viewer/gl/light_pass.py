@@ -113,6 +113,13 @@ class LightShadingPass:
         # the contact-hardening taps (unit Gaussian offsets), the same for every pass
         self.pcss_taps = ss.pcss_taps(ss.PCSS_TAPS).astype("f4").tobytes()
         self.pcss_search_taps = ss.pcss_taps(ss.PCSS_SEARCH_TAPS).astype("f4").tobytes()
+        # what a slot with no shadow map (or no pre-filtered basis) binds: a texture llvmpipe samples
+        # the way it samples the real ones (the same format, filter and power-of-two sides: its shader
+        # variants are keyed on them). Any other texture there makes a new variant the first time a
+        # light goes out mid-drag, 0.6-1.5 s of compiling (docs/viewer.md, "No stall").
+        self.stand_in_shadow_map = kit.texture((1, 1), 1, np.ones(1, "f4").tobytes())
+        n_tex = (terms + 1) // 2  # the pre-filtered atlas's width is n_tex tiles of a power of two
+        self.stand_in_filtered = kit.texture((n_tex, 1), 4, np.zeros(4 * n_tex, "f4").tobytes(), linear=True)
 
     @property
     def defines(self) -> dict:
@@ -120,9 +127,9 @@ class LightShadingPass:
         return ({"SOFT_PCSS": None, "PCSS_TAPS": ss.PCSS_TAPS, "PCSS_SEARCH_TAPS": ss.PCSS_SEARCH_TAPS}
                 if self.soft == "pcss" else {"TERMS": self.terms})
 
-    def bind_lights(self, prog, group: list[Light], modes: list[int], fallback):
+    def bind_lights(self, prog, group: list[Light], modes: list[int]):
         """light_visibility.glsl's uniforms and textures for a group of up to four lights (shadow
-        maps on units 2-5, CSM bases on 6-9; ``fallback``: any texture, for slots that never read theirs)."""
+        maps on units 2-5, CSM bases on 6-9; the stand-ins in slots that never read theirs)."""
         frames = np.zeros((LIGHTS_PER_PASS, 4, 4), "f4")
         dirs = np.zeros((LIGHTS_PER_PASS, 3), "f4")
         scales = np.ones(LIGHTS_PER_PASS, "f4")
@@ -130,11 +137,11 @@ class LightShadingPass:
         for j in range(LIGHTS_PER_PASS):
             l = group[j] if j < len(group) else None
             used = l is not None and modes[j] in (PASS_HARD, PASS_SOFT)
-            (l.shadow_map if used else fallback).use(2 + j)
+            (l.shadow_map if used else self.stand_in_shadow_map).use(2 + j)
             prog[f"shadow_map{j}"] = 2 + j
             soft = used and modes[j] == PASS_SOFT
             if self.soft == "csm":
-                (l.filtered if soft else fallback).use(6 + j)
+                (l.filtered if soft else self.stand_in_filtered).use(6 + j)
                 prog[f"filtered_basis{j}"] = 6 + j
             if used:
                 frames[j] = l.frame.matrix.T
@@ -175,7 +182,7 @@ class LightShadingPass:
             sc.normals.use(1)
             prog["positions"] = 0
             prog["normals"] = 1
-            self.bind_lights(prog, group, modes, sc.positions)
+            self.bind_lights(prog, group, modes)
             x, y, bw, bh = sc.mask_box
             prog["tile_origin"] = group[0].tile
             prog["box_origin"] = (x, y)
@@ -183,3 +190,7 @@ class LightShadingPass:
             fbo.viewport = fbo.scissor = (group[0].tile[0], group[0].tile[1], bw, bh)
             fbo.use()
             kit.fullscreen(prog)
+
+    def release(self):
+        self.stand_in_shadow_map.release()
+        self.stand_in_filtered.release()

@@ -152,7 +152,9 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
             xdo("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2), "click", 1)
             time.sleep(0.3)
 
-        def open_in_browser(path: Path, done) -> list:
+        def open_in_browser(path: Path, done) -> tuple[list, float | None]:
+            """The frames from the click to the end, and the seconds from Enter (the Open button) to
+            the frame that showed it."""
             start = json.loads(state_path.read_text())["frame_count"]
             click("browser path")
             time.sleep(0.5)  # the field takes the keys from the frame after the click (slow at 1024^2)
@@ -162,16 +164,24 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
             time.sleep(0.3)
             xdo("type", str(path))
             time.sleep(0.3)
+            entered = time.time()
             click("browser open")
             time.sleep(0.5)
-            _wait(state_path, done, proc, timeout=300)
+            st = _wait(state_path, lambda st: done(st) and (st["switched_at"] or 0.0) > entered, proc, timeout=300)
             time.sleep(1.0)
-            return _frames_since(json.loads(state_path.read_text()), start)
+            return _frames_since(json.loads(state_path.read_text()), start), st["switched_at"] - entered
 
+        first_map = s["map"]
         click("open a file")
         _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
-        map_frames = open_in_browser(new_map, lambda s: s["map"] == str(new_map) and not s["fitting"])
-        photo_frames = open_in_browser(photo, lambda s: s["opening"] is None and s["message"].startswith("opened"))
+        map_frames, map_s = open_in_browser(new_map, lambda s: s["map"] == str(new_map) and not s["fitting"])
+        click("open a file")  # the first map again: its lights are cached
+        _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
+        cached_frames, cached_s = open_in_browser(Path(first_map), lambda s: s["map"] == first_map and not s["fitting"])
+        click("open a file")
+        _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
+        photo_frames, photo_s = open_in_browser(photo, lambda s: s["opening"] is None and s["message"].startswith("opened"))
+        longest = json.loads(state_path.read_text())["longest_frame"]
         quit_at = time.perf_counter()
         xdo("key", "q")
         proc.wait(60)
@@ -203,6 +213,8 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
         "drag_ms_median": float(np.median(drag)) if drag.size else None,
         "drag_ms_p90": float(np.percentile(drag, 90)) if drag.size else None,
         "drag_fps": float(1000.0 / np.median(drag)) if drag.size else None,
+        "drag_ms_max": float(drag.max()) if drag.size else None,
+        "preview_level": state.get("preview_level"),  # where the pace settled (viewer/app/preview.py)
         "converge_ms": after[0] if after else None,
         "sigma_ms_median": float(np.median(sigma)) if sigma.size else None,
         "sigma_full_ms_median": float(np.median(sigma_full)) if sigma_full.size else None,
@@ -210,8 +222,11 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
         "load_frames": int(load.size),
         "load_ms_max": float(load.max()) if load.size else None,
         "load_ms_median": float(np.median(load)) if load.size else None,
-        "new_map": _load_figures(map_frames),
-        "new_photo": _load_figures(photo_frames),
+        "new_map": _load_figures(map_frames) | {"shown_s": map_s},
+        "cached_map": _load_figures(cached_frames) | {"shown_s": cached_s},
+        "new_photo": _load_figures(photo_frames) | {"shown_s": photo_s},
+        # the run's longest frame after the first one shown (its kind says what it was doing)
+        "longest_frame": {"ms": longest[0], "cause": longest[1]},
         "quit_s": quit_s,
     }
 
@@ -225,15 +240,22 @@ def cases(photos: Path | None, sizes) -> list:
     return out
 
 
-TARGETS = {"drag_fps": (">=", 20.0), "first_drag_ms": ("<=", 100.0), "converge_ms": ("<=", 300.0),
-           "sigma_ms_median": ("<=", 50.0), "freeze_ms": ("<=", 100.0)}  # issue 32
+# issue 45 (converge_ms: 300 idle, 400 beside a busy process); freeze_ms: the longest frame while a
+# map or a photo opened, or the one that showed it; map_s / cached_map_s: Enter to the frame showing it
+TARGETS = {"drag_fps": (">=", 24.0), "drag_ms_max": ("<=", 100.0), "first_drag_ms": ("<=", 100.0),
+           "converge_ms": ("<=", 300.0), "sigma_ms_median": ("<=", 50.0), "freeze_ms": ("<=", 100.0),
+           "map_s": ("<=", 3.0), "cached_map_s": ("<=", 1.5), "quit_s": ("<=", 0.5)}
+BUSY_CONVERGE_MS = 400.0
 
 
 def _met(r: dict) -> dict:
-    r = {**r, "freeze_ms": max(v for what in ("new_map", "new_photo") for k in ("ms_max", "shown_ms", "warm_ms")
-                               for v in (r[what][k],) if v is not None)}
+    loads = ("new_map", "cached_map", "new_photo")
+    r = {**r, "freeze_ms": max(v for what in loads for k in ("ms_max", "shown_ms", "warm_ms")
+                               for v in (r[what][k],) if v is not None),
+         "map_s": r["new_map"]["shown_s"], "cached_map_s": r["cached_map"]["shown_s"]}
+    goals = {name: (op, BUSY_CONVERGE_MS if name == "converge_ms" and r["busy"] else goal) for name, (op, goal) in TARGETS.items()}
     return {name: (r[name] is not None and (r[name] >= goal if op == ">=" else r[name] <= goal))
-            for name, (op, goal) in TARGETS.items()} | {"freeze_ms": r["freeze_ms"]}
+            for name, (op, goal) in goals.items()} | {"freeze_ms": r["freeze_ms"]}
 
 
 def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1), output="out/bench_viewer.json") -> dict:
@@ -256,17 +278,19 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                 r["met"] = _met(r)
                 runs.append(r)
                 print(f"{label} ({r['image'][0]}x{r['image'][1]}), beside {busy} busy: drag {r['drag_ms_median']:.0f} ms median "
-                      f"({r['drag_fps']:.1f} fps, p90 {r['drag_ms_p90']:.0f} ms, {r['drag_frames']} frames), the first "
+                      f"({r['drag_fps']:.1f} fps, p90 {r['drag_ms_p90']:.0f} ms, longest {r['drag_ms_max']:.0f} ms, "
+                      f"{r['drag_frames']} frames, preview level {r['preview_level']}), the first "
                       f"{r['first_drag_ms']:.0f} ms; full frame when the mouse stops {r['converge_ms'] or 0:.0f} ms; sigma "
                       f"slider {r['sigma_ms_median'] or 0:.0f} ms (its full frame {r['sigma_full_ms_median'] or 0:.0f} ms); "
                       f"idle {r['idle_ms_median'] or 0:.0f} ms; while 12 lights "
                       f"are fitted: {r['load_frames']} UI frames, longest {r['load_ms_max'] or 0:.0f} ms; quit {r['quit_s']:.2f} s",
                       flush=True)
-                for what in ("new_map", "new_photo"):
+                for what in ("new_map", "cached_map", "new_photo"):
                     f = r[what]
-                    print(f"  {what.replace('_', ' ')} opened from the panel: {f['frames']} UI frames while it loaded, "
-                          f"longest {f['ms_max'] or 0:.0f} ms; the frame that shows it {f['shown_ms'] or 0:.0f} ms; the preview made "
-                          f"{f['warm_ms'] or 0:.0f} ms", flush=True)
+                    print(f"  {what.replace('_', ' ')} opened from the panel: on screen {f['shown_s']:.2f} s after Enter; "
+                          f"{f['frames']} UI frames while it loaded, longest {f['ms_max'] or 0:.0f} ms; the frame that shows it "
+                          f"{f['shown_ms'] or 0:.0f} ms; the preview made {f['warm_ms'] or 0:.0f} ms", flush=True)
+                print(f"  longest frame of the run: {r['longest_frame']['ms']:.0f} ms ({r['longest_frame']['cause']})", flush=True)
                 print("  targets: " + ", ".join(f"{k} {'met' if v else 'NOT met'}" for k, v in r["met"].items()
                                                 if k != "freeze_ms"), flush=True)
     result = {"machine": {"renderer": renderer, "cpu": platform.machine(), "cores": os.cpu_count(),
@@ -275,9 +299,10 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                         "processes (`python -c 'while 1: pass'`); frame time = events to buffer swap, as the viewer "
                         "records it; 16 lights of the bundled map; the sample scene at --size, the shared photos at "
                         "their own size (inferred when the window opens); new_map / new_photo: typed into the panel's "
-                        "file browser (assets' venice_sunset_256.hdr without its light file, assets/photos/underpass.jpg "
-                        "without a bundle, caches empty); freeze_ms: the longest frame while either loaded or the one "
-                        "that showed it",
+                        "file browser (assets' venice_sunset_256.hdr without its light file, then the first map again, its "
+                        "lights cached, then assets/photos/underpass.jpg without a bundle, caches empty); freeze_ms: "
+                        "the longest frame while one loaded or the one that showed it; shown_s: Enter (the Open button) "
+                        "to the frame that showed it, swapped; longest_frame: the run's, with the kind of frame it was",
               "targets": {k: f"{op} {goal:g}" for k, (op, goal) in TARGETS.items()},
               "runs": runs}
     path = write_text(output, json.dumps(result, indent=1) + "\n")

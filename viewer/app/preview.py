@@ -1,0 +1,141 @@
+"""The drag preview: the scene resampled to a coarser *level* (fewer work pixels, a smaller frame,
+coarser shadow maps and ground shadow), and the pace that picks the level from the measured times
+of the frames being dragged.
+
+Why levels chosen by measurement: what a frame costs depends on the photo (its frame's size, the
+person's share of it), on the machine and on what else runs. On this 2-core machine with llvmpipe
+(docs/viewer.md, "A fluid drag"), a 2048-pixel photo's preview took 61 ms at the finest level and 31
+ms at the middle one idle, 76 and 36 ms beside one busy process; a fixed level is either too slow
+there or needlessly coarse on a fast machine. :class:`PreviewPace` steps to a coarser level when
+the frames of a drag are slower than the frame budget and back to a finer one when a drag starts
+with room for it, so a drag stays at 24 frames a second or more wherever the machine can, at the
+finest level that does. Each level's engine is made and drawn once before the pace can need it
+(:meth:`PreviewEngines.warm`), so changing level mid-drag costs no frame.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from viewer.gl import Engine, EngineOptions
+from viewer.resize import scaled_size
+from viewer.scene.bundle import Scene
+from viewer.scene.resampling import resample_scene
+
+
+@dataclass(frozen=True)
+class PreviewLevel:
+    work: int  # the maps' longer side (pixels)
+    frame: int  # a photo's frame's longer side (pixels): the photo's detail, most of a frame's cost
+    shadow_resolution: int  # texels of each light's shadow map
+    shadow_step: int  # the shadow casters' depth mesh: a triangle every this many pixels of ``work``
+    ground_scale: int  # the ground shadow at 1 / this of the work resolution (EngineOptions.ground_scale)
+
+
+# finest first; each about 1.3-2x cheaper than the one before it (measured, docs/viewer.md; a coarser
+# one gained little: its passes are one llvmpipe tile each, one thread). The casters' step 3 at 256
+# pixels takes 10-25 % off a frame against the final engine's 2: hard shadows while the light moves
+# lose their finest detail, the full frame after the release has it back. The ground shadow at an
+# eighth of 128 pixels lit the backdrop 0.5/255 more than the final frame's (tests/test_session.py).
+PREVIEW_LEVELS = (
+    PreviewLevel(256, 768, 256, 3, 4),
+    PreviewLevel(192, 576, 256, 3, 6),
+    PreviewLevel(160, 480, 256, 3, 8),
+    PreviewLevel(128, 384, 256, 4, 4),
+)
+START_LEVEL = 2  # the first drag's level, before any frame was measured (one step from the coarsest, two from the finest)
+FRAME_BUDGET_MS = 36.0  # a dragged frame's median, whole window frame: 24 fps (41.7 ms) with room for the slower ones
+SAMPLES = 3  # dragged frames measured at a level before it is judged
+FINER_ROOM = 0.55  # a drag starts one level finer when the last one's frames took under this share of the budget
+
+
+class PreviewPace:
+    """The level of the drag preview, from the measured times of the dragged frames (window frames,
+    events to swap): coarser as soon as :data:`SAMPLES` frames at a level have a median over the
+    budget, finer only at the start of a drag, when the previous one's median left room."""
+
+    def __init__(self, levels: int = len(PREVIEW_LEVELS), start: int = START_LEVEL, budget_ms: float = FRAME_BUDGET_MS):
+        self.levels = levels
+        self.level = min(start, levels - 1)
+        self.budget_ms = budget_ms
+        self.recent: deque = deque(maxlen=SAMPLES)  # frame times at the current level (ms)
+        self.last_median: float | None = None  # the median of the previous drag's last frames at this level
+
+    def start_drag(self) -> None:
+        """A drag starts: one level finer if the last one had room for it."""
+        if self.last_median is not None and self.last_median < FINER_ROOM * self.budget_ms and self.level > 0:
+            self.level -= 1
+            self.last_median = None
+        self.recent.clear()
+
+    def record(self, ms: float) -> None:
+        """A dragged frame at the current level took ``ms``."""
+        self.recent.append(float(ms))
+        if len(self.recent) < SAMPLES:
+            return
+        median = float(np.median(self.recent))
+        if median > self.budget_ms and self.level < self.levels - 1:
+            self.level += 1
+            self.recent.clear()
+            self.last_median = None
+        else:
+            self.last_median = median
+
+
+def preview_scene(scene: Scene, level: PreviewLevel) -> Scene:
+    """The scene at a preview level: its maps resampled to ``level.work`` pixels (the frame's field of
+    view kept), a photo's frame to ``level.frame``."""
+    small = scene
+    if max(small.width, small.height) > level.work:
+        small = resample_scene(small, level.work, keep_frame=True)
+    if small.frame is not None and max(small.output_size) > level.frame:
+        small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, level.frame)))
+    return small
+
+
+def preview_options(options: EngineOptions, scene: Scene, level: PreviewLevel) -> EngineOptions:
+    """The final engine's options at a preview level (for ``scene``, the level's resampled scene)."""
+    step = max(1, round(level.shadow_step * max(scene.width, scene.height) / level.work))
+    return replace(options, shadow_resolution=min(level.shadow_resolution, options.shadow_resolution), shadow_step=step,
+                   ground_scale=level.ground_scale)
+
+
+class PreviewEngines:
+    """The preview's engines of one scene, one per level, made on demand; :meth:`warm` makes the current
+    level's and its neighbours' ahead of a drag, and releases the others."""
+
+    def __init__(self, ctx, scene: Scene, options: EngineOptions, levels=PREVIEW_LEVELS):
+        self.ctx, self.scene, self.options, self.levels = ctx, scene, options, levels
+        self.engines: dict[int, Engine] = {}
+        self.environment: np.ndarray | None = None
+
+    def engine(self, level: int) -> Engine:
+        eng = self.engines.get(level)
+        if eng is None:
+            small = preview_scene(self.scene, self.levels[level])
+            eng = self.engines[level] = Engine(self.ctx, small, preview_options(self.options, small, self.levels[level]))
+            if self.environment is not None:
+                eng.set_environment(self.environment)
+        return eng
+
+    def set_environment(self, environment: np.ndarray | None):
+        self.environment = environment
+        if environment is not None:
+            for eng in self.engines.values():
+                eng.set_environment(environment)
+
+    def cold(self, level: int) -> int | None:
+        """The level, of ``level`` and its neighbours, whose engine is not made yet (None: all are);
+        the others' engines are released (what a level change may need is kept, no more)."""
+        near = [lv for lv in (level, level + 1, level - 1) if 0 <= lv < len(self.levels)]
+        for lv in [lv for lv in self.engines if lv not in near]:
+            self.engines.pop(lv).release()
+        return next((lv for lv in near if lv not in self.engines), None)
+
+    def release(self):
+        for eng in self.engines.values():
+            eng.release()
+        self.engines.clear()
