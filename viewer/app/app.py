@@ -26,6 +26,7 @@ from viewer.app.preview import PreviewPace
 from viewer.app.recording import InteractionRecording, TurntableRecording
 from viewer.app.session import Session
 from viewer.app.state_file import StateFile
+from viewer.gl import Engine
 from viewer.lighting.lightfit.methods import DEFAULT_METHOD
 from viewer.output.render import photo_exposure
 from viewer.scene.area_lights import AreaLights
@@ -83,7 +84,7 @@ class ViewerApp:
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
         self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look)
         self.pace = PreviewPace()  # the drag preview's level, from the dragged frames' times (viewer/app/preview.py)
-        self._last_kind = ""
+        self._previewed = False  # a preview frame shows: the next full frame comes coarse first (settle)
         self.session.set_placed(config.rig, record=False)
         self.session.wake = self.window.wake
         self.env_path = config.env_path
@@ -108,6 +109,10 @@ class ViewerApp:
         self.switched = False  # a finished job was applied (a new map's lights, a new person) and is not shown yet
         self.switched_at: float | None = None  # wall clock (time.time) of the last frame that showed one
         self.longest_frame = (0.0, "")  # (ms, kind) of the longest frame since the first ones (the start-up's)
+        self.settling: Engine | None = None  # the preview engine whose full-quality frame shows while the sharp one is drawn
+        self._settle_start: float | None = None
+        # after the lighting stops: ms to its full-quality frame at the preview's level, and to the sharp one
+        self.settle_figures: dict = {"full_quality_ms": None, "sharp_ms": None}
         self._frame_start = time.perf_counter()
         self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
         self.frame_count = 0
@@ -188,12 +193,20 @@ class ViewerApp:
         adjusting = not moving and now - self.panel.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
         switching = self.switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
         preview = (moving or adjusting) and (rec is None or capturing) and not switching
-        if preview and moving and self._last_kind != "drag":
-            self.pace.start_drag()
         s.preview_level = self.pace.level
+        if preview or switching or rec is not None:
+            self.settling = None
+            self._previewed = self._previewed and preview  # a new map or person, or a recording, comes whole
+        elif self._previewed:
+            # the lighting stopped: its full-quality frame at the preview's level first (the look's soft
+            # shadows and skin), then the final engine's over budgeted frames behind it ("sharpen")
+            self._previewed = False
+            self.settling = s.render_coarse()
+            return self.settling, "settle"
         rendered = s.preview if preview else s.final
         before = sum(rendered.kit.counters.values())
-        budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching else None  # what the frame has left
+        # what the frame has left for a new map or person, or for the sharp frame behind a coarse one
+        budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching or self.settling is not None else None
         expose = switching and self._expose_pending  # auto exposure from the new HDR, before its frame is drawn
         eng = s.render(preview=preview, hard=moving, budget=budget, display=not expose)
         worked = sum(rendered.kit.counters.values()) != before
@@ -204,6 +217,11 @@ class ViewerApp:
             return eng, "load"  # the next pass draws the frame at that exposure
         if switching and not rendered.complete:
             return eng, "load"  # the last complete frame stays on screen while the rest is done
+        if self.settling is not None:
+            if not rendered.complete:
+                return self.settling, "sharpen"  # the coarse full-quality frame stays while the sharp one is drawn
+            self.settling = None
+            return eng, "update"
         if rec is not None and not capturing:
             try:
                 rec.add(eng.output.read_display())
@@ -232,8 +250,11 @@ class ViewerApp:
         if not worked:  # "load": nothing to redraw while lights are fitted or a scene opened off this thread
             if self.job is not None or self.scene_job is not None:
                 return eng, "load"
+            if preview:
+                return eng, "idle"  # a dragged frame with no motion: no preview engine is made mid-drag
             # "warm": an idle frame makes the drag preview's engine, so the first dragged frame is a preview's
             return eng, "warm" if s.warm_preview() else "idle"
+        self._previewed = preview
         return eng, ("drag" if moving else "adjust") if preview else "update"
 
     def run(self) -> int:
@@ -244,7 +265,7 @@ class ViewerApp:
         try:
             while not w.should_close:
                 # a slider let go: the loop runs on until its full-quality frame replaces the preview
-                busy = (self.dragging or self.panning or self.recording is not None
+                busy = (self.dragging or self.panning or self.recording is not None or self.settling is not None
                         or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
@@ -268,9 +289,14 @@ class ViewerApp:
                     self.pace.record(ms)
                 elif kind == "switch":
                     self.switched_at = time.time()  # on screen: swapped
+                elif kind == "settle":
+                    self._settle_start = start
+                    self.settle_figures = {"full_quality_ms": ms, "sharp_ms": None}
+                elif kind == "update" and self._settle_start is not None:
+                    self.settle_figures["sharp_ms"] = (time.perf_counter() - self._settle_start) * 1000.0
+                    self._settle_start = None
                 if self.frame_count >= START_FRAMES and ms > self.longest_frame[0]:
                     self.longest_frame = (ms, kind)
-                self._last_kind = kind
                 self.frame_count += 1
                 self._write_state()
         finally:

@@ -28,6 +28,7 @@ class Controls:
         elif imgui.is_mouse_clicked(0) and over_image and not recording_turn:
             self.app.dragging = True
             self.app.drag_applied = (0.0, 0.0)
+            self.app.pace.start_drag()
         if self.app.dragging:
             # motion since the press, from imgui's own press position: nothing is lost between
             # the press and the first frame that sees it, nor before the release

@@ -172,6 +172,11 @@ class Session:
         self._render_preview(self.previews.engine(level), True, None, True)
         return True
 
+    def render_coarse(self) -> Engine:
+        """The full-quality frame at the preview's level (the look's soft shadows, refined ones as soft, and
+        skin): what shows the moment the lighting stops, while the final engine draws the sharp one."""
+        return self._render_preview(self.preview, False, None, True, full=True)
+
     def _set_environment(self, eng: Engine):
         if self.environment is not None:
             eng.set_environment(self.environment)
@@ -202,13 +207,13 @@ class Session:
             self._start_refinement(eng)
         return eng
 
-    def _render_preview(self, eng: Engine, hard: bool, budget: float | None, display: bool) -> Engine:
+    def _render_preview(self, eng: Engine, hard: bool, budget: float | None, display: bool, full: bool = False) -> Engine:
         lk = self.look
         shadows = ("hard" if hard else "soft") if lk.shadows in ("soft", "refined") else lk.shadows
         eng.set_lights(self.map_lights, to_area_lights(self.placed))
-        # the drag preview leaves the light scattered under the skin out: ~20 ms a frame for a change
-        # of at most 2 % at a face's steepest edges (docs/photos.md)
-        eng.set_look(replace(lk, shadows=shadows, skin=False))
+        # the drag preview leaves the light scattered under the skin out (unless ``full``): ~20 ms a
+        # frame for a change of at most 2 % at a face's steepest edges (docs/photos.md)
+        eng.set_look(replace(lk, shadows=shadows, skin=lk.skin and full))
         eng.render(budget, display)
         return eng
 

@@ -60,6 +60,7 @@ class StateFile:
             "preview_level": app.pace.level,  # the drag preview's level (viewer/app/preview.py)
             "switched_at": app.switched_at,  # wall clock (time.time) of the frame that last showed a new map or photo
             "longest_frame": app.longest_frame,  # (ms, kind) since the start-up's frames
+            "settle": app.settle_figures,  # after the lighting last stopped: ms to its full-quality frame, and to the sharp one
         }
         text = json.dumps(state)
         now = time.monotonic()

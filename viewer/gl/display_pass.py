@@ -68,14 +68,9 @@ class DisplayPass:
         fbo.scissor = None
 
     def read_hdr_output(self, hdr, look: Look, background: str) -> np.ndarray:
-        tex = self.kit.texture(hdr.size, 4)
-        fbo = self.kit.ctx.framebuffer(color_attachments=[tex])
-        try:
+        with self.kit.scratch_target(hdr.size) as (tex, fbo):
             self.draw(fbo, hdr, look, background, None, hdr_output=True)
             return self.kit.read(tex, 4)
-        finally:
-            fbo.release()
-            tex.release()
 
     def release(self):
         self.fbo.release()

@@ -337,6 +337,8 @@ class Engine:
     @in_context
     def release(self):
         """Free every GL object the engine created (the context and its programs stay)."""
+        if self.kit.ctx.screen is not None:  # none of its framebuffers stays bound (PassKit.scratch_target)
+            self.kit.ctx.screen.use()
         for l in self._lights:
             l.release()
         self._lights = []

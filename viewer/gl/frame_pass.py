@@ -197,14 +197,9 @@ class FrameCompositePass:
     def read(self, shading, background, terms, look: Look, transparent: bool, output_mode: int) -> np.ndarray:
         """(H, W, 4) float32: the person's HDR and matte (``OUTPUT_PERSON_HDR``) or the HDR over
         the background (``OUTPUT_COMPOSITED_HDR``), drawn into a texture made for the call."""
-        tex = self.kit.texture(self.size, 4)
-        fbo = self.kit.ctx.framebuffer(color_attachments=[tex])
-        try:
+        with self.kit.scratch_target(self.size) as (tex, fbo):
             self.draw(fbo, shading, background, terms, look, transparent, output_mode)
             return self.kit.read(tex, 4)
-        finally:
-            fbo.release()
-            tex.release()
 
     def release(self):
         for obj in (self.fbo, self.image, self.back_fbo, self.back, self.albedo_alpha):

@@ -53,6 +53,23 @@ class PassKit:
         self.ctx.finish()
         self.timings[name].append(time.perf_counter() - t0)
 
+    @contextmanager
+    def scratch_target(self, size):
+        """A texture and its framebuffer made for one draw and read (RGBA32F of ``size``), released
+        after it; the framebuffer bound before is bound again first: moderngl binds its idea of the
+        current one again whenever it makes a framebuffer, and a deleted one there is an invalid
+        operation that the window's imgui backend then raises, frames later (issue 45)."""
+        before = self.ctx.fbo
+        tex = self.texture(size, 4)
+        fbo = self.ctx.framebuffer(color_attachments=[tex])
+        try:
+            yield tex, fbo
+        finally:
+            if before is not None:  # (a headless context has none bound at first)
+                before.use()
+            fbo.release()
+            tex.release()
+
     def read(self, tex: moderngl.Texture, components: int, dtype="f4") -> np.ndarray:
         """A texture's pixels as (H, W, components), row 0 at the texture's v = 0."""
         w, h = tex.size
