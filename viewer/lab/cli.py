@@ -133,7 +133,8 @@ def cmd_bench(args) -> int:
         from viewer.lab.bench.viewer import run_viewer_benchmark
 
         photos = shared_folder(args.photos, "photos", "--photos") if args.photos or os.environ.get(DATA_VARIABLE) else None
-        run_viewer_benchmark(sizes=args.sizes, photos=photos, output=output)
+        maps = shared_folder(args.maps, "hdri", "--maps") if args.maps or os.environ.get(DATA_VARIABLE) else None
+        run_viewer_benchmark(sizes=args.sizes, photos=photos, output=output, maps=maps)
     elif args.what == "matte":
         from viewer.lab.bench.matte import run_matte_benchmark, table
 
@@ -345,7 +346,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
     p.add_argument("--twin-device", default="cpu", help="engine: the torch device the twin is timed on (cpu, cuda)")
-    p.add_argument("--maps", help="lights, report, photos: folder of .hdr/.exr maps (default $RELIGHT_DATA/hdri)")
+    p.add_argument("--maps", help="lights, report, photos, viewer: folder of .hdr/.exr maps (default "
+                   "$RELIGHT_DATA/hdri; viewer: its first .hdr is the new map opened)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
     p.add_argument("--methods", nargs="+", choices=("instant", "fast", "paper", "median-cut"),
                    help="lights: fitting methods (default all)")

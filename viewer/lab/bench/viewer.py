@@ -153,6 +153,11 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
             xdo("mousemove", int((x0 + x1) / 2), int((y0 + y1) / 2), "click", 1)
             time.sleep(0.3)
 
+        def browse():  # the panel's file browser open (the button toggles it)
+            if "browser path" not in json.loads(state_path.read_text())["widgets"]:
+                click("open a file")
+                _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
+
         def open_in_browser(path: Path, done) -> tuple[list, float | None]:
             """The frames from the click to the end, and the seconds from Enter (the Open button) to
             the frame that showed it."""
@@ -173,14 +178,12 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
             return _frames_since(json.loads(state_path.read_text()), start), st["switched_at"] - entered
 
         first_map = s["map"]
-        click("open a file")
-        _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
-        map_frames, map_s = open_in_browser(new_map, lambda s: s["map"] == str(new_map) and not s["fitting"])
-        click("open a file")  # the first map again: its lights are cached
-        _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
-        cached_frames, cached_s = open_in_browser(Path(first_map), lambda s: s["map"] == first_map and not s["fitting"])
-        click("open a file")
-        _wait(state_path, lambda s: "browser path" in s["widgets"], proc)
+        opened = {}
+        # a new map (its lights fitted), the first map again, the new one again (its lights now cached)
+        for what, path in (("new_map", str(new_map)), ("first_map", first_map), ("cached_map", str(new_map))):
+            browse()
+            opened[what] = open_in_browser(Path(path), lambda s, path=path: s["map"] == path and not s["fitting"])
+        browse()
         photo_frames, photo_s = open_in_browser(photo, lambda s: s["opening"] is None and s["message"].startswith("opened"))
         longest = json.loads(state_path.read_text())["longest_frame"]
         quit_at = time.perf_counter()
@@ -223,8 +226,7 @@ def measure_view(label: str, view_args: list, display: str, workdir: Path, new_m
         "load_frames": int(load.size),
         "load_ms_max": float(load.max()) if load.size else None,
         "load_ms_median": float(np.median(load)) if load.size else None,
-        "new_map": _load_figures(map_frames) | {"shown_s": map_s},
-        "cached_map": _load_figures(cached_frames) | {"shown_s": cached_s},
+        **{what: _load_figures(frames) | {"shown_s": shown} for what, (frames, shown) in opened.items()},
         "new_photo": _load_figures(photo_frames) | {"shown_s": photo_s},
         # the run's longest frame after the first one shown (its kind says what it was doing)
         "longest_frame": {"ms": longest[0], "cause": longest[1]},
@@ -250,7 +252,7 @@ BUSY_CONVERGE_MS = 400.0  # converge_ms and sharp_ms beside a busy process
 
 
 def _met(r: dict) -> dict:
-    loads = ("new_map", "cached_map", "new_photo")
+    loads = ("new_map", "first_map", "cached_map", "new_photo")
     r = {**r, "freeze_ms": max(v for what in loads for k in ("ms_max", "shown_ms", "warm_ms")
                                for v in (r[what][k],) if v is not None),
          "map_s": r["new_map"]["shown_s"], "cached_map_s": r["cached_map"]["shown_s"]}
@@ -260,13 +262,17 @@ def _met(r: dict) -> dict:
             for name, (op, goal) in goals.items()} | {"freeze_ms": r["freeze_ms"]}
 
 
-def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1), output="out/bench_viewer.json") -> dict:
+def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1), output="out/bench_viewer.json",
+                         maps: Path | None = None) -> dict:
+    """``maps``: a folder whose first .hdr map (by name) is the one opened as new (default: the bundled
+    venice_sunset_256.hdr), without its light file: fitted, then opened again from the cache."""
     import shutil
 
     from viewer.gl.context import create_headless_context, describe
     from viewer.resources import asset_dir
 
     renderer = describe(create_headless_context())
+    source_map = sorted(Path(maps).glob("*.hdr"))[0] if maps is not None else asset_dir() / "envmaps" / "venice_sunset_256.hdr"
     runs = []
     with x_display() as display, tempfile.TemporaryDirectory() as tmp:
         for label, args in cases(photos, sizes):
@@ -274,7 +280,7 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                 # a map without a light file and a photo without a bundle: fitted and inferred while measured
                 work = Path(tmp) / f"inputs_{label}_{busy}"
                 work.mkdir()
-                new_map = shutil.copyfile(asset_dir() / "envmaps" / "venice_sunset_256.hdr", work / "new_map.hdr")
+                new_map = shutil.copyfile(source_map, work / "new_map.hdr")
                 photo = shutil.copyfile(asset_dir() / "photos" / "underpass.jpg", work / "new_photo.jpg")
                 r = measure_view(label, args, display, Path(tmp), new_map, photo, busy)
                 r["met"] = _met(r)
@@ -288,7 +294,7 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                       f"idle {r['idle_ms_median'] or 0:.0f} ms; while 12 lights "
                       f"are fitted: {r['load_frames']} UI frames, longest {r['load_ms_max'] or 0:.0f} ms; quit {r['quit_s']:.2f} s",
                       flush=True)
-                for what in ("new_map", "cached_map", "new_photo"):
+                for what in ("new_map", "first_map", "cached_map", "new_photo"):
                     f = r[what]
                     print(f"  {what.replace('_', ' ')} opened from the panel: on screen {f['shown_s']:.2f} s after Enter; "
                           f"{f['frames']} UI frames while it loaded, longest {f['ms_max'] or 0:.0f} ms; the frame that shows it "
@@ -302,11 +308,13 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                         "processes (`python -c 'while 1: pass'`); frame time = events to buffer swap, as the viewer "
                         "records it; 16 lights of the bundled map; the sample scene at --size, the shared photos at "
                         "their own size (inferred when the window opens); new_map / new_photo: typed into the panel's "
-                        "file browser (assets' venice_sunset_256.hdr without its light file, then the first map again, its "
-                        "lights cached, then assets/photos/underpass.jpg without a bundle, caches empty); freeze_ms: "
+                        "file browser (new_map: the first .hdr of --maps, or assets' venice_sunset_256.hdr, without its light "
+                        "file; first_map: the map the window opened with, again; cached_map: the new map again, its "
+                        "lights cached; then assets/photos/underpass.jpg without a bundle, caches empty); freeze_ms: "
                         "the longest frame while one loaded or the one that showed it; shown_s: Enter (the Open button) "
                         "to the frame that showed it, swapped; longest_frame: the run's, with the kind of frame it was",
               "targets": {k: f"{op} {goal:g}" for k, (op, goal) in TARGETS.items()},
+              "new_map": str(source_map),
               "runs": runs}
     path = write_text(output, json.dumps(result, indent=1) + "\n")
     print(f"wrote {path}")
