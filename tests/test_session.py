@@ -186,11 +186,13 @@ def test_preview_engines_are_kept_for_the_level_and_its_neighbours(ctx):
     made = 0
     while s.warm_preview():
         made += 1
-    assert made == 3 and sorted(s.previews.engines) == [0, 1, 2]
+    assert made == 6 and sorted(s.previews.engines) == [0, 1, 2]  # made, then drawn: a step per idle frame
     assert all(e.complete for e in s.previews.engines.values())  # each drawn once: its first dragged frame pays nothing
     s.preview_level = 3
     assert s.warm_preview() and sorted(s.previews.engines) == [2, 3]  # far levels released, the new ones made
-    assert not s.warm_preview()
+    assert s.warm_preview() and not s.warm_preview()
+    s.set_lights(s.base_lights, load_envmap(MAPS / "venice_sunset_256.hdr").pixels, new_map=True)
+    assert s.warm_preview() and s.warm_preview() and not s.warm_preview()  # the new map: each neighbour given it and drawn
     widths = [PREVIEW_LEVELS[lv].work for lv in (2, 3)]
     assert [s.previews.engines[lv].scene.width for lv in (2, 3)] == widths
     s.release()

@@ -9,8 +9,8 @@ ms at the middle one idle, 76 and 36 ms beside one busy process; a fixed level i
 there or needlessly coarse on a fast machine. :class:`PreviewPace` steps to a coarser level when
 the frames of a drag are slower than the frame budget and back to a finer one when a drag starts
 with room for it, so a drag stays at 24 frames a second or more wherever the machine can, at the
-finest level that does. Each level's engine is made and drawn once before the pace can need it
-(:meth:`PreviewEngines.warm`), so changing level mid-drag costs no frame.
+finest level that does. Each level's engine is made, and drawn once, in idle frames before the pace
+can need it (:meth:`PreviewEngines.cold`), so changing level mid-drag costs no frame.
 """
 
 from __future__ import annotations
@@ -104,38 +104,50 @@ def preview_options(options: EngineOptions, scene: Scene, level: PreviewLevel) -
 
 
 class PreviewEngines:
-    """The preview's engines of one scene, one per level, made on demand; :meth:`warm` makes the current
-    level's and its neighbours' ahead of a drag, and releases the others."""
+    """The preview's engines of one scene, one per level, made on demand and given the current map
+    when next used (a new map is blurred and uploaded for the final engine in the frame that shows it,
+    for each preview engine in an idle frame after it: :meth:`cold`)."""
 
     def __init__(self, ctx, scene: Scene, options: EngineOptions, levels=PREVIEW_LEVELS):
         self.ctx, self.scene, self.options, self.levels = ctx, scene, options, levels
         self.engines: dict[int, Engine] = {}
         self.environment: np.ndarray | None = None
+        self._version = 0  # of the map; each engine's is in _has
+        self._has: dict[int, int] = {}
+        self.drawn: set[int] = set()  # levels whose engine drew a frame since it was made or given a map
 
     def engine(self, level: int) -> Engine:
+        """The level's engine, made and given the current map if need be."""
         eng = self.engines.get(level)
         if eng is None:
             small = preview_scene(self.scene, self.levels[level])
             eng = self.engines[level] = Engine(self.ctx, small, preview_options(self.options, small, self.levels[level]))
+        if self._has.get(level) != self._version:
             if self.environment is not None:
                 eng.set_environment(self.environment)
+            self._has[level] = self._version
+            self.drawn.discard(level)
         return eng
 
     def set_environment(self, environment: np.ndarray | None):
         self.environment = environment
-        if environment is not None:
-            for eng in self.engines.values():
-                eng.set_environment(environment)
+        self._version += 1
 
     def cold(self, level: int) -> int | None:
-        """The level, of ``level`` and its neighbours, whose engine is not made yet (None: all are);
-        the others' engines are released (what a level change may need is kept, no more)."""
+        """The level, of ``level`` and its neighbours, whose engine is not made, has an older map or
+        has not drawn a frame yet (None: none); the others' engines are released (what a level change
+        may need is kept, no more)."""
         near = [lv for lv in (level, level + 1, level - 1) if 0 <= lv < len(self.levels)]
         for lv in [lv for lv in self.engines if lv not in near]:
             self.engines.pop(lv).release()
-        return next((lv for lv in near if lv not in self.engines), None)
+            self._has.pop(lv, None)
+            self.drawn.discard(lv)
+        return next((lv for lv in near if lv not in self.engines or self._has.get(lv) != self._version
+                     or lv not in self.drawn), None)
 
     def release(self):
         for eng in self.engines.values():
             eng.release()
         self.engines.clear()
+        self._has.clear()
+        self.drawn.clear()

@@ -163,13 +163,17 @@ class Session:
         return self.previews.engine(self.preview_level)
 
     def warm_preview(self) -> bool:
-        """Make and draw one preview engine the next drag may need (the current level's or a
-        neighbour's: its first frame would otherwise pay ~0.1-0.2 s in a dragged frame); True when
-        there was one to make."""
+        """One step towards the preview engines the next drag may need (the current level's and its
+        neighbours'; a first frame would otherwise pay ~0.1-0.6 s in a dragged frame): make one, or
+        draw its first frame, one per call (an idle frame each); True when there was one to take."""
         level = self.previews.cold(self.preview_level)
         if level is None:
             return False
+        if level not in self.previews.engines:
+            self.previews.engine(level)  # the maps resampled, the engine and its map made
+            return True
         self._render_preview(self.previews.engine(level), True, None, True)
+        self.previews.drawn.add(level)
         return True
 
     def render_coarse(self) -> Engine:
