@@ -253,7 +253,7 @@ class ViewerApp:
             if preview:
                 return eng, "idle"  # a dragged frame with no motion: no preview engine is made mid-drag
             # "warm": an idle frame makes the drag preview's engine, so the first dragged frame is a preview's
-            return eng, "warm" if s.warm_preview() else "idle"
+            return eng, "warm" if s.warm_preview(max(SWAP_BUDGET - (now - self._frame_start), 0.0)) else "idle"
         self._previewed = preview
         return eng, ("drag" if moving else "adjust") if preview else "update"
 

@@ -162,18 +162,19 @@ class Session:
         """The drag preview's engine at the current level."""
         return self.previews.engine(self.preview_level)
 
-    def warm_preview(self) -> bool:
+    def warm_preview(self, budget: float | None = None) -> bool:
         """One step towards the preview engines the next drag may need (the current level's and its
         neighbours'; a first frame would otherwise pay ~0.1-0.6 s in a dragged frame): make one, or
-        draw its first frame, one per call (an idle frame each); True when there was one to take."""
+        draw its first frame (with ``budget``, seconds: as much of it as fits, the rest at the next
+        call), one per call (an idle frame each); True when there was one to take."""
         level = self.previews.cold(self.preview_level)
         if level is None:
             return False
         if level not in self.previews.engines:
             self.previews.engine(level)  # the maps resampled, the engine and its map made
             return True
-        self._render_preview(self.previews.engine(level), True, None, True)
-        self.previews.drawn.add(level)
+        if self._render_preview(self.previews.engine(level), True, budget, True).complete:
+            self.previews.drawn.add(level)
         return True
 
     def render_coarse(self) -> Engine:
