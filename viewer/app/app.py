@@ -9,7 +9,6 @@ import os
 import signal
 import sys
 import time
-from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 from viewer.app import interaction as ix
 from viewer.app.actions import Actions
 from viewer.app.controls import Controls
+from viewer.app.frame_log import FrameLog
 from viewer.app.job_polling import JobPolling
 from viewer.app.jobs import ChildWorker, LightJob, SceneJob
 from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
@@ -37,8 +37,6 @@ STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full 
 SWAP_BUDGET = 0.06  # seconds of engine work a frame gives a new map or person before the frame is shown
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
 JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
-FRAME_HISTORY = 600
-START_FRAMES = 3  # the first frames draw the whole scene once (not counted in the longest frame)
 OPENS = (".hdr", ".exr", ".json", *PHOTO_SUFFIXES)  # what the window opens (and a bundle's folder)
 
 
@@ -105,17 +103,11 @@ class ViewerApp:
         self.message = ""
         self.aiming: int | None = None  # the placed light the next click on the person aims
         self.error = ""
-        self.frames: deque = deque(maxlen=FRAME_HISTORY)  # (ms, kind)
+        self.log = FrameLog()  # what the frames took (viewer/app/frame_log.py)
         self.switched = False  # a finished job was applied (a new map's lights, a new person) and is not shown yet
-        self.switched_at: float | None = None  # wall clock (time.time) of the last frame that showed one
-        self.longest_frame = (0.0, "")  # (ms, kind) of the longest frame since the first ones (the start-up's)
         self.settling: Engine | None = None  # the preview engine whose full-quality frame shows while the sharp one is drawn
-        self._settle_start: float | None = None
-        # after the lighting stops: ms to its full-quality frame at the preview's level, and to the sharp one
-        self.settle_figures: dict = {"full_quality_ms": None, "sharp_ms": None}
         self._frame_start = time.perf_counter()
         self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
-        self.frame_count = 0
         self.panel = PanelState()
         self.captures: list[str] = []
         self.videos: list[str] = []
@@ -276,28 +268,16 @@ class ViewerApp:
                     self.actions.open_file(Path(path))
                 draw_panel(self)
                 draw_progress(self)
-                if self.frame_count == 0:
+                if self.log.count == 0:
                     self._fit_panel()
                 self.jobs.poll()
                 self.session.poll_refinement()
                 eng, kind = self._render()
                 w.draw_image(eng.display, self.image_rect(), self.image_area())
                 w.end_frame()
-                ms = (time.perf_counter() - start) * 1000.0
-                self.frames.append((ms, kind))
+                ms = self.log.record(start, kind)
                 if kind == "drag":
                     self.pace.record(ms)
-                elif kind == "switch":
-                    self.switched_at = time.time()  # on screen: swapped
-                elif kind == "settle":
-                    self._settle_start = start
-                    self.settle_figures = {"full_quality_ms": ms, "sharp_ms": None}
-                elif kind == "update" and self._settle_start is not None:
-                    self.settle_figures["sharp_ms"] = (time.perf_counter() - self._settle_start) * 1000.0
-                    self._settle_start = None
-                if self.frame_count >= START_FRAMES and ms > self.longest_frame[0]:
-                    self.longest_frame = (ms, kind)
-                self.frame_count += 1
                 self._write_state()
         finally:
             try:

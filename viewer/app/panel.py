@@ -512,7 +512,7 @@ def _record(app):
 def _frame_time(app):
     if not imgui.collapsing_header("Frame time"):
         return
-    frames = list(app.frames)[-240:]
+    frames = list(app.log.frames)[-240:]
     if not frames:
         return
     ms = np.array([f[0] for f in frames], np.float64)

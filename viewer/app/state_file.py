@@ -58,15 +58,15 @@ class StateFile:
             "error": app.error,
             "gl_threads": app.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cli/main.py)
             "preview_level": app.pace.level,  # the drag preview's level (viewer/app/preview.py)
-            "switched_at": app.switched_at,  # wall clock (time.time) of the frame that last showed a new map or photo
-            "longest_frame": app.longest_frame,  # (ms, kind) since the start-up's frames
-            "settle": app.settle_figures,  # after the lighting last stopped: ms to its full-quality frame, and to the sharp one
+            "switched_at": app.log.switched_at,  # wall clock (time.time) of the frame that last showed a new map or photo
+            "longest_frame": app.log.longest,  # (ms, kind) since the start-up's frames
+            "settle": app.log.settle,  # after the lighting last stopped: ms to its full-quality frame, and to the sharp one
         }
         text = json.dumps(state)
         now = time.monotonic()
         if text == self._text and not force and now - self._time < 1.0:  # frame times: once a second
             return
         self._text, self._time = text, now
-        state["frame_count"] = app.frame_count
-        state["frames"] = [[round(ms, 3), kind] for ms, kind in app.frames]
+        state["frame_count"] = app.log.count
+        state["frames"] = [[round(ms, 3), kind] for ms, kind in app.log.frames]
         write_text(self.path, json.dumps(state))
