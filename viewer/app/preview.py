@@ -39,12 +39,13 @@ class PreviewLevel:
 # one gained little: its passes are one llvmpipe tile each, one thread). The casters' step 3 at 256
 # pixels takes 10-25 % off a frame against the final engine's 2: hard shadows while the light moves
 # lose their finest detail, the full frame after the release has it back. The ground shadow at an
-# eighth of 128 pixels lit the backdrop 0.5/255 more than the final frame's (tests/test_session.py).
+# eighth of 128 pixels lit the backdrop 0.5/255 more than the final frame's (tests/test_session.py:
+# 0.09 at a sixth).
 PREVIEW_LEVELS = (
     PreviewLevel(256, 768, 256, 3, 4),
     PreviewLevel(192, 576, 256, 3, 6),
     PreviewLevel(160, 480, 256, 3, 8),
-    PreviewLevel(128, 384, 256, 4, 4),
+    PreviewLevel(128, 384, 256, 4, 6),
 )
 START_LEVEL = 2  # the first drag's level, before any frame was measured (one step from the coarsest, two from the finest)
 FRAME_BUDGET_MS = 36.0  # a dragged frame's median, whole window frame: 24 fps (41.7 ms) with room for the slower ones
