@@ -196,3 +196,22 @@ def test_preview_engines_are_kept_for_the_level_and_its_neighbours(ctx):
     widths = [PREVIEW_LEVELS[lv].work for lv in (2, 3)]
     assert [s.previews.engines[lv].scene.width for lv in (2, 3)] == widths
     s.release()
+
+
+def test_the_coarse_frame_after_a_drag_is_a_live_preview_engine_until_the_engines_are_made_again(ctx):
+    """The window shows render_coarse's engine while the sharp frame is drawn; a quality preset makes
+    the engines again: the window then stops showing it (ViewerApp._render checks it is still one of
+    the session's preview engines; a released one crashed the window)."""
+    scene = load_scene(sample_scene_dir())
+    lights = load_lights(MAPS / "immenstadter_horn_256.lights.json")
+    s = Session(ctx, scene, lights, load_envmap(MAPS / "immenstadter_horn_256.hdr").pixels)
+    s.render(preview=True)
+    key = s.state_key()
+    coarse = s.render_coarse()
+    assert coarse.complete and coarse in s.previews.engines.values()
+    assert coarse.looks.asked.shadows == "soft" and coarse.looks.asked.skin == s.look.skin  # full quality, coarser
+    s.update(exposure=1.0)
+    assert s.state_key() != key  # a change while the sharp frame is drawn: the window settles again
+    s.set_options(EngineOptions(shadow_resolution=256))
+    assert coarse not in s.previews.engines.values()
+    s.release()

@@ -11,9 +11,11 @@ scikit-learn project's library for exactly this, rather than each library's envi
 which is read once at import), and llvmpipe's rasterizer threads (``LP_NUM_THREADS``, read when a
 GL context is made, so it is set in the environment before the first one).
 
-The whole program shares one budget: the viewer's window keeps ``WINDOW_CORES`` for its frames, and
-the child process that infers photos and fits maps for it sizes itself to the idle cores less that
-(``reserve``), so window and child together never run more workers than there are cores.
+The whole program shares one budget: the child process that infers photos and fits maps for the
+viewer's window sizes itself to the idle cores less ``WINDOW_CORES`` (``reserve``), kept for the
+window's frames. The window's own llvmpipe threads are the cores it may use, not the idle ones
+(viewer/cli/main.py): its frames are short bursts whose threads do not wait on each other between
+operations, and two threads measured faster than one even beside a busy process (docs/viewer.md).
 """
 
 from __future__ import annotations

@@ -59,7 +59,7 @@ class ViewerConfig:
     rig: tuple = ()  # placed lights to start with (viewer.lighting.placed_lights; relight view --rig)
     max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
     device: str = "cpu"  # ... and where its inference runs (relight view --device)
-    gl_threads: int = 2  # llvmpipe's threads (the cores this process may use, viewer/cli/main.py)
+    gl_threads: int = 2  # llvmpipe's threads, as main sized them (the cores it may use): reported in the state file
 
 
 class ViewerApp:
@@ -106,6 +106,7 @@ class ViewerApp:
         self.log = FrameLog()  # what the frames took (viewer/app/frame_log.py)
         self.switched = False  # a finished job was applied (a new map's lights, a new person) and is not shown yet
         self.settling: Engine | None = None  # the preview engine whose full-quality frame shows while the sharp one is drawn
+        self._settled = b""  # the session's state (Session.state_key) that frame shows
         self._frame_start = time.perf_counter()
         self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
         self.panel = PanelState()
@@ -186,14 +187,18 @@ class ViewerApp:
         switching = self.switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
         preview = (moving or adjusting) and (rec is None or capturing) and not switching
         s.preview_level = self.pace.level
+        if self.settling is not None and self.settling not in s.previews.engines.values():
+            self.settling = None  # its engines were made again (a quality preset): the final frame comes whole
         if preview or switching or rec is not None:
             self.settling = None
             self._previewed = self._previewed and preview  # a new map or person, or a recording, comes whole
-        elif self._previewed:
-            # the lighting stopped: its full-quality frame at the preview's level first (the look's soft
-            # shadows and skin), then the final engine's over budgeted frames behind it ("sharpen")
+        elif self._previewed or (self.settling is not None and self._settled != s.state_key()):
+            # the lighting stopped (or changed again while the sharp frame was drawn: a key, the wheel):
+            # its full-quality frame at the preview's level first (the look's soft shadows and skin),
+            # then the final engine's over budgeted frames behind it ("sharpen")
             self._previewed = False
             self.settling = s.render_coarse()
+            self._settled = s.state_key()
             return self.settling, "settle"
         rendered = s.preview if preview else s.final
         before = sum(rendered.kit.counters.values())

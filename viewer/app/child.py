@@ -67,8 +67,13 @@ def serve(lines) -> None:
 
 
 def main() -> int:
+    from viewer.cores import WINDOW_CORES, work_threads
+
     if hasattr(os, "nice"):
         os.nice(10)  # the window's frames first
+    # its GL context's threads (read once, when the first photo's is made) follow its share of the
+    # cores as its other pools do, not the window's LP_NUM_THREADS, which it inherited
+    os.environ["LP_NUM_THREADS"] = str(work_threads(reserve=WINDOW_CORES))
     serve(sys.stdin)
     return 0
 

@@ -34,6 +34,8 @@ class FrameLog:
         elif kind == "update" and self._settle_start is not None:
             self.settle["sharp_ms"] = (now - self._settle_start) * 1000.0
             self._settle_start = None
+        elif kind != "sharpen":
+            self._settle_start = None  # cut short (a drag, a new map, a recording): no sharp time
         if self.count >= START_FRAMES and ms > self.longest[0]:
             self.longest = (ms, kind)
         self.count += 1

@@ -9,8 +9,10 @@ ms at the middle one idle, 76 and 36 ms beside one busy process; a fixed level i
 there or needlessly coarse on a fast machine. :class:`PreviewPace` steps to a coarser level when
 the frames of a drag are slower than the frame budget and back to a finer one when a drag starts
 with room for it, so a drag stays at 24 frames a second or more wherever the machine can, at the
-finest level that does. Each level's engine is made, and drawn once, in idle frames before the pace
-can need it (:meth:`PreviewEngines.cold`), so changing level mid-drag costs no frame.
+finest level that does. The current level's engine and its neighbours' are made, and drawn once, in
+idle frames before the pace can need them (:meth:`PreviewEngines.cold`), so a step of one level
+mid-drag costs no frame (a second step in the same drag, or a drag within a second or two of a new
+map, may pay a first draw).
 """
 
 from __future__ import annotations

@@ -5,9 +5,10 @@ engines (:mod:`viewer.app.preview`) render the same scene resampled to a coarser
 shadows in place of soft ones (filtering the soft shadows of 16 lights costs more than everything
 else at that size), and are used only while the lighting is being dragged, so a drag stays
 interactive: the window's pace picks the level from the dragged frames' times
-(:attr:`Session.preview_level`). When the drag stops the final engine renders the same state, so
-what stays on screen is always the full-quality frame of the current state. Each frame shown is one
-complete engine render of one state: never a mix of old and new lights.
+(:attr:`Session.preview_level`). When the drag stops a preview engine's full-quality frame of the
+same state shows first (:meth:`Session.render_coarse`), then the final engine's, so what stays on
+screen is always the full-quality frame of the current state. Each frame shown is one complete
+engine render of one state: never a mix of old and new lights.
 """
 
 from __future__ import annotations
@@ -155,6 +156,10 @@ class Session:
     def ground_shown(self) -> bool:
         """Whether the ground shadow shows (the look's "auto" resolved for this scene and background)."""
         return self.look.ground_shown(self.final.feet, self.final.looks.resolved(self.look).background)
+
+    def state_key(self) -> bytes:
+        """What a frame shows, as bytes: the look, the map's lights and sigmas, the placed lights."""
+        return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
 
     # ------------------------------------------------------------------ engines
     @property

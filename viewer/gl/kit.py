@@ -65,8 +65,8 @@ class PassKit:
         try:
             yield tex, fbo
         finally:
-            if before is not None:  # (a headless context has none bound at first)
-                before.use()
+            if before is not None and not isinstance(before.mglo, moderngl.InvalidObject):  # none at first headless;
+                before.use()  # a released one (an engine's, headless) stays unbound
             fbo.release()
             tex.release()
 

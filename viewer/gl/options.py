@@ -28,7 +28,7 @@ class EngineOptions:
     profile: bool = False  # finish GL work after every pass and record its wall time
     ground_scale: int = 2  # the ground shadow at 1 / ground_scale of the work resolution or less (at most
     # viewer.gl.ground_pass.GROUND_PIXELS: costly per pixel, every light's visibility and the feet's contact points;
-    # the drag preview takes 4)
+    # the drag preview's levels take 4-8, viewer/app/preview.py)
 
     def __post_init__(self):
         r = self.shadow_resolution

@@ -347,7 +347,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--no-twin", action="store_true", help="skip timing the torch twin")
     p.add_argument("--twin-device", default="cpu", help="engine: the torch device the twin is timed on (cpu, cuda)")
     p.add_argument("--maps", help="lights, report, photos, viewer: folder of .hdr/.exr maps (default "
-                   "$RELIGHT_DATA/hdri; viewer: its first .hdr is the new map opened)")
+                   "$RELIGHT_DATA/hdri; viewer: its first .hdr or .exr is the new map opened)")
     p.add_argument("--counts", type=int, nargs="+", help="lights: numbers of lights (default 4 8 16 32)")
     p.add_argument("--methods", nargs="+", choices=("instant", "fast", "paper", "median-cut"),
                    help="lights: fitting methods (default all)")

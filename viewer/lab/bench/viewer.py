@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.errors import InputError
 from viewer.files.imageio import write_text
 
 DRAG_SECONDS = 4.0
@@ -264,7 +265,7 @@ def _met(r: dict) -> dict:
 
 def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1), output="out/bench_viewer.json",
                          maps: Path | None = None) -> dict:
-    """``maps``: a folder whose first .hdr map (by name) is the one opened as new (default: the bundled
+    """``maps``: a folder whose first .hdr or .exr map (by name) is the one opened as new (default: the bundled
     venice_sunset_256.hdr), without its light file: fitted, then opened again from the cache."""
     import shutil
 
@@ -272,7 +273,10 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
     from viewer.resources import asset_dir
 
     renderer = describe(create_headless_context())
-    source_map = sorted(Path(maps).glob("*.hdr"))[0] if maps is not None else asset_dir() / "envmaps" / "venice_sunset_256.hdr"
+    found = sorted(p for p in Path(maps).iterdir() if p.suffix.lower() in (".hdr", ".exr")) if maps is not None else []
+    if maps is not None and not found:
+        raise InputError(maps, "no .hdr or .exr map to open as the new map")
+    source_map = found[0] if found else asset_dir() / "envmaps" / "venice_sunset_256.hdr"
     runs = []
     with x_display() as display, tempfile.TemporaryDirectory() as tmp:
         for label, args in cases(photos, sizes):
@@ -280,7 +284,7 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                 # a map without a light file and a photo without a bundle: fitted and inferred while measured
                 work = Path(tmp) / f"inputs_{label}_{busy}"
                 work.mkdir()
-                new_map = shutil.copyfile(source_map, work / "new_map.hdr")
+                new_map = shutil.copyfile(source_map, work / f"new_map{source_map.suffix.lower()}")
                 photo = shutil.copyfile(asset_dir() / "photos" / "underpass.jpg", work / "new_photo.jpg")
                 r = measure_view(label, args, display, Path(tmp), new_map, photo, busy)
                 r["met"] = _met(r)
@@ -308,7 +312,7 @@ def run_viewer_benchmark(sizes=(512,), photos: Path | None = None, loads=(0, 1),
                         "processes (`python -c 'while 1: pass'`); frame time = events to buffer swap, as the viewer "
                         "records it; 16 lights of the bundled map; the sample scene at --size, the shared photos at "
                         "their own size (inferred when the window opens); new_map / new_photo: typed into the panel's "
-                        "file browser (new_map: the first .hdr of --maps, or assets' venice_sunset_256.hdr, without its light "
+                        "file browser (new_map: the first .hdr or .exr of --maps, or assets' venice_sunset_256.hdr, without its light "
                         "file; first_map: the map the window opened with, again; cached_map: the new map again, its "
                         "lights cached; then assets/photos/underpass.jpg without a bundle, caches empty); freeze_ms: "
                         "the longest frame while one loaded or the one that showed it; shown_s: Enter (the Open button) "
