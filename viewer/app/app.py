@@ -259,11 +259,13 @@ class ViewerApp:
 
         w = self.window
         previous = signal.signal(signal.SIGTERM, lambda *_: w.close()) if os.name == "posix" else None
+        kind = ""
         try:
             while not w.should_close:
-                # a slider let go: the loop runs on until its full-quality frame replaces the preview
+                # a slider let go: the loop runs on until its full-quality frame replaces the preview; a
+                # "warm" frame: on until the drag preview's engines are ready (a step a frame, not one per IDLE_WAIT)
                 busy = (self.dragging or self.panning or self.recording is not None or self.settling is not None
-                        or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
+                        or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = self._frame_start = time.perf_counter()
