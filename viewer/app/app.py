@@ -202,8 +202,9 @@ class ViewerApp:
             return self.settling, "settle"
         rendered = s.preview if preview else s.final
         before = sum(rendered.kit.counters.values())
-        # what the frame has left for a new map or person, or for the sharp frame behind a coarse one
-        budget = max(SWAP_BUDGET - (now - self._frame_start), 0.0) if switching or self.settling is not None else None
+        left = max(SWAP_BUDGET - (now - self._frame_start), 0.0)  # of the frame's budget for budgeted work
+        # a new map or person, or the sharp frame behind a coarse one, is drawn over budgeted frames
+        budget = left if switching or self.settling is not None else None
         expose = switching and self._expose_pending  # auto exposure from the new HDR, before its frame is drawn
         eng = s.render(preview=preview, hard=moving, budget=budget, display=not expose)
         worked = sum(rendered.kit.counters.values()) != before
@@ -250,7 +251,7 @@ class ViewerApp:
             if preview:
                 return eng, "idle"  # a dragged frame with no motion: no preview engine is made mid-drag
             # "warm": an idle frame makes the drag preview's engine, so the first dragged frame is a preview's
-            return eng, "warm" if s.warm_preview(max(SWAP_BUDGET - (now - self._frame_start), 0.0)) else "idle"
+            return eng, "warm" if s.warm_preview(left) else "idle"
         self._previewed = preview
         return eng, ("drag" if moving else "adjust") if preview else "update"
 

@@ -117,7 +117,7 @@ class PreviewEngines:
         self.environment: np.ndarray | None = None
         self._version = 0  # of the map; each engine's is in _has
         self._has: dict[int, int] = {}
-        self.drawn: set[int] = set()  # levels whose engine drew a frame since it was made or given a map
+        self.drawn: set[int] = set()  # levels whose engine has the current map and drew a frame with it
 
     def engine(self, level: int) -> Engine:
         """The level's engine, made and given the current map if need be."""
@@ -129,12 +129,12 @@ class PreviewEngines:
             if self.environment is not None:
                 eng.set_environment(self.environment)
             self._has[level] = self._version
-            self.drawn.discard(level)
         return eng
 
     def set_environment(self, environment: np.ndarray | None):
         self.environment = environment
         self._version += 1
+        self.drawn.clear()
 
     def cold(self, level: int) -> int | None:
         """The level, of ``level`` and its neighbours, whose engine is not made, has an older map or
@@ -145,8 +145,7 @@ class PreviewEngines:
             self.engines.pop(lv).release()
             self._has.pop(lv, None)
             self.drawn.discard(lv)
-        return next((lv for lv in near if lv not in self.engines or self._has.get(lv) != self._version
-                     or lv not in self.drawn), None)
+        return next((lv for lv in near if lv not in self.drawn), None)
 
     def release(self):
         for eng in self.engines.values():

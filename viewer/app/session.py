@@ -38,19 +38,16 @@ class Session:
         self.ctx = ctx
         self.scene = scene
         self.options = options or EngineOptions()
-        self.final = Engine(ctx, scene, self.options)
-        self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
-        self.previews = PreviewEngines(ctx, scene, self.options)
-        self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
         self.environment = environment
+        self._make_engines()
+        self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
+        self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
         self.placed: tuple[PlacedLight, ...] = ()  # the user's own lights, fixed to the camera (viewer.lighting.placed_lights)
         self.history = History()
         self.keep_absolute = False  # placed lights keep their absolute intensities when the map changes
         self.look = (look or Look()).fitted(len(lights))
-        self._set_environment(self.final)
-        self.previews.set_environment(environment)
         self.wake = lambda: None  # called when background work finishes (the window's wake)
         self._refiner = None
         self.refine_job = None
@@ -125,10 +122,7 @@ class Session:
             self._outgoing.release()
         self._outgoing = self.final
         self.scene = scene
-        self.final = Engine(self.ctx, scene, self.options)
-        self._set_environment(self.final)
-        self.previews = PreviewEngines(self.ctx, scene, self.options)
-        self.previews.set_environment(self.environment)
+        self._make_engines()
         self.refine_job = None
         if scene.frame is None:
             self.look = replace(self.look, compare=0.0)
@@ -140,10 +134,7 @@ class Session:
             return
         self.release()
         self.options = options
-        self.final = Engine(self.ctx, self.scene, options)
-        self._set_environment(self.final)
-        self.previews = PreviewEngines(self.ctx, self.scene, options)
-        self.previews.set_environment(self.environment)
+        self._make_engines()
         self.refine_job = None  # a running refinement was for the old engine's shadow maps
 
     def set_sigma(self, index: int, sigma: float):
@@ -162,6 +153,13 @@ class Session:
         return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
 
     # ------------------------------------------------------------------ engines
+    def _make_engines(self):
+        """The final engine and the preview's for the scene and options, given the map."""
+        self.final = Engine(self.ctx, self.scene, self.options)
+        self._set_environment(self.final)
+        self.previews = PreviewEngines(self.ctx, self.scene, self.options)
+        self.previews.set_environment(self.environment)
+
     @property
     def preview(self) -> Engine:
         """The drag preview's engine at the current level."""

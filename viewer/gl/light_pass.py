@@ -116,7 +116,7 @@ class LightShadingPass:
         # what a slot with no shadow map (or no pre-filtered basis) binds: a texture llvmpipe samples
         # the way it samples the real ones (the same format, filter and power-of-two sides: its shader
         # variants are keyed on them). Any other texture there makes a new variant the first time a
-        # light goes out mid-drag, 0.6-1.5 s of compiling (docs/viewer.md, "No stall").
+        # light goes out mid-drag, 0.6-1.5 s of compiling (docs/viewer.md, "Stalls found").
         self.stand_in_shadow_map = kit.texture((1, 1), 1, np.ones(1, "f4").tobytes())
         n_tex = (terms + 1) // 2  # the pre-filtered atlas's width is n_tex tiles of a power of two
         self.stand_in_filtered = kit.texture((n_tex, 1), 4, np.zeros(4 * n_tex, "f4").tobytes(), linear=True)
