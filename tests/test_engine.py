@@ -629,6 +629,24 @@ def test_a_budgeted_render_keeps_the_last_frame_until_it_is_complete_then_matche
     fresh.render()
     np.testing.assert_array_equal(eng.output.read_display(), fresh.output.read_display())
     assert not np.array_equal(eng.output.read_display(), before)
+    # the light pass goes in bands of rows (a unit each); a change while a group's bands are part-way
+    # starts that group again, so no band of the old lighting stays in the frame
+    from viewer.gl.light_pass import BANDS
+
+    before = eng.output.read_display().copy()
+    runs = eng.kit.counters["light_pass"]
+    eng.set_lights(lights.rotated(20.0))
+
+    def turn_mid_group(calls):
+        if eng.light_pass._next is not None and eng.light_pass._next[1] == 2 and eng.lights.direction[0, 0] != turned[0, 0]:
+            eng.set_lights(lights.rotated(-30.0))
+
+    turned = lights.rotated(-30.0).direction
+    render_by_units(eng, before, turn_mid_group)
+    assert eng.kit.counters["light_pass"] - runs > 2 * BANDS  # two groups in bands, and one started again
+    fresh.set_lights(lights.rotated(-30.0))
+    fresh.render()
+    np.testing.assert_array_equal(eng.output.read_display(), fresh.output.read_display())
     fresh.release()
     eng.release()
 

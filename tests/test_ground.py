@@ -263,7 +263,7 @@ def test_work_left_part_way_starts_again_when_anything_changed_meanwhile(ctx, pe
     sc, lights = framed_person(person), ten_lights()
     eng = engine(ctx, sc, lights, ground=True)
     eng.set_lights(lights.rotated(60.0))
-    budgeted_until(eng, lambda e: (e.ground_pass._next or 0) > 0)
+    budgeted_until(eng, lambda e: (e.ground_pass._next or (0, 0)) > (0, 0))  # (group, band) left part-way
     relook(eng, ground=False)
     eng.set_lights(lights.rotated(120.0))
     eng.render()
@@ -288,7 +288,7 @@ def test_work_left_part_way_starts_again_when_anything_changed_meanwhile(ctx, pe
 
 def test_a_budgeted_photo_frame_comes_in_by_units_and_never_shows_half_a_frame(ctx, person):
     """A window bringing in a new map over a photo (Engine.render with a budget): the ground's shadow
-    a group of lights a call, the frame's background and composite a band of rows a call; until the
+    a band of a group of lights a call, the frame's background and composite a band of rows a call; until the
     new frame is whole the display keeps the last one, and the frame it ends with is the full
     render's, also when the look changes half-way (the bands start again)."""
     sc, lights = framed_person(person), ten_lights()

@@ -51,15 +51,19 @@ def test_a_map_is_fitted_in_the_child_and_cached(tmp_path, monkeypatch):
 
 
 def test_one_worker_serves_the_window_s_jobs_one_after_another(tmp_path, monkeypatch):
-    """The window's worker is one child for every fit (torch imported once): after a bad request
+    """The window's worker is one child for every fit (torch imported once, when it starts, which the
+    window may ask for ahead of the first job): after a bad request
     the same child fits the next map; a stopped job kills it, and the next job starts a new one."""
     monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
     worker = ChildWorker()
     try:
+        worker.start()  # started ahead (the window's file browser opened): the first job finds it
+        pid = worker._proc.pid
+        worker.start()
+        assert worker._proc.pid == pid
         good = shutil.copyfile(asset_dir() / "envmaps" / "studio_small_03_256.hdr", tmp_path / "studio.hdr")
         job = finished(LightJob(good, 4, "instant", worker=worker))
-        assert job.error is None and job.result.how == "fitted"
-        pid = worker._proc.pid
+        assert job.error is None and job.result.how == "fitted" and worker._proc.pid == pid
         try:
             worker.request({"what": "lights", "map": str(tmp_path / "missing.hdr"), "n": 4, "method": "instant"},
                            None, lambda said: None, lambda: None)

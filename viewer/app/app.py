@@ -264,9 +264,10 @@ class ViewerApp:
         try:
             while not w.should_close:
                 # a slider let go: the loop runs on until its full-quality frame replaces the preview; a
-                # "warm" frame: on until the drag preview's engines are ready (a step a frame, not one per IDLE_WAIT)
+                # "warm" frame: on until the drag preview's engines are ready (a step a frame, not one per
+                # IDLE_WAIT); a new map or person: on until its frame, drawn over budgeted frames, shows
                 busy = (self.dragging or self.panning or self.recording is not None or self.settling is not None
-                        or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
+                        or self.switched or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = self._frame_start = time.perf_counter()

@@ -11,7 +11,8 @@ Why a process and not a thread: importing torch (its libraries load with the GIL
 the inference's long Python steps and its own GL context (which cannot be made on another thread next
 to the window's, ../shared/docs/STACK.md) would each stall the window's frames; in a process, niced,
 the window keeps one core and the GIL to itself, and closing the window ends the work at once. It
-lives on between requests (:class:`viewer.app.jobs.ChildWorker`), so torch is imported once.
+lives on between requests (:class:`viewer.app.jobs.ChildWorker`), so torch is imported once, as it
+starts (the window starts it when its file browser opens, before the first map or photo is chosen).
 """
 
 from __future__ import annotations
@@ -74,6 +75,8 @@ def main() -> int:
     # its GL context's threads (read once, when the first photo's is made) follow its share of the
     # cores as its other pools do, not the window's LP_NUM_THREADS, which it inherited
     os.environ["LP_NUM_THREADS"] = str(work_threads(reserve=WINDOW_CORES))
+    import torch  # noqa: F401  (both kinds of work need it: loaded before the first request, not on it)
+
     serve(sys.stdin)
     return 0
 

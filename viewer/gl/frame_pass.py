@@ -29,7 +29,7 @@ import moderngl
 import numpy as np
 
 from viewer.gl.display_pass import set_background
-from viewer.gl.kit import PassKit
+from viewer.gl.kit import PassKit, band_box
 from viewer.scene.bundle import FrameLayer
 from viewer.scene.camera import Camera
 from viewer.scene.look import Look
@@ -43,13 +43,6 @@ ENVIRONMENT_SCALE = 2  # the map behind the person at half the frame's resolutio
 def frame_camera(frame: FrameLayer, camera: Camera) -> Camera:
     """The scene's camera at the frame's resolution."""
     return Camera(frame.width, frame.height, camera.focal_mm, camera.sensor_mm, camera.distance)
-
-
-def band_box(size: tuple[int, int], band: int, bands: int) -> tuple[int, int, int, int]:
-    """(x, y, width, height): band ``band`` of ``bands`` bands of rows of an image of ``size`` (w, h)."""
-    w, h = size
-    y0, y1 = band * h // bands, (band + 1) * h // bands
-    return (0, y0, w, y1 - y0)
 
 
 class FrameBackgroundPass:

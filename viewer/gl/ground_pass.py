@@ -13,9 +13,9 @@ import math
 import moderngl
 import numpy as np
 
-from viewer.gl.kit import PassKit
+from viewer.gl.kit import PassKit, band_box
 from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
-from viewer.gl.light_pass import LIGHTS_PER_PASS, LightShadingPass
+from viewer.gl.light_pass import BANDS, LIGHTS_PER_PASS, LightShadingPass
 from viewer.gl.scene_resources import SceneResources
 from viewer.scene.ground import CONTACT_BOUND, MAX_CONTACT_POINTS, GroundPlane, contact_spread
 
@@ -44,7 +44,7 @@ class GroundShadowPass:
         centre = pts.mean(axis=0) if len(pts) else np.zeros(3)
         radius = float(np.linalg.norm(pts - centre, axis=1).max()) + CONTACT_BOUND if len(pts) else 0.0
         self.contact_bound = (*(float(v) for v in centre), radius)
-        self._next = None  # a budgeted run under way: the next group
+        self._next = None  # a budgeted run under way: the next (group, band)
         self.texture = kit.texture(self.size, 4, linear=True)
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.texture])
 
@@ -54,16 +54,17 @@ class GroundShadowPass:
 
     def run(self, lights: list[Light], shadows: str, work=None) -> bool:
         """``shadows``: the look's shadow mode (none: no shadow on the ground either). With ``work``
-        (a budgeted render, :class:`viewer.gl.work_budget.WorkBudget`) each group of lights is a unit: False
-        when the budget ran out first (the groups drawn add up in the texture; the next call goes on
-        from the next group, the engine calling :meth:`restart` first when anything changed meanwhile)."""
+        (a budgeted render, :class:`viewer.gl.work_budget.WorkBudget`) each band of rows of a group of
+        lights is a unit (a group is ~50 ms idle, twice that beside a busy process): False when the budget
+        ran out first (the bands drawn add up in the texture; the next call goes on from the next band,
+        the engine calling :meth:`restart` first when anything changed meanwhile)."""
         kit = self.kit
         if work is None or self._next is None:
-            self._next = 0
+            self._next = (0, 0)
         first = self._next
         with kit.timed(self.name):
             self.fbo.use()
-            if first == 0:
+            if first == (0, 0):
                 self.fbo.clear(0.0, 0.0, 0.0, 0.0)
             intensity = np.array([l.intensity for l in lights], np.float64).reshape(-1, 3)
             up = np.array([max(float(np.dot(l.direction, self.plane.normal)), 0.0) for l in lights])
@@ -87,10 +88,7 @@ class GroundShadowPass:
             kit.ctx.enable(moderngl.BLEND)
             kit.ctx.blend_func = moderngl.ONE, moderngl.ONE
             try:
-                for g in range(first, len(lights), LIGHTS_PER_PASS):
-                    if work is not None and g > first and work.spent("ground_group"):
-                        self._next = g
-                        return False
+                for g in range(first[0], len(lights), LIGHTS_PER_PASS):
                     group = lights[g:g + LIGHTS_PER_PASS]
                     # the shadows shown: a light pass that also holds the soft visibility (Engine.render's
                     # soft_planes) casts hard shadows on the ground when hard shadows are shown
@@ -102,8 +100,14 @@ class GroundShadowPass:
                     block = np.zeros((LIGHTS_PER_PASS, 3), "f4")
                     block[:len(group)] = share[g:g + len(group)]
                     prog["light_share"].write(block.tobytes())
-                    kit.fullscreen(prog)
+                    for band in range(first[1] if g == first[0] else 0, BANDS if work is not None else 1):
+                        if work is not None and (g, band) != first and work.spent("ground_band"):
+                            self._next = (g, band)
+                            return False
+                        self.fbo.scissor = band_box(self.size, band, BANDS) if work is not None else None
+                        kit.fullscreen(prog)
             finally:
+                self.fbo.scissor = None
                 kit.ctx.disable(moderngl.BLEND)
                 kit.ctx.blend_func = moderngl.DEFAULT_BLENDING
         self._next = None

@@ -80,3 +80,10 @@ class PassKit:
         for vao in self.fullscreen_vaos.values():
             vao.release()
         self.fullscreen_vaos.clear()
+
+
+def band_box(size: tuple[int, int], band: int, bands: int) -> tuple[int, int, int, int]:
+    """(x, y, width, height): band ``band`` of ``bands`` bands of rows of an image of ``size`` (w, h)."""
+    w, h = size
+    y0, y1 = band * h // bands, (band + 1) * h // bands
+    return (0, y0, w, y1 - y0)

@@ -8,12 +8,13 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.gl.kit import PassKit
+from viewer.gl.kit import PassKit, band_box
 from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from viewer.gl.scene_resources import SceneResources
 from viewer.scene import shadow_space as ss
 
 LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each)
+BANDS = 4  # a budgeted light pass's bands of rows (Engine.render with a budget)
 
 
 class LightAtlas:
@@ -103,6 +104,7 @@ class LightShadingPass:
         self.kit, self.scene, self.atlas = kit, scene, atlas
         self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
         self.pcss_min_texels = pcss_min_texels
+        self._next = None  # (tile, band): a budgeted pass left part-way
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
         # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
         # the CSM's pre-filtered basis, or directly: the contact-hardening penumbrae and, with
@@ -171,8 +173,16 @@ class LightShadingPass:
             prog["csm_offset"] = self.csm_offset
             prog["csm_clamp"] = self.csm_clamp
 
-    def run(self, group: list[Light], modes: list[int]):
+    def run(self, group: list[Light], modes: list[int], work=None) -> bool:
+        """Shade the group's lights into its atlas tile. With ``work`` (a budgeted render,
+        :class:`viewer.gl.work_budget.WorkBudget`) in ``BANDS`` bands of the mask box's rows, one unit
+        each (a group at 2048 pixels is ~75 ms idle and twice that beside a busy process, too long for
+        one frame of a window opening a map): False when the budget ran out first (the bands drawn are
+        kept; the next call goes on from the next band of the same group, the engine calling
+        :meth:`restart` first when anything changed meanwhile)."""
         kit, sc = self.kit, self.scene
+        tile = group[0].tile
+        first = self._next[1] if work is not None and self._next is not None and self._next[0] == tile else 0
         defines = self.defines
         if self.specular:
             defines["SPECULAR"] = None
@@ -184,12 +194,24 @@ class LightShadingPass:
             prog["normals"] = 1
             self.bind_lights(prog, group, modes)
             x, y, bw, bh = sc.mask_box
-            prog["tile_origin"] = group[0].tile
+            prog["tile_origin"] = tile
             prog["box_origin"] = (x, y)
             fbo = self.atlas.fbo
-            fbo.viewport = fbo.scissor = (group[0].tile[0], group[0].tile[1], bw, bh)
+            fbo.viewport = (tile[0], tile[1], bw, bh)
             fbo.use()
-            kit.fullscreen(prog)
+            for band in range(first, BANDS if work is not None else 1):
+                if work is not None and band > first and work.spent("light_band"):
+                    self._next = (tile, band)
+                    return False
+                bx, by, bbw, bbh = band_box((bw, bh), band, BANDS) if work is not None else (0, 0, bw, bh)
+                fbo.scissor = (tile[0] + bx, tile[1] + by, bbw, bbh)
+                kit.fullscreen(prog)
+        self._next = None
+        return True
+
+    def restart(self):
+        """Something changed since a budgeted pass was left part-way: its group starts again."""
+        self._next = None
 
     def release(self):
         self.stand_in_shadow_map.release()

@@ -1,5 +1,5 @@
 """How much GL work one call to ``Engine.render`` may do (the window's frames while a new map or a
-photo comes in): units of work (a light's shadow map, a group's light pass, a band of the frame...)
+photo comes in): units of work (a light's shadow map, a band of a group's light pass, a band of the frame...)
 run while the time gone plus the next unit's expected cost fits the budget; at least one unit runs
 per call. A unit's expected cost is its last measured time (llvmpipe works at the flush, so each unit
 is timed to its ``finish``), so a frame never starts a long unit it has no time left for."""
