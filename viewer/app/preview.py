@@ -89,14 +89,27 @@ class PreviewPace:
 
 
 def preview_scene(scene: Scene, level: PreviewLevel) -> Scene:
-    """The scene at a preview level: its maps resampled to ``level.work`` pixels (the frame's field of
-    view kept), a photo's frame to ``level.frame``."""
+    """The scene at a preview level: its maps resampled to about ``level.work`` pixels (the frame's
+    field of view kept), a photo's frame to about ``level.frame`` (:func:`no_power_of_two`)."""
     small = scene
     if max(small.width, small.height) > level.work:
-        small = resample_scene(small, level.work, keep_frame=True)
+        small = resample_scene(small, no_power_of_two((small.width, small.height), level.work), keep_frame=True)
     if small.frame is not None and max(small.output_size) > level.frame:
-        small = replace(small, frame=small.frame.resized(scaled_size(small.output_size, level.frame)))
+        size = scaled_size(small.output_size, no_power_of_two(small.output_size, level.frame))
+        small = replace(small, frame=small.frame.resized(size))
     return small
+
+
+def no_power_of_two(size: tuple[int, int], longest: int) -> int:
+    """The longer side, ``longest`` or a few pixels less, at which neither side of ``size`` (w, h)
+    scaled to it is a power of two. llvmpipe compiles a shader variant for each bound texture's
+    power-of-two-ness, side by side: every level's textures of one kind, so a level's first frame
+    reuses the variants another level compiled (a level whose composite was 128 pixels high built its
+    mip levels in 49 ms against 1-2 ms, in an idle frame of the window)."""
+    for n in range(longest, max(longest - 8, 1), -1):
+        if not any(v & (v - 1) == 0 for v in scaled_size(size, n)):
+            return n
+    return longest
 
 
 def preview_options(options: EngineOptions, scene: Scene, level: PreviewLevel) -> EngineOptions:
@@ -119,13 +132,22 @@ class PreviewEngines:
         self._has: dict[int, int] = {}
         self.drawn: set[int] = set()  # levels whose engine has the current map and drew a frame with it
 
-    def engine(self, level: int) -> Engine:
-        """The level's engine, made and given the current map if need be."""
+    def make(self, level: int) -> Engine:
+        """The level's engine, made if need be (the scene resampled; the map not given yet)."""
         eng = self.engines.get(level)
         if eng is None:
             small = preview_scene(self.scene, self.levels[level])
             eng = self.engines[level] = Engine(self.ctx, small, preview_options(self.options, small, self.levels[level]))
-        if self._has.get(level) != self._version:
+        return eng
+
+    def has_map(self, level: int) -> bool:
+        """Whether the level's engine has the current map."""
+        return self._has.get(level) == self._version
+
+    def engine(self, level: int) -> Engine:
+        """The level's engine, made and given the current map if need be."""
+        eng = self.make(level)
+        if not self.has_map(level):
             if self.environment is not None:
                 eng.set_environment(self.environment)
             self._has[level] = self._version

@@ -2,7 +2,9 @@
 photo comes in): units of work (a light's shadow map, a band of a group's light pass, a band of the frame...)
 run while the time gone plus the next unit's expected cost fits the budget; at least one unit runs
 per call. A unit's expected cost is its last measured time (llvmpipe works at the flush, so each unit
-is timed to its ``finish``), so a frame never starts a long unit it has no time left for."""
+is timed to its ``finish``), so a frame never starts a long unit it has no time left for; a kind of
+unit not measured yet (a new engine's first frame) is expected to take as long as the longest unit
+of the call so far (it counted as free, and a drag preview's first frame ran 30 ms past its budget)."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ class WorkBudget:
         self.ctx, self.seconds, self.costs = ctx, seconds, costs  # costs: the engine's, kept between calls
         self.start = time.perf_counter()
         self.units = 0
+        self.longest = 0.0  # the longest unit of this call so far (seconds)
         self._unit, self._unit_start = None, self.start
 
     def spent(self, unit: str) -> bool:
@@ -22,7 +25,7 @@ class WorkBudget:
             return False
         if self.units:
             now = self._finish()
-            if now - self.start + self.costs.get(unit, 0.0) > self.seconds:
+            if now - self.start + self.costs.get(unit, self.longest) > self.seconds:
                 return True
         self.units += 1
         self._unit, self._unit_start = unit, time.perf_counter()
@@ -37,5 +40,6 @@ class WorkBudget:
     def _finish(self) -> float:
         self.ctx.finish()
         now = time.perf_counter()
-        self.costs[self._unit] = now - self._unit_start
+        took = self.costs[self._unit] = now - self._unit_start
+        self.longest = max(self.longest, took)
         return now
