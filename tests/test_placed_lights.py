@@ -165,3 +165,21 @@ def test_the_map_thumbnail_maps_points_and_directions_both_ways():
     (u0, _), _ = MapThumbnail.uv_range(90.0)
     column = int(round(u0 * 16))
     np.testing.assert_array_equal(np.roll(env.pixels, -column, axis=1), env.rotated(90.0).pixels)
+
+
+def test_the_map_thumbnail_is_made_without_the_exact_downsample():
+    """The panel's picture of a map is block means (made on the fit's thread): what the exact
+    solid-angle downsample shows, to a few levels of 255, a 1e5 sun kept a bright disc."""
+    from viewer.app.thumbnail import WIDTH, map_thumbnail, thumbnail_pixels
+    from viewer.lighting.envmap import EnvMap, load_envmap
+    from viewer.resources import asset_dir
+
+    env = load_envmap(asset_dir() / "envmaps" / "studio_small_03_256.hdr")
+    big = EnvMap(np.repeat(np.repeat(env.pixels, 4, axis=0), 4, axis=1))  # 1024 x 512
+    quick, exact = map_thumbnail(big), thumbnail_pixels(big.downsampled(WIDTH))
+    assert quick.shape == exact.shape == (WIDTH // 2, WIDTH, 3)
+    assert np.abs(quick.astype(int) - exact).mean() < 2.0
+    sun = big.pixels.copy()
+    sun[100:104, 500:504] = 1e5 * sun.mean()
+    pic = map_thumbnail(EnvMap(sun))
+    assert pic[25, 125].min() > 240 and np.median(pic) < 200

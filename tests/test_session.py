@@ -220,3 +220,37 @@ def test_the_coarse_frame_after_a_drag_is_a_live_preview_engine_until_the_engine
     s.set_options(EngineOptions(shadow_resolution=256))
     assert coarse not in s.previews.engines.values()
     s.release()
+
+
+def test_a_new_person_comes_in_over_budgeted_calls_the_old_one_shown_meanwhile(ctx):
+    """The window opening a photo: the new person's engine is made in one frame, given the map in
+    another (not in a frame whose time went on making it), drawn over budgeted frames; the old
+    person stays on screen until the new frame is complete, which is a fresh session's frame."""
+    from viewer.scene.resampling import resample_scene
+
+    lights = load_lights(MAPS / "immenstadter_horn_256.lights.json")
+    env = load_envmap(MAPS / "immenstadter_horn_256.hdr").pixels
+    old = load_scene(sample_scene_dir())
+    new = resample_scene(old, 200)
+    s = Session(ctx, old, lights, env)
+    s.update(yaw=60.0)
+    before = s.render().output.read_display().copy()
+    s.set_scene(new)
+    shown = s.render(budget=0.001)  # what is left of a frame that made the engine: not enough for the map
+    assert shown is not s.final and s._map_pending
+    np.testing.assert_array_equal(shown.output.read_display(), before)
+    shown = s.render(budget=1.0)  # a frame of its own: the map, nothing else
+    assert not s._map_pending and shown is not s.final and s.final.kit.counters["shadow_map"] == 0
+    calls = 0
+    while True:
+        shown = s.render(budget=0.0)
+        calls += 1
+        if shown is s.final:
+            break
+        np.testing.assert_array_equal(shown.output.read_display(), before)
+        assert calls < 200
+    fresh = Session(ctx, new, lights, env)
+    fresh.update(yaw=60.0)
+    np.testing.assert_array_equal(shown.output.read_display(), fresh.render().output.read_display())
+    fresh.release()
+    s.release()

@@ -54,6 +54,7 @@ class JobPolling:
         res = job.result
         new_map = job.path != self.app.env_path
         self.app.session.set_lights(res.lights, environment=res.env.pixels, new_map=new_map)
+        self.app.thumbnail.prepare(res.env.pixels, res.thumbnail)
         if new_map:  # as the first map: its brightest light on the camera's side
             self.app.session.update(yaw=facing_yaw(res.lights))
         self.app.env_path = job.path

@@ -13,6 +13,7 @@ engine render of one state: never a mix of old and new lights.
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -23,6 +24,8 @@ from viewer.lighting.placed_lights import History, PlacedLight, level, rescaled,
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import Scene
 from viewer.scene.look import Look
+
+MAP_STEP_SECONDS = 0.05  # a 1k map's blur and upload for a photo's final engine (40-52 ms here), until measured
 
 SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
@@ -39,6 +42,8 @@ class Session:
         self.scene = scene
         self.options = options or EngineOptions()
         self.environment = environment
+        self._map_pending = False  # the final engine is to get the map in a render call of its own (set_scene)
+        self._map_cost = MAP_STEP_SECONDS  # what that took last (seconds)
         self._make_engines()
         self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
         self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
@@ -107,6 +112,7 @@ class Session:
         self.sigma = lights.sigma.copy()
         if environment is not None:
             self.environment = environment
+            self._map_pending = False
             self._set_environment(self.final)
             self.previews.set_environment(environment)
         self.look = self.look.fitted(len(lights) + len(self.placed))
@@ -122,7 +128,7 @@ class Session:
             self._outgoing.release()
         self._outgoing = self.final
         self.scene = scene
-        self._make_engines()
+        self._make_engines(map_later=True)
         self.refine_job = None
         if scene.frame is None:
             self.look = replace(self.look, compare=0.0)
@@ -153,10 +159,14 @@ class Session:
         return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
 
     # ------------------------------------------------------------------ engines
-    def _make_engines(self):
-        """The final engine and the preview's for the scene and options, given the map."""
+    def _make_engines(self, map_later: bool = False):
+        """The final engine and the preview's for the scene and options, given the map (``map_later``:
+        by the next budgeted render call with time for it, not in the frame that made the engine: a new
+        person's engine is ~50-300 ms to make at 1-2.8 MP and the map's blur and upload ~40-50 ms more)."""
         self.final = Engine(self.ctx, self.scene, self.options)
-        self._set_environment(self.final)
+        self._map_pending = map_later and self.environment is not None
+        if not self._map_pending:
+            self._set_environment(self.final)
         self.previews = PreviewEngines(self.ctx, self.scene, self.options)
         self.previews.set_environment(self.environment)
 
@@ -204,6 +214,16 @@ class Session:
         if preview:
             return self._render_preview(self.preview, hard, budget, display)
         eng = self.final
+        if self._map_pending:
+            shown = self._outgoing if self._outgoing is not None else eng
+            if budget is not None and budget < self._map_cost:
+                return shown  # the frame's time went on making the engine: the map in the next one
+            start = time.perf_counter()
+            self._set_environment(eng)
+            self._map_pending = False
+            self._map_cost = time.perf_counter() - start
+            if budget is not None:
+                return shown
         lk = self.look
         # the engine turns and scales them by the look (its yaw, tilt and intensities)
         eng.set_lights(self.map_lights, to_area_lights(self.placed))
