@@ -299,13 +299,19 @@ def test_a_budgeted_photo_frame_comes_in_by_units_and_never_shows_half_a_frame(c
         before = eng.output.read_display().copy()
         eng.set_lights(lights.rotated(60.0))
 
-        def half_way(calls, eng=eng):
-            if calls == 18:
+        changed = []
+
+        def half_way(calls, eng=eng, changed=changed):
+            bands = eng.picture._bands
+            if not changed and bands is not None and bands["frame"] == 2:
                 relook(eng, exposure=0.7)  # the look changes half-way (in the frame's bands)
+                changed.append(calls)
 
         calls = render_by_units(eng, before, half_way)
-        # shadow maps, light passes, the composite, the ground by groups, the frame by bands (twice)
-        assert calls >= 10 + 3 + 1 + 3 + 4
+        assert changed
+        # shadow maps, light passes and the ground by bands of each group, the composite, the frame by
+        # bands (half of them twice)
+        assert calls >= 10 + 3 * 4 + 1 + 3 * 4 + 4 + 2
         fresh = engine(ctx, sc, lights.rotated(60.0), ground=True)
         relook(fresh, background=background, exposure=0.7)
         fresh.render()
@@ -315,12 +321,13 @@ def test_a_budgeted_photo_frame_comes_in_by_units_and_never_shows_half_a_frame(c
         eng.release()
 
 
+class Clockless:  # a GL context whose work is done at once (WorkBudget's tests)
+    def finish(self):
+        pass
+
+
 def test_a_budget_does_not_start_a_unit_it_has_no_time_left_for():
     from viewer.gl.work_budget import WorkBudget
-
-    class Clockless:  # a GL context whose work is done at once
-        def finish(self):
-            pass
 
     costs = {"long": 10.0}  # seconds it took last time
     assert not WorkBudget(Clockless(), 1.0, dict(costs)).spent("long")  # the first unit always runs
@@ -329,3 +336,18 @@ def test_a_budget_does_not_start_a_unit_it_has_no_time_left_for():
     assert work.spent("long")  # it would pass the budget: not started
     assert not work.spent("short") and costs["short"] < 0.5  # what ran is timed for next time
     assert WorkBudget(Clockless(), None, costs).spent("long") is False  # no budget: never spent
+
+
+def test_a_unit_never_timed_counts_as_long_as_the_longest_of_the_call():
+    """A new engine's first budgeted frame: its units have no time yet; one is not started when the
+    longest unit of the call so far would not fit in what is left."""
+    import time
+
+    from viewer.gl.work_budget import WorkBudget
+
+    work = WorkBudget(Clockless(), 0.05, {})
+    assert not work.spent("slow")
+    time.sleep(0.03)  # the unit took 30 ms: 20 ms are left
+    assert work.spent("new")  # never timed: expected to take 30 ms too, so not started
+    quick = WorkBudget(Clockless(), 0.05, {})
+    assert not quick.spent("fast") and not quick.spent("new")  # the call's units so far were short

@@ -4,6 +4,7 @@ result or with one line naming the file (the child process's error, never a trac
 from __future__ import annotations
 
 import shutil
+import threading
 
 import numpy as np
 
@@ -61,6 +62,11 @@ def test_one_worker_serves_the_window_s_jobs_one_after_another(tmp_path, monkeyp
         pid = worker._proc.pid
         worker.start()
         assert worker._proc.pid == pid
+        with worker._lock:  # a request under way holds the lock: start() returns at once, never waits on it
+            waiter = threading.Thread(target=worker.start)
+            waiter.start()
+            waiter.join(10.0)
+            assert not waiter.is_alive()
         good = shutil.copyfile(asset_dir() / "envmaps" / "studio_small_03_256.hdr", tmp_path / "studio.hdr")
         job = finished(LightJob(good, 4, "instant", worker=worker))
         assert job.error is None and job.result.how == "fitted" and worker._proc.pid == pid

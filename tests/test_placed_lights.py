@@ -183,3 +183,6 @@ def test_the_map_thumbnail_is_made_without_the_exact_downsample():
     sun[100:104, 500:504] = 1e5 * sun.mean()
     pic = map_thumbnail(EnvMap(sun))
     assert pic[25, 125].min() > 240 and np.median(pic) < 200
+    for h in (500, 383, 129, 1):  # sizes blocks do not divide: still a 2:1 picture
+        odd = map_thumbnail(EnvMap(np.full((h, 2 * h, 3), 0.5, np.float32)))
+        assert odd.shape[1] == 2 * odd.shape[0] and WIDTH <= odd.shape[1] < 2 * WIDTH + 2 or h < WIDTH // 2

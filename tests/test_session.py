@@ -236,10 +236,11 @@ def test_a_new_person_comes_in_over_budgeted_calls_the_old_one_shown_meanwhile(c
     s.update(yaw=60.0)
     before = s.render().output.read_display().copy()
     s.set_scene(new)
-    shown = s.render(budget=0.001)  # what is left of a frame that made the engine: not enough for the map
+    assert s.ground_shown == s.look.ground_shown(s.final.feet, "environment")  # the map on its way counts
+    shown = s.render(budget=0.06)  # the frame that made the engine: nothing more in it
     assert shown is not s.final and s._map_pending
     np.testing.assert_array_equal(shown.output.read_display(), before)
-    shown = s.render(budget=1.0)  # a frame of its own: the map, nothing else
+    shown = s.render(budget=0.0)  # the next frame: the map, whatever its budget, nothing else
     assert not s._map_pending and shown is not s.final and s.final.kit.counters["shadow_map"] == 0
     calls = 0
     while True:

@@ -97,7 +97,8 @@ class ViewerApp:
         self.last_motion = 0.0
         self.job: LightJob | None = None
         self.scene_job: SceneJob | None = None
-        # the child processes that fit maps and infer photos, started on first use and kept (torch loads once)
+        # the child processes that fit maps and infer photos, started on first use (the fitter's when the
+        # file browser opens) and kept (torch loads once)
         self.workers = {"lights": ChildWorker(), "photo": ChildWorker()}
         self.recording = None
         self.message = ""

@@ -12,7 +12,7 @@ the inference's long Python steps and its own GL context (which cannot be made o
 to the window's, ../shared/docs/STACK.md) would each stall the window's frames; in a process, niced,
 the window keeps one core and the GIL to itself, and closing the window ends the work at once. It
 lives on between requests (:class:`viewer.app.jobs.ChildWorker`), so torch is imported once, as it
-starts (the window starts it when its file browser opens, before the first map or photo is chosen).
+starts (the window starts the fitter's when its file browser opens, before a map is chosen).
 """
 
 from __future__ import annotations

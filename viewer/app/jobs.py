@@ -88,8 +88,8 @@ class ThreadJob(ABC):
 
 
 class ChildWorker:
-    """One long-lived child process (:mod:`viewer.app.child`), started on the first request and
-    kept for the next ones (torch is imported once); one request at a time. :meth:`kill` ends a
+    """One long-lived child process (:mod:`viewer.app.child`), started on the first request (or ahead
+    of it, :meth:`start`) and kept for the next ones (torch is imported once); one request at a time. :meth:`kill` ends a
     request at once (the next request starts a new child); :meth:`close` ends the child."""
 
     def __init__(self):
@@ -97,13 +97,19 @@ class ChildWorker:
         self._lock = threading.Lock()
 
     def start(self):
-        """Start the child now if none is running (the window, once idle, so that the first map opened
-        does not wait for its start: ~1.5 s of importing torch on this machine)."""
-        with self._lock:
+        """Start the child now if none is running (the window, when its file browser opens, so that the
+        map chosen next does not wait for its start: ~1.5 s of importing torch on this machine). Never
+        waits: a request under way holds the lock, and its child is running."""
+        if not self._lock.acquire(blocking=False):
+            return
+        try:
             if self._proc is None or self._proc.poll() is not None:
                 self._start()
+        finally:
+            self._lock.release()
 
     def _start(self) -> subprocess.Popen:
+        self._close_pipes()  # of a child that died, if any
         root = str(Path(__file__).resolve().parents[2])  # the package's parent: found whatever the current folder
         env = dict(os.environ)
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
@@ -142,6 +148,7 @@ class ChildWorker:
                     return msg
             check_cancelled()
             code = proc.wait()
+            self._close_pipes(proc)
             self._proc = None
             raise InputError(source, f"the work ended without a result (exit status {code})")
 
@@ -160,6 +167,12 @@ class ChildWorker:
             return
         proc.kill()
         proc.wait()
+        self._close_pipes(proc)
+
+    def _close_pipes(self, proc: subprocess.Popen | None = None):
+        proc = proc or self._proc
+        if proc is None:
+            return
         for stream in (proc.stdin, proc.stdout):
             try:
                 stream.close()

@@ -432,8 +432,7 @@ def _map(app):
     changed, app.panel.show_browser = imgui.checkbox("open a file...", app.panel.show_browser)
     _remember(app, "open a file")
     if changed and app.panel.show_browser:
-        for worker in app.workers.values():
-            worker.start()  # what is chosen next finds its child started (torch loaded) while the user looks
+        app.workers["lights"].start()  # a map chosen next finds its fitter started (torch loaded) while the user looks
     if imgui.is_item_hovered():
         imgui.set_tooltip("a photo, a scene bundle, an environment map or a rig (or drop one on the window)")
     if app.panel.show_browser:

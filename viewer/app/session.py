@@ -13,7 +13,6 @@ engine render of one state: never a mix of old and new lights.
 
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -24,8 +23,6 @@ from viewer.lighting.placed_lights import History, PlacedLight, level, rescaled,
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import Scene
 from viewer.scene.look import Look
-
-MAP_STEP_SECONDS = 0.05  # a 1k map's blur and upload for a photo's final engine (40-52 ms here), until measured
 
 SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
 VIEW_NAMES = {
@@ -42,8 +39,9 @@ class Session:
         self.scene = scene
         self.options = options or EngineOptions()
         self.environment = environment
-        self._map_pending = False  # the final engine is to get the map in a render call of its own (set_scene)
-        self._map_cost = MAP_STEP_SECONDS  # what that took last (seconds)
+        # the final engine is to get the map in a render call of its own (set_scene): False, or "made"
+        # (the engine was made since the last render call) or "next" (the next call gives it)
+        self._map_pending: bool | str = False
         self._make_engines()
         self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
         self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
@@ -152,7 +150,10 @@ class Session:
     @property
     def ground_shown(self) -> bool:
         """Whether the ground shadow shows (the look's "auto" resolved for this scene and background)."""
-        return self.look.ground_shown(self.final.feet, self.final.looks.resolved(self.look).background)
+        background = self.final.looks.resolved(self.look).background
+        if self._map_pending and self.look.background == "environment":
+            background = "environment"  # the map is on its way to the new person's engine (render)
+        return self.look.ground_shown(self.final.feet, background)
 
     def state_key(self) -> bytes:
         """What a frame shows, as bytes: the look, the map's lights and sigmas, the placed lights."""
@@ -161,10 +162,11 @@ class Session:
     # ------------------------------------------------------------------ engines
     def _make_engines(self, map_later: bool = False):
         """The final engine and the preview's for the scene and options, given the map (``map_later``:
-        by the next budgeted render call with time for it, not in the frame that made the engine: a new
-        person's engine is ~50-300 ms to make at 1-2.8 MP and the map's blur and upload ~40-50 ms more)."""
+        by the render call after the next budgeted one, the window's next frame, not the frame that made
+        the engine: a new person's engine is ~50-300 ms to make at 1-2.8 MP and the map's blur and upload
+        ~40-50 ms more)."""
         self.final = Engine(self.ctx, self.scene, self.options)
-        self._map_pending = map_later and self.environment is not None
+        self._map_pending = "made" if map_later and self.environment is not None else False
         if not self._map_pending:
             self._set_environment(self.final)
         self.previews = PreviewEngines(self.ctx, self.scene, self.options)
@@ -214,14 +216,13 @@ class Session:
         if preview:
             return self._render_preview(self.preview, hard, budget, display)
         eng = self.final
-        if self._map_pending:
+        if self._map_pending:  # "made": a budgeted call of a frame that made the engine does nothing more
             shown = self._outgoing if self._outgoing is not None else eng
-            if budget is not None and budget < self._map_cost:
-                return shown  # the frame's time went on making the engine: the map in the next one
-            start = time.perf_counter()
-            self._set_environment(eng)
+            if budget is not None and self._map_pending == "made":
+                self._map_pending = "next"
+                return shown
+            self._set_environment(eng)  # the next call: the map, whatever its budget
             self._map_pending = False
-            self._map_cost = time.perf_counter() - start
             if budget is not None:
                 return shown
         lk = self.look

@@ -33,12 +33,13 @@ def thumbnail_pixels(env: EnvMap) -> np.ndarray:
 
 def map_thumbnail(env: EnvMap) -> np.ndarray:
     """The thumbnail's pixels of a map: the mean of f x f blocks, f the whole factor that brings it to
-    :data:`WIDTH` texels across or a little more (a picture, not light: ``EnvMap.downsampled``'s exact
-    solid-angle weights imported scipy, 0.16 s of the frame that showed a new map). A job's thread
-    makes them for a new map, so that frame only uploads them."""
+    :data:`WIDTH` texels across or up to twice that (a picture, not light: ``EnvMap.downsampled``'s
+    exact solid-angle weights imported scipy, 0.16 s of the frame that showed a new map), the last
+    rows and columns a block does not fill left out (2:1 kept). A job's thread makes them for a new
+    map, so that frame only uploads them."""
     f = max(env.width // WIDTH, 1)
-    h, w = env.height // f * f, env.width // f * f
-    blocks = env.pixels[:h, :w].reshape(h // f, f, w // f, f, 3)
+    n = env.height // f
+    blocks = env.pixels[:n * f, :2 * n * f].reshape(n, f, 2 * n, f, 3)
     return thumbnail_pixels(EnvMap(blocks.mean(axis=(1, 3))))
 
 

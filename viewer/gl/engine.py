@@ -84,7 +84,7 @@ class Engine:
         self.output = Readback(kit, self.picture, self.composite_pass, self.ground_pass, self.atlas, res, self.csm_basis_pass,
                                o.terms, (scene.height, scene.width), lambda: self._lights, self._picture_inputs, self._soft_is_hard)
         self._unit_costs: dict[str, float] = {}  # seconds each kind of unit of work took last (WorkBudget)
-        self._partial = {"light": -1, "ground": -1, "picture": -1}  # Staleness.changes when a budgeted render left each part-way
+        self._partial = {"ground": -1, "picture": -1}  # Staleness.changes when a budgeted render left each part-way
         self.complete = False  # the display holds a frame of the current state (render)
         self.composited = False  # ... or everything but the display is done (render(display=False))
 
@@ -240,8 +240,8 @@ class Engine:
         """Bring every output up to date, redoing only the passes whose inputs changed. Each stage
         runs for all lights before the next starts: llvmpipe waits once per stage, not per pass.
 
-        ``budget`` (seconds): stop once that much time has gone, between one light's or one group's
-        work and the next (one unit of work at least), leaving the rest stale for the next call; the
+        ``budget`` (seconds): stop once that much time has gone, between one unit of work and the
+        next (a light's shadow map, a band of a group's light pass...; one unit at least), leaving the rest stale for the next call; the
         display is drawn only when everything before it is done, so it keeps the last complete frame
         meanwhile (a window opening a map or a photo stays live, :attr:`complete` says when the new
         frame is there). ``display`` False stops before the display (:attr:`composited` says all the
@@ -275,15 +275,12 @@ class Engine:
                 for l in to_filter:
                     self.prefilter_pass.run_axis(l, axis)
             self.stale.ran(self.prefilter_pass, to_filter)
-        if self.stale.changes != self._partial["light"]:  # anything changed since a group's bands were left part-way
-            self.light_pass.restart()
         for g in range(0, len(self._lights), LIGHTS_PER_PASS):
             group = self._lights[g:g + LIGHTS_PER_PASS]
             if any(l.active and ("light_pass" in l.stale or l.pass_mode != need[id(l)]) for l in group):
                 # the whole group is redone; a skipped light's slot is zeroed, so it is redone when it counts again
                 if work.spent("light_pass") or not self.light_pass.run(group, [need[id(l)] for l in group], in_units):
-                    self._partial["light"] = self.stale.changes
-                    return self
+                    return self  # its bands go on at the next call while its lights stay as they are
                 for l in group:
                     l.pass_mode = need[id(l)]
                     if not l.active:

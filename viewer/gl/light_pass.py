@@ -104,7 +104,7 @@ class LightShadingPass:
         self.kit, self.scene, self.atlas = kit, scene, atlas
         self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
         self.pcss_min_texels = pcss_min_texels
-        self._next = None  # (tile, band): a budgeted pass left part-way
+        self._next = None  # (the group's state, band): a budgeted pass left part-way
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
         # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
         # the CSM's pre-filtered basis, or directly: the contact-hardening penumbrae and, with
@@ -178,11 +178,13 @@ class LightShadingPass:
         :class:`viewer.gl.work_budget.WorkBudget`) in ``BANDS`` bands of the mask box's rows, one unit
         each (a group at 2048 pixels is ~75 ms idle and twice that beside a busy process, too long for
         one frame of a window opening a map): False when the budget ran out first (the bands drawn are
-        kept; the next call goes on from the next band of the same group, the engine calling
-        :meth:`restart` first when anything changed meanwhile)."""
+        kept; the next call goes on from the next band if it is for the same group in the same state:
+        its lights, their directions, sizes and modes; anything else, an exposure say, keeps them)."""
         kit, sc = self.kit, self.scene
         tile = group[0].tile
-        first = self._next[1] if work is not None and self._next is not None and self._next[0] == tile else 0
+        key = (tile, tuple(modes), tuple(id(l) for l in group), b"".join(l.direction.tobytes() for l in group),
+               tuple(l.sigma for l in group))
+        first = self._next[1] if work is not None and self._next is not None and self._next[0] == key else 0
         defines = self.defines
         if self.specular:
             defines["SPECULAR"] = None
@@ -199,19 +201,18 @@ class LightShadingPass:
             fbo = self.atlas.fbo
             fbo.viewport = (tile[0], tile[1], bw, bh)
             fbo.use()
-            for band in range(first, BANDS if work is not None else 1):
-                if work is not None and band > first and work.spent("light_band"):
-                    self._next = (tile, band)
-                    return False
-                bx, by, bbw, bbh = band_box((bw, bh), band, BANDS) if work is not None else (0, 0, bw, bh)
-                fbo.scissor = (tile[0] + bx, tile[1] + by, bbw, bbh)
-                kit.fullscreen(prog)
+            try:
+                for band in range(first, BANDS if work is not None else 1):
+                    if work is not None and band > first and work.spent("light_band"):
+                        self._next = (key, band)
+                        return False
+                    bx, by, bbw, bbh = band_box((bw, bh), band, BANDS) if work is not None else (0, 0, bw, bh)
+                    fbo.scissor = (tile[0] + bx, tile[1] + by, bbw, bbh)
+                    kit.fullscreen(prog)
+            finally:
+                fbo.scissor = None  # the atlas's other users (its clear) see the whole of it
         self._next = None
         return True
-
-    def restart(self):
-        """Something changed since a budgeted pass was left part-way: its group starts again."""
-        self._next = None
 
     def release(self):
         self.stand_in_shadow_map.release()
