@@ -87,3 +87,20 @@ def test_one_worker_serves_the_window_s_jobs_one_after_another(tmp_path, monkeyp
     finally:
         worker.close()
     assert worker._proc is None
+
+
+def test_a_saved_frame_is_written_on_a_thread_whole_or_said_in_one_line(tmp_path):
+    from viewer.app.jobs import SaveJob
+    from viewer.files.imageio import read_exr, read_png
+
+    display = np.full((6, 8, 4), 128, np.uint8)
+    hdr = np.full((6, 8, 3), 2.5, np.float32)
+    job = finished(SaveJob(tmp_path / "relight-1", display, hdr, '{"look": {}}\n'))
+    assert job.error is None and job.result == tmp_path / "relight-1.png"
+    assert read_png(job.result).shape[:2] == (6, 8) and np.allclose(read_exr(tmp_path / "relight-1.exr")[..., :3], 2.5)
+    assert (tmp_path / "relight-1.json").read_text() == '{"look": {}}\n'
+    blocked = tmp_path / "file"
+    blocked.write_text("a file where the folder should be")
+    job = finished(SaveJob(blocked / "relight-2", display, hdr, "{}"))
+    assert job.result is None and job.error.startswith("saving relight-2 failed") and "\n" not in job.error
+    assert blocked.read_text() == "a file where the folder should be"  # nothing the user had is touched

@@ -375,7 +375,7 @@ def close_when_switched():
         try:
             state = json.loads((tmp / "state.json").read_text())
             if state["map"] == dropped[0] and not state["fitting"] and state["placed"] and state["opening"] is None \
-                    and state["scene_size"] != [128, 128]:
+                    and state["scene_size"] != [128, 128] and not state["switching"]:
                 break
         except (OSError, ValueError, KeyError):
             pass
@@ -438,6 +438,9 @@ def test_map_thumbnail_ground_shadow_and_a_bundle_from_the_browser(viewer_factor
     assert all(st["shown_map"] in (old_map, new_map) for st in seen)
     assert not any(st["shown_map"] == new_map and st["map"] != new_map for st in seen)
     assert seen[-1]["frames"][-1][1] == "switch"  # it changed on the frame that shows the new map's picture
+    # while the new frame is drawn the panel holds the picture's lighting and says nothing of the new map yet
+    assert all(st["held"] and not st["message"].startswith("16 lights") for st in seen if st["switching"])
+    assert not seen[-1]["held"] and seen[-1]["message"].startswith("16 lights")
     v.click("browser path")
     v.xdotool("key", "ctrl+a")
     v.xdotool("type", str(sample_scene_dir()))

@@ -40,6 +40,15 @@ JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the
 OPENS = (".hdr", ".exr", ".json", *PHOTO_SUFFIXES)  # what the window opens (and a bundle's folder)
 
 
+@dataclass(frozen=True)
+class HeldLighting:
+    """The lighting of the picture on screen, as the panel shows it while a new map or person comes in."""
+    look: Look
+    sigma: np.ndarray
+    lights: AreaLights  # turned by the look, as the lights' list shows them
+    ground: bool  # whether the ground shadow shows
+
+
 @dataclass
 class ViewerConfig:
     scene: Scene
@@ -106,12 +115,15 @@ class ViewerApp:
         self.error = ""
         self.log = FrameLog()  # what the frames took (viewer/app/frame_log.py)
         self.switched = False  # a finished job was applied (a new map's lights, a new person) and is not shown yet
+        self.held: HeldLighting | None = None  # what the panel shows meanwhile: the picture's lighting (hold_panel)
+        self.switch_message = ""  # said when the switch shows
         self.settling: Engine | None = None  # the preview engine whose full-quality frame shows while the sharp one is drawn
         self._settled = b""  # the session's state (Session.state_key) that frame shows
         self._frame_start = time.perf_counter()
         self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
         self.panel = PanelState()
         self.captures: list[str] = []
+        self.saves: list = []  # SaveJob: frames saved with S whose files are being written
         self.videos: list[str] = []
         self.state_file = StateFile(config.state_file) if config.state_file is not None else None
         self.thumbnail = MapThumbnail(self.window.ctx)
@@ -120,6 +132,14 @@ class ViewerApp:
         self.actions = Actions(self)
         self.jobs = JobPolling(self)
         self.controls = Controls(self)
+
+    def hold_panel(self):
+        """Before a job's result changes the session: the panel keeps showing the lighting the picture
+        on screen was made under (its controls disabled) until the new frame shows (issue 45: the
+        longitude and the lights' list changed half a second before the picture)."""
+        if self.held is None:
+            s = self.session
+            self.held = HeldLighting(s.look, s.sigma.copy(), s.rotated_lights(), s.ground_shown)
 
     def _showing(self) -> tuple:
         """(map path, its pixels, the map's lights) of the state now: the panel draws the map's name,
@@ -139,10 +159,12 @@ class ViewerApp:
         w, h = self.window.size
         return 0.0, 0.0, float(max(w - panel_width(w), 1)), float(max(h, 1))
 
-    def image_rect(self) -> tuple[float, float, float, float]:
+    def image_rect(self, shown: Engine | None = None) -> tuple[float, float, float, float]:
+        """Where the image is drawn: the current person's frame, or ``shown``'s (the engine whose
+        picture is drawn: the person before, while a new one comes in, keeps its own shape)."""
         _, _, aw, ah = self.image_area()
-        sc = self.session.scene
-        return ix.image_rect(sc.output_size, (aw, ah), self.view.zoom, self.view.pan)
+        size = (shown.scene if shown is not None else self.session.scene).output_size  # a preview's: the same shape
+        return ix.image_rect(size, (aw, ah), self.view.zoom, self.view.pan)
 
     @property
     def replaying(self) -> bool:
@@ -242,6 +264,10 @@ class ViewerApp:
         if self.switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
             self.switched = False
             self.shown = self._showing()  # the panel changes with the picture, not before (issue 45)
+            self.held = None
+            if self.switch_message:
+                self.message, self.switch_message = self.switch_message, ""
+                print(self.message, flush=True)
             if self._expose_pending:  # switched while recording, at full quality: exposed from the next frame on
                 self._expose_pending = False
                 self._apply_auto_exposure()
@@ -283,7 +309,7 @@ class ViewerApp:
                 self.jobs.poll()
                 self.session.poll_refinement()
                 eng, kind = self._render()
-                w.draw_image(eng.display, self.image_rect(), self.image_area())
+                w.draw_image(eng.display, self.image_rect(eng), self.image_area())
                 w.end_frame()
                 ms = self.log.record(start, kind)
                 if kind == "drag":
@@ -295,6 +321,8 @@ class ViewerApp:
                     self.actions.finish_recording(stopped=True)
                 self._write_state(force=True)
             finally:
+                for job in self.saves:
+                    job.stop()  # a saved frame's files are written whole before the window ends
                 for job in (self.job, self.scene_job):
                     if job is not None:
                         job.stop()  # a fit or an inference ends at once (its child is killed)

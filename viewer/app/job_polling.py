@@ -17,6 +17,9 @@ class JobPolling:
     def poll(self):
         self.lights_fitted()
         self.scene_opened()
+        for job in [j for j in self.app.saves if j.done]:
+            self.app.saves.remove(job)
+            self.app.actions.saved(job)
 
     def _finished(self, attr: str):
         """The job in ``app.<attr>`` once it has ended (the attribute emptied): its result, or None
@@ -37,6 +40,7 @@ class JobPolling:
         if job is None:
             return
         res = job.result
+        self.app.hold_panel()
         self.app.session.set_scene(res.scene)
         self.app.session.update(yaw=facing_yaw(self.app.session.lights))  # its first frame faces the brightest light
         self.app.view = ix.ViewState()
@@ -44,14 +48,14 @@ class JobPolling:
         self.app.window.set_title(f"relight - {res.path.name}")
         how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",
                "bundle": "a scene bundle"}[res.how]
-        self.app.message = f"opened {res.path.name} ({how}): {res.scene.output_size[0]}x{res.scene.output_size[1]}"
-        print(self.app.message, flush=True)
+        self.app.switch_message = f"opened {res.path.name} ({how}): {res.scene.output_size[0]}x{res.scene.output_size[1]}"
 
     def lights_fitted(self):
         job = self._finished("job")
         if job is None:
             return
         res = job.result
+        self.app.hold_panel()
         new_map = job.path != self.app.env_path
         self.app.session.set_lights(res.lights, environment=res.env.pixels, new_map=new_map)
         self.app.thumbnail.prepare(res.env.pixels, res.thumbnail)
@@ -61,5 +65,4 @@ class JobPolling:
         self.app.n_lights = len(res.lights)
         # the exposure stays (chosen when the photo opened): a night map looks like night, a bright
         # one bright (issue 45); the panel's "level" button exposes for the new light
-        self.app.message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"
-        print(self.app.message, flush=True)
+        self.app.switch_message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"

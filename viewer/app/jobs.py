@@ -318,3 +318,25 @@ class RefineJob(ThreadJob):
 
     def failure(self, exc: Exception) -> str:
         return f"shadow refinement failed: {type(exc).__name__}: {exc}"
+
+
+class SaveJob(ThreadJob):
+    """A saved frame's files written on a thread (the pixels read from GL before): the display PNG,
+    the HDR EXR and the JSON of lights and look, each written atomically; ``result`` is the PNG's path."""
+
+    thread_name = "save"
+
+    def __init__(self, stem: Path, display: np.ndarray, hdr: np.ndarray, state_json: str, wake=lambda: None):
+        self.stem, self.display, self.hdr, self.state_json = stem, display, hdr, state_json
+        super().__init__(wake)
+
+    def work(self) -> Path:
+        from viewer.files.imageio import write_exr, write_png, write_text
+
+        png = write_png(self.stem.with_suffix(".png"), self.display.astype(np.float32) / 255.0)
+        write_exr(self.stem.with_suffix(".exr"), self.hdr)
+        write_text(self.stem.with_suffix(".json"), self.state_json)
+        return png
+
+    def failure(self, exc: Exception) -> str:
+        return f"saving {self.stem.name} failed: {exc}"

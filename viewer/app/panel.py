@@ -123,15 +123,19 @@ def draw_progress(app):
     flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_saved_settings
              | imgui.WindowFlags_.no_focus_on_appearing | imgui.WindowFlags_.always_auto_resize | imgui.WindowFlags_.no_inputs)
     imgui.begin("progress", None, flags)
+    # the stage and the time left as wrapped text above each bar: a bar's own text is centred and
+    # clipped at both ends ("it the photo's lights done (8 of 11), about 2 s left")
     if job is not None:
         imgui.text_wrapped(app.message or "working")
-        imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), job.stage)
+        imgui.text_wrapped(job.stage)
+        imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), f"{100 * job.fraction:.0f} %")
     elif app.switched:  # the job's result being drawn (its shadows, over frames): the panel changes with it
-        imgui.progress_bar(-imgui.get_time(), imgui.ImVec2(-1, 0), "drawing the new light")
+        imgui.text_wrapped("drawing the new light")
+        imgui.progress_bar(-imgui.get_time(), imgui.ImVec2(-1, 0), "")
     if rendering:
         words = rec.time_left.words()
-        imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0),
-                           f"rendering {rec.done} / {rec.total} frames" + (f", {words}" if words else ""))
+        imgui.text_wrapped(f"rendering {rec.done} / {rec.total} frames" + (f", {words}" if words else ""))
+        imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{100 * rec.fraction:.0f} %")
     _remember(app, "progress")
     imgui.end()
 
@@ -178,10 +182,19 @@ def _status(app):
 
 
 def _lighting(app):
-    s = app.session
     if not imgui.collapsing_header("Lighting", imgui.TreeNodeFlags_.default_open):
         return
-    v = s.look
+    held = app.held  # a new map or person coming in: the picture's lighting, not to be changed meanwhile
+    imgui.begin_disabled(held is not None)
+    try:
+        _lighting_controls(app, held)
+    finally:
+        imgui.end_disabled()
+
+
+def _lighting_controls(app, held):
+    s = app.session
+    v = held.look if held is not None else s.look
     changed, yaw = imgui.slider_float("longitude", v.yaw, -180.0, 180.0, "%.1f deg")
     _remember(app, "longitude")
     if changed:
@@ -205,18 +218,18 @@ def _lighting(app):
     _remember(app, "level exposure")
     imgui.same_line(0, imgui.get_style().item_inner_spacing.x)
     imgui.text("exposure")
-    changed, intensity = imgui.slider_float("map##intensity", s.look.intensity, 0.0, 8.0, "map's lights x %.2f",
+    changed, intensity = imgui.slider_float("map##intensity", v.intensity, 0.0, 8.0, "map's lights x %.2f",
                                             imgui.SliderFlags_.logarithmic)
     _remember(app, "intensity")
     if changed:
         s.update(intensity=intensity)
     if s.scene.frame is not None:  # before / after: the original photo left of the split (B toggles)
-        changed, compare = imgui.slider_float("before | after", s.look.compare, 0.0, 1.0,
-                                              "photo %.2f" if s.look.compare > 0.0 else "off")
+        changed, compare = imgui.slider_float("before | after", v.compare, 0.0, 1.0,
+                                              "photo %.2f" if v.compare > 0.0 else "off")
         _remember(app, "compare")
         if changed:
             s.update(compare=compare)
-    changed, ground = imgui.checkbox("shadow on the ground (G)", s.ground_shown)
+    changed, ground = imgui.checkbox("shadow on the ground (G)", held.ground if held is not None else s.ground_shown)
     _remember(app, "ground")
     if imgui.is_item_hovered():
         imgui.set_tooltip("the person's shadow on the ground at the feet, over the background\n"
@@ -269,10 +282,20 @@ def _shading(app):
 
 
 def _lights(app):
-    s = app.session
-    n = len(s.sigma)
+    held = app.held  # a new map or person coming in: the picture's lights, not to be changed meanwhile
+    n = len(held.sigma if held is not None else app.session.sigma)
     if not imgui.collapsing_header(f"Area lights ({n})", _open(app, False)):
         return
+    imgui.begin_disabled(held is not None)
+    try:
+        _light_rows(app, held, n)
+    finally:
+        imgui.end_disabled()
+
+
+def _light_rows(app, held, n: int):
+    s = app.session
+    sigma, look = (held.sigma, held.look) if held is not None else (s.sigma, s.look)
     imgui.set_next_item_width(140)
     shown = app.panel.light_count if app.panel.light_count is not None else app.n_lights
     changed, count = imgui.slider_int("number of lights", shown, 1, LIGHT_COUNT_SLIDER)
@@ -285,7 +308,7 @@ def _lights(app):
             app.actions.refit(count)
     if app.env_path is None:
         imgui.text_disabled("(no map to refit: lights came from a file)")
-    lights = s.rotated_lights()
+    lights = held.lights if held is not None else s.rotated_lights()
     lum = lights.intensity @ LUMINANCE
     peak = float(lights.intensity.max()) if n else 1.0
     total = float(lum.sum()) or 1.0
@@ -300,15 +323,15 @@ def _lights(app):
             r, g, b = (f"{c:.3g}" for c in lights.intensity[i])
             imgui.set_tooltip(f"light {i}: {100 * lum[i] / total:.1f} % of the light\n"
                               f"azimuth {az:+.0f}, elevation {el:+.0f} deg\n"
-                              f"size {s.sigma[i] * DEG_PER_SIGMA:.1f} deg (sigma {s.sigma[i]:.2f})\n"
+                              f"size {sigma[i] * DEG_PER_SIGMA:.1f} deg (sigma {sigma[i]:.2f})\n"
                               f"intensity (RGB) {r} / {g} / {b}")
         imgui.same_line()
-        selected = s.look.view == "shadow" and s.look.light == i
+        selected = look.view == "shadow" and look.light == i
         if imgui.selectable(f"{i:2d} {az:+4.0f} {el:+3.0f}", selected, 0, imgui.ImVec2(92, 0))[0]:
             s.update(view="shadow", light=i) if not selected else s.update(view="final")
         imgui.same_line()
         imgui.set_next_item_width(-1)
-        changed, size = imgui.slider_float("##sigma", float(s.sigma[i]) * DEG_PER_SIGMA, 0.0, SIGMA_SLIDER * DEG_PER_SIGMA,
+        changed, size = imgui.slider_float("##sigma", float(sigma[i]) * DEG_PER_SIGMA, 0.0, SIGMA_SLIDER * DEG_PER_SIGMA,
                                            "%.1f deg")
         _remember(app, f"sigma {i}")
         if changed:

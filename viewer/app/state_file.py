@@ -48,6 +48,8 @@ class StateFile:
                                                    "seconds": getattr(rec, "seconds", None)},
             "fitting": app.job is not None,
             "opening": None if app.scene_job is None else str(app.scene_job.path),
+            "switching": app.switched,  # a job's result applied, its frame not shown yet (the panel held meanwhile)
+            "held": app.held is not None,
             "scene_size": list(app.session.scene.output_size),
             "refined": app.session.final.refined_current,
             "refine_error": app.session.refine_error,
