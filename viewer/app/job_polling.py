@@ -1,6 +1,7 @@
 """The window's jobs, looked at once a frame: a person opened (a photo inferred or a bundle read)
-or a map's lights fitted is switched in when it is done, with its first frame facing the
-brightest light and exposed as the last; a failed one shows its line."""
+or a map's lights fitted is switched in when it is done (a new map's first frame facing its
+brightest light; a new person under the lighting as the user turned it); a save's files written;
+a failed one shows its line."""
 
 from __future__ import annotations
 
@@ -41,8 +42,7 @@ class JobPolling:
             return
         res = job.result
         self.app.hold_panel()
-        self.app.session.set_scene(res.scene)
-        self.app.session.update(yaw=facing_yaw(self.app.session.lights))  # its first frame faces the brightest light
+        self.app.session.set_scene(res.scene)  # the lighting stays as the user turned it: the same map, the same light
         self.app.view = ix.ViewState()
         self.app.exposed_again()
         self.app.window.set_title(f"relight - {res.path.name}")
