@@ -141,6 +141,14 @@ class ViewerApp:
             s = self.session
             self.held = HeldLighting(s.look, s.sigma.copy(), s.rotated_lights(), s.ground_shown)
 
+    def _show_switched(self):
+        """The frame that shows what a job loaded: the panel shows it too (issue 45), with its message."""
+        self.shown = self._showing()
+        self.held = None
+        if self.switch_message:
+            self.message, self.switch_message = self.switch_message, ""
+            print(self.message, flush=True)
+
     def _showing(self) -> tuple:
         """(map path, its pixels, the map's lights) of the state now: the panel draws the map's name,
         thumbnail and light dots from the picture's, so they change the frame the picture does."""
@@ -244,6 +252,8 @@ class ViewerApp:
             self.settling = None
             return eng, "update"
         if rec is not None and not capturing:
+            if self.switched:  # a recording's frames are whole: what a job loaded shows in this one
+                self._show_switched()
             try:
                 rec.add(eng.output.read_display())
             except Exception as exc:
@@ -263,11 +273,7 @@ class ViewerApp:
             return eng, "record"
         if self.switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
             self.switched = False
-            self.shown = self._showing()  # the panel changes with the picture, not before (issue 45)
-            self.held = None
-            if self.switch_message:
-                self.message, self.switch_message = self.switch_message, ""
-                print(self.message, flush=True)
+            self._show_switched()
             if self._expose_pending:  # switched while recording, at full quality: exposed from the next frame on
                 self._expose_pending = False
                 self._apply_auto_exposure()
