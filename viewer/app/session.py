@@ -39,9 +39,9 @@ class Session:
         self.scene = scene
         self.options = options or EngineOptions()
         self.environment = environment
-        # the final engine is to get the map in a render call of its own (set_scene): False, or "made"
+        # the final engine is to get the map in a render call of its own (set_scene): None, or "made"
         # (the engine was made since the last render call) or "next" (the next call gives it)
-        self._map_pending: bool | str = False
+        self._map_pending: str | None = None
         self._make_engines()
         self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
         self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
@@ -110,7 +110,7 @@ class Session:
         self.sigma = lights.sigma.copy()
         if environment is not None:
             self.environment = environment
-            self._map_pending = False
+            self._map_pending = None
             self._set_environment(self.final)
             self.previews.set_environment(environment)
         self.look = self.look.fitted(len(lights) + len(self.placed))
@@ -166,7 +166,7 @@ class Session:
         the engine: a new person's engine is ~50-300 ms to make at 1-2.8 MP and the map's blur and upload
         ~40-50 ms more)."""
         self.final = Engine(self.ctx, self.scene, self.options)
-        self._map_pending = "made" if map_later and self.environment is not None else False
+        self._map_pending = "made" if map_later and self.environment is not None else None
         if not self._map_pending:
             self._set_environment(self.final)
         self.previews = PreviewEngines(self.ctx, self.scene, self.options)
@@ -222,7 +222,7 @@ class Session:
                 self._map_pending = "next"
                 return shown
             self._set_environment(eng)  # the next call: the map, whatever its budget
-            self._map_pending = False
+            self._map_pending = None
             if budget is not None:
                 return shown
         lk = self.look

@@ -17,6 +17,7 @@ from viewer.gl.kit import PassKit, band_box
 from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from viewer.gl.light_pass import BANDS, LIGHTS_PER_PASS, LightShadingPass
 from viewer.gl.scene_resources import SceneResources
+from viewer.gl.work_budget import draw_bands
 from viewer.scene.ground import CONTACT_BOUND, MAX_CONTACT_POINTS, GroundPlane, contact_spread
 
 GROUND_PIXELS = 100_000
@@ -100,12 +101,17 @@ class GroundShadowPass:
                     block = np.zeros((LIGHTS_PER_PASS, 3), "f4")
                     block[:len(group)] = share[g:g + len(group)]
                     prog["light_share"].write(block.tobytes())
-                    for band in range(first[1] if g == first[0] else 0, BANDS if work is not None else 1):
-                        if work is not None and (g, band) != first and work.spent("ground_band"):
-                            self._next = (g, band)
-                            return False
-                        self.fbo.scissor = band_box(self.size, band, BANDS) if work is not None else None
+
+                    def draw(band):
+                        self.fbo.scissor = band_box(self.size, band, BANDS) if band is not None else None
                         kit.fullscreen(prog)
+
+                    # a group after the call's first starts with a unit of its own
+                    left = draw_bands(work, first[1] if g == first[0] else 0, BANDS, "ground_band", draw,
+                                      check_first=g != first[0])
+                    if left is not None:
+                        self._next = (g, left)
+                        return False
             finally:
                 self.fbo.scissor = None
                 kit.ctx.disable(moderngl.BLEND)

@@ -11,6 +11,7 @@ from viewer.errors import InputError
 from viewer.gl.kit import PassKit, band_box
 from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from viewer.gl.scene_resources import SceneResources
+from viewer.gl.work_budget import draw_bands
 from viewer.scene import shadow_space as ss
 
 LIGHTS_PER_PASS = 4  # lights per light pass (one light-atlas plane each)
@@ -201,18 +202,18 @@ class LightShadingPass:
             fbo = self.atlas.fbo
             fbo.viewport = (tile[0], tile[1], bw, bh)
             fbo.use()
+
+            def draw(band):
+                bx, by, bbw, bbh = band_box((bw, bh), band, BANDS) if band is not None else (0, 0, bw, bh)
+                fbo.scissor = (tile[0] + bx, tile[1] + by, bbw, bbh)
+                kit.fullscreen(prog)
+
             try:
-                for band in range(first, BANDS if work is not None else 1):
-                    if work is not None and band > first and work.spent("light_band"):
-                        self._next = (key, band)
-                        return False
-                    bx, by, bbw, bbh = band_box((bw, bh), band, BANDS) if work is not None else (0, 0, bw, bh)
-                    fbo.scissor = (tile[0] + bx, tile[1] + by, bbw, bbh)
-                    kit.fullscreen(prog)
+                left = draw_bands(work, first, BANDS, "light_band", draw)
             finally:
                 fbo.scissor = None  # the atlas's other users (its clear) see the whole of it
-        self._next = None
-        return True
+        self._next = None if left is None else (key, left)
+        return left is None
 
     def release(self):
         self.stand_in_shadow_map.release()

@@ -43,3 +43,18 @@ class WorkBudget:
         took = self.costs[self._unit] = now - self._unit_start
         self.longest = max(self.longest, took)
         return now
+
+
+def draw_bands(work: WorkBudget | None, first: int, bands: int, unit: str, draw, check_first: bool = False) -> int | None:
+    """A pass drawn in ``bands`` bands of rows from band ``first``, each a unit of ``work`` named
+    ``unit`` (``draw(band)`` sets its scissor and draws); without ``work``, one whole draw,
+    ``draw(None)``. Returns the band the budget ran out before (the next call starts there), or None
+    once every band is drawn. The first band drawn is a unit the caller counted, unless ``check_first``."""
+    if work is None:
+        draw(None)
+        return None
+    for band in range(first, bands):
+        if (band > first or check_first) and work.spent(unit):
+            return band
+        draw(band)
+    return None
