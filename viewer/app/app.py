@@ -308,6 +308,7 @@ class ViewerApp:
                 self.controls.handle()
                 for path in w.take_dropped():
                     self.actions.open_file(Path(path))
+                self.jobs.saves_written()
                 draw_panel(self)
                 draw_progress(self)
                 if self.log.count == 0:

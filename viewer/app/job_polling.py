@@ -18,6 +18,10 @@ class JobPolling:
     def poll(self):
         self.lights_fitted()
         self.scene_opened()
+
+    def saves_written(self):
+        """Saves whose files are written: said (before the panel is drawn, so the frame that says
+        "saved" also has the panel's button for the folder)."""
         for job in [j for j in self.app.saves if j.done]:
             self.app.saves.remove(job)
             self.app.actions.saved(job)
