@@ -6,7 +6,9 @@
 // brought to the frame by filled_sample (bilinear, normalized by the mask, filled past it); then,
 // over the cached background, exposure, tone map and sRGB as the work display does.
 // output_mode OUTPUT_DISPLAY writes the display image; OUTPUT_PERSON_HDR the person's HDR and matte; OUTPUT_COMPOSITED_HDR the HDR composited over
-// the background before exposure (transparent: premultiplied), the EXR beside a display PNG.
+// the background before exposure (transparent: premultiplied), the EXR beside a display PNG;
+// OUTPUT_BACKGROUND_DISPLAY the display image with no person and no shadow of theirs (a clip's
+// frame where the person has left the picture).
 // Before / after (display only): left of compare_x pixels the original photo as it was, with a
 // two-pixel white line at the split. With ground, the background is darkened by the person's
 // shadow on the ground (ground_shadow.frag.glsl, work images' field of view, bilinear). On the skin,
@@ -37,7 +39,8 @@ uniform vec2 skin_box_to_uv;           // 1 / the box's size in frame pixels, as
 layout(location = 0) out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    vec4 aa = texelFetch(frame_albedo_alpha, px, 0);
+    bool no_person = output_mode == OUTPUT_BACKGROUND_DISPLAY;
+    vec4 aa = no_person ? vec4(0.0) : texelFetch(frame_albedo_alpha, px, 0);
     vec3 fg = vec3(0.0);
     if (aa.a > 0.0) {
         vec2 uv = (vec2(px) + 0.5) * frame_to_uv;
@@ -53,7 +56,7 @@ void main() {
     }
     if (output_mode == OUTPUT_PERSON_HDR) { color = vec4(fg, aa.a); return; }
     vec3 bg = aa.a >= 1.0 ? vec3(0.0) : texture(background, (vec2(px) + 0.5) / vec2(textureSize(frame_albedo_alpha, 0))).rgb;
-    if (ground && aa.a < 1.0) {
+    if (ground && !no_person && aa.a < 1.0) {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) * frame_to_uv).rgb, 0.0, 1.0);
     }
     if (output_mode == OUTPUT_COMPOSITED_HDR) {

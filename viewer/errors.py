@@ -15,3 +15,8 @@ class InputError(ValueError):
         self.path = one_line(path) if path is not None else None
         self.problem = one_line(problem)
         super().__init__(f"{self.path}: {self.problem}" if self.path else self.problem)
+
+
+class NoPersonError(InputError):
+    """No person to relight in a picture (none found, an empty mask, too small): a photo is refused
+    with it; a clip's frame with it shows only the new background."""

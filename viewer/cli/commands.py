@@ -20,7 +20,7 @@ from viewer.cli.command_setup import (
     rig_lights,
     warn_if_dark,
 )
-from viewer.cli.output_paths import beside_the_map, check_fps, check_video, not_an_input, writable
+from viewer.cli.output_paths import beside_the_map, check_fps, check_video, not_a_clip_range, not_an_input, writable
 from viewer.errors import InputError
 from viewer.files.ownership import file_is_ours, refuse_foreign
 from viewer.output.video import partial_path as video_partial, partial_taken
@@ -97,7 +97,16 @@ def cmd_demo(args) -> int:
 
 
 def cmd_render(args) -> int:
+    from viewer.files.clip_reader import is_clip
+    from viewer.scene.clip_bundle import is_clip_bundle
+
     look = command_look(args)
+    if is_clip(args.scene) or is_clip_bundle(args.scene):
+        from viewer.cli.clip_commands import cmd_render_clip
+
+        check_video(args)
+        return cmd_render_clip(args, look)
+    not_a_clip_range(args, args.scene)
     out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in (".png", ".mp4"):
@@ -128,19 +137,20 @@ def cmd_render(args) -> int:
     from viewer.output.render import render_turntable
 
     frames = 120 if args.frames is None else args.frames
+    turn = 360.0 if args.turn is None else args.turn
     scene, lights, env, look = prepare(args.scene, args.lights, args.envmap, args, look, automatic_yaw=True)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     start = time.perf_counter()
     try:
         with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
-            width, height = render_turntable(engine, scene, lights, out, look, frames, fps=args.fps, turn=args.turn,
+            width, height = render_turntable(engine, scene, lights, out, look, frames, fps=args.fps, turn=turn,
                                              environment=env, progress=lambda done, total: bar.update(1),
                                              fixed=rig_lights(args))
     finally:
         engine.release()
     seconds = time.perf_counter() - start
     print(f"wrote {out} ({frames} frames, {width}x{height}, {args.fps:g} fps, "
-          f"{args.turn:g} degrees; {seconds:.1f} s, {1000 * seconds / frames:.0f} ms per frame)")
+          f"{turn:g} degrees; {seconds:.1f} s, {1000 * seconds / frames:.0f} ms per frame)")
     return 0
 
 
@@ -220,9 +230,15 @@ def _photo_bundle(photo, mask, device, window, max_size: int) -> Path:
 
 
 def cmd_infer(args) -> int:
+    from viewer.files.clip_reader import is_clip
     from viewer.photo.inference import STAGE_SHARES, bundle_target, infer, load_networks
     from viewer.progress import TimeLeft
 
+    if is_clip(args.photo):
+        from viewer.cli.clip_commands import cmd_infer_clip
+
+        return cmd_infer_clip(args)
+    not_a_clip_range(args, args.photo)
     target = bundle_target(args.output)
     writable(target.parent, folder=True)
     for given in (args.photo, args.mask, args.networks):

@@ -83,8 +83,14 @@ def check_video(args):
     if args.frames is not None and not 1 <= args.frames <= MAX_FRAMES:
         raise InputError(None, f"--frames must be in [1, {MAX_FRAMES}], got {args.frames}")
     check_fps(args)
-    if not (np.isfinite(args.turn) and abs(args.turn) <= 36000):
+    if args.turn is not None and not (np.isfinite(args.turn) and abs(args.turn) <= 36000):
         raise InputError(None, f"--turn must be a finite number of degrees within +-36000, got {args.turn}")
+
+
+def not_a_clip_range(args, given) -> None:
+    """Refuse --start / --end for what is not a clip (they would be silently ignored)."""
+    if getattr(args, "start", 0.0) != 0.0 or getattr(args, "end", None) is not None:
+        raise InputError(given, "--start and --end choose a part of a clip: this is not one")
 
 
 def check_fps(args):

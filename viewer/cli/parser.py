@@ -7,7 +7,7 @@ import argparse
 
 from viewer.cli.batch_command import add_batch_parser
 from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
-from viewer.cli.shared_options import add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
+from viewer.cli.shared_options import add_clip_range_args, add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 
 COMMAND_GROUP = "relight.commands"
@@ -27,7 +27,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
 
     p = sub.add_parser("render", help="headless: a scene bundle under an environment map (or a light file) to "
                        "PNG + EXR, or a turntable video to MP4")
-    p.add_argument("scene", help="scene bundle directory")
+    p.add_argument("scene", help="scene bundle directory; or a clip (mp4, mov, webm, avi, mkv) or its clip bundle, "
+                                 "relit into an MP4 with the clip's frames, timing and audio")
     p.add_argument("lights", nargs="?", help="area-light file (.json, or the paper's .npy); "
                    "default: lights fitted to --env (cached)")
     p.add_argument("--env", "--envmap", dest="envmap",
@@ -37,7 +38,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    help="a .png (one frame; the HDR EXR goes beside it) or a .mp4 (turntable video); default out/render.png")
     p.add_argument("--frames", type=int, help="video frames (default 120 for a .mp4)")
     p.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
-    p.add_argument("--turn", type=float, default=360.0, help="degrees the lighting turns over the video (default 360)")
+    p.add_argument("--turn", type=float, help="degrees the lighting turns over the video (default 360 for a turntable, "
+                                              "0 for a clip)")
+    add_clip_range_args(p)
     p.add_argument("--size", type=int,
                    help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
@@ -81,7 +84,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_view, window=True)
 
     p = sub.add_parser("infer", help="photo -> scene bundle (the networks' maps, the photo's own lighting, its detail)")
-    p.add_argument("photo", help="photo (PNG/JPEG, sRGB; EXIF rotation applied)")
+    p.add_argument("photo", help="photo (PNG/JPEG, sRGB; EXIF rotation applied), or a clip (mp4, mov, webm, avi, mkv; "
+                                 "its rotation applied): a clip bundle, one scene bundle per frame, resumable")
     p.add_argument("--mask", help="person mask (PNG, person where > 50 %%, grey levels kept as a soft edge), the photo's "
                    "size; default: found automatically (MediaPipe)")
     p.add_argument("-o", "--output", required=True, help="scene bundle directory to write")
@@ -91,6 +95,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    "to this (default 2048)")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
     p.add_argument("--networks", help="folder of network weights (default: the shipped ones in assets/networks)")
+    add_clip_range_args(p)
     p.set_defaults(func=cmd_infer)
 
     p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")

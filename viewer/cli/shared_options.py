@@ -88,3 +88,9 @@ def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
                    help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
                         "(refined), the shadow map (hard) or none")
+
+
+def add_clip_range_args(p) -> None:
+    """--start and --end: the part of a clip to work on, seconds."""
+    p.add_argument("--start", type=float, default=0.0, help="a clip: seconds from its start to begin at (default 0)")
+    p.add_argument("--end", type=float, help="a clip: seconds from its start to stop at (default: its end)")

@@ -36,7 +36,8 @@ from viewer.scene.look import Look
 from viewer.shader_modes import code
 
 MAX_FILL_LOD = 4  # mip levels the frame composite may reach past the mask (16 work pixels)
-OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR = (code("OUTPUT", n) for n in ("display", "person_hdr", "composited_hdr"))
+OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR, OUTPUT_BACKGROUND_DISPLAY = (
+    code("OUTPUT", n) for n in ("display", "person_hdr", "composited_hdr", "background_display"))
 ENVIRONMENT_SCALE = 2  # the map behind the person at half the frame's resolution (FrameBackgroundPass)
 
 
@@ -188,8 +189,9 @@ class FrameCompositePass:
         fbo.scissor = None
 
     def read(self, shading, background, terms, look: Look, transparent: bool, output_mode: int) -> np.ndarray:
-        """(H, W, 4) float32: the person's HDR and matte (``OUTPUT_PERSON_HDR``) or the HDR over
-        the background (``OUTPUT_COMPOSITED_HDR``), drawn into a texture made for the call."""
+        """(H, W, 4) float32: the person's HDR and matte (``OUTPUT_PERSON_HDR``), the HDR over
+        the background (``OUTPUT_COMPOSITED_HDR``) or the display of the background alone
+        (``OUTPUT_BACKGROUND_DISPLAY``, in [0, 1]), drawn into a texture made for the call."""
         with self.kit.scratch_target(self.size) as (tex, fbo):
             self.draw(fbo, shading, background, terms, look, transparent, output_mode)
             return self.kit.read(tex, 4)

@@ -80,6 +80,13 @@ class Readback:
         return self.kit.read(self.picture.last.image, 4, dtype="f1")
 
     @in_context
+    def read_background_display(self) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB: the display image as it would be with no person in the picture (the
+        background, its exposure and tone map; no shadow on the ground). A scene with a frame layer."""
+        image = self.picture.read_background_display(self._picture_inputs())
+        return (np.clip(image[..., :3], 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+    @in_context
     def read_output_hdr(self) -> np.ndarray:
         """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
         the same background (alpha 1), or premultiplied with its coverage for the transparent

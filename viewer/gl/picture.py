@@ -20,7 +20,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.gl.display_pass import DisplayPass
-from viewer.gl.frame_pass import OUTPUT_COMPOSITED_HDR, OUTPUT_PERSON_HDR, FrameBackgroundPass, FrameCompositePass, FrameMipmapsPass
+from viewer.gl.frame_pass import (
+    OUTPUT_BACKGROUND_DISPLAY,
+    OUTPUT_COMPOSITED_HDR,
+    OUTPUT_PERSON_HDR,
+    FrameBackgroundPass,
+    FrameCompositePass,
+    FrameMipmapsPass,
+)
 from viewer.gl.skin_pass import SkinScatterPass
 
 BANDS = 4  # a budgeted frame composite's bands (at 2048 pixels with one llvmpipe thread the whole is ~110 ms)
@@ -61,6 +68,9 @@ class ImagePicture:
         return self.last.read_hdr_output(i.composite.hdr, i.look, i.background)
 
     def read_shading(self, i: PictureInputs):
+        raise ValueError("the scene has no frame layer")
+
+    def read_background_display(self, i: PictureInputs):
         raise ValueError("the scene has no frame layer")
 
     def release(self):
@@ -150,6 +160,10 @@ class FramePicture:
 
     def read_output(self, i: PictureInputs) -> np.ndarray:
         return self._read(i, i.terms, OUTPUT_COMPOSITED_HDR)
+
+    def read_background_display(self, i: PictureInputs) -> np.ndarray:
+        """(H, W, 4) float32 in [0, 1]: the display image with no person in it (nor their shadow)."""
+        return self._read(i, i.terms, OUTPUT_BACKGROUND_DISPLAY)
 
     def read_shading(self, i: PictureInputs):
         """The diffuse and specular sums at the frame, upsampled as the frame composite does."""

@@ -9,6 +9,7 @@ every finished fragment, under its own clearly marked name.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import threading
@@ -187,3 +188,125 @@ def read_video(path) -> tuple[np.ndarray, float]:
         frames = [f.to_ndarray(format="rgb24") for f in container.decode(stream)]
         rate = float(stream.average_rate or stream.guessed_rate or 0.0)
     return np.stack(frames) if frames else np.zeros((0, 0, 0, 3), np.uint8), rate
+
+
+
+def _can_carry(stream) -> bool:
+    """Whether an MP4 can hold ``stream``'s codec as it is (a header written to memory with it)."""
+    import io
+
+    import av
+
+    try:
+        with av.open(io.BytesIO(), "w", format="mp4") as probe:
+            probe.add_stream_from_template(stream)
+            probe.start_encoding()
+        return True
+    except (av.FFmpegError, ValueError, NotImplementedError):
+        return False
+
+
+def _packets(path, kind: str, shift: float = 0.0, until: float | None = None):
+    """(time, packet) of the first ``kind`` stream of ``path``, on a clock ``shift`` seconds later
+    than the file's (packets before 0 or from ``until`` on left out), the packets moved to it."""
+    import av
+
+    with av.open(ffmpeg_file(path)) as container:
+        stream = getattr(container.streams, kind)[0]
+        base = stream.time_base
+        ticks = int(round(shift / base))
+        for packet in container.demux(stream):
+            if packet.pts is None or packet.size == 0:
+                continue
+            t = float((packet.pts - ticks) * base)
+            if t < -1e-6 or (until is not None and t >= until):
+                continue
+            packet.pts -= ticks
+            if packet.dts is not None:
+                packet.dts -= ticks
+            yield t, packet
+
+
+def _mux(out, sources) -> None:
+    """Mux ``sources`` ((template stream, (time, packet) iterator) each) into ``out`` in time order."""
+    import heapq
+
+    def tagged(k, stream, packets):
+        for t, packet in packets:
+            yield t, k, stream, packet
+
+    streams = [(out.add_stream_from_template(template), packets) for template, packets in sources]
+    for _, _, stream, packet in heapq.merge(*(tagged(k, s, ps) for k, (s, ps) in enumerate(streams)), key=lambda x: x[:2]):
+        packet.stream = stream
+        out.mux(packet)
+
+
+def _part_packets(part: Path, starts: float):
+    """(time, packet) of a part whose first frame is at ``starts`` seconds of the clip (the muxer
+    starts every file's clock at its first frame)."""
+    packets = _packets(part, "video")
+    first = next(packets, None)
+    if first is None:
+        return
+    offset = first[0] - starts
+    yield from _packets(part, "video", offset)
+
+
+def join_clip(parts: list[tuple[Path, float]], path, audio_source=None, audio_at: float = 0.0,
+              duration: float | None = None) -> str | None:
+    """Join a relit clip's ``parts`` ((an MP4 of one encoder's settings, the clip's time of its first
+    frame) each, in order) into ``path`` (an MP4 written whole or not at all, its index up front), with the first
+    audio stream of ``audio_source`` from ``audio_at`` seconds of that file's clock, for
+    ``duration`` seconds, copied as it is. An audio codec an MP4 cannot hold goes unchanged into
+    :func:`audio_sidecar` beside it. Returns a note saying so (None otherwise)."""
+    import av
+
+    path = Path(path)
+    partial = partial_path(path)
+    try:
+        os.close(os.open(partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+    except FileExistsError:
+        raise partial_taken(path) from None
+    note = None
+    try:
+        with contextlib.ExitStack() as stack:
+            audio = None
+            if audio_source is not None:
+                src = stack.enter_context(av.open(ffmpeg_file(audio_source)))
+                audio = src.streams.audio[0] if src.streams.audio else None
+                if audio is not None and not _can_carry(audio):
+                    note = _audio_sidecar(audio, audio_source, path, audio_at, duration)
+                    audio = None
+            first = stack.enter_context(av.open(ffmpeg_file(parts[0][0])))
+            sources = [(first.streams.video[0], (p for part, starts in parts for p in _part_packets(part, starts)))]
+            if audio is not None:
+                sources.append((audio, _packets(audio_source, "audio", audio_at, duration)))
+            with av.open(ffmpeg_file(partial), "w", format="mp4", options={"movflags": "+faststart"}) as out:
+                out.metadata["comment"] = MARK_TEXT  # viewer.files.ownership: the program's own file
+                _mux(out, sources)
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    return note
+
+
+def audio_sidecar(path, source) -> Path:
+    """Where the audio of ``source`` goes when an MP4 cannot hold it: ``<name>.audio<source's suffix>``
+    beside the video, in the source's own container (which held it)."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.audio{Path(source).suffix.lower()}")
+
+
+def _audio_sidecar(audio, audio_source, path: Path, audio_at: float, duration: float | None) -> str:
+    """The audio an MP4 cannot hold, copied unchanged into the source's container beside the video; the note."""
+    import av
+
+    from viewer.files.imageio import atomic_path
+
+    sidecar = audio_sidecar(path, audio_source)
+    container_format = audio.container.format.name.split(",")[0]
+    with atomic_path(sidecar) as tmp, av.open(ffmpeg_file(tmp), "w", format=container_format) as out:
+        out.metadata["comment"] = MARK_TEXT
+        _mux(out, [(audio, _packets(audio_source, "audio", audio_at, duration))])
+    return f"the source's audio ({audio.codec_context.name}) cannot go into an MP4 unchanged: it is in {sidecar}"

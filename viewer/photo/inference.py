@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.errors import InputError
+from viewer.errors import InputError, NoPersonError
 from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import read_json
 from viewer.files.ownership import folder_lock, fresh_sibling, mark_written, written_here
@@ -381,11 +381,14 @@ class Stage:
     outputs: tuple[str, ...]
 
 
-def _read(photo_path, max_size):
+def _read(photo_path, max_size, picture):
     notes: list[str] = []
     inputs: dict[str, str] = {}  # SHA-256 of the bytes decoded: what this bundle was made from
-    _check_memory(photo_path, max_size)
-    photo = read_photo(photo_path, notes, inputs)
+    if picture is None:
+        _check_memory(photo_path, max_size)
+        photo = read_photo(photo_path, notes, inputs)
+    else:  # a clip's frame, decoded and upright (viewer.photo.clip_inference): the clip's bytes are its input
+        photo = picture
     h, w = photo.shape[:2]
     frame = output_frame((w, h), max_size)
     return {"photo": photo, "frame": frame, "frame_photo": resize(photo, frame), "notes": notes, "inputs": inputs}
@@ -432,7 +435,7 @@ def _load_networks(photo_path, mask_path, frame_photo, alpha, body, networks, de
     small = srgb_to_linear(resize(square_photo, (NETWORK_RES, NETWORK_RES)).astype(np.float32) / 255.0)
     small_mask = resize(crop(alpha, f, "constant"), (NETWORK_RES, NETWORK_RES)) > 0.5
     if not small_mask.any():
-        raise InputError(mask_path or photo_path, "the person is too thin to be seen at the networks' resolution")
+        raise NoPersonError(mask_path or photo_path, "the person is too thin to be seen at the networks' resolution")
     return {"framing": f, "small": small, "small_mask": small_mask,
             "nets": networks if networks is not None else load_networks(device)}
 
@@ -445,7 +448,7 @@ def _inverse_rendering(photo_path, mask_path, alpha, sizes, framing, small, smal
 
     work_mask = resize(alpha, sizes.work) > 0.5
     if not work_mask.any():
-        raise InputError(mask_path or photo_path, "the person vanishes at the work resolution; give a larger --size")
+        raise NoPersonError(mask_path or photo_path, "the person vanishes at the work resolution; give a larger --size")
     side_work = framing.side * sizes.work_scale
     # the framing's square sees what the training camera sees: 50 mm on 36 mm across the square
     camera = Camera(sizes.work[0], sizes.work[1], sensor_mm=36.0 * max(sizes.work) / side_work)
@@ -528,7 +531,7 @@ def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
 # stages that read it. A new stage: its work in a module of viewer/photo/ (as face.py, detail.py),
 # and one line here.
 STAGE_LIST = (
-    Stage("read", _read, ("photo_path", "max_size"), ("photo", "frame", "frame_photo", "notes", "inputs")),
+    Stage("read", _read, ("photo_path", "max_size", "picture"), ("photo", "frame", "frame_photo", "notes", "inputs")),
     Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size"),
           ("matte", "landmarks", "mask_source", "alpha", "person", "body", "turned", "sizes")),
     Stage("load networks", _load_networks, ("photo_path", "mask_path", "frame_photo", "alpha", "body", "networks", "device"),
@@ -554,7 +557,7 @@ STAGES = tuple(st.name for st in STAGE_LIST) + ("write",)  # what infer() report
 
 def run_stages(values: dict, stage, ctx=None) -> dict:
     """Run :data:`STAGE_LIST` over ``values`` (the given ones: photo_path, mask_path, size,
-    max_size, device, networks, detail), reporting each to ``stage``; returns every value. Under
+    max_size, device, networks, detail, picture), reporting each to ``stage``; returns every value. Under
     ``torch.no_grad`` (nothing here learns); the engine the two engine stages share is made over
     the scene before them and released after them, whatever happens."""
     import torch
@@ -586,18 +589,19 @@ def run_stages(values: dict, stage, ctx=None) -> dict:
 
 def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
-                keep_intermediate: bool = False) -> dict:
+                keep_intermediate: bool = False, picture: np.ndarray | None = None) -> dict:
     """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
     (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
     network's maps and the photo's shading at the frame (for the benchmarks). The work is
-    :data:`STAGE_LIST`, run by :func:`run_stages`."""
+    :data:`STAGE_LIST`, run by :func:`run_stages`. ``picture``: the photo's pixels already decoded
+    (H, W, 3) uint8 sRGB upright (a clip's frame), ``photo_path`` then only names it in messages."""
     import torch
 
     from viewer.scene.area_lights import AreaLights
 
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size, "device": device,
-                    "networks": networks, "detail": detail}, stage, ctx)
+                    "networks": networks, "detail": detail, "picture": picture}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
     direction, sigma, intensity = v["network_lights"]
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())

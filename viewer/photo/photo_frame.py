@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.errors import InputError
+from viewer.errors import InputError, NoPersonError
 from viewer.files.file_kinds import regular_file, wrong_kind
 from viewer.files.imageio import MAX_IMAGE_PIXELS, check_pixels
 from viewer.resize import scaled_size
@@ -221,7 +221,7 @@ def person_box(mask: np.ndarray) -> tuple[int, int, int, int]:
 def check_person(mask: np.ndarray, path) -> None:
     """Refuse an empty mask or a person too small to relight, naming ``path``."""
     if not mask.any():
-        raise InputError(path, "no person in the mask")
+        raise NoPersonError(path, "no person in the mask")
     _, _, h, w = person_box(mask)
     if max(h, w) < MIN_PERSON_PX:
-        raise InputError(path, f"the person is {max(h, w)} pixels tall; at least {MIN_PERSON_PX} are needed")
+        raise NoPersonError(path, f"the person is {max(h, w)} pixels tall; at least {MIN_PERSON_PX} are needed")

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.errors import InputError
+from viewer.errors import InputError, NoPersonError
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person
@@ -96,14 +96,14 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
         with pose.Pose(static_image_mode=True, enable_segmentation=True, model_complexity=1) as model:
             result = model.process(np.ascontiguousarray(small[y0:y1, x0:x1]))
     if result.segmentation_mask is None or result.pose_landmarks is None:
-        raise InputError(photo_path, "no person found in the photo; give the person's mask with --mask")
+        raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
     seg = np.zeros((sh, sw), np.float32)
     seg[y0:y1, x0:x1] = np.asarray(result.segmentation_mask, np.float32)
     landmarks = {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
                  for i, lm in enumerate(result.pose_landmarks.landmark) if lm.visibility > VISIBLE}
     segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
     if not (segmentation > 0.5).any():
-        raise InputError(photo_path, "no person found in the photo; give the person's mask with --mask")
+        raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
     if everyone is not None and not any("people in the photo" in n or "left out" in n for n in notes):
         # people standing together are one part of the selfie model's mask: count what the pose model's person leaves
         person = cv2.dilate((seg > 0.5).astype(np.uint8), np.ones((15, 15), np.uint8)) > 0

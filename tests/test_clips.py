@@ -1,0 +1,351 @@
+"""Clips in, relit clips out (issue 46, step 1): decoding any clip PyAV reads (rotation, variable
+frame rate, damaged packets), the clip bundle written frame by frame and resumed, the relit MP4
+with the source's timing and audio, resumed from its parts, and one line for bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from viewer.errors import InputError
+from viewer.resources import asset_dir
+
+FPS = 10
+
+
+def person_frames(count: int, width: int = 320, height: int = 480) -> list[np.ndarray]:
+    """The bundled photo's person, a window moved 3 pixels a frame (a real person, small and fast)."""
+    from viewer.photo.photo_frame import read_photo
+    from viewer.resize import resize
+
+    photo = read_photo(asset_dir() / "photos/underpass.jpg", [])
+    scale = 1.05 * height / photo.shape[0]
+    big = resize(photo, (round(photo.shape[1] * scale), round(photo.shape[0] * scale)))
+    x0 = (big.shape[1] - width) // 2 - 4
+    return [np.ascontiguousarray(big[:height, x0 + 3 * i:x0 + 3 * i + width]) for i in range(count)]
+
+
+def blank_frame(width: int = 320, height: int = 480) -> np.ndarray:
+    """A wall with no one in front of it."""
+    rng = np.random.default_rng(3)
+    return np.clip(150 + rng.normal(0, 6, (height, width, 3)), 0, 255).astype(np.uint8)
+
+
+def write_clip(path, frames, times=None, rotation=0, audio="aac", video="libx264", container=None, gop=None):
+    """A clip of ``frames`` (RGB uint8) at ``times`` (seconds; default 1 / FPS apart), the display
+    matrix turned ``rotation`` degrees, and one second of a 440 Hz tone in ``audio`` (None: silent)."""
+    import av
+
+    with av.open(str(path), "w", format=container) as c:
+        stream = c.add_stream(video, rate=FPS)
+        stream.height, stream.width = frames[0].shape[:2]
+        stream.pix_fmt = "yuv420p"
+        stream.codec_context.time_base = Fraction(1, 1000)
+        if gop is not None:
+            stream.codec_context.gop_size = gop
+        if rotation:
+            stream.set_display_rotation(rotation)
+        sound = None
+        if audio is not None:
+            sound = c.add_stream(audio, rate=44100)
+            sound.layout = "mono"
+        times = [i / FPS for i in range(len(frames))] if times is None else times
+        for rgb, t in zip(frames, times, strict=True):
+            frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
+            frame.pts, frame.time_base = int(round(t * 1000)), Fraction(1, 1000)
+            for packet in stream.encode(frame):
+                c.mux(packet)
+        for packet in stream.encode():
+            c.mux(packet)
+        if sound is not None:
+            fmt = sound.codec_context.codec.audio_formats[0].name
+            total = int(44100 * (times[-1] + 1 / FPS))
+            for k in range(0, total, 1024):
+                wave = 0.3 * np.sin(2 * np.pi * 440 * np.arange(k, min(k + 1024, total)) / 44100)[None]
+                data = (wave * 30000).astype(np.int16) if fmt.startswith("s16") else wave.astype(np.float32)
+                frame = av.AudioFrame.from_ndarray(data, format=fmt, layout="mono")
+                frame.sample_rate, frame.pts = 44100, k
+                for packet in sound.encode(frame):
+                    c.mux(packet)
+            for packet in sound.encode():
+                c.mux(packet)
+    return Path(path)
+
+
+def pattern(i: int, width: int = 64, height: int = 48) -> np.ndarray:
+    """A frame whose brightness says its index, a white block at the top left."""
+    rgb = np.full((height, width, 3), 20 + 15 * i, np.uint8)
+    rgb[:8, :8] = 255
+    return rgb
+
+
+def audio_times(path) -> list[float]:
+    """The times of a file's audio packets."""
+    import av
+
+    with av.open(str(path)) as c:
+        return [float(p.pts * p.time_base) for p in c.demux(audio=0) if p.size] if c.streams.audio else []
+
+
+def decoded(path) -> tuple[list[np.ndarray], list[float], list]:
+    """(frames, their times, the audio packets' times) of a video file."""
+    import av
+
+    with av.open(str(path)) as c:
+        frames, times = [], []
+        for f in c.decode(video=0):
+            frames.append(f.to_ndarray(format="rgb24"))
+            times.append(float(f.time))
+    return frames, times, audio_times(path)
+
+
+# --- reading clips ------------------------------------------------------------------------------
+def test_frames_come_upright_with_their_own_times(tmp_path):
+    """A phone's sideways clip comes out as a player shows it; a variable frame rate keeps each
+    frame's time; --start / --end choose frames by time."""
+    from viewer.files.clip_reader import clip_frames, probe_clip
+
+    times = [0.0, 0.1, 0.35, 0.4, 0.9]
+    clip = write_clip(tmp_path / "phone.mp4", [pattern(i) for i in range(5)], times, rotation=90)
+    info = probe_clip(clip)
+    assert (info.width, info.height, info.rotation, info.audio) == (48, 64, 90, "aac")
+    frames = list(clip_frames(clip))
+    assert [round(f.seconds, 3) for f in frames] == times
+    first = frames[0].rgb
+    assert first.shape == (64, 48, 3)
+    ys, xs = np.nonzero(first[..., 0] > 200)  # the top-left block, turned a quarter counter-clockwise
+    assert ys.min() > 48 and xs.max() < 10
+    assert np.all(np.diff([int(f.rgb[30, 30, 0]) for f in frames]) > 8)  # each frame its own, in order
+    part = list(clip_frames(clip, start=0.3, end=0.9))
+    assert [round(f.seconds + f.at, 3) for f in part] == [0.35, 0.4] and part[0].seconds == 0.0
+
+
+def test_damaged_packets_keep_the_frame_count(tmp_path):
+    """A packet that does not decode is one warning line and a lost frame in its place; a file cut
+    short ends the clip at its last whole frame, with a warning."""
+    import av
+
+    from viewer.files.clip_reader import clip_frames
+
+    clip = write_clip(tmp_path / "clip.mp4", [pattern(i) for i in range(12)], audio=None, gop=1)
+    with av.open(str(clip)) as c:
+        packets = [(p.pos, p.size) for p in c.demux(video=0) if p.size]
+    data = bytearray(clip.read_bytes())
+    pos, size = packets[5]
+    data[pos:pos + 4] = (size * 50).to_bytes(4, "big")  # the NAL's length: far past the packet
+    damaged = tmp_path / "damaged.mp4"
+    damaged.write_bytes(bytes(data))
+    with pytest.warns(UserWarning, match=r"damaged\.mp4: a damaged packet at 0\.500 s did not decode"):
+        frames = list(clip_frames(damaged))
+    assert len(frames) == 12 and [f.index for f in frames] == list(range(12))
+    assert frames[5].rgb is None and all(f.rgb is not None for i, f in enumerate(frames) if i != 5)
+    assert [round(f.seconds, 3) for f in frames] == [round(i / FPS, 3) for i in range(12)]
+
+    # an MP4 whose index is at its end, cut: nothing to read, one line
+    cut = tmp_path / "cut.mp4"
+    cut.write_bytes(clip.read_bytes()[: packets[8][0] + 3])
+    with pytest.raises(InputError, match="cut.mp4: is not a video this program can read"):
+        list(clip_frames(cut))
+    # a stream cut mid-packet (Matroska): the frames before the cut
+    streamed = write_clip(tmp_path / "clip.mkv", [pattern(i) for i in range(12)], audio=None, gop=1)
+    with av.open(str(streamed)) as c:
+        at = [p.pos for p in c.demux(video=0) if p.size][8]
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(streamed.read_bytes()[:at + 40])
+    frames = list(clip_frames(cut))
+    assert 7 <= len(frames) <= 9 and all(f.rgb is not None for f in frames[:7])
+
+
+def test_bad_clips_are_one_line(tmp_path):
+    from viewer.files.clip_reader import clip_frames, probe_clip
+
+    text = tmp_path / "notes.mp4"
+    text.write_text("not a video")
+    with pytest.raises(InputError, match="notes.mp4: is not a video this program can read"):
+        probe_clip(text)
+    import av
+
+    sound = tmp_path / "sound.mkv"
+    with av.open(str(sound), "w") as c:
+        s = c.add_stream("aac", rate=44100)
+        s.layout = "mono"
+        frame = av.AudioFrame.from_ndarray(np.zeros((1, 1024), np.float32), format="fltp", layout="mono")
+        frame.sample_rate, frame.pts = 44100, 0
+        for p in [*s.encode(frame), *s.encode()]:
+            c.mux(p)
+    with pytest.raises(InputError, match="sound.mkv: holds no video stream"):
+        probe_clip(sound)
+    clip = write_clip(tmp_path / "clip.mp4", [pattern(i) for i in range(6)], audio=None)
+    with pytest.raises(InputError, match="6 frames .* more than the 4 one run takes"):
+        next(clip_frames(clip, limit=4))
+    with pytest.raises(InputError, match="--end must come after --start"):
+        next(clip_frames(clip, start=0.5, end=0.2))
+    with pytest.raises(InputError, match="holds no frame from 3 s"):
+        next(clip_frames(clip, start=3.0))
+
+
+# --- the clip bundle and the relit clip -----------------------------------------------------------
+@pytest.fixture(scope="module")
+def clip_with_everything(tmp_path_factory):
+    """Four frames at 10 fps with a tone: the person, a damaged packet, an empty wall, the person."""
+    import av
+
+    folder = tmp_path_factory.mktemp("clip")
+    people = person_frames(3)
+    clip = write_clip(folder / "walk.mp4", [people[0], people[1], blank_frame(), people[2]], gop=1)
+    with av.open(str(clip)) as c:
+        pos, size = [(p.pos, p.size) for p in c.demux(video=0) if p.size][1]
+    data = bytearray(clip.read_bytes())
+    data[pos:pos + 4] = (size * 50).to_bytes(4, "big")
+    clip.write_bytes(bytes(data))
+    return clip
+
+
+@pytest.fixture(scope="module")
+def clip_bundle(clip_with_everything, tmp_path_factory):
+    from viewer.photo.clip_inference import infer_clip
+
+    out = tmp_path_factory.mktemp("bundle") / "walk"
+    with pytest.warns(UserWarning, match="damaged packet"):
+        record = infer_clip(clip_with_everything, out)
+    return out, record
+
+
+def test_a_clip_bundle_holds_every_frame_and_resumes(clip_bundle, clip_with_everything):
+    from viewer.photo.clip_inference import clip_target, infer_clip
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    out, record = clip_bundle
+    assert record["complete"] and record["frames"] == 4 and record["temporal"] == "off"
+    assert record["states"] == {"person": 2, "no person": 1, "lost": 1}
+    bundle = load_clip_bundle(out)
+    assert [e.state for e in bundle.frames] == ["person", "lost", "no person", "person"]
+    assert [round(e.seconds, 3) for e in bundle.frames] == [0.0, 0.1, 0.2, 0.3]
+    scene = load_scene(bundle.scene_path(3))
+    assert scene.output_size == (320, 480) and scene.frame.alpha.mean() > 0.05
+    inference = json.loads((bundle.scene_path(3) / "inference.json").read_text())
+    assert inference["clip"]["index"] == 3 and inference["photo"].endswith("walk.mp4 at 0.300 s")
+
+    # a run that stopped before frame 3's record: the same command keeps the others and does frame 3
+    (out / "frames" / "000003.json").unlink()
+    with pytest.warns(UserWarning, match="damaged packet"):
+        again = infer_clip(clip_with_everything, out)
+    assert again["frames_kept_from_earlier_run"] == 3 and again["states"] == record["states"]
+    assert load_clip_bundle(out).frames == bundle.frames
+    # a folder with the user's files in it is not a place for a clip bundle
+    mine = out.parent / "mine"
+    mine.mkdir()
+    (mine / "thesis.txt").write_text("mine")
+    with pytest.raises(InputError, match="files relight did not write"):
+        clip_target(mine)
+    assert (mine / "thesis.txt").read_text() == "mine"
+
+
+def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_everything, ctx, tmp_path):
+    """Same frames and times as the source, its AAC sound copied; the lost frame shows the one
+    before it, the empty frame the new background alone; a stopped render goes on from its parts."""
+    from viewer.gl import EngineOptions
+    from viewer.lighting.envmap import load_envmap
+    from viewer.output import clip_render
+    from viewer.scene.area_lights import load_lights
+    from viewer.scene.clip_bundle import load_clip_bundle
+    from viewer.scene.look import Look
+
+    bundle = load_clip_bundle(clip_bundle[0])
+    env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
+    lights = load_lights(asset_dir() / "envmaps/immenstadter_horn_256.lights.json")
+    look = Look(yaw=180.0)
+    pictures = clip_render.ClipPictures(ctx, bundle, lights, look, env.pixels, None, EngineOptions())
+    try:
+        frames = [pictures.picture(i).astype(np.float32) for i in range(4)]
+        alpha = pictures._load(0).frame.alpha
+    finally:
+        pictures.release()
+    assert np.array_equal(frames[1], frames[0])  # lost: the frame before
+    import cv2
+
+    near = cv2.dilate((alpha > 0.02).astype(np.uint8), np.ones((41, 41), np.uint8)) > 0
+    away = ~near
+    away[int(0.8 * away.shape[0]):] = False  # the ground, where the person's shadow falls
+    assert np.abs(frames[2] - frames[0])[away].mean() < 2.0  # the same background
+    assert np.abs(frames[2] - frames[0])[alpha > 0.9].mean() > 15.0  # and no one in front of it
+    assert frames[2].std() > 5.0  # a picture, not a black frame
+
+    out = tmp_path / "relit.mp4"
+    stops = {"after": 3}
+
+    def stop_once(done, total):
+        if done == stops["after"]:
+            stops["after"] = None
+            raise KeyboardInterrupt
+
+    saved = clip_render.PART_SECONDS
+    clip_render.PART_SECONDS = 0.2  # parts of two frames
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            clip_render.render_clip(ctx, bundle, lights, look, out, env.pixels, None, EngineOptions(), progress=stop_once)
+        assert not out.exists() and (clip_render.parts_folder(out) / "000000.mp4").is_file()
+        result = clip_render.render_clip(ctx, bundle, lights, look, out, env.pixels, None, EngineOptions())
+    finally:
+        clip_render.PART_SECONDS = saved
+    assert result["parts_reused"] == 1 and result["audio_note"] is None
+    assert not clip_render.parts_folder(out).exists()
+    video, times, audio = decoded(out)
+    source_audio = audio_times(clip_with_everything)
+    assert len(video) == 4 and np.allclose(times, [0.0, 0.1, 0.2, 0.3], atol=1e-3)
+    assert audio and len(audio) >= len(source_audio) - 2 and max(audio) < 0.4
+    assert all(np.abs(v.astype(np.float32) - f).mean() < 3.0 for v, f in zip(video, frames, strict=True))
+
+
+def test_audio_an_mp4_cannot_hold_goes_beside_it(tmp_path):
+    import av
+
+    from viewer.output.video import VideoWriter, audio_sidecar, join_clip
+
+    source = write_clip(tmp_path / "old.avi", [pattern(i) for i in range(3)], audio="adpcm_ima_wav", video="mpeg4")
+    part = tmp_path / "part.mp4"
+    with VideoWriter(part, 64, 48, fps=FPS) as video:
+        for i in range(3):
+            video.write(pattern(i), seconds=i / FPS)
+    out = tmp_path / "relit.mp4"
+    note = join_clip([(part, 0.0)], out, source, 0.0, 0.3)
+    sidecar = audio_sidecar(out, source)
+    assert note is not None and str(sidecar) in note and "adpcm_ima_wav" in note
+    with av.open(str(sidecar)) as c:
+        assert c.streams.audio[0].codec_context.name == "adpcm_ima_wav"
+        assert sum(1 for p in c.demux(audio=0) if p.size) > 0
+    assert len(decoded(out)[0]) == 3 and decoded(out)[2] == []
+
+
+def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
+    """The command line: a clip bundle relit to MP4; what does not fit a clip is one line."""
+    from test_cli import run_cli
+
+    out = tmp_path / "relit.mp4"
+    env = str(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
+    res = run_cli("render", str(clip_bundle[0]), "--env", env, "-o", str(out), "--turn", "90")
+    assert res.returncode == 0, res.stderr
+    assert f"wrote {out} (4 frames, 320x480" in res.stdout
+    frames, times, audio = decoded(out)
+    assert len(frames) == 4 and audio
+    assert np.abs(frames[3].astype(float) - frames[0].astype(float)).mean() > 3  # the map turned
+    for args, message in (
+        (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "a.png")), "give a .mp4 output path"),
+        (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "b.mp4"), "--frames", "10"),
+         "a clip keeps its own frames"),
+        (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "c.mp4"), "--end", "0.2"),
+         "give the clip itself"),
+        (("infer", str(asset_dir() / "photos/underpass.jpg"), "-o", str(tmp_path / "d"), "--start", "1"),
+         "choose a part of a clip: this is not one"),
+        (("infer", str(clip_with_everything), "-o", str(tmp_path / "e"), "--mask", "m.png"), "a mask is for a photo"),
+    ):
+        res = run_cli(*args)
+        assert res.returncode == 2 and message in res.stderr, (args, res.stderr)
+        assert "Traceback" not in res.stderr
+    shutil.rmtree(tmp_path / "d", ignore_errors=True)

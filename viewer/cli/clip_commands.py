@@ -1,0 +1,117 @@
+"""``relight infer CLIP`` and ``relight render`` of a clip: a video in, a relit video out.
+
+``relight render`` takes a clip bundle, or a clip itself (its bundle inferred into the cache once,
+as a photo's is, and finished there if a run stopped). The output keeps the source's frames,
+timing, framing (its size, or uniformly scaled by ``--max-size``) and audio; the map turns only if
+``--turn`` says so."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from viewer.cli.command_setup import command_lights, engine_options, first_look, rig_lights
+from viewer.cli.output_paths import check_fps, not_an_input, writable
+from viewer.errors import InputError
+from viewer.files.clip_reader import check_range, is_clip
+from viewer.files.ownership import refuse_foreign
+from viewer.output.video import audio_sidecar, partial_path, partial_taken
+
+
+def _bar(total: int, what: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True)
+
+
+def clip_bundle(clip, args, out=None) -> Path:
+    """The clip bundle of ``clip`` (--start, --end, --size, --max-size, --device of ``args``): written
+    into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left."""
+    from viewer.lighting.lightfit.cache import cache_dir
+    from viewer.photo.clip_inference import cached_clip_path, infer_clip
+    from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
+
+    size = getattr(args, "size", None) or WORK_PERSON
+    max_size = getattr(args, "max_size", None) or MAX_SIZE
+    target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
+                                                                size, max_size)
+    t0 = time.perf_counter()
+    with _bar(0, f"inferring {Path(clip).name}") as bar:
+        def progress(done, total, entry):
+            bar.total = total
+            bar.update(done - bar.n)
+
+        record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size, device=getattr(args, "device", "cpu"),
+                            progress=progress)
+    kept, states = record["frames_kept_from_earlier_run"], record["states"]
+    seconds = time.perf_counter() - t0
+    print(f"clip bundle of {clip}: {target} ({record['frames']} frames: {states['person']} with the person, "
+          f"{states['no person']} without, {states['lost']} lost; {kept} kept from an earlier run; {seconds:.1f} s, "
+          f"{60 * max(record['frames'] - kept, 0) / max(seconds, 1e-9):.1f} frames a minute)")
+    return target
+
+
+def cmd_infer_clip(args) -> int:
+    from viewer.photo.clip_inference import clip_target
+
+    if args.mask is not None:
+        raise InputError(args.mask, "a mask is for a photo: a clip's person is found in every frame")
+    target = clip_target(args.output)
+    writable(target.parent, folder=True)
+    if target == Path(args.photo).resolve() or target in Path(args.photo).resolve().parents:
+        raise InputError(args.output, "is the clip or holds it: give another folder")
+    clip_bundle(args.photo, args, target)
+    return 0
+
+
+def cmd_render_clip(args, look) -> int:
+    from viewer.gl import create_headless_context
+    from viewer.lighting.envmap import load_envmap
+    from viewer.output.clip_render import parts_folder, render_clip
+    from viewer.scene.clip_bundle import load_clip_bundle, read_record
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".mp4":
+        raise InputError(out, "a clip is relit into a video: give a .mp4 output path")
+    if args.frames is not None:
+        raise InputError(None, "--frames sets a turntable's length: a clip keeps its own frames (choose a part with "
+                               "--start and --end)")
+    check_fps(args)
+    turn = 0.0 if args.turn is None else args.turn
+    check_range(args.scene, args.start, args.end)
+    if look.background == "transparent":
+        raise InputError(out, "an MP4 (H.264) holds no transparency: give the video another --background")
+    writable(out)
+    if not is_clip(args.scene) and (args.start != 0.0 or args.end is not None):
+        raise InputError(args.scene, "--start and --end choose the part of a clip to infer: give the clip itself, "
+                                     "or infer its bundle with them")
+    source = args.scene if is_clip(args.scene) else read_record(args.scene)["source"]["path"]
+    sidecar = audio_sidecar(out, source)
+    not_an_input([out, partial_path(out), parts_folder(out), sidecar],
+                 [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
+    refuse_foreign([out, sidecar], args.force)
+    if partial_path(out).exists():
+        raise partial_taken(out)
+    bundle = load_clip_bundle(clip_bundle(args.scene, args) if is_clip(args.scene) else args.scene)
+    env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None
+    if args.lights is None and env is None:
+        raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
+    lights = command_lights(args, look, args.lights, env, args.envmap)
+    look = first_look(args, look, lights)
+    ctx = create_headless_context()
+    t0 = time.perf_counter()
+    try:
+        with _bar(len(bundle.frames), f"relighting {out.name}") as bar:
+            result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig_lights(args),
+                                 engine_options(args, look), turn, progress=lambda done, total: bar.update(done - bar.n),
+                                 sizes=(args.size, args.max_size))
+    finally:
+        ctx.release()
+    seconds = time.perf_counter() - t0
+    w, h = result["size"]
+    print(f"wrote {out} ({result['frames']} frames, {w}x{h}, the source's timing; {seconds:.1f} s, "
+          f"{60 * result['frames'] / max(seconds, 1e-9):.1f} frames a minute"
+          + (f"; {result['parts_reused']} parts kept from an earlier run" if result["parts_reused"] else "") + ")")
+    if result["audio_note"]:
+        print(f"note: {result['audio_note']}")
+    return 0

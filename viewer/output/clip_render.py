@@ -1,0 +1,198 @@
+"""A clip bundle relit into an MP4: the source's frames, timing and audio, under a new light.
+
+Every output frame is a function of its index alone (:class:`ClipPictures`): a frame with a
+person is its scene bundle rendered under the look (the map turned by ``turn`` degrees over the
+clip, in proportion to the frame's time; each frame's own automatic exposure, as a photo's); a
+frame where no person was found shows the new background alone (as the nearest frame with a
+person sees it, with no person and no shadow), or the frame itself under ``--background photo``;
+a frame lost to a damaged packet shows the frame before it. So a run that stops and starts again
+renders exactly what an unbroken run does.
+
+The video is written in parts of ``PART_SECONDS`` (``<name>.parts/`` beside the output, each
+part written whole or not at all) and joined at the end with the source's audio
+(:func:`viewer.output.video.join_clip`); a run that stops keeps its finished parts, and the same
+command goes on from there. The parts are removed once the video is in place.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from viewer.errors import InputError
+from viewer.files.clip_reader import clip_digest
+from viewer.files.imageio import MARK, read_png, write_text
+from viewer.files.ownership import file_is_ours, fresh_sibling
+from viewer.output.render import render_look, warn_if_unseen
+from viewer.output.video import VideoWriter, join_clip
+from viewer.scene.area_lights import AreaLights
+from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
+from viewer.scene.look import Look
+from viewer.scene.resampling import load_sized_scene
+
+PART_SECONDS = 2.0  # of the clip in each part: what a stopped run may have to render again
+PARTS_RECORD = "parts.json"
+
+
+class ClipPictures:
+    """The relit clip's frames by index (:meth:`picture`), rendered on ``ctx`` with one engine at a
+    time (the last frame's, kept while frames with no person reuse it)."""
+
+    def __init__(self, ctx, bundle: ClipBundle, lights: AreaLights, look: Look, environment: np.ndarray | None,
+                 fixed: AreaLights | None, options, turn: float = 0.0, sizes: tuple = (None, None)):
+        self.ctx, self.bundle, self.lights, self.look, self.sizes = ctx, bundle, lights, look, sizes
+        self.environment, self.fixed, self.options, self.turn = environment, fixed, options, turn
+        self._engine = None  # (frame index, Engine, Scene)
+        self._warned = False
+        self.size = self._load(self._people[0]).output_size
+
+    def _load(self, index: int):
+        """Frame ``index``'s scene, its maps at ``--size`` and its frame at most ``--max-size`` (``sizes``)."""
+        return load_sized_scene(self.bundle.scene_path(index), *self.sizes)
+
+    @property
+    def _people(self) -> list[int]:
+        return [e.index for e in self.bundle.frames if e.state == "person"]
+
+    def yaw(self, index: int) -> float:
+        """The map's yaw at frame ``index``: the look's, turned ``turn`` degrees over the clip."""
+        return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration
+
+    def _nearest(self, index: int, state: str | None = None) -> int:
+        """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""
+        frames = self.bundle.frames
+        fits = (lambda e: e.state == state) if state else (lambda e: e.state != "lost")
+        for j in range(index, -1, -1):
+            if fits(frames[j]):
+                return j
+        for j in range(index + 1, len(frames)):
+            if fits(frames[j]):
+                return j
+        raise InputError(self.bundle.path, "no frame of the clip to show")  # load_clip_bundle refuses such a bundle
+
+    def _render(self, index: int, yaw: float):
+        """Frame ``index`` (a person's) rendered at ``yaw``: its engine, after the render."""
+        from viewer.gl import Engine
+
+        if self._engine is None or self._engine[0] != index:
+            self.release()
+            scene = self._load(index)
+            if scene.output_size != self.size:
+                raise InputError(self.bundle.scene_path(index), f"its frame is {scene.output_size[0]}x{scene.output_size[1]}, "
+                                                                f"the clip's {self.size[0]}x{self.size[1]}")
+            self._engine = (index, Engine(self.ctx, scene, self.options), scene)
+        _, engine, scene = self._engine
+        settings, _ = render_look(engine, scene, self.lights, replace(self.look, yaw=yaw), self.environment, self.fixed)
+        if not self._warned:
+            warn_if_unseen(engine, scene, settings, True)
+            self._warned = True
+        return engine
+
+    def picture(self, index: int) -> np.ndarray:
+        """(H, W, 3) uint8: output frame ``index``."""
+        index = self._nearest(index)
+        entry = self.bundle.frames[index]
+        if entry.state == "person":
+            return self._render(index, self.yaw(index)).output.read_display()
+        if self.look.background == "photo":  # the frame itself: there is no one in it to relight
+            from viewer.resize import resize
+
+            photo = read_png(self.bundle.path / FRAMES / f"{frame_name(index)}.png")[..., :3]
+            return resize((photo * 255.0 + 0.5).astype(np.uint8), self.size)
+        return self._render(self._nearest(index, "person"), self.yaw(index)).output.read_background_display()
+
+    def release(self):
+        if self._engine is not None:
+            self._engine[1].release()
+            self._engine = None
+
+
+def render_key(bundle: ClipBundle, lights: AreaLights, look: Look, environment, fixed, options, turn: float, sizes: tuple) -> str:
+    """What a relit clip is made from, hashed: a part made under another key is not reused."""
+    h = hashlib.sha256(json.dumps({"bundle": bundle.record.get("key"), "lights": lights.to_json(), "look": look.to_json(),
+                                   "fixed": fixed.to_json() if fixed is not None else None, "options": repr(options),
+                                   "turn": turn, "sizes": sizes}, sort_keys=True, default=str).encode())
+    if environment is not None:
+        h.update(np.ascontiguousarray(environment).tobytes())
+    return h.hexdigest()
+
+
+def parts_folder(path) -> Path:
+    path = Path(path)
+    return path.with_name(f"{path.stem}.parts")
+
+
+def _open_parts(path: Path, key: str) -> Path:
+    """The parts folder of ``path``, kept when it holds parts of the same render, else made anew.
+    A folder of that name that relit did not write is refused in one line."""
+    folder = parts_folder(path)
+    if folder.exists():
+        record = folder / PARTS_RECORD
+        if not file_is_ours(record) or any(not (p.name == PARTS_RECORD or p.suffix == ".mp4") for p in folder.iterdir()):
+            raise InputError(folder, "is not a folder of relit parts relight wrote: move it away or choose another -o")
+        try:
+            same = json.loads(record.read_text()).get("key") == key
+        except (OSError, ValueError):
+            same = False
+        if not same:
+            _remove_parts(folder)
+    if not folder.exists():
+        folder.mkdir(parents=True)
+        write_text(folder / PARTS_RECORD, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
+    for p in folder.glob("*.partial.mp4"):  # a part cut short by a stopped run: made again
+        p.unlink()
+    return folder
+
+
+def _remove_parts(folder: Path) -> None:
+    old = fresh_sibling(folder, "old")
+    folder.rename(old / folder.name)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
+                fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
+                sizes: tuple = (None, None)) -> dict:
+    """Relight ``bundle`` into the MP4 ``path``; ``progress(done, total)`` after every frame (parts
+    kept from an earlier run count at once). Returns what was done: frames, size, parts reused,
+    the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with."""
+    path = Path(path)
+    pictures = ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
+    key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes)
+    folder = _open_parts(path, key)
+    fps = float(bundle.source.get("fps") or 30.0)
+    frames = bundle.frames
+    per = max(int(round(PART_SECONDS * fps)), 1)
+    parts, reused = [], 0
+    try:
+        for k, first in enumerate(range(0, len(frames), per)):
+            part = folder / f"{k:06d}.mp4"
+            last = min(first + per, len(frames))
+            if file_is_ours(part):  # finished by an earlier run of the same render
+                reused += 1
+            else:
+                with VideoWriter(part, *pictures.size, fps=fps) as video:
+                    for i in range(first, last):
+                        video.write(pictures.picture(i), seconds=frames[i].seconds)
+                        if progress is not None:
+                            progress(i + 1, len(frames))
+            if progress is not None:
+                progress(last, len(frames))
+            parts.append((part, frames[first].seconds))
+    finally:
+        pictures.release()
+    audio, note = None, None
+    if bundle.source.get("audio"):
+        source = Path(bundle.source["path"])
+        if source.is_file() and clip_digest(source) == bundle.source.get("sha256"):
+            audio = source
+        else:
+            note = f"the source clip {source} is not there as it was: the relit clip has no audio"
+    note = join_clip(parts, path, audio, float(bundle.record.get("first_frame_at", 0.0)), bundle.duration) or note
+    _remove_parts(folder)
+    return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note}

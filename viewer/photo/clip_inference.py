@@ -1,0 +1,189 @@
+"""A clip -> a clip bundle (:mod:`viewer.scene.clip_bundle`): every frame inferred as a photo is.
+
+Frames stream from the decoder (:mod:`viewer.files.clip_reader`) one at a time, so memory does not
+grow with the clip's length; the networks are loaded once and one GL context serves every frame.
+Each frame's scene bundle is written whole (:func:`viewer.photo.inference.write_bundle`), then its
+record, so a run that stops (Ctrl-C, a crash, a full disk) keeps every finished frame, and the same
+command run again goes on from the first frame not finished. A frame where no person is found
+(the person left the picture) is recorded as such, and shows the new background alone when
+relit; a frame lost to a damaged packet is recorded as lost.
+
+Temporal coherence is not applied yet (``"temporal": "off"`` in the record): each frame has its own
+matte, maps, lighting estimate and exposure, exactly as ``relight infer`` makes a photo's bundle.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import time
+from pathlib import Path
+
+from viewer.errors import InputError, NoPersonError
+from viewer.files.clip_reader import ClipInfo, check_range, clip_digest, clip_frames, expected_frames, probe_clip
+from viewer.files.imageio import MARK, write_png, write_text
+from viewer.files.ownership import file_is_ours, fresh_sibling, written_here
+from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
+from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
+from viewer.resize import resize
+from viewer.scene.clip_bundle import FORMAT, FRAMES, RECORD, VERSION, ClipFrameEntry, frame_name, read_frame_entry, read_record
+
+FRAME_MB = (1.5, 2.5)  # disk a frame's bundle takes: MB, plus MB per megapixel of its frame (measured 2.7 MB at 0.42 MP, 3.2 at 0.96)
+
+
+def clip_key(digest: str, options: dict, version: str) -> str:
+    """What a clip bundle is made from, hashed: the clip's bytes, the options, the inference version."""
+    return hashlib.sha256(f"{digest} {json.dumps(options, sort_keys=True)} {version}".encode()).hexdigest()
+
+
+def clip_options(start: float, end: float | None, size: int, max_size: int) -> dict:
+    return {"start": float(start), "end": None if end is None else float(end), "size": int(size), "max_size": int(max_size),
+            "temporal": "off"}
+
+
+def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int) -> Path:
+    """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``)."""
+    key = clip_key(clip_digest(clip_path), clip_options(start, end, size, max_size), inference_version())
+    return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
+
+
+def clip_target(out_dir) -> Path:
+    """``out_dir`` as a place for a clip bundle: new, empty, or one this program wrote (its record
+    marked as ours, and nothing in it but the record and the frames' folder). Anything else is
+    refused in one line."""
+    out_dir = Path(out_dir).resolve()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "exists and is not a folder: give a folder for the clip bundle")
+    if out_dir.is_dir() and any(out_dir.iterdir()):
+        names = {p.name for p in out_dir.iterdir()}
+        if not file_is_ours(out_dir / RECORD) or not names <= {RECORD, FRAMES}:
+            raise InputError(out_dir, "is a folder with files relight did not write there: give a new or empty folder for "
+                                      "the clip bundle (nothing was written)")
+    return out_dir
+
+
+def _frames_ours(frames: Path) -> bool:
+    """Whether everything in a clip bundle's ``frames`` folder is what this program wrote there."""
+    for p in frames.iterdir():
+        if p.name.startswith("."):  # a frame's bundle being written when a run stopped (fresh_sibling's names)
+            continue
+        if p.suffix in (".json", ".png") and p.stem.isdigit():
+            if not file_is_ours(p):
+                return False
+        elif not (p.name.isdigit() and written_here(p)):
+            return False
+    return True
+
+
+def _start_over(out_dir: Path) -> None:
+    """Take away an earlier clip bundle of this program's in ``out_dir`` (another clip or options)."""
+    frames = out_dir / FRAMES
+    if frames.is_dir():
+        if not _frames_ours(frames):
+            raise InputError(frames, "holds files relight did not write: give a new or empty folder for the clip bundle")
+        old = fresh_sibling(out_dir, "old")
+        frames.rename(old / FRAMES)
+        shutil.rmtree(old, ignore_errors=True)
+    (out_dir / RECORD).unlink(missing_ok=True)
+
+
+def _finished(frames: Path, index: int) -> ClipFrameEntry | None:
+    """Frame ``index``'s record when the frame is whole (its record ours, its bundle whole), else None."""
+    record = frames / f"{frame_name(index)}.json"
+    if not file_is_ours(record):
+        return None
+    try:
+        entry = read_frame_entry(record)
+    except InputError:
+        return None
+    if entry.index != index or (entry.state == "person" and not written_here(frames / frame_name(index))):
+        return None
+    return entry
+
+
+def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int) -> None:
+    """Refuse, in one line, a clip whose bundle would not fit on the disk."""
+    fw, fh = output_frame((info.width, info.height), max_size)
+    need = (FRAME_MB[0] + FRAME_MB[1] * fw * fh / 1e6) * 1e6 * frames
+    free = shutil.disk_usage(out_dir.parent if not out_dir.exists() else out_dir).free
+    if need > free:
+        raise InputError(path, f"its clip bundle ({frames} frames at {fw}x{fh}) would need about {need / 1e9:.1f} GB of disk, "
+                               f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
+
+
+def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
+               max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None) -> dict:
+    """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
+    ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
+    the header's estimate). Frames already finished by an earlier run of the same clip and options
+    are kept."""
+    from viewer.gl import create_headless_context
+
+    check_range(clip_path, start, end)
+    out_dir = clip_target(out_dir)
+    info = probe_clip(clip_path)
+    options = clip_options(start, end, size, max_size)
+    digest = clip_digest(clip_path)
+    key = clip_key(digest, options, inference_version())
+    total = expected_frames(info, start, end)
+    record = {"format": FORMAT, "version": VERSION, "source": {**info.to_json(), "path": str(Path(clip_path).resolve()),
+                                                               "sha256": digest},
+              "options": options, "key": key, "temporal": "off", "complete": False, MARK[0]: MARK[1]}
+    if (out_dir / RECORD).is_file():
+        try:
+            earlier = read_record(out_dir)
+        except InputError:
+            earlier = {}
+        if earlier.get("key") != key:
+            _start_over(out_dir)
+    frames_dir = out_dir / FRAMES
+    frames_dir.mkdir(parents=True, exist_ok=True)
+    _check_disk(clip_path, info, max_size, out_dir, total)
+    write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
+    own_ctx = ctx is None
+    ctx = create_headless_context() if own_ctx else ctx
+    nets = None
+    counts = {"person": 0, "no person": 0, "lost": 0}
+    first_at = 0.0
+    kept = 0
+    t0 = time.perf_counter()
+    count = 0
+    try:
+        for frame in clip_frames(clip_path, start, end):
+            count, first_at = frame.index + 1, frame.at
+            entry = _finished(frames_dir, frame.index)
+            if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4:
+                kept += 1
+            else:
+                entry = None
+            if entry is None:
+                label = f"{clip_path} at {frame.seconds + start:.3f} s"
+                if frame.rgb is None:
+                    entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown")
+                else:
+                    nets = nets if nets is not None else (networks or load_networks(device))
+                    try:
+                        result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=nets,
+                                             ctx=ctx, picture=frame.rgb)
+                    except NoPersonError as exc:  # the frame as it is: what a photo background shows there
+                        write_png(frames_dir / f"{frame_name(frame.index)}.png",
+                                  resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)))
+                        entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem)
+                    else:
+                        result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": key}
+                        write_bundle(result, frames_dir / frame_name(frame.index))
+                        entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]))
+                write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
+            counts[entry.state] += 1
+            if progress is not None:
+                progress(count, max(total, count), entry)
+    finally:
+        if own_ctx:
+            ctx.release()
+    if counts["person"] == 0:
+        raise NoPersonError(clip_path, f"no person found in any of its {count} frames")
+    record.update(complete=True, frames=count, first_frame_at=round(first_at, 6), states=counts, frames_kept_from_earlier_run=kept,
+                  seconds=round(time.perf_counter() - t0, 3))
+    write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
+    return record

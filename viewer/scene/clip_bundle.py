@@ -1,0 +1,124 @@
+"""The clip bundle: what ``relight infer CLIP`` writes, one scene bundle per frame (docs/scene-bundle.md).
+
+=========================  ====================================================================
+clip.json                  {"format": "relight-clip", "version": 1, "source": the clip (path,
+                           SHA-256 of its bytes, size, rotation, rate, frames, audio codec),
+                           "options": the range and sizes it was inferred with, "key": what
+                           those hash to, "temporal": "off"; once every frame is in, "complete":
+                           true, "frames" (the count), "states" (frames per state) and
+                           "first_frame_at" (the first frame's time on the clip's clock, which
+                           its audio shares)}
+frames/NNNNNN.json         frame N (from 0, in time order): "seconds" from the first frame, and
+                           "state": "person" (its scene bundle beside it), "no person" (the new
+                           background alone is shown) or "lost" (a damaged packet: the frame
+                           before it is shown)
+frames/NNNNNN/             frame N's scene bundle, exactly as ``relight infer`` writes a photo's
+frames/NNNNNN.png          a frame with no person: the frame itself at the output size (what a
+                           ``--background photo`` shows there)
+=========================  ====================================================================
+
+Each frame's bundle and record are written whole or not at all, the record after the bundle, so
+a run that stops keeps every frame it finished (:mod:`viewer.photo.clip_inference` goes on from
+there). Reading a clip bundle lists its frames; a frame's scene is loaded when it is needed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from viewer.errors import InputError
+from viewer.files.imageio import MARK, read_json
+
+FORMAT = "relight-clip"
+VERSION = 1
+RECORD = "clip.json"
+FRAMES = "frames"
+STATES = ("person", "no person", "lost")
+
+
+def frame_name(index: int) -> str:
+    return f"{index:06d}"
+
+
+@dataclass(frozen=True)
+class ClipFrameEntry:
+    """One frame of a clip bundle: its ``index``, time in ``seconds`` and ``state`` (``STATES``)."""
+
+    index: int
+    seconds: float
+    state: str
+    note: str = ""
+
+    def to_json(self) -> dict:
+        return {"index": self.index, "seconds": round(self.seconds, 6), "state": self.state, "note": self.note, MARK[0]: MARK[1]}
+
+
+@dataclass(frozen=True)
+class ClipBundle:
+    """A whole clip bundle: its folder, its record (``clip.json``) and its frames in time order."""
+
+    path: Path
+    record: dict
+    frames: tuple[ClipFrameEntry, ...]
+
+    def scene_path(self, index: int) -> Path:
+        return self.path / FRAMES / frame_name(index)
+
+    @property
+    def source(self) -> dict:
+        return self.record["source"]
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first frame to the end of the last (one frame interval past its start)."""
+        fps = float(self.source.get("fps") or 30.0)
+        return (self.frames[-1].seconds if self.frames else 0.0) + 1.0 / fps
+
+
+def is_clip_bundle(path) -> bool:
+    return (Path(path) / RECORD).is_file()
+
+
+def read_record(path) -> dict:
+    """``clip.json`` of the clip bundle at ``path``, checked."""
+    record_path = Path(path) / RECORD
+    record = read_json(record_path, "clip bundle record")
+    if not isinstance(record, dict) or record.get("format") != FORMAT:
+        raise InputError(record_path, f"not a clip bundle record (format {FORMAT!r} expected)")
+    if not isinstance(record.get("version"), int) or record["version"] > VERSION:
+        raise InputError(record_path, f"version {record.get('version')!r} is not one this program reads (up to {VERSION})")
+    if not isinstance(record.get("source"), dict):
+        raise InputError(record_path, "has no source clip")
+    return record
+
+
+def read_frame_entry(path: Path) -> ClipFrameEntry:
+    data = read_json(path, "clip frame record")
+    try:
+        entry = ClipFrameEntry(int(data["index"]), float(data["seconds"]), str(data["state"]), str(data.get("note", "")))
+    except (KeyError, TypeError, ValueError):
+        raise InputError(path, "is not a clip frame record (index, seconds, state)") from None
+    if entry.state not in STATES:
+        raise InputError(path, f"state must be one of {', '.join(STATES)}, got {entry.state!r}")
+    return entry
+
+
+def load_clip_bundle(path) -> ClipBundle:
+    """The clip bundle at ``path``; one line when it is not one, or not complete (a run that
+    stopped: run ``relight infer`` again to finish it)."""
+    path = Path(path)
+    record = read_record(path)
+    if not record.get("complete"):
+        raise InputError(path, "is a clip bundle not finished yet (its inference stopped): run the same `relight infer` "
+                               "again to go on from its last frame")
+    count = int(record.get("frames", 0))
+    frames = tuple(read_frame_entry(path / FRAMES / f"{frame_name(i)}.json") for i in range(count))
+    for i, entry in enumerate(frames):
+        if entry.index != i:
+            raise InputError(path / FRAMES / f"{frame_name(i)}.json", f"holds frame {entry.index}, expected {i}")
+        if entry.state == "person" and not (path / FRAMES / frame_name(i) / "scene.json").is_file():
+            raise InputError(path / FRAMES / frame_name(i), "missing: the frame's scene bundle")
+    if not any(e.state == "person" for e in frames):
+        raise InputError(path, "no frame of the clip shows a person to relight")
+    return ClipBundle(path, record, frames)
