@@ -165,6 +165,19 @@ def cmd_bench(args) -> int:
         from viewer.lab.bench.light_sizes import run_light_sizes_benchmark
 
         run_light_sizes_benchmark(shared_folder(args.maps, "hdri", "--maps"), output=output)
+    elif args.what == "video":
+        from viewer.files.clip_reader import VIDEO_SUFFIXES
+        from viewer.lab.bench.video import run_video_benchmark
+
+        clips = []
+        for given in args.clips or [shared_folder(None, "videos", "--clips")]:
+            given = Path(given)
+            clips += sorted(p for p in given.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES) if given.is_dir() else [given]
+        maps = [Path(m) for m in args.env] if args.env else [shared_folder(args.maps, "hdri", "--maps") / f"{m}_1k.hdr"
+                                                             for m in ("potsdamer_platz", "rooitou_park")]
+        out = Path(args.output or "out/bench-video/video.json")
+        run_video_benchmark(clips, maps, out.parent, args.start, args.end, args.max_size, output=out)
+        print(f"wrote {out}")
     elif args.what == "temporal":
         from viewer.lab.bench.temporal import run_temporal_benchmark
 
@@ -314,7 +327,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
-                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch"),
+                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -330,7 +343,13 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "against the hand-made masks (--photos), every step and matting solver, quality and time; upsample: "
                         "the work shading brought to the frame (bilinear) against a work frame as large as the frame; "
                         "batch: relight batch's throughput on --count photos made from --photos x three of --maps, "
-                        "with one worker, two and a local Ray cluster")
+                        "with one worker, two and a local Ray cluster; video: clips (--clips) relit under --env maps: warping "
+                        "error against the input's, frames a minute, stages, peak memory")
+    p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
+    p.add_argument("--env", nargs="+", help="video: maps to relight under (default potsdamer_platz and rooitou_park of --maps)")
+    p.add_argument("--start", type=float, default=0.0, help="video: seconds into each clip to start at (default 0)")
+    p.add_argument("--end", type=float, default=2.0, help="video: seconds into each clip to stop at (default 2)")
+    p.add_argument("--max-size", type=int, default=2048, help="video: the frames' longer side at most (default 2048)")
     p.add_argument("--count", type=int, default=20, help="batch: distinct photos (default 20)")
     p.add_argument("--photos", help="photos, matte, upsample: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")

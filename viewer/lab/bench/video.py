@@ -1,0 +1,229 @@
+"""``relight bench video``: a filmed person relit, measured (issue 46; docs/video.md).
+
+For every clip of the folders given, a part of it (``--end`` seconds, default 2) is inferred into a
+clip bundle and relit under each map, as ``relight render CLIP`` does, in a child process of its own
+(its peak memory is the clip's alone). Reported per clip:
+
+- the **warping error** (Lai et al. 2018, "Learning Blind Video Temporal Consistency"): optical
+  flow (OpenCV's DIS, medium preset) computed on the *input* frames, resized to the output's size,
+  from frame t to t-1; pixels failing a forward-backward check (the two flows disagree by more than
+  ``CONSISTENT`` pixels plus ``CONSISTENT_SCALE`` of their length) are left out; the mean over t of
+  the mean over kept pixels of the squared RGB distance (summed over channels, values in [0, 1])
+  between output frame t and output frame t-1 warped by that flow. Reported for the input clip
+  itself, and for each relit clip (``--temporal off``: every frame relit as a photo is);
+- throughput end to end (decode to relit MP4), frames a minute, with the stages' shares (each
+  frame's inference stages from its bundle's record; the render);
+- the child's peak resident memory.
+The shared clips are evaluation only: their figures go in the docs, their frames never.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer.files.imageio import write_text
+
+CONSISTENT = 1.0  # pixels: a forward-backward flow mismatch beyond this (plus the share below) is an occlusion
+CONSISTENT_SCALE = 0.05  # of the two flows' length
+DEFAULT_SECONDS = 2.0
+
+
+def dis_flow():
+    import cv2
+
+    return cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+
+
+def _grey(rgb: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+
+
+def _warp(image: np.ndarray, flow: np.ndarray) -> np.ndarray:
+    """``image`` sampled at x + flow(x) (bilinear, edges replicated)."""
+    import cv2
+
+    h, w = flow.shape[:2]
+    xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    return cv2.remap(image, xs + flow[..., 0], ys + flow[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def backward_flow(flow_engine, current: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(flow from ``current`` to ``previous`` (H, W, 2), the pixels it holds for (bool)), grey uint8
+    frames; held = the forward-backward check passes and the flow lands inside the frame."""
+    back = flow_engine.calc(current, previous, None)
+    forth = flow_engine.calc(previous, current, None)
+    mismatch = np.linalg.norm(back + _warp(forth, back), axis=2)
+    length = np.linalg.norm(back, axis=2) + np.linalg.norm(_warp(forth, back), axis=2)
+    h, w = current.shape
+    xs, ys = np.meshgrid(np.arange(w), np.arange(h))
+    inside = (xs + back[..., 0] >= 0) & (xs + back[..., 0] <= w - 1) & (ys + back[..., 1] >= 0) & (ys + back[..., 1] <= h - 1)
+    return back, (mismatch <= CONSISTENT + CONSISTENT_SCALE * length) & inside
+
+
+class WarpingError:
+    """The warping error of several outputs of one input clip, fed frame by frame (:meth:`add`):
+    the flow is computed once per frame on the input, each output is judged by it."""
+
+    def __init__(self, names):
+        self.flow = dis_flow()
+        self.names = list(names)
+        self.sums = {n: [] for n in self.names}
+        self._previous = None
+
+    def add(self, source: np.ndarray, outputs: dict) -> None:
+        """``source``: the input frame at the outputs' size (uint8 RGB); ``outputs``: name -> uint8 RGB."""
+        grey = _grey(source)
+        frames = {n: outputs[n].astype(np.float32) / 255.0 for n in self.names}
+        if self._previous is not None:
+            previous_grey, previous = self._previous
+            back, held = backward_flow(self.flow, grey, previous_grey)
+            if held.any():
+                for n in self.names:
+                    diff = ((frames[n] - _warp(previous[n], back)) ** 2).sum(axis=2)
+                    self.sums[n].append(float(diff[held].mean()))
+        self._previous = (grey, frames)
+
+    def result(self) -> dict:
+        return {n: float(np.mean(v)) if v else float("nan") for n, v in self.sums.items()}
+
+
+def _video_frames(path):
+    import av
+
+    from viewer.files.imageio import ffmpeg_file
+
+    with av.open(ffmpeg_file(path)) as c:
+        for frame in c.decode(video=0):
+            yield frame.to_ndarray(format="rgb24")
+
+
+def clip_warping_errors(clip, start: float, end: float, relit: dict) -> dict:
+    """Warping errors of the input clip (``start`` to ``end`` seconds) and of each relit MP4
+    (name -> path), the input resized to the relit size; frames lost in the input are left out
+    of the pairs they are in."""
+    from viewer.files.clip_reader import clip_frames
+    from viewer.resize import resize
+
+    names = ["input", *relit]
+    meter = WarpingError(names)
+    readers = {n: _video_frames(p) for n, p in relit.items()}
+    for frame in clip_frames(clip, start, end):
+        outs = {n: next(r) for n, r in readers.items()}
+        if frame.rgb is None:
+            meter._previous = None
+            continue
+        h, w = next(iter(outs.values())).shape[:2]
+        source = resize(frame.rgb, (w, h))
+        meter.add(source, {"input": source, **outs})
+    return meter.result()
+
+
+def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max_size: int, queue) -> None:
+    """The child process: infer and relight one clip, report its figures on ``queue``."""
+    import resource
+
+    try:
+        queue.put(_measure_clip(Path(clip), Path(out_dir), [Path(m) for m in maps], start, end, max_size)
+                  | {"peak_rss_gb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2 ** 20, 3)})
+    except BaseException as exc:  # noqa: BLE001 -- reported to the parent, which names the clip
+        queue.put({"error": f"{type(exc).__name__}: {exc}"})
+
+
+def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end: float, max_size: int) -> dict:
+    from viewer.cli.command_setup import fitted_lights
+    from viewer.gl import EngineOptions, create_headless_context
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.lightfit.methods import DEFAULT_METHOD
+    from viewer.lighting.map_lights import map_lights
+    from viewer.output.clip_render import render_clip
+    from viewer.photo.clip_inference import infer_clip
+    from viewer.photo.photo_frame import WORK_PERSON, output_frame
+    from viewer.scene.area_lights import facing_yaw
+    from viewer.scene.clip_bundle import load_clip_bundle
+    from viewer.scene.look import Look
+
+    bundle_dir = out_dir / "bundles" / clip.stem
+    t0 = time.perf_counter()
+    record = infer_clip(clip, bundle_dir, start, end, size=WORK_PERSON, max_size=max_size)
+    infer_seconds = time.perf_counter() - t0
+    bundle = load_clip_bundle(bundle_dir)
+    stages: dict[str, float] = {}
+    for entry in bundle.frames:
+        if entry.state == "person":
+            for k, v in json.loads((bundle.scene_path(entry.index) / "inference.json").read_text())["seconds"].items():
+                stages[k] = stages.get(k, 0.0) + v
+    ctx = create_headless_context()
+    relit, render_seconds = {}, {}
+    try:
+        for m in maps:
+            env = load_envmap(m)
+            lights, _ = map_lights(env, m, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))
+            look = Look(yaw=facing_yaw(lights))
+            out = out_dir / f"{clip.stem}_{m.stem}_off.mp4"
+            out.unlink(missing_ok=True)
+            t1 = time.perf_counter()
+            render_clip(ctx, bundle, lights, look, out, env.pixels, None, EngineOptions())
+            render_seconds[m.stem] = time.perf_counter() - t1
+            relit[m.stem] = out
+    finally:
+        ctx.release()
+    errors = clip_warping_errors(clip, start, end, relit)
+    n = record["frames"]
+    kept = record["frames_kept_from_earlier_run"]
+    first_map = maps[0].stem
+    size = output_frame((bundle.source["width"], bundle.source["height"]), max_size)
+    return {"clip": clip.name, "frames": n, "size": list(size), "fps": bundle.source["fps"],
+            "states": record["states"], "infer_seconds": round(infer_seconds, 2), "frames_kept": kept,
+            "render_seconds": {k: round(v, 2) for k, v in render_seconds.items()},
+            "stage_seconds_per_frame": {k: round(v / max(record["states"]["person"], 1), 3) for k, v in stages.items()},
+            "frames_per_minute": round(60 * n / max(infer_seconds + render_seconds[first_map], 1e-9), 2) if not kept else None,
+            "warping_error": {k: round(v, 6) for k, v in errors.items()},
+            "ratio_to_input": {k: round(v / max(errors["input"], 1e-12), 3) for k, v in errors.items() if k != "input"}}
+
+
+def run_video_benchmark(clips: list[Path], maps: list[Path], out_dir, start: float = 0.0, end: float = DEFAULT_SECONDS,
+                        max_size: int = 2048, output=None) -> dict:
+    """Every clip measured in a child process of its own (sequentially: the machine's cores are the
+    clip's), figures to ``output`` (JSON) as each clip ends."""
+    import multiprocessing
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    output = Path(output) if output is not None else out_dir / "video.json"
+    result = {"clips": [], "maps": [m.stem for m in maps], "start": start, "end": end, "max_size": max_size,
+              "method": "frame by frame (--temporal off)", "machine": _machine()}
+    spawn = multiprocessing.get_context("spawn")
+    for clip in clips:
+        queue = spawn.Queue()
+        child = spawn.Process(target=_one_clip, args=(str(clip), str(out_dir), [str(m) for m in maps], start, end, max_size,
+                                                      queue))
+        child.start()
+        figures = queue.get()
+        child.join()
+        figures.setdefault("clip", clip.name)
+        result["clips"].append(figures)
+        print(_line(figures), flush=True)
+        write_text(output, json.dumps(result, indent=1) + "\n")
+    return result
+
+
+def _machine() -> dict:
+    import os
+    import platform
+
+    return {"cpus": os.cpu_count(), "load": [round(x, 2) for x in os.getloadavg()], "python": platform.python_version()}
+
+
+def _line(f: dict) -> str:
+    if "error" in f:
+        return f"{f['clip']}: failed: {f['error']}"
+    ratios = ", ".join(f"{k} {v:.2f}x" for k, v in f["ratio_to_input"].items())
+    rate = f"{f['frames_per_minute']:.1f} frames a minute" if f["frames_per_minute"] else "bundle reused"
+    return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; warping error input {f['warping_error']['input']:.5f}, "
+            f"relit frame by frame {ratios} of it; {rate}; peak {f['peak_rss_gb']:.2f} GB")
