@@ -192,12 +192,13 @@ def test_bad_clips_are_one_line(tmp_path):
 # --- the clip bundle and the relit clip -----------------------------------------------------------
 @pytest.fixture(scope="module")
 def clip_with_everything(tmp_path_factory):
-    """Four frames at 10 fps with a tone: the person, a damaged packet, an empty wall, the person."""
+    """Five frames at 10 fps with a tone: the person, a damaged packet, an empty wall (a cut), the
+    person twice (one shot)."""
     import av
 
     folder = tmp_path_factory.mktemp("clip")
-    people = person_frames(3)
-    clip = write_clip(folder / "walk.mp4", [people[0], people[1], blank_frame(), people[2]], gop=1)
+    people = person_frames(4)
+    clip = write_clip(folder / "walk.mp4", [people[0], people[1], blank_frame(), people[2], people[3]], gop=1)
     with av.open(str(clip)) as c:
         pos, size = [(p.pos, p.size) for p in c.demux(video=0) if p.size][1]
     data = bytearray(clip.read_bytes())
@@ -222,22 +223,31 @@ def test_a_clip_bundle_holds_every_frame_and_resumes(clip_bundle, clip_with_ever
     from viewer.scene.clip_bundle import load_clip_bundle
 
     out, record = clip_bundle
-    assert record["complete"] and record["frames"] == 4 and record["temporal"] == "off"
-    assert record["states"] == {"person": 2, "no person": 1, "lost": 1}
+    assert record["complete"] and record["frames"] == 5 and record["temporal"] == "on"
+    assert record["states"] == {"person": 3, "no person": 1, "lost": 1}
     bundle = load_clip_bundle(out)
-    assert [e.state for e in bundle.frames] == ["person", "lost", "no person", "person"]
-    assert [round(e.seconds, 3) for e in bundle.frames] == [0.0, 0.1, 0.2, 0.3]
+    assert [e.state for e in bundle.frames] == ["person", "lost", "no person", "person", "person"]
+    assert [round(e.seconds, 3) for e in bundle.frames] == [0.0, 0.1, 0.2, 0.3, 0.4]
+    assert [e.shot for e in bundle.frames] == [0, 0, 1, 2, 2] and record["shots"] == 3  # the wall is a cut, each way
     scene = load_scene(bundle.scene_path(3))
     assert scene.output_size == (320, 480) and scene.frame.alpha.mean() > 0.05
-    inference = json.loads((bundle.scene_path(3) / "inference.json").read_text())
-    assert inference["clip"]["index"] == 3 and inference["photo"].endswith("walk.mp4 at 0.300 s")
+    inference = json.loads((bundle.scene_path(4) / "inference.json").read_text())
+    assert inference["clip"]["index"] == 4 and inference["photo"].endswith("walk.mp4 at 0.400 s")
+    # one light per shot: frame 4 was given the light fitted on frame 3
+    lights = [json.loads((bundle.scene_path(i) / "lights.json").read_text())["lights"] for i in (0, 3, 4)]
+    assert lights[2] == lights[1] and lights[1] != lights[0] and "given" in inference["photo_lighting"]
 
-    # a run that stopped before frame 3's record: the same command keeps the others and does frame 3
-    (out / "frames" / "000003.json").unlink()
+    # a run that stopped before frame 4's record: the same command keeps the others and does frame
+    # 4 again, given its shot's light from frame 3's bundle
+    (out / "frames" / "000004.json").unlink()
     with pytest.warns(UserWarning, match="damaged packet"):
         again = infer_clip(clip_with_everything, out)
-    assert again["frames_kept_from_earlier_run"] == 3 and again["states"] == record["states"]
+    assert again["frames_kept_from_earlier_run"] == 4 and again["states"] == record["states"]
     assert load_clip_bundle(out).frames == bundle.frames
+    assert json.loads((bundle.scene_path(4) / "lights.json").read_text())["lights"] == lights[1]
+    # --temporal off: every frame its own estimates, as a photo
+    off = infer_clip(clip_with_everything, out.parent / "off", end=0.05, temporal="off")
+    assert off["temporal"] == "off" and off["frames"] == 1 and off["shots"] is None
     # a folder with the user's files in it is not a place for a clip bundle
     mine = out.parent / "mine"
     mine.mkdir()
@@ -260,14 +270,15 @@ def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_eve
     bundle = load_clip_bundle(clip_bundle[0])
     env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
     lights = load_lights(asset_dir() / "envmaps/immenstadter_horn_256.lights.json")
-    look = Look(yaw=180.0)
+    look = Look(yaw=180.0, exposure="auto")
     pictures = clip_render.ClipPictures(ctx, bundle, lights, look, env.pixels, None, EngineOptions())
     try:
-        frames = [pictures.picture(i).astype(np.float32) for i in range(4)]
+        frames = [pictures.picture(i).astype(np.float32) for i in range(5)]
         alpha = pictures._load(0).frame.alpha
     finally:
         pictures.release()
     assert np.array_equal(frames[1], frames[0])  # lost: the frame before
+    assert set(pictures._exposures) == {0, 2}  # one exposure per shot with a person
     import cv2
 
     near = cv2.dilate((alpha > 0.02).astype(np.uint8), np.ones((41, 41), np.uint8)) > 0
@@ -298,8 +309,8 @@ def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_eve
     assert not clip_render.parts_folder(out).exists()
     video, times, audio = decoded(out)
     source_audio = audio_times(clip_with_everything)
-    assert len(video) == 4 and np.allclose(times, [0.0, 0.1, 0.2, 0.3], atol=1e-3)
-    assert audio and len(audio) >= len(source_audio) - 2 and max(audio) < 0.4
+    assert len(video) == 5 and np.allclose(times, [0.0, 0.1, 0.2, 0.3, 0.4], atol=1e-3)
+    assert audio and len(audio) >= len(source_audio) - 2 and max(audio) < 0.5
     assert all(np.abs(v.astype(np.float32) - f).mean() < 3.0 for v, f in zip(video, frames, strict=True))
 
 
@@ -331,15 +342,17 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
     env = str(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
     res = run_cli("render", str(clip_bundle[0]), "--env", env, "-o", str(out), "--turn", "90")
     assert res.returncode == 0, res.stderr
-    assert f"wrote {out} (4 frames, 320x480" in res.stdout
+    assert f"wrote {out} (5 frames, 320x480" in res.stdout
     frames, times, audio = decoded(out)
-    assert len(frames) == 4 and audio
-    assert np.abs(frames[3].astype(float) - frames[0].astype(float)).mean() > 3  # the map turned
+    assert len(frames) == 5 and audio
+    assert np.abs(frames[4].astype(float) - frames[0].astype(float)).mean() > 3  # the map turned
     for args, message in (
         (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "a.png")), "give a .mp4 output path"),
         (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "b.mp4"), "--frames", "10"),
          "a clip keeps its own frames"),
         (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "c.mp4"), "--end", "0.2"),
+         "give the clip itself"),
+        (("render", str(clip_bundle[0]), "--env", env, "-o", str(tmp_path / "c.mp4"), "--temporal", "off"),
          "give the clip itself"),
         (("infer", str(asset_dir() / "photos/underpass.jpg"), "-o", str(tmp_path / "d"), "--start", "1"),
          "choose a part of a clip: this is not one"),
@@ -349,3 +362,19 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
         assert res.returncode == 2 and message in res.stderr, (args, res.stderr)
         assert "Traceback" not in res.stderr
     shutil.rmtree(tmp_path / "d", ignore_errors=True)
+
+
+def test_shots_cut_where_the_picture_changes():
+    """A person moving and the camera panning stay one shot; another place is a new one; a lost
+    frame stays in the shot before it."""
+    from viewer.photo.shots import ShotCuts
+
+    people = person_frames(3)
+    rng = np.random.default_rng(0)
+    elsewhere = np.clip(rng.normal((40, 120, 60), 25, (480, 320, 3)), 0, 255).astype(np.uint8)  # a green field
+    cuts = ShotCuts()
+    assert [cuts.shot_of(f) for f in (people[0], people[1], None, people[2], elsewhere, elsewhere[:, ::-1])] == [0, 0, 0, 0, 1, 1]
+    brighter = np.clip(people[2].astype(np.int32) + 25, 0, 255).astype(np.uint8)  # a light comes on: not a cut
+    assert ShotCuts().shot_of(people[2]) == 0
+    cuts = ShotCuts()
+    assert [cuts.shot_of(f) for f in (people[2], brighter)] == [0, 0]

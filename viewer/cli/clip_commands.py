@@ -33,8 +33,9 @@ def clip_bundle(clip, args, out=None) -> Path:
 
     size = getattr(args, "size", None) or WORK_PERSON
     max_size = getattr(args, "max_size", None) or MAX_SIZE
+    temporal = args.temporal or "on"
     target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
-                                                                size, max_size)
+                                                                size, max_size, temporal)
     t0 = time.perf_counter()
     with _bar(0, f"inferring {Path(clip).name}") as bar:
         def progress(done, total, entry):
@@ -42,12 +43,13 @@ def clip_bundle(clip, args, out=None) -> Path:
             bar.update(done - bar.n)
 
         record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size, device=getattr(args, "device", "cpu"),
-                            progress=progress)
+                            progress=progress, temporal=temporal)
     kept, states = record["frames_kept_from_earlier_run"], record["states"]
     seconds = time.perf_counter() - t0
+    rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
+    shots = f", {record['shots']} shot{'s' if record['shots'] != 1 else ''}" if record.get("shots") else ", frame by frame"
     print(f"clip bundle of {clip}: {target} ({record['frames']} frames: {states['person']} with the person, "
-          f"{states['no person']} without, {states['lost']} lost; {kept} kept from an earlier run; {seconds:.1f} s, "
-          f"{60 * max(record['frames'] - kept, 0) / max(seconds, 1e-9):.1f} frames a minute)")
+          f"{states['no person']} without, {states['lost']} lost{shots}; {kept} kept from an earlier run; {seconds:.1f} s{rate})")
     return target
 
 
@@ -82,8 +84,8 @@ def cmd_render_clip(args, look) -> int:
     if look.background == "transparent":
         raise InputError(out, "an MP4 (H.264) holds no transparency: give the video another --background")
     writable(out)
-    if not is_clip(args.scene) and (args.start != 0.0 or args.end is not None):
-        raise InputError(args.scene, "--start and --end choose the part of a clip to infer: give the clip itself, "
+    if not is_clip(args.scene) and (args.start != 0.0 or args.end is not None or args.temporal is not None):
+        raise InputError(args.scene, "--start, --end and --temporal choose how a clip is inferred: give the clip itself, "
                                      "or infer its bundle with them")
     source = args.scene if is_clip(args.scene) else read_record(args.scene)["source"]["path"]
     sidecar = audio_sidecar(out, source)

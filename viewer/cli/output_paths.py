@@ -91,6 +91,8 @@ def not_a_clip_range(args, given) -> None:
     """Refuse --start / --end for what is not a clip (they would be silently ignored)."""
     if getattr(args, "start", 0.0) != 0.0 or getattr(args, "end", None) is not None:
         raise InputError(given, "--start and --end choose a part of a clip: this is not one")
+    if getattr(args, "temporal", None) is not None:
+        raise InputError(given, "--temporal is for a clip: this is not one")
 
 
 def check_fps(args):

@@ -94,3 +94,5 @@ def add_clip_range_args(p) -> None:
     """--start and --end: the part of a clip to work on, seconds."""
     p.add_argument("--start", type=float, default=0.0, help="a clip: seconds from its start to begin at (default 0)")
     p.add_argument("--end", type=float, help="a clip: seconds from its start to stop at (default: its end)")
+    p.add_argument("--temporal", choices=("on", "off"), help="a clip: on (default) estimates the photo's lighting and the "
+                   "exposure once per shot; off relights every frame exactly as a photo (its own estimates), for comparison")

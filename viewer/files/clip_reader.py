@@ -204,6 +204,8 @@ def clip_frames(path, start: float = 0.0, end: float | None = None, limit: int =
                 try:
                     frames = packet.decode()
                 except av.FFmpegError as exc:
+                    if t is not None and (t < start - 1e-6 or (end is not None and t >= end - 1e-9)):
+                        continue  # outside the part asked for: no frame of it is lost
                     when = f"{t:.3f} s" if t is not None else "an unknown time"
                     warnings.warn(f"{path}: a damaged packet at {when} did not decode ({_reason(exc)}): that frame is "
                                   "lost, the frame before it is shown in its place", stacklevel=2)

@@ -2,7 +2,8 @@
 
 Every output frame is a function of its index alone (:class:`ClipPictures`): a frame with a
 person is its scene bundle rendered under the look (the map turned by ``turn`` degrees over the
-clip, in proportion to the frame's time; each frame's own automatic exposure, as a photo's); a
+clip, in proportion to the frame's time; the automatic exposure resolved once per shot on its first
+frame with a person, or, for a clip inferred frame by frame, each frame's own, as a photo's); a
 frame where no person was found shows the new background alone (as the nearest frame with a
 person sees it, with no person and no shadow), or the frame itself under ``--background photo``;
 a frame lost to a damaged packet shows the frame before it. So a run that stops and starts again
@@ -32,7 +33,7 @@ from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
-from viewer.scene.look import Look
+from viewer.scene.look import AUTO, Look
 from viewer.scene.resampling import load_sized_scene
 
 PART_SECONDS = 2.0  # of the clip in each part: what a stopped run may have to render again
@@ -48,6 +49,7 @@ class ClipPictures:
         self.ctx, self.bundle, self.lights, self.look, self.sizes = ctx, bundle, lights, look, sizes
         self.environment, self.fixed, self.options, self.turn = environment, fixed, options, turn
         self._engine = None  # (frame index, Engine, Scene)
+        self._exposures: dict[int, float] = {}  # shot -> its exposure (a clip inferred as one)
         self._warned = False
         self.size = self._load(self._people[0]).output_size
 
@@ -75,8 +77,21 @@ class ClipPictures:
                 return j
         raise InputError(self.bundle.path, "no frame of the clip to show")  # load_clip_bundle refuses such a bundle
 
-    def _render(self, index: int, yaw: float):
-        """Frame ``index`` (a person's) rendered at ``yaw``: its engine, after the render."""
+    def _look(self, index: int, person: int) -> Look:
+        """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
+        the shot of frame ``person`` (a person's), resolved once on that shot's first frame with a person."""
+        look = replace(self.look, yaw=self.yaw(index))
+        if self.look.exposure != AUTO or not self.bundle.temporal:
+            return look
+        shot = self.bundle.frames[person].shot
+        if shot not in self._exposures:
+            first = next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
+            self._exposures[shot] = self._render(first, replace(self.look, yaw=self.yaw(first)))[1].exposure
+        return replace(look, exposure=self._exposures[shot])
+
+    def _render(self, index: int, look: Look):
+        """Frame ``index`` (a person's) rendered with ``look``: (its engine after the render, the look
+        with its exposure resolved)."""
         from viewer.gl import Engine
 
         if self._engine is None or self._engine[0] != index:
@@ -87,24 +102,25 @@ class ClipPictures:
                                                                 f"the clip's {self.size[0]}x{self.size[1]}")
             self._engine = (index, Engine(self.ctx, scene, self.options), scene)
         _, engine, scene = self._engine
-        settings, _ = render_look(engine, scene, self.lights, replace(self.look, yaw=yaw), self.environment, self.fixed)
+        settings, _ = render_look(engine, scene, self.lights, look, self.environment, self.fixed)
         if not self._warned:
             warn_if_unseen(engine, scene, settings, True)
             self._warned = True
-        return engine
+        return engine, settings
 
     def picture(self, index: int) -> np.ndarray:
         """(H, W, 3) uint8: output frame ``index``."""
         index = self._nearest(index)
         entry = self.bundle.frames[index]
         if entry.state == "person":
-            return self._render(index, self.yaw(index)).output.read_display()
+            return self._render(index, self._look(index, index))[0].output.read_display()
         if self.look.background == "photo":  # the frame itself: there is no one in it to relight
             from viewer.resize import resize
 
             photo = read_png(self.bundle.path / FRAMES / f"{frame_name(index)}.png")[..., :3]
             return resize((photo * 255.0 + 0.5).astype(np.uint8), self.size)
-        return self._render(self._nearest(index, "person"), self.yaw(index)).output.read_background_display()
+        person = self._nearest(index, "person")
+        return self._render(person, self._look(index, person))[0].output.read_background_display()
 
     def release(self):
         if self._engine is not None:

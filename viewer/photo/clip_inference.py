@@ -8,8 +8,11 @@ command run again goes on from the first frame not finished. A frame where no pe
 (the person left the picture) is recorded as such, and shows the new background alone when
 relit; a frame lost to a damaged packet is recorded as lost.
 
-Temporal coherence is not applied yet (``"temporal": "off"`` in the record): each frame has its own
-matte, maps, lighting estimate and exposure, exactly as ``relight infer`` makes a photo's bundle.
+``temporal`` "on" (the default): what belongs to the scene rather than the frame is estimated once
+per shot (:mod:`viewer.photo.shots` finds the cuts): the photo's own lighting is fitted on the
+shot's first frame with a person and kept for the shot's other frames (the relit clip's exposure is
+likewise resolved once per shot, :mod:`viewer.output.clip_render`). "off": every frame exactly as
+``relight infer`` makes a photo's bundle (its own lighting estimate and exposure), for comparison.
 """
 
 from __future__ import annotations
@@ -26,7 +29,9 @@ from viewer.files.imageio import MARK, write_png, write_text
 from viewer.files.ownership import file_is_ours, fresh_sibling, written_here
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
+from viewer.photo.shots import ShotCuts
 from viewer.resize import resize
+from viewer.scene.area_lights import load_lights
 from viewer.scene.clip_bundle import FORMAT, FRAMES, RECORD, VERSION, ClipFrameEntry, frame_name, read_frame_entry, read_record
 
 FRAME_MB = (1.5, 2.5)  # disk a frame's bundle takes: MB, plus MB per megapixel of its frame (measured 2.7 MB at 0.42 MP, 3.2 at 0.96)
@@ -37,14 +42,20 @@ def clip_key(digest: str, options: dict, version: str) -> str:
     return hashlib.sha256(f"{digest} {json.dumps(options, sort_keys=True)} {version}".encode()).hexdigest()
 
 
-def clip_options(start: float, end: float | None, size: int, max_size: int) -> dict:
+TEMPORAL = ("on", "off")
+
+
+def clip_options(start: float, end: float | None, size: int, max_size: int, temporal: str = "on") -> dict:
+    if temporal not in TEMPORAL:
+        raise InputError(None, f"--temporal must be on or off, got {temporal!r}")
     return {"start": float(start), "end": None if end is None else float(end), "size": int(size), "max_size": int(max_size),
-            "temporal": "off"}
+            "temporal": temporal}
 
 
-def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int) -> Path:
+def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int,
+                     temporal: str = "on") -> Path:
     """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``)."""
-    key = clip_key(clip_digest(clip_path), clip_options(start, end, size, max_size), inference_version())
+    key = clip_key(clip_digest(clip_path), clip_options(start, end, size, max_size, temporal), inference_version())
     return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
 
 
@@ -113,7 +124,8 @@ def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int)
 
 
 def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-               max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None) -> dict:
+               max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
+               temporal: str = "on") -> dict:
     """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
     ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
     the header's estimate). Frames already finished by an earlier run of the same clip and options
@@ -123,13 +135,13 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     check_range(clip_path, start, end)
     out_dir = clip_target(out_dir)
     info = probe_clip(clip_path)
-    options = clip_options(start, end, size, max_size)
+    options = clip_options(start, end, size, max_size, temporal)
     digest = clip_digest(clip_path)
     key = clip_key(digest, options, inference_version())
     total = expected_frames(info, start, end)
     record = {"format": FORMAT, "version": VERSION, "source": {**info.to_json(), "path": str(Path(clip_path).resolve()),
                                                                "sha256": digest},
-              "options": options, "key": key, "temporal": "off", "complete": False, MARK[0]: MARK[1]}
+              "options": options, "key": key, "temporal": temporal, "complete": False, MARK[0]: MARK[1]}
     if (out_dir / RECORD).is_file():
         try:
             earlier = read_record(out_dir)
@@ -146,34 +158,41 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     nets = None
     counts = {"person": 0, "no person": 0, "lost": 0}
     first_at = 0.0
+    cuts = ShotCuts()
+    shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept = 0
     t0 = time.perf_counter()
     count = 0
     try:
         for frame in clip_frames(clip_path, start, end):
             count, first_at = frame.index + 1, frame.at
+            shot = cuts.shot_of(frame.rgb) if temporal == "on" else frame.index
             entry = _finished(frames_dir, frame.index)
-            if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4:
+            if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot:
                 kept += 1
+                if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
+                    shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
             else:
                 entry = None
             if entry is None:
                 label = f"{clip_path} at {frame.seconds + start:.3f} s"
                 if frame.rgb is None:
-                    entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown")
+                    entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot)
                 else:
                     nets = nets if nets is not None else (networks or load_networks(device))
                     try:
                         result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=nets,
-                                             ctx=ctx, picture=frame.rgb)
+                                             ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot))
                     except NoPersonError as exc:  # the frame as it is: what a photo background shows there
                         write_png(frames_dir / f"{frame_name(frame.index)}.png",
                                   resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)))
-                        entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem)
+                        entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
                     else:
-                        result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": key}
+                        result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": key,
+                                                    "shot": shot}
                         write_bundle(result, frames_dir / frame_name(frame.index))
-                        entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]))
+                        entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
+                        shot_lights.setdefault(shot, result["lights"])
                 write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
             counts[entry.state] += 1
             if progress is not None:
@@ -184,6 +203,6 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     if counts["person"] == 0:
         raise NoPersonError(clip_path, f"no person found in any of its {count} frames")
     record.update(complete=True, frames=count, first_frame_at=round(first_at, 6), states=counts, frames_kept_from_earlier_run=kept,
-                  seconds=round(time.perf_counter() - t0, 3))
+                  shots=cuts.shot + 1 if temporal == "on" else None, seconds=round(time.perf_counter() - t0, 3))
     write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
     return record

@@ -501,7 +501,7 @@ def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record):
     return {"scene": scene, "face_record": face_record, "face_surface": face_surface, "gloss_record": gloss_record}
 
 
-def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface):
+def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface, given_lights):
     from viewer.photo.photo_lighting import fit_mask, fit_photo_lights, white_balanced
 
     # the photo at the maps' level of detail: one network pixel of low-pass
@@ -509,6 +509,9 @@ def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, 
     valid = fit_mask(scene, resize(frame_linear, sizes.work))
     if not valid.any():
         valid = work_mask
+    if given_lights is not None:  # a clip's shot: the light its first frame was fitted to (viewer.photo.clip_inference)
+        return {"lights": given_lights, "fit": {"lights": len(given_lights), "given": "the shot's, fitted on its first frame"},
+                "target": target, "valid": valid}
     lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
     lights, fit["white_balance_gains"] = white_balanced(lights)  # the camera balanced the photo's light
     return {"lights": lights, "fit": fit, "target": target, "valid": valid}
@@ -546,7 +549,7 @@ STAGE_LIST = (
     Stage("face", _face, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record"),
           ("scene", "face_record", "face_surface", "gloss_record")),
     Stage("fit the photo's lights", _fit_photo_lights, ("engine", "scene", "frame_linear", "sizes", "work_mask", "side_work",
-                                                        "face_surface"), ("lights", "fit", "target", "valid")),
+                                                        "face_surface", "given_lights"), ("lights", "fit", "target", "valid")),
     Stage("render the photo's shading", _photo_shading, ("engine", "lights", "fit", "target", "valid"),
           ("explained", "shading", "fit")),
     Stage("detail", _detail, ("scene", "frame_network_albedo", "shading", "framing", "matte", "detail"), ("scene", "detail_stats")),
@@ -557,7 +560,7 @@ STAGES = tuple(st.name for st in STAGE_LIST) + ("write",)  # what infer() report
 
 def run_stages(values: dict, stage, ctx=None) -> dict:
     """Run :data:`STAGE_LIST` over ``values`` (the given ones: photo_path, mask_path, size,
-    max_size, device, networks, detail, picture), reporting each to ``stage``; returns every value. Under
+    max_size, device, networks, detail, picture, given_lights), reporting each to ``stage``; returns every value. Under
     ``torch.no_grad`` (nothing here learns); the engine the two engine stages share is made over
     the scene before them and released after them, whatever happens."""
     import torch
@@ -589,19 +592,20 @@ def run_stages(values: dict, stage, ctx=None) -> dict:
 
 def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
-                keep_intermediate: bool = False, picture: np.ndarray | None = None) -> dict:
+                keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None) -> dict:
     """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
     (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
     network's maps and the photo's shading at the frame (for the benchmarks). The work is
     :data:`STAGE_LIST`, run by :func:`run_stages`. ``picture``: the photo's pixels already decoded
-    (H, W, 3) uint8 sRGB upright (a clip's frame), ``photo_path`` then only names it in messages."""
+    (H, W, 3) uint8 sRGB upright (a clip's frame), ``photo_path`` then only names it in messages;
+    ``lights``: the photo's own lights already known (a clip's shot), not fitted again."""
     import torch
 
     from viewer.scene.area_lights import AreaLights
 
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size, "device": device,
-                    "networks": networks, "detail": detail, "picture": picture}, stage, ctx)
+                    "networks": networks, "detail": detail, "picture": picture, "given_lights": lights}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
     direction, sigma, intensity = v["network_lights"]
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())

@@ -43,15 +43,18 @@ def frame_name(index: int) -> str:
 
 @dataclass(frozen=True)
 class ClipFrameEntry:
-    """One frame of a clip bundle: its ``index``, time in ``seconds`` and ``state`` (``STATES``)."""
+    """One frame of a clip bundle: its ``index``, time in ``seconds``, ``state`` (``STATES``) and
+    the ``shot`` it is in (0, 1, ... : what is estimated once per shot is estimated again after a cut)."""
 
     index: int
     seconds: float
     state: str
     note: str = ""
+    shot: int = 0
 
     def to_json(self) -> dict:
-        return {"index": self.index, "seconds": round(self.seconds, 6), "state": self.state, "note": self.note, MARK[0]: MARK[1]}
+        return {"index": self.index, "seconds": round(self.seconds, 6), "state": self.state, "note": self.note, "shot": self.shot,
+                MARK[0]: MARK[1]}
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,11 @@ class ClipBundle:
 
     def scene_path(self, index: int) -> Path:
         return self.path / FRAMES / frame_name(index)
+
+    @property
+    def temporal(self) -> bool:
+        """Whether the clip was inferred as a clip (one light and exposure per shot), not frame by frame."""
+        return self.record.get("temporal") == "on"
 
     @property
     def source(self) -> dict:
@@ -96,7 +104,8 @@ def read_record(path) -> dict:
 def read_frame_entry(path: Path) -> ClipFrameEntry:
     data = read_json(path, "clip frame record")
     try:
-        entry = ClipFrameEntry(int(data["index"]), float(data["seconds"]), str(data["state"]), str(data.get("note", "")))
+        entry = ClipFrameEntry(int(data["index"]), float(data["seconds"]), str(data["state"]), str(data.get("note", "")),
+                               int(data.get("shot", 0)))
     except (KeyError, TypeError, ValueError):
         raise InputError(path, "is not a clip frame record (index, seconds, state)") from None
     if entry.state not in STATES:

@@ -10,7 +10,8 @@ clip bundle and relit under each map, as ``relight render CLIP`` does, in a chil
   ``CONSISTENT`` pixels plus ``CONSISTENT_SCALE`` of their length) are left out; the mean over t of
   the mean over kept pixels of the squared RGB distance (summed over channels, values in [0, 1])
   between output frame t and output frame t-1 warped by that flow. Reported for the input clip
-  itself, and for each relit clip (``--temporal off``: every frame relit as a photo is);
+  itself, and for each relit clip, inferred both ways (``--temporal off``: every frame relit as a
+  photo is; on: the photo's lighting and the exposure estimated once per shot);
 - throughput end to end (decode to relit MP4), frames a minute, with the stages' shares (each
   frame's inference stages from its bundle's record; the render);
 - the child's peak resident memory.
@@ -136,6 +137,7 @@ def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max
 
 
 def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end: float, max_size: int) -> dict:
+    """One clip inferred both ways (``--temporal off`` and on) and relit under every map."""
     from viewer.cli.command_setup import fitted_lights
     from viewer.gl import EngineOptions, create_headless_context
     from viewer.lighting.envmap import load_envmap
@@ -146,45 +148,50 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
     from viewer.photo.photo_frame import WORK_PERSON, output_frame
     from viewer.scene.area_lights import facing_yaw
     from viewer.scene.clip_bundle import load_clip_bundle
-    from viewer.scene.look import Look
+    from viewer.scene.look import AUTO, Look
 
-    bundle_dir = out_dir / "bundles" / clip.stem
-    t0 = time.perf_counter()
-    record = infer_clip(clip, bundle_dir, start, end, size=WORK_PERSON, max_size=max_size)
-    infer_seconds = time.perf_counter() - t0
-    bundle = load_clip_bundle(bundle_dir)
-    stages: dict[str, float] = {}
-    for entry in bundle.frames:
-        if entry.state == "person":
-            for k, v in json.loads((bundle.scene_path(entry.index) / "inference.json").read_text())["seconds"].items():
-                stages[k] = stages.get(k, 0.0) + v
+    lit = []
+    for m in maps:
+        env = load_envmap(m)
+        lights, _ = map_lights(env, m, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))
+        lit.append((m.stem, env, lights))
+    figures: dict = {"clip": clip.name, "modes": {}}
+    relit = {}
     ctx = create_headless_context()
-    relit, render_seconds = {}, {}
     try:
-        for m in maps:
-            env = load_envmap(m)
-            lights, _ = map_lights(env, m, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))
-            look = Look(yaw=facing_yaw(lights))
-            out = out_dir / f"{clip.stem}_{m.stem}_off.mp4"
-            out.unlink(missing_ok=True)
-            t1 = time.perf_counter()
-            render_clip(ctx, bundle, lights, look, out, env.pixels, None, EngineOptions())
-            render_seconds[m.stem] = time.perf_counter() - t1
-            relit[m.stem] = out
+        for mode in ("off", "on"):
+            bundle_dir = out_dir / "bundles" / f"{clip.stem}-{mode}"
+            t0 = time.perf_counter()
+            record = infer_clip(clip, bundle_dir, start, end, size=WORK_PERSON, max_size=max_size, temporal=mode, ctx=ctx)
+            infer_seconds = time.perf_counter() - t0
+            bundle = load_clip_bundle(bundle_dir)
+            stages: dict[str, float] = {}
+            for entry in bundle.frames:
+                if entry.state == "person":
+                    for k, v in json.loads((bundle.scene_path(entry.index) / "inference.json").read_text())["seconds"].items():
+                        stages[k] = stages.get(k, 0.0) + v
+            render_seconds = {}
+            for name, env, lights in lit:
+                out = out_dir / f"{clip.stem}_{name}_{mode}.mp4"
+                out.unlink(missing_ok=True)
+                t1 = time.perf_counter()
+                render_clip(ctx, bundle, lights, Look(yaw=facing_yaw(lights), exposure=AUTO), out, env.pixels, None, EngineOptions())
+                render_seconds[name] = round(time.perf_counter() - t1, 2)
+                relit[f"{mode} {name}"] = out
+            n, kept = record["frames"], record["frames_kept_from_earlier_run"]
+            figures["modes"][mode] = {
+                "infer_seconds": round(infer_seconds, 2), "frames_kept": kept, "render_seconds": render_seconds,
+                "shots": record.get("shots"), "states": record["states"],
+                "stage_seconds_per_frame": {k: round(v / max(record["states"]["person"], 1), 3) for k, v in stages.items()},
+                "frames_per_minute": round(60 * n / (infer_seconds + render_seconds[lit[0][0]]), 2) if not kept else None}
+            figures.update(frames=n, fps=bundle.source["fps"],
+                           size=list(output_frame((bundle.source["width"], bundle.source["height"]), max_size)))
     finally:
         ctx.release()
     errors = clip_warping_errors(clip, start, end, relit)
-    n = record["frames"]
-    kept = record["frames_kept_from_earlier_run"]
-    first_map = maps[0].stem
-    size = output_frame((bundle.source["width"], bundle.source["height"]), max_size)
-    return {"clip": clip.name, "frames": n, "size": list(size), "fps": bundle.source["fps"],
-            "states": record["states"], "infer_seconds": round(infer_seconds, 2), "frames_kept": kept,
-            "render_seconds": {k: round(v, 2) for k, v in render_seconds.items()},
-            "stage_seconds_per_frame": {k: round(v / max(record["states"]["person"], 1), 3) for k, v in stages.items()},
-            "frames_per_minute": round(60 * n / max(infer_seconds + render_seconds[first_map], 1e-9), 2) if not kept else None,
-            "warping_error": {k: round(v, 6) for k, v in errors.items()},
-            "ratio_to_input": {k: round(v / max(errors["input"], 1e-12), 3) for k, v in errors.items() if k != "input"}}
+    figures["warping_error"] = {k: round(v, 6) for k, v in errors.items()}
+    figures["ratio_to_input"] = {k: round(v / max(errors["input"], 1e-12), 3) for k, v in errors.items() if k != "input"}
+    return figures
 
 
 def run_video_benchmark(clips: list[Path], maps: list[Path], out_dir, start: float = 0.0, end: float = DEFAULT_SECONDS,
@@ -197,7 +204,8 @@ def run_video_benchmark(clips: list[Path], maps: list[Path], out_dir, start: flo
     out_dir.mkdir(parents=True, exist_ok=True)
     output = Path(output) if output is not None else out_dir / "video.json"
     result = {"clips": [], "maps": [m.stem for m in maps], "start": start, "end": end, "max_size": max_size,
-              "method": "frame by frame (--temporal off)", "machine": _machine()}
+              "modes": {"off": "frame by frame (--temporal off)", "on": "one photo lighting and exposure per shot"},
+              "machine": _machine()}
     spawn = multiprocessing.get_context("spawn")
     for clip in clips:
         queue = spawn.Queue()
@@ -224,6 +232,6 @@ def _line(f: dict) -> str:
     if "error" in f:
         return f"{f['clip']}: failed: {f['error']}"
     ratios = ", ".join(f"{k} {v:.2f}x" for k, v in f["ratio_to_input"].items())
-    rate = f"{f['frames_per_minute']:.1f} frames a minute" if f["frames_per_minute"] else "bundle reused"
+    rates = ", ".join(f"{mode} {m['frames_per_minute']:.1f}" for mode, m in f["modes"].items() if m["frames_per_minute"])
     return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; warping error input {f['warping_error']['input']:.5f}, "
-            f"relit frame by frame {ratios} of it; {rate}; peak {f['peak_rss_gb']:.2f} GB")
+            f"relit {ratios} of it; frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
