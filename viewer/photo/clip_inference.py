@@ -11,8 +11,10 @@ relit; a frame lost to a damaged packet is recorded as lost.
 ``temporal`` "on" (the default): what belongs to the scene rather than the frame is estimated once
 per shot (:mod:`viewer.photo.shots` finds the cuts): the photo's own lighting is fitted on the
 shot's first frame with a person and kept for the shot's other frames (the relit clip's exposure is
-likewise resolved once per shot, :mod:`viewer.output.clip_render`). "off": every frame exactly as
-``relight infer`` makes a photo's bundle (its own lighting estimate and exposure), for comparison.
+likewise resolved once per shot, :mod:`viewer.output.clip_render`); and each frame's maps and matte
+are blended with the frame before's along the optical flow where it holds (:mod:`viewer.photo.steady`).
+"off": every frame exactly as ``relight infer`` makes a photo's bundle (its own lighting estimate,
+maps and exposure), for comparison.
 """
 
 from __future__ import annotations
@@ -30,8 +32,10 @@ from viewer.files.ownership import file_is_ours, fresh_sibling, written_here
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
 from viewer.photo.shots import ShotCuts
+from viewer.photo.steady import SteadyMaps
 from viewer.resize import resize
 from viewer.scene.area_lights import load_lights
+from viewer.scene.bundle import load_scene
 from viewer.scene.clip_bundle import FORMAT, FRAMES, RECORD, VERSION, ClipFrameEntry, frame_name, read_frame_entry, read_record
 
 FRAME_MB = (1.5, 2.5)  # disk a frame's bundle takes: MB, plus MB per megapixel of its frame (measured 2.7 MB at 0.42 MP, 3.2 at 0.96)
@@ -159,6 +163,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     counts = {"person": 0, "no person": 0, "lost": 0}
     first_at = 0.0
     cuts = ShotCuts()
+    steady = SteadyMaps() if temporal == "on" else None
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept = 0
     t0 = time.perf_counter()
@@ -172,18 +177,27 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                 kept += 1
                 if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
                     shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
+                if steady is not None and entry.state == "person":  # the next frame steadied from this one's maps
+                    steady.carry(load_scene(frames_dir / frame_name(frame.index)), frame.rgb, shot)
+                elif steady is not None:
+                    steady.restart()
             else:
                 entry = None
             if entry is None:
                 label = f"{clip_path} at {frame.seconds + start:.3f} s"
                 if frame.rgb is None:
                     entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot)
+                    if steady is not None:
+                        steady.restart()
                 else:
                     nets = nets if nets is not None else (networks or load_networks(device))
                     try:
                         result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=nets,
-                                             ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot))
+                                             ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
+                                             steady=(steady, shot) if steady is not None else None)
                     except NoPersonError as exc:  # the frame as it is: what a photo background shows there
+                        if steady is not None:
+                            steady.restart()
                         write_png(frames_dir / f"{frame_name(frame.index)}.png",
                                   resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)))
                         entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)

@@ -60,7 +60,7 @@ NETWORK_RES = 256
 # each stage's share of the time, for the time-left estimate (viewer.progress.TimeLeft): seconds measured
 # for assets/photos/underpass.jpg (681x1024) on the 2-core CPU machine, 2026-11-25
 STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rendering": 0.21, "depth": 0.07,
-                "maps to the work frame": 0.24, "face": 0.10, "fit the photo's lights": 1.65,
+                "maps to the work frame": 0.24, "face": 0.10, "steady along the clip": 0.05, "fit the photo's lights": 1.65,
                 "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
@@ -501,6 +501,16 @@ def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record):
     return {"scene": scene, "face_record": face_record, "face_surface": face_surface, "gloss_record": gloss_record}
 
 
+def _steady(scene, frame_photo, steady):
+    """A clip's frame: its maps blended with the frame before's along the flow (``steady``: the
+    clip's :class:`viewer.photo.steady.SteadyMaps` and the frame's shot; None for a photo)."""
+    if steady is None:
+        return {"scene": scene, "steady_share": None}
+    maps, shot = steady
+    scene, share = maps.steady(scene, frame_photo, shot)
+    return {"scene": scene, "steady_share": round(share, 4)}
+
+
 def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface, given_lights):
     from viewer.photo.photo_lighting import fit_mask, fit_photo_lights, white_balanced
 
@@ -548,6 +558,7 @@ STAGE_LIST = (
           ("scene", "frame_linear", "frame_network_albedo", "blur_px", "skin", "gloss_record")),
     Stage("face", _face, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record"),
           ("scene", "face_record", "face_surface", "gloss_record")),
+    Stage("steady along the clip", _steady, ("scene", "frame_photo", "steady"), ("scene", "steady_share")),
     Stage("fit the photo's lights", _fit_photo_lights, ("engine", "scene", "frame_linear", "sizes", "work_mask", "side_work",
                                                         "face_surface", "given_lights"), ("lights", "fit", "target", "valid")),
     Stage("render the photo's shading", _photo_shading, ("engine", "lights", "fit", "target", "valid"),
@@ -560,7 +571,7 @@ STAGES = tuple(st.name for st in STAGE_LIST) + ("write",)  # what infer() report
 
 def run_stages(values: dict, stage, ctx=None) -> dict:
     """Run :data:`STAGE_LIST` over ``values`` (the given ones: photo_path, mask_path, size,
-    max_size, device, networks, detail, picture, given_lights), reporting each to ``stage``; returns every value. Under
+    max_size, device, networks, detail, picture, given_lights, steady), reporting each to ``stage``; returns every value. Under
     ``torch.no_grad`` (nothing here learns); the engine the two engine stages share is made over
     the scene before them and released after them, whatever happens."""
     import torch
@@ -592,20 +603,22 @@ def run_stages(values: dict, stage, ctx=None) -> dict:
 
 def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
-                keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None) -> dict:
+                keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None, steady=None) -> dict:
     """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
     (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
     network's maps and the photo's shading at the frame (for the benchmarks). The work is
     :data:`STAGE_LIST`, run by :func:`run_stages`. ``picture``: the photo's pixels already decoded
     (H, W, 3) uint8 sRGB upright (a clip's frame), ``photo_path`` then only names it in messages;
-    ``lights``: the photo's own lights already known (a clip's shot), not fitted again."""
+    ``lights``: the photo's own lights already known (a clip's shot), not fitted again; ``steady``:
+    (a clip's :class:`viewer.photo.steady.SteadyMaps`, the frame's shot), its maps made steady."""
     import torch
 
     from viewer.scene.area_lights import AreaLights
 
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size, "device": device,
-                    "networks": networks, "detail": detail, "picture": picture, "given_lights": lights}, stage, ctx)
+                    "networks": networks, "detail": detail, "picture": picture, "given_lights": lights,
+                    "steady": steady}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
     direction, sigma, intensity = v["network_lights"]
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
@@ -615,7 +628,8 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
               "device": str(torch.device(device)), "matte": v["matte"].record, "gloss": v["gloss_record"],
               "face": v["face_record"], "background_blur": {"pixels": round(v["blur_px"], 3),
                                                             "degrees": round(float(np.degrees(scene.frame.background_blur)), 4)},
-              "photo_lighting": v["fit"], "detail": v["detail_stats"], "pipeline": PIPELINE}
+              "photo_lighting": v["fit"], "detail": v["detail_stats"], "pipeline": PIPELINE,
+              **({"steady_share": v["steady_share"]} if v["steady_share"] is not None else {})}
     result = {"scene": scene, "lights": v["lights"], "network_lights": network_lights, "record": record, "stages": stage}
     if keep_intermediate:
         result.update(network_albedo_frame=v["frame_network_albedo"], shading=v["shading"], target=v["target"],

@@ -5,9 +5,9 @@ clip bundle and relit under each map, as ``relight render CLIP`` does, in a chil
 (its peak memory is the clip's alone). Reported per clip:
 
 - the **warping error** (Lai et al. 2018, "Learning Blind Video Temporal Consistency"): optical
-  flow (OpenCV's DIS, medium preset) computed on the *input* frames, resized to the output's size,
-  from frame t to t-1; pixels failing a forward-backward check (the two flows disagree by more than
-  ``CONSISTENT`` pixels plus ``CONSISTENT_SCALE`` of their length) are left out; the mean over t of
+  flow (OpenCV's DIS, medium preset, :mod:`viewer.photo.flow`) computed on the *input* frames,
+  resized to the output's size, from frame t to t-1; pixels failing a forward-backward check (the
+  two flows disagree by more than 1 pixel plus 5 % of their length) are left out; the mean over t of
   the mean over kept pixels of the squared RGB distance (summed over channels, values in [0, 1])
   between output frame t and output frame t-1 warped by that flow. Reported for the input clip
   itself, and for each relit clip, inferred both ways (``--temporal off``: every frame relit as a
@@ -27,44 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from viewer.files.imageio import write_text
+from viewer.photo.flow import backward_flow, dis_flow, grey, warp
 
-CONSISTENT = 1.0  # pixels: a forward-backward flow mismatch beyond this (plus the share below) is an occlusion
-CONSISTENT_SCALE = 0.05  # of the two flows' length
 DEFAULT_SECONDS = 2.0
-
-
-def dis_flow():
-    import cv2
-
-    return cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-
-
-def _grey(rgb: np.ndarray) -> np.ndarray:
-    import cv2
-
-    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
-
-
-def _warp(image: np.ndarray, flow: np.ndarray) -> np.ndarray:
-    """``image`` sampled at x + flow(x) (bilinear, edges replicated)."""
-    import cv2
-
-    h, w = flow.shape[:2]
-    xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-    return cv2.remap(image, xs + flow[..., 0], ys + flow[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-
-
-def backward_flow(flow_engine, current: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(flow from ``current`` to ``previous`` (H, W, 2), the pixels it holds for (bool)), grey uint8
-    frames; held = the forward-backward check passes and the flow lands inside the frame."""
-    back = flow_engine.calc(current, previous, None)
-    forth = flow_engine.calc(previous, current, None)
-    mismatch = np.linalg.norm(back + _warp(forth, back), axis=2)
-    length = np.linalg.norm(back, axis=2) + np.linalg.norm(_warp(forth, back), axis=2)
-    h, w = current.shape
-    xs, ys = np.meshgrid(np.arange(w), np.arange(h))
-    inside = (xs + back[..., 0] >= 0) & (xs + back[..., 0] <= w - 1) & (ys + back[..., 1] >= 0) & (ys + back[..., 1] <= h - 1)
-    return back, (mismatch <= CONSISTENT + CONSISTENT_SCALE * length) & inside
 
 
 class WarpingError:
@@ -79,16 +44,16 @@ class WarpingError:
 
     def add(self, source: np.ndarray, outputs: dict) -> None:
         """``source``: the input frame at the outputs' size (uint8 RGB); ``outputs``: name -> uint8 RGB."""
-        grey = _grey(source)
+        current = grey(source)
         frames = {n: outputs[n].astype(np.float32) / 255.0 for n in self.names}
         if self._previous is not None:
             previous_grey, previous = self._previous
-            back, held = backward_flow(self.flow, grey, previous_grey)
+            back, held = backward_flow(self.flow, current, previous_grey)
             if held.any():
                 for n in self.names:
-                    diff = ((frames[n] - _warp(previous[n], back)) ** 2).sum(axis=2)
+                    diff = ((frames[n] - warp(previous[n], back)) ** 2).sum(axis=2)
                     self.sums[n].append(float(diff[held].mean()))
-        self._previous = (grey, frames)
+        self._previous = (current, frames)
 
     def result(self) -> dict:
         return {n: float(np.mean(v)) if v else float("nan") for n, v in self.sums.items()}
