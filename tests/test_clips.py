@@ -292,6 +292,13 @@ def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_eve
     assert np.abs(frames[2] - frames[0])[away].mean() < 2.0  # the same background
     assert np.abs(frames[2] - frames[0])[alpha > 0.9].mean() > 15.0  # and no one in front of it
     assert frames[2].std() > 5.0  # a picture, not a black frame
+    photo_look = clip_render.ClipPictures(ctx, bundle, lights, look.replace(background="photo"), env.pixels, None, EngineOptions())
+    try:  # the old background kept: where no one is, the frame itself
+        kept = photo_look.picture(2).astype(np.float32)  # (the clip's H.264 greyed the wall's colour noise)
+        assert np.abs(kept.mean(axis=(0, 1)) - blank_frame().mean(axis=(0, 1))).max() < 3.0
+        assert np.abs(kept - frames[2]).mean() > 10.0 and kept.std() < 15.0
+    finally:
+        photo_look.release()
 
     out = tmp_path / "relit.mp4"
     stops = {"after": 3}

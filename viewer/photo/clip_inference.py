@@ -153,6 +153,8 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
             earlier = {}
         if earlier.get("key") != key:
             _start_over(out_dir)
+        elif earlier.get("complete") and all(_finished(out_dir / FRAMES, i) for i in range(int(earlier.get("frames", 0)))):
+            return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}  # whole: nothing to do
     frames_dir = out_dir / FRAMES
     frames_dir.mkdir(parents=True, exist_ok=True)
     _check_disk(clip_path, info, max_size, out_dir, total)
@@ -199,7 +201,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                         if steady is not None:
                             steady.restart()
                         write_png(frames_dir / f"{frame_name(frame.index)}.png",
-                                  resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)))
+                                  resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)) / 255.0)
                         entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
                     else:
                         result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": key,
