@@ -17,8 +17,8 @@ import os
 import time
 from pathlib import Path
 
-from viewer.batch.plan import file_sha256
 from viewer.errors import InputError
+from viewer.files.ownership import file_sha256
 
 MANIFEST = "manifest.jsonl"
 LOCK = ".relight-batch.lock"

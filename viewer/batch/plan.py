@@ -18,14 +18,6 @@ from viewer.files.file_kinds import PHOTO_SUFFIXES
 KEY_VERSION = "batch-1"  # outputs of an older batch code are made again
 
 
-def file_sha256(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def collect_photos(paths) -> tuple[list[Path], list[str]]:
     """The photos named by ``paths`` (files, folders: their photos, sorted; globs), each once, and
     one line per path that named none. ``*.mask.png`` files (hand-made masks beside photos) are not

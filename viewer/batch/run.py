@@ -14,7 +14,8 @@ import numpy as np
 
 from viewer.batch.contact_sheet import SHEET, contact_sheet
 from viewer.batch.manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
-from viewer.batch.plan import Item, LookSpec, file_sha256, item_key, photo_names
+from viewer.batch.plan import Item, LookSpec, item_key, photo_names
+from viewer.files.ownership import file_sha256
 
 
 @dataclass

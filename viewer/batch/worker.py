@@ -62,7 +62,7 @@ class Worker:
         return {"bundle": str(bundle), "cached": cached}
 
     def render(self, task: dict) -> dict:
-        from viewer.batch.plan import file_sha256
+        from viewer.files.ownership import file_sha256
         from viewer.gl import Engine
         from viewer.gl.options import EngineOptions
         from viewer.lighting.envmap import load_envmap

@@ -117,9 +117,9 @@ def worker_count(args) -> tuple[int, int]:
 def resolve_looks(specs, args) -> list:
     """Each look's lights (a map's found once per count), yaw, rig, look and engine options; a map
     or light file that cannot be used fails its own looks, with its line."""
-    from viewer.batch.plan import file_sha256
     from viewer.batch.run import ResolvedLook
     from viewer.cli.command_setup import command_lights, command_look, engine_options, lights_count
+    from viewer.files.ownership import file_sha256
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.placed_lights import load_rig, to_area_lights
     from viewer.scene.area_lights import facing_yaw

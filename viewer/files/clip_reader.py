@@ -67,17 +67,6 @@ class ClipFrame:
     at: float = 0.0
 
 
-def clip_digest(path) -> str:
-    """SHA-256 of the clip's bytes (read in chunks: a clip can be large)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def is_clip(path) -> bool:
     """Whether ``path`` names a video by its suffix (what ``relight`` reads as a clip)."""
     return Path(path).suffix.lower() in VIDEO_SUFFIXES

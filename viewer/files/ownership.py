@@ -28,7 +28,8 @@ FORMAT = "relight-written"
 CHUNK = 1 << 20
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path) -> str:
+    """SHA-256 of a file's bytes, read in chunks (a clip or a map can be large)."""
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(CHUNK), b""):
@@ -49,7 +50,7 @@ def _contents(folder: Path) -> dict | None:
             continue
         if not entry.is_file(follow_symlinks=False):
             return None
-        files[entry.name] = _sha256(Path(entry.path))
+        files[entry.name] = file_sha256(Path(entry.path))
     return files
 
 

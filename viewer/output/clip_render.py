@@ -26,9 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.clip_reader import clip_digest
 from viewer.files.imageio import MARK, read_png, write_text
-from viewer.files.ownership import file_is_ours, fresh_sibling
+from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
 from viewer.scene.area_lights import AreaLights
@@ -205,7 +204,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     audio, note = None, None
     if bundle.source.get("audio"):
         source = Path(bundle.source["path"])
-        if source.is_file() and clip_digest(source) == bundle.source.get("sha256"):
+        if source.is_file() and file_sha256(source) == bundle.source.get("sha256"):
             audio = source
         else:
             note = f"the source clip {source} is not there as it was: the relit clip has no audio"

@@ -26,9 +26,9 @@ import time
 from pathlib import Path
 
 from viewer.errors import InputError, NoPersonError
-from viewer.files.clip_reader import ClipInfo, check_range, clip_digest, clip_frames, expected_frames, probe_clip
+from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
-from viewer.files.ownership import file_is_ours, fresh_sibling, written_here
+from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling, written_here
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
 from viewer.photo.shots import ShotCuts
@@ -59,7 +59,7 @@ def clip_options(start: float, end: float | None, size: int, max_size: int, temp
 def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int,
                      temporal: str = "on") -> Path:
     """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``)."""
-    key = clip_key(clip_digest(clip_path), clip_options(start, end, size, max_size, temporal), inference_version())
+    key = clip_key(file_sha256(clip_path), clip_options(start, end, size, max_size, temporal), inference_version())
     return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
 
 
@@ -140,7 +140,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     out_dir = clip_target(out_dir)
     info = probe_clip(clip_path)
     options = clip_options(start, end, size, max_size, temporal)
-    digest = clip_digest(clip_path)
+    digest = file_sha256(clip_path)
     key = clip_key(digest, options, inference_version())
     total = expected_frames(info, start, end)
     record = {"format": FORMAT, "version": VERSION, "source": {**info.to_json(), "path": str(Path(clip_path).resolve()),
