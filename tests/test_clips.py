@@ -239,6 +239,8 @@ def test_a_clip_bundle_holds_every_frame_and_resumes(clip_bundle, clip_with_ever
     # frame 4's maps carried from frame 3's along the flow; frame 3 starts its shot afresh
     share = {i: json.loads((bundle.scene_path(i) / "inference.json").read_text())["steady_share"] for i in (0, 3, 4)}
     assert share[0] == 0.0 and share[3] == 0.0 and share[4] > 0.5, share
+    # the clip's window slides 3 px a frame (a pan): the old background's content moves 3 px left
+    assert bundle.frames[3].pan == (0.0, 0.0) and abs(bundle.frames[4].pan[0] + 3.0) < 0.5 and abs(bundle.frames[4].pan[1]) < 0.5
 
     # a run that stopped before frame 4's record: the same command keeps the others and does frame
     # 4 again, given its shot's light from frame 3's bundle
@@ -433,3 +435,51 @@ def test_steady_maps_follow_the_flow_and_calm_the_noise():
     assert np.mean(steady_err[3:]) < 0.65 * np.mean(raw_err[3:])
     _, share = steady.steady(*frame(8)[:2], shot=1)  # a cut
     assert share == 0.0
+
+
+def test_the_camera_turn_is_read_from_the_old_background(ctx, clip_bundle):
+    """A background sliding 0.4 px a frame behind a person who moves on their own: the camera's
+    motion adds up to 0.4 px a frame (sub-pixel), a cut starts again; and the look turned by
+    ``turned`` moves the new background by that many pixels (measured on the engine's picture)."""
+    import cv2
+
+    from viewer.gl import Engine, EngineOptions
+    from viewer.lighting.envmap import load_envmap
+    from viewer.output.render import render_look
+    from viewer.photo.camera_motion import CameraMotion, turned
+    from viewer.photo.flow import dis_flow
+    from viewer.scene.area_lights import load_lights
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.look import Look
+
+    rng = np.random.default_rng(5)
+    texture = cv2.GaussianBlur((rng.random((300, 420, 3)) * 255).astype(np.uint8), (0, 0), 3.0)
+    motion = CameraMotion()
+    shifts = []
+    for t in range(6):
+        m = np.float32([[1, 0, -0.4 * t], [0, 1, 0.2 * t]])
+        frame = cv2.warpAffine(texture, m, (420, 300), borderMode=cv2.BORDER_REFLECT)
+        alpha = np.zeros((300, 420), np.float32)
+        x = 150 + 9 * t  # the person walks right on their own
+        alpha[60:260, x:x + 60] = 1.0
+        frame[60:260, x:x + 60] = (200, 120, 90)
+        shifts.append(motion.shift_of(frame, alpha, shot=0))
+    assert abs(shifts[5][0] + 2.0) < 0.15 and abs(shifts[5][1] - 1.0) < 0.1, shifts
+    assert motion.shift_of(texture, None, shot=1) == (0.0, 0.0)
+
+    scene = load_scene(clip_bundle[0] / "frames" / "000000")
+    env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
+    lights = load_lights(asset_dir() / "envmaps/immenstadter_horn_256.lights.json")
+    engine = Engine(ctx, scene, EngineOptions())
+    try:
+        focal = scene.camera.focal_px * scene.frame.width / scene.width
+        pictures = []
+        for shift in ((0.0, 0.0), (-6.0, 4.0)):
+            yaw, tilt = turned(shift, focal)
+            render_look(engine, scene, lights, Look(yaw=30.0 + yaw, tilt=tilt, exposure=0.0, backdrop_blur=0.0), env.pixels)
+            pictures.append(cv2.cvtColor(engine.output.read_background_display(), cv2.COLOR_RGB2GRAY))
+    finally:
+        engine.release()
+    flow = dis_flow().calc(pictures[1], pictures[0], None)  # where each pixel of the turned view came from
+    moved = -np.median(flow.reshape(-1, 2), axis=0)
+    assert np.allclose(moved, (-6.0, 4.0), atol=0.8), moved

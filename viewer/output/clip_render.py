@@ -30,6 +30,7 @@ from viewer.files.imageio import MARK, read_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
+from viewer.photo.camera_motion import turned
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
 from viewer.scene.look import AUTO, Look
@@ -50,7 +51,9 @@ class ClipPictures:
         self._engine = None  # (frame index, Engine, Scene)
         self._exposures: dict[int, float] = {}  # shot -> its exposure (a clip inferred as one)
         self._warned = False
-        self.size = self._load(self._people[0]).output_size
+        first = self._load(self._people[0])
+        self.size = first.output_size
+        self.focal_px = first.camera.focal_px * first.frame.width / first.width  # at the output frame
 
     def _load(self, index: int):
         """Frame ``index``'s scene, its maps at ``--size`` and its frame at most ``--max-size`` (``sizes``)."""
@@ -60,9 +63,12 @@ class ClipPictures:
     def _people(self) -> list[int]:
         return [e.index for e in self.bundle.frames if e.state == "person"]
 
-    def yaw(self, index: int) -> float:
-        """The map's yaw at frame ``index``: the look's, turned ``turn`` degrees over the clip."""
-        return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration
+    def turn_of(self, index: int) -> tuple[float, float]:
+        """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
+        and turned as the camera turned since its shot began (the old background's motion), so that
+        the new background moves as the old one did."""
+        yaw, tilt = turned(self.bundle.frames[index].pan, self.focal_px)
+        return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration + yaw, self.look.tilt + tilt
 
     def _nearest(self, index: int, state: str | None = None) -> int:
         """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""
@@ -79,13 +85,15 @@ class ClipPictures:
     def _look(self, index: int, person: int) -> Look:
         """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
         the shot of frame ``person`` (a person's), resolved once on that shot's first frame with a person."""
-        look = replace(self.look, yaw=self.yaw(index))
+        yaw, tilt = self.turn_of(index)
+        look = replace(self.look, yaw=yaw, tilt=tilt)
         if self.look.exposure != AUTO or not self.bundle.temporal:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
             first = next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
-            self._exposures[shot] = self._render(first, replace(self.look, yaw=self.yaw(first)))[1].exposure
+            yaw, tilt = self.turn_of(first)
+            self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt))[1].exposure
         return replace(look, exposure=self._exposures[shot])
 
     def _render(self, index: int, look: Look):

@@ -11,8 +11,10 @@ relit; a frame lost to a damaged packet is recorded as lost.
 ``temporal`` "on" (the default): what belongs to the scene rather than the frame is estimated once
 per shot (:mod:`viewer.photo.shots` finds the cuts): the photo's own lighting is fitted on the
 shot's first frame with a person and kept for the shot's other frames (the relit clip's exposure is
-likewise resolved once per shot, :mod:`viewer.output.clip_render`); and each frame's maps and matte
-are blended with the frame before's along the optical flow where it holds (:mod:`viewer.photo.steady`).
+likewise resolved once per shot, :mod:`viewer.output.clip_render`); each frame's maps and matte
+are blended with the frame before's along the optical flow where it holds (:mod:`viewer.photo.steady`);
+and the camera's turn is read from the old background's motion (:mod:`viewer.photo.camera_motion`),
+so that the new background turns with it.
 "off": every frame exactly as ``relight infer`` makes a photo's bundle (its own lighting estimate,
 maps and exposure), for comparison.
 """
@@ -23,12 +25,14 @@ import hashlib
 import json
 import shutil
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from viewer.errors import InputError, NoPersonError
 from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling, written_here
+from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
 from viewer.photo.shots import ShotCuts
@@ -166,6 +170,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     first_at = 0.0
     cuts = ShotCuts()
     steady = SteadyMaps() if temporal == "on" else None
+    motion = CameraMotion() if temporal == "on" else None
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept = 0
     t0 = time.perf_counter()
@@ -175,14 +180,19 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
             count, first_at = frame.index + 1, frame.at
             shot = cuts.shot_of(frame.rgb) if temporal == "on" else frame.index
             entry = _finished(frames_dir, frame.index)
+            alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
             if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot:
                 kept += 1
                 if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
                     shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
-                if steady is not None and entry.state == "person":  # the next frame steadied from this one's maps
-                    steady.carry(load_scene(frames_dir / frame_name(frame.index)), frame.rgb, shot)
+                if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
+                    scene = load_scene(frames_dir / frame_name(frame.index))
+                    steady.carry(scene, frame.rgb, shot)
+                    alpha = scene.frame.alpha
                 elif steady is not None:
                     steady.restart()
+                if motion is not None:
+                    motion.shift_of(frame.rgb, alpha, shot)
             else:
                 entry = None
             if entry is None:
@@ -209,6 +219,9 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                         write_bundle(result, frames_dir / frame_name(frame.index))
                         entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
                         shot_lights.setdefault(shot, result["lights"])
+                        alpha = result["scene"].frame.alpha
+                if motion is not None:
+                    entry = replace(entry, pan=motion.shift_of(frame.rgb, alpha, shot))
                 write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
             counts[entry.state] += 1
             if progress is not None:

@@ -27,6 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from viewer.errors import InputError
 from viewer.files.imageio import MARK, read_json
 
@@ -43,18 +45,21 @@ def frame_name(index: int) -> str:
 
 @dataclass(frozen=True)
 class ClipFrameEntry:
-    """One frame of a clip bundle: its ``index``, time in ``seconds``, ``state`` (``STATES``) and
-    the ``shot`` it is in (0, 1, ... : what is estimated once per shot is estimated again after a cut)."""
+    """One frame of a clip bundle: its ``index``, time in ``seconds``, ``state`` (``STATES``), the
+    ``shot`` it is in (0, 1, ... : what is estimated once per shot is estimated again after a cut) and
+    ``pan``: how far (x, y) the old background moved since the shot's first frame, in output pixels
+    (the camera's turn, :mod:`viewer.photo.camera_motion`)."""
 
     index: int
     seconds: float
     state: str
     note: str = ""
     shot: int = 0
+    pan: tuple[float, float] = (0.0, 0.0)
 
     def to_json(self) -> dict:
         return {"index": self.index, "seconds": round(self.seconds, 6), "state": self.state, "note": self.note, "shot": self.shot,
-                MARK[0]: MARK[1]}
+                "pan": [round(float(v), 4) for v in self.pan], MARK[0]: MARK[1]}
 
 
 @dataclass(frozen=True)
@@ -104,10 +109,13 @@ def read_record(path) -> dict:
 def read_frame_entry(path: Path) -> ClipFrameEntry:
     data = read_json(path, "clip frame record")
     try:
+        pan = data.get("pan", [0.0, 0.0])
         entry = ClipFrameEntry(int(data["index"]), float(data["seconds"]), str(data["state"]), str(data.get("note", "")),
-                               int(data.get("shot", 0)))
-    except (KeyError, TypeError, ValueError):
+                               int(data.get("shot", 0)), (float(pan[0]), float(pan[1])))
+    except (KeyError, TypeError, ValueError, IndexError):
         raise InputError(path, "is not a clip frame record (index, seconds, state)") from None
+    if not all(np.isfinite(entry.pan)) or not np.isfinite(entry.seconds):
+        raise InputError(path, "holds a time or pan that is not a finite number")
     if entry.state not in STATES:
         raise InputError(path, f"state must be one of {', '.join(STATES)}, got {entry.state!r}")
     return entry
