@@ -32,31 +32,42 @@ from viewer.photo.flow import backward_flow, dis_flow, grey, warp
 DEFAULT_SECONDS = 2.0
 
 
+REGIONS = ("all", "person", "background")
+
+
 class WarpingError:
     """The warping error of several outputs of one input clip, fed frame by frame (:meth:`add`):
-    the flow is computed once per frame on the input, each output is judged by it."""
+    the flow is computed once per frame on the input, each output is judged by it. Besides the
+    whole frame, over the person (the matte above 0.5 in both frames, carried by the flow) and over
+    the background (below 0.05 in both)."""
 
     def __init__(self, names):
         self.flow = dis_flow()
         self.names = list(names)
-        self.sums = {n: [] for n in self.names}
+        self.sums = {n: {r: [] for r in REGIONS} for n in self.names}
         self._previous = None
 
-    def add(self, source: np.ndarray, outputs: dict) -> None:
-        """``source``: the input frame at the outputs' size (uint8 RGB); ``outputs``: name -> uint8 RGB."""
+    def add(self, source: np.ndarray, outputs: dict, alpha: np.ndarray | None = None) -> None:
+        """``source``: the input frame at the outputs' size (uint8 RGB); ``outputs``: name -> uint8 RGB;
+        ``alpha``: the person's matte at that size (None: the whole frame only)."""
         current = grey(source)
         frames = {n: outputs[n].astype(np.float32) / 255.0 for n in self.names}
         if self._previous is not None:
-            previous_grey, previous = self._previous
+            previous_grey, previous, previous_alpha = self._previous
             back, held = backward_flow(self.flow, current, previous_grey)
-            if held.any():
-                for n in self.names:
-                    diff = ((frames[n] - warp(previous[n], back)) ** 2).sum(axis=2)
-                    self.sums[n].append(float(diff[held].mean()))
-        self._previous = (current, frames)
+            regions = {"all": held}
+            if alpha is not None and previous_alpha is not None:
+                carried = warp(previous_alpha, back)
+                regions.update(person=held & (alpha > 0.5) & (carried > 0.5), background=held & (alpha < 0.05) & (carried < 0.05))
+            for n in self.names:
+                diff = ((frames[n] - warp(previous[n], back)) ** 2).sum(axis=2)
+                for r, where in regions.items():
+                    if where.any():
+                        self.sums[n][r].append(float(diff[where].mean()))
+        self._previous = (current, frames, alpha)
 
-    def result(self) -> dict:
-        return {n: float(np.mean(v)) if v else float("nan") for n, v in self.sums.items()}
+    def result(self, region: str = "all") -> dict:
+        return {n: float(np.mean(v[region])) if v[region] else float("nan") for n, v in self.sums.items()}
 
 
 def _video_frames(path):
@@ -69,10 +80,10 @@ def _video_frames(path):
             yield frame.to_ndarray(format="rgb24")
 
 
-def clip_warping_errors(clip, start: float, end: float, relit: dict) -> dict:
-    """Warping errors of the input clip (``start`` to ``end`` seconds) and of each relit MP4
-    (name -> path), the input resized to the relit size; frames lost in the input are left out
-    of the pairs they are in."""
+def clip_warping_errors(clip, start: float, end: float, relit: dict, alpha=None) -> dict:
+    """Warping errors (region -> name -> error) of the input clip (``start`` to ``end`` seconds)
+    and of each relit MP4 (name -> path), the input resized to the relit size; frames lost in the
+    input are left out of the pairs they are in. ``alpha(index)``: frame index's matte (or None)."""
     from viewer.files.clip_reader import clip_frames
     from viewer.resize import resize
 
@@ -86,8 +97,9 @@ def clip_warping_errors(clip, start: float, end: float, relit: dict) -> dict:
             continue
         h, w = next(iter(outs.values())).shape[:2]
         source = resize(frame.rgb, (w, h))
-        meter.add(source, {"input": source, **outs})
-    return meter.result()
+        matte = alpha(frame.index) if alpha is not None else None
+        meter.add(source, {"input": source, **outs}, resize(matte, (w, h)) if matte is not None else None)
+    return {r: meter.result(r) for r in REGIONS}
 
 
 def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max_size: int, queue) -> None:
@@ -104,6 +116,7 @@ def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max
 def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end: float, max_size: int) -> dict:
     """One clip inferred both ways (``--temporal off`` and on) and relit under every map."""
     from viewer.cli.command_setup import fitted_lights
+    from viewer.files.imageio import read_png
     from viewer.gl import EngineOptions, create_headless_context
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
@@ -153,9 +166,19 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
                            size=list(output_frame((bundle.source["width"], bundle.source["height"]), max_size)))
     finally:
         ctx.release()
-    errors = clip_warping_errors(clip, start, end, relit)
-    figures["warping_error"] = {k: round(v, 6) for k, v in errors.items()}
-    figures["ratio_to_input"] = {k: round(v / max(errors["input"], 1e-12), 3) for k, v in errors.items() if k != "input"}
+    off = load_clip_bundle(out_dir / "bundles" / f"{clip.stem}-off")
+
+    def alpha(index):  # the regions: each frame's own matte (frame by frame)
+        entry = off.frames[index] if index < len(off.frames) else None
+        return read_png(off.scene_path(index) / "frame_alpha.png") if entry is not None and entry.state == "person" else None
+
+    errors = clip_warping_errors(clip, start, end, relit, alpha)
+    figures["warping_error"] = {k: round(v, 6) for k, v in errors["all"].items()}
+    figures["ratio_to_input"] = {k: round(v / max(errors["all"]["input"], 1e-12), 3) for k, v in errors["all"].items() if k != "input"}
+    for region in ("person", "background"):
+        e = errors[region]
+        figures[f"warping_error_{region}"] = {k: round(v, 6) for k, v in e.items()}
+        figures[f"ratio_to_input_{region}"] = {k: round(v / max(e["input"], 1e-12), 3) for k, v in e.items() if k != "input"}
     return figures
 
 
@@ -196,7 +219,8 @@ def _machine() -> dict:
 def _line(f: dict) -> str:
     if "error" in f:
         return f"{f['clip']}: failed: {f['error']}"
-    ratios = ", ".join(f"{k} {v:.2f}x" for k, v in f["ratio_to_input"].items())
+    ratios = ", ".join(f"{k} {v:.2f}x (person {f['ratio_to_input_person'].get(k, float('nan')):.2f}x)"
+                       for k, v in f["ratio_to_input"].items())
     rates = ", ".join(f"{mode} {m['frames_per_minute']:.1f}" for mode, m in f["modes"].items() if m["frames_per_minute"])
     return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; warping error input {f['warping_error']['input']:.5f}, "
             f"relit {ratios} of it; frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
