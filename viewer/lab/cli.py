@@ -167,7 +167,7 @@ def cmd_bench(args) -> int:
         run_light_sizes_benchmark(shared_folder(args.maps, "hdri", "--maps"), output=output)
     elif args.what == "video":
         from viewer.files.clip_reader import VIDEO_SUFFIXES
-        from viewer.lab.bench.video import run_video_benchmark
+        from viewer.lab.bench.video import run_video_benchmark, video_table
 
         clips = []
         for given in args.clips or [shared_folder(None, "videos", "--clips")]:
@@ -176,7 +176,7 @@ def cmd_bench(args) -> int:
         maps = [Path(m) for m in args.env] if args.env else [shared_folder(args.maps, "hdri", "--maps") / f"{m}_1k.hdr"
                                                              for m in ("potsdamer_platz", "rooitou_park")]
         out = Path(args.output or "out/bench-video/video.json")
-        run_video_benchmark(clips, maps, out.parent, args.start, args.end, args.max_size, output=out)
+        print(video_table(run_video_benchmark(clips, maps, out.parent, args.start, args.end, args.max_size, output=out)))
         print(f"wrote {out}")
     elif args.what == "temporal":
         from viewer.lab.bench.temporal import run_temporal_benchmark

@@ -224,3 +224,30 @@ def _line(f: dict) -> str:
     rates = ", ".join(f"{mode} {m['frames_per_minute']:.1f}" for mode, m in f["modes"].items() if m["frames_per_minute"])
     return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; warping error input {f['warping_error']['input']:.5f}, "
             f"relit {ratios} of it; frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
+
+
+def video_table(result: dict) -> str:
+    """The docs' table of a run: per clip, the warping errors as ratios to the input's (whole frame,
+    person, background), under each map, frame by frame (off) and as a clip (on); frames a minute."""
+    maps = result["maps"]
+    head = ["clip", "frames, size", "input's warping error (all / person / background)"]
+    for m in maps:
+        head += [f"{m}: off / on, all", "person", "background"]
+    head += ["frames a minute, off / on", "peak memory"]
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for f in result["clips"]:
+        if "error" in f:
+            rows.append(f"| {f['clip']} | failed: {f['error']} |")
+            continue
+        w = f["warping_error"]
+        cells = [f["clip"], f"{f['frames']}, {f['size'][0]}x{f['size'][1]}",
+                 f"{w['input']:.6f} / {f['warping_error_person']['input']:.6f} / {f['warping_error_background']['input']:.6f}"]
+        for m in maps:
+            for key in ("ratio_to_input", "ratio_to_input_person", "ratio_to_input_background"):
+                r = f[key]
+                cells.append(f"{r.get(f'off {m}', float('nan')):.2f}x / **{r.get(f'on {m}', float('nan')):.2f}x**")
+        rates = [f["modes"][mode]["frames_per_minute"] for mode in ("off", "on")]
+        cells.append(" / ".join(f"{r:.1f}" if r else "-" for r in rates))
+        cells.append(f"{f['peak_rss_gb']:.2f} GB")
+        rows.append("| " + " | ".join(cells) + " |")
+    return "\n".join(rows)
