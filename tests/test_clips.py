@@ -483,3 +483,25 @@ def test_the_camera_turn_is_read_from_the_old_background(ctx, clip_bundle):
     flow = dis_flow().calc(pictures[1], pictures[0], None)  # where each pixel of the turned view came from
     moved = -np.median(flow.reshape(-1, 2), axis=0)
     assert np.allclose(moved, (-6.0, 4.0), atol=0.8), moved
+
+
+def test_the_warping_error_sees_flicker_and_not_motion():
+    """The bench's warping error (Lai et al. 2018): an output that moves as the input does scores as
+    the input; one that flickers, or stands still while the input pans, scores worse."""
+    import cv2
+
+    from viewer.lab.bench.video import WarpingError
+
+    rng = np.random.default_rng(2)
+    texture = cv2.GaussianBlur((rng.random((200, 300, 3)) * 255).astype(np.uint8), (0, 0), 3.0)
+    meter = WarpingError(["input", "same", "flicker", "still"])
+    alpha = np.zeros((120, 160), np.float32)
+    alpha[30:90, 50:110] = 1.0
+    for t in range(6):
+        frame = np.ascontiguousarray(texture[20:140, 10 + 2 * t:170 + 2 * t])
+        flicker = np.clip(frame.astype(np.int32) + (12 if t % 2 else -12), 0, 255).astype(np.uint8)
+        meter.add(frame, {"input": frame, "same": frame, "flicker": flicker, "still": texture[20:140, 10:170]}, alpha)
+    e = meter.result()
+    assert e["same"] == e["input"] and e["input"] < 1e-3
+    assert e["flicker"] > 20 * e["input"] and e["still"] > 20 * e["input"]
+    assert meter.result("person")["flicker"] > 20 * meter.result("person")["input"]
