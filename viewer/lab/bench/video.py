@@ -30,6 +30,7 @@ from viewer.files.imageio import write_text
 from viewer.photo.flow import backward_flow, dis_flow, grey, warp
 
 DEFAULT_SECONDS = 2.0
+RETRIES = 2  # a child that dies (a native crash) is run again: its clip bundles go on from their last frame
 
 
 REGIONS = ("all", "person", "background")
@@ -196,17 +197,35 @@ def run_video_benchmark(clips: list[Path], maps: list[Path], out_dir, start: flo
               "machine": _machine()}
     spawn = multiprocessing.get_context("spawn")
     for clip in clips:
-        queue = spawn.Queue()
-        child = spawn.Process(target=_one_clip, args=(str(clip), str(out_dir), [str(m) for m in maps], start, end, max_size,
-                                                      queue))
-        child.start()
-        figures = queue.get()
-        child.join()
+        for attempt in range(1 + RETRIES):
+            queue = spawn.Queue()
+            child = spawn.Process(target=_one_clip, args=(str(clip), str(out_dir), [str(m) for m in maps], start, end, max_size,
+                                                          queue))
+            child.start()
+            figures = _wait(child, queue)
+            child.join()
+            if "ended" not in figures:
+                break
+            print(f"{clip.name}: {figures['error']}; {'again, going on from its last frame' if attempt < RETRIES else 'giving up'}",
+                  flush=True)
         figures.setdefault("clip", clip.name)
+        figures["attempts"] = attempt + 1
         result["clips"].append(figures)
         print(_line(figures), flush=True)
         write_text(output, json.dumps(result, indent=1) + "\n")
     return result
+
+
+def _wait(child, queue) -> dict:
+    """The child's figures, or what ended it when it died without any (a native crash)."""
+    import queue as queues
+
+    while True:
+        try:
+            return queue.get(timeout=5)
+        except queues.Empty:
+            if not child.is_alive():
+                return {"error": f"the child process ended with code {child.exitcode} before reporting", "ended": child.exitcode}
 
 
 def _machine() -> dict:
