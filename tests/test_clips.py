@@ -505,3 +505,16 @@ def test_the_warping_error_sees_flicker_and_not_motion():
     assert e["same"] == e["input"] and e["input"] < 1e-3
     assert e["flicker"] > 20 * e["input"] and e["still"] > 20 * e["input"]
     assert meter.result("person")["flicker"] > 20 * meter.result("person")["input"]
+
+
+def test_a_batch_says_it_leaves_clips_out(tmp_path):
+    import shutil as sh
+
+    from viewer.batch.plan import collect_photos
+
+    clip = write_clip(tmp_path / "walk.mp4", [pattern(i) for i in range(2)], audio=None)
+    sh.copy(asset_dir() / "photos/underpass.jpg", tmp_path / "underpass.jpg")
+    photos, notes = collect_photos([tmp_path, clip])
+    assert [p.name for p in photos] == ["underpass.jpg"]
+    assert any("1 clip left out" in n for n in notes) and any("walk.mp4: a clip, left out" in n and "relight render walk.mp4" in n
+                                                               for n in notes)

@@ -23,6 +23,7 @@ def collect_photos(paths) -> tuple[list[Path], list[str]]:
     one line per path that named none. ``*.mask.png`` files (hand-made masks beside photos) are not
     photos, and neither are, in a folder or a glob, images this program wrote (a batch's contact
     sheet and outputs, when a batch writes into the folder it reads: ``viewer.files.ownership``)."""
+    from viewer.files.clip_reader import is_clip
     from viewer.files.ownership import file_is_ours
 
     photos, missing = [], []
@@ -30,6 +31,14 @@ def collect_photos(paths) -> tuple[list[Path], list[str]]:
         p = Path(given)
         if p.is_dir():
             found = sorted(q for q in p.iterdir() if q.is_file() and is_photo(q) and not file_is_ours(q))
+            clips = sum(1 for q in p.iterdir() if q.is_file() and is_clip(q))
+            if clips:
+                missing.append(f"{given}: {clips} clip{'s' if clips > 1 else ''} left out (a batch relights photos; "
+                               "`relight render CLIP --env MAP -o OUT.mp4` relights a clip)")
+        elif p.is_file() and is_clip(p):
+            missing.append(f"{given}: a clip, left out (a batch relights photos; `relight render {p.name} --env MAP -o "
+                           "OUT.mp4` relights it)")
+            continue
         elif p.is_file():
             found = [p]
         else:
