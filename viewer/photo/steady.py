@@ -8,11 +8,13 @@ roughness, normal, depth at the work resolution; the soft matte at the frame's) 
     M'_t = (1 - KEEP) M_t + KEEP W(M'_{t-1})
 
 where W carries frame t-1's steadied map to frame t along the backward flow (:mod:`viewer.photo.flow`,
-computed on the photo), and only where the flow passes its forward-backward check and the person
-was there in both frames: a limb that moves in front of the body, or appears, keeps its own values
-(no smear). An exponential filter of ``KEEP`` = 0.6 leaves a quarter of a still pixel's
-frame-to-frame noise variance, (1 - KEEP) / (1 + KEEP), and follows a real change within a few
-frames (half of it in 1.4 frames). The first frame of a shot starts afresh.
+computed on the photo), and only where the flow passes its forward-backward check, the photo carried
+along it matches the frame's (``PHOTO_MATCH``: a running woman's blurred profile passed the first test
+with a wrong flow, and her lips were drawn twice) and the person was there in both frames: a limb
+that moves in front of the body, or appears, keeps its own values (no smear). An exponential
+filter of ``KEEP`` = 0.6 leaves a quarter of a still pixel's frame-to-frame noise variance,
+(1 - KEEP) / (1 + KEEP), and follows a real change within a few frames (half of it in 1.4
+frames). The first frame of a shot starts afresh.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from viewer.resize import resize
 
 KEEP = 0.6  # the previous frame's share where the flow holds
 FLOW_SIDE = 640  # the flow is computed on the photo shrunk to this longer side (DIS at 720p: ~3x the time)
+PHOTO_MATCH = 10.0  # grey levels (of 255): the photo carried along the flow must match the frame's this closely
 
 
 class SteadyMaps:
@@ -66,6 +69,9 @@ class SteadyMaps:
             self._previous = (small, scene)
             return scene, 0.0
         back, held = backward_flow(self.flow, small, previous[0])
+        # and where the photo carried along the flow is the photo: a fast limb's or face's flow can pass
+        # the forward-backward check and still be wrong (motion blur), and blending there draws a ghost
+        held &= np.abs(small.astype(np.float32) - warp(previous[0].astype(np.float32), back)) <= PHOTO_MATCH
         old = previous[1]
         maps, carried = self._blend_maps(scene, old, back, held)
         out = replace(scene, **maps)
