@@ -31,7 +31,7 @@ def clip_bundle(clip, args, out=None) -> Path:
     from viewer.photo.clip_inference import cached_clip_path, infer_clip
     from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 
-    size = getattr(args, "size", None) or WORK_PERSON
+    size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
     max_size = getattr(args, "max_size", None) or MAX_SIZE
     temporal = args.temporal or "on"
     target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
@@ -94,12 +94,12 @@ def cmd_render_clip(args, look) -> int:
     refuse_foreign([out, sidecar], args.force)
     if partial_path(out).exists():
         raise partial_taken(out)
-    bundle = load_clip_bundle(clip_bundle(args.scene, args) if is_clip(args.scene) else args.scene)
-    env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None
+    env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None  # before hours of inference
     if args.lights is None and env is None:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
     lights = command_lights(args, look, args.lights, env, args.envmap)
     look = first_look(args, look, lights)
+    bundle = load_clip_bundle(clip_bundle(args.scene, args) if is_clip(args.scene) else args.scene)
     ctx = create_headless_context()
     t0 = time.perf_counter()
     try:

@@ -83,7 +83,17 @@ def _open(path):
     if not container.streams.video:
         container.close()
         raise InputError(path, "holds no video stream (audio only, or not a video): give a clip with a picture")
+    if container.streams.video[0].codec_context is None:
+        name = codec_name(container.streams.video[0])
+        container.close()
+        raise InputError(path, f"its video is in a codec this program cannot decode ({name})")
     return container
+
+
+def codec_name(stream) -> str:
+    """A stream's codec (a stream FFmpeg has no decoder for has no codec context: its tag then)."""
+    context = stream.codec_context
+    return context.name if context is not None else f"undecodable ({stream.codec_tag or 'unknown'})"
 
 
 def _reason(exc) -> str:
@@ -127,7 +137,7 @@ def probe_clip(path) -> ClipInfo:
         duration = float(stream.duration * stream.time_base) if stream.duration else (
             float(container.duration) / 1e6 if container.duration else 0.0)
         frames = int(stream.frames or 0) or int(round(duration * fps))
-        audio = container.streams.audio[0].codec_context.name if container.streams.audio else None
+        audio = codec_name(container.streams.audio[0]) if container.streams.audio else None
     return ClipInfo(Path(path), int(w), int(h), rotation, fps, frames, duration, audio)
 
 

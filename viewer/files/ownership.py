@@ -128,7 +128,7 @@ def file_is_ours(path) -> bool:
         if suffix == ".json":
             data = read_json(path)
             return isinstance(data, dict) and data.get(key) == value
-        if suffix == ".mp4":
+        if suffix in (".mp4", ".mov", ".m4v", ".mkv", ".webm", ".avi"):  # a video, or a relit clip's audio beside it
             import av
 
             with av.open(ffmpeg_file(path)) as container:

@@ -49,7 +49,7 @@ class Engine:
     """Owns the GL resources of one scene; ``set_lights`` and ``set_look``, then ``render``; read
     outputs back through ``output`` (:class:`viewer.gl.outputs.Readback`)."""
 
-    def __init__(self, ctx: moderngl.Context, scene: Scene, options: EngineOptions | None = None):
+    def __init__(self, ctx: moderngl.Context, scene: Scene, options: EngineOptions | None = None, background_camera=None):
         self.ctx = ctx
         make_current(ctx)
         self.scene = scene
@@ -78,7 +78,7 @@ class Engine:
         self.looks = LookState(scene, res, self.ground_pass.plane.feet)
         ground = self.ground_pass.texture
         self.picture = (ImagePicture(kit, res, (scene.width, scene.height), scene.camera, ground) if scene.frame is None
-                        else FramePicture(kit, scene.frame, scene.camera, ground))
+                        else FramePicture(kit, scene.frame, scene.camera, ground, background_camera))
         self.stale = Staleness((self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.light_pass),
                                (self.composite_pass, self.ground_pass, *self.picture.passes))
         self.output = Readback(kit, self.picture, self.composite_pass, self.ground_pass, self.atlas, res, self.csm_basis_pass,

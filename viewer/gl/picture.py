@@ -80,8 +80,9 @@ class ImagePicture:
 class FramePicture:
     has_frame = True
 
-    def __init__(self, kit, frame, camera, ground):
-        self.background = FrameBackgroundPass(kit, frame, camera)
+    def __init__(self, kit, frame, camera, ground, background_camera=None):
+        # background_camera: the lens the map behind is seen through, when not the scene's (a clip's shot keeps one)
+        self.background = FrameBackgroundPass(kit, frame, background_camera or camera)
         self.mipmaps = FrameMipmapsPass(kit)
         self.scatter = SkinScatterPass(kit, frame) if SkinScatterPass.applies(frame) else None
         self.last = FrameCompositePass(kit, frame, self.background.photo, ground, self.scatter)

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.imageio import MARK, read_png, write_text
+from viewer.files.imageio import MARK, read_json, read_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
@@ -53,7 +53,11 @@ class ClipPictures:
         self._warned = False
         first = self._load(self._people[0])
         self.size = first.output_size
-        self.focal_px = first.camera.focal_px * first.frame.width / first.width  # at the output frame
+        source = bundle.source  # the bundle's frame, before --max-size here: what the pans are measured in
+        from viewer.photo.photo_frame import output_frame
+
+        self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
+        self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
 
     def _load(self, index: int):
         """Frame ``index``'s scene, its maps at ``--size`` and its frame at most ``--max-size`` (``sizes``)."""
@@ -63,11 +67,27 @@ class ClipPictures:
     def _people(self) -> list[int]:
         return [e.index for e in self.bundle.frames if e.state == "person"]
 
-    def turn_of(self, index: int) -> tuple[float, float]:
+    def background_camera(self, index: int):
+        """The camera the map behind frame ``index`` is seen through: in a clip inferred as one, its
+        shot's first frame with a person's (each frame's own lens follows the person's size in the
+        frame, and the map behind would zoom with it); frame by frame, the frame's own."""
+        from viewer.scene.camera import Camera
+
+        entry = self.bundle.frames[index]
+        source = index if not self.bundle.temporal else next(
+            (e.index for e in self.bundle.frames if e.shot == entry.shot and e.state == "person"), index)
+        if source not in self._cameras:
+            self._cameras[source] = Camera.from_json(read_json(self.bundle.scene_path(source) / "scene.json",
+                                                               "scene bundle description")["camera"])
+        return self._cameras[source]
+
+    def turn_of(self, index: int, person: int) -> tuple[float, float]:
         """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
         and turned as the camera turned since its shot began (the old background's motion), so that
-        the new background moves as the old one did."""
-        yaw, tilt = turned(self.bundle.frames[index].pan, self.focal_px)
+        the new background moves as the old one did (``person``: the frame whose background camera is used)."""
+        camera = self.background_camera(person)
+        focal = camera.focal_mm / camera.sensor_mm * max(self.bundle_size)  # at the bundle's frame, as the pan
+        yaw, tilt = turned(self.bundle.frames[index].pan, focal)
         return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration + yaw, self.look.tilt + tilt
 
     def _nearest(self, index: int, state: str | None = None) -> int:
@@ -85,14 +105,14 @@ class ClipPictures:
     def _look(self, index: int, person: int) -> Look:
         """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
         the shot of frame ``person`` (a person's), resolved once on that shot's first frame with a person."""
-        yaw, tilt = self.turn_of(index)
+        yaw, tilt = self.turn_of(index, person)
         look = replace(self.look, yaw=yaw, tilt=tilt)
         if self.look.exposure != AUTO or not self.bundle.temporal:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
             first = next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
-            yaw, tilt = self.turn_of(first)
+            yaw, tilt = self.turn_of(first, first)
             self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt))[1].exposure
         return replace(look, exposure=self._exposures[shot])
 
@@ -107,7 +127,7 @@ class ClipPictures:
             if scene.output_size != self.size:
                 raise InputError(self.bundle.scene_path(index), f"its frame is {scene.output_size[0]}x{scene.output_size[1]}, "
                                                                 f"the clip's {self.size[0]}x{self.size[1]}")
-            self._engine = (index, Engine(self.ctx, scene, self.options), scene)
+            self._engine = (index, Engine(self.ctx, scene, self.options, self.background_camera(index)), scene)
         _, engine, scene = self._engine
         settings, _ = render_look(engine, scene, self.lights, look, self.environment, self.fixed)
         if not self._warned:
@@ -156,7 +176,8 @@ def _open_parts(path: Path, key: str) -> Path:
     folder = parts_folder(path)
     if folder.exists():
         record = folder / PARTS_RECORD
-        if not file_is_ours(record) or any(not (p.name == PARTS_RECORD or p.suffix == ".mp4") for p in folder.iterdir()):
+        if not file_is_ours(record) or any(not (p.name == PARTS_RECORD or p.name.endswith(".partial.mp4") or file_is_ours(p))
+                                           for p in folder.iterdir()):
             raise InputError(folder, "is not a folder of relit parts relight wrote: move it away or choose another -o")
         try:
             same = json.loads(record.read_text()).get("key") == key

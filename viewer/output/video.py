@@ -309,4 +309,6 @@ def _audio_sidecar(audio, audio_source, path: Path, audio_at: float, duration: f
     with atomic_path(sidecar) as tmp, av.open(ffmpeg_file(tmp), "w", format=container_format) as out:
         out.metadata["comment"] = MARK_TEXT
         _mux(out, [(audio, _packets(audio_source, "audio", audio_at, duration))])
-    return f"the source's audio ({audio.codec_context.name}) cannot go into an MP4 unchanged: it is in {sidecar}"
+    from viewer.files.clip_reader import codec_name
+
+    return f"the source's audio ({codec_name(audio)}) cannot go into an MP4 unchanged: it is in {sidecar}"

@@ -84,5 +84,6 @@ class CameraMotion:
 
 def turned(shift: tuple[float, float], focal_px: float) -> tuple[float, float]:
     """(yaw, tilt) in degrees that move a view's content by ``shift`` pixels (``focal_px``: the
-    focal length in those pixels): the look's turn that makes the new background follow the old."""
-    return (-float(np.degrees(np.arctan2(shift[0], focal_px))), -float(np.degrees(np.arctan2(shift[1], focal_px))))
+    focal length in those pixels): the look's turn that makes the new background follow the old.
+    Linear, not an arctangent: a pan is a sum of small steps, each the focal length times its angle."""
+    return -float(np.degrees(shift[0] / focal_px)), -float(np.degrees(shift[1] / focal_px))

@@ -171,6 +171,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     cuts = ShotCuts()
     steady = SteadyMaps() if temporal == "on" else None
     motion = CameraMotion() if temporal == "on" else None
+    to_output = output_frame((info.width, info.height), max_size)[0] / info.width  # source pixels -> the bundle's frame
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept = 0
     t0 = time.perf_counter()
@@ -187,7 +188,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                     shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
                 if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
                     scene = load_scene(frames_dir / frame_name(frame.index))
-                    steady.carry(scene, frame.rgb, shot)
+                    steady.carry(scene, resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)), shot)
                     alpha = scene.frame.alpha
                 elif steady is not None:
                     steady.restart()
@@ -220,8 +221,8 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                         entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
                         shot_lights.setdefault(shot, result["lights"])
                         alpha = result["scene"].frame.alpha
-                if motion is not None:
-                    entry = replace(entry, pan=motion.shift_of(frame.rgb, alpha, shot))
+                if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
+                    entry = replace(entry, pan=tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot)))
                 write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
             counts[entry.state] += 1
             if progress is not None:

@@ -65,7 +65,7 @@ class SteadyMaps:
             self.shot = shot
         small = self._small(frame_photo)
         previous, self._previous = self._previous, None
-        if previous is None or previous[0].shape != small.shape or previous[1].mask.shape != scene.mask.shape:
+        if previous is None or previous[0].shape != small.shape:
             self._previous = (small, scene)
             return scene, 0.0
         back, held = backward_flow(self.flow, small, previous[0])
@@ -87,13 +87,17 @@ class SteadyMaps:
         size = (scene.width, scene.height)
         flow = resized_flow(back, size)
         ok = resize(held.astype(np.float32), size) > 0.99
-        was = warp(old.mask.astype(np.float32), flow) > 0.99
+        # the work frame's size follows the person's size in the frame (a few pixels from frame to frame):
+        # the frame before's maps brought to this one's (both span the photo's whole field of view)
+        same = old.mask.shape == scene.mask.shape
+        was = warp(resize(old.mask.astype(np.float32), size) if not same else old.mask.astype(np.float32), flow) > 0.99
         here = scene.mask & ok & was
         k = np.where(here, self.keep, 0.0).astype(np.float32)
         maps = {}
         for name in ("albedo", "specular", "roughness", "depth", "normal"):
             new = getattr(scene, name)
-            carried = warp(np.ascontiguousarray(getattr(old, name), np.float32), flow)
+            before = np.ascontiguousarray(getattr(old, name), np.float32)
+            carried = warp(before if same else resize(before, size), flow)
             kk = k[..., None] if new.ndim == 3 else k
             maps[name] = ((1 - kk) * new + kk * carried).astype(np.float32)
         n = maps["normal"]
