@@ -11,10 +11,10 @@ import time
 from pathlib import Path
 
 from viewer.cli.command_setup import command_lights, engine_options, first_look, rig_lights
-from viewer.cli.output_paths import check_fps, not_an_input, writable
+from viewer.cli.output_paths import not_an_input, writable
 from viewer.errors import InputError
 from viewer.files.clip_reader import check_range, is_clip
-from viewer.files.ownership import refuse_foreign
+from viewer.files.ownership import file_sha256, refuse_foreign
 from viewer.output.video import audio_sidecar, partial_path, partial_taken
 
 
@@ -34,8 +34,9 @@ def clip_bundle(clip, args, out=None) -> Path:
     size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
     max_size = getattr(args, "max_size", None) or MAX_SIZE
     temporal = args.temporal or "on"
+    digest = file_sha256(clip)  # read once: the cache's path and the bundle's key
     target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
-                                                                size, max_size, temporal)
+                                                                size, max_size, temporal, digest)
     t0 = time.perf_counter()
     with _bar(0, f"inferring {Path(clip).name}") as bar:
         def progress(done, total, entry):
@@ -43,7 +44,7 @@ def clip_bundle(clip, args, out=None) -> Path:
             bar.update(done - bar.n)
 
         record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size, device=getattr(args, "device", "cpu"),
-                            progress=progress, temporal=temporal)
+                            progress=progress, temporal=temporal, digest=digest)
     kept, states = record["frames_kept_from_earlier_run"], record["states"]
     seconds = time.perf_counter() - t0
     rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
@@ -78,7 +79,6 @@ def cmd_render_clip(args, look) -> int:
     if args.frames is not None:
         raise InputError(None, "--frames sets a turntable's length: a clip keeps its own frames (choose a part with "
                                "--start and --end)")
-    check_fps(args)
     turn = 0.0 if args.turn is None else args.turn
     check_range(args.scene, args.start, args.end)
     if look.background == "transparent":

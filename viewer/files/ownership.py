@@ -92,6 +92,17 @@ def fresh_sibling(path, tag: str) -> Path:
             continue
 
 
+def take_away(path, tag: str = "old") -> None:
+    """Remove ``path`` (a folder this program wrote; the caller has checked): first moved aside under a
+    name no one else has, so that the name is free at once and a removal cut short leaves no half
+    folder under it."""
+    import shutil
+
+    aside = fresh_sibling(path, tag)
+    Path(path).rename(aside / Path(path).name)
+    shutil.rmtree(aside, ignore_errors=True)
+
+
 @contextlib.contextmanager
 def folder_lock(folder):
     """An exclusive lock on ``folder`` (flock on its descriptor) for the duration: writers into it

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -27,10 +26,11 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.imageio import MARK, read_json, read_png, write_text
-from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling
+from viewer.files.ownership import file_is_ours, file_sha256, take_away
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
 from viewer.photo.camera_motion import turned
+from viewer.photo.photo_frame import output_frame
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
 from viewer.scene.look import AUTO, Look
@@ -54,8 +54,6 @@ class ClipPictures:
         first = self._load(self._people[0])
         self.size = first.output_size
         source = bundle.source  # the bundle's frame, before --max-size here: what the pans are measured in
-        from viewer.photo.photo_frame import output_frame
-
         self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
         self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
 
@@ -73,13 +71,15 @@ class ClipPictures:
         frame, and the map behind would zoom with it); frame by frame, the frame's own."""
         from viewer.scene.camera import Camera
 
-        entry = self.bundle.frames[index]
-        source = index if not self.bundle.temporal else next(
-            (e.index for e in self.bundle.frames if e.shot == entry.shot and e.state == "person"), index)
+        source = index if not self.bundle.temporal else self._shot_start(self.bundle.frames[index].shot)
         if source not in self._cameras:
             self._cameras[source] = Camera.from_json(read_json(self.bundle.scene_path(source) / "scene.json",
                                                                "scene bundle description")["camera"])
         return self._cameras[source]
+
+    def _shot_start(self, shot: int) -> int:
+        """The shot's first frame with a person (what is held for the shot is read there)."""
+        return next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
 
     def turn_of(self, index: int, person: int) -> tuple[float, float]:
         """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
@@ -111,7 +111,7 @@ class ClipPictures:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
-            first = next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
+            first = self._shot_start(shot)
             yaw, tilt = self.turn_of(first, first)
             self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt))[1].exposure
         return replace(look, exposure=self._exposures[shot])
@@ -184,19 +184,13 @@ def _open_parts(path: Path, key: str) -> Path:
         except (OSError, ValueError):
             same = False
         if not same:
-            _remove_parts(folder)
+            take_away(folder)
     if not folder.exists():
         folder.mkdir(parents=True)
         write_text(folder / PARTS_RECORD, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
     for p in folder.glob("*.partial.mp4"):  # a part cut short by a stopped run: made again
         p.unlink()
     return folder
-
-
-def _remove_parts(folder: Path) -> None:
-    old = fresh_sibling(folder, "old")
-    folder.rename(old / folder.name)
-    shutil.rmtree(old, ignore_errors=True)
 
 
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
@@ -238,5 +232,5 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
         else:
             note = f"the source clip {source} is not there as it was: the relit clip has no audio"
     note = join_clip(parts, path, audio, float(bundle.record.get("first_frame_at", 0.0)), bundle.duration) or note
-    _remove_parts(folder)
+    take_away(folder)
     return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note}

@@ -202,7 +202,7 @@ def _can_carry(stream) -> bool:
             probe.add_stream_from_template(stream)
             probe.start_encoding()
         return True
-    except (av.FFmpegError, ValueError, NotImplementedError):
+    except (av.FFmpegError, ValueError):  # PyAV: "'mp4' format does not support 'adpcm_ima_wav' codec"
         return False
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.photo.flow import backward_flow, dis_flow, grey, warp
+from viewer.photo.flow import backward_flow, dis_flow, shrunk_grey, warp
 from viewer.resize import resize
 
 SIDE = 640  # pixels of the shrunk frame's longer side (0.4 px moves of a fine texture read 20 % long at 320 px, 13 % at full size)
@@ -61,10 +61,8 @@ class CameraMotion:
             return float(self.shift[0]), float(self.shift[1])
         import cv2
 
-        h, w = rgb.shape[:2]
-        scale = min(SIDE / max(h, w), 1.0)
-        size = (max(round(w * scale), 1), max(round(h * scale), 1))
-        small = grey(resize(rgb, size))
+        small, scale = shrunk_grey(rgb, SIDE)
+        size = small.shape[::-1]
         person = np.zeros(small.shape, bool) if alpha is None else resize(alpha.astype(np.float32), size) > 0.02
         grow = max(int(round(MARGIN * max(size))), 1)
         person = cv2.dilate(person.astype(np.uint8), np.ones((2 * grow + 1, 2 * grow + 1), np.uint8)) > 0

@@ -31,7 +31,7 @@ from pathlib import Path
 from viewer.errors import InputError, NoPersonError
 from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
-from viewer.files.ownership import file_is_ours, file_sha256, fresh_sibling, written_here
+from viewer.files.ownership import file_is_ours, file_sha256, take_away, written_here
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
@@ -61,9 +61,10 @@ def clip_options(start: float, end: float | None, size: int, max_size: int, temp
 
 
 def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int,
-                     temporal: str = "on") -> Path:
-    """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``)."""
-    key = clip_key(file_sha256(clip_path), clip_options(start, end, size, max_size, temporal), inference_version())
+                     temporal: str = "on", digest: str | None = None) -> Path:
+    """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``);
+    ``digest``: the clip's SHA-256 when already known."""
+    key = clip_key(digest or file_sha256(clip_path), clip_options(start, end, size, max_size, temporal), inference_version())
     return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
 
 
@@ -101,9 +102,7 @@ def _start_over(out_dir: Path) -> None:
     if frames.is_dir():
         if not _frames_ours(frames):
             raise InputError(frames, "holds files relight did not write: give a new or empty folder for the clip bundle")
-        old = fresh_sibling(out_dir, "old")
-        frames.rename(old / FRAMES)
-        shutil.rmtree(old, ignore_errors=True)
+        take_away(frames)
     (out_dir / RECORD).unlink(missing_ok=True)
 
 
@@ -133,18 +132,18 @@ def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int)
 
 def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
                max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
-               temporal: str = "on") -> dict:
+               temporal: str = "on", digest: str | None = None) -> dict:
     """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
     ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
     the header's estimate). Frames already finished by an earlier run of the same clip and options
-    are kept."""
+    are kept. ``digest``: the clip's SHA-256 when the caller has just read it."""
     from viewer.gl import create_headless_context
 
     check_range(clip_path, start, end)
     out_dir = clip_target(out_dir)
     info = probe_clip(clip_path)
     options = clip_options(start, end, size, max_size, temporal)
-    digest = file_sha256(clip_path)
+    digest = digest or file_sha256(clip_path)
     key = clip_key(digest, options, inference_version())
     total = expected_frames(info, start, end)
     record = {"format": FORMAT, "version": VERSION, "source": {**info.to_json(), "path": str(Path(clip_path).resolve()),
@@ -171,7 +170,8 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     cuts = ShotCuts()
     steady = SteadyMaps() if temporal == "on" else None
     motion = CameraMotion() if temporal == "on" else None
-    to_output = output_frame((info.width, info.height), max_size)[0] / info.width  # source pixels -> the bundle's frame
+    frame_size = output_frame((info.width, info.height), max_size)  # the bundle's frame
+    to_output = frame_size[0] / info.width  # source pixels -> the bundle's frame
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept = 0
     t0 = time.perf_counter()
@@ -188,7 +188,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                     shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
                 if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
                     scene = load_scene(frames_dir / frame_name(frame.index))
-                    steady.carry(scene, resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)), shot)
+                    steady.carry(scene, resize(frame.rgb, frame_size), shot)
                     alpha = scene.frame.alpha
                 elif steady is not None:
                     steady.restart()
@@ -212,7 +212,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                         if steady is not None:
                             steady.restart()
                         write_png(frames_dir / f"{frame_name(frame.index)}.png",
-                                  resize(frame.rgb, output_frame(frame.rgb.shape[1::-1], max_size)) / 255.0)
+                                  resize(frame.rgb, frame_size) / 255.0)
                         entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
                     else:
                         result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": key,

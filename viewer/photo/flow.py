@@ -25,6 +25,15 @@ def grey(rgb: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
 
 
+def shrunk_grey(rgb: np.ndarray, side: int) -> tuple[np.ndarray, float]:
+    """(grey uint8 of ``rgb`` shrunk so its longer side is at most ``side``, the scale it was shrunk by)."""
+    from viewer.resize import resize
+
+    h, w = rgb.shape[:2]
+    scale = min(side / max(h, w), 1.0)
+    return grey(resize(rgb, (max(round(w * scale), 1), max(round(h * scale), 1)))), scale
+
+
 def warp(image: np.ndarray, flow: np.ndarray) -> np.ndarray:
     """``image`` sampled at x + flow(x) (bilinear, edges replicated); any number of channels."""
     import cv2

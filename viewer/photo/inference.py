@@ -37,7 +37,7 @@ import numpy as np
 from viewer.errors import InputError, NoPersonError
 from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import read_json
-from viewer.files.ownership import folder_lock, fresh_sibling, mark_written, written_here
+from viewer.files.ownership import folder_lock, fresh_sibling, mark_written, take_away, written_here
 from viewer.photo import detail as detail_mod, gloss
 from viewer.photo.face import find_faces, light_fit_weight, with_face
 from viewer.photo.matting import automatic_matte, mask_matte
@@ -255,9 +255,7 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
     if out.exists() or out.is_symlink():
         if _made_from(out, expected):
             return out, True
-        damaged = fresh_sibling(out, "damaged")  # the cache's own entry, damaged or of other bytes: taken away
-        out.rename(damaged / out.name)
-        shutil.rmtree(damaged, ignore_errors=True)
+        take_away(out, "damaged")  # the cache's own entry, damaged or of other bytes
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
           networks=load_networks(device, networks_dir), progress=progress, ctx=ctx)

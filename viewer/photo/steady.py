@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from viewer.photo.flow import backward_flow, dis_flow, grey, resized_flow, warp
+from viewer.photo.flow import backward_flow, dis_flow, resized_flow, shrunk_grey, warp
 from viewer.resize import resize
 
 KEEP = 0.6  # the previous frame's share where the flow holds
@@ -49,12 +49,7 @@ class SteadyMaps:
         the next one."""
         if shot != self.shot:
             self.shot = shot
-        self._previous = (self._small(frame_photo), scene)
-
-    def _small(self, frame_photo: np.ndarray) -> np.ndarray:
-        h, w = frame_photo.shape[:2]
-        scale = min(FLOW_SIDE / max(h, w), 1.0)
-        return grey(resize(frame_photo, (max(round(w * scale), 1), max(round(h * scale), 1))))
+        self._previous = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene)
 
     def steady(self, scene, frame_photo: np.ndarray, shot: int | None = None):
         """``scene`` (a frame's, with its frame layer) with its maps blended along the flow from the
@@ -63,7 +58,7 @@ class SteadyMaps:
         if shot != self.shot:
             self.restart()
             self.shot = shot
-        small = self._small(frame_photo)
+        small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
         previous, self._previous = self._previous, None
         if previous is None or previous[0].shape != small.shape:
             self._previous = (small, scene)
