@@ -444,6 +444,43 @@ def test_steady_maps_follow_the_flow_and_calm_the_noise():
     assert share == 0.0
 
 
+def test_the_steadied_matte_neither_adds_coverage_nor_cuts_holes():
+    """A still person before a plain wall (the flow holds everywhere): frame 0's matte also covers a
+    block of the wall, frame 1's covers a hand frame 0 did not have. Steadied, frame 1's matte is 0
+    wherever its own is (no block of the old background carried in), 1 over the new hand (no hole)
+    and the soft edge values it shares with frame 0 are blended."""
+    from dataclasses import replace
+
+    from viewer.photo.steady import KEEP, SteadyMaps
+    from viewer.resources import sample_scene_dir
+    from viewer.scene.bundle import FrameLayer, load_scene
+
+    base = load_scene(sample_scene_dir())
+    h, w = base.mask.shape
+    photo = np.full((h, w, 3), 128, np.uint8)
+    photo[base.mask] = (base.albedo[base.mask] * 255).astype(np.uint8)
+    edge = base.mask.astype(np.float32)
+    edge[base.mask & ~np.roll(base.mask, 2, axis=1)] = 0.5  # a soft column at the person's edge
+
+    def scene_with(alpha):
+        layer = FrameLayer(albedo=base.albedo, alpha=alpha.astype(np.float32), photo=photo.astype(np.float32) / 255)
+        return replace(base, frame=layer)
+
+    before = edge.copy()
+    before[10:40, 10:40] = 1.0  # the wall block
+    now = edge.copy()
+    now[h - 40:h - 10, w - 40:w - 10] = 1.0  # the new hand
+    now[edge == 0.5] = 0.3
+    steady = SteadyMaps()
+    steady.steady(scene_with(before), photo, shot=0)
+    out, _ = steady.steady(scene_with(now), photo, shot=0)
+    alpha = out.frame.alpha
+    assert alpha[now == 0].max() == 0.0
+    assert alpha[h - 40:h - 10, w - 40:w - 10].min() == 1.0
+    soft = (edge == 0.5) & (now == 0.3)
+    assert np.allclose(np.median(alpha[soft]), (1 - KEEP) * 0.3 + KEEP * 0.5, atol=0.02)
+
+
 def test_the_camera_turn_is_read_from_the_old_background(ctx, clip_bundle):
     """A background sliding 0.4 px a frame behind a person who moves on their own: the camera's
     motion adds up to 0.4 px a frame (sub-pixel), a cut starts again; and the look turned by

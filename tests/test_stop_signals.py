@@ -55,3 +55,30 @@ def test_an_ignored_signal_is_dropped_without_spinning():
 def test_a_signal_left_to_its_default_ends_the_process():
     proc, _ = run_child("SIGHUP")
     assert proc.returncode == -signal.SIGHUP, (proc.returncode, proc.stdout, proc.stderr)
+
+
+HELD = textwrap.dedent("""
+    import os, signal, sys, time
+    from viewer.stop_signals import held, route_to_main_thread
+    def stop(signum, frame):
+        raise RuntimeError(f"stopped by {signum}")
+    signal.signal(signal.SIGHUP, stop)
+    route_to_main_thread()
+    done = []
+    try:
+        with held():
+            os.kill(os.getpid(), signal.SIGHUP)
+            time.sleep(0.3)  # the forwarding thread hands it on meanwhile
+            done.append("block")
+        done.append("after")
+    except RuntimeError as exc:
+        print(done, exc, signal.getsignal(signal.SIGHUP) is stop)
+""")
+
+
+def test_a_signal_within_held_is_delivered_when_the_block_ends():
+    """What native code calling back into Python (OpenEXR's stream reads) must not see: the stop comes
+    after the block, to the handler that was there, never inside it."""
+    proc = subprocess.run([sys.executable, "-c", HELD], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"['block'] stopped by {int(signal.SIGHUP)} True"

@@ -17,6 +17,7 @@ standard input or when the window kills it, never on a signal.
 from __future__ import annotations
 
 import _thread
+import contextlib
 import signal
 import threading
 
@@ -48,3 +49,24 @@ def deliver(signum: int) -> None:
     elif handler == signal.SIG_DFL:
         signal.pthread_sigmask(signal.SIG_UNBLOCK, [signum])
         signal.raise_signal(signum)
+
+
+@contextlib.contextmanager
+def held():
+    """Within the block the stop signals are only noted; the first one noted is delivered when the block
+    ends (:func:`deliver`). For native code that calls back into Python (OpenEXR reading and writing a
+    Python stream): a handler's exception raised inside such a callback is swallowed by the native code
+    and comes back as a failure of its own ("cannot read EXR (initialization failed)") instead of the
+    stop it was. Also for steps that must not be cut in two (files replaced together). Outside the main
+    thread, where handlers cannot be set, the block runs as it is."""
+    caught: list[int] = []
+    on_main = threading.current_thread() is threading.main_thread()
+    signals = [sig for sig in STOP_SIGNALS if on_main and signal.getsignal(sig) is not None]  # handlers Python can put back
+    previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if caught:
+        deliver(caught[0])

@@ -14,7 +14,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.file_kinds import regular_file
-from viewer.stop_signals import deliver
+from viewer.stop_signals import held
 
 MARK = ("written_by", "relight")  # (key, value) inside every file this program writes (viewer.files.ownership)
 MARK_TEXT = f"{MARK[0]}: {MARK[1]}"  # the mark where a format holds one text (a JPEG comment, an MP4's comment)
@@ -47,11 +47,6 @@ def atomic_paths(*paths):
     beside each; when the block ends without an exception all replace their files at once, with
     Ctrl-C, SIGTERM and SIGHUP held back until the last is in place (an interrupted write leaves all
     the old files or all the new ones, never a new PNG beside an old EXR)."""
-    import signal
-    import threading
-
-    from viewer.stop_signals import STOP_SIGNALS
-
     paths = [Path(p) for p in paths]
     for p in paths:
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -62,20 +57,10 @@ def atomic_paths(*paths):
                 naming.enter_context(_named_as(p, tmp))
             yield tmps
         # Python runs a signal's handler between any two bytecodes, even for a signal that arrived
-        # before this point: the handlers only note a signal until every file is in place, then it
-        # is raised again with the handlers as they were
-        caught: list[int] = []
-        held = [sig for sig in STOP_SIGNALS  # (handlers Python can put back)
-                if threading.current_thread() is threading.main_thread() and signal.getsignal(sig) is not None]
-        previous = {sig: signal.signal(sig, lambda signum, _frame: caught.append(signum)) for sig in held}
-        try:
+        # before this point: the signals are held until every file is in place
+        with held():
             for tmp, p in zip(tmps, paths):
                 os.replace(tmp, p)
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-        if caught:
-            deliver(caught[0])
     finally:
         for tmp in tmps:
             if tmp.exists():
@@ -169,7 +154,7 @@ def native_output():
     import tempfile
 
     libc = ctypes.CDLL(None)
-    held: list[str] = []
+    printed: list[str] = []
     for stream in (sys.stdout, sys.stderr):
         stream.flush()
     libc.fflush(None)
@@ -183,7 +168,7 @@ def native_output():
             os.dup2(sink.fileno(), 1)
             os.dup2(sink.fileno(), 2)
             sys.stdout = sys.stderr = caught
-            yield held
+            yield printed
         finally:
             sys.stdout, sys.stderr = streams
             caught.close()
@@ -192,15 +177,15 @@ def native_output():
                 os.dup2(old, fd)
                 os.close(old)
             sink.seek(0)
-            held.append(sink.read().decode("utf-8", "replace"))
+            printed.append(sink.read().decode("utf-8", "replace"))
 
 
-def replay(held: list[str]) -> None:
-    """Print what :func:`native_output` held, to stderr, as it would have appeared."""
+def replay(printed: list[str]) -> None:
+    """Print what :func:`native_output` collected, to stderr, as it would have appeared."""
     import sys
 
-    if held and held[0]:
-        sys.stderr.write(held[0])
+    if printed and printed[0]:
+        sys.stderr.write(printed[0])
         sys.stderr.flush()
 
 
@@ -229,7 +214,7 @@ def read_exr(path, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
     except OSError as exc:
         raise InputError(path, f"cannot read EXR ({exc.strerror or exc})") from None
     failure = None
-    with stream, native_output() as held:
+    with stream, native_output() as printed, held():
         try:
             arr = _exr_pixels(stream, path, max_pixels)
         except InputError:
@@ -237,8 +222,8 @@ def read_exr(path, max_pixels: int = MAX_IMAGE_PIXELS) -> np.ndarray:
         except Exception as exc:  # OpenEXR raises plain exceptions for corrupt files
             failure = exc
     if failure is not None:
-        raise InputError(path, f"cannot read EXR ({_native_reason(failure, held)})")
-    replay(held)
+        raise InputError(path, f"cannot read EXR ({_native_reason(failure, printed)})")
+    replay(printed)
     return arr
 
 
@@ -302,7 +287,7 @@ def write_exr(path, arr: np.ndarray, half: bool = False) -> Path:
         arr = np.ascontiguousarray(arr[..., 0])
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, MARK[0]: MARK[1]}
     with atomic_path(path) as tmp:
-        with open(tmp, "wb") as stream:  # Python's file: any name, and a failed write is the OSError it is
+        with open(tmp, "wb") as stream, held():  # Python's file: any name, and a failed write is the OSError it is
             OpenEXR.File(header, {name: arr}).write(stream)
     return path
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.imageio import MARK, atomic_path
+from viewer.stop_signals import held
 
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
@@ -76,6 +77,6 @@ def write_layers(path, channels: dict[str, np.ndarray]):
 
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, MARK[0]: MARK[1]}
     with atomic_path(path) as tmp:
-        with open(tmp, "wb") as stream:
+        with open(tmp, "wb") as stream, held():  # OpenEXR calls back into Python: see stop_signals.held
             OpenEXR.File(header, channels).write(stream)
     return path

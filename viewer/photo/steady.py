@@ -104,9 +104,13 @@ class SteadyMaps:
         return maps, float(here.sum() / max(int(scene.mask.sum()), 1))
 
     def _blend_alpha(self, alpha: np.ndarray, old: np.ndarray, back: np.ndarray, held: np.ndarray) -> np.ndarray:
-        """The soft matte blended where the flow holds (at the frame's size)."""
+        """The soft matte blended where the flow holds (at the frame's size) and where the frame's own
+        matte and the one carried both have the person: the blend steadies the edge's soft values and
+        never adds coverage (a flow that holds in a plain background yet is wrong there carried a block
+        of the old curtain in beside a hip) nor cuts a hole (a limb that appears)."""
         h, w = alpha.shape
         flow = resized_flow(back, (w, h))
-        ok = resize(held.astype(np.float32), (w, h)) > 0.99
+        carried = warp(old.astype(np.float32), flow)
+        ok = (resize(held.astype(np.float32), (w, h)) > 0.99) & (alpha > 0) & (carried > 0)
         k = np.where(ok, self.keep, 0.0).astype(np.float32)
-        return np.clip((1 - k) * alpha + k * warp(old.astype(np.float32), flow), 0.0, 1.0).astype(np.float32)
+        return np.clip((1 - k) * alpha + k * carried, 0.0, 1.0).astype(np.float32)
