@@ -8,7 +8,7 @@
 // output_mode OUTPUT_DISPLAY writes the display image; OUTPUT_PERSON_HDR the person's HDR and matte; OUTPUT_COMPOSITED_HDR the HDR composited over
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG;
 // OUTPUT_BACKGROUND_DISPLAY the display image with no person and no shadow of theirs (a clip's
-// frame where the person has left the picture).
+// frame where the person has left the picture), OUTPUT_BACKGROUND_HDR its HDR (as OUTPUT_COMPOSITED_HDR).
 // Before / after (display only): left of compare_x pixels the original photo as it was, with a
 // two-pixel white line at the split. With ground, the background is darkened by the person's
 // shadow on the ground (ground_shadow.frag.glsl, work images' field of view, bilinear). On the skin,
@@ -39,7 +39,7 @@ uniform vec2 skin_box_to_uv;           // 1 / the box's size in frame pixels, as
 layout(location = 0) out vec4 color;
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    bool no_person = output_mode == OUTPUT_BACKGROUND_DISPLAY;
+    bool no_person = output_mode == OUTPUT_BACKGROUND_DISPLAY || output_mode == OUTPUT_BACKGROUND_HDR;
     vec4 aa = no_person ? vec4(0.0) : texelFetch(frame_albedo_alpha, px, 0);
     vec3 fg = vec3(0.0);
     if (aa.a > 0.0) {
@@ -59,7 +59,7 @@ void main() {
     if (ground && !no_person && aa.a < 1.0) {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) * frame_to_uv).rgb, 0.0, 1.0);
     }
-    if (output_mode == OUTPUT_COMPOSITED_HDR) {
+    if (output_mode == OUTPUT_COMPOSITED_HDR || output_mode == OUTPUT_BACKGROUND_HDR) {
         color = transparent ? vec4(fg * aa.a, aa.a) : vec4(mix(bg, fg, aa.a), 1.0);
         return;
     }

@@ -171,8 +171,12 @@ def ray_cluster():
 
 
 def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):
-    # twelve items: a worker is still rendering when the first is done, even on a slow machine
-    args = [PHOTO, "--env", *MAPS, "--yaw", "0", "60", "120", "180", "240", "300", "-o", tmp_path / "out", "--ray", "auto",
+    """A photo and a clip of two frames under twelve looks: a worker is still rendering when the first
+    item is done, even on a slow machine; it is killed and every item is done once."""
+    from test_clips import person_frames, write_clip
+
+    clip = write_clip(tmp_path / "walk.mp4", person_frames(2, 160, 240), audio=None)
+    args = [PHOTO, clip, "--env", *MAPS, "--yaw", "0", "60", "120", "180", "240", "300", "-o", tmp_path / "out", "--ray", "auto",
             "--threads", "1"]
     proc = batch(tmp_path, *args, wait=False, env=ray_cluster)
     killed = None
@@ -189,8 +193,9 @@ def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):
     assert killed is not None, (out, err)
     assert proc.returncode == 0, err
     items = done_items(tmp_path / "out")
-    assert len(items) == 12 and sorted(items) == sorted(set(items)), items
-    assert "batch: 12 done, 0 failed" in out
+    assert len(items) == 24 and sorted(items) == sorted(set(items)), items
+    assert "batch: 24 done, 0 failed" in out
+    assert len(list((tmp_path / "out" / "walk").glob("*.mp4"))) == 12 and not list((tmp_path / "out" / "walk").glob("*.parts"))
 
 
 def test_an_idle_worker_killed_is_replaced(tmp_path):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
+from viewer.files.imageio import read_png
 from viewer.resources import asset_dir
 
 FPS = 10
@@ -379,6 +380,44 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
     shutil.rmtree(tmp_path / "d", ignore_errors=True)
 
 
+def test_a_relit_clips_layers_are_an_exr_sequence(clip_bundle, tmp_path):
+    """``--layers``: an EXR per frame beside the MP4, its beauty the MP4's frame; a lost frame's are the
+    frame before's, a frame with no person has the background alone; run again, the layers are kept;
+    a foreign file in the folder is refused before any work."""
+    import OpenEXR
+    from test_cli import run_cli
+
+    out = tmp_path / "relit.mp4"
+    env = str(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
+    res = run_cli("render", str(clip_bundle[0]), "--env", env, "-o", str(out), "--layers")
+    assert res.returncode == 0, res.stderr
+    folder = tmp_path / "relit.layers"
+    assert f"wrote {folder}/ (5 frames' layers" in res.stdout
+    assert sorted(p.name for p in folder.iterdir()) == [f"{i:06d}.exr" for i in range(5)] + ["layers.json"]
+
+    def layers(i):
+        with OpenEXR.File(str(folder / f"{i:06d}.exr"), separate_channels=True) as f:
+            return {name: np.asarray(c.pixels, np.float32) for name, c in f.channels().items()}
+
+    frames = [layers(i) for i in range(5)]
+    assert all(set(f) == set(frames[0]) for f in frames) and frames[0]["R"].shape == (480, 320)
+    assert frames[0]["person.A"].mean() > 0.05 and frames[2]["person.A"].max() == 0.0 and frames[2]["diffuse.G"].max() == 0.0
+    assert np.array_equal(frames[1]["R"], frames[0]["R"])  # the lost frame shows the frame before
+    assert frames[2]["G"].mean() > 0.01 and np.all(np.isfinite(frames[2]["G"]))  # the new background
+    video, _, _ = decoded(out)
+    beauty = np.stack([frames[3][c] for c in "RGB"], -1)
+    assert np.corrcoef(beauty.mean(-1).ravel(), video[3].mean(-1).ravel())[0, 1] > 0.9
+    stamps = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+    out.unlink()
+    res = run_cli("render", str(clip_bundle[0]), "--env", env, "-o", str(out), "--layers")
+    assert res.returncode == 0 and {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == stamps, res.stderr
+    (folder / "notes.txt").write_text("mine")
+    out.unlink()
+    res = run_cli("render", str(clip_bundle[0]), "--env", env, "-o", str(out), "--layers")
+    assert res.returncode == 2 and "relit.layers: is not a folder of layers relight wrote" in res.stderr
+    assert (folder / "notes.txt").read_text() == "mine" and not out.exists()
+
+
 def test_shots_cut_where_the_picture_changes():
     """A person moving and the camera panning stay one shot; another place is a new one; a lost
     frame stays in the shot before it."""
@@ -551,14 +590,37 @@ def test_the_warping_error_sees_flicker_and_not_motion():
     assert meter.result("person")["flicker"] > 20 * meter.result("person")["input"]
 
 
-def test_a_batch_says_it_leaves_clips_out(tmp_path):
+def test_a_batch_relights_clips_beside_photos(tmp_path):
+    """A folder with a clip and a photo: the clip relit into CLIP/LOOK.mp4 (its frames and sound) with
+    its middle frame as CLIP/LOOK.png (in the contact sheet), the photo as ever; run again, nothing
+    is done; a foreign file where the clip's audio would go beside it fails that item alone."""
     import shutil as sh
 
-    from viewer.batch.plan import collect_photos
+    from test_batch import batch, events
 
-    clip = write_clip(tmp_path / "walk.mp4", [pattern(i) for i in range(2)], audio=None)
-    sh.copy(asset_dir() / "photos/underpass.jpg", tmp_path / "underpass.jpg")
-    photos, notes = collect_photos([tmp_path, clip])
-    assert [p.name for p in photos] == ["underpass.jpg"]
-    assert any("1 clip left out" in n for n in notes) and any("walk.mp4: a clip, left out" in n and "relight render walk.mp4" in n
-                                                               for n in notes)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    write_clip(folder / "walk.mp4", person_frames(3))
+    sh.copy(asset_dir() / "photos/underpass.jpg", folder / "underpass.jpg")
+    out = tmp_path / "out"
+    env = asset_dir() / "envmaps/immenstadter_horn_256.hdr"
+    res = batch(tmp_path, folder, "--env", env, "-o", out, "--workers", "1")
+    assert res.returncode == 0, res.stderr
+    assert "2 done, 0 failed" in res.stdout
+    mp4, = (out / "walk").glob("*.mp4")
+    frames, times, audio = decoded(mp4)
+    assert len(frames) == 3 and audio and frames[0].shape[0] == 256
+    poster = read_png(mp4.with_suffix(".png"))
+    h, w = frames[1].shape[:2]  # (H.264's even width)
+    assert poster.shape[0] == h and poster.shape[1] - w in (0, 1) and np.abs(poster[:, :w] * 255 - frames[1]).mean() < 4
+    assert sorted(p.name for p in out.glob("underpass/*")) == [mp4.stem + ".exr", mp4.stem + ".png"]
+    done = {e["item"]: e for e in events(out) if e["event"] == "done"}
+    assert set(done["walk/" + mp4.stem]["outputs"]) == {f"walk/{mp4.stem}.png", f"walk/{mp4.stem}.mp4"}
+    assert (out / "contact-sheet.png").is_file()
+    res = batch(tmp_path, folder, "--env", env, "-o", out, "--workers", "1")
+    assert res.returncode == 0 and "nothing to do, 2 items already done" in res.stdout, res.stdout + res.stderr
+    mine = out / "walk" / f"{mp4.stem}_y90.audio.mp4"
+    mine.write_text("mine")
+    res = batch(tmp_path, folder, "--env", env, "-o", out, "--workers", "1", "--yaw", "90")
+    assert res.returncode == 1 and "1 done, 1 failed" in res.stdout and "audio.mp4: is not a file relight wrote" in res.stderr
+    assert mine.read_text() == "mine"

@@ -16,7 +16,7 @@ MODES = {
     "VISIBILITY": ("soft", "hard", "none", "refined"),  # the shadows the composite uses
     "INSPECT": ("albedo", "normal", "depth", "specular", "roughness", "shadow"),  # an inspection view
     "PASS": ("off", "hard", "soft", "unshadowed"),  # what a light's pass computes
-    "OUTPUT": ("display", "person_hdr", "composited_hdr", "background_display"),  # what the frame composite writes
+    "OUTPUT": ("display", "person_hdr", "composited_hdr", "background_display", "background_hdr"),  # what the frame composite writes
 }
 
 

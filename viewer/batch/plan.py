@@ -19,35 +19,34 @@ KEY_VERSION = "batch-1"  # outputs of an older batch code are made again
 
 
 def collect_photos(paths) -> tuple[list[Path], list[str]]:
-    """The photos named by ``paths`` (files, folders: their photos, sorted; globs), each once, and
-    one line per path that named none. ``*.mask.png`` files (hand-made masks beside photos) are not
-    photos, and neither are, in a folder or a glob, images this program wrote (a batch's contact
-    sheet and outputs, when a batch writes into the folder it reads: ``viewer.files.ownership``)."""
-    from viewer.files.clip_reader import is_clip
+    """The photos and clips named by ``paths`` (files, folders: their photos and clips, sorted; globs),
+    each once, and one line per path that named none. ``*.mask.png`` files (hand-made masks beside
+    photos) are not photos, and neither are, in a folder or a glob, images and videos this program
+    wrote (a batch's contact sheet and outputs, when a batch writes into the folder it reads:
+    ``viewer.files.ownership``)."""
     from viewer.files.ownership import file_is_ours
 
     photos, missing = [], []
     for given in paths:
         p = Path(given)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and is_photo(q) and not file_is_ours(q))
-            clips = sum(1 for q in p.iterdir() if q.is_file() and is_clip(q))
-            if clips:
-                missing.append(f"{given}: {clips} clip{'s' if clips > 1 else ''} left out (a batch relights photos; "
-                               "`relight render CLIP --env MAP -o OUT.mp4` relights a clip)")
-        elif p.is_file() and is_clip(p):
-            missing.append(f"{given}: a clip, left out (a batch relights photos; `relight render {p.name} --env MAP -o "
-                           "OUT.mp4` relights it)")
-            continue
+            found = sorted(q for q in p.iterdir() if q.is_file() and is_input(q) and not file_is_ours(q))
         elif p.is_file():
             found = [p]
         else:
             found = sorted(Path(q) for q in glob.glob(str(given))
-                           if Path(q).is_file() and is_photo(Path(q)) and not file_is_ours(Path(q)))
+                           if Path(q).is_file() and is_input(Path(q)) and not file_is_ours(Path(q)))
         if not found:
-            missing.append(f"{given}: no photo there (PNG, JPEG, TIFF, WebP or BMP)")
+            missing.append(f"{given}: no photo or clip there (PNG, JPEG, TIFF, WebP, BMP; MP4, MOV, WebM, AVI, MKV)")
         photos += [q for q in found if q.resolve() not in {r.resolve() for r in photos}]
     return photos, missing
+
+
+def is_input(path: Path) -> bool:
+    """A photo or a clip, by its name."""
+    from viewer.files.clip_reader import is_clip
+
+    return is_photo(path) or is_clip(path)
 
 
 def is_photo(path: Path) -> bool:
@@ -70,9 +69,9 @@ class LookSpec:
 
 @dataclass
 class Item:
-    """One photo under one look, and what it writes."""
+    """One photo or clip under one look, and what it writes."""
 
-    photo: Path
+    photo: Path  # a photo, or a clip (viewer.files.clip_reader.is_clip)
     look: LookSpec
     name: str  # "<photo>/<look>": the outputs' stem under the batch folder
     outputs: tuple[Path, ...] = ()

@@ -63,6 +63,7 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
     """Every (photo, look) item with its outputs and key; the photos' bundle keys (what their bundles
     are made from: viewer.photo.inference.bundle_key), or for a photo that cannot be read its line."""
     from viewer.errors import InputError
+    from viewer.files.clip_reader import is_clip
     from viewer.photo.inference import bundle_key, inference_version
 
     names = photo_names(photos, reserved=(MANIFEST, SHEET, LOCK))
@@ -70,7 +71,8 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
     shas, errors = {}, {}
     for p in photos:
         try:
-            shas[p] = bundle_key(p, max_size=settings["max_size"], version=version)
+            shas[p] = clip_bundle_key(p, settings["max_size"], version) if is_clip(p) else \
+                bundle_key(p, max_size=settings["max_size"], version=version)
         except InputError as exc:
             shas[p], errors[p] = "", str(exc)
         except OSError as exc:
@@ -79,7 +81,10 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
     for p in photos:
         for look in looks:
             name = f"{names[p]}/{look.spec.name}"
-            outputs = (f"{name}.png", f"{name}.exr") + ((f"{name}.layers.exr",) if settings.get("layers") else ())
+            if is_clip(p):  # the relit clip, and its middle frame (what the contact sheet shows)
+                outputs = (f"{name}.png", f"{name}.mp4")
+            else:
+                outputs = (f"{name}.png", f"{name}.exr") + ((f"{name}.layers.exr",) if settings.get("layers") else ())
             item = Item(p, look.spec, name, outputs)
             if look.lights is not None and shas[p]:
                 item.settings = {"look": look.look_json, "options": look.options,
@@ -88,6 +93,15 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
                                     np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
             items.append(item)
     return items, errors
+
+
+def clip_bundle_key(clip: Path, max_size: int, version: str) -> str:
+    """What a clip's bundle is made from (the whole clip, temporal on: what a batch infers)."""
+    from viewer.files.ownership import file_sha256
+    from viewer.photo.clip_inference import clip_key, clip_options
+    from viewer.photo.photo_frame import WORK_PERSON
+
+    return clip_key(file_sha256(clip), clip_options(0.0, None, WORK_PERSON, max_size), version)
 
 
 def remove_leftovers(folder: Path, items: list[Item]) -> None:
@@ -155,6 +169,8 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
 
 
 def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest: Manifest, summary: Summary, quiet, tqdm):
+    from viewer.files.clip_reader import is_clip
+
     waiting: dict[Path, list[Item]] = {}
     for item in todo:
         waiting.setdefault(item.photo, []).append(item)
@@ -163,7 +179,7 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
     for photo in waiting:
         tasks[next_id] = ("infer", photo)
         pool.submit({"id": next_id, "kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
-                     "device": settings.get("device", "cpu"), "bundles": settings["bundles"]})
+                     "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
         next_id += 1
     bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
     try:
@@ -201,11 +217,13 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
 
 
 def _render_task(task_id: int, item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:
+    from viewer.files.clip_reader import is_clip
+
     return {"id": task_id, "kind": "render", "item": item.name, "bundle": bundle, "folder": str(folder),
             "outputs": list(item.outputs), "envmap": str(look.spec.envmap) if look.spec.envmap else None,
             "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,
             "look": look.look_json, "options": look.options, "max_size": settings["max_size"],
-            "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light"))}
+            "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light")), "clip": is_clip(item.photo)}
 
 
 def _failed(manifest: Manifest, summary: Summary, item: Item, error: str, folder: Path | None = None):

@@ -55,13 +55,56 @@ class Worker:
         self._engine_key, self._engine, self._scene = None, None, None
 
     def infer(self, task: dict) -> dict:
+        if task.get("clip"):
+            return self.infer_clip(task)
         from viewer.photo.inference import cached_bundle
 
         bundle, cached = cached_bundle(task["photo"], None, max_size=task["max_size"], device=task.get("device", "cpu"),
                                        ctx=self.ctx, bundles=task["bundles"])
         return {"bundle": str(bundle), "cached": cached}
 
+    def infer_clip(self, task: dict) -> dict:
+        """A clip's bundle in the cache (the whole clip, temporal on), made or finished there."""
+        from viewer.files.ownership import file_sha256
+        from viewer.photo.clip_inference import cached_clip_path, infer_clip
+        from viewer.photo.photo_frame import WORK_PERSON
+
+        digest = file_sha256(task["photo"])
+        bundle = cached_clip_path(task["photo"], task["bundles"], 0.0, None, WORK_PERSON, task["max_size"], digest=digest)
+        record = infer_clip(task["photo"], bundle, max_size=task["max_size"], device=task.get("device", "cpu"), ctx=self.ctx,
+                            digest=digest)
+        return {"bundle": str(bundle), "cached": record["frames_kept_from_earlier_run"] == record["frames"]}
+
+    def render_clip(self, task: dict) -> dict:
+        """A clip item: the relit clip (the map does not turn; the source's framing at --max-size) and
+        its middle frame as a PNG."""
+        from viewer.files.ownership import file_sha256, refuse_foreign
+        from viewer.gl.options import EngineOptions
+        from viewer.lighting.envmap import load_envmap
+        from viewer.output.clip_render import render_clip
+        from viewer.output.video import audio_sidecar
+        from viewer.scene.area_lights import AreaLights
+        from viewer.scene.clip_bundle import load_clip_bundle
+        from viewer.scene.look import Look
+
+        self._drop_engine()  # a clip's frames each have their engine
+        t = time.perf_counter()
+        env = load_envmap(task["envmap"]).pixels if task.get("envmap") else None
+        folder = Path(task["folder"])
+        png, mp4 = (folder / rel for rel in task["outputs"])
+        bundle = load_clip_bundle(task["bundle"])
+        refuse_foreign([audio_sidecar(mp4, bundle.source["path"])])  # where audio an MP4 cannot hold would go
+        fixed = AreaLights.from_array(task["rig"]) if task.get("rig") is not None else None
+        result = render_clip(self.ctx, bundle, AreaLights.from_array(task["lights"]),
+                             Look.from_json(task["look"]), mp4, env, fixed, EngineOptions(**task["options"]),
+                             sizes=(None, task["max_size"]), poster=png)
+        times = {"render": round(time.perf_counter() - t, 3), "frames": result["frames"]}
+        return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]},
+                **({"note": result["audio_note"]} if result["audio_note"] else {})}
+
     def render(self, task: dict) -> dict:
+        if task.get("clip"):
+            return self.render_clip(task)
         from viewer.files.ownership import file_sha256
         from viewer.gl import Engine
         from viewer.gl.options import EngineOptions

@@ -15,7 +15,8 @@ def add_batch_parser(sub) -> None:
 
     p = sub.add_parser("batch", help="relight folders of photos under several looks: every photo inferred once, every "
                        "map fitted once, renders on worker processes or a Ray cluster, a manifest, resumable")
-    p.add_argument("photos", nargs="+", help="photos, folders of photos, or globs (quoted)")
+    p.add_argument("photos", nargs="+", help="photos and clips, folders of them, or globs (quoted); a clip is relit into "
+                   "CLIP/LOOK.mp4 with its middle frame as CLIP/LOOK.png")
     p.add_argument("--env", "--envmap", dest="envmaps", nargs="+", default=[], help="environment maps: one look each")
     p.add_argument("--lights", dest="light_files", nargs="+", default=[], help="area-light files: one look each (no map behind)")
     p.add_argument("--yaw", dest="yaws", nargs="+", type=auto_or("degrees"),
@@ -49,7 +50,12 @@ def cmd_batch(args) -> int:
     for line in missing:
         print(f"relight: warning: {line}", file=sys.stderr)
     if not photos:
-        raise InputError(None, "no photos to relight: give photos, folders or globs")
+        raise InputError(None, "no photos or clips to relight: give photos, clips, folders or globs")
+    from viewer.files.clip_reader import is_clip
+
+    if args.layers and any(is_clip(p) for p in photos):
+        print("relight: warning: --layers: the clips get their relit MP4 and middle frame, no layers (a layers file is a "
+              "photo's)", file=sys.stderr)
     if not args.envmaps and not args.light_files:
         raise InputError(None, "give the looks: --env MAP [MAP ...] and/or --lights FILE [FILE ...]")
     if args.gpus_per_worker < 0 or (args.gpus_per_worker and not args.ray):

@@ -70,7 +70,7 @@ def cmd_infer_clip(args) -> int:
 def cmd_render_clip(args, look) -> int:
     from viewer.gl import create_headless_context
     from viewer.lighting.envmap import load_envmap
-    from viewer.output.clip_render import parts_folder, render_clip
+    from viewer.output.clip_render import check_layers_folder, layer_name, layers_folder, parts_folder, render_clip
     from viewer.scene.clip_bundle import load_clip_bundle, read_record
 
     out = Path(args.output)
@@ -87,11 +87,15 @@ def cmd_render_clip(args, look) -> int:
     if not is_clip(args.scene) and (args.start != 0.0 or args.end is not None or args.temporal is not None):
         raise InputError(args.scene, "--start, --end and --temporal choose how a clip is inferred: give the clip itself, "
                                      "or infer its bundle with them")
+    if args.per_light and not args.layers:
+        raise InputError(None, "--per-light adds layers: give --layers too")
     source = args.scene if is_clip(args.scene) else read_record(args.scene)["source"]["path"]
     sidecar = audio_sidecar(out, source)
-    not_an_input([out, partial_path(out), parts_folder(out), sidecar],
-                 [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)])
+    not_an_input([out, partial_path(out), sidecar], [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)],
+                 folders=[parts_folder(out)] + ([layers_folder(out)] if args.layers else []))
     refuse_foreign([out, sidecar], args.force)
+    if args.layers:
+        check_layers_folder(out)
     if partial_path(out).exists():
         raise partial_taken(out)
     env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None  # before hours of inference
@@ -106,7 +110,7 @@ def cmd_render_clip(args, look) -> int:
         with _bar(len(bundle.frames), f"relighting {out.name}") as bar:
             result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig_lights(args),
                                  engine_options(args, look), turn, progress=lambda done, total: bar.update(done - bar.n),
-                                 sizes=(args.size, args.max_size))
+                                 sizes=(args.size, args.max_size), layers=args.layers, per_light=args.per_light)
     finally:
         ctx.release()
     seconds = time.perf_counter() - t0
@@ -114,6 +118,8 @@ def cmd_render_clip(args, look) -> int:
     print(f"wrote {out} ({result['frames']} frames, {w}x{h}, the source's timing; {seconds:.1f} s, "
           f"{60 * result['frames'] / max(seconds, 1e-9):.1f} frames a minute"
           + (f"; {result['parts_reused']} parts kept from an earlier run" if result["parts_reused"] else "") + ")")
+    if result["layers"] is not None:
+        print(f"wrote {result['layers']}/ ({result['frames']} frames' layers, {layer_name(0)} ...)")
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
     return 0

@@ -107,6 +107,8 @@ def cmd_render(args) -> int:
         check_video(args)
         return cmd_render_clip(args, look)
     not_a_clip_range(args, args.scene)
+    if args.layers or args.per_light:
+        raise InputError(None, "--layers writes a clip's layers (an EXR sequence): for a photo's, use relight batch --layers")
     out = Path(args.output)
     suffix = out.suffix.lower()
     if suffix not in (".png", ".mp4"):

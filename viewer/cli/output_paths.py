@@ -49,10 +49,13 @@ def writable(path, folder: bool = False) -> Path:
 NAME_MAX = 255 - 24  # bytes of a file name, leaving room for the temporary name it is written under
 
 
-def not_an_input(outputs, inputs):
+def not_an_input(outputs, inputs, folders=()):
     """Refuse outputs that would replace an input (a map, a light file, a photo) or land inside an
-    input folder (a scene bundle): the user's files are never written over."""
-    for out in outputs:
+    input folder (a scene bundle): the user's files are never written over. ``folders``: outputs that
+    are folders (a relit clip's parts and layers; whether one there is this program's is the
+    writer's to check)."""
+    folders = [Path(f) for f in folders]
+    for out in list(outputs) + folders:
         out = Path(out)
         if len(os.fsencode(out.name)) > NAME_MAX:
             raise InputError(out, f"the file name is longer than {NAME_MAX} bytes")
@@ -70,7 +73,7 @@ def not_an_input(outputs, inputs):
             src = Path(given).resolve()
             if resolved == src or (src.is_dir() and src in resolved.parents):
                 raise InputError(out, f"would write over the input {given}: give another output path")
-        if out.is_dir():
+        if out.is_dir() and out not in folders:
             raise InputError(out, "is a folder: the output would replace it")
 
 

@@ -44,6 +44,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--size", type=int,
                    help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
+    p.add_argument("--layers", action="store_true", help="a clip: also each frame's layers for compositors, an EXR "
+                   "sequence in NAME.layers/ beside NAME.mp4 (docs/video.md; a photo's: relight batch --layers)")
+    p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)
     add_view_args(p)

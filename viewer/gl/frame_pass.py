@@ -36,8 +36,8 @@ from viewer.scene.look import Look
 from viewer.shader_modes import code
 
 MAX_FILL_LOD = 4  # mip levels the frame composite may reach past the mask (16 work pixels)
-OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR, OUTPUT_BACKGROUND_DISPLAY = (
-    code("OUTPUT", n) for n in ("display", "person_hdr", "composited_hdr", "background_display"))
+OUTPUT_DISPLAY, OUTPUT_PERSON_HDR, OUTPUT_COMPOSITED_HDR, OUTPUT_BACKGROUND_DISPLAY, OUTPUT_BACKGROUND_HDR = (
+    code("OUTPUT", n) for n in ("display", "person_hdr", "composited_hdr", "background_display", "background_hdr"))
 ENVIRONMENT_SCALE = 2  # the map behind the person at half the frame's resolution (FrameBackgroundPass)
 
 

@@ -87,6 +87,12 @@ class Readback:
         return (np.clip(image[..., :3], 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
     @in_context
+    def read_background_hdr(self) -> np.ndarray:
+        """(H, W, 4) float32: :meth:`read_output_hdr` with no person in the picture (nor their shadow on
+        the ground). A scene with a frame layer."""
+        return self.picture.read_background_hdr(self._picture_inputs())
+
+    @in_context
     def read_output_hdr(self) -> np.ndarray:
         """(H, W, 4) float32: the display image's linear HDR before exposure and tone map, over
         the same background (alpha 1), or premultiplied with its coverage for the transparent

@@ -22,6 +22,7 @@ import numpy as np
 from viewer.gl.display_pass import DisplayPass
 from viewer.gl.frame_pass import (
     OUTPUT_BACKGROUND_DISPLAY,
+    OUTPUT_BACKGROUND_HDR,
     OUTPUT_COMPOSITED_HDR,
     OUTPUT_PERSON_HDR,
     FrameBackgroundPass,
@@ -71,6 +72,9 @@ class ImagePicture:
         raise ValueError("the scene has no frame layer")
 
     def read_background_display(self, i: PictureInputs):
+        raise ValueError("the scene has no frame layer")
+
+    def read_background_hdr(self, i: PictureInputs):
         raise ValueError("the scene has no frame layer")
 
     def release(self):
@@ -165,6 +169,10 @@ class FramePicture:
     def read_background_display(self, i: PictureInputs) -> np.ndarray:
         """(H, W, 4) float32 in [0, 1]: the display image with no person in it (nor their shadow)."""
         return self._read(i, i.terms, OUTPUT_BACKGROUND_DISPLAY)
+
+    def read_background_hdr(self, i: PictureInputs) -> np.ndarray:
+        """(H, W, 4) float32: the HDR with no person in it, as :meth:`read_output` (alpha 1, or 0 transparent)."""
+        return self._read(i, i.terms, OUTPUT_BACKGROUND_HDR)
 
     def read_shading(self, i: PictureInputs):
         """The diffuse and specular sums at the frame, upsampled as the frame composite does."""

@@ -165,6 +165,14 @@ def cmd_bench(args) -> int:
         from viewer.lab.bench.light_sizes import run_light_sizes_benchmark
 
         run_light_sizes_benchmark(shared_folder(args.maps, "hdri", "--maps"), output=output)
+    elif args.what == "clip-memory":
+        from viewer.lab.bench.clip_memory import run_clip_memory_benchmark
+
+        maps = shared_folder(args.maps, "hdri", "--maps")
+        out = Path(args.output or "out/bench-clip-memory/clip_memory.json")
+        result = run_clip_memory_benchmark((args.env and Path(args.env[0])) or maps / "potsdamer_platz_1k.hdr", out.parent, output=out)
+        print(f"peak memory grew {100 * result['growth']:.1f} % from {result['runs'][0]['seconds']:g} s to "
+              f"{result['runs'][-1]['seconds']:g} s; wrote {out}")
     elif args.what == "video":
         from viewer.files.clip_reader import VIDEO_SUFFIXES
         from viewer.lab.bench.video import run_video_benchmark, video_table
@@ -327,7 +335,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
-                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video"),
+                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -344,7 +352,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "the work shading brought to the frame (bilinear) against a work frame as large as the frame; "
                         "batch: relight batch's throughput on --count photos made from --photos x three of --maps, "
                         "with one worker, two and a local Ray cluster; video: clips (--clips) relit under --env maps: warping "
-                        "error against the input's, frames a minute, stages, peak memory")
+                        "error against the input's, frames a minute, stages, peak memory; clip-memory: the peak memory of "
+                        "`relight render CLIP` on clips of 10 s and 60 s made from the bundled photo")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--env", nargs="+", help="video: maps to relight under (default potsdamer_platz and rooitou_park of --maps)")
     p.add_argument("--start", type=float, default=0.0, help="video: seconds into each clip to start at (default 0)")

@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.imageio import MARK, read_json, read_png, write_text
+from viewer.files.imageio import MARK, read_json, read_png, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, take_away
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
@@ -149,6 +150,24 @@ class ClipPictures:
         person = self._nearest(index, "person")
         return self._render(person, self._look(index, person))[0].output.read_background_display()
 
+    def layers(self, index: int, per_light: bool = False) -> dict[str, np.ndarray]:
+        """The layers of output frame ``index`` (:mod:`viewer.output.layers`), as :meth:`picture` shows it."""
+        from viewer.output.layers import background_channels, layer_channels
+
+        index = self._nearest(index)
+        if self.bundle.frames[index].state == "person":
+            engine, _ = self._render(index, self._look(index, index))
+            return layer_channels(engine, self._engine[2], per_light)
+        person = self._nearest(index, "person")
+        channels = background_channels(self._render(person, self._look(index, person))[0], per_light)
+        if self.look.background == "photo":  # the frame itself, as the picture shows it
+            from viewer.files.imageio import srgb_to_linear
+            from viewer.resize import resize
+
+            photo = srgb_to_linear(resize(read_png(self.bundle.path / FRAMES / f"{frame_name(index)}.png")[..., :3], self.size))
+            channels.update({c: np.ascontiguousarray(photo[..., i], np.float32) for i, c in enumerate("RGB")})
+        return channels
+
     def release(self):
         if self._engine is not None:
             self._engine[1].release()
@@ -193,15 +212,68 @@ def _open_parts(path: Path, key: str) -> Path:
     return folder
 
 
+def layers_folder(path) -> Path:
+    """Where a relit clip's layers go: ``NAME.layers/`` beside ``NAME.mp4``, an EXR per frame."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.layers")
+
+
+LAYERS_RECORD = "layers.json"
+LAYERS_BYTES = 0.6 * 4 * 23  # a frame pixel's bytes in a layers EXR (23 float32 channels, ZIP: ~0.6 of them, measured 0.55-0.6)
+
+
+def layer_name(index: int) -> str:
+    return f"{index:06d}.exr"
+
+
+def check_layers_folder(path) -> Path:
+    """The layers folder of ``path``, refused in one line when it is there and holds anything relight
+    did not write (the command checks it before the inference)."""
+    folder = layers_folder(path)
+    if folder.exists() and (not file_is_ours(folder / LAYERS_RECORD) or any(not file_is_ours(p) for p in folder.iterdir())):
+        raise InputError(folder, "is not a folder of layers relight wrote: move it away or choose another -o")
+    return folder
+
+
+def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int]) -> Path:
+    """The layers folder of ``path``: kept when it holds layers of the same render (their frames are
+    not made again), else made anew; a folder of that name holding anything relight did not write is
+    refused in one line, as is a sequence the disk cannot hold."""
+    folder = check_layers_folder(path)
+    if folder.exists():
+        record = folder / LAYERS_RECORD
+        try:
+            same = json.loads(record.read_text()).get("key") == key
+        except (OSError, ValueError):
+            same = False
+        if not same:
+            take_away(folder)
+    need = LAYERS_BYTES * size[0] * size[1] * frames
+    free = shutil.disk_usage(folder if folder.exists() else folder.parent).free
+    if need > free:
+        raise InputError(folder, f"{frames} frames of layers at {size[0]}x{size[1]} would need about {need / 1e9:.1f} GB of disk, "
+                                 f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
+    if not folder.exists():
+        folder.mkdir(parents=True)
+        write_text(folder / LAYERS_RECORD, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
+    return folder
+
+
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
                 fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
-                sizes: tuple = (None, None)) -> dict:
+                sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False) -> dict:
     """Relight ``bundle`` into the MP4 ``path``; ``progress(done, total)`` after every frame (parts
     kept from an earlier run count at once). Returns what was done: frames, size, parts reused,
-    the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with."""
+    the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with; ``poster``:
+    a PNG path for the clip's middle frame, relit (a batch's contact sheet shows it); ``layers``:
+    also each frame's layers (:mod:`viewer.output.layers`, ``per_light``: each light's too) as
+    ``NAME.layers/NNNNNN.exr`` (the frame's index), kept beside the video."""
+    from viewer.output.layers import write_layers
+
     path = Path(path)
     pictures = ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
     key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes)
+    sequence = _open_layers(path, f"{key} {per_light}", len(bundle.frames), pictures.size) if layers else None
     folder = _open_parts(path, key)
     fps = float(bundle.source.get("fps") or 30.0)
     frames = bundle.frames
@@ -213,15 +285,26 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
             last = min(first + per, len(frames))
             if file_is_ours(part):  # finished by an earlier run of the same render
                 reused += 1
+                for i in range(first, last) if sequence is not None else ():  # its layers, where a stop left them out
+                    if not file_is_ours(sequence / layer_name(i)):
+                        write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
             else:
                 with VideoWriter(part, *pictures.size, fps=fps) as video:
                     for i in range(first, last):
-                        video.write(pictures.picture(i), seconds=frames[i].seconds)
+                        picture = pictures.picture(i)
+                        video.write(picture, seconds=frames[i].seconds)
+                        if poster is not None and i == len(frames) // 2:
+                            write_png(poster, picture / 255.0)
+                            poster = None
+                        if sequence is not None and not file_is_ours(sequence / layer_name(i)):  # (kept: the same render's)
+                            write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
                         if progress is not None:
                             progress(i + 1, len(frames))
             if progress is not None:
                 progress(last, len(frames))
             parts.append((part, frames[first].seconds))
+        if poster is not None:  # its part was kept from an earlier run: the frame made again
+            write_png(poster, pictures.picture(len(frames) // 2) / 255.0)
     finally:
         pictures.release()
     audio, note = None, None
@@ -233,4 +316,5 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
             note = f"the source clip {source} is not there as it was: the relit clip has no audio"
     note = join_clip(parts, path, audio, float(bundle.record.get("first_frame_at", 0.0)), bundle.duration) or note
     take_away(folder)
-    return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note}
+    return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
+            "layers": sequence}

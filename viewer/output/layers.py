@@ -13,7 +13,9 @@ the EXR a frame writes beside its PNG).
     light<k>.diffuse.R/G/B   per light (``per_light``): V_k I_k S_diff_k, brought to the frame's size
 
 All float32, linear, at the frame's size. The person's layers are those of a photo's bundle (a frame
-layer); a scene without one has no detail albedo at the output size and is refused."""
+layer); a scene without one has no detail albedo at the output size and is refused. A clip's frame
+with no person in it (:func:`background_channels`) has the same channels: the background in ``R G B
+A``, zero in the person's, visibility 1."""
 
 from __future__ import annotations
 
@@ -57,6 +59,19 @@ def layer_channels(engine, scene, per_light: bool = False) -> dict[str, np.ndarr
             planes = out.read_light(k)
             rgb = engine.lights.intensity[k][None, None, :] * (planes["visibility_soft"] * planes["diffuse"])[..., None]
             channels.update(_rgb(f"light{k}.diffuse.", _to_frame(rgb, (width, height))))
+    return {name: np.ascontiguousarray(a, np.float32) for name, a in channels.items()}
+
+
+def background_channels(engine, per_light: bool = False) -> dict[str, np.ndarray]:
+    """The channels of :func:`layer_channels` for a picture with no person in it (a clip's frame the
+    person has left): the engine's background (its current look) in ``R G B A``, nothing else."""
+    background = engine.output.read_background_hdr()
+    zero = np.zeros(background.shape[:2], np.float32)
+    channels = {**_rgb("", background[..., :3]), "A": background[..., 3], "person.A": zero, "visibility.Y": zero + 1.0,
+                "depth.Z": zero, **{f"normal.{a}": zero for a in "XYZ"}}
+    for prefix in ("person.", "albedo.", "diffuse.", "specular.", "unshadowed.") + \
+            tuple(f"light{k}.diffuse." for k in range(len(engine.lights) if per_light else 0)):
+        channels.update({f"{prefix}{c}": zero for c in "RGB"})
     return {name: np.ascontiguousarray(a, np.float32) for name, a in channels.items()}
 
 
