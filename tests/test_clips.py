@@ -418,6 +418,28 @@ def test_a_relit_clips_layers_are_an_exr_sequence(clip_bundle, tmp_path):
     assert (folder / "notes.txt").read_text() == "mine" and not out.exists()
 
 
+def test_a_stopped_clip_render_goes_on_when_run_again(clip_bundle, tmp_path):
+    """A render stopped (SIGTERM) while its parts folder is there: the same command again finishes."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "relit.mp4"
+    cmd = [sys.executable, "-m", "viewer.cli.main", "render", str(clip_bundle[0]), "--env",
+           str(asset_dir() / "envmaps/immenstadter_horn_256.hdr"), "-o", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (tmp_path / "relit.parts").is_dir() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=120)
+    assert (tmp_path / "relit.parts").is_dir() and not out.exists()
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert len(decoded(out)[0]) == 5 and not (tmp_path / "relit.parts").exists()
+
+
 def test_shots_cut_where_the_picture_changes():
     """A person moving and the camera panning stay one shot; another place is a new one; a lost
     frame stays in the shot before it."""
