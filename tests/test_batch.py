@@ -198,6 +198,35 @@ def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):
     assert len(list((tmp_path / "out" / "walk").glob("*.mp4"))) == 12 and not list((tmp_path / "out" / "walk").glob("*.parts"))
 
 
+def test_a_clip_split_over_ray_actors_with_one_killed(tmp_path, ray_cluster):
+    """A clip of 32 frames on two actors: inferred in two overlapping ranges; an actor killed while
+    the ranges run, its range taken up again where it stopped; the relit clip whole."""
+    from test_clips import decoded
+
+    from viewer.lab.bench.clip_memory import panning_clip
+
+    clip = panning_clip(tmp_path / "walk.mp4", 3.2, fps=10, size=(120, 180))
+    out = tmp_path / "out"
+    proc = batch(tmp_path, clip, "--env", MAPS[0], "-o", out, "--ray", "auto", "--threads", "1", wait=False, env=ray_cluster)
+    killed = None
+    deadline = time.monotonic() + 600
+    while killed is None and time.monotonic() < deadline and proc.poll() is None:
+        records = list((tmp_path / "cache" / "bundles").glob("walk-clip-*/frames/*.json"))
+        ps = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
+        running = [int(line.split()[0]) for line in ps.splitlines() if "ray::Worker.run" in line]
+        if len(records) >= 3 and len(running) == 2:
+            killed = running[0]
+            os.kill(killed, signal.SIGKILL)
+        time.sleep(0.05)
+    stdout, err = proc.communicate(timeout=900)
+    assert killed is not None, (stdout, err)
+    assert proc.returncode == 0 and "batch: 1 done, 0 failed" in stdout, err
+    inferred = [e for e in events(out) if e["event"] == "inferred"]
+    assert len(inferred) == 1 and inferred[0]["ranges"] == 2
+    frames, _, _ = decoded(next((out / "walk").glob("*.mp4")))
+    assert len(frames) == 32
+
+
 def test_an_idle_worker_killed_is_replaced(tmp_path):
     """A worker killed while it waits (the kernel's out-of-memory killer picks any) leaves no lock
     held: the batch goes on with a new one."""

@@ -440,6 +440,38 @@ def test_a_stopped_clip_render_goes_on_when_run_again(clip_bundle, tmp_path):
     assert len(decoded(out)[0]) == 5 and not (tmp_path / "relit.parts").exists()
 
 
+def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
+    """A panning clip inferred whole, and in two ranges (the later one run first, as a worker may, so
+    its overlap is inferred, not read): the same shots, frames and lights; the steadied maps at the
+    join within a hundredth of the whole run's (the overlap's filter has forgotten where it began);
+    the pans joined within a pixel; the offset kept in the record."""
+    import json as js
+
+    from viewer.photo.clip_inference import infer_clip
+    from viewer.photo.clip_ranges import finish_ranges, infer_range, open_ranges
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    clip = write_clip(tmp_path / "pan.mp4", person_frames(10, 160, 240), audio=None)
+    infer_clip(clip, tmp_path / "whole")
+    out, ranges, earlier = open_ranges(clip, tmp_path / "ranges", 2, overlap=2)
+    assert earlier is None and [r.to_json() for r in ranges] == [[0, 5, 0], [5, 10, 2]]
+    later = infer_range(clip, out, ranges[1])
+    record = finish_ranges(clip, out, ranges, [infer_range(clip, out, ranges[0]), later])
+    assert record["complete"] and record["frames"] == 10 and record["states"]["person"] == 10 and record["shots"] == 1
+    assert set(record["pan_offsets"]) == {"3"}
+    whole, split = load_clip_bundle(tmp_path / "whole"), load_clip_bundle(out)
+    for a, b in zip(whole.frames, split.frames, strict=True):
+        assert a.shot == b.shot and a.state == b.state and b.pan_from is None
+        assert np.abs(np.subtract(a.pan, b.pan)).max() < 1.0, (a.index, a.pan, b.pan)
+        lights = [js.loads((x.scene_path(a.index) / "lights.json").read_text()) for x in (whole, split)]
+        assert lights[0] == lights[1]
+        sa, sb = load_scene(whole.scene_path(a.index)), load_scene(split.scene_path(a.index))
+        if sa.mask.shape == sb.mask.shape:
+            assert np.abs(sa.normal - sb.normal)[sa.mask & sb.mask].mean() < 0.01, a.index
+    assert js.loads((out / "frames/000006.json").read_text())["pan_from"] == 3
+
+
 def test_shots_cut_where_the_picture_changes():
     """A person moving and the camera panning stay one shot; another place is a new one; a lost
     frame stays in the shot before it."""

@@ -4,6 +4,7 @@ result recorded in the manifest as it arrives; a progress bar with the time left
 
 from __future__ import annotations
 
+import itertools
 import re
 import sys
 import time
@@ -169,40 +170,56 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
 
 
 def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest: Manifest, summary: Summary, quiet, tqdm):
+    from viewer.batch.clip_split import SplitClip
     from viewer.files.clip_reader import is_clip
 
     waiting: dict[Path, list[Item]] = {}
     for item in todo:
         waiting.setdefault(item.photo, []).append(item)
     tasks: dict[int, tuple[str, object]] = {}
-    next_id = 0
-    for photo in waiting:
-        tasks[next_id] = ("infer", photo)
-        pool.submit({"id": next_id, "kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
-                     "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
-        next_id += 1
+    ids = itertools.count()
     bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
+
+    def submit(kind: str, what, task: dict) -> None:
+        task_id = next(ids)
+        tasks[task_id] = (kind, what)
+        pool.submit({**task, "id": task_id})
+
+    def inferred(photo: Path, r: dict) -> None:
+        """The photo's (or clip's) bundle is there, or could not be made: its items rendered, or failed."""
+        if r["ok"]:
+            manifest.add("inferred", item=str(photo), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
+                         pid=r.get("pid"), **({"ranges": r["ranges"]} if "ranges" in r else {}))
+        for item in waiting.pop(photo):
+            if not r["ok"]:
+                _failed(manifest, summary, item, r["error"])
+                bar.update(1)
+                continue
+            manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
+            submit("render", item, _render_task(item, by_look[item.look], r["bundle"], folder, settings))
+
+    splits: dict[Path, SplitClip] = {}
     try:
+        for photo in list(waiting):
+            if is_clip(photo) and pool.size > 1:  # the clip's frames in ranges, one a worker
+                splits[photo] = split = SplitClip.open(photo, settings, pool.size)
+                if split.done is not None:
+                    inferred(photo, split.done)
+                for k, task in enumerate(split.tasks(settings) if split.done is None else []):
+                    submit("range", (photo, k), task)
+            else:
+                submit("infer", photo, {"kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
+                                        "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
         while tasks:
             for r in pool.results(timeout=0.5):
-                kind, what = tasks.get(r["id"], (None, None))
-                if kind is None:
-                    continue
-                del tasks[r["id"]]
+                kind, what = tasks.pop(r["id"], (None, None))
                 if kind == "infer":
-                    if r["ok"]:
-                        manifest.add("inferred", item=str(what), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
-                                     pid=r.get("pid"))
-                    for item in waiting.pop(what):
-                        if not r["ok"]:
-                            _failed(manifest, summary, item, r["error"])
-                            bar.update(1)
-                            continue
-                        tasks[next_id] = ("render", item)
-                        manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
-                        pool.submit(_render_task(next_id, item, by_look[item.look], r["bundle"], folder, settings))
-                        next_id += 1
-                else:
+                    inferred(what, r)
+                elif kind == "range":
+                    done = splits[what[0]].take(what[1], r)
+                    if done is not None:
+                        inferred(what[0], done)
+                elif kind == "render":
                     if r["ok"]:
                         manifest.add("done", item=what.name, key=what.key, photo=str(what.photo), look=what.look.name,
                                      settings=what.settings, outputs=list(what.outputs), sha256=r["sha256"],
@@ -216,10 +233,10 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
         bar.close()
 
 
-def _render_task(task_id: int, item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:
+def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:
     from viewer.files.clip_reader import is_clip
 
-    return {"id": task_id, "kind": "render", "item": item.name, "bundle": bundle, "folder": str(folder),
+    return {"kind": "render", "item": item.name, "bundle": bundle, "folder": str(folder),
             "outputs": list(item.outputs), "envmap": str(look.spec.envmap) if look.spec.envmap else None,
             "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,
             "look": look.look_json, "options": look.options, "max_size": settings["max_size"],

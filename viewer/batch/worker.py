@@ -37,7 +37,7 @@ class Worker:
         """Run one task; an error the user can act on comes back as its one line."""
         start = time.perf_counter()
         try:
-            result = self.infer(task) if task["kind"] == "infer" else self.render(task)
+            result = {"infer": self.infer, "infer_range": self.infer_range, "render": self.render}[task["kind"]](task)
             return {**result, "ok": True, "pid": os.getpid(), "seconds": round(time.perf_counter() - start, 3)}
         except InputError as exc:
             return {"ok": False, "error": str(exc), "pid": os.getpid()}
@@ -74,6 +74,14 @@ class Worker:
         record = infer_clip(task["photo"], bundle, max_size=task["max_size"], device=task.get("device", "cpu"), ctx=self.ctx,
                             digest=digest)
         return {"bundle": str(bundle), "cached": record["frames_kept_from_earlier_run"] == record["frames"]}
+
+    def infer_range(self, task: dict) -> dict:
+        """A range of a clip's frames into its bundle, made ready by the batch (viewer.batch.clip_split)."""
+        from viewer.photo.clip_ranges import ClipRange, infer_range
+
+        self._drop_engine()  # (a GL context serves the range's frames)
+        result = infer_range(task["photo"], task["bundle"], ClipRange(*task["range"]), device=task.get("device", "cpu"), ctx=self.ctx)
+        return {"range_result": result}
 
     def render_clip(self, task: dict) -> dict:
         """A clip item: the relit clip (the map does not turn; the source's framing at --max-size) and

@@ -21,6 +21,7 @@ maps and exposure), for comparison.
 
 from __future__ import annotations
 
+import bisect
 import hashlib
 import json
 import shutil
@@ -130,15 +131,12 @@ def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int)
                                f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
 
 
-def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-               max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
-               temporal: str = "on", digest: str | None = None) -> dict:
-    """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
-    ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
-    the header's estimate). Frames already finished by an earlier run of the same clip and options
-    are kept. ``digest``: the clip's SHA-256 when the caller has just read it."""
-    from viewer.gl import create_headless_context
-
+def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
+                     max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None) -> tuple[Path, dict, dict | None]:
+    """Make ``out_dir`` ready for the clip bundle of ``clip_path`` with these options: (the folder, its
+    record as written now (not complete), the earlier record when the bundle there is whole already).
+    An earlier bundle of another clip or options there is taken away; one of the same is kept (its
+    finished frames are not inferred again). ``digest``: the clip's SHA-256 when the caller has just read it."""
     check_range(clip_path, start, end)
     out_dir = clip_target(out_dir)
     info = probe_clip(clip_path)
@@ -148,7 +146,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     total = expected_frames(info, start, end)
     record = {"format": FORMAT, "version": VERSION, "source": {**info.to_json(), "path": str(Path(clip_path).resolve()),
                                                                "sha256": digest},
-              "options": options, "key": key, "temporal": temporal, "complete": False, MARK[0]: MARK[1]}
+              "options": options, "key": key, "temporal": temporal, "complete": False, "expected_frames": total, MARK[0]: MARK[1]}
     if (out_dir / RECORD).is_file():
         try:
             earlier = read_record(out_dir)
@@ -157,33 +155,106 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
         if earlier.get("key") != key:
             _start_over(out_dir)
         elif earlier.get("complete") and all(_finished(out_dir / FRAMES, i) for i in range(int(earlier.get("frames", 0)))):
-            return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}  # whole: nothing to do
-    frames_dir = out_dir / FRAMES
-    frames_dir.mkdir(parents=True, exist_ok=True)
+            return out_dir, record, earlier  # whole: nothing to do
+    (out_dir / FRAMES).mkdir(parents=True, exist_ok=True)
     _check_disk(clip_path, info, max_size, out_dir, total)
     write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
+    return out_dir, record, None
+
+
+def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
+               max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
+               temporal: str = "on", digest: str | None = None) -> dict:
+    """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
+    ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
+    the header's estimate). Frames already finished by an earlier run of the same clip and options
+    are kept. ``digest``: the clip's SHA-256 when the caller has just read it."""
+    out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
+    if earlier is not None:
+        return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
+    done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
+    return finish_record(clip_path, out_dir, record, [done])
+
+
+def finish_record(clip_path, out_dir: Path, record: dict, runs: list[dict], **more) -> dict:
+    """The clip bundle's record made complete from what :func:`infer_frames` did (one run, or one a range
+    in frame order) and written; ``more``: fields to add. No person in any frame is one line."""
+    counts = {state: sum(r["counts"][state] for r in runs) for state in runs[0]["counts"]}
+    count = runs[-1]["frames"]
+    if counts["person"] == 0:
+        raise NoPersonError(clip_path, f"no person found in any of its {count} frames")
+    record = {**record, "complete": True, "frames": count, "first_frame_at": runs[-1]["first_at"], "states": counts,
+              "frames_kept_from_earlier_run": sum(r["kept"] for r in runs),
+              "shots": runs[-1]["shots"] if record["temporal"] == "on" else None, "seconds": round(sum(r["seconds"] for r in runs), 3),
+              **more}
+    write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
+    return record
+
+
+def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | None = None, warm: int = 0,
+                 shot_starts: list[int] | None = None, device: str = "cpu", networks: dict | None = None, progress=None,
+                 ctx=None) -> dict:
+    """Infer frames ``first`` to ``last`` (excluded; None: the clip's end) of the clip bundle in ``out_dir``
+    (made ready by :func:`open_clip_bundle`, ``record``), each written whole as it is done; a frame
+    finished by an earlier run is read instead. The ``warm`` frames before ``first`` are inferred (or
+    read, when another run finished them) only to carry what one frame hands the next (the steadied
+    maps, the camera's motion), never written: a range of a clip split across workers
+    (:mod:`viewer.photo.clip_ranges`). ``shot_starts``: the frame each shot begins at, when found
+    beforehand (ranges); None: the cuts are found as the frames come. Returns what was done: the
+    frames per state, those kept, the frames seen (the last index + 1), the first frame's time on
+    the clip's clock, the shots, the seconds, and the pan the camera's motion gave frame ``first - 1``."""
+    from viewer.gl import create_headless_context
+
+    options, temporal = record["options"], record["temporal"]
+    start, end, size, max_size = options["start"], options["end"], options["size"], options["max_size"]
+    frames_dir = Path(out_dir) / FRAMES
+    total = int(record.get("expected_frames", 0))
+    info = probe_clip(clip_path)
     own_ctx = ctx is None
     ctx = create_headless_context() if own_ctx else ctx
     nets = None
     counts = {"person": 0, "no person": 0, "lost": 0}
     first_at = 0.0
     cuts = ShotCuts()
+    shot_of = (lambda index, rgb: bisect.bisect_right(shot_starts, index) - 1) if shot_starts else \
+        (lambda index, rgb: cuts.shot_of(rgb))
     steady = SteadyMaps() if temporal == "on" else None
     motion = CameraMotion() if temporal == "on" else None
     frame_size = output_frame((info.width, info.height), max_size)  # the bundle's frame
     to_output = frame_size[0] / info.width  # source pixels -> the bundle's frame
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
-    kept = 0
+    kept, count, warm_pan = 0, 0, None
+    begin = max(first - warm, 0)
     t0 = time.perf_counter()
-    count = 0
+
+    def networks_now():
+        nonlocal nets
+        nets = nets if nets is not None else (networks or load_networks(device))
+        return nets
+
     try:
+        if temporal == "on" and shot_starts and begin > shot_starts[shot_of(begin, None)]:  # a range begun mid-shot
+            shot = shot_of(begin, None)
+            lights = _shot_lights(clip_path, frames_dir, start, end, shot_starts[shot], begin, size, max_size, device,
+                                  networks_now, ctx)
+            if lights is not None:
+                shot_lights[shot] = lights
         for frame in clip_frames(clip_path, start, end):
+            if frame.index < begin:
+                continue
+            if last is not None and frame.index >= last:
+                break
             count, first_at = frame.index + 1, frame.at
-            shot = cuts.shot_of(frame.rgb) if temporal == "on" else frame.index
+            writing = frame.index >= first
+            shot = shot_of(frame.index, frame.rgb) if temporal == "on" else frame.index
+            # a range begun within a shot counts the shot's pan from its own first frame (clip_ranges)
+            counted_from = begin if temporal == "on" and shot_starts and shot == shot_of(begin, None) and begin > shot_starts[shot] \
+                else None
             entry = _finished(frames_dir, frame.index)
             alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
-            if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot:
-                kept += 1
+            if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
+                    (entry.pan_from == counted_from or not writing):  # (a pan counted elsewhere is made again)
+                kept += writing
                 if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
                     shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
                 if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
@@ -193,7 +264,9 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                 elif steady is not None:
                     steady.restart()
                 if motion is not None:
-                    motion.shift_of(frame.rgb, alpha, shot)
+                    pan = motion.shift_of(frame.rgb, alpha, shot)
+                    if frame.index == first - 1:
+                        warm_pan = [to_output * v for v in pan]
             else:
                 entry = None
             if entry is None:
@@ -203,36 +276,61 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
                     if steady is not None:
                         steady.restart()
                 else:
-                    nets = nets if nets is not None else (networks or load_networks(device))
                     try:
-                        result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=nets,
+                        result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
                                              ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
                                              steady=(steady, shot) if steady is not None else None)
                     except NoPersonError as exc:  # the frame as it is: what a photo background shows there
                         if steady is not None:
                             steady.restart()
-                        write_png(frames_dir / f"{frame_name(frame.index)}.png",
-                                  resize(frame.rgb, frame_size) / 255.0)
+                        if writing:
+                            write_png(frames_dir / f"{frame_name(frame.index)}.png", resize(frame.rgb, frame_size) / 255.0)
                         entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
                     else:
-                        result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": key,
+                        result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": record["key"],
                                                     "shot": shot}
-                        write_bundle(result, frames_dir / frame_name(frame.index))
+                        if writing:
+                            write_bundle(result, frames_dir / frame_name(frame.index))
                         entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
                         shot_lights.setdefault(shot, result["lights"])
                         alpha = result["scene"].frame.alpha
                 if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
-                    entry = replace(entry, pan=tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot)))
-                write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
-            counts[entry.state] += 1
-            if progress is not None:
-                progress(count, max(total, count), entry)
+                    entry = replace(entry, pan=tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot)),
+                                    pan_from=counted_from)
+                    if frame.index == first - 1:
+                        warm_pan = list(entry.pan)
+                if writing:
+                    write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
+            if writing:
+                counts[entry.state] += 1
+                if progress is not None:
+                    progress(count - first, max(total - first, count - first), entry)
     finally:
         if own_ctx:
             ctx.release()
-    if counts["person"] == 0:
-        raise NoPersonError(clip_path, f"no person found in any of its {count} frames")
-    record.update(complete=True, frames=count, first_frame_at=round(first_at, 6), states=counts, frames_kept_from_earlier_run=kept,
-                  shots=cuts.shot + 1 if temporal == "on" else None, seconds=round(time.perf_counter() - t0, 3))
-    write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
-    return record
+    return {"counts": counts, "kept": kept, "frames": count, "first_at": round(first_at, 6), "warm_pan": warm_pan,
+            "shots": (len(shot_starts) if shot_starts else cuts.shot + 1) if temporal == "on" else None,
+            "seconds": round(time.perf_counter() - t0, 3)}
+
+
+def _shot_lights(clip_path, frames_dir: Path, start: float, end, shot_start: int, begin: int, size: int, max_size: int,
+                 device: str, networks, ctx):
+    """The photo's lights of the shot that began at frame ``shot_start``, for a range that begins at
+    ``begin``, later in that shot: fitted on the shot's first frame with a person, as the run that
+    infers that frame fits them (read from it when it is finished). None: no person before ``begin``."""
+    for frame in clip_frames(clip_path, start, end):
+        if frame.index < shot_start or frame.rgb is None:
+            continue
+        if frame.index >= begin:
+            return None
+        entry = _finished(frames_dir, frame.index)
+        if entry is not None:
+            if entry.state == "person":
+                return load_lights(frames_dir / frame_name(frame.index) / "lights.json")
+            continue
+        try:
+            return infer_scene(f"{clip_path} at {frame.seconds + start:.3f} s", None, size=size, max_size=max_size, device=device,
+                               networks=networks(), ctx=ctx, picture=frame.rgb)["lights"]
+        except NoPersonError:
+            continue
+    return None
