@@ -4,6 +4,7 @@ with the source's timing and audio, resumed from its parts, and one line for bad
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 from fractions import Fraction
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from viewer.errors import InputError
+from viewer.errors import InputError, NoPersonError
 from viewer.files.imageio import read_png
 from viewer.resources import asset_dir
 
@@ -442,23 +443,34 @@ def test_a_stopped_clip_render_goes_on_when_run_again(clip_bundle, tmp_path):
 
 def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
     """A panning clip inferred whole, and in two ranges (the later one run first, as a worker may, so
-    its overlap is inferred, not read): the same shots, frames and lights; the steadied maps at the
+    its overlap is inferred, not read; then the batch stops, and ``relight render CLIP``'s inference
+    finishes the bundle range by range): the same shots, frames and lights; the steadied maps at the
     join within a hundredth of the whole run's (the overlap's filter has forgotten where it began);
-    the pans joined within a pixel; the offset kept in the record."""
+    the pans joined within a pixel; the offset kept in the record. One run at a time makes a bundle."""
     import json as js
 
+    from viewer.files.ownership import folder_lock
     from viewer.photo.clip_inference import infer_clip
-    from viewer.photo.clip_ranges import finish_ranges, infer_range, open_ranges
+    from viewer.photo.clip_ranges import ClipRange, infer_range, open_ranges
     from viewer.scene.bundle import load_scene
     from viewer.scene.clip_bundle import load_clip_bundle
 
     clip = write_clip(tmp_path / "pan.mp4", person_frames(10, 160, 240), audio=None)
     infer_clip(clip, tmp_path / "whole")
-    out, ranges, earlier = open_ranges(clip, tmp_path / "ranges", 2, overlap=2)
-    assert earlier is None and [r.to_json() for r in ranges] == [[0, 5, 0], [5, 10, 2]]
-    later = infer_range(clip, out, ranges[1])
-    record = finish_ranges(clip, out, ranges, [infer_range(clip, out, ranges[0]), later])
+    bundle = open_ranges(clip, tmp_path / "ranges", 2, overlap=2)
+    out = bundle.path
+    assert bundle.earlier is None and [r.to_json() for r in bundle.ranges] == [[0, 5, 0], [5, 10, 2]]
+    with pytest.raises(InputError, match="another relight is making this clip bundle now"):
+        infer_clip(clip, out)
+    infer_range(clip, out, bundle.ranges[1], bundle.key)
+    bundle.close()  # the batch stopped
+    with pytest.raises(InputError, match="is not ready for frames 0 to 3"):
+        infer_range(clip, out, ClipRange(0, 4, 0), bundle.key)
+    with folder_lock(tmp_path / "whole"), pytest.raises(InputError, match="another relight is making"):
+        infer_clip(clip, tmp_path / "whole")
+    record = infer_clip(clip, out)
     assert record["complete"] and record["frames"] == 10 and record["states"]["person"] == 10 and record["shots"] == 1
+    assert record["frames_kept_from_earlier_run"] == 5
     assert set(record["pan_offsets"]) == {"3"}
     whole, split = load_clip_bundle(tmp_path / "whole"), load_clip_bundle(out)
     for a, b in zip(whole.frames, split.frames, strict=True):
@@ -470,6 +482,25 @@ def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
         if sa.mask.shape == sb.mask.shape:
             assert np.abs(sa.normal - sb.normal)[sa.mask & sb.mask].mean() < 0.01, a.index
     assert js.loads((out / "frames/000006.json").read_text())["pan_from"] == 3
+
+
+def test_a_warning_every_frame_gives_is_shown_once_and_counted():
+    """A clip's frames warn as photos do; a long clip printed a line a frame: now the first, then the count."""
+    import warnings
+
+    from viewer.photo.clip_inference import FrameWarnings
+
+    shown = FrameWarnings("walk.mp4")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for t in (0.5, 1.0, 1.5):
+            with pytest.raises(NoPersonError) if t == 1.5 else contextlib.nullcontext(), shown.frame(f"walk.mp4 at {t} s"):
+                warnings.warn(f"walk.mp4 at {t} s: the person is sideways", stacklevel=1)
+                if t == 1.5:
+                    raise NoPersonError("walk.mp4", "no person")  # (its warnings before it still count)
+        shown.close()
+    assert [str(w.message) for w in caught] == ["walk.mp4 at 0.5 s: the person is sideways",
+                                                 "walk.mp4: 2 more frames: the person is sideways"]
 
 
 def test_shots_cut_where_the_picture_changes():

@@ -93,3 +93,19 @@ def infer_bytes(photo_pixels: int, frame_pixels: int) -> float:
 def largest_frame_side(photo_pixels: int, aspect: float) -> int:
     """The largest ``--max-size`` whose inference fits the budget."""
     return _largest_side(INFER_BASE + INFER_PER_PHOTO_PIXEL * photo_pixels, INFER_PER_FRAME_PIXEL, aspect)
+
+
+def give_back_freed() -> None:
+    """Between two frames of a clip: the cyclic garbage collected and the C heap's free memory handed
+    back to the system (glibc's ``malloc_trim``). Each frame builds and frees an engine and its maps;
+    without this the process's resident size crept up with the clip's length (rendering 300 frames:
+    peak 693 MB against 595 MB after 50; with it 448 MB, flat after the first 50, measured on
+    ``relight bench clip-memory``'s 60-s clip)."""
+    import ctypes
+    import gc
+
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: the collection alone
+        pass

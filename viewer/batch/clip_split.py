@@ -8,14 +8,25 @@ from pathlib import Path
 from viewer.errors import InputError
 
 
-class SplitClip:
-    """One clip's ranges in flight. :meth:`open` makes the bundle ready (in the driver: the shots are
-    found there), :attr:`tasks` are the workers', :meth:`take` gathers each result and says, when the
-    last is in, what an inference task would have (``ok``, ``bundle``, ``cached``, ``seconds``, ``error``)."""
+def one_line(exc: BaseException) -> str:
+    """An exception as its item's one line (the user's own mistakes are already one)."""
+    if isinstance(exc, InputError):
+        return str(exc)
+    if isinstance(exc, OSError):
+        return f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")
+    text = f"{type(exc).__name__}: {exc}".strip().splitlines()
+    return text[0] if text else type(exc).__name__
 
-    def __init__(self, clip: Path, bundle: Path, ranges: list, done: dict | None = None):
-        self.clip, self.bundle, self.ranges = clip, bundle, ranges
-        self.results: list[dict | None] = [None] * len(ranges)
+
+class SplitClip:
+    """One clip's ranges in flight. :meth:`open` makes the bundle ready (in the driver, which holds the
+    bundle's lock until the last range is in: the shots are found there), :meth:`tasks` are the
+    workers', :meth:`take` gathers each result and says, when the last is in, what an inference task
+    would have (``ok``, ``bundle``, ``cached``, ``seconds``, ``error``)."""
+
+    def __init__(self, clip: Path, bundle=None, done: dict | None = None):
+        self.clip, self.bundle = clip, bundle  # a viewer.photo.clip_ranges.RangedBundle
+        self.results: list[dict | None] = [None] * (len(bundle.ranges) if bundle is not None else 0)
         self.done = done  # what the inference gave, once known
 
     @classmethod
@@ -29,21 +40,23 @@ class SplitClip:
 
         try:
             digest = file_sha256(clip)
-            bundle = cached_clip_path(clip, settings["bundles"], 0.0, None, WORK_PERSON, settings["max_size"], digest=digest)
-            bundle, ranges, earlier = open_ranges(clip, bundle, workers, max_size=settings["max_size"], digest=digest)
-        except InputError as exc:
-            return cls(clip, Path(), [], {"ok": False, "error": str(exc)})
-        except OSError as exc:
-            return cls(clip, Path(), [], {"ok": False, "error": f"{clip}: cannot be read ({exc.strerror or exc})"})
-        split = cls(clip, bundle, ranges)
-        if earlier is not None:
-            split.done = {"ok": True, "bundle": str(bundle), "cached": True, "seconds": 0.0}
+            path = cached_clip_path(clip, settings["bundles"], 0.0, None, WORK_PERSON, settings["max_size"], digest=digest)
+            bundle = open_ranges(clip, path, workers, max_size=settings["max_size"], digest=digest)
+        except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
+            return cls(clip, None, {"ok": False, "error": one_line(exc)})
+        split = cls(clip, bundle)
+        if bundle.earlier is not None:
+            bundle.close()
+            split.done = {"ok": True, "bundle": str(bundle.path), "cached": True, "seconds": 0.0}
         return split
 
     def tasks(self, settings: dict) -> list[dict]:
         """Each range's task (without its id)."""
-        return [{"kind": "infer_range", "photo": str(self.clip), "bundle": str(self.bundle), "range": r.to_json(),
-                 "device": settings.get("device", "cpu")} for r in self.ranges]
+        if self.done is not None:
+            return []
+        key = self.bundle.key
+        return [{"kind": "infer_range", "photo": str(self.clip), "bundle": str(self.bundle.path), "range": r.to_json(),
+                 "key": key, "device": settings.get("device", "cpu")} for r in self.bundle.ranges]
 
     def take(self, index: int, result: dict) -> dict | None:
         """Range ``index``'s result; when it is the last, the clip's inference result (the bundle
@@ -54,14 +67,21 @@ class SplitClip:
         if any(r is None for r in self.results):
             return None
         failed = next((r for r in self.results if not r["ok"]), None)
-        if failed is not None:
-            self.done = {"ok": False, "error": failed["error"]}
-            return self.done
         try:
-            record = finish_ranges(self.clip, self.bundle, self.ranges, [r["range_result"] for r in self.results])
-        except InputError as exc:
-            self.done = {"ok": False, "error": str(exc)}
+            if failed is not None:
+                self.done = {"ok": False, "error": failed["error"]}
+                return self.done
+            record = finish_ranges(self.clip, self.bundle.path, self.bundle.ranges, [r["range_result"] for r in self.results])
+        except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
+            self.done = {"ok": False, "error": one_line(exc)}
             return self.done
-        self.done = {"ok": True, "bundle": str(self.bundle), "cached": record["frames_kept_from_earlier_run"] == record["frames"],
-                     "seconds": round(sum(r["seconds"] for r in self.results), 3), "ranges": len(self.ranges)}
+        finally:
+            self.close()
+        self.done = {"ok": True, "bundle": str(self.bundle.path), "cached": record["frames_kept_from_earlier_run"] == record["frames"],
+                     "seconds": round(sum(r["seconds"] for r in self.results), 3), "ranges": len(self.bundle.ranges)}
         return self.done
+
+    def close(self) -> None:
+        """The bundle's lock let go (the batch ends, or the clip's ranges are all in)."""
+        if self.bundle is not None:
+            self.bundle.close()

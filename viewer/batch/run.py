@@ -199,18 +199,20 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
             submit("render", item, _render_task(item, by_look[item.look], r["bundle"], folder, settings))
 
     splits: dict[Path, SplitClip] = {}
+    to_split = [p for p in waiting if is_clip(p) and pool.size > 1]  # each clip's frames in ranges, one a worker
+    for photo in waiting:
+        if photo not in to_split:
+            submit("infer", photo, {"kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
+                                    "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
     try:
-        for photo in list(waiting):
-            if is_clip(photo) and pool.size > 1:  # the clip's frames in ranges, one a worker
+        while tasks or to_split:
+            while to_split and len(tasks) < pool.size:  # opened one at a time (its shots are found here) while workers wait
+                photo = to_split.pop(0)
                 splits[photo] = split = SplitClip.open(photo, settings, pool.size)
                 if split.done is not None:
                     inferred(photo, split.done)
-                for k, task in enumerate(split.tasks(settings) if split.done is None else []):
+                for k, task in enumerate(split.tasks(settings)):
                     submit("range", (photo, k), task)
-            else:
-                submit("infer", photo, {"kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
-                                        "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
-        while tasks:
             for r in pool.results(timeout=0.5):
                 kind, what = tasks.pop(r["id"], (None, None))
                 if kind == "infer":
@@ -231,6 +233,8 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
                     bar.update(1)
     finally:
         bar.close()
+        for split in splits.values():
+            split.close()
 
 
 def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:

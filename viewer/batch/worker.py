@@ -80,7 +80,8 @@ class Worker:
         from viewer.photo.clip_ranges import ClipRange, infer_range
 
         self._drop_engine()  # (a GL context serves the range's frames)
-        result = infer_range(task["photo"], task["bundle"], ClipRange(*task["range"]), device=task.get("device", "cpu"), ctx=self.ctx)
+        result = infer_range(task["photo"], task["bundle"], ClipRange(*task["range"]), task.get("key"), device=task.get("device", "cpu"),
+                             ctx=self.ctx)
         return {"range_result": result}
 
     def render_clip(self, task: dict) -> dict:

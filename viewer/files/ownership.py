@@ -104,14 +104,20 @@ def take_away(path, tag: str = "old") -> None:
 
 
 @contextlib.contextmanager
-def folder_lock(folder):
+def folder_lock(folder, busy: str | None = None):
     """An exclusive lock on ``folder`` (flock on its descriptor) for the duration: writers into it
-    take turns; nothing is created in it."""
+    take turns; nothing is created in it. ``busy``: do not wait for another holder; refuse with this
+    line, naming the folder."""
     import fcntl
+
+    from viewer.errors import InputError
 
     fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | (fcntl.LOCK_NB if busy else 0))
+        except BlockingIOError:
+            raise InputError(folder, busy) from None
         yield
     finally:
         os.close(fd)  # closing releases the lock

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -28,6 +29,7 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import MARK, read_json, read_png, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, take_away
+from viewer.memory_needs import give_back_freed
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
 from viewer.photo.camera_motion import turned
@@ -219,7 +221,9 @@ def layers_folder(path) -> Path:
 
 
 LAYERS_RECORD = "layers.json"
-LAYERS_BYTES = 0.6 * 4 * 23  # a frame pixel's bytes in a layers EXR (23 float32 channels, ZIP: ~0.6 of them, measured 0.55-0.6)
+LAYER_CHANNELS = 25  # of a frame's layers EXR, and 3 a light with --per-light (viewer.output.layers)
+LAYER_CHANNEL_BYTES = 0.6 * 4  # a float32 channel's bytes a pixel, ZIP-compressed (measured 0.55-0.6 of them)
+LEFTOVER = re.compile(r"^\.(\d{6}\.exr|layers\.json)\.\d+\.tmp$")  # a write a killed run left (viewer.files.imageio.atomic_path)
 
 
 def layer_name(index: int) -> str:
@@ -230,17 +234,40 @@ def check_layers_folder(path) -> Path:
     """The layers folder of ``path``, refused in one line when it is there and holds anything relight
     did not write (the command checks it before the inference)."""
     folder = layers_folder(path)
-    if folder.exists() and (not file_is_ours(folder / LAYERS_RECORD) or any(not file_is_ours(p) for p in folder.iterdir())):
+    if not folder.exists():
+        return folder
+    names = [p for p in folder.iterdir() if not LEFTOVER.match(p.name)]
+    if names and (not file_is_ours(folder / LAYERS_RECORD) or any(not file_is_ours(p) for p in names)):
         raise InputError(folder, "is not a folder of layers relight wrote: move it away or choose another -o")
     return folder
 
 
-def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int]) -> Path:
+def layers_bytes(frames: int, size: tuple[int, int], lights: int = 0) -> float:
+    """About what ``frames`` frames of layers take on the disk at ``size``, with ``lights`` per-light layers."""
+    return LAYER_CHANNEL_BYTES * (LAYER_CHANNELS + 3 * lights) * size[0] * size[1] * frames
+
+
+def check_layers_room(path, frames: int, size: tuple[int, int], lights: int) -> None:
+    """Refuse, in one line, layers of ``frames`` frames at ``size`` that the disk cannot hold (those of
+    the same render already in the folder counted as there)."""
+    folder = layers_folder(path)
+    done = sum(1 for _ in folder.glob("*.exr")) if folder.is_dir() else 0
+    need = layers_bytes(max(frames - done, 0), size, lights)
+    free = shutil.disk_usage(folder if folder.is_dir() else folder.parent).free
+    if need > free:
+        raise InputError(folder, f"{frames} frames of layers at {size[0]}x{size[1]} would need about {need / 1e9:.1f} GB of disk, "
+                                 f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
+
+
+def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int], lights: int) -> Path:
     """The layers folder of ``path``: kept when it holds layers of the same render (their frames are
     not made again), else made anew; a folder of that name holding anything relight did not write is
-    refused in one line, as is a sequence the disk cannot hold."""
+    refused in one line, as is a sequence the disk cannot hold (``lights``: per-light layers)."""
     folder = check_layers_folder(path)
     if folder.exists():
+        for p in folder.iterdir():  # writes a killed run left
+            if LEFTOVER.match(p.name):
+                p.unlink()
         record = folder / LAYERS_RECORD
         try:
             same = json.loads(record.read_text()).get("key") == key
@@ -248,11 +275,7 @@ def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int]) -> Pa
             same = False
         if not same:
             take_away(folder)
-    need = LAYERS_BYTES * size[0] * size[1] * frames
-    free = shutil.disk_usage(folder if folder.exists() else folder.parent).free
-    if need > free:
-        raise InputError(folder, f"{frames} frames of layers at {size[0]}x{size[1]} would need about {need / 1e9:.1f} GB of disk, "
-                                 f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
+    check_layers_room(path, frames, size, lights)
     if not folder.exists():
         folder.mkdir(parents=True)
         write_text(folder / LAYERS_RECORD, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
@@ -273,7 +296,8 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     path = Path(path)
     pictures = ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
     key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes)
-    sequence = _open_layers(path, f"{key} {per_light}", len(bundle.frames), pictures.size) if layers else None
+    sequence = _open_layers(path, f"{key} {per_light}", len(bundle.frames), pictures.size,
+                            len(lights) + (len(fixed) if fixed is not None else 0) if per_light else 0) if layers else None
     folder = _open_parts(path, key)
     fps = float(bundle.source.get("fps") or 30.0)
     frames = bundle.frames
@@ -293,6 +317,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
                     for i in range(first, last):
                         picture = pictures.picture(i)
                         video.write(picture, seconds=frames[i].seconds)
+                        give_back_freed()
                         if poster is not None and i == len(frames) // 2:
                             write_png(poster, picture / 255.0)
                             poster = None

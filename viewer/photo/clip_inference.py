@@ -22,6 +22,7 @@ maps and exposure), for comparison.
 from __future__ import annotations
 
 import bisect
+import contextlib
 import hashlib
 import json
 import shutil
@@ -32,7 +33,8 @@ from pathlib import Path
 from viewer.errors import InputError, NoPersonError
 from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
-from viewer.files.ownership import file_is_ours, file_sha256, take_away, written_here
+from viewer.files.ownership import file_is_ours, file_sha256, folder_lock, take_away, written_here
+from viewer.memory_needs import give_back_freed
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
@@ -41,7 +43,17 @@ from viewer.photo.steady import SteadyMaps
 from viewer.resize import resize
 from viewer.scene.area_lights import load_lights
 from viewer.scene.bundle import load_scene
-from viewer.scene.clip_bundle import FORMAT, FRAMES, RECORD, VERSION, ClipFrameEntry, frame_name, read_frame_entry, read_record
+from viewer.scene.clip_bundle import (
+    FORMAT,
+    FRAMES,
+    RECORD,
+    VERSION,
+    ClipFrameEntry,
+    absolute_pan,
+    frame_name,
+    read_frame_entry,
+    read_record,
+)
 
 FRAME_MB = (1.5, 2.5)  # disk a frame's bundle takes: MB, plus MB per megapixel of its frame (measured 2.7 MB at 0.42 MP, 3.2 at 0.96)
 
@@ -131,14 +143,27 @@ def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int)
                                f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
 
 
-def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-                     max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None) -> tuple[Path, dict, dict | None]:
-    """Make ``out_dir`` ready for the clip bundle of ``clip_path`` with these options: (the folder, its
-    record as written now (not complete), the earlier record when the bundle there is whole already).
-    An earlier bundle of another clip or options there is taken away; one of the same is kept (its
-    finished frames are not inferred again). ``digest``: the clip's SHA-256 when the caller has just read it."""
+BUSY = "another relight is making this clip bundle now: run again when it is done"
+
+
+def locked_bundle(clip_path, out_dir, start: float, end: float | None) -> tuple[Path, contextlib.AbstractContextManager]:
+    """(``out_dir`` checked as a place for a clip bundle and made, the lock its maker holds: one run
+    at a time makes a clip bundle; another is refused in one line, :data:`BUSY`)."""
     check_range(clip_path, start, end)
     out_dir = clip_target(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return out_dir, folder_lock(out_dir, busy=BUSY)
+
+
+def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
+                     max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None) -> tuple[Path, dict, dict | None]:
+    """Make ``out_dir`` ready for the clip bundle of ``clip_path`` with these options (its maker holding
+    :func:`locked_bundle`'s lock): (the folder, its record as written now (not complete), the earlier
+    record when the bundle there is whole already). An earlier bundle of another clip or options
+    there is taken away; one of the same is kept (its finished frames are not inferred again, and
+    the ranges it was split in, when it was, are kept: :mod:`viewer.photo.clip_ranges`). ``digest``:
+    the clip's SHA-256 when the caller has just read it."""
+    out_dir = Path(out_dir)
     info = probe_clip(clip_path)
     options = clip_options(start, end, size, max_size, temporal)
     digest = digest or file_sha256(clip_path)
@@ -154,8 +179,10 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
             earlier = {}
         if earlier.get("key") != key:
             _start_over(out_dir)
-        elif earlier.get("complete") and all(_finished(out_dir / FRAMES, i) for i in range(int(earlier.get("frames", 0)))):
+        elif earlier.get("complete") and _whole(out_dir, earlier):
             return out_dir, record, earlier  # whole: nothing to do
+        else:  # the same bundle, unfinished: split as it was begun
+            record.update({k: earlier[k] for k in ("expected_frames", "shot_starts", "ranges") if k in earlier})
     (out_dir / FRAMES).mkdir(parents=True, exist_ok=True)
     _check_disk(clip_path, info, max_size, out_dir, total)
     write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
@@ -169,11 +196,34 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
     ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
     the header's estimate). Frames already finished by an earlier run of the same clip and options
     are kept. ``digest``: the clip's SHA-256 when the caller has just read it."""
-    out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
-    if earlier is not None:
-        return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
-    done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
-    return finish_record(clip_path, out_dir, record, [done])
+    out_dir, lock = locked_bundle(clip_path, out_dir, start, end)
+    with lock:
+        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
+        if earlier is not None:
+            return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
+        if record.get("ranges"):  # begun in ranges by a batch: finished range by range, as begun
+            from viewer.photo.clip_ranges import ClipRange, finish_ranges
+
+            ranges = [ClipRange(*r) for r in record["ranges"]]
+            done = [infer_frames(clip_path, out_dir, record, r.first, r.last, r.warm, record.get("shot_starts"), device=device,
+                                 networks=networks, progress=progress, ctx=ctx) for r in ranges]
+            return finish_ranges(clip_path, out_dir, ranges, done)
+        done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
+        return finish_record(clip_path, out_dir, record, [done])
+
+
+def _whole(out_dir: Path, record: dict) -> bool:
+    """Whether every frame of a complete record is finished and readable as recorded (a pan counted
+    from a frame the record has no offset for is not)."""
+    for i in range(int(record.get("frames", 0))):
+        entry = _finished(out_dir / FRAMES, i)
+        if entry is None:
+            return False
+        try:
+            absolute_pan(entry, record, out_dir)
+        except InputError:
+            return False
+    return int(record.get("frames", 0)) > 0
 
 
 def finish_record(clip_path, out_dir: Path, record: dict, runs: list[dict], **more) -> dict:
@@ -225,6 +275,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept, count, warm_pan = 0, 0, None
     begin = max(first - warm, 0)
+    warned = FrameWarnings(clip_path)
     t0 = time.perf_counter()
 
     def networks_now():
@@ -277,9 +328,10 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                         steady.restart()
                 else:
                     try:
-                        result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
-                                             ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
-                                             steady=(steady, shot) if steady is not None else None)
+                        with warned.frame(label):
+                            result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
+                                                 ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
+                                                 steady=(steady, shot) if steady is not None else None)
                     except NoPersonError as exc:  # the frame as it is: what a photo background shows there
                         if steady is not None:
                             steady.restart()
@@ -301,16 +353,52 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                         warm_pan = list(entry.pan)
                 if writing:
                     write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
+            give_back_freed()
             if writing:
                 counts[entry.state] += 1
                 if progress is not None:
                     progress(count - first, max(total - first, count - first), entry)
     finally:
+        warned.close()
         if own_ctx:
             ctx.release()
     return {"counts": counts, "kept": kept, "frames": count, "first_at": round(first_at, 6), "warm_pan": warm_pan,
             "shots": (len(shot_starts) if shot_starts else cuts.shot + 1) if temporal == "on" else None,
             "seconds": round(time.perf_counter() - t0, 3)}
+
+
+class FrameWarnings:
+    """A clip's frames warn as photos do, each naming its frame ("CLIP at 1.5 s: the person is
+    sideways ..."): a warning is shown for the first frame that gives it, and at the end one line says
+    how many more frames gave it (a long clip printed a line a frame)."""
+
+    def __init__(self, clip_path):
+        self.clip_path = clip_path
+        self.counts: dict[tuple, int] = {}
+
+    @contextlib.contextmanager
+    def frame(self, label: str):
+        import warnings
+
+        caught: list = []
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                yield
+        finally:  # (a frame with no person raises, after its warnings)
+            for w in caught:
+                key = (w.category, str(w.message).replace(label, "", 1).lstrip(": "))
+                self.counts[key] = self.counts.get(key, 0) + 1
+                if self.counts[key] == 1:
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+    def close(self) -> None:
+        import warnings
+
+        for (category, text), count in self.counts.items():
+            if count > 1:
+                warnings.warn(f"{self.clip_path}: {count - 1} more frame{'s' if count > 2 else ''}: {text}", category, stacklevel=2)
+        self.counts.clear()
 
 
 def _shot_lights(clip_path, frames_dir: Path, start: float, end, shot_start: int, begin: int, size: int, max_size: int,

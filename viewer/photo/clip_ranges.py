@@ -17,13 +17,15 @@ in the record (``pan_offsets``), added to those frames' pans when the bundle is 
 from __future__ import annotations
 
 import bisect
+import contextlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from viewer.errors import InputError
 from viewer.files.clip_reader import clip_frames
 from viewer.files.imageio import write_text
-from viewer.photo.clip_inference import finish_record, infer_frames, open_clip_bundle
+from viewer.photo.clip_inference import finish_record, infer_frames, locked_bundle, open_clip_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 from viewer.photo.shots import ShotCuts
 from viewer.scene.clip_bundle import FRAMES, RECORD, frame_name, read_frame_entry, read_record
@@ -45,11 +47,12 @@ class ClipRange:
 
 def split(frames: int, workers: int, temporal: str = "on", overlap: int = OVERLAP) -> list[ClipRange]:
     """``frames`` in at most ``workers`` ranges of nearly equal length, each of twice ``overlap`` frames
-    at least (one range for a short clip), each after the first begun ``overlap`` frames early (frame
-    by frame, ``temporal`` "off", nothing is carried: no overlap)."""
+    at least (one range for a short clip), each after the first begun ``overlap`` frames early (one
+    at least: the pan is joined on the frame before a range's first; frame by frame, ``temporal``
+    "off", nothing is carried: no overlap)."""
     count = max(1, min(workers, frames // max(2 * overlap, 1)))
     bounds = [round(k * frames / count) for k in range(count + 1)]
-    warm = overlap if temporal == "on" else 0
+    warm = max(overlap, 1) if temporal == "on" else 0
     return [ClipRange(a, b, min(warm, a)) for a, b in zip(bounds, bounds[1:])]
 
 
@@ -64,28 +67,56 @@ def shot_starts(clip_path, start: float, end: float | None) -> tuple[list[int], 
     return starts, count
 
 
+@dataclass
+class RangedBundle:
+    """A clip bundle made ready for ranges (:func:`open_ranges`): its folder, its ranges (none when the
+    bundle was whole already: ``earlier`` is its record), and the lock on it, held until :meth:`close`
+    (one run at a time makes a clip bundle; the workers inferring its ranges do not take it)."""
+
+    path: Path
+    ranges: list[ClipRange]
+    earlier: dict | None
+    lock: contextlib.ExitStack
+    key: str = ""  # the bundle's (what its clip, options and the inference hash to)
+
+    def close(self) -> None:
+        self.lock.close()
+
+
 def open_ranges(clip_path, out_dir, workers: int, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-                max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None,
-                overlap: int = OVERLAP) -> tuple[Path, list[ClipRange], dict | None]:
+                max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, overlap: int = OVERLAP) -> RangedBundle:
     """Make ``out_dir`` ready for the clip bundle of ``clip_path`` inferred in ranges (as
     :func:`viewer.photo.clip_inference.open_clip_bundle`, with the shots found and the ranges in its
-    record): (the folder, the ranges, the earlier record when the bundle there is whole already)."""
-    out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
-    if earlier is not None:
-        return out_dir, [], earlier
-    starts, count = shot_starts(clip_path, start, end) if temporal == "on" else ([0], None)
-    if count is None:
-        count = sum(1 for _ in clip_frames(clip_path, start, end))
-    ranges = split(count, workers, temporal, overlap)
-    record.update(expected_frames=count, shot_starts=starts, ranges=[r.to_json() for r in ranges])
-    write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
-    return out_dir, ranges, None
+    record; an unfinished bundle of the same clip and options keeps the ranges it was begun in)."""
+    out_dir, lock = locked_bundle(clip_path, out_dir, start, end)
+    held = contextlib.ExitStack()
+    held.enter_context(lock)
+    try:
+        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
+        if earlier is not None:
+            return RangedBundle(out_dir, [], earlier, held, record["key"])
+        if not record.get("ranges") or (temporal == "on" and not record.get("shot_starts")):
+            starts, count = shot_starts(clip_path, start, end) if temporal == "on" else ([0], None)
+            if count is None:
+                count = sum(1 for _ in clip_frames(clip_path, start, end))
+            record.update(expected_frames=count, shot_starts=starts, ranges=[r.to_json() for r in split(count, workers, temporal, overlap)])
+            write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
+        return RangedBundle(out_dir, [ClipRange(*r) for r in record["ranges"]], None, held, record["key"])
+    except BaseException:
+        held.close()
+        raise
 
 
-def infer_range(clip_path, out_dir, clip_range: ClipRange, device: str = "cpu", networks=None, ctx=None, progress=None) -> dict:
-    """One range of a clip bundle made ready by :func:`open_ranges` (a worker's task): what
-    :func:`viewer.photo.clip_inference.infer_frames` did."""
+def infer_range(clip_path, out_dir, clip_range: ClipRange, key: str | None = None, device: str = "cpu", networks=None, ctx=None,
+                progress=None) -> dict:
+    """One range of a clip bundle made ready by :func:`open_ranges` (a worker's task; ``key``: the
+    bundle's, as the driver made it ready): what :func:`viewer.photo.clip_inference.infer_frames` did.
+    A bundle not made ready for ranges, or made again since (another key), is one line."""
     record = read_record(out_dir)
+    if (key is not None and record.get("key") != key) or clip_range.to_json() not in record.get("ranges", []) or \
+            (record["temporal"] == "on" and not record.get("shot_starts")):
+        raise InputError(Path(out_dir) / RECORD, f"is not ready for frames {clip_range.first} to {clip_range.last - 1} "
+                                                 "(made again by another run?): run the batch again")
     return infer_frames(clip_path, out_dir, record, clip_range.first, clip_range.last, clip_range.warm,
                         record.get("shot_starts") if record["temporal"] == "on" else None, device=device, networks=networks,
                         progress=progress, ctx=ctx)
@@ -98,12 +129,19 @@ def finish_ranges(clip_path, out_dir, ranges: list[ClipRange], results: list[dic
     record = read_record(out_dir)
     starts = record.get("shot_starts") or [0]
     offsets: dict[str, list[float]] = {}
+    for clip_range, result in zip(ranges, results, strict=True):
+        if result["frames"] != clip_range.last:
+            raise InputError(clip_path, f"frames {clip_range.first} to {clip_range.last - 1} came out as {result['frames']} "
+                                        "frames: the clip changed while it was read? run again")
     for clip_range, result in zip(ranges, results):
         begin = clip_range.first - clip_range.warm
         shot = bisect.bisect_right(starts, begin) - 1
         if record["temporal"] != "on" or begin <= starts[shot] or result["warm_pan"] is None:
             continue  # the range's pans count from their shots' first frames already
         before = read_frame_entry(out_dir / FRAMES / f"{frame_name(clip_range.first - 1)}.json")
+        if before.pan_from is not None and str(before.pan_from) not in offsets:
+            raise InputError(out_dir / FRAMES, f"frame {before.index}'s pan counts from frame {before.pan_from}, which no "
+                                               "range began at: run again")
         reached = [before.pan[i] + (offsets[str(before.pan_from)][i] if before.pan_from is not None else 0.0) for i in (0, 1)]
         offsets[str(begin)] = [round(reached[i] - result["warm_pan"][i], 4) for i in (0, 1)]
     return finish_record(clip_path, out_dir, record, results, pan_offsets=offsets)

@@ -34,7 +34,7 @@ from viewer.errors import InputError
 from viewer.files.imageio import MARK, read_json
 
 FORMAT = "relight-clip"
-VERSION = 1
+VERSION = 2  # 2: frame records may count their pan from a range's first frame (pan_from, the record's pan_offsets)
 RECORD = "clip.json"
 FRAMES = "frames"
 STATES = ("person", "no person", "lost")
