@@ -61,7 +61,7 @@ class SplitClip:
     def take(self, index: int, result: dict) -> dict | None:
         """Range ``index``'s result; when it is the last, the clip's inference result (the bundle
         finished when every range went well, else the first failure's line)."""
-        from viewer.photo.clip_ranges import finish_ranges
+        from viewer.photo.clip_inference import finish_ranges
 
         self.results[index] = result
         if any(r is None for r in self.results):

@@ -27,7 +27,7 @@ import hashlib
 import json
 import shutil
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from viewer.errors import InputError, NoPersonError
@@ -201,9 +201,7 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
         out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
         if earlier is not None:
             return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
-        if record.get("ranges"):  # begun in ranges by a batch: finished range by range, as begun
-            from viewer.photo.clip_ranges import ClipRange, finish_ranges
-
+        if record.get("ranges"):  # begun in ranges by a batch (viewer.photo.clip_ranges): finished range by range, as begun
             ranges = [ClipRange(*r) for r in record["ranges"]]
             done = [infer_frames(clip_path, out_dir, record, r.first, r.last, r.warm, record.get("shot_starts"), device=device,
                                  networks=networks, progress=progress, ctx=ctx) for r in ranges]
@@ -224,6 +222,43 @@ def _whole(out_dir: Path, record: dict) -> bool:
         except InputError:
             return False
     return int(record.get("frames", 0)) > 0
+
+
+@dataclass(frozen=True)
+class ClipRange:
+    """Frames ``first`` to ``last`` (excluded) of a clip, begun ``warm`` frames before ``first``."""
+
+    first: int
+    last: int
+    warm: int
+
+    def to_json(self) -> list[int]:
+        return [self.first, self.last, self.warm]
+
+
+def finish_ranges(clip_path, out_dir, ranges: list[ClipRange], results: list[dict]) -> dict:
+    """Every range done (``results`` in the order of ``ranges``): the pans joined across the ranges'
+    starts, the record made complete. Returns it."""
+    out_dir = Path(out_dir)
+    record = read_record(out_dir)
+    starts = record.get("shot_starts") or [0]
+    offsets: dict[str, list[float]] = {}
+    for clip_range, result in zip(ranges, results, strict=True):
+        if result["frames"] != clip_range.last:
+            raise InputError(clip_path, f"frames {clip_range.first} to {clip_range.last - 1} came out as {result['frames']} "
+                                        "frames: the clip changed while it was read? run again")
+    for clip_range, result in zip(ranges, results):
+        begin = clip_range.first - clip_range.warm
+        shot = bisect.bisect_right(starts, begin) - 1
+        if record["temporal"] != "on" or begin <= starts[shot] or result["warm_pan"] is None:
+            continue  # the range's pans count from their shots' first frames already
+        before = read_frame_entry(out_dir / FRAMES / f"{frame_name(clip_range.first - 1)}.json")
+        if before.pan_from is not None and str(before.pan_from) not in offsets:
+            raise InputError(out_dir / FRAMES, f"frame {before.index}'s pan counts from frame {before.pan_from}, which no "
+                                               "range began at: run again")
+        reached = [before.pan[i] + (offsets[str(before.pan_from)][i] if before.pan_from is not None else 0.0) for i in (0, 1)]
+        offsets[str(begin)] = [round(reached[i] - result["warm_pan"][i], 4) for i in (0, 1)]
+    return finish_record(clip_path, out_dir, record, results, pan_offsets=offsets)
 
 
 def finish_record(clip_path, out_dir: Path, record: dict, runs: list[dict], **more) -> dict:

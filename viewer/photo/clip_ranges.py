@@ -16,7 +16,6 @@ in the record (``pan_offsets``), added to those frames' pans when the bundle is 
 
 from __future__ import annotations
 
-import bisect
 import contextlib
 import json
 from dataclasses import dataclass
@@ -25,24 +24,12 @@ from pathlib import Path
 from viewer.errors import InputError
 from viewer.files.clip_reader import clip_frames
 from viewer.files.imageio import write_text
-from viewer.photo.clip_inference import finish_record, infer_frames, locked_bundle, open_clip_bundle
+from viewer.photo.clip_inference import ClipRange, infer_frames, locked_bundle, open_clip_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 from viewer.photo.shots import ShotCuts
-from viewer.scene.clip_bundle import FRAMES, RECORD, frame_name, read_frame_entry, read_record
+from viewer.scene.clip_bundle import RECORD, read_record
 
 OVERLAP = 8  # frames a range begins before its first; a range has twice as many of its own at least
-
-
-@dataclass(frozen=True)
-class ClipRange:
-    """Frames ``first`` to ``last`` (excluded) of a clip, begun ``warm`` frames before ``first``."""
-
-    first: int
-    last: int
-    warm: int
-
-    def to_json(self) -> list[int]:
-        return [self.first, self.last, self.warm]
 
 
 def split(frames: int, workers: int, temporal: str = "on", overlap: int = OVERLAP) -> list[ClipRange]:
@@ -120,28 +107,3 @@ def infer_range(clip_path, out_dir, clip_range: ClipRange, key: str | None = Non
     return infer_frames(clip_path, out_dir, record, clip_range.first, clip_range.last, clip_range.warm,
                         record.get("shot_starts") if record["temporal"] == "on" else None, device=device, networks=networks,
                         progress=progress, ctx=ctx)
-
-
-def finish_ranges(clip_path, out_dir, ranges: list[ClipRange], results: list[dict]) -> dict:
-    """Every range done (``results`` in the order of ``ranges``): the pans joined across the ranges'
-    starts, the record made complete. Returns it."""
-    out_dir = Path(out_dir)
-    record = read_record(out_dir)
-    starts = record.get("shot_starts") or [0]
-    offsets: dict[str, list[float]] = {}
-    for clip_range, result in zip(ranges, results, strict=True):
-        if result["frames"] != clip_range.last:
-            raise InputError(clip_path, f"frames {clip_range.first} to {clip_range.last - 1} came out as {result['frames']} "
-                                        "frames: the clip changed while it was read? run again")
-    for clip_range, result in zip(ranges, results):
-        begin = clip_range.first - clip_range.warm
-        shot = bisect.bisect_right(starts, begin) - 1
-        if record["temporal"] != "on" or begin <= starts[shot] or result["warm_pan"] is None:
-            continue  # the range's pans count from their shots' first frames already
-        before = read_frame_entry(out_dir / FRAMES / f"{frame_name(clip_range.first - 1)}.json")
-        if before.pan_from is not None and str(before.pan_from) not in offsets:
-            raise InputError(out_dir / FRAMES, f"frame {before.index}'s pan counts from frame {before.pan_from}, which no "
-                                               "range began at: run again")
-        reached = [before.pan[i] + (offsets[str(before.pan_from)][i] if before.pan_from is not None else 0.0) for i in (0, 1)]
-        offsets[str(begin)] = [round(reached[i] - result["warm_pan"][i], 4) for i in (0, 1)]
-    return finish_record(clip_path, out_dir, record, results, pan_offsets=offsets)
