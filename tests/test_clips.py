@@ -374,6 +374,10 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
         (("infer", str(asset_dir() / "photos/underpass.jpg"), "-o", str(tmp_path / "d"), "--start", "1"),
          "choose a part of a clip: this is not one"),
         (("infer", str(clip_with_everything), "-o", str(tmp_path / "e"), "--mask", "m.png"), "a mask is for a photo"),
+        (("view", str(clip_with_everything)), "the window does not play a clip yet"),
+        (("view", str(clip_bundle[0])), "the window does not play a clip yet"),
+        (("render", str(asset_dir() / "sample_scene"), "--env", env, "-o", str(tmp_path / "f.png"), "--layers"),
+         "for a photo's, use relight batch --layers"),
     ):
         res = run_cli(*args)
         assert res.returncode == 2 and message in res.stderr, (args, res.stderr)

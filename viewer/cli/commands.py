@@ -157,9 +157,14 @@ def cmd_render(args) -> int:
 
 
 def cmd_view(args) -> int:
+    from viewer.files.clip_reader import is_clip
     from viewer.lighting.envmap import load_envmap
     from viewer.scene.bundle import PHOTO_SUFFIXES
+    from viewer.scene.clip_bundle import is_clip_bundle
 
+    if args.scene is not None and (is_clip(args.scene) or is_clip_bundle(args.scene)):
+        raise InputError(args.scene, "the window does not play a clip yet: `relight render CLIP --env MAP -o relit.mp4` "
+                                     "relights it (docs/video.md)")
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
     photo = args.scene is not None and Path(args.scene).suffix.lower() in PHOTO_SUFFIXES

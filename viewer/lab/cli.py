@@ -175,15 +175,15 @@ def cmd_bench(args) -> int:
               f"{result['runs'][-1]['seconds']:g} s; wrote {out}")
     elif args.what == "video":
         from viewer.files.clip_reader import VIDEO_SUFFIXES
-        from viewer.lab.bench.video import run_video_benchmark, video_table
+        from viewer.lab.bench.video import run_video_benchmark, synthetic_clip, video_table
 
-        clips = []
-        for given in args.clips or [shared_folder(None, "videos", "--clips")]:
+        out = Path(args.output or "out/bench-video/video.json")
+        clips = [synthetic_clip(out.parent)] if args.synthetic else []
+        for given in args.clips or ([] if args.synthetic else [shared_folder(None, "videos", "--clips")]):
             given = Path(given)
             clips += sorted(p for p in given.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES) if given.is_dir() else [given]
         maps = [Path(m) for m in args.env] if args.env else [shared_folder(args.maps, "hdri", "--maps") / f"{m}_1k.hdr"
                                                              for m in ("potsdamer_platz", "rooitou_park")]
-        out = Path(args.output or "out/bench-video/video.json")
         print(video_table(run_video_benchmark(clips, maps, out.parent, args.start, args.end, args.max_size, output=out)))
         print(f"wrote {out}")
     elif args.what == "temporal":
@@ -355,6 +355,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "error against the input's, frames a minute, stages, peak memory; clip-memory: the peak memory of "
                         "`relight render CLIP` on clips of 10 s and 60 s made from the bundled photo")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
+    p.add_argument("--synthetic", action="store_true", help="video: also (or, without --clips, only) a clip made from the "
+                   "bundled photo, and a strip of its frames (input, off, on) for the docs")
     p.add_argument("--env", nargs="+", help="video: maps to relight under (default potsdamer_platz and rooitou_park of --maps)")
     p.add_argument("--start", type=float, default=0.0, help="video: seconds into each clip to start at (default 0)")
     p.add_argument("--end", type=float, default=2.0, help="video: seconds into each clip to stop at (default 2)")

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.files.imageio import write_text
+from viewer.files.imageio import atomic_path, write_text
 from viewer.photo.flow import backward_flow, dis_flow, grey, warp
 
 DEFAULT_SECONDS = 2.0
@@ -210,10 +210,49 @@ def run_video_benchmark(clips: list[Path], maps: list[Path], out_dir, start: flo
                   flush=True)
         figures.setdefault("clip", clip.name)
         figures["attempts"] = attempt + 1
+        if clip.stem == SYNTHETIC and "error" not in figures:
+            figures["strip"] = str(frame_strip(clip, out_dir, maps[0].stem))
         result["clips"].append(figures)
         print(_line(figures), flush=True)
         write_text(output, json.dumps(result, indent=1) + "\n")
     return result
+
+
+SYNTHETIC = "synthetic_panning"  # the clip made from the bundled photo (what the docs may show frames of)
+
+
+def synthetic_clip(out_dir) -> Path:
+    """The bundled photo's person through a window panning 2 px a frame, 4 s at 10 frames a second,
+    320x480 (:func:`viewer.lab.bench.clip_memory.panning_clip`)."""
+    from viewer.lab.bench.clip_memory import panning_clip
+
+    path = Path(out_dir) / f"{SYNTHETIC}.mp4"
+    return path if path.is_file() else panning_clip(path, 4.0, fps=10.0)
+
+
+def frame_strip(clip: Path, out_dir, map_name: str, count: int = 6) -> Path:
+    """A JPEG of ``count`` frames across the clip: the input, then the relit clip frame by frame
+    (off) and as a clip (on) under ``map_name``, a row each, labelled."""
+    from PIL import Image, ImageDraw
+
+    from viewer.resize import resize
+
+    out_dir = Path(out_dir)
+    rows = [("input", list(_video_frames(clip)))] + [
+        (f"{mode} ({map_name})", list(_video_frames(out_dir / f"{clip.stem}_{map_name}_{mode}.mp4"))) for mode in ("off", "on")]
+    n = min(len(frames) for _, frames in rows)
+    picks = [round(k * (n - 1) / max(count - 1, 1)) for k in range(count)]
+    h, w = rows[1][1][0].shape[:2]
+    sheet = Image.new("RGB", (w * count, (h + 16) * len(rows)), (24, 24, 24))
+    draw = ImageDraw.Draw(sheet)
+    for r, (label, frames) in enumerate(rows):
+        draw.text((4, r * (h + 16) + 2), label, fill=(230, 230, 230))
+        for c, i in enumerate(picks):
+            sheet.paste(Image.fromarray(resize(frames[i], (w, h))), (c * w, r * (h + 16) + 16))
+    path = out_dir / f"{clip.stem}_strip.jpg"
+    with atomic_path(path) as tmp:
+        sheet.save(tmp, format="JPEG", quality=88)
+    return path
 
 
 def _wait(child, queue) -> dict:
