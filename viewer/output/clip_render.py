@@ -191,24 +191,33 @@ def parts_folder(path) -> Path:
     return path.with_name(f"{path.stem}.parts")
 
 
+def _same_key(record: Path, key: str) -> bool:
+    try:
+        return json.loads(record.read_text()).get("key") == key
+    except (OSError, ValueError):
+        return False
+
+
+def _keyed(folder: Path, record: str, key: str) -> Path:
+    """``folder`` (checked to be this program's) for the render ``key``: taken away when its ``record``
+    holds another key, made with the record when it is not there."""
+    if folder.exists() and not _same_key(folder / record, key):
+        take_away(folder)
+    if not folder.exists():
+        folder.mkdir(parents=True)
+        write_text(folder / record, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
+    return folder
+
+
 def _open_parts(path: Path, key: str) -> Path:
     """The parts folder of ``path``, kept when it holds parts of the same render, else made anew.
     A folder of that name that relit did not write is refused in one line."""
     folder = parts_folder(path)
     if folder.exists():
-        record = folder / PARTS_RECORD
-        if not file_is_ours(record) or any(not (p.name == PARTS_RECORD or p.name.endswith(".partial.mp4") or file_is_ours(p))
+        if not file_is_ours(folder / PARTS_RECORD) or any(not (p.name == PARTS_RECORD or p.name.endswith(".partial.mp4") or file_is_ours(p))
                                            for p in folder.iterdir()):
             raise InputError(folder, "is not a folder of relit parts relight wrote: move it away or choose another -o")
-        try:
-            same = json.loads(record.read_text()).get("key") == key
-        except (OSError, ValueError):
-            same = False
-        if not same:
-            take_away(folder)
-    if not folder.exists():
-        folder.mkdir(parents=True)
-        write_text(folder / PARTS_RECORD, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
+    _keyed(folder, PARTS_RECORD, key)
     for p in folder.glob("*.partial.mp4"):  # a part cut short by a stopped run: made again
         p.unlink()
     return folder
@@ -268,18 +277,10 @@ def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int], light
         for p in folder.iterdir():  # writes a killed run left
             if LEFTOVER.match(p.name):
                 p.unlink()
-        record = folder / LAYERS_RECORD
-        try:
-            same = json.loads(record.read_text()).get("key") == key
-        except (OSError, ValueError):
-            same = False
-        if not same:
+        if not _same_key(folder / LAYERS_RECORD, key):
             take_away(folder)
     check_layers_room(path, frames, size, lights)
-    if not folder.exists():
-        folder.mkdir(parents=True)
-        write_text(folder / LAYERS_RECORD, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
-    return folder
+    return _keyed(folder, LAYERS_RECORD, key)
 
 
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
