@@ -5,17 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from viewer.errors import InputError
-
-
-def one_line(exc: BaseException) -> str:
-    """An exception as its item's one line (the user's own mistakes are already one)."""
-    if isinstance(exc, InputError):
-        return str(exc)
-    if isinstance(exc, OSError):
-        return f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": ")
-    text = f"{type(exc).__name__}: {exc}".strip().splitlines()
-    return text[0] if text else type(exc).__name__
+from viewer.batch.plan import cache_path
+from viewer.batch.worker import task_error
 
 
 class SplitClip:
@@ -34,16 +25,14 @@ class SplitClip:
         """The clip's bundle in the cache made ready for ``workers`` ranges; a clip that cannot be read
         (or a bundle already whole) is done at once."""
         from viewer.files.ownership import file_sha256
-        from viewer.photo.clip_inference import cached_clip_path
         from viewer.photo.clip_ranges import open_ranges
-        from viewer.photo.photo_frame import WORK_PERSON
 
         try:
             digest = file_sha256(clip)
-            path = cached_clip_path(clip, settings["bundles"], 0.0, None, WORK_PERSON, settings["max_size"], digest=digest)
-            bundle = open_ranges(clip, path, workers, max_size=settings["max_size"], digest=digest)
+            bundle = open_ranges(clip, cache_path(clip, settings["bundles"], settings["max_size"], digest), workers,
+                                 max_size=settings["max_size"], digest=digest)
         except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
-            return cls(clip, None, {"ok": False, "error": one_line(exc)})
+            return cls(clip, None, {"ok": False, "error": task_error(exc)})
         split = cls(clip, bundle)
         if bundle.earlier is not None:
             bundle.close()
@@ -73,7 +62,7 @@ class SplitClip:
                 return self.done
             record = finish_ranges(self.clip, self.bundle.path, self.bundle.ranges, [r["range_result"] for r in self.results])
         except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
-            self.done = {"ok": False, "error": one_line(exc)}
+            self.done = {"ok": False, "error": task_error(exc)}
             return self.done
         finally:
             self.close()

@@ -138,6 +138,24 @@ def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, 
     return h.hexdigest()
 
 
+def clip_bundle_key(digest: str, max_size: int, version: str) -> str:
+    """What a batch's clip bundle is made from: the clip's bytes (``digest``), the whole clip inferred
+    as one (temporal on) at ``max_size``, the inference ``version``."""
+    from viewer.photo.clip_inference import clip_key, clip_options
+    from viewer.photo.photo_frame import WORK_PERSON
+
+    return clip_key(digest, clip_options(0.0, None, WORK_PERSON, max_size), version)
+
+
+def cache_path(clip: Path, bundles, max_size: int, digest: str) -> Path:
+    """Where a batch keeps the bundle of ``clip`` (in the cache's ``bundles`` folder): the one
+    ``relight render CLIP`` makes with the same options (:func:`clip_bundle_key`)."""
+    from viewer.photo.clip_inference import cached_clip_path
+    from viewer.photo.photo_frame import WORK_PERSON
+
+    return cached_clip_path(clip, bundles, 0.0, None, WORK_PERSON, max_size, digest=digest)
+
+
 def check_sources(looks: list[LookSpec]) -> None:
     """Every rig and light file named exists (a bad map fails its own items later, not the batch)."""
     for look in looks:

@@ -13,9 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.batch.clip_split import SplitClip
 from viewer.batch.contact_sheet import SHEET, contact_sheet
 from viewer.batch.manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
-from viewer.batch.plan import Item, LookSpec, item_key, photo_names
+from viewer.batch.plan import Item, LookSpec, clip_bundle_key, item_key, photo_names
+from viewer.files.clip_reader import is_clip
 from viewer.files.ownership import file_sha256
 
 
@@ -64,7 +66,6 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
     """Every (photo, look) item with its outputs and key; the photos' bundle keys (what their bundles
     are made from: viewer.photo.inference.bundle_key), or for a photo that cannot be read its line."""
     from viewer.errors import InputError
-    from viewer.files.clip_reader import is_clip
     from viewer.photo.inference import bundle_key, inference_version
 
     names = photo_names(photos, reserved=(MANIFEST, SHEET, LOCK))
@@ -72,7 +73,7 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
     shas, errors = {}, {}
     for p in photos:
         try:
-            shas[p] = clip_bundle_key(p, settings["max_size"], version) if is_clip(p) else \
+            shas[p] = clip_bundle_key(file_sha256(p), settings["max_size"], version) if is_clip(p) else \
                 bundle_key(p, max_size=settings["max_size"], version=version)
         except InputError as exc:
             shas[p], errors[p] = "", str(exc)
@@ -94,15 +95,6 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
                                     np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
             items.append(item)
     return items, errors
-
-
-def clip_bundle_key(clip: Path, max_size: int, version: str) -> str:
-    """What a clip's bundle is made from (the whole clip, temporal on: what a batch infers)."""
-    from viewer.files.ownership import file_sha256
-    from viewer.photo.clip_inference import clip_key, clip_options
-    from viewer.photo.photo_frame import WORK_PERSON
-
-    return clip_key(file_sha256(clip), clip_options(0.0, None, WORK_PERSON, max_size), version)
 
 
 def remove_leftovers(folder: Path, items: list[Item]) -> None:
@@ -170,9 +162,6 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
 
 
 def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest: Manifest, summary: Summary, quiet, tqdm):
-    from viewer.batch.clip_split import SplitClip
-    from viewer.files.clip_reader import is_clip
-
     waiting: dict[Path, list[Item]] = {}
     for item in todo:
         waiting.setdefault(item.photo, []).append(item)
@@ -199,9 +188,11 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
             submit("render", item, _render_task(item, by_look[item.look], r["bundle"], folder, settings))
 
     splits: dict[Path, SplitClip] = {}
-    to_split = [p for p in waiting if is_clip(p) and pool.size > 1]  # each clip's frames in ranges, one a worker
+    to_split = []  # clips whose frames go in ranges, one a worker
     for photo in waiting:
-        if photo not in to_split:
+        if is_clip(photo) and pool.size > 1:
+            to_split.append(photo)
+        else:
             submit("infer", photo, {"kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
                                     "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
     try:
@@ -238,8 +229,6 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
 
 
 def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:
-    from viewer.files.clip_reader import is_clip
-
     return {"kind": "render", "item": item.name, "bundle": bundle, "folder": str(folder),
             "outputs": list(item.outputs), "envmap": str(look.spec.envmap) if look.spec.envmap else None,
             "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,

@@ -12,6 +12,15 @@ from pathlib import Path
 from viewer.errors import InputError
 
 
+def task_error(exc: Exception) -> str:
+    """A failed task's one line: the user's own mistake as it is said (InputError), anything else as
+    its type and the first line of its message."""
+    if isinstance(exc, InputError):
+        return str(exc)
+    text = f"{type(exc).__name__}: {exc}".strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
 class Worker:
     def __init__(self, threads: int):
         from viewer.cores import size_pools
@@ -43,8 +52,7 @@ class Worker:
             return {"ok": False, "error": str(exc), "pid": os.getpid()}
         except Exception as exc:  # noqa: BLE001 - any failure is its item's one line; the worker goes on
             self._drop_engine()  # (a GL error may have left the engine half made)
-            text = f"{type(exc).__name__}: {exc}".strip().splitlines()
-            return {"ok": False, "error": text[0] if text else type(exc).__name__, "pid": os.getpid()}
+            return {"ok": False, "error": task_error(exc), "pid": os.getpid()}
 
     def _drop_engine(self):
         if self._engine is not None:
@@ -65,12 +73,12 @@ class Worker:
 
     def infer_clip(self, task: dict) -> dict:
         """A clip's bundle in the cache (the whole clip, temporal on), made or finished there."""
+        from viewer.batch.plan import cache_path
         from viewer.files.ownership import file_sha256
-        from viewer.photo.clip_inference import cached_clip_path, infer_clip
-        from viewer.photo.photo_frame import WORK_PERSON
+        from viewer.photo.clip_inference import infer_clip
 
         digest = file_sha256(task["photo"])
-        bundle = cached_clip_path(task["photo"], task["bundles"], 0.0, None, WORK_PERSON, task["max_size"], digest=digest)
+        bundle = cache_path(task["photo"], task["bundles"], task["max_size"], digest)
         record = infer_clip(task["photo"], bundle, max_size=task["max_size"], device=task.get("device", "cpu"), ctx=self.ctx,
                             digest=digest)
         return {"bundle": str(bundle), "cached": record["frames_kept_from_earlier_run"] == record["frames"]}

@@ -70,7 +70,15 @@ def cmd_infer_clip(args) -> int:
 def cmd_render_clip(args, look) -> int:
     from viewer.gl import create_headless_context
     from viewer.lighting.envmap import load_envmap
-    from viewer.output.clip_render import check_layers_folder, check_layers_room, layer_name, layers_folder, parts_folder, render_clip
+    from viewer.output.clip_render import (
+        check_layers_folder,
+        check_layers_room,
+        layer_lights,
+        layer_name,
+        layers_folder,
+        parts_folder,
+        render_clip,
+    )
     from viewer.scene.clip_bundle import load_clip_bundle, read_record
 
     out = Path(args.output)
@@ -103,21 +111,20 @@ def cmd_render_clip(args, look) -> int:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
     lights = command_lights(args, look, args.lights, env, args.envmap)
     look = first_look(args, look, lights)
+    rig = rig_lights(args)
     if args.layers and is_clip(args.scene):  # the disk's room for them, before hours of inference
         from viewer.files.clip_reader import expected_frames, probe_clip
         from viewer.photo.photo_frame import MAX_SIZE, output_frame
 
         info = probe_clip(args.scene)
-        rig = rig_lights(args)
         check_layers_room(out, expected_frames(info, args.start, args.end),
-                          output_frame((info.width, info.height), args.max_size or MAX_SIZE),
-                          len(lights) + (len(rig) if rig is not None else 0) if args.per_light else 0)
+                          output_frame((info.width, info.height), args.max_size or MAX_SIZE), layer_lights(lights, rig, args.per_light))
     bundle = load_clip_bundle(clip_bundle(args.scene, args) if is_clip(args.scene) else args.scene)
     ctx = create_headless_context()
     t0 = time.perf_counter()
     try:
         with _bar(len(bundle.frames), f"relighting {out.name}") as bar:
-            result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig_lights(args),
+            result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
                                  engine_options(args, look), turn, progress=lambda done, total: bar.update(done - bar.n),
                                  sizes=(args.size, args.max_size), layers=args.layers, per_light=args.per_light)
     finally:

@@ -52,6 +52,7 @@ class ClipPictures:
         self.ctx, self.bundle, self.lights, self.look, self.sizes = ctx, bundle, lights, look, sizes
         self.environment, self.fixed, self.options, self.turn = environment, fixed, options, turn
         self._engine = None  # (frame index, Engine, Scene)
+        self._rendered = None  # (the look asked, the look resolved): what the engine holds rendered now
         self._exposures: dict[int, float] = {}  # shot -> its exposure (a clip inferred as one)
         self._warned = False
         first = self._load(self._people[0])
@@ -132,7 +133,9 @@ class ClipPictures:
                                                                 f"the clip's {self.size[0]}x{self.size[1]}")
             self._engine = (index, Engine(self.ctx, scene, self.options, self.background_camera(index)), scene)
         _, engine, scene = self._engine
-        settings, _ = render_look(engine, scene, self.lights, look, self.environment, self.fixed)
+        if self._rendered is None or self._rendered[0] != look:  # (a frame's layers after its picture: rendered once)
+            self._rendered = (look, render_look(engine, scene, self.lights, look, self.environment, self.fixed)[0])
+        settings = self._rendered[1]
         if not self._warned:
             warn_if_unseen(engine, scene, settings, True)
             self._warned = True
@@ -159,7 +162,9 @@ class ClipPictures:
         index = self._nearest(index)
         if self.bundle.frames[index].state == "person":
             engine, _ = self._render(index, self._look(index, index))
-            return layer_channels(engine, self._engine[2], per_light)
+            channels = layer_channels(engine, self._engine[2], per_light)
+            self._rendered = None  # (the layers rendered it unshadowed too)
+            return channels
         person = self._nearest(index, "person")
         channels = background_channels(self._render(person, self._look(index, person))[0], per_light)
         if self.look.background == "photo":  # the frame itself, as the picture shows it
@@ -174,6 +179,7 @@ class ClipPictures:
         if self._engine is not None:
             self._engine[1].release()
             self._engine = None
+        self._rendered = None
 
 
 def render_key(bundle: ClipBundle, lights: AreaLights, look: Look, environment, fixed, options, turn: float, sizes: tuple) -> str:
@@ -251,6 +257,11 @@ def check_layers_folder(path) -> Path:
     return folder
 
 
+def layer_lights(lights: AreaLights, fixed: AreaLights | None, per_light: bool) -> int:
+    """The lights a frame's layers have a layer each for (``per_light``: every light, the map's and the placed)."""
+    return len(lights) + (len(fixed) if fixed is not None else 0) if per_light else 0
+
+
 def layers_bytes(frames: int, size: tuple[int, int], lights: int = 0) -> float:
     """About what ``frames`` frames of layers take on the disk at ``size``, with ``lights`` per-light layers."""
     return LAYER_CHANNEL_BYTES * (LAYER_CHANNELS + 3 * lights) * size[0] * size[1] * frames
@@ -298,7 +309,12 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     pictures = ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
     key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes)
     sequence = _open_layers(path, f"{key} {per_light}", len(bundle.frames), pictures.size,
-                            len(lights) + (len(fixed) if fixed is not None else 0) if per_light else 0) if layers else None
+                            layer_lights(lights, fixed, per_light)) if layers else None
+
+    def frame_layers(i: int) -> None:  # frame i's layers, unless the same render's are there
+        if sequence is not None and not file_is_ours(sequence / layer_name(i)):
+            write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
+
     folder = _open_parts(path, key)
     fps = float(bundle.source.get("fps") or 30.0)
     frames = bundle.frames
@@ -310,9 +326,8 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
             last = min(first + per, len(frames))
             if file_is_ours(part):  # finished by an earlier run of the same render
                 reused += 1
-                for i in range(first, last) if sequence is not None else ():  # its layers, where a stop left them out
-                    if not file_is_ours(sequence / layer_name(i)):
-                        write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
+                for i in range(first, last):  # its layers, where a stop left them out
+                    frame_layers(i)
             else:
                 with VideoWriter(part, *pictures.size, fps=fps) as video:
                     for i in range(first, last):
@@ -322,8 +337,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
                         if poster is not None and i == len(frames) // 2:
                             write_png(poster, picture / 255.0)
                             poster = None
-                        if sequence is not None and not file_is_ours(sequence / layer_name(i)):  # (kept: the same render's)
-                            write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
+                        frame_layers(i)
                         if progress is not None:
                             progress(i + 1, len(frames))
             if progress is not None:

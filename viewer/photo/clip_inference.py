@@ -310,6 +310,10 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
     kept, count, warm_pan = 0, 0, None
     begin = max(first - warm, 0)
+    # a range begun within a shot (clip_ranges) counts that shot's pan from ``begin``, and
+    # is given the shot's light as fitted on the shot's first frame with a person
+    begin_shot = shot_of(begin, None) if temporal == "on" and shot_starts else None
+    mid_shot = begin_shot is not None and begin > shot_starts[begin_shot]
     warned = FrameWarnings(clip_path)
     t0 = time.perf_counter()
 
@@ -319,12 +323,11 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
         return nets
 
     try:
-        if temporal == "on" and shot_starts and begin > shot_starts[shot_of(begin, None)]:  # a range begun mid-shot
-            shot = shot_of(begin, None)
-            lights = _shot_lights(clip_path, frames_dir, start, end, shot_starts[shot], begin, size, max_size, device,
+        if mid_shot:
+            lights = _shot_lights(clip_path, frames_dir, start, end, shot_starts[begin_shot], begin, size, max_size, device,
                                   networks_now, ctx)
             if lights is not None:
-                shot_lights[shot] = lights
+                shot_lights[begin_shot] = lights
         for frame in clip_frames(clip_path, start, end):
             if frame.index < begin:
                 continue
@@ -333,9 +336,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
             count, first_at = frame.index + 1, frame.at
             writing = frame.index >= first
             shot = shot_of(frame.index, frame.rgb) if temporal == "on" else frame.index
-            # a range begun within a shot counts the shot's pan from its own first frame (clip_ranges)
-            counted_from = begin if temporal == "on" and shot_starts and shot == shot_of(begin, None) and begin > shot_starts[shot] \
-                else None
+            counted_from = begin if mid_shot and shot == begin_shot else None
             entry = _finished(frames_dir, frame.index)
             alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
             if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
@@ -349,13 +350,10 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                     alpha = scene.frame.alpha
                 elif steady is not None:
                     steady.restart()
-                if motion is not None:
-                    pan = motion.shift_of(frame.rgb, alpha, shot)
-                    if frame.index == first - 1:
-                        warm_pan = [to_output * v for v in pan]
             else:
                 entry = None
-            if entry is None:
+            fresh = entry is None
+            if fresh:
                 label = f"{clip_path} at {frame.seconds + start:.3f} s"
                 if frame.rgb is None:
                     entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot)
@@ -381,13 +379,14 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                         entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
                         shot_lights.setdefault(shot, result["lights"])
                         alpha = result["scene"].frame.alpha
-                if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
-                    entry = replace(entry, pan=tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot)),
-                                    pan_from=counted_from)
-                    if frame.index == first - 1:
-                        warm_pan = list(entry.pan)
-                if writing:
-                    write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
+            if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
+                pan = tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot))
+                if frame.index == first - 1:
+                    warm_pan = list(pan)
+                if fresh:
+                    entry = replace(entry, pan=pan, pan_from=counted_from)
+            if fresh and writing:
+                write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
             give_back_freed()
             if writing:
                 counts[entry.state] += 1

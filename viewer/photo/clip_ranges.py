@@ -9,7 +9,7 @@ once for the whole clip before any range starts: the cuts (a pass over the frame
 :mod:`viewer.photo.shots`, a few milliseconds a frame), so every range numbers the shots alike; the
 photo's lighting of a shot is fitted on its first frame with a person by whichever range needs it
 (the same frame, the same fit). The camera's pan, which adds up over a shot, is counted by a range
-begun within a shot from its own first frame; when every range is done, the pan each range had
+begun within a shot from the first frame it infers (``OVERLAP`` before its own); when every range is done, the pan each range had
 reached at the frame before its first is set against the range before's, and the difference kept
 in the record (``pan_offsets``), added to those frames' pans when the bundle is read.
 """
@@ -64,7 +64,7 @@ class RangedBundle:
     ranges: list[ClipRange]
     earlier: dict | None
     lock: contextlib.ExitStack
-    key: str = ""  # the bundle's (what its clip, options and the inference hash to)
+    key: str  # the bundle's (what its clip, options and the inference hash to)
 
     def close(self) -> None:
         self.lock.close()
@@ -82,10 +82,8 @@ def open_ranges(clip_path, out_dir, workers: int, start: float = 0.0, end: float
         out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
         if earlier is not None:
             return RangedBundle(out_dir, [], earlier, held, record["key"])
-        if not record.get("ranges") or (temporal == "on" and not record.get("shot_starts")):
-            starts, count = shot_starts(clip_path, start, end) if temporal == "on" else ([0], None)
-            if count is None:
-                count = sum(1 for _ in clip_frames(clip_path, start, end))
+        if not record.get("ranges") or not record.get("shot_starts"):
+            starts, count = shot_starts(clip_path, start, end)  # (the frames counted: each range's end known)
             record.update(expected_frames=count, shot_starts=starts, ranges=[r.to_json() for r in split(count, workers, temporal, overlap)])
             write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
         return RangedBundle(out_dir, [ClipRange(*r) for r in record["ranges"]], None, held, record["key"])
