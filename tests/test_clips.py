@@ -287,7 +287,7 @@ def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_eve
     finally:
         pictures.release()
     assert np.array_equal(frames[1], frames[0])  # lost: the frame before
-    assert pictures.background_camera(4) == pictures.background_camera(3)  # one lens for the map behind a shot
+    assert pictures.frames.background_camera(4) == pictures.frames.background_camera(3)  # one lens for the map behind a shot
     assert set(pictures._exposures) == {0, 2}  # one exposure per shot with a person
     import cv2
 
@@ -374,8 +374,9 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
         (("infer", str(asset_dir() / "photos/underpass.jpg"), "-o", str(tmp_path / "d"), "--start", "1"),
          "choose a part of a clip: this is not one"),
         (("infer", str(clip_with_everything), "-o", str(tmp_path / "e"), "--mask", "m.png"), "a mask is for a photo"),
-        (("view", str(clip_with_everything)), "the window does not play a clip yet"),
-        (("view", str(clip_bundle[0])), "the window does not play a clip yet"),
+        (("view", str(clip_with_everything), "--mask", "m.png"), "--mask needs a photo"),
+        (("view", str(clip_bundle[0]), "--end", "0.2"), "give the clip itself"),
+        (("view", str(asset_dir() / "sample_scene"), "--start", "1"), "choose a part of a clip: this is not one"),
         (("render", str(asset_dir() / "sample_scene"), "--env", env, "-o", str(tmp_path / "f.png"), "--layers"),
          "for a photo's, use relight batch --layers"),
     ):

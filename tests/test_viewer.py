@@ -631,3 +631,55 @@ def test_a_value_typed_into_a_slider_is_that_value(viewer_factory):
     assert s["look"]["yaw"] == pytest.approx(yaw)  # the typed 0 did not reach the window's keys
     assert s["id_conflicts"] == []
     assert v.quit() == 0
+
+
+def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_path, monkeypatch):
+    """``relight view CLIP``: its bundle inferred (shown in the window) and a timeline: space plays the
+    clip to its end at its own clock, the slider and the arrows pick a frame (one with no one in it shows
+    the new background alone), a drag turns the lighting over every frame, and R records the relit clip:
+    every frame, the source's timing and audio, what ``relight render --look`` of the window's state
+    makes of it."""
+    from test_cli import run_cli
+    from test_clips import blank_frame, decoded, person_frames, write_clip
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))  # the clip's bundle cached beside it
+    people = person_frames(5)
+    clip = write_clip(tmp_path / "walk.mp4", people[:3] + [blank_frame()] + people[3:])
+    v = viewer_factory(str(clip))
+    s = v.state()
+    assert s["clip"]["frames"] == 6 and s["clip"]["shown"] == [0, 0]
+    v.xdotool("mousemove", 10, 10)
+    v.xdotool("key", "space")
+    s = v.wait_for(lambda s: not s["clip"]["playing"] and s["clip"]["shown"] == [5, 5], 60)
+    assert s["clip"]["rate"] > 0
+    v.click("clip frame", fx=0.01, until=lambda s: s["clip"]["index"] == 0)
+    v.xdotool("mousemove", 10, 10)
+    for _ in range(2):
+        v.xdotool("key", "Right")
+    s = v.wait_for(lambda s: s["clip"]["shown"] == [2, 2] and not s["switching"], 30)
+    x, y, w, h = s["image_rect"]
+    yaw = s["look"]["yaw"]
+    v.drag(int(x + w * 0.3), int(y + h * 0.5), 80, 0)
+    v.wait_for(lambda s: s["look"]["yaw"] != yaw and not s["switching"], 30)
+    v.xdotool("mousemove", 10, 10)
+    v.xdotool("key", "Right")
+    v.wait_for(lambda s: s["clip"]["shown"] == [3, 2] and not s["switching"], 30)  # no one: the person's frame before renders it
+    empty = read_png(v.save())
+    v.xdotool("key", "Left")
+    v.wait_for(lambda s: s["clip"]["shown"] == [2, 2] and not s["switching"], 30)
+    v.xdotool("key", "r")
+    s = v.wait_for(lambda s: len(s["videos"]) == 1, 120)
+    assert s["clip"]["index"] == 2 and s["recording"] is None  # back at the frame the user was at
+    recorded, times, audio = decoded(s["videos"][0])
+    source = decoded(clip)
+    assert len(recorded) == 6 and times == pytest.approx(source[1]) and audio
+    cli = tmp_path / "cli.mp4"
+    res = run_cli("render", str(clip), "--look", str(v.state_path), "--size", str(SIZE), "-o", str(cli),
+                  "--env", str(asset_dir() / "envmaps/immenstadter_horn_256.hdr"))
+    assert res.returncode == 0, res.stderr
+    rendered = decoded(cli)[0]
+    for k in range(6):  # H.264 both ways: loosely
+        assert np.abs(recorded[k].astype(np.float32) - rendered[k]).mean() < 2.0, k
+    assert np.abs(recorded[3].astype(np.float32) - recorded[2]).mean() > 5.0  # the person gone
+    assert np.abs(empty * 255.0 - recorded[3]).mean() < 2.0  # S saved what showed: the background alone
+    assert v.quit() == 0

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from viewer.app import interaction as ix
 from viewer.app.jobs import LightJob, SaveJob, SceneJob
-from viewer.app.recording import InteractionRecording, TurntableRecording
+from viewer.app.recording import ClipRecording, InteractionRecording, TurntableRecording
 from viewer.app.state_file import look_json
 from viewer.files.imageio import MARK
 from viewer.lighting.placed_lights import PlacedLight, level
@@ -29,12 +29,14 @@ class Actions:
 
     def _capture_stem(self) -> Path:
         """A name no file has yet (another window saving in the same second, a user's file): a capture
-        never replaces anything."""
+        never replaces anything (nor do the files beside it: a clip's frames before its audio joins them,
+        its audio's sidecar)."""
         stamp = time.strftime("%Y%m%d-%H%M%S")
+        folder = self.app.config.out_dir
         while True:
             self._capture_index += 1
-            stem = self.app.config.out_dir / f"relight-{stamp}-{self._capture_index:03d}"
-            if not any(stem.with_suffix(s).exists() for s in (".png", ".exr", ".json", ".mp4")):
+            stem = folder / f"relight-{stamp}-{self._capture_index:03d}"
+            if not folder.is_dir() or not any(folder.glob(f"{stem.name}.*")):
                 return stem
 
     def report(self, what: str, exc: Exception):
@@ -57,7 +59,7 @@ class Actions:
         state = {"look": look_json(self.app), "map": str(self.app.env_path) if self.app.env_path else None, "preset": self.app.preset}
         state["lights"] = self.app.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
         state["rig"] = [asdict(p) for p in self.app.session.placed]
-        self.app.saves.append(SaveJob(stem, eng.output.read_display(), eng.output.read_output_hdr()[..., :3],
+        self.app.saves.append(SaveJob(stem, self.app.picture(eng), self.app.picture_hdr(eng),
                                       json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake))
         self.app.message = f"saving {stem.name}.png (+ .exr, .json) in {stem.parent.resolve()}"
 
@@ -87,6 +89,9 @@ class Actions:
         try:
             if kind == "turntable":
                 self.app.recording = TurntableRecording(path, size, self.app.session.look.yaw, self.turn_frames, self.app.config.fps)
+            elif self.app.timeline is not None:  # a clip: R relights its every frame
+                self.app.timeline.play(False)
+                self.app.recording = ClipRecording(path, size, self.app.timeline)
             else:
                 self.app.recording = InteractionRecording(path, size, self.app.config.fps)
         except Exception as exc:
@@ -114,6 +119,8 @@ class Actions:
         rec, self.app.recording = self.app.recording, None
         if isinstance(rec, TurntableRecording):
             self.app.session.update(yaw=rec.start_yaw)
+        if isinstance(rec, ClipRecording):
+            self.app.timeline.seek(rec.resume)  # back to the frame the user was at
         if isinstance(rec, InteractionRecording):
             try:
                 if rec.capturing:
@@ -127,8 +134,9 @@ class Actions:
             return
         how = "stopped after" if stopped and not rec.finished else "recorded"
         self.app.videos.append(str(path))
-        self.app.message = f"{how} {rec.done} frames: {path.name} in {Path(path).parent.resolve()}"
-        print(f"{how} {rec.done} frames to {path}", flush=True)
+        note = f" ({rec.note})" if getattr(rec, "note", None) else ""
+        self.app.message = f"{how} {rec.done} frames: {path.name} in {Path(path).parent.resolve()}{note}"
+        print(f"{how} {rec.done} frames to {path}{note}", flush=True)
 
     def level_exposure(self):
         """The exposure that keeps the photo's brightness under the lights now (what a photo gets

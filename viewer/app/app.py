@@ -23,7 +23,7 @@ from viewer.app.jobs import ChildWorker, LightJob, SceneJob
 from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
 from viewer.app.panel import PanelState
 from viewer.app.preview import PreviewPace
-from viewer.app.recording import InteractionRecording, TurntableRecording
+from viewer.app.recording import ClipRecording, InteractionRecording, TurntableRecording
 from viewer.app.session import Session
 from viewer.app.state_file import StateFile
 from viewer.gl import Engine
@@ -69,6 +69,8 @@ class ViewerConfig:
     max_size: int = 2048  # a photo or bundle opened in the window: its frame's longer side (relight view --max-size)
     device: str = "cpu"  # ... and where its inference runs (relight view --device)
     gl_threads: int = 2  # llvmpipe's threads, as main sized them (the cores it may use): reported in the state file
+    clip: object = None  # a clip bundle (viewer.scene.clip_bundle.ClipBundle) played with a timeline; scene is its first frame's
+    size: int | None = None  # the maps' size its frames are read at (relight view --size)
 
 
 class ViewerApp:
@@ -89,7 +91,17 @@ class ViewerApp:
         self.auto_exposure = config.look.exposure == AUTO
         self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
-        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look)
+        self.timeline = None  # a clip's (viewer/app/timeline.py): the frame shown, playing or paused
+        camera = None
+        if config.clip is not None:
+            from viewer.app.timeline import ClipTimeline
+
+            self.timeline = ClipTimeline(self.window.ctx, config.clip, (config.size, config.max_size))
+            camera = self.timeline.frames.background_camera(self.timeline.frames.shown(0)[1])
+        self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look, camera)
+        if self.timeline is not None:
+            self.timeline.began(self.session)
+        self._drawn = None  # the texture drawn last (what stays while a clip's next frame is drawn)
         self.pace = PreviewPace()  # the drag preview's level, from the dragged frames' times (viewer/app/preview.py)
         self._previewed = False  # a preview frame shows: the next full frame comes coarse first (settle)
         self.session.set_placed(config.rig, record=False)
@@ -176,10 +188,58 @@ class ViewerApp:
 
     @property
     def replaying(self) -> bool:
-        """Whether the recording, not the user, sets the lighting now: a turn, or a captured
-        interaction being rendered."""
+        """Whether the recording, not the user, sets the lighting now: a turn, a clip's frames, or a
+        captured interaction being rendered."""
         rec = self.recording
-        return isinstance(rec, TurntableRecording) or (isinstance(rec, InteractionRecording) and not rec.capturing)
+        return isinstance(rec, (TurntableRecording, ClipRecording)) or (isinstance(rec, InteractionRecording) and not rec.capturing)
+
+    # ------------------------------------------------------------------ a clip
+    def _advance_clip(self):
+        """A clip's frame due (playing) or asked for (the slider) brought to the session; a new person's
+        frame is drawn over budgeted frames as a new photo is, the frame before staying meanwhile."""
+        t = self.timeline
+        if t is None or self.recording is not None or self.switched or self.scene_job is not None:
+            return
+        t.tick()
+        try:
+            change = t.advance(self.session)
+        except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk): said, the clip pauses
+            self.actions.report(f"frame {t.index + 1} of the clip", exc)
+            t.play(False)
+            t.seek(t.current[0] if t.current is not None else 0)
+            return
+        if change == "person":
+            self.switched = True
+
+    def record_clip_frame(self, rec: ClipRecording):
+        """The recording's next frame brought to the session, whole (its scene read now)."""
+        self.timeline.seek(rec.done)
+        self.timeline.advance(self.session, wait=True)
+
+    def end_clip(self):
+        """Another person opened: the clip's timeline goes (its frames no longer shown)."""
+        if self.timeline is not None:
+            self.timeline.release()
+            self.timeline = None
+        self.session.camera_turn = (0.0, 0.0)
+
+    def picture(self, eng) -> np.ndarray:
+        """(H, W, 3) uint8: the frame ``eng`` shows, as recorded (a clip's frame without the person: the background alone)."""
+        return self.timeline.picture(eng) if self.timeline is not None else eng.output.read_display()
+
+    def picture_hdr(self, eng) -> np.ndarray:
+        """(H, W, 3) float32: :meth:`picture`'s linear HDR, as saved with S."""
+        return self.timeline.picture_hdr(eng) if self.timeline is not None else eng.output.read_output_hdr()[..., :3]
+
+    def _texture(self, eng):
+        """What the window draws for ``eng``'s frame: its display, or the timeline's picture of a clip's
+        frame; while the person before is shown (a clip's next frame being drawn), what was drawn of it
+        (the timeline's picture of a frame with no one in it, else that engine's display)."""
+        if self.timeline is None:
+            return eng.display
+        if eng is self.session.outgoing:
+            return self._drawn if self._drawn is not None and self._drawn is self.timeline.own_texture else eng.display
+        return self.timeline.texture(eng, self.session.state_key())
 
     def exposed_again(self):
         """After new lights or a new person: auto exposure, unless the user has set one since, set
@@ -206,6 +266,8 @@ class ViewerApp:
         rec = self.recording
         if isinstance(rec, TurntableRecording):
             s.update(yaw=rec.next_yaw())
+        if isinstance(rec, ClipRecording):
+            self.record_clip_frame(rec)
         if isinstance(rec, InteractionRecording):
             if rec.capturing:
                 rec.capture(s.look, s.placed, s.sigma)
@@ -255,12 +317,14 @@ class ViewerApp:
             if self.switched:  # a recording's frames are whole: what a job loaded shows in this one
                 self._show_switched()
             try:
-                rec.add(eng.output.read_display())
+                rec.add(self.picture(eng))
             except Exception as exc:
                 self.actions.report(f"recording {rec.path} failed", exc)
                 self.recording = None
                 if isinstance(rec, TurntableRecording):
                     s.update(yaw=rec.start_yaw)  # the lighting goes back to where the turn started
+                elif isinstance(rec, ClipRecording):
+                    self.timeline.seek(rec.resume)  # the frame the user was at
                 else:
                     self.actions.apply_moment(rec.resume)
                 try:
@@ -284,7 +348,8 @@ class ViewerApp:
             if preview:
                 return eng, "idle"  # a dragged frame with no motion: no preview engine is made mid-drag
             # "warm": an idle frame makes the drag preview's engine, so the first dragged frame is a preview's
-            return eng, "warm" if s.warm_preview(left) else "idle"
+            playing = self.timeline is not None and self.timeline.playing  # the next frame's scene soon replaces these
+            return eng, "warm" if not playing and s.warm_preview(left) else "idle"
         self._previewed = preview
         return eng, ("drag" if moving else "adjust") if preview else "update"
 
@@ -300,7 +365,8 @@ class ViewerApp:
                 # "warm" frame: on until the drag preview's engines are ready (a step a frame, not one per
                 # IDLE_WAIT); a new map or person: on until its frame, drawn over budgeted frames, shows
                 busy = (self.dragging or self.panning or self.recording is not None or self.settling is not None
-                        or self.switched or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
+                        or self.switched or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS
+                        or (self.timeline is not None and self.timeline.playing))
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
                 start = self._frame_start = time.perf_counter()
@@ -314,9 +380,11 @@ class ViewerApp:
                 if self.log.count == 0:
                     self._fit_panel()
                 self.jobs.poll()
+                self._advance_clip()
                 self.session.poll_refinement()
                 eng, kind = self._render()
-                w.draw_image(eng.display, self.image_rect(eng), self.image_area())
+                self._drawn = self._texture(eng)
+                w.draw_image(self._drawn, self.image_rect(eng), self.image_area())
                 w.end_frame()
                 ms = self.log.record(start, kind)
                 if kind == "drag":
@@ -335,6 +403,8 @@ class ViewerApp:
                         job.stop()  # a fit or an inference ends at once (its child is killed)
                 for worker in self.workers.values():
                     worker.close()
+                if self.timeline is not None:
+                    self.timeline.release()
                 self.session.release()
                 self.thumbnail.release()
                 w.release()

@@ -1,6 +1,7 @@
 """The window's mouse and keys, read once a frame from imgui: a drag turns the lighting, the right
 button pans, the wheel changes the exposure (with Ctrl: zooms), a click aims a placed light, and
-the keys of the viewer's table (viewer/app/layout.py) save, record, compare and undo."""
+the keys of the viewer's table (viewer/app/layout.py) save, record, compare and undo; for a clip,
+space plays and pauses and the arrows step a frame."""
 
 from __future__ import annotations
 
@@ -63,6 +64,14 @@ class Controls:
             self.app.actions.toggle_recording("live")
         if imgui.is_key_pressed(imgui.Key.t, False):
             self.app.actions.toggle_recording("turntable")
+        t = self.app.timeline
+        if t is not None and self.app.recording is None:
+            if imgui.is_key_pressed(imgui.Key.space, False):
+                t.play()
+            for key, step in ((imgui.Key.left_arrow, -1), (imgui.Key.right_arrow, 1)):
+                if imgui.is_key_pressed(key, True):  # held: frame after frame
+                    t.play(False)
+                    t.seek(t.index + step)
         if imgui.is_key_pressed(imgui.Key.f, False):
             self.app.view = replace(self.app.view, zoom=1.0, pan=(0.0, 0.0))
         if imgui.is_key_pressed(imgui.Key._0, False):

@@ -46,6 +46,7 @@ class JobPolling:
             return
         res = job.result
         self.app.hold_panel()
+        self.app.end_clip()  # a clip's frames give way to the person opened
         self.app.session.set_scene(res.scene)  # the lighting stays as the user turned it: the same map, the same light
         self.app.view = ix.ViewState()
         self.app.exposed_again()

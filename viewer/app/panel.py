@@ -25,7 +25,7 @@ from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 # the labels drawn beside sliders and combos (each widget leaves the longest one's room: none is cut)
 LABELS = ("longitude", "tilt", "exposure", "map", "yours", "before | after", "quality", "shadows", "view",
-          "number of lights", "turn frames")
+          "number of lights", "turn frames", "frame")
 LIGHT_COUNT_SLIDER = 64  # the map's lights the slider offers (the final preset's count; a light file holds up to area_lights.MAX_LIGHTS)
 SIGMA_SLIDER = 30.0  # the size sliders' top, sigma units (the fits give at most light_size.SIGMA_MAX, 20)
 DEG_PER_SIGMA = math.degrees(ANGULAR_SIGMA)  # the slider shows a light's size: its angular sigma in degrees
@@ -85,6 +85,7 @@ def draw_panel(app):
     app.panel.content_right = imgui.get_cursor_screen_pos().x + imgui.get_content_region_avail().x
     imgui.push_item_width(-(max(imgui.calc_text_size(label).x for label in LABELS) + imgui.get_style().item_inner_spacing.x))
     _status(app)
+    _clip(app)
     _lighting(app)
     _map(app)
     _placed(app)
@@ -179,6 +180,30 @@ def _status(app):
             imgui.set_clipboard_text(str(app.config.out_dir.resolve()))
         _remember(app, "copy folder")
     imgui.end_child()
+
+
+def _clip(app):
+    """A clip's timeline: play and pause, the frame slider (scrubs), where the frame is in the clip."""
+    t = app.timeline
+    if t is None or not imgui.collapsing_header("Clip", imgui.TreeNodeFlags_.default_open):
+        return
+    imgui.begin_disabled(app.recording is not None)  # a recording sets the frames
+    try:
+        if imgui.button("Pause (space)" if t.playing else "Play (space)"):
+            t.play()
+        _remember(app, "clip play")
+        changed, frame = imgui.slider_int("frame", t.index + 1, 1, t.count)
+        _remember(app, "clip frame")
+        if changed:
+            t.seek(frame - 1)
+    finally:
+        imgui.end_disabled()
+    imgui.text_wrapped(t.describe())
+    if t.playing and t.rate is not None and t.rate < 0.9 * t.fps:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled(f"playing {t.rate:.1f} of its {t.fps:.0f} frames a second (frames skipped to keep its time); "
+                            "R records every frame")
+        imgui.pop_text_wrap_pos()
 
 
 def _lighting(app):
@@ -506,7 +531,7 @@ def _record(app):
         return
     rec = app.recording
     if rec is None:
-        if imgui.button("Record (R)"):
+        if imgui.button("Record clip (R)" if app.timeline is not None else "Record (R)"):
             app.actions.toggle_recording("live")
         _remember(app, "record")
         imgui.same_line()

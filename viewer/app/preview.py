@@ -124,8 +124,9 @@ class PreviewEngines:
     when next used (a new map is blurred and uploaded for the final engine in the frame that shows it,
     for each preview engine in an idle frame after it: :meth:`cold`)."""
 
-    def __init__(self, ctx, scene: Scene, options: EngineOptions, levels=PREVIEW_LEVELS):
+    def __init__(self, ctx, scene: Scene, options: EngineOptions, background_camera=None, levels=PREVIEW_LEVELS):
         self.ctx, self.scene, self.options, self.levels = ctx, scene, options, levels
+        self.background_camera = background_camera  # the final engine's (Session.set_scene)
         self.engines: dict[int, Engine] = {}
         self.environment: np.ndarray | None = None
         self._version = 0  # of the map; each engine's is in _has
@@ -137,7 +138,8 @@ class PreviewEngines:
         eng = self.engines.get(level)
         if eng is None:
             small = preview_scene(self.scene, self.levels[level])
-            eng = self.engines[level] = Engine(self.ctx, small, preview_options(self.options, small, self.levels[level]))
+            eng = self.engines[level] = Engine(self.ctx, small, preview_options(self.options, small, self.levels[level]),
+                                               self.background_camera)
         return eng
 
     def has_map(self, level: int) -> bool:

@@ -5,6 +5,7 @@ stays responsive and shows each frame as it is recorded; encoding runs on the wr
   ``frames`` frames at ``fps``, each rendered at full quality.
 - :class:`InteractionRecording`: what the user does, captured as a timeline while they do it, then
   rendered at full quality at the video's frame rate.
+- :class:`ClipRecording`: a clip's every frame relit under the lighting set, with its audio.
 
 Stopping early (the key again, or closing the window) finishes the file with the frames so far;
 the fragmented MP4 (:mod:`viewer.output.video`) stays playable even if the program is killed.
@@ -143,3 +144,53 @@ class InteractionRecording:
 
     def close(self) -> Path:
         return self.writer.close()
+
+
+class ClipRecording:
+    """A clip relit in the window (R while a clip is open): every frame of the clip, one per pass of
+    the loop, at full quality under the lighting the user set (the timeline brings each frame's
+    person and camera turn, :meth:`viewer.app.app.ViewerApp.record_clip_frame`), at the source's
+    timing; then joined with the source's audio (:func:`viewer.output.clip_render.join_relit`).
+    ``resume``: the frame the user was at, shown again afterwards. Stopped early, the video holds the
+    frames so far and the audio as long."""
+
+    kind = "clip"
+
+    def __init__(self, path: Path, size, timeline):
+        self.path = Path(path)
+        self.bundle = timeline.bundle
+        self.times = list(timeline.times)
+        self.total = len(self.times)
+        self.resume = timeline.index
+        self.done = 0
+        self.video = self.path.with_name(f"{self.path.stem}.video.mp4")  # the frames alone, before the audio joins them
+        self.writer = VideoWriter(self.video, size[0], size[1], fps=timeline.fps)
+        self.time_left = TimeLeft({"frames": 1.0})
+        self.note = None
+
+    @property
+    def finished(self) -> bool:
+        return self.done >= self.total
+
+    @property
+    def fraction(self) -> float:
+        return self.done / self.total
+
+    def add(self, rgb: np.ndarray):
+        self.writer.write(rgb, seconds=self.times[self.done])
+        self.done += 1
+        self.time_left.update("frames", self.done, self.total)
+
+    def close(self) -> Path:
+        """The video with the source's audio at :attr:`path`; a note about the audio (none, a sidecar) in :attr:`note`."""
+        from viewer.output.clip_render import join_relit
+
+        video = self.writer.close()
+        if self.done == 0:
+            return video
+        try:
+            self.note = join_relit(self.bundle, [(video, self.times[0])], self.path, self.times[self.done - 1] - self.times[0]
+                                   + (self.times[1] - self.times[0] if self.total > 1 else 1.0))
+        finally:
+            video.unlink(missing_ok=True)  # the window's own file, made above
+        return self.path

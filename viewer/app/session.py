@@ -34,11 +34,15 @@ VIEW_NAMES = {
 
 class Session:
     def __init__(self, ctx, scene: Scene, lights: AreaLights, environment: np.ndarray | None,
-                 options: EngineOptions | None = None, look: Look | None = None):
+                 options: EngineOptions | None = None, look: Look | None = None, background_camera=None):
         self.ctx = ctx
         self.scene = scene
         self.options = options or EngineOptions()
         self.environment = environment
+        self.background_camera = background_camera  # the lens the map behind is seen through, when not the scene's (a clip's shot)
+        # a clip's frame: (yaw, tilt) degrees its camera turned since its shot began; the map turns by as much
+        # on top of the look's (viewer.output.clip_frames), so the new background moves as the old one did
+        self.camera_turn = (0.0, 0.0)
         # the final engine is to get the map in a render call of its own (set_scene): None, or "made"
         # (the engine was made since the last render call) or "next" (the next call gives it)
         self._map_pending: str | None = None
@@ -67,13 +71,20 @@ class Session:
         """The map's lights as rendered: the user's sigmas and the map's intensity, before the rotation."""
         return self.map_lights.scaled(self.look.intensity)
 
+    @property
+    def rendered_look(self) -> Look:
+        """The look the engines render: the user's, its map turned on by a clip frame's :attr:`camera_turn`."""
+        yaw, tilt = self.camera_turn
+        return replace(self.look, yaw=self.look.yaw + yaw, tilt=self.look.tilt + tilt) if yaw or tilt else self.look
+
     def rotated_lights(self) -> AreaLights:
-        return self.lights.rotated(self.look.yaw, self.look.tilt)
+        look = self.rendered_look
+        return self.lights.rotated(look.yaw, look.tilt)
 
     def rendered_lights(self) -> AreaLights:
         """What the engines render (:meth:`Look.turned`): the map's lights turned and scaled by the
         look, then the placed lights (fixed to the camera) scaled by its placed intensity."""
-        return self.look.turned(self.map_lights, to_area_lights(self.placed))
+        return self.rendered_look.turned(self.map_lights, to_area_lights(self.placed))
 
     def set_placed(self, placed, record: bool = True):
         """The user's lights (a rig, an added, moved or deleted light); ``record``: undo brings back
@@ -115,10 +126,11 @@ class Session:
             self.previews.set_environment(environment)
         self.look = self.look.fitted(len(lights) + len(self.placed))
 
-    def set_scene(self, scene: Scene):
-        """Another person (a photo or bundle opened in the window): new engines for it; the lights,
-        placed lights and look stay (a scene without a photo has no before / after). The old final
-        engine stays (:meth:`render` shows it) until the new one has a complete frame."""
+    def set_scene(self, scene: Scene, background_camera=None):
+        """Another person (a photo or bundle opened in the window, a clip's frame): new engines for it;
+        the lights, placed lights and look stay (a scene without a photo has no before / after). The old
+        final engine stays (:meth:`render` shows it) until the new one has a complete frame.
+        ``background_camera``: the lens the map behind is seen through, when not the scene's own."""
         if self.refine_job is not None:
             self.refine_job.stop()
         self.previews.release()
@@ -126,6 +138,7 @@ class Session:
             self._outgoing.release()
         self._outgoing = self.final
         self.scene = scene
+        self.background_camera = background_camera
         self._make_engines(map_later=True)
         self.refine_job = None
         if scene.frame is None:
@@ -157,7 +170,13 @@ class Session:
 
     def state_key(self) -> bytes:
         """What a frame shows, as bytes: the look, the map's lights and sigmas, the placed lights."""
-        return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
+        return (repr((self.look, self.placed, self.camera_turn)).encode() + self.sigma.tobytes()
+                + self.base_lights.direction.tobytes())
+
+    @property
+    def outgoing(self) -> Engine | None:
+        """The person before, shown until the new one's first frame is complete (:meth:`set_scene`)."""
+        return self._outgoing
 
     # ------------------------------------------------------------------ engines
     def _make_engines(self, map_later: bool = False):
@@ -165,11 +184,11 @@ class Session:
         by the render call after the next budgeted one, the window's next frame, not the frame that made
         the engine: a new person's engine is ~50-300 ms to make at 1-2.8 MP and the map's blur and upload
         ~40-50 ms more)."""
-        self.final = Engine(self.ctx, self.scene, self.options)
+        self.final = Engine(self.ctx, self.scene, self.options, self.background_camera)
         self._map_pending = "made" if map_later and self.environment is not None else None
         if not self._map_pending:
             self._set_environment(self.final)
-        self.previews = PreviewEngines(self.ctx, self.scene, self.options)
+        self.previews = PreviewEngines(self.ctx, self.scene, self.options, self.background_camera)
         self.previews.set_environment(self.environment)
 
     @property
@@ -225,7 +244,7 @@ class Session:
             self._map_pending = None
             if budget is not None:
                 return shown
-        lk = self.look
+        lk = self.rendered_look
         # the engine turns and scales them by the look (its yaw, tilt and intensities)
         eng.set_lights(self.map_lights, to_area_lights(self.placed))
         eng.set_look(lk)
@@ -240,7 +259,7 @@ class Session:
         return eng
 
     def _render_preview(self, eng: Engine, hard: bool, budget: float | None, display: bool, full: bool = False) -> Engine:
-        lk = self.look
+        lk = self.rendered_look
         shadows = ("hard" if hard else "soft") if lk.shadows in ("soft", "refined") else lk.shadows
         eng.set_lights(self.map_lights, to_area_lights(self.placed))
         # the drag preview leaves the light scattered under the skin out (unless ``full``): ~20 ms a

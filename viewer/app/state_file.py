@@ -63,6 +63,10 @@ class StateFile:
             "switched_at": app.log.switched_at,  # wall clock (time.time) of the frame that last showed a new map or photo
             "longest_frame": app.log.longest,  # (ms, kind) since the start-up's frames
             "settle": app.log.settle,  # after the lighting last stopped: ms to its full-quality frame, and to the sharp one
+            "clip": None if app.timeline is None else {
+                "index": app.timeline.index, "frames": app.timeline.count, "playing": app.timeline.playing,
+                "shown": list(app.timeline.current) if app.timeline.current is not None else None,
+                "rate": app.timeline.rate, "camera_turn": list(app.session.camera_turn)},  # a clip's timeline
         }
         text = json.dumps(state)
         now = time.monotonic()

@@ -8,6 +8,7 @@ timing, framing (its size, or uniformly scaled by ``--max-size``) and audio; the
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from viewer.cli.command_setup import command_lights, engine_options, first_look, rig_lights
@@ -24,9 +25,10 @@ def _bar(total: int, what: str):
     return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True)
 
 
-def clip_bundle(clip, args, out=None) -> Path:
+def clip_bundle(clip, args, out=None, window=None) -> Path:
     """The clip bundle of ``clip`` (--start, --end, --size, --max-size, --device of ``args``): written
-    into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left."""
+    into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left
+    (and in ``window``, a window already open, whose context the inference then uses)."""
     from viewer.lighting.lightfit.cache import cache_dir
     from viewer.photo.clip_inference import cached_clip_path, infer_clip
     from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
@@ -42,9 +44,16 @@ def clip_bundle(clip, args, out=None) -> Path:
         def progress(done, total, entry):
             bar.total = total
             bar.update(done - bar.n)
+            if window is not None:
+                left = bar.format_dict
+                rate = left.get("rate")
+                words = f", about {(total - done) / rate:.0f} s left" if rate else ""
+                window.show_message(f"Preparing {Path(clip).name}", done / max(total, 1), f"frame {done} of {total}{words}")
 
+        if window is not None:
+            window.show_message(f"Preparing {Path(clip).name}", 0.0, "reading the clip, finding the person...")
         record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size, device=getattr(args, "device", "cpu"),
-                            progress=progress, temporal=temporal, digest=digest)
+                            progress=progress, temporal=temporal, digest=digest, ctx=window.ctx if window is not None else None)
     kept, states = record["frames_kept_from_earlier_run"], record["states"]
     seconds = time.perf_counter() - t0
     rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
@@ -52,6 +61,34 @@ def clip_bundle(clip, args, out=None) -> Path:
     print(f"clip bundle of {clip}: {target} ({record['frames']} frames: {states['person']} with the person, "
           f"{states['no person']} without, {states['lost']} lost{shots}; {kept} kept from an earlier run; {seconds:.1f} s{rate})")
     return target
+
+
+@dataclass
+class ViewedClip:
+    window: object  # viewer.app.window.Window, open
+    bundle: object  # viewer.scene.clip_bundle.ClipBundle
+    first: Path  # the scene bundle of the first frame shown (a person's)
+
+
+def view_clip_bundle(args) -> ViewedClip:
+    """``relight view CLIP`` (or a clip bundle): the window opened first (its context serves the
+    inference, shown in it, when the clip's bundle is not in the cache yet), then the bundle read."""
+    from viewer.app.window import Window
+    from viewer.output.clip_frames import ClipFrames
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    if is_clip(args.scene):
+        check_range(args.scene, args.start, args.end)
+    elif args.start != 0.0 or args.end is not None or args.temporal is not None:
+        raise InputError(args.scene, "--start, --end and --temporal choose how a clip is inferred: give the clip itself, "
+                                     "or infer its bundle with them")
+    window = Window(960, 720, f"relight - {Path(args.scene).name}")
+    try:
+        bundle = load_clip_bundle(clip_bundle(args.scene, args, window=window) if is_clip(args.scene) else args.scene)
+        return ViewedClip(window, bundle, bundle.scene_path(ClipFrames(bundle).shown(0)[1]))
+    except BaseException:
+        window.release()
+        raise
 
 
 def cmd_infer_clip(args) -> int:

@@ -162,9 +162,9 @@ def cmd_view(args) -> int:
     from viewer.scene.bundle import PHOTO_SUFFIXES
     from viewer.scene.clip_bundle import is_clip_bundle
 
-    if args.scene is not None and (is_clip(args.scene) or is_clip_bundle(args.scene)):
-        raise InputError(args.scene, "the window does not play a clip yet: `relight render CLIP --env MAP -o relit.mp4` "
-                                     "relights it (docs/video.md)")
+    clip = args.scene is not None and (is_clip(args.scene) or is_clip_bundle(args.scene))
+    if not clip:
+        not_a_clip_range(args, args.scene)
     assets = asset_dir()
     scene_path = args.scene or sample_scene_dir()
     photo = args.scene is not None and Path(args.scene).suffix.lower() in PHOTO_SUFFIXES
@@ -178,8 +178,13 @@ def cmd_view(args) -> int:
 
     rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
     check_fps(args)
-    window = None
-    if photo:
+    window = clip_bundle = None
+    if clip:
+        from viewer.cli.clip_commands import view_clip_bundle
+
+        clip_bundle = view_clip_bundle(args)  # its inference shown in the window, made first
+        window, scene_path = clip_bundle.window, clip_bundle.first
+    elif photo:
         from viewer.app.window import Window
 
         # the window first: its GL context also serves the inference (a headless EGL context made
@@ -208,7 +213,7 @@ def cmd_view(args) -> int:
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=look.preset,
                           window=window, rig=rig, max_size=args.max_size, device=args.device,
-                          gl_threads=gl_threads())
+                          gl_threads=gl_threads(), clip=clip_bundle.bundle if clip_bundle else None, size=args.size)
     return run_viewer(config)
 
 

@@ -54,7 +54,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
 
     p = sub.add_parser("view", help="the interactive viewer: drag to turn the lighting, tune each light, record video")
     p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo (its bundle is inferred once and cached; "
-                   "default: the bundled sample)")
+                   "default: the bundled sample), or a clip or its clip bundle, played with a timeline")
     p.add_argument("--mask", help="the photo's person mask (default: found automatically)")
     p.add_argument("--device", default="cpu", help="device for a photo's inference (default cpu)")
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
@@ -83,6 +83,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=30.0, help="frame rate of recordings (default 30)")
     p.add_argument("--state-file", help="write the viewer's state, widget positions and frame times to this JSON "
                    "after every change (for scripts and tests)")
+    add_clip_range_args(p)
     add_engine_args(p)
     p.set_defaults(func=cmd_view, window=True)
 

@@ -27,13 +27,12 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.imageio import MARK, read_json, read_png, write_png, write_text
+from viewer.files.imageio import MARK, read_png, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, take_away
 from viewer.memory_needs import give_back_freed
+from viewer.output.clip_frames import ClipFrames
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
-from viewer.photo.camera_motion import turned
-from viewer.photo.photo_frame import output_frame
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
 from viewer.scene.look import AUTO, Look
@@ -51,60 +50,23 @@ class ClipPictures:
                  fixed: AreaLights | None, options, turn: float = 0.0, sizes: tuple = (None, None)):
         self.ctx, self.bundle, self.lights, self.look, self.sizes = ctx, bundle, lights, look, sizes
         self.environment, self.fixed, self.options, self.turn = environment, fixed, options, turn
+        self.frames = ClipFrames(bundle)
         self._engine = None  # (frame index, Engine, Scene)
         self._rendered = None  # (the look asked, the look resolved): what the engine holds rendered now
         self._exposures: dict[int, float] = {}  # shot -> its exposure (a clip inferred as one)
         self._warned = False
-        first = self._load(self._people[0])
-        self.size = first.output_size
-        source = bundle.source  # the bundle's frame, before --max-size here: what the pans are measured in
-        self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
-        self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
+        self.size = self._load(self.frames.people[0]).output_size
 
     def _load(self, index: int):
         """Frame ``index``'s scene, its maps at ``--size`` and its frame at most ``--max-size`` (``sizes``)."""
         return load_sized_scene(self.bundle.scene_path(index), *self.sizes)
 
-    @property
-    def _people(self) -> list[int]:
-        return [e.index for e in self.bundle.frames if e.state == "person"]
-
-    def background_camera(self, index: int):
-        """The camera the map behind frame ``index`` is seen through: in a clip inferred as one, its
-        shot's first frame with a person's (each frame's own lens follows the person's size in the
-        frame, and the map behind would zoom with it); frame by frame, the frame's own."""
-        from viewer.scene.camera import Camera
-
-        source = index if not self.bundle.temporal else self._shot_start(self.bundle.frames[index].shot)
-        if source not in self._cameras:
-            self._cameras[source] = Camera.from_json(read_json(self.bundle.scene_path(source) / "scene.json",
-                                                               "scene bundle description")["camera"])
-        return self._cameras[source]
-
-    def _shot_start(self, shot: int) -> int:
-        """The shot's first frame with a person (what is held for the shot is read there)."""
-        return next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
-
     def turn_of(self, index: int, person: int) -> tuple[float, float]:
         """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
-        and turned as the camera turned since its shot began (the old background's motion), so that
-        the new background moves as the old one did (``person``: the frame whose background camera is used)."""
-        camera = self.background_camera(person)
-        focal = camera.focal_mm / camera.sensor_mm * max(self.bundle_size)  # at the bundle's frame, as the pan
-        yaw, tilt = turned(self.bundle.frames[index].pan, focal)
+        and turned as the camera turned since its shot began (``person``: the frame whose background
+        camera is used, :meth:`ClipFrames.pan_turn`)."""
+        yaw, tilt = self.frames.pan_turn(index, person)
         return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration + yaw, self.look.tilt + tilt
-
-    def _nearest(self, index: int, state: str | None = None) -> int:
-        """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""
-        frames = self.bundle.frames
-        fits = (lambda e: e.state == state) if state else (lambda e: e.state != "lost")
-        for j in range(index, -1, -1):
-            if fits(frames[j]):
-                return j
-        for j in range(index + 1, len(frames)):
-            if fits(frames[j]):
-                return j
-        raise InputError(self.bundle.path, "no frame of the clip to show")  # load_clip_bundle refuses such a bundle
 
     def _look(self, index: int, person: int) -> Look:
         """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
@@ -115,7 +77,7 @@ class ClipPictures:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
-            first = self._shot_start(shot)
+            first = self.frames.shot_start(shot)
             yaw, tilt = self.turn_of(first, first)
             self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt))[1].exposure
         return replace(look, exposure=self._exposures[shot])
@@ -131,7 +93,7 @@ class ClipPictures:
             if scene.output_size != self.size:
                 raise InputError(self.bundle.scene_path(index), f"its frame is {scene.output_size[0]}x{scene.output_size[1]}, "
                                                                 f"the clip's {self.size[0]}x{self.size[1]}")
-            self._engine = (index, Engine(self.ctx, scene, self.options, self.background_camera(index)), scene)
+            self._engine = (index, Engine(self.ctx, scene, self.options, self.frames.background_camera(index)), scene)
         _, engine, scene = self._engine
         if self._rendered is None or self._rendered[0] != look:  # (a frame's layers after its picture: rendered once)
             self._rendered = (look, render_look(engine, scene, self.lights, look, self.environment, self.fixed)[0])
@@ -143,35 +105,28 @@ class ClipPictures:
 
     def picture(self, index: int) -> np.ndarray:
         """(H, W, 3) uint8: output frame ``index``."""
-        index = self._nearest(index)
-        entry = self.bundle.frames[index]
-        if entry.state == "person":
+        index, person = self.frames.shown(index)
+        if person == index:
             return self._render(index, self._look(index, index))[0].output.read_display()
         if self.look.background == "photo":  # the frame itself: there is no one in it to relight
-            from viewer.resize import resize
-
-            photo = read_png(self.bundle.path / FRAMES / f"{frame_name(index)}.png")[..., :3]
-            return resize((photo * 255.0 + 0.5).astype(np.uint8), self.size)
-        person = self._nearest(index, "person")
+            return frame_photo(self.bundle, index, self.size)
         return self._render(person, self._look(index, person))[0].output.read_background_display()
 
     def layers(self, index: int, per_light: bool = False) -> dict[str, np.ndarray]:
         """The layers of output frame ``index`` (:mod:`viewer.output.layers`), as :meth:`picture` shows it."""
         from viewer.output.layers import background_channels, layer_channels
 
-        index = self._nearest(index)
-        if self.bundle.frames[index].state == "person":
+        index, person = self.frames.shown(index)
+        if person == index:
             engine, _ = self._render(index, self._look(index, index))
             channels = layer_channels(engine, self._engine[2], per_light)
             self._rendered = None  # (the layers rendered it unshadowed too)
             return channels
-        person = self._nearest(index, "person")
         channels = background_channels(self._render(person, self._look(index, person))[0], per_light)
         if self.look.background == "photo":  # the frame itself, as the picture shows it
             from viewer.files.imageio import srgb_to_linear
-            from viewer.resize import resize
 
-            photo = srgb_to_linear(resize(read_png(self.bundle.path / FRAMES / f"{frame_name(index)}.png")[..., :3], self.size))
+            photo = srgb_to_linear(frame_photo(self.bundle, index, self.size) / 255.0)
             channels.update({c: np.ascontiguousarray(photo[..., i], np.float32) for i, c in enumerate("RGB")})
         return channels
 
@@ -180,6 +135,31 @@ class ClipPictures:
             self._engine[1].release()
             self._engine = None
         self._rendered = None
+
+
+def join_relit(bundle: ClipBundle, parts: list[tuple[Path, float]], path, duration: float | None = None) -> str | None:
+    """The relit ``parts`` of ``bundle``'s clip joined into the MP4 ``path`` with the source's audio
+    for ``duration`` seconds (default: the clip's) (:func:`viewer.output.video.join_clip`), when the
+    source clip is still there as it was; returns a note for the user when the audio could not come
+    (or went into a sidecar)."""
+    audio, note = None, None
+    if bundle.source.get("audio"):
+        source = Path(bundle.source["path"])
+        if source.is_file() and file_sha256(source) == bundle.source.get("sha256"):
+            audio = source
+        else:
+            note = f"the source clip {source} is not there as it was: the relit clip has no audio"
+    return join_clip(parts, path, audio, float(bundle.record.get("first_frame_at", 0.0)),
+                     bundle.duration if duration is None else duration) or note
+
+
+def frame_photo(bundle: ClipBundle, index: int, size: tuple[int, int]) -> np.ndarray:
+    """(H, W, 3) uint8: frame ``index`` of the clip as it was filmed, at ``size``: what a frame with no
+    one in it shows under ``--background photo``."""
+    from viewer.resize import resize
+
+    photo = read_png(bundle.path / FRAMES / f"{frame_name(index)}.png")[..., :3]
+    return resize((photo * 255.0 + 0.5).astype(np.uint8), size)
 
 
 def render_key(bundle: ClipBundle, lights: AreaLights, look: Look, environment, fixed, options, turn: float, sizes: tuple) -> str:
@@ -347,14 +327,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
             write_png(poster, pictures.picture(len(frames) // 2) / 255.0)
     finally:
         pictures.release()
-    audio, note = None, None
-    if bundle.source.get("audio"):
-        source = Path(bundle.source["path"])
-        if source.is_file() and file_sha256(source) == bundle.source.get("sha256"):
-            audio = source
-        else:
-            note = f"the source clip {source} is not there as it was: the relit clip has no audio"
-    note = join_clip(parts, path, audio, float(bundle.record.get("first_frame_at", 0.0)), bundle.duration) or note
+    note = join_relit(bundle, parts, path)
     take_away(folder)
     return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
             "layers": sequence}

@@ -1,0 +1,216 @@
+"""A clip bundle in the window (``relight view CLIP``): which frame shows, playing or paused.
+
+Playing keeps the clip's own clock: the frame shown is the one due at the time played so far, so a
+frame slower to relight than the clip's frame interval is skipped over, never slowed down (a
+software renderer relights a 720p frame in about a second; the recording, R, renders every frame).
+Each frame's scene is read on a thread ahead of the frame that shows it (:meth:`ClipTimeline.advance`),
+the next one it will show while playing read behind it. The session keeps the lighting, the user's
+lights and the look from frame to frame (one exposure for the clip, set from its first frame when
+the window opens, the user's after: what the window shows of a frame is what R records of it, and
+``relight render --look`` of the state saved with S); a frame brings its person (:meth:`Session.set_scene`, with
+its shot's lens for the map behind) and how far its camera turned (:attr:`Session.camera_turn`). A
+frame without the person shows the new background alone, as the nearest frame with the person sees
+it (:meth:`ClipTimeline.texture`), as the relit MP4 does (:mod:`viewer.output.clip_render`).
+"""
+
+from __future__ import annotations
+
+import bisect
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+
+from viewer.output.clip_frames import ClipFrames
+from viewer.scene.clip_bundle import ClipBundle
+from viewer.scene.resampling import load_sized_scene
+
+
+class ClipTimeline:
+    def __init__(self, ctx, bundle: ClipBundle, sizes: tuple = (None, None)):
+        self.ctx = ctx
+        self.bundle = bundle
+        self.frames = ClipFrames(bundle)
+        self.sizes = sizes  # (--size, --max-size) each frame's scene is read with
+        self.times = [e.seconds for e in bundle.frames]
+        self.fps = float(bundle.source.get("fps") or 30.0)
+        self.index = 0  # the frame asked for: the slider's
+        self.current: tuple[int, int] | None = None  # (frame shown, the frame with a person whose scene renders it)
+        self.playing = False
+        self._clock: tuple[float, float] | None = None  # (perf_counter when play began, the clip's seconds then)
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="clip-frames")
+        self._loads: dict[int, Future] = {}  # frame -> its scene being read (at most two: the one asked, the next)
+        self._texture = None  # the background alone, for a frame without the person
+        self._texture_key = None
+        self.shown_at: list[float] = []  # perf_counter of each frame shown while playing (its rate)
+
+    def began(self, session):
+        """The window's first frame: the session was made with frame 0's person's scene and lens."""
+        index, person = self.current = self.frames.shown(0)
+        session.camera_turn = self.frames.pan_turn(index, person)
+
+    # ------------------------------------------------------------------ the clock
+    @property
+    def count(self) -> int:
+        return len(self.times)
+
+    @property
+    def seconds(self) -> float:
+        """The clip's time of the frame asked for."""
+        return self.times[self.index]
+
+    def frame_at(self, seconds: float) -> int:
+        """The frame due at ``seconds`` of the clip: the last one that starts at or before it."""
+        return min(max(bisect.bisect_right(self.times, seconds + 1e-6) - 1, 0), self.count - 1)
+
+    def play(self, playing: bool | None = None):
+        """Play (from the start when at the end) or pause; ``None``: the other of the two."""
+        playing = not self.playing if playing is None else playing
+        if playing and self.index >= self.count - 1:
+            self.index = 0
+        self.playing = playing
+        self._clock = (time.perf_counter(), self.seconds) if playing else None
+        self.shown_at = []
+
+    def seek(self, index: int):
+        """Show frame ``index`` (the slider, a step); playing goes on from there."""
+        self.index = int(np.clip(index, 0, self.count - 1))
+        if self.playing:
+            self._clock = (time.perf_counter(), self.seconds)
+
+    def tick(self):
+        """While playing: the frame due now; at the clip's end it stops there."""
+        if not self.playing:
+            return
+        start, at = self._clock
+        seconds = at + time.perf_counter() - start
+        self.index = self.frame_at(seconds)
+        if seconds >= self.times[-1] + 1.0 / self.fps:
+            self.index = self.count - 1
+            self.playing, self._clock = False, None
+
+    @property
+    def rate(self) -> float | None:
+        """Frames shown a second while playing (the last few seconds' worth), once two were."""
+        t = self.shown_at[-30:]
+        return (len(t) - 1) / (t[-1] - t[0]) if len(t) >= 2 and t[-1] > t[0] else None
+
+    # ------------------------------------------------------------------ frames
+    def _read(self, person: int):
+        return load_sized_scene(self.bundle.scene_path(person), *self.sizes)
+
+    def _future(self, person: int) -> Future:
+        if person not in self._loads:
+            self._loads[person] = self._pool.submit(self._read, person)
+        return self._loads[person]
+
+    def scene(self, person: int, wait: bool = False):
+        """Frame ``person``'s scene once read (``wait``: read now if need be), else None; the reads of
+        other frames are dropped (at most the one asked and the one after are kept)."""
+        future = self._future(person)
+        if not (wait or future.done()):
+            return None
+        scene = future.result()  # a read that failed raises here: the window reports it
+        for other in [k for k in self._loads if k != person]:
+            if self._loads[other].done() or self._loads[other].cancel():
+                del self._loads[other]
+        return scene
+
+    def advance(self, session, wait: bool = False) -> str | None:
+        """Bring the frame asked for to the session: its person's scene (when read: the frame before stays
+        meanwhile, unless ``wait``) and its camera's turn. Returns "person" when a new scene was given (a
+        new person's frame is drawn whole before it shows), "turn" when only the turn changed, else None."""
+        index, person = self.frames.shown(self.index)
+        if self.current == (index, person):
+            return None
+        change = "turn"
+        if self.current is None or self.current[1] != person:
+            scene = self.scene(person, wait)
+            if scene is None:
+                return None
+            session.set_scene(scene, self.frames.background_camera(person))
+            change = "person"
+        session.camera_turn = self.frames.pan_turn(index, person)
+        self.current = (index, person)
+        if self.playing:
+            self.shown_at.append(time.perf_counter())
+            self._read_ahead()
+        return change
+
+    def _read_ahead(self):
+        """While playing: the scene of the frame likely due when this one has shown, read meanwhile."""
+        rate = self.rate or 1.0
+        ahead = self.frame_at(self.seconds + 1.0 / rate)
+        _, person = self.frames.shown(ahead)
+        if self.current is not None and person != self.current[1]:
+            self._future(person)
+
+    @property
+    def has_person(self) -> bool:
+        """Whether the frame shown has the person in it (else the new background alone shows)."""
+        return self.current is not None and self.current[0] == self.current[1]
+
+    def picture(self, engine) -> np.ndarray:
+        """(H, W, 3) uint8: the frame shown as the relit MP4 shows it, from ``engine`` (its scene the frame's
+        person's, rendered): the relit frame, or with no person the new background alone (under the photo
+        background the frame as filmed)."""
+        from viewer.output.clip_render import frame_photo
+
+        if self.has_person:
+            return engine.output.read_display()
+        if engine.looks.resolved(engine.look).background == "photo":
+            return frame_photo(self.bundle, self.current[0], engine.output_size)
+        return engine.output.read_background_display()
+
+    def picture_hdr(self, engine) -> np.ndarray:
+        """(H, W, 3) float32: :meth:`picture`'s linear HDR (what a saved frame's EXR holds)."""
+        from viewer.files.imageio import srgb_to_linear
+        from viewer.output.clip_render import frame_photo
+
+        if self.has_person:
+            return engine.output.read_output_hdr()[..., :3]
+        if engine.looks.resolved(engine.look).background == "photo":
+            return srgb_to_linear(frame_photo(self.bundle, self.current[0], engine.output_size) / 255.0).astype(np.float32)
+        return engine.output.read_background_hdr()[..., :3]
+
+    @property
+    def own_texture(self):
+        """The texture of the last frame drawn with no one in it (None before one was)."""
+        return self._texture
+
+    def texture(self, engine, key: bytes):
+        """What the window draws for the frame shown: ``engine``'s display, or for a frame without the
+        person :meth:`picture` in a texture of the timeline's own (made again only when ``key``, the
+        session's state, or the engine changes)."""
+        if self.has_person:
+            return engine.display
+        key = (key, id(engine), self.current)
+        if self._texture_key != key:
+            rgb = self.picture(engine)
+            h, w = rgb.shape[:2]
+            if self._texture is None or self._texture.size != (w, h):
+                self.release_texture()
+                self._texture = self.ctx.texture((w, h), 3, dtype="f1")
+            self._texture.write(np.ascontiguousarray(rgb).tobytes())  # row 0 at v = 0, as the display's (Engine.display)
+            self._texture_key = key
+        return self._texture
+
+    def describe(self) -> str:
+        """The frame asked for, in words: its time, number and shot, and whether it has the person."""
+        entry = self.bundle.frames[self.index]
+        shots = len({e.shot for e in self.bundle.frames})
+        state = {"person": "", "no person": ", no one in it", "lost": ", lost (the frame before shows)"}[entry.state]
+        return (f"{entry.seconds:.2f} / {self.bundle.duration:.2f} s, frame {self.index + 1} of {self.count}"
+                + (f", shot {entry.shot + 1} of {shots}" if shots > 1 else "") + state)
+
+    def release_texture(self):
+        if self._texture is not None:
+            self._texture.release()
+            self._texture = None
+            self._texture_key = None
+
+    def release(self):
+        self.release_texture()
+        for future in self._loads.values():
+            future.cancel()
+        self._pool.shutdown(wait=True)

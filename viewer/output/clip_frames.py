@@ -1,0 +1,68 @@
+"""What a clip bundle's frame index stands for when it is relit: which frame shows (a lost frame shows
+the one before), the shot's first frame with a person (what a shot holds is read there), the lens the
+map behind is seen through, and how far the camera turned since its shot began. Shared by the relit
+MP4 (:mod:`viewer.output.clip_render`) and the window's timeline (:mod:`viewer.app.timeline`), so
+both show a frame the same way."""
+
+from __future__ import annotations
+
+from viewer.errors import InputError
+from viewer.files.imageio import read_json
+from viewer.photo.camera_motion import turned
+from viewer.photo.photo_frame import output_frame
+from viewer.scene.clip_bundle import ClipBundle
+
+
+class ClipFrames:
+    def __init__(self, bundle: ClipBundle):
+        self.bundle = bundle
+        source = bundle.source  # the bundle's frame, before --max-size at render: what the pans are measured in
+        self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
+        self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
+        self.people = [e.index for e in bundle.frames if e.state == "person"]
+
+    def __len__(self) -> int:
+        return len(self.bundle.frames)
+
+    def nearest(self, index: int, state: str | None = None) -> int:
+        """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""
+        frames = self.bundle.frames
+        fits = (lambda e: e.state == state) if state else (lambda e: e.state != "lost")
+        for j in range(index, -1, -1):
+            if fits(frames[j]):
+                return j
+        for j in range(index + 1, len(frames)):
+            if fits(frames[j]):
+                return j
+        raise InputError(self.bundle.path, "no frame of the clip to show")  # load_clip_bundle refuses such a bundle
+
+    def shown(self, index: int) -> tuple[int, int]:
+        """(the frame output frame ``index`` shows, the frame with a person whose scene renders it): the
+        same frame when it has the person; a frame without shows the new background as the nearest
+        frame with a person sees it."""
+        index = self.nearest(index)
+        return index, index if self.bundle.frames[index].state == "person" else self.nearest(index, "person")
+
+    def shot_start(self, shot: int) -> int:
+        """The shot's first frame with a person (what is held for the shot is read there)."""
+        return next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
+
+    def background_camera(self, index: int):
+        """The camera the map behind frame ``index`` is seen through: in a clip inferred as one, its
+        shot's first frame with a person's (each frame's own lens follows the person's size in the
+        frame, and the map behind would zoom with it); frame by frame, the frame's own."""
+        from viewer.scene.camera import Camera
+
+        source = index if not self.bundle.temporal else self.shot_start(self.bundle.frames[index].shot)
+        if source not in self._cameras:
+            self._cameras[source] = Camera.from_json(read_json(self.bundle.scene_path(source) / "scene.json",
+                                                               "scene bundle description")["camera"])
+        return self._cameras[source]
+
+    def pan_turn(self, index: int, person: int) -> tuple[float, float]:
+        """(yaw, tilt) in degrees the camera turned at frame ``index`` since its shot began (the old
+        background's motion), seen through the background camera of frame ``person``: the map turns
+        by as much, so the new background moves as the old one did."""
+        camera = self.background_camera(person)
+        focal = camera.focal_mm / camera.sensor_mm * max(self.bundle_size)  # at the bundle's frame, as the pan
+        return turned(self.bundle.frames[index].pan, focal)
