@@ -100,9 +100,20 @@ class ClipTimeline:
         return load_sized_scene(self.bundle.scene_path(person), *self.sizes)
 
     def _future(self, person: int) -> Future:
+        """Frame ``person``'s read, started (reads asked before it and not begun are dropped: only the
+        latest frame asked for is worth reading)."""
         if person not in self._loads:
+            for other in [k for k, f in self._loads.items() if f.cancel()]:
+                del self._loads[other]
             self._loads[person] = self._pool.submit(self._read, person)
         return self._loads[person]
+
+    def _read_since(self, person: int) -> int | None:
+        """The latest frame with a person after the one shown and at most ``person`` whose scene is read:
+        what playing shows while the frame due is still being read (the clip goes on at the reads' pace)."""
+        after = self.current[1] if self.current is not None else -1
+        ready = [k for k, f in self._loads.items() if after < k <= person and f.done() and not f.cancelled() and f.exception() is None]
+        return max(ready) if ready else None
 
     def scene(self, person: int, wait: bool = False):
         """Frame ``person``'s scene once read (``wait``: read now if need be), else None; the reads of
@@ -126,6 +137,9 @@ class ClipTimeline:
         change = "turn"
         if self.current is None or self.current[1] != person:
             scene = self.scene(person, wait)
+            if scene is None and self.playing and (ready := self._read_since(person)) is not None:
+                index = person = ready
+                scene = self.scene(person)
             if scene is None:
                 return None
             session.set_scene(scene, self.frames.background_camera(person))

@@ -69,10 +69,12 @@ def person_draws(seed: int) -> tuple[dict, str, dict, Outfit, float, float]:
     return phenotype, style, pose, outfit, turn, fill
 
 
-def make_person(seed: int, size: int = 256) -> Person:
+def make_person(seed: int, size: int = 256, turn: float | None = None) -> Person:
     """The person of ``seed`` in a ``size`` x ``size`` image; the same seed gives the same person
-    bit for bit."""
-    phenotype, style, pose, outfit, turn, fill = person_draws(seed)
+    bit for bit. ``turn``: degrees from facing the camera, instead of the seed's (a person turning
+    in a clip: the same body, pose and clothes at every frame)."""
+    phenotype, style, pose, outfit, drawn, fill = person_draws(seed)
+    turn = drawn if turn is None else float(turn)
     verts, faces, fields, heads, rest = build_body(phenotype, pose)
     verts = dress(verts, faces, fields, heads, rest, outfit)
     cam = Camera(size, size)

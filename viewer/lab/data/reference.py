@@ -56,9 +56,9 @@ def specular_levels(specular) -> np.ndarray:
     return np.clip(np.rint(np.asarray(specular) * (SPECULAR_LEVELS - 1)), 0, SPECULAR_LEVELS - 1).astype(int)
 
 
-def direct_scene(sensor: dict, emitter: dict) -> dict:
+def direct_scene(sensor: dict, emitter: dict, hide_emitters: bool = True) -> dict:
     """A Mitsuba scene dict with direct lighting only and the map hidden behind the geometry; add shapes."""
-    return {"type": "scene", "integrator": {"type": "direct", "hide_emitters": True}, "sensor": sensor, "light": emitter}
+    return {"type": "scene", "integrator": {"type": "direct", "hide_emitters": hide_emitters}, "sensor": sensor, "light": emitter}
 
 
 def _transform(mi, m: np.ndarray):

@@ -36,6 +36,23 @@ def _principled(mi, base, specular: float, roughness):
 
 def render_person(person, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0, spp: int = 64, seed: int = 0) -> dict:
     """``full``, ``diffuse_shadowed``, ``specular_shadowed`` and ``coverage`` (see the module doc)."""
+    images = _renders(person, env, yaw, tilt, spp, seed, ("albedo", "white", "black"))
+    return {
+        "full": images["albedo"][..., :3],
+        "diffuse_shadowed": np.maximum(images["white"][..., :3] - images["black"][..., :3], 0.0),
+        "specular_shadowed": images["black"][..., :3],
+        "coverage": images["albedo"][..., 3],
+    }
+
+
+def render_frame(person, env: EnvMap, yaw: float = 0.0, spp: int = 64, seed: int = 0, background: bool = False) -> np.ndarray:
+    """(H, W, 4) float32: the person under ``env`` as a camera films them (RGB, and the coverage in
+    alpha); with ``background`` the map seen behind them through the camera, as a photo of them there."""
+    return _renders(person, env, yaw, 0.0, spp, seed, ("albedo",), hide_emitters=not background)["albedo"]
+
+
+def _renders(person, env: EnvMap, yaw: float, tilt: float, spp: int, seed: int, names, hide_emitters: bool = True) -> dict:
+    """The person rendered with each base colour of ``names`` (albedo, white, black): RGBA each."""
     mi = mitsuba()
     scene: Scene = person.scene
     face_level = specular_levels(person.specular[person.faces[:, 0]])
@@ -49,21 +66,15 @@ def render_person(person, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0, spp:
     emitter = envmap_emitter(mi, env, yaw, tilt)
     sensor = camera_sensor(mi, scene, spp)
     images = {}
-    for name, base in bases.items():
-        items = direct_scene(sensor, emitter)
+    for name in names:
+        base = bases[name]
+        items = direct_scene(sensor, emitter, hide_emitters)
         for k in np.unique(face_level):
             bsdf = _principled(mi, base, k / (SPECULAR_LEVELS - 1), roughness)
             items[f"part{k}"] = mi_mesh(mi, f"specular{k}", person.vertices, person.normals, person.faces[face_level == k],
                                         bsdf, attributes=attributes)
-        img = np.array(mi.render(mi.load_dict(items), spp=spp, seed=seed), dtype=np.float32)
-        images[name] = img
-    out = {
-        "full": images["albedo"][..., :3],
-        "diffuse_shadowed": np.maximum(images["white"][..., :3] - images["black"][..., :3], 0.0),
-        "specular_shadowed": images["black"][..., :3],
-        "coverage": images["albedo"][..., 3],
-    }
-    return out
+        images[name] = np.array(mi.render(mi.load_dict(items), spp=spp, seed=seed), dtype=np.float32)
+    return images
 
 
 def unshadowed_shading(scene: Scene, env: EnvMap, yaw: float = 0.0, tilt: float = 0.0,
