@@ -37,15 +37,16 @@ def cmd_dataset(args) -> int:
     from viewer.progress import StageBars
 
     cfg = DatasetConfig(out=Path(args.out), count=args.count, res=args.res, seed=args.seed, shard=parse_shard(args.shard),
-                        spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool,
-                        held_out_dir=shared_folder(args.maps, "hdri", "--maps") if args.split == "heldout" else None)
+                        spp=args.spp, lightings=args.lightings, split=args.split, pool=args.pool, frames=args.frames,
+                        held_out_dir=shared_folder(args.maps, "hdri", "--maps") if args.split in ("heldout", "clip") else None)
     start = time.perf_counter()
     with StageBars(prefix=f"dataset {cfg.out.name} {args.shard}: ") as bars:
         manifest = make_dataset(cfg, progress=bars)
     seconds = time.perf_counter() - start
     per = manifest["seconds_per_sample_median"]
-    print(f"{manifest['made']} samples made ({manifest['relit_pairs_made']} relit pairs), {manifest['skipped_finished']} "
-          f"already there, in {seconds:.0f} s" + (f"; {per:.1f} s per sample (median)" if per else "")
+    what = "clips" if cfg.split == "clip" else "samples"
+    print(f"{manifest['made']} {what} made ({manifest['relit_pairs_made']} relit pairs), {manifest['skipped_finished']} "
+          f"already there, in {seconds:.0f} s" + (f"; {per:.1f} s per {what[:-1]} (median)" if per else "")
           + f"; peak memory {manifest['peak_memory_mb']:.0f} MB")
     print(f"wrote {manifest['path']}")
     return 0
@@ -173,6 +174,12 @@ def cmd_bench(args) -> int:
         result = run_clip_memory_benchmark((args.env and Path(args.env[0])) or maps / "potsdamer_platz_1k.hdr", out.parent, output=out)
         print(f"peak memory grew {100 * result['growth']:.1f} % from {result['runs'][0]['seconds']:g} s to "
               f"{result['runs'][-1]['seconds']:g} s; wrote {out}")
+    elif args.what == "video" and args.truth:
+        from viewer.lab.bench.clip_truth import run_truth_benchmark, truth_table
+
+        out = Path(args.output or "out/bench-video/truth.json")
+        print(truth_table(run_truth_benchmark(Path(args.truth), out.parent, output=out)))
+        print(f"wrote {out}")
     elif args.what == "video":
         from viewer.files.clip_reader import VIDEO_SUFFIXES
         from viewer.lab.bench.video import run_video_benchmark, synthetic_clip, video_table
@@ -297,9 +304,12 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     q.add_argument("--shard", default="0/1", help="make samples i, i+n, ... of the dataset (default 0/1: all)")
     q.add_argument("--spp", type=int, default=64, help="ray-tracing samples per pixel (default 64)")
     q.add_argument("--lightings", type=int, default=2, help="environment maps per person (default 2)")
-    q.add_argument("--split", choices=("train", "heldout", "key"), default="train",
+    q.add_argument("--split", choices=("train", "heldout", "key", "clip"), default="train",
                    help="train: procedural maps; heldout: the CC0 maps of --maps, never used for training; "
-                        "key: key lights (one small light, a rim light in half), never used for training")
+                        "key: key lights (one small light, a rim light in half), never used for training; "
+                        "clip: --count clips of a person turning, filmed under one map of --maps with the truth "
+                        "under another (relight bench video --truth)")
+    q.add_argument("--frames", type=int, default=24, help="clip: frames of each clip, at 12 a second (default 24)")
     q.add_argument("--pool", type=int, default=32, help="procedural maps in the training pool (default 32)")
     q.add_argument("--maps", help="folder of held-out maps (default $RELIGHT_DATA/hdri)")
     q.set_defaults(func=cmd_dataset)
@@ -357,6 +367,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--synthetic", action="store_true", help="video: also (or, without --clips, only) a clip made from the "
                    "bundled photo, and a strip of its frames (input, off, on) for the docs")
+    p.add_argument("--truth", help="video: instead, the clips of a dataset made by `relight dataset make --split clip` "
+                   "relit against the ray tracer's truth (relit RMSE as a clip and frame by frame)")
     p.add_argument("--env", nargs="+", help="video: maps to relight under (default potsdamer_platz and rooitou_park of --maps)")
     p.add_argument("--start", type=float, default=0.0, help="video: seconds into each clip to start at (default 0)")
     p.add_argument("--end", type=float, default=2.0, help="video: seconds into each clip to stop at (default 2)")

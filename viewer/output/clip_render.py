@@ -112,6 +112,16 @@ class ClipPictures:
             return frame_photo(self.bundle, index, self.size)
         return self._render(person, self._look(index, person))[0].output.read_background_display()
 
+    def person_hdr(self, index: int) -> np.ndarray | None:
+        """(H, W, 4) float32: output frame ``index``'s person, linear RGB before the exposure,
+        premultiplied by their coverage (A), as :meth:`picture` shows them; None for a frame without them."""
+        index, person = self.frames.shown(index)
+        if person != index:
+            return None
+        hdr = self._render(index, self._look(index, index))[0].output.read_hdr_rgba()
+        hdr[..., :3] *= hdr[..., 3:]
+        return hdr
+
     def layers(self, index: int, per_light: bool = False) -> dict[str, np.ndarray]:
         """The layers of output frame ``index`` (:mod:`viewer.output.layers`), as :meth:`picture` shows it."""
         from viewer.output.layers import background_channels, layer_channels

@@ -31,6 +31,25 @@ FLOW_SIDE = 640  # the flow is computed on the photo shrunk to this longer side 
 PHOTO_MATCH = 10.0  # grey levels (of 255): the photo carried along the flow must match the frame's this closely
 
 
+HOLE = 5  # pixels: a hole in where the flow holds up to this wide is filled (grain, a sensor's noise)
+EDGE_SIGMA = 1.5  # pixels: the blend's weight falls off over a few pixels at the edge of where the flow fails
+
+
+def smooth_weight(held: np.ndarray) -> np.ndarray:
+    """(H, W) float32 in [0, 1]: where the flow holds, as a smooth weight. The flow's checks fail at
+    single pixels of a grainy photo (a noisy render's sparkles, high ISO): blending there and not beside
+    them gave the maps pixel-scale steps between carried and fresh values, and a step in the depth casts
+    a shadow (a relit synthetic clip came out speckled with black dots). So holes up to ``HOLE`` pixels
+    wide are closed, and the weight falls off smoothly (``EDGE_SIGMA``) where a larger region fails (a
+    limb moving in front: the weight is 0 there and at the region's edge, rising to 1 over ~2 sigma
+    inside the region where it holds, so nothing is blended where the flow failed)."""
+    import cv2
+
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (HOLE, HOLE))
+    closed = cv2.morphologyEx(held.astype(np.uint8), cv2.MORPH_CLOSE, kernel).astype(np.float32)
+    return np.clip(2.0 * cv2.GaussianBlur(closed, (0, 0), EDGE_SIGMA) - 1.0, 0.0, 1.0)
+
+
 class SteadyMaps:
     """Fed a clip's scenes in order (:meth:`steady`), returns each with its maps steadied."""
 
@@ -86,8 +105,8 @@ class SteadyMaps:
         # the frame before's maps brought to this one's (both span the photo's whole field of view)
         same = old.mask.shape == scene.mask.shape
         was = warp(resize(old.mask.astype(np.float32), size) if not same else old.mask.astype(np.float32), flow) > 0.99
-        here = scene.mask & ok & was
-        k = np.where(here, self.keep, 0.0).astype(np.float32)
+        k = self.keep * smooth_weight(ok) * (scene.mask & was)
+        here = k > 0
         maps = {}
         for name in ("albedo", "specular", "roughness", "depth", "normal"):
             new = getattr(scene, name)
@@ -111,6 +130,6 @@ class SteadyMaps:
         h, w = alpha.shape
         flow = resized_flow(back, (w, h))
         carried = warp(old.astype(np.float32), flow)
-        ok = (resize(held.astype(np.float32), (w, h)) > 0.99) & (alpha > 0) & (carried > 0)
-        k = np.where(ok, self.keep, 0.0).astype(np.float32)
+        ok = resize(held.astype(np.float32), (w, h)) > 0.99
+        k = self.keep * smooth_weight(ok) * ((alpha > 0) & (carried > 0))
         return np.clip((1 - k) * alpha + k * carried, 0.0, 1.0).astype(np.float32)

@@ -21,7 +21,8 @@ a rim light in half of them, no fill), which are not turned; made with the held-
 holds the same people. Every other lighting turns its map by a random longitude, as in the paper; the
 lights are fitted once per map (the cache of
 :mod:`viewer.lighting.lightfit`) and turned with it (fitting commutes with rotation, docs/lights.md).
-Everything is a function of (seed, index): a sample is reproduced bit for bit, and ``--shard i/n``
+The ``clip`` split (:mod:`.clips`) makes clips of a person turning, filmed under one held-out map
+with the truth under another. Everything is a function of (seed, index): a sample is reproduced bit for bit, and ``--shard i/n``
 takes indices i, i + n, ... so machines can share a dataset without talking to each other.
 """
 
@@ -43,7 +44,7 @@ from viewer.scene.area_lights import AreaLights, load_lights
 from viewer.scene.bundle import save_scene
 
 POOL = 32  # procedural training maps per dataset
-SPLITS = ("train", "heldout", "key")
+SPLITS = ("train", "heldout", "key", "clip")
 KEY_KINDS = ("key", "key_rim")
 MAP_WIDTH = 256
 N_LIGHTS = 16
@@ -59,7 +60,9 @@ class DatasetConfig:
     spp: int = 64
     lightings: int = 2  # maps per person
     pool: int = POOL  # procedural maps in the training pool
-    split: str = "train"  # train (procedural maps) | heldout (the CC0 maps) | key (key lights, held out)
+    split: str = "train"  # train (procedural maps) | heldout (the CC0 maps) | key (key lights, held out) | clip (clips.py)
+    frames: int = 24  # the clip split: frames of each clip
+    fps: float = 12.0  # ... and their rate
     held_out_dir: Path | None = None  # the held-out split's maps (the CLI's --maps)
 
     def __post_init__(self):
@@ -72,8 +75,10 @@ class DatasetConfig:
             raise InputError(None, f"--seed must be in [0, 2^31), got {self.seed}")
         if self.split not in SPLITS:
             raise InputError(None, f"split must be one of {', '.join(SPLITS)}, got {self.split!r}")
-        if self.split == "heldout" and self.held_out_dir is None:
-            raise InputError(None, "the held-out split needs its folder of maps (--maps)")
+        if self.split in ("heldout", "clip") and self.held_out_dir is None:
+            raise InputError(None, f"the {self.split} split needs its folder of maps (--maps)")
+        if not 2 <= self.frames <= 1000:
+            raise InputError(None, f"--frames must be in [2, 1000], got {self.frames}")
 
 
 @dataclass(frozen=True)
@@ -110,7 +115,7 @@ def map_pool(cfg: DatasetConfig, progress=None) -> list[PoolMap]:
             m = key_light(np.random.default_rng([cfg.seed * 1000 + k, 0x4B3E]), MAP_WIDTH)
             made.append((f"key_{cfg.seed}_{k:03d}", m.kind, m.env))
     else:
-        files = sorted(Path(cfg.held_out_dir).glob("*.hdr")) + sorted(Path(cfg.held_out_dir).glob("*.exr"))
+        files = sorted(Path(cfg.held_out_dir).glob("*.hdr")) + sorted(Path(cfg.held_out_dir).glob("*.exr"))  # heldout, clip
         if not files:
             raise InputError(cfg.held_out_dir, "no .hdr/.exr maps for the held-out split")
         made = [(f.stem, "photographed", load_envmap(f).downsampled(MAP_WIDTH)) for f in files]
@@ -174,22 +179,32 @@ def make_sample(cfg: DatasetConfig, index: int, pool: list[PoolMap]) -> dict:
 def make_dataset(cfg: DatasetConfig, progress=None) -> dict:
     """Make this shard's samples (skipping finished ones) and write its manifest."""
     start = time.perf_counter()
+    from viewer.lab.data.clips import clip_dir, make_clip
+
     pool = map_pool(cfg, progress)
+    if cfg.split == "clip" and len(pool) < 2:
+        raise InputError(cfg.held_out_dir, "the clip split needs two maps or more (one to film under, one for the truth)")
     i, n = cfg.shard
     indices = list(range(i, cfg.count, n))
     made, skipped, seconds = 0, 0, []
     for done, index in enumerate(indices, 1):
-        if (sample_dir(cfg, index) / "sample.json").is_file():
+        finished = clip_dir(cfg.out, index) / "clip.json" if cfg.split == "clip" else sample_dir(cfg, index) / "sample.json"
+        if finished.is_file():
             skipped += 1
         else:
-            seconds.append(make_sample(cfg, index, pool)["seconds"])
+            t0 = time.perf_counter()
+            if cfg.split == "clip":
+                make_clip(cfg, index, pool, progress)
+            else:
+                make_sample(cfg, index, pool)
+            seconds.append(time.perf_counter() - t0)
             made += 1
         if progress is not None:
             progress("samples", done, len(indices))
     manifest = {
         "format": "relight-dataset", "version": 1, "config": {**asdict(cfg), "out": str(cfg.out), "held_out_dir": str(cfg.held_out_dir)},
         "shard": f"{i}/{n}", "samples_in_shard": len(indices), "made": made, "skipped_finished": skipped,
-        "relit_pairs_made": made * cfg.lightings,
+        "relit_pairs_made": made * (cfg.frames if cfg.split == "clip" else cfg.lightings),
         "maps": [{"name": p.name, "kind": p.kind} for p in pool],
         "seconds_total": round(time.perf_counter() - start, 1),
         "seconds_per_sample_median": round(float(np.median(seconds)), 3) if seconds else None,
