@@ -200,7 +200,7 @@ def make_dataset(cfg: DatasetConfig, progress=None) -> dict:
             seconds.append(time.perf_counter() - t0)
             made += 1
         if progress is not None:
-            progress("samples", done, len(indices))
+            progress("clips" if cfg.split == "clip" else "samples", done, len(indices))
     manifest = {
         "format": "relight-dataset", "version": 1, "config": {**asdict(cfg), "out": str(cfg.out), "held_out_dir": str(cfg.held_out_dir)},
         "shard": f"{i}/{n}", "samples_in_shard": len(indices), "made": made, "skipped_finished": skipped,
