@@ -753,7 +753,6 @@ def test_a_clip_dataset_measured_against_its_truth(tmp_path):
     """``relight dataset make --split clip``: a person turning, filmed under one shared map (input MP4 and
     EXRs) with the truth under another; a frame lost is made again alone, the same; ``relight bench
     video --truth`` infers the clip both ways and gives each frame's relit RMSE against the truth."""
-
     from test_cli import run_cli
 
     from viewer.files.imageio import read_exr
@@ -779,6 +778,8 @@ def test_a_clip_dataset_measured_against_its_truth(tmp_path):
     (clip / "clip.json").unlink()
     assert run_cli(*args).returncode == 0
     np.testing.assert_array_equal(read_exr(clip / "truth" / "000001.exr"), truth)  # made again, the same
+    res = run_cli(*args[:-4], "--frames", "4", "--maps", str(maps))  # other settings: refused, nothing mixed
+    assert res.returncode == 2 and "made with other settings" in res.stderr and "Traceback" not in res.stderr
     out = tmp_path / "bench" / "truth.json"
     res = run_cli("bench", "video", "--truth", str(data), "-o", str(out))
     assert res.returncode == 0, res.stderr
@@ -792,3 +793,35 @@ def test_a_clip_dataset_measured_against_its_truth(tmp_path):
     assert relit_rmse([3 * x for x in t], t)["mean"] == pytest.approx(0.0, abs=1e-9)
     wavering = relit_rmse([t[0] * 1.5, t[1]], t)  # a brightness that wavers counts
     assert wavering["mean"] > 0.05
+
+
+def test_a_clip_recording_keeps_its_frames_when_the_audio_cannot_join(clip_bundle, ctx, tmp_path, monkeypatch):
+    """The window's recording of a clip (R): its frames at the source's times with the audio joined; a
+    join that fails keeps the frames (a video without audio, said); a recording of no frame leaves no file."""
+    from viewer.app.recording import ClipRecording
+    from viewer.app.timeline import ClipTimeline
+    from viewer.output import clip_render
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    timeline = ClipTimeline(ctx, load_clip_bundle(clip_bundle[0]))
+    try:
+        frames = [np.full((48, 64, 3), 40 * k, np.uint8) for k in range(len(timeline.times))]
+        rec = ClipRecording(tmp_path / "a.mp4", (64, 48), timeline)
+        for f in frames:
+            rec.add(f)
+        assert rec.close() == tmp_path / "a.mp4" and rec.note is None
+        got, times, audio = decoded(tmp_path / "a.mp4")
+        assert len(got) == len(frames) and times == pytest.approx(timeline.times) and audio
+        monkeypatch.setattr(clip_render, "join_relit", lambda *a, **k: (_ for _ in ()).throw(OSError("no room")))
+        rec = ClipRecording(tmp_path / "b.mp4", (64, 48), timeline)
+        for f in frames[:3]:
+            rec.add(f)
+        assert rec.close() == tmp_path / "b.mp4" and "without its audio (no room)" in rec.note
+        got, times, audio = decoded(tmp_path / "b.mp4")
+        assert len(got) == 3 and not audio
+        rec = ClipRecording(tmp_path / "c.mp4", (64, 48), timeline)
+        with pytest.raises(RuntimeError, match="no frame"):
+            rec.close()
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "b.mp4"]  # nothing else left behind
+    finally:
+        timeline.release()

@@ -163,3 +163,32 @@ def test_nothing_held_is_nothing_added(matted):
     search (viewer/photo/held_objects.py) adds nothing to the decided outline."""
     _, _, _, matte = matted
     assert matte.record["held_px"] <= 0.001 * int((matte.alpha > 0.5).sum())
+
+
+def test_a_clips_frame_before_steadies_where_the_outline_is_decided():
+    """Where colour does not tell the person from the background (the same grey), the band is decided
+    by the segmentation; a clip's frame before, carried along the flow, moves the decision towards
+    its own outline where the flow holds (TEMPORAL nats), and nowhere the flow fails."""
+    import cv2
+
+    from viewer.photo.matting import Carried, colour_models, decide_band, trimap
+
+    h = w = 400
+    seg = np.zeros((h, w), np.float32)
+    cv2.circle(seg, (200, 200), 120, 1.0, -1)
+    image = np.full((h, w, 3), 0.5, np.float32)
+    image += np.random.default_rng(0).normal(0, 0.01, image.shape).astype(np.float32)
+    tri = trimap(seg, {})
+    models = colour_models(image, tri.samples, tri.sure_background, ~tri.sure_background, 0.03 * tri.height)
+
+    def disk(r):
+        d = np.zeros((h, w), np.float32)
+        cv2.circle(d, (200, 200), r, 1.0, -1)
+        return d
+
+    alone = decide_band(image, tri, models).sum()
+    bigger = decide_band(image, tri, models, Carried(disk(124), np.ones((h, w), np.float32))).sum()
+    smaller = decide_band(image, tri, models, Carried(disk(116), np.ones((h, w), np.float32))).sum()
+    unheld = decide_band(image, tri, models, Carried(disk(124), np.zeros((h, w), np.float32))).sum()
+    assert smaller < alone < bigger
+    assert unheld == alone

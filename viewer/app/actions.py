@@ -84,13 +84,14 @@ class Actions:
         if rec is not None:
             self.finish_recording(stopped=True)
             return
+        if self.app.timeline is not None:
+            self.app.timeline.play(False)  # a recording sets the lighting or the frames: the clip's clock stops
         size = self.app.session.scene.output_size
         path = self._capture_stem().with_suffix(".mp4")
         try:
             if kind == "turntable":
                 self.app.recording = TurntableRecording(path, size, self.app.session.look.yaw, self.turn_frames, self.app.config.fps)
             elif self.app.timeline is not None:  # a clip: R relights its every frame
-                self.app.timeline.play(False)
                 self.app.recording = ClipRecording(path, size, self.app.timeline)
             else:
                 self.app.recording = InteractionRecording(path, size, self.app.config.fps)
@@ -98,6 +99,27 @@ class Actions:
             self.report(f"cannot record to {path}", exc)
             return
         self.app.message = f"recording {path.name}"
+
+    def recording_failed(self, rec, exc: Exception):
+        """A recording that could not go on (a frame not written or not read): said, its file left as
+        the recording's kind leaves it (:meth:`abort`), and the lighting and the frame back where the user was."""
+        self.report(f"recording {rec.path} failed", exc)
+        self.app.recording = None
+        self._restore(rec)
+        try:
+            rec.abort()
+        except Exception:  # the error that matters is the one just reported
+            pass
+
+    def _restore(self, rec):
+        """After a recording: the lighting (a turn, a replayed interaction) or the clip's frame as the user had them."""
+        if isinstance(rec, TurntableRecording):
+            self.app.session.update(yaw=rec.start_yaw)
+        elif isinstance(rec, ClipRecording):
+            if self.app.timeline is not None:
+                self.app.timeline.seek(rec.resume)
+        elif rec.resume is not None:
+            self.apply_moment(rec.resume)
 
     def apply_moment(self, m):
         s = self.app.session
@@ -117,16 +139,14 @@ class Actions:
 
     def finish_recording(self, stopped: bool = False):
         rec, self.app.recording = self.app.recording, None
-        if isinstance(rec, TurntableRecording):
-            self.app.session.update(yaw=rec.start_yaw)
-        if isinstance(rec, ClipRecording):
-            self.app.timeline.seek(rec.resume)  # back to the frame the user was at
         if isinstance(rec, InteractionRecording):
             try:
                 if rec.capturing:
                     self._render_capture(rec)
             finally:
-                self.apply_moment(rec.resume)  # back to where the user was
+                self._restore(rec)  # back to where the user was
+        else:
+            self._restore(rec)
         try:
             path = rec.close()
         except Exception as exc:

@@ -97,6 +97,7 @@ class ViewerApp:
             from viewer.app.timeline import ClipTimeline
 
             self.timeline = ClipTimeline(self.window.ctx, config.clip, (config.size, config.max_size))
+            self.timeline.wake = self.window.wake
             camera = self.timeline.frames.background_camera(self.timeline.frames.shown(0)[1])
         self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look, camera)
         if self.timeline is not None:
@@ -205,19 +206,30 @@ class ViewerApp:
             change = t.advance(self.session)
         except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk): said, the clip pauses
             self.actions.report(f"frame {t.index + 1} of the clip", exc)
+            t.forget(t.index)
             t.play(False)
             t.seek(t.current[0] if t.current is not None else 0)
             return
         if change == "person":
             self.switched = True
 
-    def record_clip_frame(self, rec: ClipRecording):
-        """The recording's next frame brought to the session, whole (its scene read now)."""
+    def record_clip_frame(self, rec: ClipRecording) -> bool:
+        """The recording's next frame brought to the session, whole (its scene read now); False when
+        it could not be read (said; the recording ends there, its file removed)."""
         self.timeline.seek(rec.done)
-        self.timeline.advance(self.session, wait=True)
+        try:
+            self.timeline.advance(self.session, wait=True)
+        except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk)
+            self.timeline.forget(rec.done)
+            self.actions.recording_failed(rec, exc)
+            return False
+        return True
 
     def end_clip(self):
-        """Another person opened: the clip's timeline goes (its frames no longer shown)."""
+        """Another person opened: the clip's timeline goes (its frames no longer shown; a recording of
+        it ends with the frames recorded)."""
+        if isinstance(self.recording, ClipRecording):
+            self.actions.finish_recording(stopped=True)
         if self.timeline is not None:
             self.timeline.release()
             self.timeline = None
@@ -266,8 +278,8 @@ class ViewerApp:
         rec = self.recording
         if isinstance(rec, TurntableRecording):
             s.update(yaw=rec.next_yaw())
-        if isinstance(rec, ClipRecording):
-            self.record_clip_frame(rec)
+        if isinstance(rec, ClipRecording) and not self.record_clip_frame(rec):
+            return s.final, "record"
         if isinstance(rec, InteractionRecording):
             if rec.capturing:
                 rec.capture(s.look, s.placed, s.sigma)
@@ -319,18 +331,7 @@ class ViewerApp:
             try:
                 rec.add(self.picture(eng))
             except Exception as exc:
-                self.actions.report(f"recording {rec.path} failed", exc)
-                self.recording = None
-                if isinstance(rec, TurntableRecording):
-                    s.update(yaw=rec.start_yaw)  # the lighting goes back to where the turn started
-                elif isinstance(rec, ClipRecording):
-                    self.timeline.seek(rec.resume)  # the frame the user was at
-                else:
-                    self.actions.apply_moment(rec.resume)
-                try:
-                    rec.close()  # releases the file; its error is the one just reported
-                except Exception:
-                    pass
+                self.actions.recording_failed(rec, exc)
                 return eng, "record"
             if rec.finished:
                 self.actions.finish_recording()
@@ -365,10 +366,13 @@ class ViewerApp:
                 # "warm" frame: on until the drag preview's engines are ready (a step a frame, not one per
                 # IDLE_WAIT); a new map or person: on until its frame, drawn over budgeted frames, shows
                 busy = (self.dragging or self.panning or self.recording is not None or self.settling is not None
-                        or self.switched or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS
-                        or (self.timeline is not None and self.timeline.playing))
+                        or self.switched or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
-                w.wait(None if busy else (JOB_WAIT if waiting else IDLE_WAIT))
+                timeout = None if busy else (JOB_WAIT if waiting else IDLE_WAIT)
+                due = self.timeline.seconds_to_next() if self.timeline is not None else None
+                if timeout is not None and due is not None:  # a clip playing: until its next frame is due (or read: wake)
+                    timeout = min(timeout, max(due, 0.002))
+                w.wait(timeout)
                 start = self._frame_start = time.perf_counter()
                 w.begin_frame()
                 self.controls.handle()

@@ -496,7 +496,7 @@ def _thumbnail(app):
     _, environment, map_lights = app.shown  # the picture's map and lights (a new map: once its frame shows)
     if environment is None:
         return
-    yaw, tilt = s.look.yaw, s.look.tilt
+    yaw, tilt = s.rendered_look.yaw, s.rendered_look.tilt  # (a clip frame's camera turn too: as the engines)
     thumb = app.thumbnail
     tex = thumb.update(environment)
     width = imgui.get_content_region_avail().x

@@ -56,6 +56,10 @@ class TurntableRecording:
     def close(self) -> Path:
         return self.writer.close()
 
+    def abort(self) -> None:
+        """A recording that failed: the frames so far stay in its partial file (the target untouched)."""
+        self.writer.abort()
+
 
 @dataclass(frozen=True)
 class Moment:
@@ -145,6 +149,11 @@ class InteractionRecording:
     def close(self) -> Path:
         return self.writer.close()
 
+    def abort(self) -> None:
+        """A recording that failed: the frames so far stay in its partial file (the target untouched)."""
+        if self.writer is not None:
+            self.writer.abort()
+
 
 class ClipRecording:
     """A clip relit in the window (R while a clip is open): every frame of the clip, one per pass of
@@ -182,15 +191,27 @@ class ClipRecording:
         self.time_left.update("frames", self.done, self.total)
 
     def close(self) -> Path:
-        """The video with the source's audio at :attr:`path`; a note about the audio (none, a sidecar) in :attr:`note`."""
+        """The video with the source's audio at :attr:`path` (as long as the frames recorded); a note
+        about the audio (none, a sidecar, or the join failed and the frames are there without it) in
+        :attr:`note`. No frame recorded: no file."""
+        import os
+
         from viewer.output.clip_render import join_relit
 
-        video = self.writer.close()
         if self.done == 0:
-            return video
+            self.writer.abort()  # its empty partial file removed
+            raise RuntimeError("no frame was recorded")
+        video = self.writer.close()
+        end = self.times[self.done] if self.done < self.total else self.bundle.duration
         try:
-            self.note = join_relit(self.bundle, [(video, self.times[0])], self.path, self.times[self.done - 1] - self.times[0]
-                                   + (self.times[1] - self.times[0] if self.total > 1 else 1.0))
-        finally:
-            video.unlink(missing_ok=True)  # the window's own file, made above
+            self.note = join_relit(self.bundle, [(video, self.times[0])], self.path, end - self.times[0])
+        except Exception as exc:  # the frames are kept: a video without its audio, said
+            os.replace(video, self.path)  # the window's own file onto a name no file had (Actions._capture_stem)
+            self.note = f"without its audio ({exc})"
+        video.unlink(missing_ok=True)  # the window's own file, joined into the video
         return self.path
+
+    def abort(self) -> None:
+        """A recording that failed: its frames-only file, the window's own, goes."""
+        self.writer.abort().unlink(missing_ok=True)
+        self.video.unlink(missing_ok=True)

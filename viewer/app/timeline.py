@@ -21,7 +21,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from viewer.output.clip_frames import ClipFrames
+from viewer.output.clip_frames import ClipFrames, shows_filmed_frame
 from viewer.scene.clip_bundle import ClipBundle
 from viewer.scene.resampling import load_sized_scene
 
@@ -42,7 +42,9 @@ class ClipTimeline:
         self._loads: dict[int, Future] = {}  # frame -> its scene being read (at most two: the one asked, the next)
         self._texture = None  # the background alone, for a frame without the person
         self._texture_key = None
+        self._filmed_frame = None  # ((frame, size), the frame as filmed): a frame without the person under the photo background
         self.shown_at: list[float] = []  # perf_counter of each frame shown while playing (its rate)
+        self.wake = lambda: None  # called when a frame's scene is read (the window's wake: the loop sleeps meanwhile)
 
     def began(self, session):
         """The window's first frame: the session was made with frame 0's person's scene and lens."""
@@ -105,8 +107,20 @@ class ClipTimeline:
         if person not in self._loads:
             for other in [k for k, f in self._loads.items() if f.cancel()]:
                 del self._loads[other]
-            self._loads[person] = self._pool.submit(self._read, person)
+            future = self._loads[person] = self._pool.submit(self._read, person)
+            future.add_done_callback(lambda _: self.wake())
         return self._loads[person]
+
+    def forget(self, index: int):
+        """Frame ``index``'s read dropped (it failed: asked for again, it is read again)."""
+        self._loads.pop(self.frames.shown(index)[1], None)
+
+    def seconds_to_next(self) -> float | None:
+        """While playing: seconds until the frame after the one asked for is due (None: paused)."""
+        if not self.playing or self.index >= self.count - 1:
+            return None if not self.playing else 0.0
+        start, at = self._clock
+        return max(self.times[self.index + 1] - (at + time.perf_counter() - start), 0.0)
 
     def _read_since(self, person: int) -> int | None:
         """The latest frame with a person after the one shown and at most ``person`` whose scene is read:
@@ -168,23 +182,29 @@ class ClipTimeline:
         """(H, W, 3) uint8: the frame shown as the relit MP4 shows it, from ``engine`` (its scene the frame's
         person's, rendered): the relit frame, or with no person the new background alone (under the photo
         background the frame as filmed)."""
-        from viewer.output.clip_render import frame_photo
-
         if self.has_person:
             return engine.output.read_display()
-        if engine.looks.resolved(engine.look).background == "photo":
-            return frame_photo(self.bundle, self.current[0], engine.output_size)
+        if shows_filmed_frame(engine):
+            return self._filmed(engine.output_size)
         return engine.output.read_background_display()
+
+    def _filmed(self, size: tuple[int, int]) -> np.ndarray:
+        """The frame shown as filmed, at ``size`` (kept while it is shown: a drag redraws it every frame)."""
+        from viewer.output.clip_render import frame_photo
+
+        key = (self.current[0], size)
+        if self._filmed_frame is None or self._filmed_frame[0] != key:
+            self._filmed_frame = (key, frame_photo(self.bundle, self.current[0], size))
+        return self._filmed_frame[1]
 
     def picture_hdr(self, engine) -> np.ndarray:
         """(H, W, 3) float32: :meth:`picture`'s linear HDR (what a saved frame's EXR holds)."""
         from viewer.files.imageio import srgb_to_linear
-        from viewer.output.clip_render import frame_photo
 
         if self.has_person:
             return engine.output.read_output_hdr()[..., :3]
-        if engine.looks.resolved(engine.look).background == "photo":
-            return srgb_to_linear(frame_photo(self.bundle, self.current[0], engine.output_size) / 255.0).astype(np.float32)
+        if shows_filmed_frame(engine):
+            return srgb_to_linear(self._filmed(engine.output_size) / 255.0).astype(np.float32)
         return engine.output.read_background_hdr()[..., :3]
 
     @property
@@ -198,7 +218,7 @@ class ClipTimeline:
         session's state, or the engine changes)."""
         if self.has_person:
             return engine.display
-        key = (key, id(engine), self.current)
+        key = (key, engine, self.current)  # (the engine itself: an id can be another's once it is released)
         if self._texture_key != key:
             rgb = self.picture(engine)
             h, w = rgb.shape[:2]
@@ -224,7 +244,6 @@ class ClipTimeline:
             self._texture_key = None
 
     def release(self):
+        self.wake = lambda: None  # a read still under way ends after the window
         self.release_texture()
-        for future in self._loads.values():
-            future.cancel()
-        self._pool.shutdown(wait=True)
+        self._pool.shutdown(wait=False, cancel_futures=True)  # a read under way ends on its own (numpy, no GL)

@@ -13,6 +13,13 @@ from viewer.photo.photo_frame import output_frame
 from viewer.scene.clip_bundle import ClipBundle
 
 
+def shows_filmed_frame(engine) -> bool:
+    """Whether a frame without the person shows the frame as filmed (the photo background, as
+    ``engine``'s look resolves it: asked for, or the scene's own with no map), not the new
+    background alone: the relit MP4 and the window's timeline decide it here alike."""
+    return engine.looks.resolved(engine.look).background == "photo"
+
+
 class ClipFrames:
     def __init__(self, bundle: ClipBundle):
         self.bundle = bundle
@@ -20,9 +27,6 @@ class ClipFrames:
         self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
         self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
         self.people = [e.index for e in bundle.frames if e.state == "person"]
-
-    def __len__(self) -> int:
-        return len(self.bundle.frames)
 
     def nearest(self, index: int, state: str | None = None) -> int:
         """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""

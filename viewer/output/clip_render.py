@@ -30,7 +30,7 @@ from viewer.errors import InputError
 from viewer.files.imageio import MARK, read_png, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, take_away
 from viewer.memory_needs import give_back_freed
-from viewer.output.clip_frames import ClipFrames
+from viewer.output.clip_frames import ClipFrames, shows_filmed_frame
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
 from viewer.scene.area_lights import AreaLights
@@ -108,9 +108,10 @@ class ClipPictures:
         index, person = self.frames.shown(index)
         if person == index:
             return self._render(index, self._look(index, index))[0].output.read_display()
-        if self.look.background == "photo":  # the frame itself: there is no one in it to relight
+        engine = self._render(person, self._look(index, person))[0]
+        if shows_filmed_frame(engine):  # the frame itself: there is no one in it to relight
             return frame_photo(self.bundle, index, self.size)
-        return self._render(person, self._look(index, person))[0].output.read_background_display()
+        return engine.output.read_background_display()
 
     def person_hdr(self, index: int) -> np.ndarray | None:
         """(H, W, 4) float32: output frame ``index``'s person, linear RGB before the exposure,
@@ -132,8 +133,9 @@ class ClipPictures:
             channels = layer_channels(engine, self._engine[2], per_light)
             self._rendered = None  # (the layers rendered it unshadowed too)
             return channels
-        channels = background_channels(self._render(person, self._look(index, person))[0], per_light)
-        if self.look.background == "photo":  # the frame itself, as the picture shows it
+        engine = self._render(person, self._look(index, person))[0]
+        channels = background_channels(engine, per_light)
+        if shows_filmed_frame(engine):  # the frame itself, as the picture shows it
             from viewer.files.imageio import srgb_to_linear
 
             photo = srgb_to_linear(frame_photo(self.bundle, index, self.size) / 255.0)

@@ -392,7 +392,7 @@ def _read(photo_path, max_size, picture):
     return {"photo": photo, "frame": frame, "frame_photo": resize(photo, frame), "notes": notes, "inputs": inputs}
 
 
-def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size):
+def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size, steady):
     from viewer.photo.segmentation import find_person
 
     h, w = photo.shape[:2]
@@ -407,7 +407,9 @@ def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size,
         mask_source = str(mask_path)
     else:
         found = find_person(frame_photo, photo_path, notes)
-        matte = automatic_matte(frame_photo, found)
+        # a clip's frame: the frame before's person, carried along the flow, steadies where the outline is decided
+        carried = steady[0].carried_matte(frame_photo, steady[1]) if steady is not None else None
+        matte = automatic_matte(frame_photo, found, carried)
         landmarks = found.landmarks
         mask_source = "automatic (MediaPipe pose segmentation, matted: viewer.photo.matting)"
     alpha = matte.alpha
@@ -543,7 +545,8 @@ def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
 # and one line here.
 STAGE_LIST = (
     Stage("read", _read, ("photo_path", "max_size", "picture"), ("photo", "frame", "frame_photo", "notes", "inputs")),
-    Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size"),
+    Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size",
+                          "steady"),
           ("matte", "landmarks", "mask_source", "alpha", "person", "body", "turned", "sizes")),
     Stage("load networks", _load_networks, ("photo_path", "mask_path", "frame_photo", "alpha", "body", "networks", "device"),
           ("framing", "small", "small_mask", "nets")),

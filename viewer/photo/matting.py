@@ -62,6 +62,7 @@ HOLE_DEPTH = 1.0  # holes are punched deeper than this many soft-edge half-width
 OPAQUE = 0.99  # alpha from which a pixel's colour is the person's own (foreground_colours)
 EDGE_COLOUR = 3.0  # soft-edge half-widths: the reach of the opaque person's colours into the soft edge
 MIN_REACH = 0.05  # the opaque person's weight within that reach below which the multilevel estimate stays
+TEMPORAL = 3.0  # nats: the cost of deciding a pixel of a clip's frame against the frame before's decision carried there
 HOLE = 9.0  # nats: a pixel of the person this much likelier the local background's colour than its own is background
 # The pose model's bones (MediaPipe's POSE_CONNECTIONS without the fingers, 17-22, which it guesses)
 BONES = ((0, 1), (0, 4), (1, 2), (2, 3), (3, 7), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12), (11, 13), (11, 23),
@@ -76,6 +77,15 @@ FACE = tuple(range(11))  # MediaPipe's face landmarks (nose, eyes, ears, mouth)
 GAPS = ((11, 13, 15, 23), (12, 14, 16, 24),  # each arm and the side of the body
         ("hips", 25, 27, 28, 26),  # between the legs
         (7, 11, 12), (8, 12, 11))  # each ear, its shoulder and the other (hair over the shoulders)
+
+
+@dataclass(frozen=True)
+class Carried:
+    """A clip's frame before, brought to this frame along the optical flow (:meth:`viewer.photo.steady.SteadyMaps.carried_matte`):
+    its matte ``alpha`` (H, W) in [0, 1] and where the flow holds, ``held`` (H, W), 1 or 0."""
+
+    alpha: np.ndarray
+    held: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -325,15 +335,21 @@ def trimap(segmentation: np.ndarray, landmarks: dict) -> Trimap:
     return Trimap(sure_person, samples, outside > OUTER * height, inside, outside, height)
 
 
-def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels) -> np.ndarray:
+def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels, carried: Carried | None = None) -> np.ndarray:
     """(H, W) bool: the person at ``image``'s size (float RGB in [0, 1]), the trimap's band
-    labelled by :func:`min_cut` with the colour ``models`` (which cover the band)."""
+    labelled by :func:`min_cut` with the colour ``models`` (which cover the band); ``carried``: a
+    clip's frame before, its matte carried here along the flow (at ``image``'s size): where the flow
+    holds, going against its decision costs ``TEMPORAL`` nats."""
     band = tri.band
     if not band.any() or not tri.sure_background.any():
         return tri.inside > 0
     llr = models.evidence(image[band], models.index[band])
     cost_person = np.maximum(-llr, 0) + PRIOR * np.minimum(tri.outside[band] / (OUTER * tri.height), 1.0)
     cost_background = np.maximum(llr, 0) + PRIOR * np.minimum(tri.inside[band] / (CORE * tri.height), 1.0)
+    if carried is not None:
+        weight = TEMPORAL * carried.held[band]
+        cost_person += weight * (1.0 - carried.alpha[band])
+        cost_background += weight * carried.alpha[band]
     person = min_cut(image, tri.sure_person, tri.sure_background, cost_person, cost_background)
     return keep_connected(person, tri.sure_person)
 
@@ -439,9 +455,10 @@ def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) 
     return out
 
 
-def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, float]:
+def decided_outline(photo: np.ndarray, person, carried: Carried | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
-    decided by colour; the background's holes in it; the soft edge's half-width, pixels)."""
+    decided by colour (and by the frame before's, ``carried``, in a clip); the background's holes
+    in it; the soft edge's half-width, pixels)."""
     from viewer.resize import height_capped, resize
 
     h, w = photo.shape[:2]
@@ -450,17 +467,20 @@ def decided_outline(photo: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, 
     tri = trimap(resize(person.segmentation, size), person.landmarks)
     small = resize(photo, size).astype(np.float32) / 255.0
     models = colour_models(small, tri.samples, tri.sure_background, ~tri.sure_background, MODEL_RADIUS * tri.height)
-    decided = resize(decide_band(small, tri, models).astype(np.float32), (w, h)) > 0.5
+    if carried is not None:
+        carried = Carried(resize(carried.alpha, size), (resize(carried.held.astype(np.float32), size) > 0.99).astype(np.float32))
+    decided = resize(decide_band(small, tri, models, carried).astype(np.float32), (w, h)) > 0.5
     half_width = max(MIN_EDGE, EDGE * height)
     return decided, background_holes(photo.astype(np.float32) / 255.0, decided, models, HOLE_DEPTH * half_width), half_width
 
 
-def automatic_matte(photo: np.ndarray, person) -> Matte:
-    """The matte of ``photo`` (H, W, 3) uint8 sRGB from the pose model's :class:`viewer.photo.segmentation.Person`."""
+def automatic_matte(photo: np.ndarray, person, carried: Carried | None = None) -> Matte:
+    """The matte of ``photo`` (H, W, 3) uint8 sRGB from the pose model's :class:`viewer.photo.segmentation.Person`
+    (``carried``: a clip's frame before, :func:`decide_band`)."""
     from viewer.files.imageio import srgb_to_linear
 
     t0 = time.perf_counter()
-    decided, holes, half_width = decided_outline(photo, person)
+    decided, holes, half_width = decided_outline(photo, person, carried)
     held = held_objects(photo, decided, person.landmarks, person_height(decided)) & ~decided
     decided = decided | held
     t1 = time.perf_counter()

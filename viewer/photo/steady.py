@@ -58,17 +58,51 @@ class SteadyMaps:
         self.flow = dis_flow()
         self._previous = None  # (grey photo at the flow's size, the steadied scene)
         self.shot = None
+        self._flow = None  # (the grey photo it was computed for, the backward flow, where it holds): computed once a frame
 
     def restart(self) -> None:
         """A new shot (or a frame lost): the next frame starts afresh."""
-        self._previous = None
+        self._previous = self._flow = None
 
     def carry(self, scene, frame_photo: np.ndarray, shot: int | None = None) -> None:
         """Take ``scene`` (already steadied: a frame finished by an earlier run) as the frame before
         the next one."""
         if shot != self.shot:
             self.shot = shot
-        self._previous = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene)
+        self._previous, self._flow = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene), None
+
+    def _flow_to(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the backward flow from the frame before to ``small``, the grey photo at the flow's size; where
+        it holds): the forward-backward check, and the photo carried along it matching the frame's
+        (a fast limb's or face's flow can pass the first check and still be wrong: motion blur, and
+        blending there draws a ghost). Computed once for a frame (the matte and the maps both use it)."""
+        if self._flow is not None and self._flow[0] is small:
+            return self._flow[1], self._flow[2]
+        before = self._previous[0]
+        back, held = backward_flow(self.flow, small, before)
+        held &= np.abs(small.astype(np.float32) - warp(before.astype(np.float32), back)) <= PHOTO_MATCH
+        self._flow = (small, back, held)
+        return back, held
+
+    def carried_matte(self, frame_photo: np.ndarray, shot: int | None = None):
+        """The frame before's matte carried to this frame along the flow, and where the flow holds
+        (:class:`viewer.photo.matting.Carried`, at the frame's size), for deciding this frame's outline;
+        None for a shot's first frame."""
+        from viewer.photo.matting import Carried
+
+        previous = self._previous if shot == self.shot else None
+        if previous is None or previous[1].frame is None:
+            return None
+        small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
+        if previous[0].shape != small.shape:
+            return None
+        back, held = self._flow_to(small)
+        h, w = frame_photo.shape[:2]
+        old = previous[1].frame.alpha
+        if old.shape != (h, w):
+            return None
+        flow = resized_flow(back, (w, h))
+        return Carried(warp(old.astype(np.float32), flow), resize(smooth_weight(held), (w, h)))
 
     def steady(self, scene, frame_photo: np.ndarray, shot: int | None = None):
         """``scene`` (a frame's, with its frame layer) with its maps blended along the flow from the
@@ -78,34 +112,35 @@ class SteadyMaps:
             self.restart()
             self.shot = shot
         small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
-        previous, self._previous = self._previous, None
+        if self._flow is not None and np.array_equal(self._flow[0], small):
+            small = self._flow[0]  # the frame's flow, computed for its matte
+        previous = self._previous
         if previous is None or previous[0].shape != small.shape:
-            self._previous = (small, scene)
+            self._previous, self._flow = (small, scene), None
             return scene, 0.0
-        back, held = backward_flow(self.flow, small, previous[0])
-        # and where the photo carried along the flow is the photo: a fast limb's or face's flow can pass
-        # the forward-backward check and still be wrong (motion blur), and blending there draws a ghost
-        held &= np.abs(small.astype(np.float32) - warp(previous[0].astype(np.float32), back)) <= PHOTO_MATCH
+        back, held = self._flow_to(small)
+        self._previous, self._flow = None, None
         old = previous[1]
-        maps, carried = self._blend_maps(scene, old, back, held)
+        weight = smooth_weight(held)  # at the flow's size, where grain is a pixel or two
+        maps, carried = self._blend_maps(scene, old, back, weight)
         out = replace(scene, **maps)
         if scene.frame is not None and old.frame is not None and old.frame.alpha.shape == scene.frame.alpha.shape:
-            out = replace(out, frame=replace(scene.frame, alpha=self._blend_alpha(scene.frame.alpha, old.frame.alpha, back, held)))
+            out = replace(out, frame=replace(scene.frame, alpha=self._blend_alpha(scene.frame.alpha, old.frame.alpha, back, weight)))
         out = out.validate()
         self._previous = (small, out)
         return out, carried
 
-    def _blend_maps(self, scene, old, back: np.ndarray, held: np.ndarray) -> tuple[dict, float]:
-        """(the work maps blended where the flow holds and the person is in both frames, the share of
-        the person's pixels blended)."""
+    def _blend_maps(self, scene, old, back: np.ndarray, weight: np.ndarray) -> tuple[dict, float]:
+        """(the work maps blended where the flow holds (``weight``, :func:`smooth_weight`) and the person
+        is in both frames, the share of the person's pixels blended)."""
         size = (scene.width, scene.height)
         flow = resized_flow(back, size)
-        ok = resize(held.astype(np.float32), size) > 0.99
+        ok = np.clip(resize(weight, size), 0.0, 1.0)
         # the work frame's size follows the person's size in the frame (a few pixels from frame to frame):
         # the frame before's maps brought to this one's (both span the photo's whole field of view)
         same = old.mask.shape == scene.mask.shape
         was = warp(resize(old.mask.astype(np.float32), size) if not same else old.mask.astype(np.float32), flow) > 0.99
-        k = self.keep * smooth_weight(ok) * (scene.mask & was)
+        k = self.keep * ok * (scene.mask & was)
         here = k > 0
         maps = {}
         for name in ("albedo", "specular", "roughness", "depth", "normal"):
@@ -122,7 +157,7 @@ class SteadyMaps:
             maps[name] = np.clip(maps[name], 0.0, 1.0)
         return maps, float(here.sum() / max(int(scene.mask.sum()), 1))
 
-    def _blend_alpha(self, alpha: np.ndarray, old: np.ndarray, back: np.ndarray, held: np.ndarray) -> np.ndarray:
+    def _blend_alpha(self, alpha: np.ndarray, old: np.ndarray, back: np.ndarray, weight: np.ndarray) -> np.ndarray:
         """The soft matte blended where the flow holds (at the frame's size) and where the frame's own
         matte and the one carried both have the person: the blend steadies the edge's soft values and
         never adds coverage (a flow that holds in a plain background yet is wrong there carried a block
@@ -130,6 +165,5 @@ class SteadyMaps:
         h, w = alpha.shape
         flow = resized_flow(back, (w, h))
         carried = warp(old.astype(np.float32), flow)
-        ok = resize(held.astype(np.float32), (w, h)) > 0.99
-        k = self.keep * smooth_weight(ok) * ((alpha > 0) & (carried > 0))
+        k = self.keep * np.clip(resize(weight, (w, h)), 0.0, 1.0) * ((alpha > 0) & (carried > 0))
         return np.clip((1 - k) * alpha + k * carried, 0.0, 1.0).astype(np.float32)

@@ -39,8 +39,11 @@ def _relit_frames(ctx, bundle_dir: Path, clip: dict, env, lights, video: Path) -
 
     bundle = load_clip_bundle(bundle_dir)
     pictures = ClipPictures(ctx, bundle, lights, Look(yaw=clip["truth"]["yaw"], exposure=AUTO), env.pixels, None, EngineOptions())
+    from viewer.files.ownership import file_is_ours
+
     frames = []
-    video.unlink(missing_ok=True)
+    if file_is_ours(video):  # an earlier run's (a file the program did not write is refused by the writer)
+        video.unlink()
     try:
         with VideoWriter(video, *pictures.size, fps=clip["fps"]) as writer:
             for i in range(len(bundle.frames)):

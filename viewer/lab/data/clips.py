@@ -9,6 +9,7 @@ Layout, beside the held-out split's ``DIR/maps/``::
     DIR/clips/<index>/truth/NNNNNN.exr    the same frame under the truth map: the person alone, linear
                                           RGB and their coverage (A), the same exposure
     DIR/clips/<index>/input.mp4           the input frames as a camera records them: sRGB, 8 bit, H.264
+    DIR/clips/<index>/plan.json           what its frames are made with (settings, maps, turns): first
     DIR/clips/<index>/exposure.json       the clip's exposure (written with its first frame)
     DIR/clips/<index>/clip.json           maps, yaws, the person's turn per frame, fps; written last
 
@@ -27,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer.errors import InputError
 from viewer.files.imageio import read_exr, write_exr, write_text
 from viewer.lab.data.people import TURN_RANGE, make_person, person_draws
 
@@ -62,27 +64,37 @@ def _frame_name(k: int) -> str:
 
 
 def make_clip(cfg, index: int, pool, progress=None) -> dict:
-    """Write clip ``index`` of the dataset ``cfg`` (its frames kept from a stopped run); returns its record."""
+    """Write clip ``index`` of the dataset ``cfg`` (its frames kept from a stopped run, a clip made with
+    other settings refused); returns its record and how many frames were made now."""
     from viewer.lab.data.truth import render_frame
     from viewer.output.video import VideoWriter
 
     out = clip_dir(cfg.out, index)
     plan = clip_plan(cfg.seed, index, len(pool), cfg.frames)
     inp, truth = pool[plan["input_map"]], pool[plan["truth_map"]]
+    made = {"res": cfg.res, "spp": cfg.spp, "fps": cfg.fps, "seed": cfg.seed, "maps": [p.name for p in pool], **plan}
+    plan_file = out / "plan.json"  # what the frames there were made with: a run with other settings is refused
+    if plan_file.is_file() and json.loads(plan_file.read_text()) != json.loads(json.dumps(made)):
+        raise InputError(out, "holds a clip made with other settings (--res, --spp, --frames, --seed or the maps): "
+                              "give another --out, or the settings it was made with")
+    if not plan_file.is_file():
+        write_text(plan_file, json.dumps(made) + "\n")
     exposure_file = out / "exposure.json"  # written with the first frame, before its images: one for the clip
+    rendered = 0
     for k, turn in enumerate(plan["turns"]):
         files = out / "input" / _frame_name(k), out / "truth" / _frame_name(k)
-        if not all(f.is_file() for f in files):
+        if not (exposure_file.is_file() and all(f.is_file() for f in files)):
             person = make_person(plan["person_seed"], cfg.res, turn=turn)
             seed = (plan["person_seed"] + k) % 2**32
             shown = render_frame(person, inp.env, plan["input_yaw"], cfg.spp, seed, background=True)
             relit = render_frame(person, truth.env, plan["truth_yaw"], cfg.spp, seed)
-            if k == 0:
+            if not exposure_file.is_file():  # the first frame (frames are made in order, each after the one before)
                 write_text(exposure_file, json.dumps({"exposure": _exposure(shown, relit[..., 3])}) + "\n")
             exposure = float(json.loads(exposure_file.read_text())["exposure"])
             relit[..., :3] *= exposure
             write_exr(files[1], relit)
             write_exr(files[0], shown[..., :3] * exposure)  # last: the frame is there when its input is
+            rendered += 1
         if progress is not None:
             progress("frames", k + 1, len(plan["turns"]))
     video = out / "input.mp4"
@@ -96,7 +108,7 @@ def make_clip(cfg, index: int, pool, progress=None) -> dict:
               "frames": len(plan["turns"]), "turns": plan["turns"],
               "input": {"map": inp.name, "yaw": plan["input_yaw"]}, "truth": {"map": truth.name, "yaw": plan["truth_yaw"]}}
     write_text(out / "clip.json", json.dumps(record, indent=1) + "\n")
-    return record
+    return {**record, "frames_made": rendered}
 
 
 def _exposure(frame: np.ndarray, coverage: np.ndarray) -> float:

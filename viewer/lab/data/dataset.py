@@ -179,7 +179,7 @@ def make_sample(cfg: DatasetConfig, index: int, pool: list[PoolMap]) -> dict:
 def make_dataset(cfg: DatasetConfig, progress=None) -> dict:
     """Make this shard's samples (skipping finished ones) and write its manifest."""
     start = time.perf_counter()
-    from viewer.lab.data.clips import clip_dir, make_clip
+    from viewer.lab.data.clips import make_clip
 
     pool = map_pool(cfg, progress)
     if cfg.split == "clip" and len(pool) < 2:
@@ -188,17 +188,19 @@ def make_dataset(cfg: DatasetConfig, progress=None) -> dict:
     indices = list(range(i, cfg.count, n))
     made, skipped, seconds = 0, 0, []
     for done, index in enumerate(indices, 1):
-        finished = clip_dir(cfg.out, index) / "clip.json" if cfg.split == "clip" else sample_dir(cfg, index) / "sample.json"
-        if finished.is_file():
-            skipped += 1
+        t0 = time.perf_counter()
+        if cfg.split == "clip":  # a clip's frames are checked against its plan, kept or made (make_clip)
+            fresh = make_clip(cfg, index, pool, progress)["frames_made"] > 0
+        elif (sample_dir(cfg, index) / "sample.json").is_file():
+            fresh = False
         else:
-            t0 = time.perf_counter()
-            if cfg.split == "clip":
-                make_clip(cfg, index, pool, progress)
-            else:
-                make_sample(cfg, index, pool)
+            make_sample(cfg, index, pool)
+            fresh = True
+        if fresh:
             seconds.append(time.perf_counter() - t0)
             made += 1
+        else:
+            skipped += 1
         if progress is not None:
             progress("clips" if cfg.split == "clip" else "samples", done, len(indices))
     manifest = {
