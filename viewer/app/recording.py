@@ -25,7 +25,27 @@ from viewer.progress import TimeLeft
 from viewer.scene.look import Look
 
 
-class TurntableRecording:
+class CountedRecording:
+    """A recording whose ``total`` frames are known when it starts: how far it is, and the time left."""
+
+    total: int
+    done: int
+    time_left: TimeLeft
+
+    @property
+    def finished(self) -> bool:
+        return self.done >= self.total
+
+    @property
+    def fraction(self) -> float:
+        return self.done / self.total
+
+    def _added(self):
+        self.done += 1
+        self.time_left.update("frames", self.done, self.total)
+
+
+class TurntableRecording(CountedRecording):
     kind = "turntable"
 
     def __init__(self, path: Path, size, start_yaw: float, frames: int = 120, fps: float = 30.0):
@@ -37,21 +57,12 @@ class TurntableRecording:
         self.writer = VideoWriter(self.path, size[0], size[1], fps=fps)
         self.time_left = TimeLeft({"frames": 1.0})
 
-    @property
-    def finished(self) -> bool:
-        return self.done >= self.total
-
-    @property
-    def fraction(self) -> float:
-        return self.done / self.total
-
     def next_yaw(self) -> float:
         return float(self.yaws[self.done])
 
     def add(self, rgb: np.ndarray):
         self.writer.write(rgb)
-        self.done += 1
-        self.time_left.update("frames", self.done, self.total)
+        self._added()
 
     def close(self) -> Path:
         return self.writer.close()
@@ -155,7 +166,7 @@ class InteractionRecording:
             self.writer.abort()
 
 
-class ClipRecording:
+class ClipRecording(CountedRecording):
     """A clip relit in the window (R while a clip is open): every frame of the clip, one per pass of
     the loop, at full quality under the lighting the user set (the timeline brings each frame's
     person and camera turn, :meth:`viewer.app.app.ViewerApp.record_clip_frame`), at the source's
@@ -177,18 +188,9 @@ class ClipRecording:
         self.time_left = TimeLeft({"frames": 1.0})
         self.note = None
 
-    @property
-    def finished(self) -> bool:
-        return self.done >= self.total
-
-    @property
-    def fraction(self) -> float:
-        return self.done / self.total
-
     def add(self, rgb: np.ndarray):
         self.writer.write(rgb, seconds=self.times[self.done])
-        self.done += 1
-        self.time_left.update("frames", self.done, self.total)
+        self._added()
 
     def close(self) -> Path:
         """The video with the source's audio at :attr:`path` (as long as the frames recorded); a note
