@@ -233,3 +233,26 @@ def test_a_face_too_dark_for_the_detector_is_found_equalized():
     found, reference = face.find_faces(dark, alpha), face.find_faces(rgb, alpha)
     assert len(found) == 1
     assert np.abs(found[0].points[:, :2] - reference[0].points[:, :2]).mean() < 2.0  # pixels
+
+
+def test_a_clips_face_landmarks_are_smoothed_and_followed():
+    """The One Euro filter of a clip's face: a still face's jitter (0.5 px) falls to under half, a
+    face moving 10 % of its width a frame is followed within 2.5 % of its width, and another
+    face (a jump) starts the filter afresh."""
+    from viewer.photo.face import FaceLandmarks
+    from viewer.photo.face_track import FaceTrack
+
+    rng = np.random.default_rng(1)
+    base = np.stack([rng.uniform(0, 100, 468), rng.uniform(0, 120, 468), rng.uniform(-10, 10, 468)], -1)
+    track = FaceTrack()
+
+    def face(points):
+        return FaceLandmarks(points, (0.0, 0.0, 100.0, 120.0), 0.9)
+
+    still = [track.smooth([face(base + rng.normal(0, 0.5, base.shape))])[0].points for _ in range(60)]
+    assert np.std(np.array(still[20:]) - base, axis=0).mean() < 0.5 / 2
+    moving = [track.smooth([face(base + [10.0 * k, 0, 0])])[0].points for k in range(1, 30)]
+    assert np.abs(moving[-1] - (base + [290.0, 0, 0])).max() < 2.5
+    jumped = track.smooth([face(base + [1000.0, 0, 0])])[0].points
+    np.testing.assert_array_equal(jumped, base + [1000.0, 0, 0])
+    assert track.smooth([]) == [] and track.filter.value is None

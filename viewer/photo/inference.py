@@ -491,8 +491,10 @@ def _maps_to_work_frame(frame_photo, alpha, person, matte, landmarks, sizes, fra
             "blur_px": blur_px, "skin": skin, "gloss_record": gloss_record}
 
 
-def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record):
+def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record, steady):
     faces = find_faces(frame_photo, alpha)
+    if steady is not None:  # a clip's frame: the face's landmarks smoothed from frame to frame
+        faces = steady[0].steady_faces(faces, steady[1])
     scene, face_record, face_surface = with_face(scene, faces, sizes.work_scale)
     if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
         mm = gloss.skin_mm(faces[0].width if faces else None, person_box(body)[2])
@@ -557,7 +559,7 @@ STAGE_LIST = (
     Stage("maps to the work frame", _maps_to_work_frame,
           ("frame_photo", "alpha", "person", "matte", "landmarks", "sizes", "framing", "maps", "depth", "m", "camera", "work_mask"),
           ("scene", "frame_linear", "frame_network_albedo", "blur_px", "skin", "gloss_record")),
-    Stage("face", _face, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record"),
+    Stage("face", _face, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record", "steady"),
           ("scene", "face_record", "face_surface", "gloss_record")),
     Stage("steady along the clip", _steady, ("scene", "frame_photo", "steady"), ("scene", "steady_share")),
     Stage("fit the photo's lights", _fit_photo_lights, ("engine", "scene", "frame_linear", "sizes", "work_mask", "side_work",

@@ -54,8 +54,11 @@ class SteadyMaps:
     """Fed a clip's scenes in order (:meth:`steady`), returns each with its maps steadied."""
 
     def __init__(self, keep: float = KEEP):
+        from viewer.photo.face_track import FaceTrack
+
         self.keep = keep
         self.flow = dis_flow()
+        self.faces = FaceTrack()  # the face's landmarks, smoothed from frame to frame (steady_faces)
         self._previous = None  # (grey photo at the flow's size, the steadied scene)
         self.shot = None
         self._flow = None  # (the grey photo it was computed for, the backward flow, where it holds): computed once a frame
@@ -63,6 +66,7 @@ class SteadyMaps:
     def restart(self) -> None:
         """A new shot (or a frame lost): the next frame starts afresh."""
         self._previous = self._flow = None
+        self.faces.restart()
 
     def carry(self, scene, frame_photo: np.ndarray, shot: int | None = None) -> None:
         """Take ``scene`` (already steadied: a frame finished by an earlier run) as the frame before
@@ -70,6 +74,7 @@ class SteadyMaps:
         if shot != self.shot:
             self.shot = shot
         self._previous, self._flow = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene), None
+        self.faces.restart()  # (its landmarks are not kept in the bundle: the face's filter starts at the next frame)
 
     def _flow_to(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(the backward flow from the frame before to ``small``, the grey photo at the flow's size; where
@@ -83,6 +88,13 @@ class SteadyMaps:
         held &= np.abs(small.astype(np.float32) - warp(before.astype(np.float32), back)) <= PHOTO_MATCH
         self._flow = (small, back, held)
         return back, held
+
+    def steady_faces(self, faces: list, shot: int | None = None) -> list:
+        """The frame's faces (largest first) with the largest one's landmarks smoothed along the clip
+        (:class:`viewer.photo.face_track.FaceTrack`; afresh at a new shot)."""
+        if shot != self.shot:
+            self.faces.restart()
+        return self.faces.smooth(faces)
 
     def carried_matte(self, frame_photo: np.ndarray, shot: int | None = None):
         """The frame before's matte carried to this frame along the flow, and where the flow holds
@@ -108,8 +120,8 @@ class SteadyMaps:
         """``scene`` (a frame's, with its frame layer) with its maps blended along the flow from the
         previous frame's; ``frame_photo``: the frame's photo (H, W, 3) uint8 at the frame's size.
         Returns (the scene, the share of the person's work pixels carried from the frame before)."""
-        if shot != self.shot:
-            self.restart()
+        if shot != self.shot:  # a cut: the maps start afresh (the face's filter did, at this frame's faces)
+            self._previous = self._flow = None
             self.shot = shot
         small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
         if self._flow is not None and np.array_equal(self._flow[0], small):
