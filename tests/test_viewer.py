@@ -652,6 +652,13 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
     v.xdotool("key", "space")
     s = v.wait_for(lambda s: not s["clip"]["playing"] and s["clip"]["shown"] == [5, 5], 60)
     assert s["clip"]["rate"] > 0
+    v.click("clip every frame", fx=0.1, until=lambda s: s["clip"]["every_frame"])
+    v.xdotool("mousemove", 10, 10)
+    v.xdotool("key", "Home")
+    v.wait_for(lambda s: s["clip"]["shown"] == [0, 0] and not s["switching"], 30)
+    v.xdotool("key", "space")
+    s = v.wait_for(lambda s: not s["clip"]["playing"] and s["clip"]["shown"] == [5, 5], 60)
+    assert s["clip"]["played"] == 5  # every frame after the first shown, none skipped
     v.click("clip frame", fx=0.01, until=lambda s: s["clip"]["index"] == 0)
     v.xdotool("mousemove", 10, 10)
     for _ in range(2):
@@ -683,3 +690,19 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
     assert np.abs(recorded[3].astype(np.float32) - recorded[2]).mean() > 5.0  # the person gone
     assert np.abs(empty * 255.0 - recorded[3]).mean() < 2.0  # S saved what showed: the background alone
     assert v.quit() == 0
+    # Q while a clip is being inferred in the window stops it, as Ctrl-C does (the frames done kept)
+    other = write_clip(tmp_path / "other.mp4", people[::-1] + people)
+    proc = subprocess.Popen([*RELIGHT, "view", str(other)], env={**os.environ, "DISPLAY": v.display}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 120
+        while subprocess.run(["xdotool", "search", "--name", "other.mp4"], env=v.env, capture_output=True).returncode != 0:
+            assert time.monotonic() < end and proc.poll() is None
+            time.sleep(0.2)
+        time.sleep(1.0)
+        v.xdotool("key", "q")
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    finally:
+        if proc.poll() is None:
+            proc.kill()

@@ -59,6 +59,9 @@ class Actions:
         state = {"look": look_json(self.app), "map": str(self.app.env_path) if self.app.env_path else None, "preset": self.app.preset}
         state["lights"] = self.app.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
         state["rig"] = [asdict(p) for p in self.app.session.placed]
+        t = self.app.timeline
+        if t is not None:  # which frame of which clip (as relight render's frames count them, from 0)
+            state["clip"] = {"bundle": str(t.bundle.path), "frame": t.on_screen, "seconds": round(t.times[t.on_screen], 6)}
         self.app.saves.append(SaveJob(stem, self.app.picture(eng), self.app.picture_hdr(eng),
                                       json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake))
         self.app.message = f"saving {stem.name}.png (+ .exr, .json) in {stem.parent.resolve()}"

@@ -72,6 +72,10 @@ class Controls:
                 if imgui.is_key_pressed(key, True):  # held: frame after frame
                     t.play(False)
                     t.seek(t.index + step)
+            for key, frame in ((imgui.Key.home, 0), (imgui.Key.end, t.count - 1)):
+                if imgui.is_key_pressed(key, False):
+                    t.play(False)
+                    t.seek(frame)
         if imgui.is_key_pressed(imgui.Key.f, False):
             self.app.view = replace(self.app.view, zoom=1.0, pan=(0.0, 0.0))
         if imgui.is_key_pressed(imgui.Key._0, False):

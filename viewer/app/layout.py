@@ -15,7 +15,7 @@ KEYS = (
     ("0", "reset the lighting rotation"),
     ("S", "save the frame: PNG, HDR EXR and the lights as JSON"),
     ("R", "record what you do; R again renders it at the video's frame rate (a clip: the relit clip, every frame, with its audio)"),
-    ("Space, Left / Right", "a clip: play / pause; a frame back / on (the slider scrubs)"),
+    ("Space, Left / Right", "a clip: play / pause; a frame back / on (the slider scrubs; Home / End: first / last)"),
     ("T", "record a 360 degree turn of the lighting (T again stops)"),
     ("B", "before / after: the original photo left of a split (a photo's scene)"),
     ("G", "the person's shadow on the ground, on or off (on when the feet show)"),

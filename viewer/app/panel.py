@@ -135,7 +135,8 @@ def draw_progress(app):
         imgui.progress_bar(-imgui.get_time(), imgui.ImVec2(-1, 0), "")
     if rendering:
         words = rec.time_left.words()
-        imgui.text_wrapped(f"rendering {rec.done} / {rec.total} frames" + (f", {words}" if words else ""))
+        imgui.text_wrapped(f"rendering {rec.done} / {rec.total} frames" + (f", {words}" if words else "")
+                           + f"; {rec.kind == 'turntable' and 'T' or 'R'} stops")
         imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{100 * rec.fraction:.0f} %")
     _remember(app, "progress")
     imgui.end()
@@ -192,6 +193,9 @@ def _clip(app):
         if imgui.button("Pause (space)" if t.playing else "Play (space)"):
             t.play()
         _remember(app, "clip play")
+        imgui.same_line()
+        _, t.every_frame = imgui.checkbox("every frame", t.every_frame)
+        _remember(app, "clip every frame")
         changed, frame = imgui.slider_int("frame", t.index + 1, 1, t.count)
         _remember(app, "clip frame")
         if changed:
@@ -199,11 +203,10 @@ def _clip(app):
     finally:
         imgui.end_disabled()
     imgui.text_wrapped(t.describe())
-    if t.playing and t.rate is not None and t.rate < 0.9 * t.fps:
-        imgui.push_text_wrap_pos(0.0)
-        imgui.text_disabled(f"playing {t.rate:.1f} of its {t.fps:.0f} frames a second (frames skipped to keep its time); "
-                            "R records every frame")
-        imgui.pop_text_wrap_pos()
+    # the rate on a line of its own, there whether playing or not: the widgets below never move
+    slow = t.playing and t.rate is not None and t.rate < 0.9 * t.fps
+    imgui.text_disabled("" if not slow else f"{t.rate:.1f} frames a second, slower than its {t.fps:.0f}" if t.every_frame
+                        else f"showing {t.rate:.1f} of its {t.fps:.0f} frames a second")
 
 
 def _lighting(app):

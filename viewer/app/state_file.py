@@ -66,7 +66,8 @@ class StateFile:
             "clip": None if app.timeline is None else {
                 "index": app.timeline.index, "frames": app.timeline.count, "playing": app.timeline.playing,
                 "shown": list(app.timeline.current) if app.timeline.current is not None else None,
-                "rate": app.timeline.rate, "camera_turn": list(app.session.camera_turn)},  # a clip's timeline
+                "rate": app.timeline.rate, "played": len(app.timeline.shown_at), "every_frame": app.timeline.every_frame,
+                "camera_turn": list(app.session.camera_turn)},  # a clip's timeline
         }
         text = json.dumps(state)
         now = time.monotonic()

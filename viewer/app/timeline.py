@@ -37,7 +37,9 @@ class ClipTimeline:
         self.index = 0  # the frame asked for: the slider's
         self.current: tuple[int, int] | None = None  # (frame shown, the frame with a person whose scene renders it)
         self.playing = False
+        self.every_frame = False  # play every frame (as fast as they are drawn, never faster than the clip), not the clip's clock
         self._clock: tuple[float, float] | None = None  # (perf_counter when play began, the clip's seconds then)
+        self._stepped = 0.0  # when every_frame last stepped
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="clip-frames")
         self._loads: dict[int, Future] = {}  # frame -> its scene being read (at most two: the one asked, the next)
         self._texture = None  # the background alone, for a frame without the person
@@ -72,6 +74,7 @@ class ClipTimeline:
             self.index = 0
         self.playing = playing
         self._clock = (time.perf_counter(), self.seconds) if playing else None
+        self._stepped = time.perf_counter()
         self.shown_at = []
 
     def seek(self, index: int):
@@ -81,8 +84,18 @@ class ClipTimeline:
             self._clock = (time.perf_counter(), self.seconds)
 
     def tick(self):
-        """While playing: the frame due now; at the clip's end it stops there."""
+        """While playing: the frame due now (with :attr:`every_frame`, the frame after the one shown, once
+        it has been shown for its time); at the clip's end it stops there."""
         if not self.playing:
+            return
+        if self.every_frame:
+            now = time.perf_counter()
+            if self.current is not None and self.current[0] >= self.index:
+                if self.index >= self.count - 1:
+                    self.playing, self._clock = False, None
+                elif now - self._stepped >= self.times[self.index + 1] - self.times[self.index]:
+                    self.index += 1
+                    self._stepped = now
             return
         start, at = self._clock
         seconds = at + time.perf_counter() - start
@@ -119,6 +132,8 @@ class ClipTimeline:
         """While playing: seconds until the frame after the one asked for is due (None: paused)."""
         if not self.playing or self.index >= self.count - 1:
             return None if not self.playing else 0.0
+        if self.every_frame:
+            return max(self.times[self.index + 1] - self.times[self.index] - (time.perf_counter() - self._stepped), 0.0)
         start, at = self._clock
         return max(self.times[self.index + 1] - (at + time.perf_counter() - start), 0.0)
 
@@ -151,7 +166,7 @@ class ClipTimeline:
         change = "turn"
         if self.current is None or self.current[1] != person:
             scene = self.scene(person, wait)
-            if scene is None and self.playing and (ready := self._read_since(person)) is not None:
+            if scene is None and self.playing and not self.every_frame and (ready := self._read_since(person)) is not None:
                 index = person = ready
                 scene = self.scene(person)
             if scene is None:
@@ -229,12 +244,19 @@ class ClipTimeline:
             self._texture_key = key
         return self._texture
 
+    @property
+    def on_screen(self) -> int:
+        """The frame the picture is of: while playing, the one shown (the frame due may still be coming);
+        paused, the one asked for."""
+        return self.current[0] if self.playing and self.current is not None else self.index
+
     def describe(self) -> str:
-        """The frame asked for, in words: its time, number and shot, and whether it has the person."""
-        entry = self.bundle.frames[self.index]
+        """The frame on screen, in words: its time, number and shot, and whether it has the person."""
+        k = self.on_screen
+        entry = self.bundle.frames[k]
         shots = len({e.shot for e in self.bundle.frames})
         state = {"person": "", "no person": ", no one in it", "lost": ", lost (the frame before shows)"}[entry.state]
-        return (f"{entry.seconds:.2f} / {self.bundle.duration:.2f} s, frame {self.index + 1} of {self.count}"
+        return (f"{entry.seconds:.2f} / {self.bundle.duration:.2f} s, frame {k + 1} of {self.count}"
                 + (f", shot {entry.shot + 1} of {shots}" if shots > 1 else "") + state)
 
     def release_texture(self):

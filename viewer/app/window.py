@@ -157,9 +157,13 @@ class Window:
     def show_message(self, text: str, fraction: float | None = None, bar: str = ""):
         """Draw one frame holding only ``text`` (progress while the window waits on work that
         blocks its thread, such as a photo's inference), with a bar of ``fraction`` done labelled
-        ``bar`` (the stage and the time left) when given."""
+        ``bar`` (the stage and the time left) when given. Q, Esc or the window closed stop the work
+        (KeyboardInterrupt, as Ctrl-C does: what is done is kept)."""
         self.wait(None)
         self.begin_frame()
+        if self.should_close or imgui.is_key_pressed(imgui.Key.q, False) or imgui.is_key_pressed(imgui.Key.escape, False):
+            imgui.end_frame()
+            raise KeyboardInterrupt("stopped in the window")
         w, h = self.size
         imgui.set_next_window_pos(imgui.ImVec2(0, 0))
         imgui.set_next_window_size(imgui.ImVec2(float(w), float(h)))
@@ -172,6 +176,8 @@ class Window:
             width = min(w - 16.0, 480.0)
             imgui.set_cursor_pos(imgui.ImVec2(max((w - width) / 2, 8.0), max((h - size.y) / 2, 8.0) + 2 * size.y))
             imgui.progress_bar(float(fraction), imgui.ImVec2(width, 0), bar)
+            imgui.set_cursor_pos_x(max((w - width) / 2, 8.0))
+            imgui.text_disabled("Q or Esc stops (what is done is kept)")
         imgui.end()
         fw, fh = self.framebuffer_size
         self.ctx.screen.use()
