@@ -650,15 +650,14 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
     assert s["clip"]["frames"] == 6 and s["clip"]["shown"] == [0, 0]
     v.xdotool("mousemove", 10, 10)
     v.xdotool("key", "space")
-    s = v.wait_for(lambda s: not s["clip"]["playing"] and s["clip"]["shown"] == [5, 5], 60)
-    assert s["clip"]["rate"] > 0
+    v.wait_for(lambda s: not s["clip"]["playing"] and s["clip"]["shown"] == [5, 5], 60)  # (frames skipped as it must)
     v.click("clip every frame", fx=0.1, until=lambda s: s["clip"]["every_frame"])
     v.xdotool("mousemove", 10, 10)
     v.xdotool("key", "Home")
     v.wait_for(lambda s: s["clip"]["shown"] == [0, 0] and not s["switching"], 30)
     v.xdotool("key", "space")
     s = v.wait_for(lambda s: not s["clip"]["playing"] and s["clip"]["shown"] == [5, 5], 60)
-    assert s["clip"]["played"] == 5  # every frame after the first shown, none skipped
+    assert s["clip"]["played"] == 5 and s["clip"]["rate"] > 0  # every frame after the first shown, none skipped
     v.click("clip frame", fx=0.01, until=lambda s: s["clip"]["index"] == 0)
     v.xdotool("mousemove", 10, 10)
     for _ in range(2):
