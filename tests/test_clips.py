@@ -284,7 +284,7 @@ def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_eve
     pictures = clip_render.ClipPictures(ctx, bundle, lights, look, env.pixels, None, EngineOptions())
     try:
         frames = [pictures.picture(i).astype(np.float32) for i in range(5)]
-        alpha = pictures._load(0).frame.alpha
+        alpha = pictures.frames.scene(0).frame.alpha
     finally:
         pictures.release()
     assert np.array_equal(frames[1], frames[0])  # lost: the frame before

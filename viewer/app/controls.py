@@ -68,12 +68,10 @@ class Controls:
         if t is not None and self.app.recording is None:
             if imgui.is_key_pressed(imgui.Key.space, False):
                 t.play()
-            for key, step in ((imgui.Key.left_arrow, -1), (imgui.Key.right_arrow, 1)):
-                if imgui.is_key_pressed(key, True):  # held: frame after frame
-                    t.play(False)
-                    t.seek(t.index + step)
-            for key, frame in ((imgui.Key.home, 0), (imgui.Key.end, t.count - 1)):
-                if imgui.is_key_pressed(key, False):
+            # the arrows repeat when held (frame after frame); Home and End do not
+            for key, repeat, frame in ((imgui.Key.left_arrow, True, t.index - 1), (imgui.Key.right_arrow, True, t.index + 1),
+                                       (imgui.Key.home, False, 0), (imgui.Key.end, False, t.count - 1)):
+                if imgui.is_key_pressed(key, repeat):
                     t.play(False)
                     t.seek(frame)
         if imgui.is_key_pressed(imgui.Key.f, False):

@@ -136,7 +136,7 @@ def draw_progress(app):
     if rendering:
         words = rec.time_left.words()
         imgui.text_wrapped(f"rendering {rec.done} / {rec.total} frames" + (f", {words}" if words else "")
-                           + f"; {rec.kind == 'turntable' and 'T' or 'R'} stops")
+                           + f"; {'T' if rec.kind == 'turntable' else 'R'} stops")
         imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{100 * rec.fraction:.0f} %")
     _remember(app, "progress")
     imgui.end()

@@ -23,7 +23,6 @@ import numpy as np
 
 from viewer.output.clip_frames import ClipFrames, shows_filmed_frame
 from viewer.scene.clip_bundle import ClipBundle
-from viewer.scene.resampling import load_sized_scene
 
 
 class ClipTimeline:
@@ -33,6 +32,7 @@ class ClipTimeline:
         self.frames = ClipFrames(bundle)
         self.sizes = sizes  # (--size, --max-size) each frame's scene is read with
         self.times = [e.seconds for e in bundle.frames]
+        self.shots = len({e.shot for e in bundle.frames})
         self.fps = float(bundle.source.get("fps") or 30.0)
         self.index = 0  # the frame asked for: the slider's
         self.current: tuple[int, int] | None = None  # (frame shown, the frame with a person whose scene renders it)
@@ -97,12 +97,16 @@ class ClipTimeline:
                     self.index += 1
                     self._stepped = now
             return
-        start, at = self._clock
-        seconds = at + time.perf_counter() - start
+        seconds = self._played()
         self.index = self.frame_at(seconds)
         if seconds >= self.times[-1] + 1.0 / self.fps:
             self.index = self.count - 1
             self.playing, self._clock = False, None
+
+    def _played(self) -> float:
+        """While playing by the clock: the clip's time due now."""
+        start, at = self._clock
+        return at + time.perf_counter() - start
 
     @property
     def rate(self) -> float | None:
@@ -111,16 +115,13 @@ class ClipTimeline:
         return (len(t) - 1) / (t[-1] - t[0]) if len(t) >= 2 and t[-1] > t[0] else None
 
     # ------------------------------------------------------------------ frames
-    def _read(self, person: int):
-        return load_sized_scene(self.bundle.scene_path(person), *self.sizes)
-
     def _future(self, person: int) -> Future:
         """Frame ``person``'s read, started (reads asked before it and not begun are dropped: only the
         latest frame asked for is worth reading)."""
         if person not in self._loads:
             for other in [k for k, f in self._loads.items() if f.cancel()]:
                 del self._loads[other]
-            future = self._loads[person] = self._pool.submit(self._read, person)
+            future = self._loads[person] = self._pool.submit(self.frames.scene, person, self.sizes)
             future.add_done_callback(lambda _: self.wake())
         return self._loads[person]
 
@@ -134,8 +135,7 @@ class ClipTimeline:
             return None if not self.playing else 0.0
         if self.every_frame:
             return max(self.times[self.index + 1] - self.times[self.index] - (time.perf_counter() - self._stepped), 0.0)
-        start, at = self._clock
-        return max(self.times[self.index + 1] - (at + time.perf_counter() - start), 0.0)
+        return max(self.times[self.index + 1] - self._played(), 0.0)
 
     def _read_since(self, person: int) -> int | None:
         """The latest frame with a person after the one shown and at most ``person`` whose scene is read:
@@ -254,10 +254,9 @@ class ClipTimeline:
         """The frame on screen, in words: its time, number and shot, and whether it has the person."""
         k = self.on_screen
         entry = self.bundle.frames[k]
-        shots = len({e.shot for e in self.bundle.frames})
         state = {"person": "", "no person": ", no one in it", "lost": ", lost (the frame before shows)"}[entry.state]
         return (f"{entry.seconds:.2f} / {self.bundle.duration:.2f} s, frame {k + 1} of {self.count}"
-                + (f", shot {entry.shot + 1} of {shots}" if shots > 1 else "") + state)
+                + (f", shot {entry.shot + 1} of {self.shots}" if self.shots > 1 else "") + state)
 
     def release_texture(self):
         if self._texture is not None:

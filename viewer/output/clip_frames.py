@@ -27,6 +27,9 @@ class ClipFrames:
         self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
         self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
         self.people = [e.index for e in bundle.frames if e.state == "person"]
+        self._shot_starts: dict[int, int] = {}  # shot -> its first frame with a person
+        for k in self.people:
+            self._shot_starts.setdefault(bundle.frames[k].shot, k)
 
     def nearest(self, index: int, state: str | None = None) -> int:
         """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""
@@ -49,7 +52,13 @@ class ClipFrames:
 
     def shot_start(self, shot: int) -> int:
         """The shot's first frame with a person (what is held for the shot is read there)."""
-        return next(e.index for e in self.bundle.frames if e.shot == shot and e.state == "person")
+        return self._shot_starts[shot]
+
+    def scene(self, index: int, sizes: tuple = (None, None)):
+        """Frame ``index``'s scene, its maps at ``--size`` and its frame at most ``--max-size`` (``sizes``)."""
+        from viewer.scene.resampling import load_sized_scene
+
+        return load_sized_scene(self.bundle.scene_path(index), *sizes)
 
     def background_camera(self, index: int):
         """The camera the map behind frame ``index`` is seen through: in a clip inferred as one, its

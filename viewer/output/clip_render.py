@@ -36,7 +36,6 @@ from viewer.output.video import VideoWriter, join_clip
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
 from viewer.scene.look import AUTO, Look
-from viewer.scene.resampling import load_sized_scene
 
 PART_SECONDS = 2.0  # of the clip in each part: what a stopped run may have to render again
 PARTS_RECORD = "parts.json"
@@ -55,11 +54,7 @@ class ClipPictures:
         self._rendered = None  # (the look asked, the look resolved): what the engine holds rendered now
         self._exposures: dict[int, float] = {}  # shot -> its exposure (a clip inferred as one)
         self._warned = False
-        self.size = self._load(self.frames.people[0]).output_size
-
-    def _load(self, index: int):
-        """Frame ``index``'s scene, its maps at ``--size`` and its frame at most ``--max-size`` (``sizes``)."""
-        return load_sized_scene(self.bundle.scene_path(index), *self.sizes)
+        self.size = self.frames.scene(self.frames.people[0], sizes).output_size
 
     def turn_of(self, index: int, person: int) -> tuple[float, float]:
         """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
@@ -89,7 +84,7 @@ class ClipPictures:
 
         if self._engine is None or self._engine[0] != index:
             self.release()
-            scene = self._load(index)
+            scene = self.frames.scene(index, self.sizes)
             if scene.output_size != self.size:
                 raise InputError(self.bundle.scene_path(index), f"its frame is {scene.output_size[0]}x{scene.output_size[1]}, "
                                                                 f"the clip's {self.size[0]}x{self.size[1]}")

@@ -82,7 +82,8 @@ GAPS = ((11, 13, 15, 23), (12, 14, 16, 24),  # each arm and the side of the body
 @dataclass(frozen=True)
 class Carried:
     """A clip's frame before, brought to this frame along the optical flow (:meth:`viewer.photo.steady.SteadyMaps.carried_matte`):
-    its matte ``alpha`` (H, W) in [0, 1] and where the flow holds, ``held`` (H, W), 1 or 0."""
+    its matte ``alpha`` (H, W) in [0, 1] and where the flow holds, ``held`` (H, W) in [0, 1]
+    (:func:`viewer.photo.steady.smooth_weight`; :func:`decided_outline` counts only where it is all but 1)."""
 
     alpha: np.ndarray
     held: np.ndarray

@@ -61,7 +61,7 @@ class SteadyMaps:
         self.faces = FaceTrack()  # the face's landmarks, smoothed from frame to frame (steady_faces)
         self._previous = None  # (grey photo at the flow's size, the steadied scene)
         self.shot = None
-        self._flow = None  # (the grey photo it was computed for, the backward flow, where it holds): computed once a frame
+        self._flow = None  # (the frame's photo, what _flow_for made of it): computed once a frame, for the matte and the maps
 
     def restart(self) -> None:
         """A new shot (or a frame lost): the next frame starts afresh."""
@@ -76,18 +76,22 @@ class SteadyMaps:
         self._previous, self._flow = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene), None
         self.faces.restart()  # (its landmarks are not kept in the bundle: the face's filter starts at the next frame)
 
-    def _flow_to(self, small: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(the backward flow from the frame before to ``small``, the grey photo at the flow's size; where
-        it holds): the forward-backward check, and the photo carried along it matching the frame's
+    def _flow_for(self, frame_photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """(the frame's grey photo at the flow's size; the backward flow from the frame before to it and
+        where it holds, as :func:`smooth_weight`; both None with no frame before of that size). It holds
+        where it passes the forward-backward check and the photo carried along it matches the frame's
         (a fast limb's or face's flow can pass the first check and still be wrong: motion blur, and
-        blending there draws a ghost). Computed once for a frame (the matte and the maps both use it)."""
-        if self._flow is not None and self._flow[0] is small:
-            return self._flow[1], self._flow[2]
-        before = self._previous[0]
-        back, held = backward_flow(self.flow, small, before)
-        held &= np.abs(small.astype(np.float32) - warp(before.astype(np.float32), back)) <= PHOTO_MATCH
-        self._flow = (small, back, held)
-        return back, held
+        blending there draws a ghost). Computed once for a frame's photo: its matte and its maps both use it."""
+        if self._flow is None or self._flow[0] is not frame_photo:
+            small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
+            before = self._previous[0] if self._previous is not None else None
+            back = weight = None
+            if before is not None and before.shape == small.shape:
+                back, held = backward_flow(self.flow, small, before)
+                held &= np.abs(small.astype(np.float32) - warp(before.astype(np.float32), back)) <= PHOTO_MATCH
+                weight = smooth_weight(held)  # at the flow's size, where grain is a pixel or two
+            self._flow = (frame_photo, (small, back, weight))
+        return self._flow[1]
 
     def steady_faces(self, faces: list, shot: int | None = None) -> list:
         """The frame's faces (largest first) with the largest one's landmarks smoothed along the clip
@@ -105,16 +109,12 @@ class SteadyMaps:
         previous = self._previous if shot == self.shot else None
         if previous is None or previous[1].frame is None:
             return None
-        small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
-        if previous[0].shape != small.shape:
-            return None
-        back, held = self._flow_to(small)
+        _, back, weight = self._flow_for(frame_photo)
         h, w = frame_photo.shape[:2]
         old = previous[1].frame.alpha
-        if old.shape != (h, w):
+        if back is None or old.shape != (h, w):
             return None
-        flow = resized_flow(back, (w, h))
-        return Carried(warp(old.astype(np.float32), flow), resize(smooth_weight(held), (w, h)))
+        return Carried(warp(old.astype(np.float32), resized_flow(back, (w, h))), resize(weight, (w, h)))
 
     def steady(self, scene, frame_photo: np.ndarray, shot: int | None = None):
         """``scene`` (a frame's, with its frame layer) with its maps blended along the flow from the
@@ -123,17 +123,12 @@ class SteadyMaps:
         if shot != self.shot:  # a cut: the maps start afresh (the face's filter did, at this frame's faces)
             self._previous = self._flow = None
             self.shot = shot
-        small = shrunk_grey(frame_photo, FLOW_SIDE)[0]
-        if self._flow is not None and np.array_equal(self._flow[0], small):
-            small = self._flow[0]  # the frame's flow, computed for its matte
-        previous = self._previous
-        if previous is None or previous[0].shape != small.shape:
-            self._previous, self._flow = (small, scene), None
+        small, back, weight = self._flow_for(frame_photo)
+        previous, self._previous, self._flow = self._previous, None, None
+        if back is None:  # the shot's first frame (or the frame before was another size)
+            self._previous = (small, scene)
             return scene, 0.0
-        back, held = self._flow_to(small)
-        self._previous, self._flow = None, None
         old = previous[1]
-        weight = smooth_weight(held)  # at the flow's size, where grain is a pixel or two
         maps, carried = self._blend_maps(scene, old, back, weight)
         out = replace(scene, **maps)
         if scene.frame is not None and old.frame is not None and old.frame.alpha.shape == scene.frame.alpha.shape:

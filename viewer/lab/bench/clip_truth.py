@@ -20,7 +20,6 @@ The target: the clip's mean relative RMSE within 10 % of the still path's (on <=
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +30,7 @@ from viewer.files.imageio import linear_to_srgb, read_exr
 def _relit_frames(ctx, bundle_dir: Path, clip: dict, env, lights, video: Path) -> list[np.ndarray | None]:
     """Each frame's person relit under the truth's map (H, W, 4: premultiplied RGB and coverage; None
     where no person was found), and the relit clip as a camera would show it in ``video``."""
+    from viewer.files.ownership import file_is_ours
     from viewer.gl import EngineOptions
     from viewer.output.clip_render import ClipPictures
     from viewer.output.video import VideoWriter
@@ -39,8 +39,6 @@ def _relit_frames(ctx, bundle_dir: Path, clip: dict, env, lights, video: Path) -
 
     bundle = load_clip_bundle(bundle_dir)
     pictures = ClipPictures(ctx, bundle, lights, Look(yaw=clip["truth"]["yaw"], exposure=AUTO), env.pixels, None, EngineOptions())
-    from viewer.files.ownership import file_is_ours
-
     frames = []
     if file_is_ours(video):  # an earlier run's (a file the program did not write is refused by the writer)
         video.unlink()
@@ -52,6 +50,11 @@ def _relit_frames(ctx, bundle_dir: Path, clip: dict, env, lights, video: Path) -
     finally:
         pictures.release()
     return frames
+
+
+def relit_video(path: Path, out_dir: Path, mode: str) -> Path:
+    """Where the dataset clip in ``path`` relit in ``mode`` (on, off) goes in ``out_dir``."""
+    return Path(out_dir) / f"truth-{path.name}_{mode}.mp4"
 
 
 def relit_rmse(relit: list[np.ndarray | None], truth: list[np.ndarray]) -> dict:
@@ -70,20 +73,13 @@ def relit_rmse(relit: list[np.ndarray | None], truth: list[np.ndarray]) -> dict:
 
 def measure_truth_clip(path: Path, out_dir: Path, maps_dir: Path) -> dict:
     """One dataset clip inferred both ways and relit under its truth's map (the module doc's figures)."""
-    from viewer.cli.command_setup import fitted_lights
     from viewer.gl import create_headless_context
-    from viewer.lab.bench.video import clip_warping_errors
-    from viewer.lab.data.clips import read_clip
-    from viewer.lighting.envmap import load_envmap
-    from viewer.lighting.lightfit.methods import DEFAULT_METHOD
-    from viewer.lighting.map_lights import map_lights
-    from viewer.photo.clip_inference import infer_clip
+    from viewer.lab.bench.video import clip_warping_errors, infer_mode, map_and_lights
+    from viewer.lab.data.clips import frame_file, read_clip
 
     clip = read_clip(path)
-    truth = [read_exr(path / "truth" / f"{k:06d}.exr") for k in range(clip["frames"])]
-    map_path = maps_dir / f"{clip['truth']['map']}.hdr"
-    env = load_envmap(map_path)
-    lights, _ = map_lights(env, map_path, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))
+    truth = [read_exr(frame_file(path, "truth", k)) for k in range(clip["frames"])]
+    env, lights = map_and_lights(maps_dir / f"{clip['truth']['map']}.hdr")
     name = f"truth-{path.name}"
     figures: dict = {"clip": name, "input_map": clip["input"]["map"], "truth_map": clip["truth"]["map"], "frames": clip["frames"],
                      "res": clip["res"], "modes": {}}
@@ -91,11 +87,8 @@ def measure_truth_clip(path: Path, out_dir: Path, maps_dir: Path) -> dict:
     ctx = create_headless_context()
     try:
         for mode in ("off", "on"):
-            bundle_dir = out_dir / "bundles" / f"{name}-{mode}"
-            t0 = time.perf_counter()
-            record = infer_clip(path / "input.mp4", bundle_dir, temporal=mode, ctx=ctx)
-            seconds = time.perf_counter() - t0
-            videos[mode] = out_dir / f"{name}_{mode}.mp4"
+            bundle_dir, record, seconds = infer_mode(path / "input.mp4", out_dir, name, mode, ctx)
+            videos[mode] = relit_video(path, out_dir, mode)
             relit = _relit_frames(ctx, bundle_dir, clip, env, lights, videos[mode])
             figures["modes"][mode] = {"rmse": relit_rmse(relit, truth), "infer_seconds": round(seconds, 1),
                                       "states": record["states"]}
@@ -112,17 +105,18 @@ def truth_strip(path: Path, out_dir: Path, count: int = 4) -> Path:
     """A picture of a dataset clip and its relit frames: input, truth, on, off in rows (frames in columns)."""
     from viewer.files.imageio import write_jpeg
     from viewer.lab.bench.video import _video_frames
+    from viewer.lab.data.clips import frame_file, read_clip
     from viewer.resize import resize
 
-    clip = json.loads((path / "clip.json").read_text())
+    clip = read_clip(path)
     picks = np.linspace(0, clip["frames"] - 1, count).round().astype(int)
     rows = []
     inputs = list(_video_frames(path / "input.mp4"))
     rows.append([inputs[k] for k in picks])
-    truth = [read_exr(path / "truth" / f"{k:06d}.exr") for k in picks]  # at the input's exposure, no background
+    truth = [read_exr(frame_file(path, "truth", k)) for k in picks]  # at the input's exposure, no background
     rows.append([(np.clip(linear_to_srgb(t[..., :3]), 0, 1) * 255 + 0.5).astype(np.uint8) for t in truth])
     for mode in ("on", "off"):
-        frames = list(_video_frames(out_dir / f"truth-{path.name}_{mode}.mp4"))
+        frames = list(_video_frames(relit_video(path, out_dir, mode)))
         rows.append([frames[k] for k in picks])
     h, w = rows[0][0].shape[:2]
     picture = np.concatenate([np.concatenate([resize(f, (w, h)) for f in row], axis=1) for row in rows], axis=0)

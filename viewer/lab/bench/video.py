@@ -114,35 +114,46 @@ def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max
         queue.put({"error": f"{type(exc).__name__}: {exc}"})
 
 
-def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end: float, max_size: int) -> dict:
-    """One clip inferred both ways (``--temporal off`` and on) and relit under every map."""
+def map_and_lights(path: Path):
+    """(the map at ``path``, its 16 lights as the product fits them: beside the map, cached, or fitted now)."""
     from viewer.cli.command_setup import fitted_lights
-    from viewer.files.imageio import read_png
-    from viewer.gl import EngineOptions, create_headless_context
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
     from viewer.lighting.map_lights import map_lights
-    from viewer.output.clip_render import render_clip
+
+    env = load_envmap(path)
+    return env, map_lights(env, path, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))[0]
+
+
+def infer_mode(clip: Path, out_dir: Path, name: str, mode: str, ctx, **options) -> tuple[Path, dict, float]:
+    """``clip`` inferred with ``--temporal mode`` into ``out_dir/bundles/<name>-<mode>`` (``options``: the
+    rest of :func:`viewer.photo.clip_inference.infer_clip`'s): (the bundle's folder, its record, seconds)."""
     from viewer.photo.clip_inference import infer_clip
+
+    bundle_dir = out_dir / "bundles" / f"{name}-{mode}"
+    t0 = time.perf_counter()
+    record = infer_clip(clip, bundle_dir, temporal=mode, ctx=ctx, **options)
+    return bundle_dir, record, time.perf_counter() - t0
+
+
+def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end: float, max_size: int) -> dict:
+    """One clip inferred both ways (``--temporal off`` and on) and relit under every map."""
+    from viewer.files.imageio import read_png
+    from viewer.gl import EngineOptions, create_headless_context
+    from viewer.output.clip_render import render_clip
     from viewer.photo.photo_frame import WORK_PERSON, output_frame
     from viewer.scene.area_lights import facing_yaw
     from viewer.scene.clip_bundle import load_clip_bundle
     from viewer.scene.look import AUTO, Look
 
-    lit = []
-    for m in maps:
-        env = load_envmap(m)
-        lights, _ = map_lights(env, m, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))
-        lit.append((m.stem, env, lights))
+    lit = [(m.stem, *map_and_lights(m)) for m in maps]
     figures: dict = {"clip": clip.name, "modes": {}}
     relit = {}
     ctx = create_headless_context()
     try:
         for mode in ("off", "on"):
-            bundle_dir = out_dir / "bundles" / f"{clip.stem}-{mode}"
-            t0 = time.perf_counter()
-            record = infer_clip(clip, bundle_dir, start, end, size=WORK_PERSON, max_size=max_size, temporal=mode, ctx=ctx)
-            infer_seconds = time.perf_counter() - t0
+            bundle_dir, record, infer_seconds = infer_mode(clip, out_dir, clip.stem, mode, ctx, start=start, end=end,
+                                                           size=WORK_PERSON, max_size=max_size)
             bundle = load_clip_bundle(bundle_dir)
             stages: dict[str, float] = {}
             for entry in bundle.frames:

@@ -31,12 +31,10 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import read_exr, write_exr, write_text
 from viewer.lab.data.people import TURN_RANGE, make_person, person_draws
+from viewer.lighting.envmap import LUMINANCE
 
-FRAMES = 24  # a clip's frames (the CLI's --frames)
-FPS = 12.0
 SWEEP = 60.0  # degrees the person turns over the clip
 MEDIAN = 0.18  # the input's first frame: the person's median luminance after the exposure
-LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def clip_dir(out, index: int) -> Path:
@@ -59,8 +57,9 @@ def clip_plan(seed: int, index: int, pool_size: int, frames: int) -> dict:
             "truth_yaw": float(rng.uniform(0.0, 360.0)), "turns": turns}
 
 
-def _frame_name(k: int) -> str:
-    return f"{k:06d}.exr"
+def frame_file(clip: Path, part: str, k: int) -> Path:
+    """Frame ``k``'s EXR of the clip in folder ``clip``: ``part`` "input" or "truth"."""
+    return Path(clip) / part / f"{k:06d}.exr"
 
 
 def make_clip(cfg, index: int, pool, progress=None) -> dict:
@@ -82,7 +81,7 @@ def make_clip(cfg, index: int, pool, progress=None) -> dict:
     exposure_file = out / "exposure.json"  # written with the first frame, before its images: one for the clip
     rendered = 0
     for k, turn in enumerate(plan["turns"]):
-        files = out / "input" / _frame_name(k), out / "truth" / _frame_name(k)
+        files = frame_file(out, "input", k), frame_file(out, "truth", k)
         if not (exposure_file.is_file() and all(f.is_file() for f in files)):
             person = make_person(plan["person_seed"], cfg.res, turn=turn)
             seed = (plan["person_seed"] + k) % 2**32
@@ -103,7 +102,7 @@ def make_clip(cfg, index: int, pool, progress=None) -> dict:
 
         with VideoWriter(video, cfg.res, cfg.res, fps=cfg.fps) as writer:
             for k in range(len(plan["turns"])):
-                writer.write(np.clip(linear_to_srgb(read_exr(out / "input" / _frame_name(k))[..., :3]), 0.0, 1.0))
+                writer.write(np.clip(linear_to_srgb(read_exr(frame_file(out, "input", k))[..., :3]), 0.0, 1.0))
     record = {"index": index, "seed": plan["person_seed"], "res": cfg.res, "spp": cfg.spp, "fps": cfg.fps,
               "frames": len(plan["turns"]), "turns": plan["turns"],
               "input": {"map": inp.name, "yaw": plan["input_yaw"]}, "truth": {"map": truth.name, "yaw": plan["truth_yaw"]}}
@@ -114,7 +113,7 @@ def make_clip(cfg, index: int, pool, progress=None) -> dict:
 def _exposure(frame: np.ndarray, coverage: np.ndarray) -> float:
     """The clip's exposure from its first input frame: the person's (``coverage`` > 0.5) median
     luminance to ``MEDIAN``."""
-    luminance = frame[..., :3] @ LUMA
+    luminance = frame[..., :3] @ LUMINANCE
     person = coverage > 0.5
     median = float(np.median(luminance[person])) if person.any() else float(np.median(luminance))
     return MEDIAN / max(median, 1e-6)
