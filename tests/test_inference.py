@@ -23,6 +23,7 @@ from viewer.photo.inference import (
     Framing,
     cached_bundle,
     crop,
+    fill_rings,
     framing,
     infer,
     infer_scene,
@@ -150,6 +151,28 @@ def test_work_frame_mapping_follows_the_framing():
     rows = (wy > f.top + 3) & (wy < f.top + f.side - 3)
     np.testing.assert_allclose(work[rows][:, inner, 0], np.broadcast_to(wx[inner], (rows.sum(), inner.sum())), atol=1e-6)
     np.testing.assert_allclose(work[rows][:, inner, 1], np.broadcast_to(wy[rows, None], (rows.sum(), inner.sum())), atol=1e-6)
+
+
+def test_the_maps_are_filled_ring_by_ring_with_their_filled_neighbours_mean():
+    """Outside the mask each pixel is the mean of its 3x3 neighbours filled before it: the same as
+    growing the known region one ring at a time over the whole image (the reference here)."""
+    rng = np.random.default_rng(3)
+    values = rng.random((60, 45, 4)).astype(np.float32)
+    yy, xx = np.mgrid[:60, :45]
+    known = ((yy - 35) ** 2 / 15 ** 2 + (xx - 20) ** 2 / 6 ** 2 < 1) | ((yy < 3) & (xx > 40))
+    v, k = np.where(known[..., None], values, 0.0), known.astype(np.float32)
+    while (k < 0.5).any():  # the reference: a 3x3 sum over the whole image per ring
+        pv, pk = np.pad(v, ((1, 1), (1, 1), (0, 0))), np.pad(k, 1)
+        total = sum(pv[dy:dy + 60, dx:dx + 45] for dy in range(3) for dx in range(3))
+        weight = sum(pk[dy:dy + 60, dx:dx + 45] for dy in range(3) for dx in range(3))
+        grow = (weight > 0) & (k < 0.5)
+        v = np.where(grow[..., None], total / np.maximum(weight, 1e-6)[..., None], v)
+        k = np.where(grow, 1.0, k)
+    filled = fill_rings(values, known)
+    np.testing.assert_allclose(filled, v, atol=1e-5)
+    np.testing.assert_array_equal(filled[known], values[known])
+    assert not np.array_equal(filled[~known], np.zeros_like(filled[~known]))
+    assert np.array_equal(fill_rings(values, np.zeros_like(known)), np.zeros_like(values))
 
 
 def test_frame_sizes():

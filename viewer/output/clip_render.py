@@ -29,7 +29,7 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import MARK, read_png, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, take_away
-from viewer.memory_needs import give_back_freed
+from viewer.memory_needs import frames_freed
 from viewer.output.clip_frames import ClipFrames, shows_filmed_frame
 from viewer.output.render import render_look, warn_if_unseen
 from viewer.output.video import VideoWriter, join_clip
@@ -307,33 +307,34 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     frames = bundle.frames
     per = max(int(round(PART_SECONDS * fps)), 1)
     parts, reused = [], 0
-    try:
-        for k, first in enumerate(range(0, len(frames), per)):
-            part = folder / f"{k:06d}.mp4"
-            last = min(first + per, len(frames))
-            if file_is_ours(part):  # finished by an earlier run of the same render
-                reused += 1
-                for i in range(first, last):  # its layers, where a stop left them out
-                    frame_layers(i)
-            else:
-                with VideoWriter(part, *pictures.size, fps=fps) as video:
-                    for i in range(first, last):
-                        picture = pictures.picture(i)
-                        video.write(picture, seconds=frames[i].seconds)
-                        give_back_freed()
-                        if poster is not None and i == len(frames) // 2:
-                            write_png(poster, picture / 255.0)
-                            poster = None
+    with frames_freed() as after_frame:
+        try:
+            for k, first in enumerate(range(0, len(frames), per)):
+                part = folder / f"{k:06d}.mp4"
+                last = min(first + per, len(frames))
+                if file_is_ours(part):  # finished by an earlier run of the same render
+                    reused += 1
+                    for i in range(first, last):  # its layers, where a stop left them out
                         frame_layers(i)
-                        if progress is not None:
-                            progress(i + 1, len(frames))
-            if progress is not None:
-                progress(last, len(frames))
-            parts.append((part, frames[first].seconds))
-        if poster is not None:  # its part was kept from an earlier run: the frame made again
-            write_png(poster, pictures.picture(len(frames) // 2) / 255.0)
-    finally:
-        pictures.release()
+                else:
+                    with VideoWriter(part, *pictures.size, fps=fps) as video:
+                        for i in range(first, last):
+                            picture = pictures.picture(i)
+                            video.write(picture, seconds=frames[i].seconds)
+                            after_frame()
+                            if poster is not None and i == len(frames) // 2:
+                                write_png(poster, picture / 255.0)
+                                poster = None
+                            frame_layers(i)
+                            if progress is not None:
+                                progress(i + 1, len(frames))
+                if progress is not None:
+                    progress(last, len(frames))
+                parts.append((part, frames[first].seconds))
+            if poster is not None:  # its part was kept from an earlier run: the frame made again
+                write_png(poster, pictures.picture(len(frames) // 2) / 255.0)
+        finally:
+            pictures.release()
     note = join_relit(bundle, parts, path)
     take_away(folder)
     return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,

@@ -34,7 +34,7 @@ from viewer.errors import InputError, NoPersonError
 from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
 from viewer.files.ownership import file_is_ours, file_sha256, folder_lock, take_away, written_here
-from viewer.memory_needs import give_back_freed
+from viewer.memory_needs import frames_freed
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
@@ -322,80 +322,81 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
         nets = nets if nets is not None else (networks or load_networks(device))
         return nets
 
-    try:
-        if mid_shot:
-            lights = _shot_lights(clip_path, frames_dir, start, end, shot_starts[begin_shot], begin, size, max_size, device,
-                                  networks_now, ctx)
-            if lights is not None:
-                shot_lights[begin_shot] = lights
-        for frame in clip_frames(clip_path, start, end):
-            if frame.index < begin:
-                continue
-            if last is not None and frame.index >= last:
-                break
-            count, first_at = frame.index + 1, frame.at
-            writing = frame.index >= first
-            shot = shot_of(frame.index, frame.rgb) if temporal == "on" else frame.index
-            counted_from = begin if mid_shot and shot == begin_shot else None
-            entry = _finished(frames_dir, frame.index)
-            alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
-            if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
-                    (entry.pan_from == counted_from or not writing):  # (a pan counted elsewhere is made again)
-                kept += writing
-                if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
-                    shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
-                if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
-                    scene = load_scene(frames_dir / frame_name(frame.index))
-                    steady.carry(scene, resize(frame.rgb, frame_size), shot)
-                    alpha = scene.frame.alpha
-                elif steady is not None:
-                    steady.restart()
-            else:
-                entry = None
-            fresh = entry is None
-            if fresh:
-                label = f"{clip_path} at {frame.seconds + start:.3f} s"
-                if frame.rgb is None:
-                    entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot)
-                    if steady is not None:
+    with frames_freed() as after_frame:
+        try:
+            if mid_shot:
+                lights = _shot_lights(clip_path, frames_dir, start, end, shot_starts[begin_shot], begin, size, max_size, device,
+                                      networks_now, ctx)
+                if lights is not None:
+                    shot_lights[begin_shot] = lights
+            for frame in clip_frames(clip_path, start, end):
+                if frame.index < begin:
+                    continue
+                if last is not None and frame.index >= last:
+                    break
+                count, first_at = frame.index + 1, frame.at
+                writing = frame.index >= first
+                shot = shot_of(frame.index, frame.rgb) if temporal == "on" else frame.index
+                counted_from = begin if mid_shot and shot == begin_shot else None
+                entry = _finished(frames_dir, frame.index)
+                alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
+                if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
+                        (entry.pan_from == counted_from or not writing):  # (a pan counted elsewhere is made again)
+                    kept += writing
+                    if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
+                        shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
+                    if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
+                        scene = load_scene(frames_dir / frame_name(frame.index))
+                        steady.carry(scene, resize(frame.rgb, frame_size), shot)
+                        alpha = scene.frame.alpha
+                    elif steady is not None:
                         steady.restart()
                 else:
-                    try:
-                        with warned.frame(label):
-                            result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
-                                                 ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
-                                                 steady=(steady, shot) if steady is not None else None)
-                    except NoPersonError as exc:  # the frame as it is: what a photo background shows there
+                    entry = None
+                fresh = entry is None
+                if fresh:
+                    label = f"{clip_path} at {frame.seconds + start:.3f} s"
+                    if frame.rgb is None:
+                        entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot)
                         if steady is not None:
                             steady.restart()
-                        if writing:
-                            write_png(frames_dir / f"{frame_name(frame.index)}.png", resize(frame.rgb, frame_size) / 255.0)
-                        entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
                     else:
-                        result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": record["key"],
-                                                    "shot": shot}
-                        if writing:
-                            write_bundle(result, frames_dir / frame_name(frame.index))
-                        entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
-                        shot_lights.setdefault(shot, result["lights"])
-                        alpha = result["scene"].frame.alpha
-            if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
-                pan = tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot))
-                if frame.index == first - 1:
-                    warm_pan = list(pan)
-                if fresh:
-                    entry = replace(entry, pan=pan, pan_from=counted_from)
-            if fresh and writing:
-                write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
-            give_back_freed()
-            if writing:
-                counts[entry.state] += 1
-                if progress is not None:
-                    progress(count - first, max(total - first, count - first), entry)
-    finally:
-        warned.close()
-        if own_ctx:
-            ctx.release()
+                        try:
+                            with warned.frame(label):
+                                result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
+                                                     ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
+                                                     steady=(steady, shot) if steady is not None else None)
+                        except NoPersonError as exc:  # the frame as it is: what a photo background shows there
+                            if steady is not None:
+                                steady.restart()
+                            if writing:
+                                write_png(frames_dir / f"{frame_name(frame.index)}.png", resize(frame.rgb, frame_size) / 255.0)
+                            entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
+                        else:
+                            result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": record["key"],
+                                                        "shot": shot}
+                            if writing:
+                                write_bundle(result, frames_dir / frame_name(frame.index))
+                            entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
+                            shot_lights.setdefault(shot, result["lights"])
+                            alpha = result["scene"].frame.alpha
+                if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
+                    pan = tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot))
+                    if frame.index == first - 1:
+                        warm_pan = list(pan)
+                    if fresh:
+                        entry = replace(entry, pan=pan, pan_from=counted_from)
+                if fresh and writing:
+                    write_text(frames_dir / f"{frame_name(frame.index)}.json", json.dumps(entry.to_json()) + "\n")
+                after_frame()
+                if writing:
+                    counts[entry.state] += 1
+                    if progress is not None:
+                        progress(count - first, max(total - first, count - first), entry)
+        finally:
+            warned.close()
+            if own_ctx:
+                ctx.release()
     return {"counts": counts, "kept": kept, "frames": count, "first_at": round(first_at, 6), "warm_pan": warm_pan,
             "shots": (len(shot_starts) if shot_starts else cuts.shot + 1) if temporal == "on" else None,
             "seconds": round(time.perf_counter() - t0, 3)}

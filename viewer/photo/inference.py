@@ -94,21 +94,45 @@ def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
 def extend(values, mask):
     """Fill the pixels outside the mask, ring by ring, with the mean of their filled neighbours:
     the whole square, so that what the person holds beyond the networks' view (the framing is the
-    body's, ``Matte.body``) has maps, those of the nearest part the networks saw."""
+    body's, ``Matte.body``) has maps, those of the nearest part the networks saw. ``values`` (B, C,
+    H, W) and ``mask`` (B, 1, H, W) torch tensors; each image of the batch by :func:`fill_rings`."""
     import torch
-    from torch.nn import functional as F
 
-    known = mask.clone()
-    v = values * known
-    for _ in range(max(values.shape[-2:])):
-        if bool((known > 0.5).all()):
-            break
-        total = F.avg_pool2d(v, 3, 1, 1, count_include_pad=False)
-        weight = F.avg_pool2d(known, 3, 1, 1, count_include_pad=False)
-        grow = (weight > 0) & (known < 0.5)
-        v = torch.where(grow, total / weight.clamp_min(1e-6), v)
-        known = torch.where(grow, torch.ones_like(known), known)
-    return v
+    out = [torch.from_numpy(fill_rings(v.permute(1, 2, 0).cpu().numpy().astype(np.float32), k[0].cpu().numpy() > 0.5))
+           for v, k in zip(values, mask)]
+    return torch.stack(out).permute(0, 3, 1, 2).to(values.dtype).to(values.device)
+
+
+def fill_rings(values: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """(H, W, C): ``values`` where ``known`` (H, W) bool, and each other pixel the mean of its
+    8-neighbours filled before it, ring by ring outwards (ring r: chessboard distance r from the
+    known pixels, OpenCV's ``distanceTransform``). Each ring's pixels only are touched, so the cost
+    is the unknown pixels', not the rings' count times the image's (a 3x3 mean over the whole image per
+    ring took 0.25 s a frame). Nothing known: zeros."""
+    import cv2
+
+    h, w, c = values.shape
+    if known.all() or not known.any():
+        return np.where(known[..., None], values, 0.0).astype(np.float32)
+    ring = cv2.distanceTransform((~known).astype(np.uint8), cv2.DIST_C, 3).astype(np.int32)
+    filled = np.zeros((h + 2, w + 2, c), np.float32)  # padded by one: a neighbour off the image is never filled
+    filled[1:-1, 1:-1] = np.where(known[..., None], values, 0.0)
+    rings = np.full((h + 2, w + 2), np.iinfo(np.int32).max, np.int32)
+    rings[1:-1, 1:-1] = ring
+    order = np.argsort(ring, axis=None, kind="stable")
+    last = int(ring.max())
+    starts = np.searchsorted(ring.ravel()[order], np.arange(1, last + 2))
+    for r in range(1, last + 1):
+        ys, xs = np.divmod(order[starts[r - 1]:starts[r]], w)
+        total = np.zeros((len(ys), c), np.float32)
+        count = np.zeros(len(ys), np.float32)
+        for dy in (0, 1, 2):
+            for dx in (0, 1, 2):
+                near = rings[ys + dy, xs + dx] < r
+                total += filled[ys + dy, xs + dx] * near[:, None]
+                count += near
+        filled[ys + 1, xs + 1] = total / count[:, None]
+    return filled[1:-1, 1:-1]
 
 
 def to_work_frame(stack, f: Framing, work_size: tuple[int, int], work_scale: float):
@@ -498,7 +522,7 @@ def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record, steady):
     scene, face_record, face_surface = with_face(scene, faces, sizes.work_scale)
     if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
         mm = gloss.skin_mm(faces[0].width if faces else None, person_box(body)[2])
-        scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm)).validate()
+        scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm))  # validated with the detail's
         gloss_record = {**gloss_record, "skin_mm_per_pixel": round(mm, 4)}
     return {"scene": scene, "face_record": face_record, "face_surface": face_surface, "gloss_record": gloss_record}
 

@@ -133,8 +133,7 @@ class SteadyMaps:
         out = replace(scene, **maps)
         if scene.frame is not None and old.frame is not None and old.frame.alpha.shape == scene.frame.alpha.shape:
             out = replace(out, frame=replace(scene.frame, alpha=self._blend_alpha(scene.frame.alpha, old.frame.alpha, back, weight)))
-        out = out.validate()
-        self._previous = (small, out)
+        self._previous = (small, out)  # (valid as it is: the blended maps are clipped, the normals unit, zero off the mask)
         return out, carried
 
     def _blend_maps(self, scene, old, back: np.ndarray, weight: np.ndarray) -> tuple[dict, float]:
