@@ -825,3 +825,39 @@ def test_a_clip_recording_keeps_its_frames_when_the_audio_cannot_join(clip_bundl
         assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4", "b.mp4"]  # nothing else left behind
     finally:
         timeline.release()
+
+
+def test_a_bystander_who_comes_nearer_stays_out_of_the_matte(tmp_path):
+    """The person is followed through the clip: a bystander who steps in, nearer the camera and
+    larger, is left out of every frame's matte (a photo would relight the largest)."""
+    import cv2
+
+    from viewer.photo.clip_inference import infer_clip
+    from viewer.photo.photo_frame import read_photo
+    from viewer.resize import resize
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    photos = SHARED_DATA / "photos"
+    near = read_photo(photos / "unsplash-1535323700481.jpg", [])  # the bystander, large
+    gone = (read_png(photos / "unsplash-1535323700481.mask.png")[..., 0] > 0.5).astype(np.uint8)
+    empty = cv2.inpaint(near, cv2.dilate(gone, np.ones((25, 25), np.uint8)), 5, cv2.INPAINT_TELEA)  # the place, no one in it
+    person = read_photo(photos / "unsplash-1507274733827.jpg", [])
+    height = 300
+    left = [resize(x, (x.shape[1] * height // x.shape[0], height)) for x in (empty, near)]
+    right = resize(person, (person.shape[1] * 180 // person.shape[0], 180))
+    frames = []
+    for side in (left[0], left[1], left[1]):  # the bystander steps in at frame 1
+        frame = np.zeros((height, side.shape[1] + right.shape[1], 3), np.uint8)
+        frame[:, :side.shape[1]] = side
+        frame[height - 180:, side.shape[1]:] = right
+        frame[:height - 180, side.shape[1]:] = right[:1].mean(axis=(0, 1)).astype(np.uint8)
+        frames.append(frame)
+    split = left[0].shape[1]
+    clip = write_clip(tmp_path / "bystander.mp4", frames, audio=None)
+    record = infer_clip(clip, tmp_path / "bundle")
+    bundle = load_clip_bundle(tmp_path / "bundle")
+    assert record["shots"] == 1 and [e.state for e in bundle.frames] == ["person"] * 3
+    for entry in bundle.frames:
+        alpha = load_scene(bundle.scene_path(entry.index)).frame.alpha
+        assert alpha[:, split:].sum() > 0.95 * alpha.sum() and alpha[:, split:].sum() > 1000, entry.index

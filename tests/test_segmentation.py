@@ -33,7 +33,8 @@ def test_segmentation_matches_the_hand_made_mask(stem):
     assert notes == []
 
 
-def test_the_largest_of_several_people_is_kept_with_a_note():
+def two_people() -> tuple[np.ndarray, int]:
+    """Two real photos side by side, the right one's person smaller (and the column they meet at)."""
     a = read_photo(PHOTOS / "unsplash-1535323700481.jpg", [])
     b = read_photo(PHOTOS / "unsplash-1507274733827.jpg", [])
     big = resize(a, (a.shape[1] * 1000 // a.shape[0], 1000))
@@ -41,10 +42,29 @@ def test_the_largest_of_several_people_is_kept_with_a_note():
     two = np.zeros((1000, big.shape[1] + small.shape[1], 3), np.uint8)
     two[:, :big.shape[1]] = big
     two[400:, big.shape[1]:] = small
+    return two, big.shape[1]
+
+
+def test_the_largest_of_several_people_is_kept_with_a_note():
+    two, split = two_people()
     notes = []
     matte = find_person(two, "two people", notes).segmentation > 0.5
-    assert any("2 people" in n for n in notes)
-    assert matte[:, :big.shape[1]].sum() > 0.95 * matte.sum()  # the larger person, alone
+    assert any("2 people" in n and "the largest" in n for n in notes)
+    assert matte[:, :split].sum() > 0.95 * matte.sum()  # the larger person, alone
+
+
+def test_in_a_clip_the_person_followed_is_kept_not_the_largest():
+    """A bystander nearer the camera (larger) stays out: the person whose box overlaps the frame
+    before's is segmented, alone; with no overlap, the largest."""
+    two, split = two_people()
+    h, w = two.shape[:2]
+    small_box = (split / w, 0.4, 1 - split / w, 0.6)  # the right-hand person's part of the frame, as the frame before had it
+    notes = []
+    matte = find_person(two, "two people", notes, follow=small_box).segmentation > 0.5
+    assert any("followed from the frame before" in n for n in notes)
+    assert matte[:, split:].sum() > 0.95 * matte.sum() and matte[:, split:].sum() > 0.1 * 600 * (w - split)  # the person, whole
+    matte = find_person(two, "two people", [], follow=(0.0, 0.0, 0.01, 0.01)).segmentation > 0.5  # overlaps no one
+    assert matte[:, :split].sum() > 0.95 * matte.sum()
 
 
 def test_no_person_is_one_clear_line():

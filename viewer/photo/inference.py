@@ -430,8 +430,9 @@ def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size,
         matte = mask_matte(frame_photo, given)
         mask_source = str(mask_path)
     else:
-        found = find_person(frame_photo, photo_path, notes)
-        # a clip's frame: the frame before's person, carried along the flow, steadies where the outline is decided
+        # a clip's frame: the person followed among others, and the frame before's person, carried along
+        # the flow, steadies where the outline is decided
+        found = find_person(frame_photo, photo_path, notes, steady[0].followed(steady[1]) if steady is not None else None)
         carried = steady[0].carried_matte(frame_photo, steady[1]) if steady is not None else None
         matte = automatic_matte(frame_photo, found, carried)
         landmarks = found.landmarks

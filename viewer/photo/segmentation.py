@@ -12,7 +12,11 @@ model trained on real people, and nothing else that installs offline segments fu
    gaps between limbs: :mod:`viewer.photo.matting` decides the outline from the photo's colours).
 2. With several people in the photo (MediaPipe's selfie segmentation finds them all), the pose
    model is shown the largest, with a one-line note; connected parts of the segmentation that
-   hold none of its landmarks and do not touch it (someone else) are left out.
+   hold none of its landmarks and do not touch it (someone else) are left out. In a clip the
+   person is followed instead: the one whose box overlaps most the person's box in the frame
+   before (``follow``), so a bystander who comes nearer the camera than the person, and looks
+   larger, stays out of the matte; where the two touch (one part of the selfie model's mask) and
+   the pose model takes the bystander, it is shown again only where the person was a frame ago.
 No person found: one line naming the photo.
 """
 
@@ -29,6 +33,7 @@ from viewer.errors import InputError, NoPersonError
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person
 VISIBLE = 0.5  # landmarks the pose model sees with at least this visibility are kept
+FOLLOW_IOU = 0.3  # in a clip, a person found whose box overlaps the frame before's less than this is someone else
 
 
 @dataclass(frozen=True)
@@ -70,9 +75,11 @@ def _mediapipe(photo_path):
     return pose, selfie_segmentation
 
 
-def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -> Person:
+def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None, follow: tuple | None = None) -> Person:
     """The person in ``photo`` (H, W, 3) uint8 sRGB; the largest when there are several (with a
-    note). Raises :class:`InputError` naming ``photo_path`` when no person is found."""
+    note), or, given ``follow`` (the person's box in a clip's frame before: x, y, width, height as
+    fractions of the frame), the one whose box overlaps it most (the largest when none does).
+    Raises :class:`InputError` naming ``photo_path`` when no person is found."""
     import cv2
 
     from viewer.resize import resize, scaled_size
@@ -85,20 +92,28 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
     with quiet_native_stderr():
         with selfie.SelfieSegmentation(model_selection=0) as model:
             everyone = model.process(small).segmentation_mask
-    x0, y0, x1, y1 = 0, 0, sw, sh
     people = _people(np.asarray(everyone) > 0.5) if everyone is not None else []
-    if len(people) > 1:  # the pose model takes one person: show it the largest
-        bx, by, bw, bh = people[0]
-        mx, my = int(0.15 * bw) + 8, int(0.1 * bh) + 8
-        x0, y0, x1, y1 = max(bx - mx, 0), max(by - my, 0), min(bx + bw + mx, sw), min(by + bh + my, sh)
-        notes.append(f"{len(people)} people in the photo: relighting the largest")
-    with quiet_native_stderr():
-        with pose.Pose(static_image_mode=True, enable_segmentation=True, model_complexity=1) as model:
-            result = model.process(np.ascontiguousarray(small[y0:y1, x0:x1]))
-    if result.segmentation_mask is None or result.pose_landmarks is None:
+    followed = None if follow is None else (follow[0] * sw, follow[1] * sh, follow[2] * sw, follow[3] * sh)
+    box = (0, 0, sw, sh)
+    if len(people) > 1:  # the pose model takes one person: show it the largest, or the one followed
+        overlaps = [box_iou(b, followed) if followed else 0.0 for b in people]
+        box = grown(people[int(np.argmax(overlaps)) if max(overlaps) > 0 else 0], (sw, sh))
+        notes.append(f"{len(people)} people in the photo: relighting "
+                     + ("the one followed from the frame before" if max(overlaps) > 0 else "the largest"))
+    found = _pose(pose, small, box)
+    if followed and (found is None or box_iou(found[2], followed) < FOLLOW_IOU):
+        # people touching are one part of the selfie model's mask, and the pose model takes the most
+        # prominent: shown only where the person was a frame ago, it finds the person followed
+        near = _pose(pose, small, grown(followed, (sw, sh)))
+        if near is not None and box_iou(near[2], followed) >= FOLLOW_IOU:
+            found, box = near, grown(followed, (sw, sh))
+            if not any("followed" in n for n in notes):
+                notes.append("other people in the photo: relighting the one followed from the frame before")
+    if found is None:
         raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
-    seg = np.zeros((sh, sw), np.float32)
-    seg[y0:y1, x0:x1] = np.asarray(result.segmentation_mask, np.float32)
+    result = found[0]
+    x0, y0, x1, y1 = box[0], box[1], box[0] + box[2], box[1] + box[3]
+    seg = found[1]
     landmarks = {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
                  for i, lm in enumerate(result.pose_landmarks.landmark) if lm.visibility > VISIBLE}
     segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
@@ -111,6 +126,43 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None) -
         if others.sum() >= OTHER_PERSON_FRACTION * max(int((seg > 0.5).sum()), 1):
             notes.append("other people or objects in the photo are left out: relighting the most prominent person")
     return Person(segmentation.astype(np.float32), landmarks)
+
+
+def grown(box: tuple, size: tuple[int, int]) -> tuple[int, int, int, int]:
+    """A person's box (x, y, width, height) grown by 15 % of its width and 10 % of its height (and 8 px)
+    each side, within an image of ``size`` = (w, h): what the pose model is shown of one person."""
+    bx, by, bw, bh = box
+    mx, my = int(0.15 * bw) + 8, int(0.1 * bh) + 8
+    x0, y0 = max(int(bx - mx), 0), max(int(by - my), 0)
+    x1, y1 = min(int(np.ceil(bx + bw + mx)), size[0]), min(int(np.ceil(by + bh + my)), size[1])
+    return x0, y0, max(x1 - x0, 1), max(y1 - y0, 1)
+
+
+def _pose(pose, small: np.ndarray, box: tuple):
+    """MediaPipe's pose model shown ``box`` (x, y, width, height) of ``small``: (its result, its
+    segmentation at ``small``'s size, the box of that segmentation) or None when it finds no one."""
+    x, y, bw, bh = box
+    with quiet_native_stderr():
+        with pose.Pose(static_image_mode=True, enable_segmentation=True, model_complexity=1) as model:
+            result = model.process(np.ascontiguousarray(small[y:y + bh, x:x + bw]))
+    if result.segmentation_mask is None or result.pose_landmarks is None:
+        return None
+    seg = np.zeros(small.shape[:2], np.float32)
+    seg[y:y + bh, x:x + bw] = np.asarray(result.segmentation_mask, np.float32)
+    person = seg > 0.5
+    if not person.any():
+        return result, seg, (0, 0, 0, 0)
+    rows, cols = np.flatnonzero(person.any(axis=1)), np.flatnonzero(person.any(axis=0))
+    return result, seg, (int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1))
+
+
+def box_iou(a: tuple, b: tuple) -> float:
+    """Intersection over union of two boxes (x, y, width, height)."""
+    w = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    h = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    inter = max(w, 0.0) * max(h, 0.0)
+    union = a[2] * a[3] + b[2] * b[3] - inter
+    return float(inter / union) if union > 0 else 0.0
 
 
 def _people(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
