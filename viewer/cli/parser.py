@@ -7,8 +7,10 @@ import argparse
 
 from viewer.cli.batch_command import add_batch_parser
 from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
+from viewer.cli.plate_commands import cmd_plate_light
 from viewer.cli.shared_options import add_clip_range_args, add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
+from viewer.plate.plate_light import MAP_HEIGHT
 
 COMMAND_GROUP = "relight.commands"
 
@@ -116,6 +118,16 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace files at -o and --plot that relight did not write")
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
+
+    p = sub.add_parser("plate-light", help="the light of a background photo (a plate) as an HDR environment map (.exr), "
+                                           "to inspect, edit and give as --env")
+    p.add_argument("plate", help="the plate: a photo (JPEG, PNG, TIFF; 8 or 16 bit); its EXIF focal length gives its field of view")
+    p.add_argument("-o", "--output", required=True, help="the map to write (.exr, linear, in the plate's own units)")
+    p.add_argument("--height", type=int, default=MAP_HEIGHT, help=f"the map's height in pixels (its width is twice it; "
+                                                                     f"default {MAP_HEIGHT})")
+    p.add_argument("--record", action="store_true", help="also print how the map was made (JSON)")
+    p.add_argument("--force", action="store_true", help="replace a file at -o that relight did not write")
+    p.set_defaults(func=cmd_plate_light)
 
     add_batch_parser(sub)
 

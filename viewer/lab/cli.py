@@ -174,6 +174,14 @@ def cmd_bench(args) -> int:
         result = run_clip_memory_benchmark((args.env and Path(args.env[0])) or maps / "potsdamer_platz_1k.hdr", out.parent, output=out)
         print(f"peak memory grew {100 * result['growth']:.1f} % from {result['runs'][0]['seconds']:g} s to "
               f"{result['runs'][-1]['seconds']:g} s; wrote {out}")
+    elif args.what == "plates":
+        from viewer.lab.bench.plates import run_plates_benchmark
+
+        out = Path(args.output or "out/bench-plates/plates.json")
+        summary = run_plates_benchmark(shared_folder(args.maps, "hdri", "--maps"), out)["summary"]
+        print(f"person RMSE (means): estimate {summary['estimate']:.4f}, uniform {summary['uniform']:.4f} "
+              f"({summary['estimate_over_uniform']:.2f} x), sh {summary['sh']:.4f} ({summary['estimate_over_sh']:.2f} x); "
+              f"dominant light off by {summary['direction_deg_median']} degrees (median); wrote {out}")
     elif args.what == "video" and args.truth:
         from viewer.lab.bench.clip_truth import run_truth_benchmark, truth_table
 
@@ -345,7 +353,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
-                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory"),
+                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory", "plates"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -363,7 +371,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "batch: relight batch's throughput on --count photos made from --photos x three of --maps, "
                         "with one worker, two and a local Ray cluster; video: clips (--clips) relit under --env maps: warping "
                         "error against the input's, frames a minute, stages, peak memory; clip-memory: the peak memory of "
-                        "`relight render CLIP` on clips of 10 s and 60 s made from the bundled photo")
+                        "`relight render CLIP` on clips of 10 s and 60 s made from the bundled photo; plates: the light "
+                        "estimated from plates made of each map of --maps at three yaws, the person relit by it against the "
+                        "true map, a uniform light and spherical harmonics")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--synthetic", action="store_true", help="video: also (or, without --clips, only) a clip made from the "
                    "bundled photo, and a strip of its frames (input, off, on) for the docs")

@@ -25,6 +25,7 @@ GROUPS = (
     ("app", ("viewer.app",), "the viewer window: input, panel, session, jobs, recording"),
     ("output", ("viewer.output",), "headless frames, layers for compositors, MP4, temporal metrics"),
     ("batch", ("viewer.batch",), "photos x looks on worker processes or a Ray cluster, the manifest, resumable"),
+    ("plate", ("viewer.plate",), "a background photo to put the person into: its camera, its light as an HDR map"),
     ("photo", ("viewer.photo", "viewer.nets"), "photo to scene bundle: its frame, the matte, the networks, the face, refinement"),
     ("engine", ("viewer.gl", "viewer.shader_modes"), "GL passes, programs, context, the shaders' modes"),
     ("twin", ("viewer.twin",), "the engine in differentiable torch"),
@@ -128,7 +129,7 @@ def summary(path: Path) -> str:
 
 # The folders, bottom first: a folder imports only folders below it (tests/test_architecture.py)
 LAYERS = ("viewer", "viewer.files", "viewer.scene", "viewer.twin", "viewer.lighting", "viewer.gl", "viewer.nets",
-          "viewer.photo", "viewer.output", "viewer.batch", "viewer.app", "viewer.cli", "viewer.lab")
+          "viewer.photo", "viewer.plate", "viewer.output", "viewer.batch", "viewer.app", "viewer.cli", "viewer.lab")
 
 
 def folder_of(name: str) -> str:

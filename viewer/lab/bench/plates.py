@@ -1,0 +1,209 @@
+"""``relight bench plates``: the light read from a plate against the map the plate was made from.
+
+For each HDR map of a folder, three plates are made from the map itself: the plate camera
+(``PLATE_SIZE`` pixels, a ``PLATE_FOCAL_35`` mm lens, level) looking into it at yaws 0, 120 and 240
+degrees, linear radiance scaled so the plate's median luminance is 0.18, sRGB-encoded, clipped and
+written as an 8-bit JPEG with the focal length in its EXIF (as a camera writes it). Each plate is
+read back as the product reads any plate, and its light estimated
+(:func:`viewer.plate.plate_light.plate_light`, then 16 area lights fitted to that map as to any map).
+The person (the sample scene, and the bundled photo's bundle) is relit four ways, in the plate's
+linear units:
+
+- **truth**: under the true map's 16 lights, turned by the plate's yaw, scaled by the plate's scale
+  (the full renderer: diffuse, specular, shadows);
+- **estimate**: under the lights fitted to the estimated map (the same renderer);
+- **uniform**: a uniform light of the plate's mean linear colour (Lambert, no shadows);
+- **sh**: an order-2 spherical-harmonics light fitted to the plate's linear pixels placed on the
+  sphere as the estimate places them (seen, edge-filled, mirrored; no clip gain, no sun) (Lambert,
+  no shadows; :mod:`viewer.lighting.sh`).
+
+Per plate: the RMSE of each against the truth over the person's pixels (the scene's mask at the
+maps' resolution), and where the true map has a dominant light (its strongest fitted light holds
+``DOMINANT_SHARE`` of the lights' luminance or more), the angle between it and the estimate's
+strongest light. The JSON's ``summary`` holds the means over all plates (``estimate``, ``uniform``,
+``sh``) and ``direction_deg_median``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from viewer.files.imageio import linear_to_srgb, write_text
+
+PLATE_SIZE = (960, 640)  # pixels, landscape 3:2
+PLATE_FOCAL_35 = 35.0  # mm, 35-mm equivalent (written in the plate's EXIF)
+YAWS = (0.0, 120.0, 240.0)
+JPEG_QUALITY = 90
+DOMINANT_SHARE = 0.3  # of the lights' summed luminance: a light this strong is a dominant one (a sun, a lamp)
+LIGHTS = 16
+
+
+def make_plate(env, yaw: float, path: Path) -> float:
+    """The plate of ``env`` at ``yaw`` written to ``path`` (JPEG, 8 bits, the focal length in its
+    EXIF); returns the scale its linear radiance was multiplied by (median luminance 0.18)."""
+    from PIL import Image
+
+    from viewer.lighting.envmap import LUMINANCE
+    from viewer.scene.camera import Camera
+
+    camera = Camera(PLATE_SIZE[0], PLATE_SIZE[1], focal_mm=PLATE_FOCAL_35, sensor_mm=36.0)
+    linear = env.seen_through(camera, yaw)
+    scale = 0.18 / max(float(np.median(linear @ LUMINANCE.astype(np.float32))), 1e-12)
+    srgb = (np.clip(linear_to_srgb(linear * scale), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    image = Image.fromarray(srgb)
+    exif = Image.Exif()
+    exif.get_ifd(0x8769)[0xA405] = int(PLATE_FOCAL_35)
+    buffer = io.BytesIO()
+    image.save(buffer, "JPEG", quality=JPEG_QUALITY, exif=exif.tobytes())
+    path.write_bytes(buffer.getvalue())
+    return scale
+
+
+def strongest(lights) -> tuple[np.ndarray, float]:
+    """(the direction of the lights' strongest, its share of their summed luminance)."""
+    from viewer.lighting.envmap import LUMINANCE
+
+    lum = lights.intensity @ LUMINANCE.astype(np.float32)
+    k = int(np.argmax(lum))
+    return lights.direction[k].astype(np.float64), float(lum[k] / max(float(lum.sum()), 1e-30))
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(float(np.clip(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))))
+
+
+def people(ctx) -> list[tuple[str, object]]:
+    """The people the plates' light is measured on: the sample scene and the bundled photo's bundle."""
+    from viewer.photo.inference import cached_bundle
+    from viewer.resources import asset_dir, sample_scene_dir
+    from viewer.scene.bundle import load_scene
+
+    photo, _ = cached_bundle(asset_dir() / "photos" / "underpass.jpg", ctx=ctx)
+    return [("sample scene", load_scene(sample_scene_dir())), ("bundled photo", load_scene(photo))]
+
+
+def relit(engine, lights, yaw: float) -> np.ndarray:
+    """The person under ``lights`` turned by ``yaw`` at the maps' resolution, linear (H, W, 3)."""
+    from viewer.scene.look import Look
+
+    engine.set_lights(lights)
+    engine.set_look(Look(yaw=yaw))
+    engine.render()
+    return engine.output.read_work_hdr()[..., :3]
+
+
+def lambert(scene, irradiance: np.ndarray) -> np.ndarray:
+    """albedo E / pi over the scene's mask (``irradiance`` (H, W, 3) or (3,))."""
+    return np.where(scene.mask[..., None], scene.albedo * irradiance / math.pi, 0.0).astype(np.float32)
+
+
+def person_rmse(image: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((image[mask] - truth[mask]) ** 2)))
+
+
+def run_plates_benchmark(maps_dir, output, progress=print) -> dict:
+    """Every map of ``maps_dir`` (.hdr, .exr) measured as the module says; the JSON at ``output``."""
+    from viewer.cli.command_setup import fitted_lights
+    from viewer.gl import Engine, create_headless_context
+    from viewer.lab.bench.video import map_and_lights
+    from viewer.lighting import sh
+    from viewer.lighting.envmap import SUFFIXES, EnvMap
+    from viewer.lighting.lightfit.methods import DEFAULT_METHOD
+    from viewer.plate.plate_file import read_plate
+    from viewer.plate.plate_light import placed_plate, plate_light
+    from viewer.scene.area_lights import AreaLights, rotation_matrix
+
+    output = Path(output)
+    plates_dir = output.parent / "plates"
+    plates_dir.mkdir(parents=True, exist_ok=True)
+    maps = sorted(p for p in Path(maps_dir).iterdir() if p.suffix.lower() in SUFFIXES and not p.name.startswith("."))
+    ctx = create_headless_context()
+    t_start = time.perf_counter()
+    rows = []
+    try:
+        persons = [(name, scene, Engine(ctx, scene)) for name, scene in people(ctx)]
+        for path in maps:
+            env, true_lights = map_and_lights(path)
+            for yaw in YAWS:
+                plate_path = plates_dir / f"{path.stem}_{int(yaw):03d}.jpg"
+                scale = make_plate(env, yaw, plate_path)
+                plate = read_plate(plate_path, [])
+                t0 = time.perf_counter()
+                estimate, record = plate_light(plate)
+                light_seconds = time.perf_counter() - t0
+                est_lights, _ = fitted_lights(EnvMap(estimate.pixels, str(plate_path)), LIGHTS, DEFAULT_METHOD)
+                scaled = AreaLights(true_lights.direction, true_lights.sigma, true_lights.intensity * scale)
+                mean = plate.linear().reshape(-1, 3).mean(axis=0)
+                coeffs = sh.project(placed_plate(plate))
+                row = {"map": path.name, "yaw": yaw, "scale": scale, "plate_light_seconds": round(light_seconds, 3),
+                       "estimate_record": record, "people": {}}
+                for name, scene, engine in persons:
+                    truth = relit(engine, scaled, yaw)
+                    guess = relit(engine, est_lights, 0.0)
+                    mask = scene.mask
+                    row["people"][name] = {
+                        "estimate": person_rmse(guess, truth, mask),
+                        "uniform": person_rmse(lambert(scene, math.pi * mean), truth, mask),
+                        "sh": person_rmse(lambert(scene, sh.irradiance(coeffs, scene.normal)), truth, mask)}
+                for key in ("estimate", "uniform", "sh"):
+                    row[key] = float(np.mean([p[key] for p in row["people"].values()]))
+                true_dir, share = strongest(true_lights)
+                if share >= DOMINANT_SHARE:
+                    turned = rotation_matrix(yaw, 0.0) @ true_dir
+                    row["dominant_share"] = round(share, 3)
+                    row["direction_deg"] = round(angle_deg(turned, strongest(est_lights)[0]), 2)
+                rows.append(row)
+                progress(f"{path.name} yaw {yaw:.0f}: person RMSE estimate {row['estimate']:.4f}, uniform {row['uniform']:.4f}, "
+                         f"sh {row['sh']:.4f}" + (f"; dominant light {row['direction_deg']:.0f} deg off" if "direction_deg" in row else ""))
+        for _, _, engine in persons:
+            engine.release()
+    finally:
+        ctx.release()
+    directions = [r["direction_deg"] for r in rows if "direction_deg" in r]
+    summary = {key: float(np.mean([r[key] for r in rows])) for key in ("estimate", "uniform", "sh")}
+    summary["direction_deg_median"] = float(np.median(directions)) if directions else None
+    summary["estimate_over_uniform"] = summary["estimate"] / summary["uniform"]
+    summary["estimate_over_sh"] = summary["estimate"] / summary["sh"]
+    result = {"summary": summary, "plates": rows, "maps": [p.name for p in maps], "yaws": list(YAWS),
+              "plate": {"size": list(PLATE_SIZE), "focal_35mm": PLATE_FOCAL_35, "jpeg_quality": JPEG_QUALITY},
+              "seconds": round(time.perf_counter() - t_start, 1)}
+    shown = figure(result, maps_dir, plates_dir, output.with_suffix(".jpg"))
+    result["figure"] = shown.name if shown is not None else None
+    write_text(output, json.dumps(result, indent=1) + "\n")
+    return result
+
+
+FIGURE_PLATES = (("kiara_1_dawn_1k.hdr", 120.0), ("potsdamer_platz_1k.hdr", 240.0), ("rooitou_park_1k.hdr", 240.0),
+                 ("studio_small_03_1k.hdr", 0.0))  # a good estimate, another, the sun behind the camera, a studio's lamps unseen
+
+
+def figure(result: dict, maps_dir, plates_dir, path: Path) -> Path | None:
+    """Rows of (the plate, the true map turned to its yaw, the map estimated from the plate), each map
+    at the plate's exposure (the same scale), for the plates of ``FIGURE_PLATES`` measured in ``result``."""
+    import cv2
+
+    from viewer.files.imageio import write_jpeg
+    from viewer.lighting.envmap import EnvMap, load_envmap
+    from viewer.plate.plate_file import read_plate
+    from viewer.plate.plate_light import plate_light
+
+    rows = []
+    for name, yaw in FIGURE_PLATES:
+        row = next((r for r in result["plates"] if r["map"] == name and r["yaw"] == yaw), None)
+        if row is None:
+            continue
+        plate = read_plate(Path(plates_dir) / f"{Path(name).stem}_{int(yaw):03d}.jpg", [])
+        truth = EnvMap(load_envmap(Path(maps_dir) / name).rotated(yaw).pixels * row["scale"]).downsampled(512).pixels
+        estimate = plate_light(plate)[0].pixels
+        tiles = [cv2.resize(plate.srgb.astype(np.float32) / 255.0, (384, 256), interpolation=cv2.INTER_AREA)]
+        tiles += [np.clip(linear_to_srgb(cv2.resize(m, (512, 256), interpolation=cv2.INTER_AREA)), 0.0, 1.0) for m in (truth, estimate)]
+        rows.append(np.concatenate(tiles, axis=1))
+    if not rows:
+        return None
+    return write_jpeg(path, np.concatenate(rows, axis=0))

@@ -1,0 +1,91 @@
+"""A plate file: the photo the person is put into, upright, in sRGB, and its camera's field of view.
+
+The photo is read as every photo is (:func:`viewer.photo.photo_frame.read_image_u8`: EXIF
+orientation, ICC colours converted, 16-bit reduced to 8 with a note). The field of view comes from
+the EXIF 35-mm-equivalent focal length (tag 0xA405, which phones and most cameras write); failing
+that, from the focal length and the focal plane's resolution (0x920A with 0xA20E and its unit); else
+``DEFAULT_FOCAL_35`` (with a note), a standard lens's. A 35-mm-equivalent focal length spans the
+frame's longer side as 36 mm would.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viewer.errors import InputError
+from viewer.files.file_kinds import wrong_kind
+
+DEFAULT_FOCAL_35 = 35.0  # mm, 35-mm equivalent: what a plate without a focal length in its EXIF is taken as
+MIN_PLATE_PX = 16  # a plate smaller than this a side holds no light to read
+PANORAMA_ASPECT = 2.5  # a longer side this many times the shorter (a phone's panorama), or exactly 2:1 (equirectangular): no plate
+
+
+@dataclass(frozen=True)
+class Plate:
+    """A plate: ``srgb`` (H, W, 3) uint8, upright; ``focal_35`` the 35-mm-equivalent focal length (mm)
+    and where it came from (``focal_source``: "exif" or "default"); ``source`` the file."""
+
+    srgb: np.ndarray
+    focal_35: float
+    focal_source: str
+    source: str | None = None
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.srgb.shape[1]), int(self.srgb.shape[0])
+
+    @property
+    def focal_px(self) -> float:
+        """The focal length in the plate's pixels (its longer side spans 36 mm of a 35-mm frame)."""
+        return self.focal_35 * max(self.size) / 36.0
+
+    def linear(self) -> np.ndarray:
+        """(H, W, 3) float32 linear RGB in [0, 1]."""
+        from viewer.files.imageio import srgb_to_linear
+
+        return srgb_to_linear(self.srgb.astype(np.float32) / 255.0)
+
+
+def exif_focal_35(exif) -> float | None:
+    """The 35-mm-equivalent focal length (mm) an EXIF block (Pillow's ``Image.Exif``) gives, or None."""
+    sub = exif.get_ifd(0x8769) if exif else {}
+    value = sub.get(0xA405) or exif.get(0xA405)
+    try:
+        value = float(value) if value else None
+    except (TypeError, ValueError):
+        value = None
+    return value if value and 4.0 <= value <= 2000.0 else None
+
+
+def read_plate(path, notes: list) -> Plate:
+    """The plate at ``path``; one line naming the file for what cannot be a plate (not an image, a video,
+    fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: exactly 2:1, or longer than ``PANORAMA_ASPECT``)."""
+    from PIL import Image
+
+    from viewer.photo.photo_frame import read_image_u8
+
+    wrong = wrong_kind(path, "a plate (a photo to put the person into)")
+    if wrong is not None:
+        raise wrong
+    image = read_image_u8(path, "plate", notes)
+    if image.shape[0] < MIN_PLATE_PX or image.shape[1] < MIN_PLATE_PX:
+        raise InputError(path, f"is {image.shape[1]}x{image.shape[0]} pixels: a plate needs at least {MIN_PLATE_PX} a side")
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, axis=-1)
+    image = np.ascontiguousarray(image[..., :3])
+    try:
+        with Image.open(path) as im:
+            focal = exif_focal_35(im.getexif())
+    except Exception:  # the pixels were read: a broken EXIF block is no focal length
+        focal = None
+    source = "exif"
+    if focal is None:
+        focal, source = DEFAULT_FOCAL_35, "default"
+        notes.append(f"the plate's EXIF gives no focal length: taken as {DEFAULT_FOCAL_35:g} mm (35-mm equivalent)")
+    aspect = max(image.shape[:2]) / min(image.shape[:2])
+    if abs(aspect - 2.0) < 0.01 or aspect > PANORAMA_ASPECT:
+        raise InputError(path, f"is {image.shape[1]}x{image.shape[0]}: " + ("an equirectangular panorama (2:1)" if aspect < 2.1 else
+                               "a panorama") + ", not a plate; give a panorama as the map (--env) and a photo as the plate")
+    return Plate(image, focal, source, str(path))

@@ -1,0 +1,113 @@
+"""The plate's light as an HDR environment map: what lights a person standing in the plate.
+
+A plate shows a narrow cone of the sphere (its camera's field of view, :class:`viewer.plate.plate_file.Plate`),
+in 8 bits, with its brightest parts clipped. The map is built in the plate camera's frame (the map
+convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera looks at):
+
+1. **Seen**: every direction inside the plate's view takes the plate's linear radiance there (the
+   plate shrunk by area to about two pixels a map texel first).
+2. **Unseen, in front**: a direction outside the view takes the plate's edge where the line from
+   the view's centre towards it leaves the frame (the horizon continues sideways, the top edge's sky
+   goes up to the zenith, the ground's lower edge down to the nadir), from the plate blurred by
+   ``FILL_BLUR`` of its longer side (what is guessed is kept soft).
+3. **Unseen, behind the camera** (where most of the light on a person's front comes from): the front
+   mirrored through the image plane, as Khan et al. (2006) fill the sphere from one photo: a
+   street behind the camera looks like the street ahead, a room's far wall like its near one.
+   This is the estimate's main guess, and where it fails: a sun or a window behind the camera, or
+   a dark wall in front of a bright one, is not in the plate and not in the map.
+4. **Clipped highlights** (a channel at ``CLIP`` of 255 or above) are at least that bright and
+   likely brighter: their radiance is multiplied by ``CLIP_GAIN``.
+5. **Not yet**: a sun. A sun in view is clipped like a white wall (its true radiance, some 1e4
+   times the sky's, is lost), and one outside the view shows only in the plate's shadows. A first
+   rule (the largest compact clipped blob above the horizon, given five times the sky's
+   irradiance) took windows, lamps and bright clouds for suns and made the estimate worse on every
+   plate where it fired (``relight bench plates``: docs/plates.md); it is left out until the plate's
+   shadows can confirm a sun.
+
+The map's units are the plate's linear values (a plate's exposure is the person's:
+:mod:`viewer.plate` composites in them). Measured against the true maps in ``relight bench plates``
+(docs/plates.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from viewer.lighting.envmap import EnvMap, pixel_directions
+from viewer.plate.plate_file import Plate
+
+MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
+CLIP = 250  # of 255: a channel this high was clipped by the camera (or the JPEG)
+CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
+FILL_BLUR = 0.05  # of the plate's longer side: the blur of the plate the unseen sphere is filled from
+
+
+def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
+    """(the plate's light as an equirectangular map, height x 2 height, in the plate camera's frame;
+    a record of how: the focal length and where it came from, the field of view, the share clipped, seconds)."""
+    import cv2
+
+    t0 = time.perf_counter()
+    w, h = plate.size
+    texel = math.pi / height
+    across = 2.0 * math.atan(max(w, h) / (2.0 * plate.focal_px))
+    longer = int(np.clip(round(2.0 * across / texel), 16, max(w, h)))  # about two plate pixels a map texel
+    size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1))
+    table = np.arange(256, dtype=np.float32) / 255.0
+    table = np.where(table <= 0.04045, table / 12.92, ((table + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    linear = cv2.resize(table[plate.srgb], size, interpolation=cv2.INTER_AREA)
+    clipped = cv2.resize((plate.srgb >= CLIP).any(axis=-1).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    focal = plate.focal_px * size[0] / w
+    radiance = linear * (1.0 + (CLIP_GAIN - 1.0) * clipped[..., None])
+    sigma = FILL_BLUR * max(size)
+    blurred = cv2.GaussianBlur(radiance, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+
+    dirs = pixel_directions(height, 2 * height)
+    seen, x, y = _projected(dirs, focal, size)
+    pixels = np.where(seen[..., None], _sample(radiance, x, y), _sample(blurred, x, y))
+    pixels = np.maximum(pixels, 0.0).astype(np.float32)
+    record = {"focal_35mm": round(plate.focal_35, 2), "focal_from": plate.focal_source,
+              "field_of_view_deg": round(math.degrees(across), 2), "clipped_share": round(float(clipped.mean()), 5),
+              "seconds": round(time.perf_counter() - t0, 3)}
+    return EnvMap(pixels, plate.source), record
+
+
+def _projected(dirs: np.ndarray, focal: float, size: tuple[int, int]):
+    """(seen (H, W) bool, plate x, plate y (pixel coordinates, centres at +0.5)) of every map direction:
+    a direction behind the camera is mirrored through the image plane first; one outside the view is
+    brought back to the frame's edge along the line from its centre (:mod:`viewer.plate.plate_light`)."""
+    w, h = size
+    x, y, z = dirs[..., 0], dirs[..., 1], dirs[..., 2]
+    depth = np.abs(z)  # mirrored: behind the camera (z > 0) looks like the front
+    du, dv = focal * x, -focal * y
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.minimum.reduce([np.where(depth > 0, 1.0 / depth, np.inf),
+                                   np.where(du != 0, (0.5 * w) / np.abs(du), np.inf),
+                                   np.where(dv != 0, (0.5 * h) / np.abs(dv), np.inf)])
+    scale = np.where(np.isfinite(scale), scale, 0.0)
+    seen = (z < 0) & (np.abs(du) <= 0.5 * w * depth) & (np.abs(dv) <= 0.5 * h * depth)
+    return seen, 0.5 * w + scale * du, 0.5 * h + scale * dv
+
+
+def _sample(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``image`` read bilinearly at pixel coordinates (x, y) (centres at +0.5), its edge repeated."""
+    import cv2
+
+    return cv2.remap(image, (x - 0.5).astype(np.float32), (y - 0.5).astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
+
+
+def placed_plate(plate: Plate, height: int = 64) -> EnvMap:
+    """The plate's linear pixels on the sphere as :func:`plate_light` places them (seen, edge-filled,
+    mirrored) with nothing added: no clip gain, no blur (the SH baseline of ``relight bench plates``)."""
+    import cv2
+
+    w, h = plate.size
+    longer = 4 * height  # about two plate pixels a map texel for a plate of ~100 degrees
+    size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1)) if max(w, h) > longer else (w, h)
+    linear = cv2.resize(plate.linear(), size, interpolation=cv2.INTER_AREA)
+    _, x, y = _projected(pixel_directions(height, 2 * height), plate.focal_px * size[0] / w, size)
+    return EnvMap(np.maximum(_sample(linear, x, y), 0.0), plate.source)
