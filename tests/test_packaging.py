@@ -45,14 +45,16 @@ sys.exit(main(sys.argv[1:]))
 
 
 def test_the_product_runs_without_the_lab(tmp_path):
-    """infer (automatic mask), render with refined shadows, and fit-lights, with every lab module
+    """infer (automatic mask), render with refined shadows, fit-lights, plate-light and render onto a plate, with every lab module
     unimportable: the product never imports datasets, ground truth, training or benchmarks."""
     photo = ROOT / "assets" / "photos" / "underpass.jpg"
     env_map = ROOT / "assets" / "envmaps" / "venice_sunset_256.hdr"
     for args in (["infer", str(photo), "-o", str(tmp_path / "b"), "--max-size", "320", "--size", "128"],
                  ["render", str(tmp_path / "b"), "--env", str(env_map), "--visibility", "refined", "-o", str(tmp_path / "x.png")],
-                 ["fit-lights", str(env_map), "-n", "4", "--method", "median-cut", "-o", str(tmp_path / "l.json")]):
+                 ["fit-lights", str(env_map), "-n", "4", "--method", "median-cut", "-o", str(tmp_path / "l.json")],
+                 ["plate-light", str(photo), "-o", str(tmp_path / "plate.exr")],
+                 ["render", str(tmp_path / "b"), "--plate", str(photo), "-n", "4", "-o", str(tmp_path / "on_plate.png")]):
         res = subprocess.run([sys.executable, "-c", _WITHOUT_LAB, *args], capture_output=True, text=True,
                              env={**os.environ, "RELIGHT_CACHE": str(tmp_path / "cache")})
         assert res.returncode == 0, res.stderr[-2000:]
-    assert (tmp_path / "x.png").is_file() and (tmp_path / "l.json").is_file()
+    assert (tmp_path / "x.png").is_file() and (tmp_path / "l.json").is_file() and (tmp_path / "on_plate.png").is_file()

@@ -102,3 +102,72 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
         assert all(np.isfinite(v) and v > 0 for p in row["people"].values() for v in p.values())
         assert row["plate_light_seconds"] < 2.0
     assert result["summary"]["estimate"] < result["summary"]["uniform"]
+
+
+def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():
+    from viewer.output.plate_composite import composite_on_plate
+    from viewer.plate.placement import placement, plate_transform
+
+    rng = np.random.default_rng(5)
+    plate_srgb = rng.integers(0, 256, (300, 400, 3), dtype=np.uint8)
+    from viewer.files.imageio import linear_to_srgb, srgb_to_linear
+
+    plate = srgb_to_linear(plate_srgb / 255.0)
+    frame = np.zeros((200, 100, 4), np.float32)  # a person 150 px tall, feet at row 180, centred at x 50
+    frame[30:180, 40:60] = (0.5, 0.4, 0.3, 1.0)
+    share = np.zeros((100, 50, 3), np.float32)  # the ground's shadow share, at half the frame's size
+    share[88:92, 25:45] = 0.5  # a shadow beside the feet
+    place = placement((0.25, 0.9), 0.5)
+    t = plate_transform(frame[..., 3], place, (400, 300))
+    out = composite_on_plate(plate, frame, share, t)
+    person = out.person[..., 3] > 0.5
+    rows, cols = np.flatnonzero(person.any(axis=1)), np.flatnonzero(person.any(axis=0))
+    assert abs((rows[-1] + 1) - 0.9 * 300) <= 1.5 and abs((rows[-1] - rows[0] + 1) - 0.5 * 300) <= 2
+    assert abs(0.5 * (cols[0] + cols[-1] + 1) - 0.25 * 400) <= 1.5
+    inside = out.person[..., 3] > 0.999
+    assert inside.sum() > 0.8 * person.sum()
+    np.testing.assert_allclose(out.image[inside], np.broadcast_to([0.5, 0.4, 0.3], (int(inside.sum()), 3)), atol=1e-5)
+    shaded = out.shadow[..., 0] < 0.99
+    assert shaded.any() and out.shadow.min() == pytest.approx(0.5, abs=0.01)
+    untouched = ~shaded & (out.person[..., 3] == 0)
+    back = np.round(np.clip(linear_to_srgb(out.image), 0, 1) * 255).astype(np.uint8)
+    assert np.array_equal(back[untouched], plate_srgb[untouched])  # the plate's own 8 bits come back
+    # default: feet at 0.88 below a level horizon: a 1.7 m person seen from 1.6 m
+    assert placement().height == pytest.approx((0.88 - 0.5) * 1.7 / 1.6)
+    with pytest.raises(InputError, match="above the horizon"):
+        placement((0.5, 0.3))
+    with pytest.raises(InputError, match="wholly off the plate"):
+        plate_transform(frame[..., 3], placement((3.0, 0.9), 0.5), (400, 300))
+
+
+def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
+    """The bundled photo's person put into a plate made of a map with a low sun (its own map lights
+    it: the shadow falls on the plate's ground) and lit by the plate alone."""
+    import OpenEXR
+
+    from viewer.photo.inference import cached_bundle
+
+    bundle, _ = cached_bundle(asset_dir() / "photos" / "underpass.jpg")
+    rooitou = SHARED_DATA / "hdri" / "rooitou_park_1k.hdr"
+    make_plate(load_envmap(rooitou), 120.0, tmp_path / "plate.jpg")
+    done = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "in.png"),
+                   "--env", str(rooitou), "--yaw", "120", "--layers", "--at", "0.4,0.9")
+    assert done.returncode == 0, done.stderr
+    image = np.asarray(Image.open(tmp_path / "in.png"))
+    plate = np.asarray(Image.open(tmp_path / "plate.jpg"))
+    assert image.shape == plate.shape
+    channels = OpenEXR.File(str(tmp_path / "in.exr")).channels()
+    assert {"RGB", "person", "shadow", "plate"} <= set(channels)
+    alpha, shadow = channels["person"].pixels[..., 3], channels["shadow"].pixels
+    assert alpha.max() == pytest.approx(1.0) and shadow.min() < 0.6  # a real shadow on the ground
+    feet_row = np.flatnonzero((alpha > 0.5).any(axis=1))[-1]
+    assert abs(feet_row + 1 - 0.9 * 640) <= 3
+    far = (alpha == 0) & (shadow.min(axis=-1) > 0.999)
+    assert np.abs(image[far].astype(int) - plate[far]).max() <= 1  # the plate as it was where nothing falls
+    lit = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "lit.png"))
+    assert lit.returncode == 0 and "lit by the plate" in lit.stdout, lit.stderr
+    off = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "off.png"), "--at", "2,2",
+                  "--height", "0.3")
+    assert off.returncode == 2 and "wholly off the plate" in off.stderr and not (tmp_path / "off.png").exists()
+    alone = run_cli("render", str(bundle), "--env", str(rooitou), "-o", str(tmp_path / "x.png"), "--at", "0.5,0.9")
+    assert alone.returncode == 2 and "give --plate" in alone.stderr

@@ -101,12 +101,22 @@ def cmd_render(args) -> int:
     from viewer.scene.clip_bundle import is_clip_bundle
 
     look = command_look(args)
+    if not args.plate:
+        for option in ("at", "height", "horizon"):
+            if getattr(args, option) is not None:
+                raise InputError(None, f"--{option} places the person on a plate: give --plate PHOTO")
     if is_clip(args.scene) or is_clip_bundle(args.scene):
+        if args.plate:
+            raise InputError(args.plate, "a plate takes a photo's bundle: a clip on a plate is not made yet")
         from viewer.cli.clip_commands import cmd_render_clip
 
         check_video(args)
         return cmd_render_clip(args, look)
     not_a_clip_range(args, args.scene)
+    if args.plate:
+        from viewer.cli.plate_commands import cmd_render_plate
+
+        return cmd_render_plate(args, look)
     if args.layers or args.per_light:
         raise InputError(None, "--layers writes a clip's layers (an EXR sequence): for a photo's, use relight batch --layers")
     out = Path(args.output)

@@ -49,6 +49,14 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--layers", action="store_true", help="a clip: also each frame's layers for compositors, an EXR "
                    "sequence in NAME.layers/ beside NAME.mp4 (docs/video.md; a photo's: relight batch --layers)")
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
+    p.add_argument("--plate", help="a background photo to put the person into, lit by the plate's own light (or --env's), "
+                                   "standing on its ground with their shadow; OUT.png and OUT.exr (docs/plates.md)")
+    p.add_argument("--at", help="with --plate: where the feet stand, X,Y as fractions of the plate's width and height "
+                                "(default 0.5,0.88)")
+    p.add_argument("--height", type=float, help="with --plate: the person's height as a fraction of the plate's (default: "
+                                                "what a 1.7 m person at --at is, seen from eye height)")
+    p.add_argument("--horizon", type=float, help="with --plate: the horizon's height, a fraction of the plate's from its top "
+                                                 "(default 0.5, a level camera)")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)
     add_view_args(p)

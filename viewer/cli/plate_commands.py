@@ -1,11 +1,15 @@
-"""``relight plate-light PLATE -o MAP.exr``: the light read from a background photo, as an HDR map
-(:mod:`viewer.plate.plate_light`), to inspect, edit and use as any map (``--env MAP.exr``)."""
+"""The plate commands: ``relight plate-light PLATE -o MAP.exr`` (the light read from a background photo,
+as an HDR map, :mod:`viewer.plate.plate_light`, to inspect, edit and use as any map) and ``relight
+render BUNDLE --plate PLATE -o OUT.png`` (the person relit by that light and composited into the
+plate, standing on its ground with their shadow: :mod:`viewer.output.plate_composite`)."""
 
 from __future__ import annotations
 
 import json
 import time
 from pathlib import Path
+
+import numpy as np
 
 from viewer.cli.output_paths import not_an_input, writable
 from viewer.errors import InputError
@@ -36,4 +40,90 @@ def cmd_plate_light(args) -> int:
           f"in {seconds:.2f} s")
     if args.record:
         print(json.dumps(record))
+    return 0
+
+
+def at_option(text: str | None) -> tuple[float, float] | None:
+    """``--at X,Y``: two numbers (fractions of the plate's width and height)."""
+    if text is None:
+        return None
+    try:
+        x, y = (float(v) for v in str(text).split(","))
+    except ValueError:
+        raise InputError(None, f"--at takes X,Y (the feet, fractions of the plate's width and height), got {text!r}") from None
+    return x, y
+
+
+def cmd_render_plate(args, look) -> int:
+    """``relight render BUNDLE --plate PLATE -o OUT.png``: the person relit by the plate's light (or
+    ``--env``'s) and composited into it, standing on its ground with their shadow; OUT.exr beside it
+    (linear; with ``--layers``, the person and the shadow as layers too)."""
+    from dataclasses import replace
+
+    from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare
+    from viewer.files.imageio import linear_to_srgb, write_png
+    from viewer.gl import Engine, create_headless_context
+    from viewer.lighting.envmap import EnvMap
+    from viewer.output.layers import write_layers
+    from viewer.output.plate_composite import composite_on_plate
+    from viewer.output.render import resolve_exposure
+    from viewer.plate.placement import placement, plate_transform
+    from viewer.plate.plate_file import read_plate
+    from viewer.plate.plate_light import plate_light
+    from viewer.scene.look import AUTO
+    from viewer.scene.resampling import load_sized_scene
+
+    out = Path(args.output)
+    if out.suffix.lower() != ".png":
+        raise InputError(out, "a composite onto a plate is a picture: give a .png output path (its EXR goes beside it)")
+    writable(out)
+    outputs = [out, out.with_suffix(".exr")]
+    not_an_input(outputs, [args.scene, args.plate, args.envmap, args.lights])
+    refuse_foreign(outputs, args.force)
+    place = placement(at_option(args.at), args.height, args.horizon)
+    notes: list = []
+    plate = read_plate(args.plate, notes)
+    start = time.perf_counter()
+    if args.envmap or args.lights:  # the user's own light; the plate only the backdrop
+        scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
+        light_from = str(args.envmap or args.lights)
+    else:
+        scene = load_sized_scene(args.scene, getattr(args, "size", None), None)
+        env, record = plate_light(plate)
+        lights, _ = fitted_lights(EnvMap(env.pixels, str(args.plate)), lights_count(args, look), args.method)
+        light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
+        look = replace(look, yaw=0.0, tilt=0.0)  # the plate's light is in its camera's frame already
+    if scene.frame is None and scene.photo is None:
+        raise InputError(args.scene, "a plate takes a photo's bundle (relight infer PHOTO) or the sample scene")
+    own = args.envmap or args.lights
+    ground = getattr(args, "ground", None) is not False  # the plate's ground catches the shadow unless --no-ground
+    look = replace(look, background="transparent", ground=ground, exposure=AUTO if own else 0.0)
+    engine = Engine(create_headless_context(), scene, engine_options(args, look))
+    try:
+        engine.set_lights(lights)
+        look = resolve_exposure(engine, scene, look)  # the user's map: the person keeps the photo's brightness
+        engine.set_look(look)
+        engine.render()
+        person = engine.output.read_hdr_rgba()
+        person[..., :3] *= 2.0 ** float(look.exposure)
+        shadow = engine.output.read_ground_shadow() if ground else None
+    finally:
+        engine.release()
+    alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
+    transform = plate_transform(alpha, place, plate.size)
+    result = composite_on_plate(plate.linear(), person, shadow, transform)
+    write_png(out, np.clip(linear_to_srgb(result.image), 0.0, 1.0))
+    channels = {"R": result.image[..., 0], "G": result.image[..., 1], "B": result.image[..., 2]}
+    if args.layers:
+        for k, c in enumerate("RGBA"):
+            channels[f"person.{c}"] = result.person[..., k]
+        for k, c in enumerate("RGB"):
+            channels[f"shadow.{c}"] = result.shadow[..., k]
+            channels[f"plate.{c}"] = plate.linear()[..., k]
+    write_layers(out.with_suffix(".exr"), {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()})
+    seconds = time.perf_counter() - start
+    for note in notes:
+        print(f"note: {note}")
+    print(f"wrote {out} and {out.with_suffix('.exr')} ({plate.size[0]}x{plate.size[1]}; lit by {light_from}; the feet at "
+          f"{place.x:g},{place.y:g}, {place.height:.2f} of the plate's height; {seconds:.1f} s)")
     return 0

@@ -1,0 +1,78 @@
+"""The relit person composited into a plate, in the plate's linear light.
+
+    composite = plate x shadow x (1 - alpha) + person
+
+``person`` is the relit person premultiplied by its matte (the engine's ``read_hdr_rgba``), ``shadow``
+the ground's light left by the person (1 minus the share the ground shadow pass says the person
+takes away: a shadow catcher), both brought from the person's frame into the plate by the
+placement's scale and offset (:mod:`viewer.plate.placement`): shrunk by area first where the person
+gets smaller (no aliasing at the hair), then moved by bilinear interpolation to the sub-pixel
+offset. The plate's own pixels are untouched outside the person and their shadow, so the plate
+comes back as it was (sRGB in, linear, sRGB out: the same 8 bits).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viewer.plate.placement import PlateTransform
+
+
+@dataclass(frozen=True)
+class PlateComposite:
+    """The composite (H, W, 3) linear, and its layers for compositors at the plate's size: the person
+    premultiplied with its matte (H, W, 4), the shadow as a multiplier of the plate (H, W, 3)."""
+
+    image: np.ndarray
+    person: np.ndarray
+    shadow: np.ndarray
+
+
+def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[int, int], border: float = 0.0) -> np.ndarray:
+    """``image`` (h, w, C) float32 of the person's frame brought into the plate (its size (W, H)),
+    ``border`` where the frame does not reach."""
+    import cv2
+
+    src = np.ascontiguousarray(image, np.float32)
+    scale = transform.scale
+    if scale < 1.0:  # area first, so a person made smaller keeps its edges without aliasing
+        h, w = src.shape[:2]
+        size = (max(int(round(w * scale)), 1), max(int(round(h * scale)), 1))
+        src = cv2.resize(src, size, interpolation=cv2.INTER_AREA)
+        if src.ndim == 2:
+            src = src[..., None]
+        rest = (size[0] / w, size[1] / h)
+        matrix = np.array([[scale / rest[0], 0.0, transform.offset[0]], [0.0, scale / rest[1], transform.offset[1]]])
+    else:
+        matrix = transform.matrix()
+    channels = src.shape[2] if src.ndim == 3 else 1
+    out = []
+    for c in range(0, channels, 4):  # OpenCV warps up to 4 channels at a time
+        part = src[..., c:c + 4] if src.ndim == 3 else src
+        warped = cv2.warpAffine(part, matrix, plate_size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                borderValue=(border,) * 4)
+        out.append(warped.reshape(plate_size[1], plate_size[0], -1))
+    return np.concatenate(out, axis=-1)
+
+
+def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow_share: np.ndarray | None,
+                       transform: PlateTransform) -> PlateComposite:
+    """The person (premultiplied RGBA, the frame's size) and the ground's shadow share (any size over
+    the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3)."""
+    import cv2
+
+    h, w = plate_linear.shape[:2]
+    person = np.clip(np.nan_to_num(into_plate(person_rgba, transform, (w, h)), nan=0.0, posinf=0.0), 0.0, None)
+    person[..., 3] = np.clip(person[..., 3], 0.0, 1.0)
+    if shadow_share is not None:
+        fh, fw = person_rgba.shape[:2]
+        share = cv2.resize(np.ascontiguousarray(shadow_share, np.float32), (fw, fh), interpolation=cv2.INTER_LINEAR)
+        shadow = np.clip(1.0 - into_plate(share.reshape(fh, fw, -1), transform, (w, h)), 0.0, 1.0)
+        if shadow.shape[2] == 1:
+            shadow = np.repeat(shadow, 3, axis=2)
+    else:
+        shadow = np.ones((h, w, 3), np.float32)
+    image = plate_linear * shadow * (1.0 - person[..., 3:4]) + person[..., :3]
+    return PlateComposite(image.astype(np.float32), person.astype(np.float32), shadow.astype(np.float32))

@@ -1,0 +1,97 @@
+"""Where the person stands in the plate, and how large: ``--at X,Y`` (the feet, as fractions of the
+plate's width and height) and ``--height H`` (the person's height as a fraction of the plate's).
+
+The default follows the plate's camera. A camera at eye height ``CAMERA_HEIGHT_M`` sees the ground
+below its horizon; a person of ``PERSON_HEIGHT_M`` standing with their feet ``d`` below the horizon
+in the picture (a fraction of its height) is ``d * PERSON_HEIGHT_M / CAMERA_HEIGHT_M`` of it tall,
+whatever the lens or the distance (both scale alike). The horizon is ``--horizon Y``, else the
+middle of a level camera's picture. Without ``--at``, the feet stand at ``DEFAULT_FEET`` of the
+plate's height, centred.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from viewer.errors import InputError
+
+PERSON_HEIGHT_M = 1.7
+CAMERA_HEIGHT_M = 1.6  # a plate taken at eye height
+DEFAULT_FEET = 0.88  # of the plate's height, from its top
+LEVEL_HORIZON = 0.5  # a level camera's horizon, of the plate's height
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The feet at (``x``, ``y``) of the plate's width and height; the person ``height`` of its height tall."""
+
+    x: float
+    y: float
+    height: float
+
+    def to_json(self) -> dict:
+        return {"at": [round(self.x, 4), round(self.y, 4)], "height": round(self.height, 4)}
+
+
+def placement(at: tuple[float, float] | None = None, height: float | None = None, horizon: float | None = None) -> Placement:
+    """The person's place in the plate from the options given, the rest as the module says; one line
+    for what cannot be (feet at or above the horizon with no height given, a height of 0)."""
+    horizon = LEVEL_HORIZON if horizon is None else float(horizon)
+    x, y = (0.5, DEFAULT_FEET) if at is None else (float(at[0]), float(at[1]))
+    for name, value in (("--at", x), ("--at", y), ("--horizon", horizon)):
+        if not np.isfinite(value):
+            raise InputError(None, f"{name} must be finite, got {value}")
+    if height is None:
+        if y <= horizon:
+            raise InputError(None, f"--at {x:g},{y:g}: the feet are at or above the horizon ({horizon:g} of the plate's "
+                                   "height), where no ground is; give --height, or --horizon")
+        height = (y - horizon) * PERSON_HEIGHT_M / CAMERA_HEIGHT_M
+    if not (np.isfinite(height) and 0.0 < height <= 10.0):
+        raise InputError(None, f"--height must be a fraction of the plate's height in (0, 10], got {height}")
+    return Placement(x, y, float(height))
+
+
+@dataclass(frozen=True)
+class PlateTransform:
+    """The person's frame into the plate: plate pixel = ``scale`` * frame pixel + ``offset`` (x, y)."""
+
+    scale: float
+    offset: tuple[float, float]
+
+    def matrix(self) -> np.ndarray:
+        return np.array([[self.scale, 0.0, self.offset[0]], [0.0, self.scale, self.offset[1]]], np.float64)
+
+
+def feet(alpha: np.ndarray) -> tuple[float, float, float]:
+    """(x, y, height) in the frame's pixels: the middle of the person's lowest rows (their feet), the
+    bottom of the person, and the person's height (the matte above 0.5)."""
+    person = alpha > 0.5
+    rows = np.flatnonzero(person.any(axis=1))
+    if rows.size == 0:
+        raise InputError(None, "the person's matte is empty: nothing to place on the plate")
+    top, bottom = int(rows[0]), int(rows[-1])
+    low = person[max(bottom - max((bottom - top) // 50, 1), top):bottom + 1]
+    xs = np.flatnonzero(low.any(axis=0))
+    return float(0.5 * (xs[0] + xs[-1] + 1)), float(bottom + 1), float(bottom - top + 1)
+
+
+def plate_transform(alpha: np.ndarray, place: Placement, plate_size: tuple[int, int]) -> PlateTransform:
+    """The transform that stands the person of the frame's matte ``alpha`` where ``place`` says in a
+    plate of ``plate_size`` = (w, h); one line when the person would land wholly off the plate."""
+    fx, fy, tall = feet(alpha)
+    w, h = plate_size
+    scale = place.height * h / tall
+    offset = (place.x * w - scale * fx, place.y * h - scale * fy)
+    fh, fw = alpha.shape
+    x0, y0 = offset
+    x1, y1 = offset[0] + scale * fw, offset[1] + scale * fh
+    person = alpha > 0.5
+    rows, cols = np.flatnonzero(person.any(axis=1)), np.flatnonzero(person.any(axis=0))
+    px0, px1 = x0 + scale * cols[0], x0 + scale * (cols[-1] + 1)
+    py0, py1 = y0 + scale * rows[0], y0 + scale * (rows[-1] + 1)
+    if px1 <= 0 or py1 <= 0 or px0 >= w or py0 >= h or x1 <= x0 or y1 <= y0:
+        raise InputError(None, f"--at {place.x:g},{place.y:g} with --height {place.height:g} puts the person wholly off "
+                               "the plate: give --at within [0, 1]")
+    return PlateTransform(scale, offset)
