@@ -171,3 +171,30 @@ def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     assert off.returncode == 2 and "wholly off the plate" in off.stderr and not (tmp_path / "off.png").exists()
     alone = run_cli("render", str(bundle), "--env", str(rooitou), "-o", str(tmp_path / "x.png"), "--at", "0.5,0.9")
     assert alone.returncode == 2 and "give --plate" in alone.stderr
+
+
+def test_the_plates_grain_and_defocus_are_measured_and_given_to_the_person():
+    import cv2
+
+    from viewer.plate.placement import placement
+    from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
+
+    rng = np.random.default_rng(9)
+    yy, xx = np.mgrid[:400, :600]
+    smooth = np.stack([60 + 0.2 * xx, 80 + 0.1 * yy, 120 + 0.05 * (xx + yy)], axis=-1)
+    for sigma in (0.0, 4.0):
+        noisy = np.clip(np.round(smooth + rng.normal(0, sigma, smooth.shape)), 0, 255).astype(np.uint8)
+        assert grain_levels(noisy) == pytest.approx(np.full(3, sigma), abs=0.35 + 0.1 * sigma)
+    tiles = ((xx // 25 + yy // 25) % 2 * 160 + 40).astype(np.uint8)
+    sharp = np.repeat(tiles[..., None], 3, axis=-1)
+    place = placement((0.5, 0.9), 0.6)
+    assert feet_blur(sharp, place) < 1.0
+    soft = cv2.GaussianBlur(sharp, (0, 0), 3.0)
+    assert feet_blur(soft, place) == pytest.approx(3.0, abs=1.0)
+    coverage = np.zeros((400, 600), np.float32)
+    coverage[100:300, 200:400] = 1.0
+    flat = np.full((400, 600, 3), 0.5, np.float32)
+    grained = with_grain(flat, coverage, np.full(3, 4.0, np.float32))
+    assert np.array_equal(grained[coverage == 0], flat[coverage == 0])
+    assert np.std(grained[coverage == 1] * 255) == pytest.approx(4.0, rel=0.1)
+    assert np.array_equal(grained, with_grain(flat, coverage, np.full(3, 4.0, np.float32)))  # the same on every run

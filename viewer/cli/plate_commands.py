@@ -70,6 +70,7 @@ def cmd_render_plate(args, look) -> int:
     from viewer.plate.placement import placement, plate_transform
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
+    from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
     from viewer.scene.look import AUTO
     from viewer.scene.resampling import load_sized_scene
 
@@ -111,8 +112,9 @@ def cmd_render_plate(args, look) -> int:
         engine.release()
     alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
     transform = plate_transform(alpha, place, plate.size)
-    result = composite_on_plate(plate.linear(), person, shadow, transform)
-    write_png(out, np.clip(linear_to_srgb(result.image), 0.0, 1.0))
+    blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
+    result = composite_on_plate(plate.linear(), person, shadow, transform, blur)
+    write_png(out, with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], grain))
     channels = {"R": result.image[..., 0], "G": result.image[..., 1], "B": result.image[..., 2]}
     if args.layers:
         for k, c in enumerate("RGBA"):
@@ -125,5 +127,6 @@ def cmd_render_plate(args, look) -> int:
     for note in notes:
         print(f"note: {note}")
     print(f"wrote {out} and {out.with_suffix('.exr')} ({plate.size[0]}x{plate.size[1]}; lit by {light_from}; the feet at "
-          f"{place.x:g},{place.y:g}, {place.height:.2f} of the plate's height; {seconds:.1f} s)")
+          f"{place.x:g},{place.y:g}, {place.height:.2f} of the plate's height; the plate's defocus there {blur:.1f} px and grain "
+          f"{float(grain.mean()):.1f} levels given to the person; {seconds:.1f} s)")
     return 0

@@ -1,4 +1,4 @@
-"""The relit person composited into a plate, in the plate's linear light.
+"""The relit person composited into a plate, in the plate's linear light, blurred as the plate is where they stand.
 
     composite = plate x shadow x (1 - alpha) + person
 
@@ -58,13 +58,16 @@ def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[i
 
 
 def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow_share: np.ndarray | None,
-                       transform: PlateTransform) -> PlateComposite:
+                       transform: PlateTransform, blur: float = 0.0) -> PlateComposite:
     """The person (premultiplied RGBA, the frame's size) and the ground's shadow share (any size over
-    the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3)."""
+    the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3); the person's layer
+    blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.plate_match`)."""
     import cv2
 
     h, w = plate_linear.shape[:2]
     person = np.clip(np.nan_to_num(into_plate(person_rgba, transform, (w, h)), nan=0.0, posinf=0.0), 0.0, None)
+    if blur >= 0.3:  # premultiplied: the edge softens with the colour it carries, no dark or bright fringe
+        person = cv2.GaussianBlur(person, (0, 0), float(blur))
     person[..., 3] = np.clip(person[..., 3], 0.0, 1.0)
     if shadow_share is not None:
         fh, fw = person_rgba.shape[:2]

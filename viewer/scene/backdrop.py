@@ -27,8 +27,9 @@ BANDS = 32  # rows of latitude blurred alike (their longitude sigma differs by t
 
 
 def photo_blur(photo: np.ndarray, alpha: np.ndarray) -> float:
-    """The Gaussian sigma (pixels) of the photo's far background's defocus: the median over its
-    strongest edges of the re-blur estimate; 0 when it has too few edges to tell."""
+    """The Gaussian sigma (pixels) of the photo's far background's defocus: :func:`edge_blur` over
+    the background above the middle of the person, farther than a twentieth of their height from
+    them (the ground near the feet is in focus); 0 when it has too few edges to tell."""
     import cv2
 
     person = alpha > 0.5
@@ -36,8 +37,17 @@ def photo_blur(photo: np.ndarray, alpha: np.ndarray) -> float:
     if rows.size == 0:
         return 0.0
     far = cv2.distanceTransform((~person).astype(np.uint8), cv2.DIST_L2, 5) > 0.05 * (rows[-1] - rows[0] + 1)
-    far[(rows[0] + rows[-1]) // 2:] = False  # the ground near the feet is in focus: look above
-    if not far.any():
+    far[(rows[0] + rows[-1]) // 2:] = False
+    return edge_blur(photo, far)
+
+
+def edge_blur(photo: np.ndarray, region: np.ndarray) -> float:
+    """The Gaussian sigma (pixels) of the defocus of ``photo`` (H, W, 3) uint8 over ``region`` (H, W)
+    bool: the median over the region's strongest edges of the re-blur estimate (Zhuo and Sim 2011);
+    0 when the region has too few edges to tell."""
+    import cv2
+
+    if not region.any():
         return 0.0
 
     def gradient(x):
@@ -45,8 +55,8 @@ def photo_blur(photo: np.ndarray, alpha: np.ndarray) -> float:
 
     grey = cv2.GaussianBlur(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0, (0, 0), PRESMOOTH)
     g1, g2 = gradient(grey), gradient(cv2.GaussianBlur(grey, (0, 0), REBLUR))
-    strong = g1 >= max(float(np.percentile(g1[far], EDGE_PERCENTILE)), 1e-3)
-    edges = far & strong & (g1 == cv2.dilate(g1, np.ones((3, 3), np.uint8))) & (g2 > 1e-4)
+    strong = g1 >= max(float(np.percentile(g1[region], EDGE_PERCENTILE)), 1e-3)
+    edges = region & strong & (g1 == cv2.dilate(g1, np.ones((3, 3), np.uint8))) & (g2 > 1e-4)
     ratio = g1[edges] / g2[edges]
     ratio = ratio[ratio > 1.0 + 1e-4]
     if ratio.size < MIN_EDGES:

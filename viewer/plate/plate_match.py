@@ -1,0 +1,62 @@
+"""The person matched to the plate's camera: the plate's defocus where the feet stand, and its grain.
+
+A person rendered into a plate is as sharp and as clean as the renderer makes them; the plate is
+not. Two measures of the plate, each from a well-known estimator:
+
+- **defocus at the feet** (:func:`feet_blur`): the re-blur estimate of Zhuo and Sim (2011)
+  (:func:`viewer.scene.backdrop.edge_blur`, the backdrop's own) over the plate around where the feet
+  stand (as wide as the person is tall, from a quarter of their height above the feet to a twentieth
+  below): the ground there is at the person's depth. The person's layer is blurred by that sigma.
+- **grain** (:func:`grain_levels`): Immerkaer's (1996) fast noise estimate, the mean absolute response
+  of the Laplacian difference kernel (which cancels any plane and most smooth shading), over the
+  plate's flatter half (its gradients below their median, so edges are not taken for noise), per
+  channel, in 8-bit levels. Gaussian noise of that size is added to the person where they cover the
+  plate, in the 8-bit picture (the EXR stays clean: compositors add their own grain).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from viewer.plate.placement import Placement
+from viewer.scene.backdrop import edge_blur
+
+NOISE_KERNEL = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+GRAIN_SEED = 47  # the grain is the same on every run of the same composite
+
+
+def grain_levels(srgb: np.ndarray) -> np.ndarray:
+    """(3,) the plate's noise sigma per channel, in 8-bit levels (Immerkaer 1996, over its flatter half)."""
+    import cv2
+
+    img = srgb.astype(np.float32)
+    grey = cv2.cvtColor(srgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    gradient = np.hypot(cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3))
+    flat = gradient[1:-1, 1:-1] <= np.median(gradient[1:-1, 1:-1])
+    out = []
+    for c in range(3):
+        response = np.abs(cv2.filter2D(img[..., c], cv2.CV_32F, NOISE_KERNEL))[1:-1, 1:-1]
+        out.append(math.sqrt(math.pi / 2.0) * float(response[flat].mean()) / 6.0 if flat.any() else 0.0)
+    return np.array(out, np.float32)
+
+
+def feet_blur(srgb: np.ndarray, place: Placement) -> float:
+    """The plate's defocus sigma (pixels) around where the feet stand (:mod:`viewer.plate.plate_match`)."""
+    h, w = srgb.shape[:2]
+    tall = place.height * h
+    x, y = place.x * w, place.y * h
+    region = np.zeros((h, w), bool)
+    rows = slice(int(np.clip(y - 0.25 * tall, 0, h)), int(np.clip(y + 0.05 * tall, 0, h)))
+    cols = slice(int(np.clip(x - 0.5 * tall, 0, w)), int(np.clip(x + 0.5 * tall, 0, w)))
+    region[rows, cols] = True
+    return edge_blur(srgb, region)
+
+
+def with_grain(srgb: np.ndarray, coverage: np.ndarray, levels: np.ndarray) -> np.ndarray:
+    """``srgb`` (H, W, 3) float in [0, 1] with Gaussian noise of ``levels`` (8-bit levels, per channel)
+    added in proportion to ``coverage`` (H, W) in [0, 1]; the same noise on every run."""
+    rng = np.random.default_rng(GRAIN_SEED)
+    noise = rng.standard_normal(srgb.shape).astype(np.float32) * (levels / 255.0)
+    return np.clip(srgb + noise * coverage[..., None], 0.0, 1.0)
