@@ -134,6 +134,11 @@ def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():
     assert np.array_equal(back[untouched], plate_srgb[untouched])  # the plate's own 8 bits come back
     # default: feet at 0.88 below a level horizon: a 1.7 m person seen from 1.6 m
     assert placement().height == pytest.approx((0.88 - 0.5) * 1.7 / 1.6)
+    from viewer.plate.placement import camera_mismatch
+
+    assert camera_mismatch(placement()) is None and camera_mismatch(placement((0.5, 0.9), 0.5)) is None
+    assert "4.2 m above the ground" in camera_mismatch(placement((0.5, 0.9), 0.16))  # a tiny person near the feet: seen from high
+    assert "at or above the plate's horizon" in camera_mismatch(placement((0.5, 0.4), 0.3))
     with pytest.raises(InputError, match="above the horizon"):
         placement((0.5, 0.3))
     with pytest.raises(InputError, match="wholly off the plate"):

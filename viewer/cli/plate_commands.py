@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +68,7 @@ def cmd_render_plate(args, look) -> int:
     from viewer.output.layers import write_layers
     from viewer.output.plate_composite import composite_on_plate
     from viewer.output.render import resolve_exposure
-    from viewer.plate.placement import placement, plate_transform
+    from viewer.plate.placement import camera_mismatch, placement, plate_transform
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
     from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
@@ -82,6 +83,9 @@ def cmd_render_plate(args, look) -> int:
     not_an_input(outputs, [args.scene, args.plate, args.envmap, args.lights])
     refuse_foreign(outputs, args.force)
     place = placement(at_option(args.at), args.height, args.horizon)
+    mismatch = camera_mismatch(place, args.horizon)
+    if mismatch:
+        warnings.warn(f"{args.plate}: {mismatch}", stacklevel=2)
     notes: list = []
     plate = read_plate(args.plate, notes)
     start = time.perf_counter()

@@ -53,6 +53,29 @@ def placement(at: tuple[float, float] | None = None, height: float | None = None
     return Placement(x, y, float(height))
 
 
+MISMATCH = 2.0  # the plate's camera this many times higher or lower than eye height, where the person stands: warned
+
+
+def camera_mismatch(place: Placement, horizon: float | None = None) -> str | None:
+    """A line when the placement makes the plate's camera stand far from eye height where the person
+    stands (their photo was taken about there, so their perspective would not match): a person of
+    ``PERSON_HEIGHT_M`` whose feet are ``d`` below the horizon and who is ``H`` tall (fractions of the
+    plate's height) is seen from ``PERSON_HEIGHT_M d / H`` metres; None when it is within ``MISMATCH``
+    times ``CAMERA_HEIGHT_M``."""
+    horizon = LEVEL_HORIZON if horizon is None else float(horizon)
+    below = place.y - horizon
+    if below <= 0:
+        return (f"the feet stand at or above the plate's horizon ({horizon:g}): the plate's camera looks up at the ground "
+                "there, the person's photo did not; their perspective will not match (give --horizon if it is elsewhere)")
+    height = PERSON_HEIGHT_M * below / place.height
+    if height > MISMATCH * CAMERA_HEIGHT_M or height < CAMERA_HEIGHT_M / MISMATCH:
+        fix = "a taller" if height < CAMERA_HEIGHT_M else "a shorter"
+        return (f"placed so, the plate's camera is {height:.1f} m above the ground where the person stands, the person's "
+                f"photo about {CAMERA_HEIGHT_M:g} m: their perspective will not match ({fix} --height, or --horizon where "
+                "the plate's horizon is)")
+    return None
+
+
 @dataclass(frozen=True)
 class PlateTransform:
     """The person's frame into the plate: plate pixel = ``scale`` * frame pixel + ``offset`` (x, y)."""
