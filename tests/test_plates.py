@@ -81,6 +81,8 @@ def test_plate_light_writes_a_map_to_use_as_any(tmp_path):
     again = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "light.exr"), "--height", "64")
     assert again.returncode == 0 and load_envmap(tmp_path / "light.exr").pixels.shape == (64, 128, 3)  # its own file: replaced
     (tmp_path / "mine.exr").write_bytes((tmp_path / "light.exr").read_bytes()[:100])
+    zero = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "zero.exr"), "--height", "0")
+    assert zero.returncode == 2 and "--height" in zero.stderr and len(zero.stderr.splitlines()) == 1
     refused = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "mine.exr"))
     assert refused.returncode == 2 and "not a file relight wrote" in refused.stderr and len(refused.stderr.splitlines()) == 1
     assert (tmp_path / "mine.exr").stat().st_size == 100
@@ -143,6 +145,21 @@ def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():
         placement((0.5, 0.3))
     with pytest.raises(InputError, match="wholly off the plate"):
         plate_transform(frame[..., 3], placement((3.0, 0.9), 0.5), (400, 300))
+    with pytest.raises(InputError, match="plate pixels tall"):
+        plate_transform(frame[..., 3], placement((0.5, 0.9), 1e-4), (400, 300))
+    cut = frame.copy()
+    cut[180:, 40:60] = (0.5, 0.4, 0.3, 1.0)  # the person runs off the bottom of their photo: no feet
+    with pytest.raises(InputError, match="feet are not in it") as info:
+        plate_transform(cut[..., 3], place, (400, 300), "BUNDLE")
+    assert info.value.path == "BUNDLE"
+    assert plate_transform(cut[..., 3], place, (400, 300), "BUNDLE", cut_allowed=True).scale == pytest.approx(150 / 170)
+    # made larger (3 x): the feet still land on their row, to the pixel's edge
+    three = plate_transform(frame[..., 3], placement((0.5, 0.95), 3 * 150 / 300), (400, 300))
+    assert three.scale == pytest.approx(3.0)
+    big = composite_on_plate(plate, frame, None, three).person[..., 3]
+    column = big[:, 200]
+    # the step upsampled bilinearly: 2/3 and 1/3 either side of the edge at row 285 (half a pixel off: 1/3 and 0)
+    assert column[284] == pytest.approx(2 / 3, abs=0.02) and column[285] == pytest.approx(1 / 3, abs=0.02)
 
 
 def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
@@ -165,6 +182,9 @@ def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     assert {"RGB", "person", "shadow", "plate"} <= set(channels)
     alpha, shadow = channels["person"].pixels[..., 3], channels["shadow"].pixels
     assert alpha.max() == pytest.approx(1.0) and shadow.min() < 0.6  # a real shadow on the ground
+    colour = channels["person"].pixels[..., :3].mean(axis=-1)
+    edge, inside = (alpha > 0.01) & (alpha < 0.2), alpha > 0.99
+    assert colour[edge].mean() < 0.3 * colour[inside].mean()  # premultiplied: the hair's fringe is faint, not a halo
     feet_row = np.flatnonzero((alpha > 0.5).any(axis=1))[-1]
     assert abs(feet_row + 1 - 0.9 * 640) <= 3
     far = (alpha == 0) & (shadow.min(axis=-1) > 0.999)

@@ -16,6 +16,8 @@ from viewer.cli.output_paths import not_an_input, writable
 from viewer.errors import InputError
 from viewer.files.ownership import refuse_foreign
 
+MIN_MAP_HEIGHT, MAX_MAP_HEIGHT = 8, 4096  # plate-light's --height: a map of 16x8 to 8192x4096
+
 
 def cmd_plate_light(args) -> int:
     from viewer.lighting.envmap import save_envmap
@@ -28,6 +30,8 @@ def cmd_plate_light(args) -> int:
     writable(out)
     not_an_input([out], [args.plate])
     refuse_foreign([out], args.force)
+    if not MIN_MAP_HEIGHT <= args.height <= MAX_MAP_HEIGHT:
+        raise InputError(None, f"--height is the map's height in pixels, from {MIN_MAP_HEIGHT} to {MAX_MAP_HEIGHT}; got {args.height}")
     notes: list = []
     start = time.perf_counter()
     plate = read_plate(args.plate, notes)
@@ -62,9 +66,8 @@ def cmd_render_plate(args, look) -> int:
     from dataclasses import replace
 
     from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare
-    from viewer.files.imageio import linear_to_srgb, write_png
+    from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
     from viewer.gl import Engine, create_headless_context
-    from viewer.lighting.envmap import EnvMap
     from viewer.output.layers import write_layers
     from viewer.output.plate_composite import composite_on_plate
     from viewer.output.render import resolve_exposure
@@ -89,44 +92,46 @@ def cmd_render_plate(args, look) -> int:
     notes: list = []
     plate = read_plate(args.plate, notes)
     start = time.perf_counter()
-    if args.envmap or args.lights:  # the user's own light; the plate only the backdrop
-        scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
-        light_from = str(args.envmap or args.lights)
-    else:
-        scene = load_sized_scene(args.scene, getattr(args, "size", None), None)
-        env, record = plate_light(plate)
-        lights, _ = fitted_lights(EnvMap(env.pixels, str(args.plate)), lights_count(args, look), args.method)
-        light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
-        look = replace(look, yaw=0.0, tilt=0.0)  # the plate's light is in its camera's frame already
-    if scene.frame is None and scene.photo is None:
-        raise InputError(args.scene, "a plate takes a photo's bundle (relight infer PHOTO) or the sample scene")
     own = args.envmap or args.lights
+    if own:  # the user's own light; the plate only the backdrop
+        scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
+        light_from = str(own)
+    else:  # the plate's light, in its camera's frame (--yaw turns it as any map's)
+        scene = load_sized_scene(args.scene, getattr(args, "size", None), getattr(args, "max_size", None))
+        env, record = plate_light(plate)
+        lights, _ = fitted_lights(env, lights_count(args, look), args.method)
+        light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
+    # the plate's units: lit by its own light, exposure 0 (or the stops given); by the user's map, the
+    # exposure that keeps the photo's brightness unless one is given
+    exposure = (AUTO if own else 0.0) if look.exposure == AUTO else look.exposure
     ground = getattr(args, "ground", None) is not False  # the plate's ground catches the shadow unless --no-ground
-    look = replace(look, background="transparent", ground=ground, exposure=AUTO if own else 0.0)
+    look = replace(look, background="transparent", ground=ground, exposure=exposure)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     try:
         engine.set_lights(lights)
-        look = resolve_exposure(engine, scene, look)  # the user's map: the person keeps the photo's brightness
+        look = resolve_exposure(engine, scene, look)
         engine.set_look(look)
         engine.render()
-        person = engine.output.read_hdr_rgba()
-        person[..., :3] *= 2.0 ** float(look.exposure)
+        person = engine.output.read_hdr_rgba()  # its colour as lit, and its coverage
+        person[..., :3] *= person[..., 3:4] * 2.0 ** float(look.exposure)  # premultiplied, exposed
         shadow = engine.output.read_ground_shadow() if ground else None
     finally:
         engine.release()
     alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
-    transform = plate_transform(alpha, place, plate.size)
+    transform = plate_transform(alpha, place, plate.size, args.scene, cut_allowed=args.height is not None)
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
-    result = composite_on_plate(plate.linear(), person, shadow, transform, blur)
-    write_png(out, with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], grain))
+    linear = plate.linear()
+    result = composite_on_plate(linear, person, shadow, transform, blur)
     channels = {"R": result.image[..., 0], "G": result.image[..., 1], "B": result.image[..., 2]}
     if args.layers:
         for k, c in enumerate("RGBA"):
             channels[f"person.{c}"] = result.person[..., k]
         for k, c in enumerate("RGB"):
             channels[f"shadow.{c}"] = result.shadow[..., k]
-            channels[f"plate.{c}"] = plate.linear()[..., k]
-    write_layers(out.with_suffix(".exr"), {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()})
+            channels[f"plate.{c}"] = linear[..., k]
+    with atomic_paths(*outputs) as tmps:  # the PNG and its EXR replaced together
+        write_png(tmps[0], with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], grain))
+        write_layers(tmps[1], {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()})
     seconds = time.perf_counter() - start
     for note in notes:
         print(f"note: {note}")

@@ -19,6 +19,8 @@ import numpy as np
 
 from viewer.plate.placement import PlateTransform
 
+MAX_HALF = 65504.0  # the largest value a half-float EXR holds: a highlight brighter is clipped there
+
 
 @dataclass(frozen=True)
 class PlateComposite:
@@ -30,29 +32,25 @@ class PlateComposite:
     shadow: np.ndarray
 
 
-def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[int, int], border: float = 0.0) -> np.ndarray:
-    """``image`` (h, w, C) float32 of the person's frame brought into the plate (its size (W, H)),
-    ``border`` where the frame does not reach."""
+def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[int, int]) -> np.ndarray:
+    """``image`` (h, w, C) float32 of the person's frame brought into the plate (its size (W, H)), zero
+    where the frame does not reach. The transform is in pixel edges (a pixel spans [i, i + 1]); OpenCV
+    warps pixel centres, so each axis's offset gains half its scale less one."""
     import cv2
 
     src = np.ascontiguousarray(image, np.float32)
-    scale = transform.scale
+    scale, (ox, oy) = transform.scale, transform.offset
+    sx = sy = scale
     if scale < 1.0:  # area first, so a person made smaller keeps its edges without aliasing
         h, w = src.shape[:2]
         size = (max(int(round(w * scale)), 1), max(int(round(h * scale)), 1))
-        src = cv2.resize(src, size, interpolation=cv2.INTER_AREA)
-        if src.ndim == 2:
-            src = src[..., None]
-        rest = (size[0] / w, size[1] / h)
-        matrix = np.array([[scale / rest[0], 0.0, transform.offset[0]], [0.0, scale / rest[1], transform.offset[1]]])
-    else:
-        matrix = transform.matrix()
-    channels = src.shape[2] if src.ndim == 3 else 1
+        src = cv2.resize(src, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
+        sx, sy = scale * w / size[0], scale * h / size[1]  # the shrunk frame's pixels into the plate's
+    matrix = np.array([[sx, 0.0, ox + 0.5 * (sx - 1.0)], [0.0, sy, oy + 0.5 * (sy - 1.0)]])
     out = []
-    for c in range(0, channels, 4):  # OpenCV warps up to 4 channels at a time
-        part = src[..., c:c + 4] if src.ndim == 3 else src
-        warped = cv2.warpAffine(part, matrix, plate_size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                                borderValue=(border,) * 4)
+    for c in range(0, src.shape[2], 4):  # OpenCV warps up to 4 channels at a time
+        warped = cv2.warpAffine(src[..., c:c + 4], matrix, plate_size, flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=(0.0,) * 4)
         out.append(warped.reshape(plate_size[1], plate_size[0], -1))
     return np.concatenate(out, axis=-1)
 
@@ -65,14 +63,14 @@ def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow
     import cv2
 
     h, w = plate_linear.shape[:2]
-    person = np.clip(np.nan_to_num(into_plate(person_rgba, transform, (w, h)), nan=0.0, posinf=0.0), 0.0, None)
+    person = np.clip(np.nan_to_num(into_plate(person_rgba, transform, (w, h)), nan=0.0, posinf=MAX_HALF), 0.0, MAX_HALF)
     if blur >= 0.3:  # premultiplied: the edge softens with the colour it carries, no dark or bright fringe
         person = cv2.GaussianBlur(person, (0, 0), float(blur))
     person[..., 3] = np.clip(person[..., 3], 0.0, 1.0)
     if shadow_share is not None:
         fh, fw = person_rgba.shape[:2]
         share = cv2.resize(np.ascontiguousarray(shadow_share, np.float32), (fw, fh), interpolation=cv2.INTER_LINEAR)
-        shadow = np.clip(1.0 - into_plate(share.reshape(fh, fw, -1), transform, (w, h)), 0.0, 1.0)
+        shadow = np.clip(1.0 - np.nan_to_num(into_plate(share.reshape(fh, fw, -1), transform, (w, h)), nan=0.0), 0.0, 1.0)
         if shadow.shape[2] == 1:
             shadow = np.repeat(shadow, 3, axis=2)
     else:

@@ -31,9 +31,6 @@ class Placement:
     y: float
     height: float
 
-    def to_json(self) -> dict:
-        return {"at": [round(self.x, 4), round(self.y, 4)], "height": round(self.height, 4)}
-
 
 def placement(at: tuple[float, float] | None = None, height: float | None = None, horizon: float | None = None) -> Placement:
     """The person's place in the plate from the options given, the rest as the module says; one line
@@ -87,34 +84,42 @@ class PlateTransform:
         return np.array([[self.scale, 0.0, self.offset[0]], [0.0, self.scale, self.offset[1]]], np.float64)
 
 
-def feet(alpha: np.ndarray) -> tuple[float, float, float]:
-    """(x, y, height) in the frame's pixels: the middle of the person's lowest rows (their feet), the
-    bottom of the person, and the person's height (the matte above 0.5)."""
+MIN_PERSON_PX = 8  # a person placed smaller than this many plate pixels tall is refused
+
+
+def feet(alpha: np.ndarray, source=None, cut_allowed: bool = False) -> tuple[float, float, float, tuple]:
+    """(x, y, height, box) in the frame's pixels (edges: a pixel spans [i, i + 1]): the middle of the
+    person's lowest rows (their feet), the bottom of the person, the person's height (the matte above
+    0.5), and its box (top, bottom, left, right). A matte that reaches the frame's bottom has no feet
+    in it: one line naming ``source``, unless ``cut_allowed`` (the user gave the height)."""
     person = alpha > 0.5
     rows = np.flatnonzero(person.any(axis=1))
     if rows.size == 0:
-        raise InputError(None, "the person's matte is empty: nothing to place on the plate")
+        raise InputError(source, "the person's matte is empty: nothing to place on the plate")
     top, bottom = int(rows[0]), int(rows[-1])
+    if bottom == alpha.shape[0] - 1 and not cut_allowed:
+        raise InputError(source, "the person reaches the bottom of their photo: their feet are not in it, and a plate stands "
+                                 "a person on their feet; give --height to place them anyway (the cut edge on the ground)")
     low = person[max(bottom - max((bottom - top) // 50, 1), top):bottom + 1]
     xs = np.flatnonzero(low.any(axis=0))
-    return float(0.5 * (xs[0] + xs[-1] + 1)), float(bottom + 1), float(bottom - top + 1)
+    cols = np.flatnonzero(person.any(axis=0))
+    return float(0.5 * (xs[0] + xs[-1] + 1)), float(bottom + 1), float(bottom - top + 1), (top, bottom + 1, int(cols[0]),
+                                                                                           int(cols[-1]) + 1)
 
 
-def plate_transform(alpha: np.ndarray, place: Placement, plate_size: tuple[int, int]) -> PlateTransform:
+def plate_transform(alpha: np.ndarray, place: Placement, plate_size: tuple[int, int], source=None,
+                    cut_allowed: bool = False) -> PlateTransform:
     """The transform that stands the person of the frame's matte ``alpha`` where ``place`` says in a
-    plate of ``plate_size`` = (w, h); one line when the person would land wholly off the plate."""
-    fx, fy, tall = feet(alpha)
+    plate of ``plate_size`` = (w, h); one line when the person would land wholly off the plate, or
+    smaller than ``MIN_PERSON_PX``."""
+    fx, fy, tall, (top, bottom, left, right) = feet(alpha, source, cut_allowed)
     w, h = plate_size
+    if place.height * h < MIN_PERSON_PX:
+        raise InputError(None, f"--height {place.height:g} makes the person {place.height * h:.2g} plate pixels tall: "
+                               f"at least {MIN_PERSON_PX} are needed")
     scale = place.height * h / tall
-    offset = (place.x * w - scale * fx, place.y * h - scale * fy)
-    fh, fw = alpha.shape
-    x0, y0 = offset
-    x1, y1 = offset[0] + scale * fw, offset[1] + scale * fh
-    person = alpha > 0.5
-    rows, cols = np.flatnonzero(person.any(axis=1)), np.flatnonzero(person.any(axis=0))
-    px0, px1 = x0 + scale * cols[0], x0 + scale * (cols[-1] + 1)
-    py0, py1 = y0 + scale * rows[0], y0 + scale * (rows[-1] + 1)
-    if px1 <= 0 or py1 <= 0 or px0 >= w or py0 >= h or x1 <= x0 or y1 <= y0:
+    ox, oy = place.x * w - scale * fx, place.y * h - scale * fy
+    if ox + scale * right <= 0 or oy + scale * bottom <= 0 or ox + scale * left >= w or oy + scale * top >= h:
         raise InputError(None, f"--at {place.x:g},{place.y:g} with --height {place.height:g} puts the person wholly off "
                                "the plate: give --at within [0, 1]")
-    return PlateTransform(scale, offset)
+    return PlateTransform(scale, (ox, oy))

@@ -2,10 +2,11 @@
 
 The photo is read as every photo is (:func:`viewer.photo.photo_frame.read_image_u8`: EXIF
 orientation, ICC colours converted, 16-bit reduced to 8 with a note). The field of view comes from
-the EXIF 35-mm-equivalent focal length (tag 0xA405, which phones and most cameras write); failing
-that, from the focal length and the focal plane's resolution (0x920A with 0xA20E and its unit); else
-``DEFAULT_FOCAL_35`` (with a note), a standard lens's. A 35-mm-equivalent focal length spans the
-frame's longer side as 36 mm would.
+the EXIF 35-mm-equivalent focal length (tag 0xA405, which phones and most cameras write), else
+``DEFAULT_FOCAL_35`` (with a note), a standard lens's. It is taken to span the frame's longer side as
+36 mm would (the standard defines it by the diagonal, 43.3 mm: a 4:3 photo's field of view comes out
+about 2 degrees wider than its own). A plate over ``MAX_PLATE_PIXELS`` is refused in one line (its
+linear copies alone would take gigabytes).
 """
 
 from __future__ import annotations
@@ -19,7 +20,12 @@ from viewer.files.file_kinds import wrong_kind
 
 DEFAULT_FOCAL_35 = 35.0  # mm, 35-mm equivalent: what a plate without a focal length in its EXIF is taken as
 MIN_PLATE_PX = 16  # a plate smaller than this a side holds no light to read
+MAX_PLATE_PIXELS = 60_000_000  # 60 MP: a larger plate is refused (give a smaller copy)
 PANORAMA_ASPECT = 2.5  # a longer side this many times the shorter (a phone's panorama), or exactly 2:1 (equirectangular): no plate
+
+
+_LEVELS = np.arange(256, dtype=np.float64) / 255.0
+SRGB_TO_LINEAR = np.where(_LEVELS <= 0.04045, _LEVELS / 12.92, ((_LEVELS + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -42,10 +48,8 @@ class Plate:
         return self.focal_35 * max(self.size) / 36.0
 
     def linear(self) -> np.ndarray:
-        """(H, W, 3) float32 linear RGB in [0, 1]."""
-        from viewer.files.imageio import srgb_to_linear
-
-        return srgb_to_linear(self.srgb.astype(np.float32) / 255.0)
+        """(H, W, 3) float32 linear RGB in [0, 1] (a table lookup of the 256 sRGB levels)."""
+        return SRGB_TO_LINEAR[self.srgb]
 
 
 def exif_focal_35(exif) -> float | None:
@@ -72,8 +76,13 @@ def read_plate(path, notes: list) -> Plate:
     image = read_image_u8(path, "plate", notes)
     if image.shape[0] < MIN_PLATE_PX or image.shape[1] < MIN_PLATE_PX:
         raise InputError(path, f"is {image.shape[1]}x{image.shape[0]} pixels: a plate needs at least {MIN_PLATE_PX} a side")
+    if image.shape[0] * image.shape[1] > MAX_PLATE_PIXELS:
+        raise InputError(path, f"is {image.shape[1]}x{image.shape[0]}: more than the {MAX_PLATE_PIXELS // 1_000_000} megapixels "
+                               "a plate may have; give a smaller copy")
     if image.ndim == 2:
         image = np.repeat(image[..., None], 3, axis=-1)
+    elif image.shape[-1] == 4:
+        notes.append("the plate's alpha channel is ignored (a plate is the whole picture behind the person)")
     image = np.ascontiguousarray(image[..., :3])
     try:
         with Image.open(path) as im:

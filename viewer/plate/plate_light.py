@@ -11,7 +11,7 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    goes up to the zenith, the ground's lower edge down to the nadir), from the plate blurred by
    ``FILL_BLUR`` of its longer side (what is guessed is kept soft).
 3. **Unseen, behind the camera** (where most of the light on a person's front comes from): the front
-   mirrored through the image plane, as Khan et al. (2006) fill the sphere from one photo: a
+   mirrored through the image plane (from the blurred plate, as step 2), as Khan et al. (2006) fill the sphere from one photo: a
    street behind the camera looks like the street ahead, a room's far wall like its near one.
    This is the estimate's main guess, and where it fails: a sun or a window behind the camera, or
    a dark wall in front of a bright one, is not in the plate and not in the map.
@@ -54,13 +54,8 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
     w, h = plate.size
     texel = math.pi / height
     across = 2.0 * math.atan(max(w, h) / (2.0 * plate.focal_px))
-    longer = int(np.clip(round(2.0 * across / texel), 16, max(w, h)))  # about two plate pixels a map texel
-    size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1))
-    table = np.arange(256, dtype=np.float32) / 255.0
-    table = np.where(table <= 0.04045, table / 12.92, ((table + 0.055) / 1.055) ** 2.4).astype(np.float32)
-    linear = cv2.resize(table[plate.srgb], size, interpolation=cv2.INTER_AREA)
+    size, linear, focal = _shrunk(plate, int(np.clip(round(2.0 * across / texel), 16, max(w, h))))  # ~2 pixels a texel
     clipped = cv2.resize((plate.srgb >= CLIP).any(axis=-1).astype(np.float32), size, interpolation=cv2.INTER_AREA)
-    focal = plate.focal_px * size[0] / w
     radiance = linear * (1.0 + (CLIP_GAIN - 1.0) * clipped[..., None])
     sigma = FILL_BLUR * max(size)
     blurred = cv2.GaussianBlur(radiance, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
@@ -103,11 +98,17 @@ def _sample(image: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def placed_plate(plate: Plate, height: int = 64) -> EnvMap:
     """The plate's linear pixels on the sphere as :func:`plate_light` places them (seen, edge-filled,
     mirrored) with nothing added: no clip gain, no blur (the SH baseline of ``relight bench plates``)."""
+    size, linear, focal = _shrunk(plate, 4 * height)
+    _, x, y = _projected(pixel_directions(height, 2 * height), focal, size)
+    return EnvMap(np.maximum(_sample(linear, x, y), 0.0), plate.source)
+
+
+def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, float]:
+    """(its size (w, h), the plate's linear pixels shrunk by area to ``longer`` pixels on its longer side
+    (never enlarged), the focal length in those pixels)."""
     import cv2
 
     w, h = plate.size
-    longer = 4 * height  # about two plate pixels a map texel for a plate of ~100 degrees
-    size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1)) if max(w, h) > longer else (w, h)
-    linear = cv2.resize(plate.linear(), size, interpolation=cv2.INTER_AREA)
-    _, x, y = _projected(pixel_directions(height, 2 * height), plate.focal_px * size[0] / w, size)
-    return EnvMap(np.maximum(_sample(linear, x, y), 0.0), plate.source)
+    longer = min(longer, max(w, h))
+    size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1))
+    return size, cv2.resize(plate.linear(), size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w

@@ -34,7 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.files.imageio import linear_to_srgb, write_text
+from viewer.errors import InputError
+from viewer.files.imageio import atomic_path, linear_to_srgb, write_text
 
 PLATE_SIZE = (960, 640)  # pixels, landscape 3:2
 PLATE_FOCAL_35 = 35.0  # mm, 35-mm equivalent (written in the plate's EXIF)
@@ -61,7 +62,8 @@ def make_plate(env, yaw: float, path: Path) -> float:
     exif.get_ifd(0x8769)[0xA405] = int(PLATE_FOCAL_35)
     buffer = io.BytesIO()
     image.save(buffer, "JPEG", quality=JPEG_QUALITY, exif=exif.tobytes())
-    path.write_bytes(buffer.getvalue())
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(buffer.getvalue())
     return scale
 
 
@@ -123,11 +125,15 @@ def run_plates_benchmark(maps_dir, output, progress=print) -> dict:
     plates_dir = output.parent / "plates"
     plates_dir.mkdir(parents=True, exist_ok=True)
     maps = sorted(p for p in Path(maps_dir).iterdir() if p.suffix.lower() in SUFFIXES and not p.name.startswith("."))
+    if not maps:
+        raise InputError(maps_dir, "holds no environment map (.hdr, .exr) to make plates of")
     ctx = create_headless_context()
     t_start = time.perf_counter()
     rows = []
+    persons = []
     try:
-        persons = [(name, scene, Engine(ctx, scene)) for name, scene in people(ctx)]
+        for name, scene in people(ctx):
+            persons.append((name, scene, Engine(ctx, scene)))
         for path in maps:
             env, true_lights = map_and_lights(path)
             for yaw in YAWS:
@@ -161,9 +167,9 @@ def run_plates_benchmark(maps_dir, output, progress=print) -> dict:
                 rows.append(row)
                 progress(f"{path.name} yaw {yaw:.0f}: person RMSE estimate {row['estimate']:.4f}, uniform {row['uniform']:.4f}, "
                          f"sh {row['sh']:.4f}" + (f"; dominant light {row['direction_deg']:.0f} deg off" if "direction_deg" in row else ""))
+    finally:
         for _, _, engine in persons:
             engine.release()
-    finally:
         ctx.release()
     directions = [r["direction_deg"] for r in rows if "direction_deg" in r]
     summary = {key: float(np.mean([r[key] for r in rows])) for key in ("estimate", "uniform", "sh")}
