@@ -175,10 +175,11 @@ def cmd_bench(args) -> int:
         print(f"peak memory grew {100 * result['growth']:.1f} % from {result['runs'][0]['seconds']:g} s to "
               f"{result['runs'][-1]['seconds']:g} s; wrote {out}")
     elif args.what == "plates":
-        from viewer.lab.bench.plates import run_plates_benchmark
+        from viewer.lab.bench.plates import heldout_maps, run_plates_benchmark
 
         out = Path(args.output or "out/bench-plates/plates.json")
-        summary = run_plates_benchmark(shared_folder(args.maps, "hdri", "--maps"), out)["summary"]
+        maps = heldout_maps(out.parent / "maps", args.procedural) if args.procedural else shared_folder(args.maps, "hdri", "--maps")
+        summary = run_plates_benchmark(maps, out)["summary"]
         print(f"person RMSE (means): estimate {summary['estimate']:.4f}, uniform {summary['uniform']:.4f} "
               f"({summary['estimate_over_uniform']:.2f} x), sh {summary['sh']:.4f} ({summary['estimate_over_sh']:.2f} x); "
               f"dominant light off by {summary['direction_deg_median']} degrees (median); wrote {out}")
@@ -375,6 +376,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "estimated from plates made of each map of --maps at three yaws, the person relit by it against the "
                         "true map, a uniform light and spherical harmonics")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
+    p.add_argument("--procedural", type=int, help="plates: instead of --maps, this many procedural maps (two of a kind at "
+                   "most, seeds from 9000), made into the output's folder: maps never looked at while the estimate was made")
     p.add_argument("--synthetic", action="store_true", help="video: also (or, without --clips, only) a clip made from the "
                    "bundled photo, and a strip of its frames (input, off, on) for the docs")
     p.add_argument("--truth", help="video: instead, the clips of a dataset made by `relight dataset make --split clip` "

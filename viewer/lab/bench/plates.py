@@ -14,14 +14,14 @@ linear units:
 - **estimate**: under the lights fitted to the estimated map (the same renderer);
 - **uniform**: a uniform light of the plate's mean linear colour (Lambert, no shadows);
 - **sh**: an order-2 spherical-harmonics light fitted to the plate's linear pixels placed on the
-  sphere as the estimate places them (seen, edge-filled, mirrored; no clip gain, no sun) (Lambert,
+  sphere as the estimate places them (seen, edge-filled, mirrored; no clip gain) (Lambert,
   no shadows; :mod:`viewer.lighting.sh`).
 
 Per plate: the RMSE of each against the truth over the person's pixels (the scene's mask at the
-maps' resolution), and where the true map has a dominant light (its strongest fitted light holds
-``DOMINANT_SHARE`` of the lights' luminance or more), the angle between it and the estimate's
-strongest light. The JSON's ``summary`` holds the means over all plates (``estimate``, ``uniform``,
-``sh``) and ``direction_deg_median``.
+maps' resolution), and where the true map has a dominant light (its strongest fitted light, with
+those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more), the
+angle between it and the estimate's strongest light (grouped the same way). The JSON's ``summary``
+holds the means over all plates (``estimate``, ``uniform``, ``sh``) and ``direction_deg_median``.
 """
 
 from __future__ import annotations
@@ -67,13 +67,19 @@ def make_plate(env, yaw: float, path: Path) -> float:
     return scale
 
 
+CLUSTER_DEG = 20.0  # lights this near the strongest are one light with it (a fit splits a sun over several)
+
+
 def strongest(lights) -> tuple[np.ndarray, float]:
-    """(the direction of the lights' strongest, its share of their summed luminance)."""
+    """(the direction of the lights' strongest, with those within ``CLUSTER_DEG`` of it, weighted by
+    luminance; their share of the lights' summed luminance)."""
     from viewer.lighting.envmap import LUMINANCE
 
-    lum = lights.intensity @ LUMINANCE.astype(np.float32)
-    k = int(np.argmax(lum))
-    return lights.direction[k].astype(np.float64), float(lum[k] / max(float(lum.sum()), 1e-30))
+    lum = (lights.intensity @ LUMINANCE.astype(np.float32)).astype(np.float64)
+    dirs = lights.direction.astype(np.float64)
+    near = dirs @ dirs[int(np.argmax(lum))] >= math.cos(math.radians(CLUSTER_DEG))
+    direction = (dirs[near] * lum[near, None]).sum(axis=0)
+    return direction / max(float(np.linalg.norm(direction)), 1e-30), float(lum[near].sum() / max(float(lum.sum()), 1e-30))
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -213,3 +219,22 @@ def figure(result: dict, maps_dir, plates_dir, path: Path) -> Path | None:
     if not rows:
         return None
     return write_jpeg(path, np.concatenate(rows, axis=0))
+
+
+def heldout_maps(folder: Path, count: int, first_seed: int = 9000) -> Path:
+    """``count`` procedural maps (:func:`viewer.lab.data.envmaps.random_map`, 1024 wide, two of a kind at
+    most, seeds from ``first_seed``) written into ``folder``: maps the estimate was never tuned on."""
+    from viewer.lab.data.envmaps import random_map
+    from viewer.lighting.envmap import save_envmap
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    kinds: dict[str, int] = {}
+    seed = first_seed
+    while sum(kinds.values()) < count and seed < first_seed + 100 * count:
+        made = random_map(seed, 1024)
+        if kinds.get(made.kind, 0) < 2:
+            kinds[made.kind] = kinds.get(made.kind, 0) + 1
+            save_envmap(folder / f"procedural_{seed}_{made.kind}.hdr", made.env)
+        seed += 1
+    return folder
