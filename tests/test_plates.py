@@ -223,3 +223,15 @@ def test_the_plates_grain_and_defocus_are_measured_and_given_to_the_person():
     assert np.array_equal(grained[coverage == 0], flat[coverage == 0])
     assert np.std(grained[coverage == 1] * 255) == pytest.approx(4.0, rel=0.1)
     assert np.array_equal(grained, with_grain(flat, coverage, np.full(3, 4.0, np.float32)))  # the same on every run
+
+
+def test_held_back_maps_are_made_two_of_a_kind_at_most(tmp_path):
+    from viewer.lab.bench.plates import heldout_maps
+
+    folder = heldout_maps(tmp_path / "maps", 3)
+    names = sorted(p.name for p in folder.iterdir())
+    kinds = [n.rsplit("_", 1)[1].split(".")[0] for n in names]
+    assert len(names) == 3 and max(kinds.count(k) for k in kinds) <= 2
+    env = load_envmap(folder / names[0])
+    assert env.pixels.shape == (512, 1024, 3) and np.isfinite(env.pixels).all()
+    assert heldout_maps(tmp_path / "again", 3).name == "again" and sorted(p.name for p in (tmp_path / "again").iterdir()) == names
