@@ -63,19 +63,12 @@ def cmd_render_plate(args, look) -> int:
     """``relight render BUNDLE --plate PLATE -o OUT.png``: the person relit by the plate's light (or
     ``--env``'s) and composited into it, standing on its ground with their shadow; OUT.exr beside it
     (linear; with ``--layers``, the person and the shadow as layers too)."""
-    from dataclasses import replace
-
-    from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare
-    from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
+    from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare, rig_lights
     from viewer.gl import Engine, create_headless_context
-    from viewer.output.layers import write_layers
-    from viewer.output.plate_composite import composite_on_plate
-    from viewer.output.render import resolve_exposure
-    from viewer.plate.placement import camera_mismatch, placement, plate_transform
+    from viewer.output.plate_render import plate_look, render_on_plate
+    from viewer.plate.placement import camera_mismatch, placement
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
-    from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
-    from viewer.scene.look import AUTO
     from viewer.scene.resampling import load_sized_scene
 
     out = Path(args.output)
@@ -101,41 +94,18 @@ def cmd_render_plate(args, look) -> int:
         env, record = plate_light(plate)
         lights, _ = fitted_lights(env, lights_count(args, look), args.method)
         light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
-    # the plate's units: lit by its own light, exposure 0 (or the stops given); by the user's map, the
-    # exposure that keeps the photo's brightness unless one is given
-    exposure = (AUTO if own else 0.0) if look.exposure == AUTO else look.exposure
-    ground = getattr(args, "ground", None) is not False  # the plate's ground catches the shadow unless --no-ground
-    look = replace(look, background="transparent", ground=ground, exposure=exposure)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     try:
-        engine.set_lights(lights)
-        look = resolve_exposure(engine, scene, look)
-        engine.set_look(look)
-        engine.render()
-        person = engine.output.read_hdr_rgba()  # its colour as lit, and its coverage
-        person[..., :3] *= person[..., 3:4] * 2.0 ** float(look.exposure)  # premultiplied, exposed
-        shadow = engine.output.read_ground_shadow() if ground else None
+        matched = render_on_plate(engine, scene, lights, plate_look(look, bool(own)), plate, place, out, outputs[1],
+                                  layers_in_exr=args.layers, fixed=rig_lights(args), source=args.scene,
+                                  cut_allowed=args.height is not None)
     finally:
         engine.release()
-    alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
-    transform = plate_transform(alpha, place, plate.size, args.scene, cut_allowed=args.height is not None)
-    blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
-    linear = plate.linear()
-    result = composite_on_plate(linear, person, shadow, transform, blur)
-    channels = {"R": result.image[..., 0], "G": result.image[..., 1], "B": result.image[..., 2]}
-    if args.layers:
-        for k, c in enumerate("RGBA"):
-            channels[f"person.{c}"] = result.person[..., k]
-        for k, c in enumerate("RGB"):
-            channels[f"shadow.{c}"] = result.shadow[..., k]
-            channels[f"plate.{c}"] = linear[..., k]
-    with atomic_paths(*outputs) as tmps:  # the PNG and its EXR replaced together
-        write_png(tmps[0], with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], grain))
-        write_layers(tmps[1], {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()})
     seconds = time.perf_counter() - start
     for note in notes:
         print(f"note: {note}")
     print(f"wrote {out} and {out.with_suffix('.exr')} ({plate.size[0]}x{plate.size[1]}; lit by {light_from}; the feet at "
-          f"{place.x:g},{place.y:g}, {place.height:.2f} of the plate's height; the plate's defocus there {blur:.1f} px and grain "
-          f"{float(grain.mean()):.1f} levels given to the person; {seconds:.1f} s)")
+          f"{place.x:g},{place.y:g}, {place.height:.2f} of the plate's height; the plate's defocus there "
+          f"{matched['defocus_px']:.1f} px and grain {np.mean(matched['grain_levels']):.1f} levels given to the person; "
+          f"{seconds:.1f} s)")
     return 0

@@ -1,0 +1,67 @@
+"""A person rendered onto a plate and written: the engine's person and shadow, composited into the
+plate where the placement says, matched to the plate's defocus and grain, written as a PNG and its
+EXR (and the layers' EXR) together. ``relight render --plate`` and a batch's plate looks share it."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from viewer.output.plate_composite import composite_on_plate
+from viewer.plate.placement import Placement, plate_transform
+from viewer.plate.plate_file import Plate
+from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
+from viewer.scene.look import Look
+
+
+def plate_look(look: Look, own_light: bool) -> Look:
+    """``look`` as a plate needs it: no background (the plate is), the ground's shadow unless turned off,
+    and the exposure: lit by the plate's own light, 0 (the plate's units) unless stops are given; by
+    the user's map, the photo's own brightness ("auto") unless given."""
+    from viewer.scene.look import AUTO
+
+    exposure = (AUTO if own_light else 0.0) if look.exposure == AUTO else look.exposure
+    return replace(look, background="transparent", ground=look.ground is not False, exposure=exposure)
+
+
+def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Placement, png, exr, layers=None,
+                    layers_in_exr: bool = False, fixed=None, source=None, cut_allowed: bool = False) -> dict:
+    """Render ``scene`` (the engine's) under ``lights`` (and ``fixed``, a rig) and ``look`` (as
+    :func:`plate_look` made it), composite it into ``plate`` at ``place`` and write: ``png`` (8-bit
+    sRGB, the plate's grain on the person), ``exr`` (linear; with ``layers_in_exr`` also the layers:
+    the person premultiplied, the shadow as a multiplier, the plate) and ``layers`` (those layers in a
+    file of their own, a batch's), all replaced together. Returns what was matched: the exposure, the
+    defocus and the grain."""
+    from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
+    from viewer.output.layers import write_layers
+    from viewer.output.render import resolve_exposure
+
+    engine.set_lights(lights, fixed)
+    look = resolve_exposure(engine, scene, look)
+    engine.set_look(look)
+    engine.render()
+    person = engine.output.read_hdr_rgba()  # its colour as lit, and its coverage
+    person[..., :3] *= person[..., 3:4] * 2.0 ** float(look.exposure)  # premultiplied, exposed
+    shadow = engine.output.read_ground_shadow() if look.ground else None
+    alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
+    transform = plate_transform(alpha, place, plate.size, source, cut_allowed)
+    blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
+    linear = plate.linear()
+    result = composite_on_plate(linear, person, shadow, transform, blur)
+    image = {c: result.image[..., k] for k, c in enumerate("RGB")}
+    parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},
+             **{f"shadow.{c}": result.shadow[..., k] for k, c in enumerate("RGB")},
+             **{f"plate.{c}": linear[..., k] for k, c in enumerate("RGB")}}
+    paths = [Path(png), Path(exr)] + ([Path(layers)] if layers is not None else [])
+    with atomic_paths(*paths) as tmps:
+        write_png(tmps[0], with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], grain))
+        write_layers(tmps[1], _channels({**image, **(parts if layers_in_exr else {})}))
+        if layers is not None:
+            write_layers(tmps[2], _channels({**image, **parts}))
+    return {"exposure": float(look.exposure), "defocus_px": round(blur, 3), "grain_levels": [round(float(g), 3) for g in grain]}
+
+
+def _channels(channels: dict) -> dict:
+    return {k: np.ascontiguousarray(v, np.float32) for k, v in channels.items()}
