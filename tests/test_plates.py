@@ -235,3 +235,27 @@ def test_held_back_maps_are_made_two_of_a_kind_at_most(tmp_path):
     env = load_envmap(folder / names[0])
     assert env.pixels.shape == (512, 1024, 3) and np.isfinite(env.pixels).all()
     assert heldout_maps(tmp_path / "again", 3).name == "again" and sorted(p.name for p in (tmp_path / "again").iterdir()) == names
+
+
+def test_a_batch_puts_each_photo_on_each_plate_and_resumes(tmp_path):
+    import OpenEXR
+
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    (photos / "underpass.jpg").write_bytes((asset_dir() / "photos" / "underpass.jpg").read_bytes())
+    make_plate(load_envmap(MAP), 240.0, tmp_path / "square.jpg")
+    args = ["batch", str(photos), "--plate", str(tmp_path / "square.jpg"), "-o", str(tmp_path / "out"), "--layers",
+            "--at", "0.6,0.9", "--max-size", "512"]
+    done = run_cli(*args)
+    assert done.returncode == 0, done.stderr
+    png = tmp_path / "out" / "underpass" / "on_square.png"
+    assert np.asarray(Image.open(png)).shape == (640, 960, 3)
+    layers = OpenEXR.File(str(tmp_path / "out" / "underpass" / "on_square.layers.exr")).channels()
+    alpha = layers["person"].pixels[..., 3]
+    assert abs(np.flatnonzero((alpha > 0.5).any(axis=1))[-1] + 1 - 0.9 * 640) <= 3  # the feet where --at says
+    again = run_cli(*args)
+    assert again.returncode == 0 and "already done" in again.stdout and "1 done" not in again.stdout, again.stdout
+    moved = run_cli(*args[:-4], "--at", "0.3,0.9", "--max-size", "512")  # another place: made again
+    assert moved.returncode == 0 and "1 done" in moved.stdout, moved.stdout
+    wrong = run_cli("batch", str(photos), "--env", str(MAP), "-o", str(tmp_path / "x"), "--at", "0.5,0.9")
+    assert wrong.returncode == 2 and "give --plate" in wrong.stderr

@@ -56,8 +56,9 @@ def is_photo(path: Path) -> bool:
 
 @dataclass(frozen=True)
 class LookSpec:
-    """One look of the batch: where the lights come from (a map, or a light file), the yaw ("auto":
-    the brightest light turned to the camera), the rig added, the preset."""
+    """One look of the batch: where the lights come from (a map, a light file, or a plate's own light),
+    the yaw ("auto": the brightest light turned to the camera; a plate's: its light as seen), the rig
+    added, the preset."""
 
     name: str
     envmap: Path | None
@@ -65,6 +66,7 @@ class LookSpec:
     yaw: float | str
     rig: Path | None
     preset: str | None
+    plate: Path | None = None  # a plate look: the person put into this photo, lit by its light (docs/plates.md)
 
 
 @dataclass
@@ -79,17 +81,20 @@ class Item:
     settings: dict = field(default_factory=dict)
 
 
-def look_specs(envmaps, light_files, yaws, rigs, presets) -> list[LookSpec]:
-    """Every look: (maps, then light files) x yaws x rigs (or none) x presets (or the default),
-    named by what varies: ``<map>``, ``_y<yaw>`` when yaws were given, ``_<rig>``, ``_<preset>``."""
-    sources = [(Path(m), None) for m in envmaps] + [(None, Path(f)) for f in light_files]
+def look_specs(envmaps, light_files, yaws, rigs, presets, plates=()) -> list[LookSpec]:
+    """Every look: (maps, then light files, then plates) x yaws x rigs (or none) x presets (or the
+    default), named by what varies: ``<map>`` (a plate's: ``on_<plate>``), ``_y<yaw>`` when yaws were
+    given, ``_<rig>``, ``_<preset>``."""
+    sources = [(Path(m), None, None) for m in envmaps] + [(None, Path(f), None) for f in light_files] \
+        + [(None, None, Path(q)) for q in plates]
     names_used: dict[str, int] = {}
     looks = []
-    for envmap, lights_file in sources:
+    for envmap, lights_file, plate in sources:
         for yaw in (yaws or ["auto"]):
             for rig in (rigs or [None]):
                 for preset in (presets or [None]):
-                    stem = folder_name((envmap or lights_file).name.split(".")[0], "look")
+                    stem = folder_name((envmap or lights_file).name.split(".")[0], "look") if plate is None \
+                        else "on_" + folder_name(plate.name.split(".")[0], "plate")
                     name = stem + (f"_y{_yaw_text(yaw)}" if yaws else "") + (f"_{Path(rig).stem}" if rig else "") \
                         + (f"_{preset}" if preset else "")
                     base, count = name, 1
@@ -97,7 +102,7 @@ def look_specs(envmaps, light_files, yaws, rigs, presets) -> list[LookSpec]:
                         count += 1
                         name = f"{base}-{count}"
                     names_used[name] = 1
-                    looks.append(LookSpec(name, envmap, lights_file, yaw, Path(rig) if rig else None, preset))
+                    looks.append(LookSpec(name, envmap, lights_file, yaw, Path(rig) if rig else None, preset, plate))
     return looks
 
 
@@ -159,6 +164,6 @@ def cache_path(clip: Path, bundles, max_size: int, digest: str) -> Path:
 def check_sources(looks: list[LookSpec]) -> None:
     """Every rig and light file named exists (a bad map fails its own items later, not the batch)."""
     for look in looks:
-        for path in (look.rig, look.lights_file):
+        for path in (look.rig, look.lights_file, look.plate):
             if path is not None and not path.is_file():
                 raise InputError(path, "not found")

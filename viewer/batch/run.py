@@ -180,8 +180,8 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
             manifest.add("inferred", item=str(photo), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
                          pid=r.get("pid"), **({"ranges": r["ranges"]} if "ranges" in r else {}))
         for item in waiting.pop(photo):
-            if not r["ok"]:
-                _failed(manifest, summary, item, r["error"])
+            if not r["ok"] or (item.look.plate is not None and is_clip(item.photo)):
+                _failed(manifest, summary, item, r["error"] if not r["ok"] else "a clip on a plate is not made yet")
                 bar.update(1)
                 continue
             manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
@@ -233,7 +233,9 @@ def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, sett
             "outputs": list(item.outputs), "envmap": str(look.spec.envmap) if look.spec.envmap else None,
             "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,
             "look": look.look_json, "options": look.options, "max_size": settings["max_size"],
-            "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light")), "clip": is_clip(item.photo)}
+            "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light")), "clip": is_clip(item.photo),
+            **({"plate": str(look.spec.plate), "place": settings["place"], "cut_allowed": settings["cut_allowed"]}
+               if look.spec.plate is not None else {})}
 
 
 def _failed(manifest: Manifest, summary: Summary, item: Item, error: str, folder: Path | None = None):

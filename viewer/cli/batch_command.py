@@ -23,6 +23,12 @@ def add_batch_parser(sub) -> None:
                    help="yaws of every look, degrees, or auto (default): the brightest light turned to the camera")
     p.add_argument("--rig", dest="rigs", nargs="+", default=[], help="rigs (placed lights saved by the viewer): each look "
                    "once with each rig")
+    p.add_argument("--plate", dest="plates", nargs="+", default=[], help="background photos: one look each, the person put "
+                   "into the plate and lit by its light, PHOTO/on_PLATE.png and .exr (docs/plates.md)")
+    p.add_argument("--at", help="plate looks: where the feet stand, X,Y as fractions of the plate (default 0.5,0.88)")
+    p.add_argument("--height", type=float, help="plate looks: the person's height, a fraction of the plate's (default: "
+                                                "a 1.7 m person seen from eye height)")
+    p.add_argument("--horizon", type=float, help="plate looks: the horizon's height, a fraction of the plate's (default 0.5)")
     add_map_light_args(p, repair=False)
     p.add_argument("-o", "--output", required=True, help="the batch's folder: PHOTO/LOOK.png and .exr, manifest.jsonl")
     p.add_argument("--workers", type=int, help="worker processes (default: one per idle core, as many as the memory holds)")
@@ -56,8 +62,16 @@ def cmd_batch(args) -> int:
     if args.layers and any(is_clip(p) for p in photos):
         print("relight: warning: --layers: the clips get their relit MP4 and middle frame, no layers (a layers file is a "
               "photo's)", file=sys.stderr)
-    if not args.envmaps and not args.light_files:
-        raise InputError(None, "give the looks: --env MAP [MAP ...] and/or --lights FILE [FILE ...]")
+    if not args.envmaps and not args.light_files and not args.plates:
+        raise InputError(None, "give the looks: --env MAP [MAP ...], --lights FILE [FILE ...] and/or --plate PHOTO [PHOTO ...]")
+    place = None
+    if args.plates:
+        from viewer.cli.plate_commands import at_option
+        from viewer.plate.placement import placement
+
+        place = placement(at_option(args.at), args.height, args.horizon)
+    elif any(v is not None for v in (args.at, args.height, args.horizon)):
+        raise InputError(None, "--at, --height and --horizon place the person on a plate: give --plate PHOTO")
     if args.gpus_per_worker < 0 or (args.gpus_per_worker and not args.ray):
         raise InputError(None, "--gpus-per-worker: a share of a GPU (0 or more) for each Ray actor: give --ray too")
     if args.per_light and not args.layers:
@@ -70,7 +84,7 @@ def cmd_batch(args) -> int:
         reachable(args.ray)  # before the batch's folder, lock and manifest are made
     workers, threads = worker_count(args)
     specs = look_specs(*([Path(p).resolve() for p in paths] for paths in (args.envmaps, args.light_files)),
-                       args.yaws, [Path(p).resolve() for p in args.rigs], args.presets)
+                       args.yaws, [Path(p).resolve() for p in args.rigs], args.presets, [Path(p).resolve() for p in args.plates])
     check_sources(specs)
     folder = Path(args.output).resolve()
     writable(folder, folder=True)
@@ -87,7 +101,8 @@ def cmd_batch(args) -> int:
 
     # the bundles' folder as this process sees it: workers on other machines need it shared (docs/batch.md)
     settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device,
-                "bundles": str(cache_dir().with_name("bundles").resolve())}
+                "bundles": str(cache_dir().with_name("bundles").resolve()),
+                **({"place": [place.x, place.y, place.height], "cut_allowed": args.height is not None} if place else {})}
     summary = run_batch(photos, looks, folder, make_pool, settings)
     for item, error in summary.failures:
         print(f"relight: {item}: {error}", file=sys.stderr)
@@ -124,10 +139,13 @@ def resolve_looks(specs, args) -> list:
     """Each look's lights (a map's found once per count), yaw, rig, look and engine options; a map
     or light file that cannot be used fails its own looks, with its line."""
     from viewer.batch.run import ResolvedLook
-    from viewer.cli.command_setup import command_lights, command_look, engine_options, lights_count
+    from viewer.cli.command_setup import command_lights, command_look, engine_options, fitted_lights, lights_count
     from viewer.files.ownership import file_sha256
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.placed_lights import load_rig, to_area_lights
+    from viewer.output.plate_render import plate_look
+    from viewer.plate.plate_file import read_plate
+    from viewer.plate.plate_light import plate_light
     from viewer.scene.area_lights import facing_yaw
 
     base = command_look(args)
@@ -137,11 +155,14 @@ def resolve_looks(specs, args) -> list:
         look = base.replace(preset=spec.preset) if spec.preset else base
         try:
             n = lights_count(args, look)
-            source = spec.envmap or spec.lights_file
+            source = spec.envmap or spec.lights_file or spec.plate
             if (source, n) not in found:
                 try:
-                    env = load_envmap(spec.envmap) if spec.envmap is not None else None
-                    lights = command_lights(args, look, spec.lights_file, env, spec.envmap)  # the one rule, as render's
+                    if spec.plate is not None:  # the plate's own light, estimated and fitted once
+                        lights = fitted_lights(plate_light(read_plate(spec.plate, []))[0], n, args.method)[0]
+                    else:
+                        env = load_envmap(spec.envmap) if spec.envmap is not None else None
+                        lights = command_lights(args, look, spec.lights_file, env, spec.envmap)  # the one rule, as render's
                     found[(source, n)] = (lights, file_sha256(source))
                 except InputError as exc:
                     found[(source, n)] = str(exc)
@@ -149,8 +170,11 @@ def resolve_looks(specs, args) -> list:
                 looks.append(ResolvedLook(spec, error=found[(source, n)]))
                 continue
             lights, sha = found[(source, n)]
-            yaw = facing_yaw(lights) if spec.yaw == "auto" else float(spec.yaw)
-            look = look.replace(yaw=yaw)  # no map behind a light file's look: the engine falls back to the photo's background
+            if spec.plate is not None:  # a plate's light as its camera saw it, unless turned
+                look = plate_look(look.replace(yaw=0.0 if spec.yaw == "auto" else float(spec.yaw)), own_light=False)
+            else:
+                yaw = facing_yaw(lights) if spec.yaw == "auto" else float(spec.yaw)
+                look = look.replace(yaw=yaw)  # no map behind a light file's look: the engine falls back to the photo's background
             rig = to_area_lights(load_rig(spec.rig)).to_array() if spec.rig is not None else None
             looks.append(ResolvedLook(spec, look.to_json(), _options(engine_options(args, look)), lights.to_array(), rig, sha,
                                       file_sha256(spec.rig) if spec.rig is not None else ""))
