@@ -139,7 +139,9 @@ def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():
     from viewer.plate.placement import camera_mismatch
 
     assert camera_mismatch(placement()) is None and camera_mismatch(placement((0.5, 0.9), 0.5)) is None
-    assert "4.2 m above the ground" in camera_mismatch(placement((0.5, 0.9), 0.16))  # a tiny person near the feet: seen from high
+    high = camera_mismatch(placement((0.5, 0.9), 0.16))  # a tiny person near the feet: seen from high up
+    assert "4.2 m above the ground" in high and "a taller --height" in high
+    assert "a shorter --height" in camera_mismatch(placement((0.5, 0.9), 2.0))  # a giant: seen from the ground
     assert "at or above the plate's horizon" in camera_mismatch(placement((0.5, 0.4), 0.3))
     with pytest.raises(InputError, match="above the horizon"):
         placement((0.5, 0.3))

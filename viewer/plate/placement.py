@@ -66,7 +66,7 @@ def camera_mismatch(place: Placement, horizon: float | None = None) -> str | Non
                 "there, the person's photo did not; their perspective will not match (give --horizon if it is elsewhere)")
     height = PERSON_HEIGHT_M * below / place.height
     if height > MISMATCH * CAMERA_HEIGHT_M or height < CAMERA_HEIGHT_M / MISMATCH:
-        fix = "a taller" if height < CAMERA_HEIGHT_M else "a shorter"
+        fix = "a taller" if height > CAMERA_HEIGHT_M else "a shorter"  # seen from high up: the person is too small
         return (f"placed so, the plate's camera is {height:.1f} m above the ground where the person stands, the person's "
                 f"photo about {CAMERA_HEIGHT_M:g} m: their perspective will not match ({fix} --height, or --horizon where "
                 "the plate's horizon is)")
