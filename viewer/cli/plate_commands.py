@@ -83,8 +83,8 @@ def cmd_render_plate(args, look) -> int:
     if mismatch:
         warnings.warn(f"{args.plate}: {mismatch}", stacklevel=2)
     notes: list = []
+    start = time.perf_counter()  # the plate read, its light, the render and the composite: process start excluded
     plate = read_plate(args.plate, notes)
-    start = time.perf_counter()
     own = args.envmap or args.lights
     if own:  # the user's own light; the plate only the backdrop
         scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
