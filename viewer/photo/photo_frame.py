@@ -122,6 +122,8 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
     except Image.DecompressionBombError:
         raise InputError(path, f"the {what} has more than {MAX_PIXELS // 1_000_000} megapixels") from None
     except Exception as exc:
+        if "cannot identify image file" in str(exc):  # Pillow's words name its buffer, not the file
+            raise InputError(path, f"cannot read the {what}: not an image this program reads (PNG, JPEG, TIFF, WebP, BMP)") from None
         raise InputError(path, f"cannot read the {what} ({exc})") from None
     if arr.size == 0:
         raise InputError(path, f"the {what} has no pixels")
