@@ -34,6 +34,7 @@ class ResolvedLook:
     source_sha: str = ""
     rig_sha: str = ""
     error: str | None = None
+    place: list | None = None  # a plate look: the feet (x, y) and the height, fractions of the plate
 
 
 @dataclass
@@ -90,7 +91,8 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
             item = Item(p, look.spec, name, outputs)
             if look.lights is not None and shas[p]:
                 item.settings = {"look": look.look_json, "options": look.options,
-                                 **{k: v for k, v in settings.items() if k not in KEYLESS}}
+                                 **{k: v for k, v in settings.items() if k not in KEYLESS},
+                                 **({"place": look.place} if look.place is not None else {})}
                 item.key = item_key(shas[p], look.source_sha, look.rig_sha,
                                     np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
             items.append(item)
@@ -234,7 +236,7 @@ def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, sett
             "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,
             "look": look.look_json, "options": look.options, "max_size": settings["max_size"],
             "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light")), "clip": is_clip(item.photo),
-            **({"plate": str(look.spec.plate), "place": settings["place"], "cut_allowed": settings["cut_allowed"]}
+            **({"plate": str(look.spec.plate), "place": look.place, "cut_allowed": settings["cut_allowed"]}
                if look.spec.plate is not None else {})}
 
 

@@ -64,12 +64,10 @@ def cmd_batch(args) -> int:
               "photo's)", file=sys.stderr)
     if not args.envmaps and not args.light_files and not args.plates:
         raise InputError(None, "give the looks: --env MAP [MAP ...], --lights FILE [FILE ...] and/or --plate PHOTO [PHOTO ...]")
-    place = None
     if args.plates:
         from viewer.cli.plate_commands import at_option
-        from viewer.plate.placement import placement
 
-        place = placement(at_option(args.at), args.height, args.horizon)
+        at_option(args.at)  # a malformed --at is one line before any work; each plate places the person on its own horizon
     elif any(v is not None for v in (args.at, args.height, args.horizon)):
         raise InputError(None, "--at, --height and --horizon place the person on a plate: give --plate PHOTO")
     if args.gpus_per_worker < 0 or (args.gpus_per_worker and not args.ray):
@@ -102,7 +100,7 @@ def cmd_batch(args) -> int:
     # the bundles' folder as this process sees it: workers on other machines need it shared (docs/batch.md)
     settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device,
                 "bundles": str(cache_dir().with_name("bundles").resolve()),
-                **({"place": [place.x, place.y, place.height], "cut_allowed": args.height is not None} if place else {})}
+                **({"cut_allowed": args.height is not None} if args.plates else {})}
     summary = run_batch(photos, looks, folder, make_pool, settings)
     for item, error in summary.failures:
         print(f"relight: {item}: {error}", file=sys.stderr)
@@ -140,6 +138,7 @@ def resolve_looks(specs, args) -> list:
     or light file that cannot be used fails its own looks, with its line."""
     from viewer.batch.run import ResolvedLook
     from viewer.cli.command_setup import command_lights, command_look, engine_options, fitted_lights, lights_count
+    from viewer.cli.plate_commands import plate_place
     from viewer.files.ownership import file_sha256
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.placed_lights import load_rig, to_area_lights
@@ -150,6 +149,7 @@ def resolve_looks(specs, args) -> list:
 
     base = command_look(args)
     found: dict = {}  # (source, n) -> (lights, sha) or the error line
+    places: dict = {}  # plate -> where the person stands on it (its own horizon unless --horizon)
     looks = []
     for spec in specs:
         look = base.replace(preset=spec.preset) if spec.preset else base
@@ -159,7 +159,9 @@ def resolve_looks(specs, args) -> list:
             if (source, n) not in found:
                 try:
                     if spec.plate is not None:  # the plate's own light, estimated and fitted once
-                        lights = fitted_lights(plate_light(read_plate(spec.plate, []))[0], n, args.method)[0]
+                        plate = read_plate(spec.plate, [])
+                        lights = fitted_lights(plate_light(plate)[0], n, args.method)[0]
+                        places[spec.plate] = plate_place(plate, args)
                     else:
                         env = load_envmap(spec.envmap) if spec.envmap is not None else None
                         lights = command_lights(args, look, spec.lights_file, env, spec.envmap)  # the one rule, as render's
@@ -177,7 +179,8 @@ def resolve_looks(specs, args) -> list:
                 look = look.replace(yaw=yaw)  # no map behind a light file's look: the engine falls back to the photo's background
             rig = to_area_lights(load_rig(spec.rig)).to_array() if spec.rig is not None else None
             looks.append(ResolvedLook(spec, look.to_json(), _options(engine_options(args, look)), lights.to_array(), rig, sha,
-                                      file_sha256(spec.rig) if spec.rig is not None else ""))
+                                      file_sha256(spec.rig) if spec.rig is not None else "",
+                                      place=places.get(spec.plate) if spec.plate is not None else None))
         except InputError as exc:
             looks.append(ResolvedLook(spec, error=str(exc)))
     return looks

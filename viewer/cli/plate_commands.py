@@ -59,6 +59,25 @@ def at_option(text: str | None) -> tuple[float, float] | None:
     return x, y
 
 
+def plate_place(plate, args, notes: list | None = None) -> list[float]:
+    """Where the person stands on ``plate``: ``--at`` and ``--height`` of ``args``, on ``--horizon`` or the
+    plate's own (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``); [x, y, height]. A
+    placement whose camera stands far from eye height is warned in one line."""
+    from viewer.plate.horizon import plate_horizon
+    from viewer.plate.placement import camera_mismatch, placement
+
+    horizon = args.horizon
+    if horizon is None:
+        horizon, how = plate_horizon(plate)
+        if notes is not None:
+            notes.append(f"the plate's horizon at {horizon:.3f} of its height ({how})")
+    place = placement(at_option(args.at), args.height, horizon)
+    mismatch = camera_mismatch(place, horizon)
+    if mismatch:
+        warnings.warn(f"{plate.source}: {mismatch}", stacklevel=2)
+    return [place.x, place.y, place.height]
+
+
 def cmd_render_plate(args, look) -> int:
     """``relight render BUNDLE --plate PLATE -o OUT.png``: the person relit by the plate's light (or
     ``--env``'s) and composited into it, standing on its ground with their shadow; OUT.exr beside it
@@ -66,7 +85,7 @@ def cmd_render_plate(args, look) -> int:
     from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare, rig_lights
     from viewer.gl import Engine, create_headless_context
     from viewer.output.plate_render import plate_look, render_on_plate
-    from viewer.plate.placement import camera_mismatch, placement
+    from viewer.plate.placement import Placement
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
     from viewer.scene.resampling import load_sized_scene
@@ -78,13 +97,11 @@ def cmd_render_plate(args, look) -> int:
     outputs = [out, out.with_suffix(".exr")]
     not_an_input(outputs, [args.scene, args.plate, args.envmap, args.lights])
     refuse_foreign(outputs, args.force)
-    place = placement(at_option(args.at), args.height, args.horizon)
-    mismatch = camera_mismatch(place, args.horizon)
-    if mismatch:
-        warnings.warn(f"{args.plate}: {mismatch}", stacklevel=2)
+    at_option(args.at)  # a malformed --at is one line before any work
     notes: list = []
     start = time.perf_counter()  # the plate read, its light, the render and the composite: process start excluded
     plate = read_plate(args.plate, notes)
+    place = Placement(*plate_place(plate, args, notes))
     own = args.envmap or args.lights
     if own:  # the user's own light; the plate only the backdrop
         scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
