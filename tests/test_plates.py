@@ -147,7 +147,11 @@ def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():
     with pytest.raises(InputError, match="above the horizon"):
         placement((0.5, 0.3))
     with pytest.raises(InputError, match="wholly off the plate"):
-        plate_transform(frame[..., 3], placement((3.0, 0.9), 0.5), (400, 300))
+        plate_transform(frame[..., 3], placement((1.45, 0.9), 0.5), (400, 300))
+    with pytest.raises(InputError, match="fractions of the plate"):
+        placement((72.0, 92.0))  # percent, not fractions
+    with pytest.raises(InputError, match="--horizon is a fraction"):
+        placement((0.5, 0.9), None, 1.4)
     with pytest.raises(InputError, match="plate pixels tall"):
         plate_transform(frame[..., 3], placement((0.5, 0.9), 1e-4), (400, 300))
     cut = frame.copy()
@@ -194,7 +198,7 @@ def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     assert np.abs(image[far].astype(int) - plate[far]).max() <= 1  # the plate as it was where nothing falls
     lit = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "lit.png"))
     assert lit.returncode == 0 and "lit by the plate" in lit.stdout, lit.stderr
-    off = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "off.png"), "--at", "2,2",
+    off = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "off.png"), "--at", "1.45,0.9",
                   "--height", "0.3")
     assert off.returncode == 2 and "wholly off the plate" in off.stderr and not (tmp_path / "off.png").exists()
     alone = run_cli("render", str(bundle), "--env", str(rooitou), "-o", str(tmp_path / "x.png"), "--at", "0.5,0.9")

@@ -28,7 +28,8 @@ def add_batch_parser(sub) -> None:
     p.add_argument("--at", help="plate looks: where the feet stand, X,Y as fractions of the plate (default 0.5,0.88)")
     p.add_argument("--height", type=float, help="plate looks: the person's height, a fraction of the plate's (default: "
                                                 "a 1.7 m person seen from eye height)")
-    p.add_argument("--horizon", type=float, help="plate looks: the horizon's height, a fraction of the plate's (default 0.5)")
+    p.add_argument("--horizon", type=float, help="plate looks: the horizon's height, a fraction of the plate's (default: each "
+                                                 "plate's own, read from its vertical edges)")
     add_map_light_args(p, repair=False)
     p.add_argument("-o", "--output", required=True, help="the batch's folder: PHOTO/LOOK.png and .exr, manifest.jsonl")
     p.add_argument("--workers", type=int, help="worker processes (default: one per idle core, as many as the memory holds)")
@@ -66,8 +67,10 @@ def cmd_batch(args) -> int:
         raise InputError(None, "give the looks: --env MAP [MAP ...], --lights FILE [FILE ...] and/or --plate PHOTO [PHOTO ...]")
     if args.plates:
         from viewer.cli.plate_commands import at_option
+        from viewer.plate.placement import check_place_options
 
-        at_option(args.at)  # a malformed --at is one line before any work; each plate places the person on its own horizon
+        # a malformed --at or --horizon is one line before any work; each plate places the person on its own horizon
+        check_place_options(at_option(args.at), args.horizon)
     elif any(v is not None for v in (args.at, args.height, args.horizon)):
         raise InputError(None, "--at, --height and --horizon place the person on a plate: give --plate PHOTO")
     if args.gpus_per_worker < 0 or (args.gpus_per_worker and not args.ray):

@@ -47,16 +47,17 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
     p.add_argument("--layers", action="store_true", help="a clip: also each frame's layers for compositors, an EXR "
-                   "sequence in NAME.layers/ beside NAME.mp4 (docs/video.md; a photo's: relight batch --layers)")
+                   "sequence in NAME.layers/ beside NAME.mp4 (docs/video.md); with --plate: the person, the shadow and "
+                   "the plate as layers of OUT.exr; a photo's: relight batch --layers")
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
     p.add_argument("--plate", help="a background photo to put the person into, lit by the plate's own light (or --env's), "
                                    "standing on its ground with their shadow; OUT.png and OUT.exr (docs/plates.md)")
     p.add_argument("--at", help="with --plate: where the feet stand, X,Y as fractions of the plate's width and height "
-                                "(default 0.5,0.88)")
+                                "(default 0.5,0.88; a negative X as --at=-0.1,0.9)")
     p.add_argument("--height", type=float, help="with --plate: the person's height as a fraction of the plate's (default: "
                                                 "what a 1.7 m person at --at is, seen from eye height)")
     p.add_argument("--horizon", type=float, help="with --plate: the horizon's height, a fraction of the plate's from its top "
-                                                 "(default 0.5, a level camera)")
+                                                 "(default: read from the plate's vertical edges; 0.5 when it has none)")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)
     add_view_args(p)

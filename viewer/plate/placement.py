@@ -21,6 +21,7 @@ PERSON_HEIGHT_M = 1.7
 CAMERA_HEIGHT_M = 1.6  # a plate taken at eye height
 DEFAULT_FEET = 0.88  # of the plate's height, from its top
 LEVEL_HORIZON = 0.5  # a level camera's horizon, of the plate's height
+AT_REACH = 0.5  # --at may put the feet this far beyond the plate's edges (a person cut by the frame), not farther
 
 
 @dataclass(frozen=True)
@@ -35,11 +36,9 @@ class Placement:
 def placement(at: tuple[float, float] | None = None, height: float | None = None, horizon: float | None = None) -> Placement:
     """The person's place in the plate from the options given, the rest as the module says; one line
     for what cannot be (feet at or above the horizon with no height given, a height of 0)."""
+    check_place_options(at, horizon)
     horizon = LEVEL_HORIZON if horizon is None else float(horizon)
     x, y = (0.5, DEFAULT_FEET) if at is None else (float(at[0]), float(at[1]))
-    for name, value in (("--at", x), ("--at", y), ("--horizon", horizon)):
-        if not np.isfinite(value):
-            raise InputError(None, f"{name} must be finite, got {value}")
     if height is None:
         if y <= horizon:
             raise InputError(None, f"--at {x:g},{y:g}: the feet are at or above the horizon ({horizon:g} of the plate's "
@@ -71,6 +70,19 @@ def camera_mismatch(place: Placement, horizon: float | None = None) -> str | Non
                 f"photo about {CAMERA_HEIGHT_M:g} m: their perspective will not match ({fix} --height, or --horizon where "
                 "the plate's horizon is)")
     return None
+
+
+def check_place_options(at: tuple[float, float] | None, horizon: float | None) -> None:
+    """One line for an ``--at`` or ``--horizon`` that is no fraction of the plate (a batch checks them
+    before any work; each plate then places the person on its own horizon)."""
+    for name, value in [("--at", v) for v in (at or ())] + ([("--horizon", horizon)] if horizon is not None else []):
+        if not np.isfinite(value):
+            raise InputError(None, f"{name} must be finite, got {value}")
+    if at is not None and not all(-AT_REACH <= v <= 1 + AT_REACH for v in at):
+        raise InputError(None, f"--at takes the feet as fractions of the plate's width and height (0 to 1: 0.5,0.9 is the "
+                               f"middle, near the bottom), got {at[0]:g},{at[1]:g}")
+    if horizon is not None and not 0.0 <= horizon <= 1.0:
+        raise InputError(None, f"--horizon is a fraction of the plate's height from its top (0 to 1), got {horizon:g}")
 
 
 @dataclass(frozen=True)
