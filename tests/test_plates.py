@@ -45,7 +45,7 @@ def test_a_plates_light_keeps_what_it_shows_and_mirrors_it_behind_the_camera(tmp
     for d in ([0, 0, -1], [np.sin(0.35), 0.0, -np.cos(0.35)], [0.0, np.sin(0.2), -np.cos(0.2)]):
         assert at(lum, d) == pytest.approx(at(truth, d), rel=0.25, abs=0.02), d
     # behind the camera: the view ahead mirrored (blurred), not black, not the truth's own
-    centre = plate.linear()[220:420, 380:580] @ LUMINANCE  # the blur's reach about the view's centre
+    centre = plate.linear[220:420, 380:580] @ LUMINANCE  # the blur's reach about the view's centre
     assert at(lum, [0, 0, 1]) == pytest.approx(float(centre.mean()), rel=0.3)
     # up and down: the plate's top edge (sky) above, its ground below
     assert at(lum, [0, 1, 0]) > at(lum, [0, -1, 0])

@@ -48,7 +48,7 @@ def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Plac
     alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
     transform = plate_transform(alpha, place, plate.size, source, cut_allowed)
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
-    linear = plate.linear()
+    linear = plate.linear
     result = composite_on_plate(linear, person, shadow, transform, blur)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}
     parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},

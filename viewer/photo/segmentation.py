@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.errors import InputError, NoPersonError
+from viewer.photo.photo_frame import person_box
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person
@@ -152,8 +153,8 @@ def _pose(pose, small: np.ndarray, box: tuple):
     person = seg > 0.5
     if not person.any():
         return result, seg, (0, 0, 0, 0)
-    rows, cols = np.flatnonzero(person.any(axis=1)), np.flatnonzero(person.any(axis=0))
-    return result, seg, (int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1))
+    top, left, tall, wide = person_box(person)
+    return result, seg, (left, top, wide, tall)
 
 
 def box_iou(a: tuple, b: tuple) -> float:

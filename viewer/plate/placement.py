@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.errors import InputError
+from viewer.photo.photo_frame import person_box
 
 PERSON_HEIGHT_M = 1.7
 CAMERA_HEIGHT_M = 1.6  # a plate taken at eye height
@@ -92,9 +93,6 @@ class PlateTransform:
     scale: float
     offset: tuple[float, float]
 
-    def matrix(self) -> np.ndarray:
-        return np.array([[self.scale, 0.0, self.offset[0]], [0.0, self.scale, self.offset[1]]], np.float64)
-
 
 MIN_PERSON_PX = 8  # a person placed smaller than this many plate pixels tall is refused
 
@@ -105,18 +103,16 @@ def feet(alpha: np.ndarray, source=None, cut_allowed: bool = False) -> tuple[flo
     0.5), and its box (top, bottom, left, right). A matte that reaches the frame's bottom has no feet
     in it: one line naming ``source``, unless ``cut_allowed`` (the user gave the height)."""
     person = alpha > 0.5
-    rows = np.flatnonzero(person.any(axis=1))
-    if rows.size == 0:
+    if not person.any():
         raise InputError(source, "the person's matte is empty: nothing to place on the plate")
-    top, bottom = int(rows[0]), int(rows[-1])
+    top, left, tall, wide = person_box(person)
+    bottom = top + tall - 1
     if bottom == alpha.shape[0] - 1 and not cut_allowed:
         raise InputError(source, "the person reaches the bottom of their photo: their feet are not in it, and a plate stands "
                                  "a person on their feet; give --height to place them anyway (the cut edge on the ground)")
     low = person[max(bottom - max((bottom - top) // 50, 1), top):bottom + 1]
     xs = np.flatnonzero(low.any(axis=0))
-    cols = np.flatnonzero(person.any(axis=0))
-    return float(0.5 * (xs[0] + xs[-1] + 1)), float(bottom + 1), float(bottom - top + 1), (top, bottom + 1, int(cols[0]),
-                                                                                           int(cols[-1]) + 1)
+    return float(0.5 * (xs[0] + xs[-1] + 1)), float(bottom + 1), float(tall), (top, bottom + 1, left, left + wide)
 
 
 def plate_transform(alpha: np.ndarray, place: Placement, plate_size: tuple[int, int], source=None,

@@ -12,11 +12,13 @@ linear copies alone would take gigabytes).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.file_kinds import wrong_kind
+from viewer.files.imageio import srgb_to_linear
 
 DEFAULT_FOCAL_35 = 35.0  # mm, 35-mm equivalent: what a plate without a focal length in its EXIF is taken as
 MIN_PLATE_PX = 16  # a plate smaller than this a side holds no light to read
@@ -24,8 +26,7 @@ MAX_PLATE_PIXELS = 60_000_000  # 60 MP: a larger plate is refused (give a smalle
 PANORAMA_ASPECT = 2.5  # a longer side this many times the shorter (a phone's panorama), or exactly 2:1 (equirectangular): no plate
 
 
-_LEVELS = np.arange(256, dtype=np.float64) / 255.0
-SRGB_TO_LINEAR = np.where(_LEVELS <= 0.04045, _LEVELS / 12.92, ((_LEVELS + 0.055) / 1.055) ** 2.4).astype(np.float32)
+SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0)  # the 256 levels' linear values: a plate is linearized by lookup
 
 
 @dataclass(frozen=True)
@@ -47,8 +48,10 @@ class Plate:
         """The focal length in the plate's pixels (its longer side spans 36 mm of a 35-mm frame)."""
         return self.focal_35 * max(self.size) / 36.0
 
+    @cached_property
     def linear(self) -> np.ndarray:
-        """(H, W, 3) float32 linear RGB in [0, 1] (a table lookup of the 256 sRGB levels)."""
+        """(H, W, 3) float32 linear RGB in [0, 1] (a table lookup of the 256 sRGB levels), made once: the
+        light's estimate and the composite both read it."""
         return SRGB_TO_LINEAR[self.srgb]
 
 

@@ -111,4 +111,4 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
     w, h = plate.size
     longer = min(longer, max(w, h))
     size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1))
-    return size, cv2.resize(plate.linear(), size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
+    return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w

@@ -151,7 +151,7 @@ def run_plates_benchmark(maps_dir, output, progress=print) -> dict:
                 light_seconds = time.perf_counter() - t0
                 est_lights, _ = fitted_lights(EnvMap(estimate.pixels, str(plate_path)), LIGHTS, DEFAULT_METHOD)
                 scaled = AreaLights(true_lights.direction, true_lights.sigma, true_lights.intensity * scale)
-                mean = plate.linear().reshape(-1, 3).mean(axis=0)
+                mean = plate.linear.reshape(-1, 3).mean(axis=0)
                 coeffs = sh.project(placed_plate(plate))
                 row = {"map": path.name, "yaw": yaw, "scale": scale, "plate_light_seconds": round(light_seconds, 3),
                        "estimate_record": record, "people": {}}
