@@ -705,3 +705,74 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def street_plate(path: Path, width: int = 480, height: int = 320, sky=(0.55, 0.7, 0.9), ground=(0.35, 0.33, 0.3)) -> Path:
+    """A plate made here: a sky over a textured ground meeting at the middle, a few dark poles."""
+    from viewer.files.imageio import write_png
+
+    rng = np.random.default_rng(3)
+    img = np.empty((height, width, 3), np.float32)
+    img[: height // 2] = sky
+    img[height // 2:] = ground
+    img[height // 2:] += rng.normal(0.0, 0.03, (height - height // 2, width, 1))
+    for x in range(40, width, 110):
+        img[height // 4:height * 3 // 4, x:x + 4] = 0.1
+    write_png(path, np.clip(img, 0.0, 1.0))
+    return path
+
+
+def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewer_factory, tmp_path):
+    """``relight view --plate``: the person stands where the feet go by default, a drag on them moves
+    them (a drag off them turns the lighting), the wheel scales them about their feet, S writes the
+    composite at the plate's size as ``relight render --plate`` makes it at that place (to a level),
+    with the layers; a photo opened with "the next photo opened is the plate" becomes the plate, and
+    the plate can be removed."""
+    import OpenEXR
+
+    plate = street_plate(tmp_path / "street.png")
+    v = viewer_factory("--plate", str(plate), "--horizon", "0.5")
+    s = v.wait_for(lambda s: s["plate_box"] is not None)
+    assert s["plate"]["at"] == [0.5, 0.88] and abs(s["plate"]["height"] - 0.38 * 1.7 / 1.6) < 1e-5
+    assert s["plate"]["light"] == "plate" and s["look"]["yaw"] == 0.0 and s["look"]["exposure"] == 0.0
+    x, y, w, h = s["image_rect"]
+    assert abs(w / h - 480 / 320) < 0.01  # the plate is what the window shows
+    k = w / 480  # window pixels a plate pixel
+    x0, y0, x1, y1 = s["plate_box"]
+    assert abs(0.5 * (x0 + x1) / 480 - 0.5) < 0.05 and abs(y1 / 320 - 0.88) < 0.01  # the feet where they stand
+    v.drag(int(x + k * 0.5 * (x0 + x1)), int(y + k * 0.5 * (y0 + y1)), -100, 0)
+    s = v.wait_for(lambda s: s["plate"]["at"][0] < 0.45 and s["plate_box"][0] < x0 - 10)
+    assert abs(s["plate"]["at"][0] - (0.5 - 100 / w)) < 0.01 and abs(s["plate"]["at"][1] - 0.88) < 0.01
+    assert s["look"]["yaw"] == 0.0  # the person moved, the lighting did not turn
+    v.drag(int(x + 0.9 * w), int(y + 0.1 * h), -60, 0)  # off the person: the lighting turns
+    s = v.wait_for(lambda s: s["look"]["yaw"] != 0.0)
+    height = s["plate"]["height"]
+    v.xdotool("mousemove", int(x + 0.9 * w), int(y + 0.5 * h))
+    v.xdotool("click", 4)
+    v.xdotool("click", 4)
+    s = v.wait_for(lambda s: s["plate"]["height"] > height * 1.06 ** 2 - 1e-6)
+    assert abs(s["plate"]["height"] - height * 1.06 ** 2) < 1e-5 and "of the plate tall" in s["message"]
+    saved = v.save()
+    place = json.loads(saved.with_suffix(".json").read_text())
+    assert place["plate"] == s["plate"]
+    at = ",".join(f"{c:.6f}" for c in place["plate"]["at"])
+    out = tmp_path / "rendered.png"
+    subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), "--size", str(SIZE), "--plate", str(plate), "--at=" + at,
+                    "--height", str(place["plate"]["height"]), "--horizon", "0.5", "--yaw", str(place["look"]["yaw"]),
+                    "-o", str(out)], env=v.env, check=True, capture_output=True)
+    mine, theirs = read_png(saved), read_png(out)
+    assert mine.shape == (320, 480, 3) and np.abs(mine - theirs).max() <= 1.5 / 255  # what render makes, to a level
+    assert np.abs(mine - read_png(plate)).max() > 0.2  # the person is in it
+    layers = OpenEXR.File(str(saved.with_suffix(".exr"))).channels()
+    assert {"person", "shadow", "plate"} <= set(layers)
+    v.click("open a file")
+    v.wait_for(lambda s: "browser path" in s["widgets"], 30)
+    v.click("plate next")
+    other = street_plate(tmp_path / "dusk.png", 360, 360, sky=(0.9, 0.5, 0.3), ground=(0.2, 0.18, 0.2))
+    v.click("browser path")
+    v.xdotool("type", str(other))
+    v.click("browser open")
+    s = v.wait_for(lambda s: s["plate"]["source"] == str(other) and not s["fitting"] and s["shown_map"] == s["map"], 60)
+    assert s["plate"]["light"] == "plate" and s["scene_size"] == [SIZE, SIZE] and "dusk-light-" in s["map"]
+    v.click("remove the plate", until=lambda s: s["plate"] is None)
+    assert v.quit() == 0

@@ -12,7 +12,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from viewer.app import interaction as ix
-from viewer.app.jobs import LightJob, SaveJob, SceneJob
+from viewer.app.jobs import LightJob, PlateSaveJob, SaveJob, SceneJob
 from viewer.app.recording import ClipRecording, InteractionRecording, TurntableRecording
 from viewer.app.state_file import look_json
 from viewer.files.imageio import MARK
@@ -62,6 +62,15 @@ class Actions:
         t = self.app.timeline
         if t is not None:  # which frame of which clip (as relight render's frames count them, from 0)
             state["clip"] = {"bundle": str(t.bundle.path), "frame": t.on_screen, "seconds": round(t.times[t.on_screen], 6)}
+        plate = self.app.plate
+        if plate is not None:  # the person into the whole plate, on the save's thread
+            from viewer.output.plate_render import read_person
+
+            state["plate"] = plate.to_json()
+            self.app.saves.append(PlateSaveJob(stem, read_person(eng), plate.plate, plate.place,
+                                               json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake))
+            self.app.message = f"saving {stem.name}.png (+ .exr with the layers, .json) on the plate in {stem.parent.resolve()}"
+            return
         self.app.saves.append(SaveJob(stem, self.app.picture(eng), self.app.picture_hdr(eng),
                                       json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake))
         self.app.message = f"saving {stem.name}.png (+ .exr, .json) in {stem.parent.resolve()}"
@@ -172,6 +181,8 @@ class Actions:
             self.app.message = "still fitting the previous map"
             return
         self.app.error = ""
+        if self.app.plate is not None:  # the plate's own light, or a map of the user's with the plate only the backdrop
+            self.app.plate.light = "plate" if Path(path) == self.app.plate.light_map else Path(path).name
         self.app.message = f"lights for {Path(path).name}; the window stays live meanwhile"
         self.app.job = LightJob(path, n or self.app.n_lights, self.app.config.method, wake=self.app.window.wake,
                             worker=self.app.workers["lights"])
@@ -198,7 +209,10 @@ class Actions:
         from viewer.lighting.placed_lights import load_rig
 
         suffix = path.suffix.lower()
-        if is_bundle(path):
+        if self.app.panel.plate_next and suffix in PHOTO_SUFFIXES:  # asked for: a background, not a person
+            self.app.panel.plate_next = False
+            self.open_plate(path)
+        elif is_bundle(path):
             self.open_scene(path)
         elif path.name == "scene.json":
             self.open_scene(path.parent)
@@ -221,9 +235,14 @@ class Actions:
 
     def aim_at(self, x: float, y: float):
         """Aim the placed light being aimed so that it faces the person's surface under the image
-        point (x, y) head-on (its direction: the normal there)."""
+        point (x, y) head-on (its direction: the normal there); on a plate, the person's point there."""
         sc = self.app.session.scene
-        px = ix.image_pixel((x, y), self.app.image_rect(), (sc.width, sc.height))
+        rect = self.app.image_rect()
+        if self.app.plate is not None:
+            at = self.app.plate.frame_point((x - rect[0]) / rect[2], (y - rect[1]) / rect[3])
+            px = None if at is None else (min(int(at[0] * sc.width), sc.width - 1), min(int(at[1] * sc.height), sc.height - 1))
+        else:
+            px = ix.image_pixel((x, y), rect, (sc.width, sc.height))
         if px is None or not sc.mask[px[1], px[0]]:
             self.app.aiming = None
             self.app.message = "not aimed: click on the person"
@@ -245,6 +264,42 @@ class Actions:
             verb = "aimed at"
         s.set_placed(placed)
         self.app.message = f"light {len(s.base_lights) + j} {verb} {where}"
+
+    def placed_on_plate(self):
+        """The person let go on the plate (or scaled): where they stand said, with the camera's warning."""
+        p = self.app.plate
+        self.app.message = (f"the feet at {p.place.x:.3f},{p.place.y:.3f}, {p.place.height:.3f} of the plate tall"
+                            + (f"; {p.mismatch}" if p.mismatch else ""))
+
+    def open_plate(self, path: Path):
+        """A photo opened as the plate: read, the person placed on its ground (the default place on
+        its own horizon), lit by its light (a map made from it, fitted as any map's); one line when it
+        cannot be a plate (the plate before, if any, stays)."""
+        from viewer.app.plate_view import PlateView, plate_setting
+
+        notes: list = []
+        try:
+            setting, light_map = plate_setting(path, None, None, None, None, notes)
+        except Exception as exc:  # not a photo, a panorama, too large: said, nothing changes
+            self.report(f"{Path(path).name} cannot be a plate", exc)
+            return
+        if self.app.plate is not None:
+            self.app.plate.release()
+        self.app.plate = PlateView(self.app.window.ctx, *setting)
+        self.app.view = ix.ViewState()
+        s = self.app.session
+        s.update(background="transparent", ground=True, exposure=0.0, yaw=0.0, tilt=0.0)
+        self.app.auto_exposure = False  # the person is exposed in the plate's units
+        self.open_map(light_map)
+        self.app.message = f"plate {Path(path).name}: " + "; ".join(notes + ["drag the person to move them, the wheel scales them"])
+
+    def remove_plate(self):
+        """The plate gone: the person shown in their frame again, under the lights they have."""
+        if self.app.plate is not None:
+            self.app.plate.release()
+            self.app.plate = None
+            self.app.view = ix.ViewState()
+            self.app.message = "the plate removed"
 
     def set_turn_frames(self, frames: int):
         self.turn_frames = int(frames)

@@ -71,6 +71,7 @@ class ViewerConfig:
     gl_threads: int = 2  # llvmpipe's threads, as main sized them (the cores it may use): reported in the state file
     clip: object = None  # a clip bundle (viewer.scene.clip_bundle.ClipBundle) played with a timeline; scene is its first frame's
     size: int | None = None  # the maps' size its frames are read at (relight view --size)
+    plate: tuple | None = None  # (Plate, Placement, horizon, what lights the person): the person put into a plate (--plate)
 
 
 class ViewerApp:
@@ -81,7 +82,8 @@ class ViewerApp:
 
         self.config = config
         sc = config.scene
-        area_w, area_h = image_area_size(sc.output_size)
+        shown_size = sc.output_size if config.plate is None else config.plate[0].size
+        area_w, area_h = image_area_size(shown_size)
         if config.window is not None:
             self.window = config.window
             self.window.resize(area_w + PANEL_WIDTH, max(area_h, 860))
@@ -100,6 +102,12 @@ class ViewerApp:
             self.timeline.wake = self.window.wake
             camera = self.timeline.frames.background_camera(self.timeline.frames.shown(0)[1])
         self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look, camera)
+        self.plate = None  # the plate the person is put into (viewer/app/plate_view.py), or None
+        if config.plate is not None:
+            from viewer.app.plate_view import PlateView
+
+            self.plate = PlateView(self.window.ctx, *config.plate)
+        self.moving_person = False  # the person being dragged on the plate
         if self.timeline is not None:
             self.timeline.began(self.session)
         self._drawn = None  # the texture drawn last (what stays while a clip's next frame is drawn)
@@ -184,7 +192,10 @@ class ViewerApp:
         """Where the image is drawn: the current person's frame, or ``shown``'s (the engine whose
         picture is drawn: the person before, while a new one comes in, keeps its own shape)."""
         _, _, aw, ah = self.image_area()
-        size = (shown.scene if shown is not None else self.session.scene).output_size  # a preview's: the same shape
+        if self.plate is not None:
+            size = self.plate.size
+        else:
+            size = (shown.scene if shown is not None else self.session.scene).output_size  # a preview's: the same shape
         return ix.image_rect(size, (aw, ah), self.view.zoom, self.view.pan)
 
     @property
@@ -387,7 +398,11 @@ class ViewerApp:
                 self._advance_clip()
                 self.session.poll_refinement()
                 eng, kind = self._render()
-                self._drawn = self._texture(eng)
+                if self.plate is not None:  # the person in the plate, composited again when either changed
+                    self._drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
+                                                           settled=not self.moving_person)
+                else:
+                    self._drawn = self._texture(eng)
                 w.draw_image(self._drawn, self.image_rect(eng), self.image_area())
                 w.end_frame()
                 ms = self.log.record(start, kind)
@@ -410,6 +425,8 @@ class ViewerApp:
                 if self.timeline is not None:
                     self.timeline.release()
                 self.session.release()
+                if self.plate is not None:
+                    self.plate.release()
                 self.thumbnail.release()
                 w.release()
             if previous is not None:

@@ -1,4 +1,5 @@
-"""The window's mouse and keys, read once a frame from imgui: a drag turns the lighting, the right
+"""The window's mouse and keys, read once a frame from imgui: a drag turns the lighting (on a plate, a
+drag on the person moves them and the wheel scales them), the right
 button pans, the wheel changes the exposure (with Ctrl: zooms), a click aims a placed light, and
 the keys of the viewer's table (viewer/app/layout.py) save, record, compare and undo; for a clip,
 space plays and pauses and the arrows step a frame."""
@@ -15,6 +16,11 @@ class Controls:
     def __init__(self, app):
         self.app = app
 
+    def _on_plate(self, x: float, y: float) -> tuple[float, float]:
+        """The image-area point (x, y) as fractions of the plate shown."""
+        rx, ry, w, h = self.app.image_rect()
+        return (x - rx) / max(w, 1.0), (y - ry) / max(h, 1.0)
+
     def handle(self):
         from imgui_bundle import imgui
 
@@ -24,8 +30,12 @@ class Controls:
         over_image = ax <= mx < ax + aw and ay <= my < ay + ah and not io.want_capture_mouse
         recording_turn = self.app.replaying  # the lighting is the recording's, not the mouse's
         now = time.perf_counter()
+        plate = self.app.plate
         if self.app.aiming is not None and imgui.is_mouse_clicked(0) and over_image:
             self.app.actions.aim_at(mx - ax, my - ay)
+        elif imgui.is_mouse_clicked(0) and over_image and plate is not None and plate.holds(*self._on_plate(mx - ax, my - ay)):
+            self.app.moving_person = True  # the person dragged on the plate: their feet follow the mouse
+            self.app.drag_applied = (0.0, 0.0)
         elif imgui.is_mouse_clicked(0) and over_image and not recording_turn:
             self.app.dragging = True
             self.app.drag_applied = (0.0, 0.0)
@@ -43,6 +53,18 @@ class Controls:
                     self.app.last_motion = now
             if not down:
                 self.app.dragging = False
+        if self.app.moving_person:
+            down = imgui.is_mouse_down(0)
+            if down or imgui.is_mouse_released(0):
+                total = imgui.get_mouse_drag_delta(0, 0.0)
+                dx, dy = total.x - self.app.drag_applied[0], total.y - self.app.drag_applied[1]
+                if dx or dy:
+                    _, _, w, h = self.app.image_rect()
+                    plate.moved(dx / max(w, 1.0), dy / max(h, 1.0))
+                    self.app.drag_applied = (total.x, total.y)
+            if not down:
+                self.app.moving_person = False
+                self.app.actions.placed_on_plate()
         if imgui.is_mouse_clicked(1) and over_image:
             self.app.panning = True
         elif self.app.panning:
@@ -53,6 +75,9 @@ class Controls:
         if over_image and io.mouse_wheel:
             if io.key_ctrl:
                 self.app.view = ix.zoomed(self.app.view, io.mouse_wheel, cursor=(mx - ax, my - ay), area=(aw, ah))
+            elif plate is not None:  # on a plate the wheel scales the person about their feet
+                plate.scaled(io.mouse_wheel)
+                self.app.actions.placed_on_plate()
             else:
                 self.app.session.look = ix.wheeled(self.app.session.look, io.mouse_wheel)
         shortcuts = self.app.window.take_shortcuts()

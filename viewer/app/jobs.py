@@ -340,3 +340,23 @@ class SaveJob(ThreadJob):
 
     def failure(self, exc: Exception) -> str:
         return f"saving {self.stem.name} failed: {exc}"
+
+
+class PlateSaveJob(SaveJob):
+    """A frame saved on a plate: the person (read from GL before) composited into the whole plate and
+    written on a thread (:func:`viewer.output.plate_render.write_on_plate`: the PNG, its EXR with the
+    person, shadow and plate layers, as ``relight render --plate --layers``), and the JSON."""
+
+    def __init__(self, stem: Path, frame: tuple, plate, place, state_json: str, wake=lambda: None):
+        self.frame, self.plate, self.place = frame, plate, place
+        super().__init__(stem, None, None, state_json, wake)
+
+    def work(self) -> Path:
+        from viewer.files.imageio import write_text
+        from viewer.output.plate_render import write_on_plate
+
+        png = self.stem.with_suffix(".png")
+        write_on_plate(self.frame, self.plate, self.place, png, self.stem.with_suffix(".exr"), layers_in_exr=True,
+                       cut_allowed=True)
+        write_text(self.stem.with_suffix(".json"), self.state_json)
+        return png

@@ -11,6 +11,7 @@ SMALL_HEIGHT = 760  # on a window lower than this only the lighting and the map 
 KEYS = (
     ("drag on the image", "turn the lighting (left-right: longitude, up-down: tilt)"),
     ("wheel", "exposure; Ctrl+wheel: zoom; right-drag: pan"),
+    ("on a plate", "drag the person: move them; wheel: scale them about their feet (--plate, or the panel's Plate)"),
     ("F", "fit the image (reset zoom and pan)"),
     ("0", "reset the lighting rotation"),
     ("S", "save the frame: PNG, HDR EXR and the lights as JSON"),

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 from imgui_bundle import imgui, implot
@@ -40,6 +41,7 @@ class PanelState:
     height: float = 0.0  # its content, drawn or not (the first frame fits the window to it)
     adjusted: float = 0.0  # when a widget was last held (its changes preview until it is let go)
     show_browser: bool = False
+    plate_next: bool = False  # the next photo opened is a plate (a background to put the person into), not a person
     rig_choice: int = 0  # the rig the combo shows
     light_count: int | None = None  # the count slider's value while it is held
     ids: dict = field(default_factory=dict)  # imgui's ID of each widget drawn this frame -> its name
@@ -88,6 +90,7 @@ def draw_panel(app):
     _clip(app)
     _lighting(app)
     _map(app)
+    _plate(app)
     _placed(app)
     _shading(app)
     _lights(app)
@@ -487,9 +490,46 @@ def _map(app):
     if imgui.is_item_hovered():
         imgui.set_tooltip("a photo, a scene bundle, an environment map or a rig (or drop one on the window)")
     if app.panel.show_browser:
+        _, app.panel.plate_next = imgui.checkbox("the next photo opened is the plate", app.panel.plate_next)
+        _remember(app, "plate next")
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("a background photo (chosen below, or dropped on the window) to put the person into:\n"
+                              "they stand on its ground, lit by its light, their shadow on it")
         chosen = app.browser.draw(lambda name: _remember(app, f"browser {name}"))
         if chosen is not None:
             app.actions.open_file(chosen)
+
+
+def _plate(app):
+    """The plate the person is put into (issue 47), when there is one: where they stand, the camera's
+    warning, its light, and its removal (a plate is opened by --plate, or by the browser's "the next
+    photo opened is the plate")."""
+    plate = app.plate
+    if plate is None:
+        return
+    if not imgui.collapsing_header(f"Plate: {Path(plate.plate.source).name}", imgui.TreeNodeFlags_.default_open):
+        return
+    p = plate.place
+    imgui.text(f"{plate.plate.size[0]}x{plate.plate.size[1]}, lit by " + ("its own light" if plate.light == "plate" else plate.light))
+    imgui.text(f"feet at {p.x:.2f},{p.y:.2f}; {p.height:.2f} of it tall")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("drag the person to move them; the wheel scales them about their feet\n"
+                          "relight render BUNDLE --plate PLATE --at X,Y --height H gives the same")
+    for line in (plate.mismatch, plate.error):
+        if line:
+            imgui.push_text_wrap_pos(0.0)
+            imgui.text_colored(imgui.ImVec4(1.0, 0.75, 0.3, 1.0), line)
+            imgui.pop_text_wrap_pos()
+    if plate.light != "plate":
+        if imgui.button("light from the plate"):
+            app.actions.open_map(plate.light_map)
+        _remember(app, "light from the plate")
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("the person lit by the plate's own light (a map made from it) in place of the map's")
+        imgui.same_line()
+    if imgui.button("remove the plate"):
+        app.actions.remove_plate()
+    _remember(app, "remove the plate")
 
 
 def _thumbnail(app):

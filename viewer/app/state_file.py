@@ -56,6 +56,8 @@ class StateFile:
             "captures": app.captures,
             "out_dir": str(app.config.out_dir.resolve()),  # where S and R write (--out-dir)
             "videos": app.videos,
+            "plate": app.plate.to_json() if app.plate is not None else None,
+            "plate_box": list(app.plate.box) if app.plate is not None and app.plate.box is not None else None,
             "message": app.message,
             "error": app.error,
             "gl_threads": app.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cli/main.py)

@@ -96,15 +96,20 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def plate_options_need_a_plate(args):
+    """One line for --at, --height or --horizon given without --plate."""
+    if not args.plate:
+        for option in ("at", "height", "horizon"):
+            if getattr(args, option) is not None:
+                raise InputError(None, f"--{option} places the person on a plate: give --plate PHOTO")
+
+
 def cmd_render(args) -> int:
     from viewer.files.clip_reader import is_clip
     from viewer.scene.clip_bundle import is_clip_bundle
 
     look = command_look(args)
-    if not args.plate:
-        for option in ("at", "height", "horizon"):
-            if getattr(args, option) is not None:
-                raise InputError(None, f"--{option} places the person on a plate: give --plate PHOTO")
+    plate_options_need_a_plate(args)
     if is_clip(args.scene) or is_clip_bundle(args.scene):
         if args.plate:
             raise InputError(args.plate, "a plate takes a photo's bundle: a clip on a plate is not made yet")
@@ -182,12 +187,25 @@ def cmd_view(args) -> int:
         raise InputError(args.scene, "--mask needs a photo: relight view PHOTO [--mask MASK]")
     env_path = Path(args.envmap) if args.envmap else (assets / DEMO_ENVMAP if args.lights is None else None)
     look = command_look(args)  # its yaw: first_look, once the lights are known
+    plate_options_need_a_plate(args)
     if args.record_frames < 1:
         raise InputError(None, f"--record-frames must be at least 1, got {args.record_frames}")
     from viewer.lighting.placed_lights import load_rig
 
     rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
     check_fps(args)
+    plate = None
+    if args.plate:  # read, placed and its light made before any window: a bad plate is one line
+        from viewer.cli.plate_commands import view_plate
+
+        if clip:
+            raise InputError(args.scene, "a clip on a plate is not made yet: give a photo or a scene bundle with --plate")
+        notes: list = []
+        plate, plate_map = view_plate(args, notes)
+        for note in notes:
+            print(f"note: {note}")
+        if plate_map is not None:
+            env_path = plate_map
     window = clip_bundle = None
     if clip:
         from viewer.cli.clip_commands import view_clip_bundle
@@ -213,7 +231,12 @@ def cmd_view(args) -> int:
         if window is not None:
             window.release()
         raise
-    look = first_look(args, look, lights)
+    if plate is None:
+        look = first_look(args, look, lights)
+    else:  # the plate's light is in its camera's frame (yaw 0 unless given); the person exposed in the plate's units
+        from viewer.output.plate_render import plate_look
+
+        look = plate_look(look, own_light=plate[3] != "plate")
     from viewer.app import ViewerConfig, run_viewer
 
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,
@@ -223,7 +246,8 @@ def cmd_view(args) -> int:
                           state_file=Path(args.state_file) if args.state_file else None,
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=look.preset,
                           window=window, rig=rig, max_size=args.max_size, device=args.device,
-                          gl_threads=gl_threads(), clip=clip_bundle.bundle if clip_bundle else None, size=args.size)
+                          gl_threads=gl_threads(), clip=clip_bundle.bundle if clip_bundle else None, size=args.size,
+                          plate=plate)
     return run_viewer(config)
 
 

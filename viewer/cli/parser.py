@@ -15,6 +15,18 @@ from viewer.plate.plate_light import MAP_HEIGHT
 COMMAND_GROUP = "relight.commands"
 
 
+def add_plate_args(p, what: str):
+    """--plate and where the person stands on it (render and view; batch's are its looks')."""
+    p.add_argument("--plate", help="a background photo to put the person into, lit by the plate's own light (or --env's), "
+                                   f"standing on its ground with their shadow; {what} (docs/plates.md)")
+    p.add_argument("--at", help="with --plate: where the feet stand, X,Y as fractions of the plate's width and height "
+                                "(default 0.5,0.88; a negative X as --at=-0.1,0.9)")
+    p.add_argument("--height", type=float, help="with --plate: the person's height as a fraction of the plate's (default: "
+                                                "what a 1.7 m person at --at is, seen from eye height)")
+    p.add_argument("--horizon", type=float, help="with --plate: the horizon's height, a fraction of the plate's from its top "
+                                                 "(default: read from the plate's vertical edges; 0.5 when it has none)")
+
+
 def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="relight", description="Relight full-body photos of people under HDR environment maps.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -50,14 +62,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    "sequence in NAME.layers/ beside NAME.mp4 (docs/video.md); with --plate: the person, the shadow and "
                    "the plate as layers of OUT.exr; a photo's: relight batch --layers")
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
-    p.add_argument("--plate", help="a background photo to put the person into, lit by the plate's own light (or --env's), "
-                                   "standing on its ground with their shadow; OUT.png and OUT.exr (docs/plates.md)")
-    p.add_argument("--at", help="with --plate: where the feet stand, X,Y as fractions of the plate's width and height "
-                                "(default 0.5,0.88; a negative X as --at=-0.1,0.9)")
-    p.add_argument("--height", type=float, help="with --plate: the person's height as a fraction of the plate's (default: "
-                                                "what a 1.7 m person at --at is, seen from eye height)")
-    p.add_argument("--horizon", type=float, help="with --plate: the horizon's height, a fraction of the plate's from its top "
-                                                 "(default: read from the plate's vertical edges; 0.5 when it has none)")
+    add_plate_args(p, "OUT.png and OUT.exr")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)
     add_view_args(p)
@@ -72,6 +77,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
     add_map_light_args(p)
     p.add_argument("--rig", help="placed lights to start with: a rig saved from the viewer's panel (JSON)")
+    add_plate_args(p, "drag the person to move them, the wheel scales them, S saves the composite")
     p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
                    "options below override its values")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float,

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -59,23 +58,13 @@ def at_option(text: str | None) -> tuple[float, float] | None:
     return x, y
 
 
-def plate_place(plate, args, notes: list | None = None) -> list[float]:
-    """Where the person stands on ``plate``: ``--at`` and ``--height`` of ``args``, on ``--horizon`` or the
-    plate's own (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``); [x, y, height]. A
-    placement whose camera stands far from eye height is warned in one line."""
-    from viewer.plate.horizon import plate_horizon
-    from viewer.plate.placement import camera_mismatch, placement
+def plate_place(plate, args, notes: list | None = None) -> tuple[list[float], float]:
+    """Where the person stands on ``plate`` by ``--at``, ``--height`` and ``--horizon`` of ``args``
+    (:func:`viewer.plate.placement.place_on_plate`): ([x, y, height], the horizon)."""
+    from viewer.plate.placement import place_on_plate
 
-    horizon = args.horizon
-    if horizon is None:
-        horizon, how = plate_horizon(plate)
-        if notes is not None:
-            notes.append(f"the plate's horizon at {horizon:.3f} of its height ({how})")
-    place = placement(at_option(args.at), args.height, horizon)
-    mismatch = camera_mismatch(place, horizon)
-    if mismatch:
-        warnings.warn(f"{plate.source}: {mismatch}", stacklevel=2)
-    return [place.x, place.y, place.height]
+    place, horizon = place_on_plate(plate, at_option(args.at), args.height, args.horizon, notes)
+    return [place.x, place.y, place.height], horizon
 
 
 def cmd_render_plate(args, look) -> int:
@@ -101,7 +90,7 @@ def cmd_render_plate(args, look) -> int:
     notes: list = []
     start = time.perf_counter()  # the plate read, its light, the render and the composite: process start excluded
     plate = read_plate(args.plate, notes)
-    place = Placement(*plate_place(plate, args, notes))
+    place = Placement(*plate_place(plate, args, notes)[0])
     own = args.envmap or args.lights
     if own:  # the user's own light; the plate only the backdrop
         scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
@@ -126,3 +115,10 @@ def cmd_render_plate(args, look) -> int:
           f"{matched['defocus_px']:.1f} px and grain {np.mean(matched['grain_levels']):.1f} levels given to the person; "
           f"{seconds:.1f} s)")
     return 0
+
+
+def view_plate(args, notes: list) -> tuple[tuple, Path | None]:
+    """``relight view ... --plate PLATE``: :func:`viewer.app.plate_view.plate_setting` of the options."""
+    from viewer.app.plate_view import plate_setting
+
+    return plate_setting(args.plate, at_option(args.at), args.height, args.horizon, args.envmap or args.lights, notes)

@@ -26,26 +26,41 @@ def plate_look(look: Look, own_light: bool) -> Look:
     return replace(look, background="transparent", ground=look.ground is not False, exposure=exposure)
 
 
+def read_person(engine) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The engine's last frame as a plate takes it: (the person premultiplied by their matte and
+    exposed by the look, (H, W, 4); the ground's shadow share, or None without the ground; the matte
+    that places them: the frame's, else the coverage)."""
+    person = engine.output.read_hdr_rgba()  # its colour as lit, and its coverage
+    person[..., :3] *= person[..., 3:4] * 2.0 ** float(engine.look.exposure)  # premultiplied, exposed
+    shadow = engine.output.read_ground_shadow() if engine.look.ground else None
+    alpha = person[..., 3] if engine.scene.frame is None else engine.scene.frame.alpha
+    return person, shadow, alpha
+
+
 def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Placement, png, exr, layers=None,
                     layers_in_exr: bool = False, fixed=None, source=None, cut_allowed: bool = False) -> dict:
     """Render ``scene`` (the engine's) under ``lights`` (and ``fixed``, a rig) and ``look`` (as
-    :func:`plate_look` made it), composite it into ``plate`` at ``place`` and write: ``png`` (8-bit
-    sRGB, the plate's grain on the person), ``exr`` (linear; with ``layers_in_exr`` also the layers:
-    the person premultiplied, the shadow as a multiplier, the plate) and ``layers`` (those layers in a
-    file of their own, a batch's), all replaced together. Returns what was matched: the exposure, the
-    defocus and the grain."""
-    from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
-    from viewer.output.layers import write_layers
+    :func:`plate_look` made it), composite it into ``plate`` at ``place`` and write the files
+    (:func:`write_on_plate`). Returns what was matched: the exposure, the defocus and the grain."""
     from viewer.output.render import resolve_exposure
 
     engine.set_lights(lights, fixed)
-    look = resolve_exposure(engine, scene, look)
-    engine.set_look(look)
+    engine.set_look(resolve_exposure(engine, scene, look))
     engine.render()
-    person = engine.output.read_hdr_rgba()  # its colour as lit, and its coverage
-    person[..., :3] *= person[..., 3:4] * 2.0 ** float(look.exposure)  # premultiplied, exposed
-    shadow = engine.output.read_ground_shadow() if look.ground else None
-    alpha = person[..., 3] if scene.frame is None else scene.frame.alpha
+    return write_on_plate(read_person(engine), plate, place, png, exr, layers, layers_in_exr, source, cut_allowed)
+
+
+def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layers=None, layers_in_exr: bool = False,
+                   source=None, cut_allowed: bool = False) -> dict:
+    """The person (``frame``: :func:`read_person`'s) composited into ``plate`` at ``place``, matched to
+    the plate's defocus and grain, and written: ``png`` (8-bit sRGB, the plate's grain on the person),
+    ``exr`` (linear; with ``layers_in_exr`` also the layers: the person premultiplied, the shadow as a
+    multiplier, the plate) and ``layers`` (those layers in a file of their own, a batch's), all
+    replaced together. No GL: a window's save writes it on a thread."""
+    from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
+    from viewer.output.layers import write_layers
+
+    person, shadow, alpha = frame
     transform = plate_transform(alpha, place, plate.size, source, cut_allowed)
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
@@ -62,7 +77,7 @@ def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Plac
         write_layers(tmps[1], _channels({**image, **(parts if layers_in_exr else {})}))
         if layers is not None:
             write_layers(tmps[2], _channels({**image, **parts}))
-    return {"exposure": float(look.exposure), "defocus_px": round(blur, 3), "grain_levels": [round(float(g), 3) for g in grain]}
+    return {"defocus_px": round(blur, 3), "grain_levels": [round(float(g), 3) for g in grain]}
 
 
 def _channels(channels: dict) -> dict:

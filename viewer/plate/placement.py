@@ -131,3 +131,23 @@ def plate_transform(alpha: np.ndarray, place: Placement, plate_size: tuple[int, 
         raise InputError(None, f"--at {place.x:g},{place.y:g} with --height {place.height:g} puts the person wholly off "
                                "the plate: give --at within [0, 1]")
     return PlateTransform(scale, (ox, oy))
+
+
+def place_on_plate(plate, at: tuple[float, float] | None, height: float | None, horizon: float | None,
+                   notes: list | None = None) -> tuple[Placement, float]:
+    """Where the person stands on ``plate`` (:func:`placement`) on ``horizon`` or the plate's own
+    (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``); (the placement, the horizon). A
+    placement whose camera stands far from eye height is warned in one line."""
+    import warnings
+
+    from viewer.plate.horizon import plate_horizon
+
+    if horizon is None:
+        horizon, how = plate_horizon(plate)
+        if notes is not None:
+            notes.append(f"the plate's horizon at {horizon:.3f} of its height ({how})")
+    place = placement(at, height, horizon)
+    mismatch = camera_mismatch(place, horizon)
+    if mismatch:
+        warnings.warn(f"{plate.source}: {mismatch}", stacklevel=2)
+    return place, float(horizon)

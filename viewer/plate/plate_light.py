@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -112,3 +113,24 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
     longer = min(longer, max(w, h))
     size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1))
     return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
+
+
+LIGHT_VERSION = 1  # bump when a change here changes the map a plate gives (its file is made again)
+
+
+def plate_light_file(plate: Plate, directory) -> Path:
+    """The plate's light (:func:`plate_light`) as an EXR in ``directory``, made once: named by the
+    plate's content (its pixels, its focal length, this module's version) so that it opens as any map
+    (the viewer fits it, refits it at another count, turns it) and a plate changed by one pixel, or
+    read with another focal length, gets a file of its own."""
+    import hashlib
+
+    from viewer.lighting.envmap import save_envmap
+
+    digest = hashlib.sha256(np.asarray(plate.srgb.shape, np.int64).tobytes() + plate.srgb.tobytes()
+                            + f"{plate.focal_35:.4f}-{MAP_HEIGHT}-{LIGHT_VERSION}".encode()).hexdigest()[:20]
+    stem = Path(plate.source).stem if plate.source else "plate"
+    path = Path(directory) / f"{stem}-light-{digest}.exr"
+    if not path.is_file():
+        save_envmap(path, plate_light(plate)[0])
+    return path

@@ -1,0 +1,152 @@
+"""The plate in the window (issue 47): the person composited into a background photo as ``relight
+render --plate`` composites them (:func:`viewer.output.plate_composite.composite_on_plate`: the same
+code), on a copy of the plate at most ``VIEW_LONGER`` pixels long; dragging the person moves where
+their feet stand, the wheel scales them about their feet. The plate's own pixels, its defocus where
+the feet stand and its placement are this object's; the person and their shadow are the engine's
+frame, read back when it changes (not when only the placement does). S writes the composite at the
+plate's full size (:func:`viewer.output.plate_render.write_on_plate`, on a thread)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from viewer.errors import InputError
+from viewer.files.imageio import linear_to_srgb
+from viewer.output.plate_composite import composite_on_plate
+from viewer.output.plate_render import read_person
+from viewer.plate.placement import Placement, camera_mismatch, plate_transform
+from viewer.plate.plate_file import Plate
+from viewer.plate.plate_match import feet_blur
+
+VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
+SCALE_PER_NOTCH = 1.06  # the person's height per wheel notch
+HEIGHT_RANGE = (0.02, 3.0)  # of the plate's height, as the wheel leaves it
+
+
+def srgb8(linear: np.ndarray) -> np.ndarray:
+    """(..., 3) linear (clipped to [0, 1]) as 8-bit sRGB, as the display shows it."""
+    return (np.clip(linear_to_srgb(np.nan_to_num(linear, nan=0.0)), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def plate_setting(path, at: tuple[float, float] | None, height: float | None, horizon: float | None, own_light,
+                  notes: list) -> tuple[tuple, Path | None]:
+    """A photo opened as a plate: (the plate, where the person stands on it, its horizon, what lights the
+    person: "plate" or the name of ``own_light``, the plate's light as a map file: :class:`PlateView`'s
+    arguments), and that map file to open as any map's, None where ``own_light`` (a map or a light
+    file) lights the person. One line when it cannot be a plate (:func:`viewer.plate.plate_file.read_plate`)."""
+    from viewer.lighting.lightfit.cache import cache_dir
+    from viewer.plate.placement import place_on_plate
+    from viewer.plate.plate_file import read_plate
+    from viewer.plate.plate_light import plate_light_file
+
+    plate = read_plate(path, notes)
+    place, horizon = place_on_plate(plate, at, height, horizon, notes)
+    light_map = plate_light_file(plate, cache_dir() / "plates")
+    return (plate, place, horizon, Path(own_light).name if own_light else "plate", light_map), None if own_light else light_map
+
+
+class PlateView:
+    """A plate shown in the window with the person in it: its texture (the composite, sRGB, the
+    plate's copy's size), where the person stands (:attr:`place`) and the plate's horizon."""
+
+    def __init__(self, ctx, plate: Plate, place: Placement, horizon: float, light: str, light_map: Path):
+        import cv2
+        import moderngl
+
+        self.plate, self.place, self.horizon = plate, place, float(horizon)
+        self.light = light  # "plate": lit by the plate's own light; else the name of the map that lights the person
+        self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.plate_light.plate_light_file)
+        w, h = plate.size
+        k = min(1.0, VIEW_LONGER / max(w, h))
+        self.size = (max(int(round(w * k)), 1), max(int(round(h * k)), 1))
+        self.linear = plate.linear if k == 1.0 else cv2.resize(plate.linear, self.size, interpolation=cv2.INTER_AREA)
+        self.texture = ctx.texture(self.size, 3, dtype="f1")
+        self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.texture.write(srgb8(self.linear).tobytes())
+        self._person = None  # (key, the person premultiplied and exposed, the shadow share, the matte) of the engine's frame
+        self._shown = None  # (person key, place, blur) the texture shows
+        self._blur: tuple[Placement, float] | None = None  # the plate's defocus (copy's pixels) where the feet stand
+        self.box: tuple[float, float, float, float] | None = None  # the person's box in the copy's pixels (x0, y0, x1, y1)
+        self._frame = None  # (the transform shown, the person's frame size (w, h)): where a point of the plate is in it
+        self.error = ""  # why the last placement asked for could not be shown (the one before stays)
+
+    @property
+    def mismatch(self) -> str | None:
+        """A line when the placement's camera height is far from the person's photo's (:func:`camera_mismatch`)."""
+        return camera_mismatch(self.place, self.horizon)
+
+    def blur(self, settled: bool) -> float:
+        """The plate's defocus where the feet stand, in the copy's pixels: measured again once the
+        person is let go (``settled``), the last one's meanwhile."""
+        if self._blur is None or (settled and self._blur[0] != self.place):
+            k = self.size[0] / self.plate.size[0]
+            self._blur = (self.place, feet_blur(self.plate.srgb, self.place) * k)
+        return self._blur[1]
+
+    def frame_texture(self, eng, key, settled: bool = True):
+        """The texture showing ``eng``'s person (its last complete frame, whose state is ``key``) in
+        the plate where :attr:`place` says: composited again when either changed."""
+        if eng.complete and (self._person is None or self._person[0] != (id(eng), key)):
+            self._person = ((id(eng), key), *read_person(eng))
+        if self._person is None:
+            return self.texture  # the plate alone until the person's first frame is complete
+        blur = self.blur(settled)
+        shown = (self._person[0], self.place, blur)
+        if shown != self._shown:
+            _, person, shadow, alpha = self._person
+            try:
+                transform = plate_transform(alpha, self.place, self.size, cut_allowed=True)
+            except InputError as exc:  # wholly off the plate, too small: the placement before stays
+                self.error = str(exc)
+                return self.texture
+            self.error = ""
+            result = composite_on_plate(self.linear, person, shadow, transform, blur)
+            self.texture.write(srgb8(result.image).tobytes())
+            ys, xs = np.nonzero(alpha > 0.5)
+            s, (ox, oy) = transform.scale, transform.offset
+            self.box = (ox + s * xs.min(), oy + s * ys.min(), ox + s * (xs.max() + 1), oy + s * (ys.max() + 1))
+            self._frame = (transform, (alpha.shape[1], alpha.shape[0]))
+            self._shown = shown
+        return self.texture
+
+    def holds(self, u: float, v: float) -> bool:
+        """Whether the point (``u``, ``v``), fractions of the plate, is on the person's box."""
+        if self.box is None:
+            return False
+        x, y = u * self.size[0], v * self.size[1]
+        x0, y0, x1, y1 = self.box
+        return x0 <= x <= x1 and y0 <= y <= y1
+
+    def frame_point(self, u: float, v: float) -> tuple[float, float] | None:
+        """Where the point (``u``, ``v``) of the plate (fractions) is in the person's frame (fractions of
+        it; a click that aims a light), or None off the frame."""
+        if self._frame is None:
+            return None
+        (transform, (fw, fh)) = self._frame
+        a = (u * self.size[0] - transform.offset[0]) / transform.scale / fw
+        b = (v * self.size[1] - transform.offset[1]) / transform.scale / fh
+        return (a, b) if 0.0 <= a < 1.0 and 0.0 <= b < 1.0 else None
+
+    def moved(self, du: float, dv: float):
+        """The feet moved by (``du``, ``dv``), fractions of the plate (kept where --at may put them)."""
+        from viewer.plate.placement import AT_REACH
+
+        x = min(max(self.place.x + du, -AT_REACH), 1.0 + AT_REACH)
+        y = min(max(self.place.y + dv, -AT_REACH), 1.0 + AT_REACH)
+        self.place = replace(self.place, x=x, y=y)
+
+    def scaled(self, notches: float):
+        """The person larger (or smaller) by the wheel, about their feet."""
+        height = self.place.height * SCALE_PER_NOTCH ** float(notches)
+        self.place = replace(self.place, height=min(max(height, HEIGHT_RANGE[0]), HEIGHT_RANGE[1]))
+
+    def to_json(self) -> dict:
+        return {"source": self.plate.source, "at": [round(self.place.x, 6), round(self.place.y, 6)],
+                "height": round(self.place.height, 6), "horizon": round(self.horizon, 6), "light": self.light,
+                "size": list(self.plate.size)}
+
+    def release(self):
+        self.texture.release()
