@@ -169,6 +169,33 @@ def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():
     assert column[284] == pytest.approx(2 / 3, abs=0.02) and column[285] == pytest.approx(1 / 3, abs=0.02)
 
 
+def test_the_ground_beside_the_feet_loses_the_sky_the_person_hides():
+    """The contact shadow: two feet on the ground under legs; the ground right beside a shoe darker than
+    a step away, than in front of it, than far off (untouched); in proportion to the sky's share of the
+    light (none under a lone sun straight above); a matte with nothing near its bottom casts none."""
+    from viewer.plate.contact import MAX_OCCLUSION, contact_shadow, sky_share
+    from viewer.scene.area_lights import AreaLights
+
+    alpha = np.zeros((400, 600), np.float32)
+    alpha[50:300, 270:330] = 1.0  # the body, 250 px of a person 300 px tall
+    alpha[300:350, 275:295] = 1.0  # the left leg and foot
+    alpha[300:346, 305:325] = 1.0  # the right one, a little further away
+    focal = 600.0
+    c = contact_shadow(alpha, focal, 1.0)
+    assert c.shape == alpha.shape and c.dtype == np.float32 and np.isfinite(c).all()
+    assert c.min() >= 1.0 - MAX_OCCLUSION - 1e-6 and c.max() == 1.0
+    beside, step, front, far = c[347, 296], c[347, 310 + 30], c[356, 285], c[200, 50]
+    assert beside < 0.75 and beside < step < far and front < 0.97 and far == 1.0
+    half = contact_shadow(alpha, focal, 0.5)
+    np.testing.assert_allclose(1.0 - half, 0.5 * (1.0 - c), atol=1e-6)  # in proportion to the sky's share
+    assert contact_shadow(alpha, focal, 0.0) is None and contact_shadow(np.zeros_like(alpha), focal, 1.0) is None
+    sun = AreaLights(np.array([[0.0, 1.0, 0.0]]), np.array([0.1]), np.array([[5.0, 5.0, 5.0]]))
+    assert sky_share(sun) == 0.0
+    sky = AreaLights(np.array([[0.0, 1.0, 0.0], [0.7, 0.7, 0.0], [-0.7, 0.7, 0.0], [0.0, -1.0, 0.0]]), np.full(4, 0.5),
+                     np.array([[1.0] * 3, [1.0] * 3, [1.0] * 3, [9.0] * 3]))  # the last from below: no light on the ground
+    assert sky_share(sky) == pytest.approx(1.0 - 1.0 / (1.0 + 2 * 0.7))
+
+
 def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     """The bundled photo's person put into a plate made of a map with a low sun (its own map lights
     it: the shadow falls on the plate's ground) and lit by the plate alone."""

@@ -96,14 +96,16 @@ class PlateView:
         blur = self.blur(settled)
         shown = (self._person[0], self.place, blur)
         if shown != self._shown:
-            _, person, shadow, alpha = self._person
+            _, person, shadow, alpha, sky = self._person
             try:
                 transform = plate_transform(alpha, self.place, self.size, cut_allowed=True)
             except InputError as exc:  # wholly off the plate, too small: the placement before stays
                 self.error = str(exc)
                 return self.texture
             self.error = ""
-            result = composite_on_plate(self.linear, person, shadow, transform, blur)
+            feet = not (alpha[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
+            result = composite_on_plate(self.linear, person, shadow, transform, blur,
+                                        self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0)
             self.texture.write(srgb8(result.image).tobytes())
             ys, xs = np.nonzero(alpha > 0.5)
             s, (ox, oy) = transform.scale, transform.offset

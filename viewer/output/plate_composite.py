@@ -56,11 +56,16 @@ def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[i
 
 
 def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow_share: np.ndarray | None,
-                       transform: PlateTransform, blur: float = 0.0) -> PlateComposite:
+                       transform: PlateTransform, blur: float = 0.0, focal_px: float = 0.0, sky: float = 0.0) -> PlateComposite:
     """The person (premultiplied RGBA, the frame's size) and the ground's shadow share (any size over
     the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3); the person's layer
-    blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.plate_match`)."""
+    blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.plate_match`);
+    with ``sky`` > 0 (the share of the ground's light a contact shadow hides) the ground around the
+    feet darkened too (:func:`viewer.plate.contact.contact_shadow`, the plate's focal length ``focal_px``
+    in its pixels), in the shadow layer."""
     import cv2
+
+    from viewer.plate.contact import contact_shadow
 
     h, w = plate_linear.shape[:2]
     person = np.clip(np.nan_to_num(into_plate(person_rgba, transform, (w, h)), nan=0.0, posinf=MAX_HALF), 0.0, MAX_HALF)
@@ -75,5 +80,8 @@ def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow
             shadow = np.repeat(shadow, 3, axis=2)
     else:
         shadow = np.ones((h, w, 3), np.float32)
+    contact = contact_shadow(person[..., 3], focal_px, sky) if sky > 0.0 and focal_px > 0.0 else None
+    if contact is not None:  # the darker of the lights' shadow and the sky's share hidden at the feet
+        shadow = np.minimum(shadow, contact[..., None])
     image = plate_linear * shadow * (1.0 - person[..., 3:4]) + person[..., :3]
     return PlateComposite(image.astype(np.float32), person.astype(np.float32), shadow.astype(np.float32))

@@ -26,15 +26,18 @@ def plate_look(look: Look, own_light: bool) -> Look:
     return replace(look, background="transparent", ground=look.ground is not False, exposure=exposure)
 
 
-def read_person(engine) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+def read_person(engine) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, float]:
     """The engine's last frame as a plate takes it: (the person premultiplied by their matte and
     exposed by the look, (H, W, 4); the ground's shadow share, or None without the ground; the matte
-    that places them: the frame's, else the coverage)."""
+    that places them: the frame's, else the coverage; the share of the ground's light a contact
+    shadow hides, :func:`viewer.plate.contact.sky_share` of the engine's lights, 0 without the ground)."""
+    from viewer.plate.contact import sky_share
+
     person = engine.output.read_hdr_rgba()  # its colour as lit, and its coverage
     person[..., :3] *= person[..., 3:4] * 2.0 ** float(engine.look.exposure)  # premultiplied, exposed
     shadow = engine.output.read_ground_shadow() if engine.look.ground else None
     alpha = person[..., 3] if engine.scene.frame is None else engine.scene.frame.alpha
-    return person, shadow, alpha
+    return person, shadow, alpha, sky_share(engine.lights) if engine.look.ground else 0.0
 
 
 def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Placement, png, exr, layers=None,
@@ -60,11 +63,12 @@ def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layer
     from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
     from viewer.output.layers import write_layers
 
-    person, shadow, alpha = frame
+    person, shadow, alpha, sky = frame
     transform = plate_transform(alpha, place, plate.size, source, cut_allowed)
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
-    result = composite_on_plate(linear, person, shadow, transform, blur)
+    feet = not (alpha[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
+    result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}
     parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},
              **{f"shadow.{c}": result.shadow[..., k] for k, c in enumerate("RGB")},
