@@ -196,6 +196,30 @@ def test_the_ground_beside_the_feet_loses_the_sky_the_person_hides():
     assert sky_share(sky) == pytest.approx(1.0 - 1.0 / (1.0 + 2 * 0.7))
 
 
+def test_a_person_lit_by_their_own_map_is_exposed_to_the_plates_light():
+    """--env on a plate: the stops that give the person the plate's light's diffuse level: none for the
+    same map, -2 for one four times as bright, and the map turned by the look as the engine turns it
+    (its harmonics with the normals turned back = the turned map's); a light file's lights as points
+    within 10 % of their map's."""
+    from viewer.cli.command_setup import fitted_lights
+    from viewer.lighting.envmap import EnvMap
+    from viewer.plate.plate_exposure import matched_exposure, mean_irradiance
+    from viewer.resources import sample_scene_dir
+    from viewer.scene.bundle import load_scene
+
+    scene = load_scene(sample_scene_dir())
+    normals = scene.normal[scene.mask]
+    env = load_envmap(SHARED_DATA / "hdri" / "rooitou_park_1k.hdr").downsampled(256)
+    assert matched_exposure(env, env, normals) == 0.0
+    assert matched_exposure(env, EnvMap(env.pixels * 4.0), normals) == pytest.approx(-2.0, abs=1e-6)
+    lights, _ = fitted_lights(env, 16, "instant")
+    for yaw, tilt in ((0.0, 0.0), (90.0, 0.0), (200.0, 20.0)):
+        turned = mean_irradiance(env.rotated(yaw, tilt), normals)
+        assert mean_irradiance(env, normals, yaw, tilt) == pytest.approx(turned, rel=0.01)
+        assert mean_irradiance(lights, normals, yaw, tilt) == pytest.approx(turned, rel=0.1)
+    assert matched_exposure(env, EnvMap(np.zeros_like(env.pixels)), normals) == 0.0  # no light: left as it is
+
+
 def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     """The bundled photo's person put into a plate made of a map with a low sun (its own map lights
     it: the shadow falls on the plate's ground) and lit by the plate alone."""
@@ -209,6 +233,7 @@ def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     done = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "in.png"),
                    "--env", str(rooitou), "--yaw", "120", "--layers", "--at", "0.4,0.9")
     assert done.returncode == 0, done.stderr
+    assert "stops to the plate's light" in done.stdout  # as bright as the plate's light would make them
     image = np.asarray(Image.open(tmp_path / "in.png"))
     plate = np.asarray(Image.open(tmp_path / "plate.jpg"))
     assert image.shape == plate.shape

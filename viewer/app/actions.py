@@ -172,7 +172,13 @@ class Actions:
 
     def level_exposure(self):
         """The exposure that keeps the photo's brightness under the lights now (what a photo gets
-        when it opens): a new map keeps the exposure it had until this is asked."""
+        when it opens): a new map keeps the exposure it had until this is asked. On a plate: the
+        plate's level (:meth:`viewer.app.plate_view.PlateView.exposure`)."""
+        s = self.app.session
+        if self.app.plate is not None:
+            s.update(exposure=self.app.plate.exposure(s.environment, s.scene, s.look) if s.environment is not None else 0.0)
+            self.app.message = f"exposure levelled to the plate: {s.look.exposure_stops:+.2f} stops"
+            return
         self.app._apply_auto_exposure()
         self.app.message = f"exposure levelled to the photo: {self.app.session.look.exposure_stops:+.2f} stops"
 

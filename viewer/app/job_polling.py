@@ -64,8 +64,13 @@ class JobPolling:
         new_map = job.path != self.app.env_path
         self.app.session.set_lights(res.lights, environment=res.env.pixels, new_map=new_map)
         self.app.thumbnail.prepare(res.env.pixels, res.thumbnail)
-        if new_map:  # as the first map: its brightest light on the camera's side
+        plate = self.app.plate
+        if new_map and plate is not None and job.path == plate.light_map:  # the plate's own light: in its camera's frame
+            self.app.session.update(yaw=0.0, tilt=0.0)
+        elif new_map:  # as the first map: its brightest light on the camera's side
             self.app.session.update(yaw=facing_yaw(res.lights))
+        if new_map and plate is not None:  # on a plate the plate sets the level: its own light's, or matched to it
+            self.app.session.update(exposure=plate.exposure(res.env.pixels, self.app.session.scene, self.app.session.look))
         self.app.env_path = job.path
         self.app.n_lights = len(res.lights)
         # the exposure stays (chosen when the photo opened): a night map looks like night, a bright

@@ -59,6 +59,7 @@ class PlateView:
         self.plate, self.place, self.horizon = plate, place, float(horizon)
         self.light = light  # "plate": lit by the plate's own light; else the name of the map that lights the person
         self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.plate_light.plate_light_file)
+        self._light_env = None  # that map, read when a map of the user's is to be exposed to it
         w, h = plate.size
         k = min(1.0, VIEW_LONGER / max(w, h))
         self.size = (max(int(round(w * k)), 1), max(int(round(h * k)), 1))
@@ -72,6 +73,19 @@ class PlateView:
         self.box: tuple[float, float, float, float] | None = None  # the person's box in the copy's pixels (x0, y0, x1, y1)
         self._frame = None  # (the transform shown, the person's frame size (w, h)): where a point of the plate is in it
         self.error = ""  # why the last placement asked for could not be shown (the one before stays)
+
+    def exposure(self, pixels: np.ndarray, scene, look) -> float:
+        """The person's exposure on this plate under a map's ``pixels`` turned by ``look``: 0 (the plate's
+        units) under the plate's own light, else the stops that give them the plate's light's diffuse
+        level (:func:`viewer.plate.plate_exposure.matched_exposure`)."""
+        from viewer.lighting.envmap import EnvMap, load_envmap
+        from viewer.plate.plate_exposure import matched_exposure
+
+        if self.light == "plate":
+            return 0.0
+        if self._light_env is None:
+            self._light_env = load_envmap(self.light_map)
+        return matched_exposure(self._light_env, EnvMap(pixels), scene.normal[scene.mask], look.yaw, look.tilt)
 
     @property
     def mismatch(self) -> str | None:

@@ -176,7 +176,7 @@ def resolve_looks(specs, args) -> list:
                 continue
             lights, sha = found[(source, n)]
             if spec.plate is not None:  # a plate's light as its camera saw it, unless turned
-                look = plate_look(look.replace(yaw=0.0 if spec.yaw == "auto" else float(spec.yaw)), own_light=False)
+                look = plate_look(look.replace(yaw=0.0 if spec.yaw == "auto" else float(spec.yaw)))
             else:
                 yaw = facing_yaw(lights) if spec.yaw == "auto" else float(spec.yaw)
                 look = look.replace(yaw=yaw)  # no map behind a light file's look: the engine falls back to the photo's background

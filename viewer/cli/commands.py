@@ -233,10 +233,15 @@ def cmd_view(args) -> int:
         raise
     if plate is None:
         look = first_look(args, look, lights)
-    else:  # the plate's light is in its camera's frame (yaw 0 unless given); the person exposed in the plate's units
+    else:  # the plate's light is in its camera's frame (yaw 0 unless given); the person exposed in the plate's units,
+        # or lit by the user's own light, as bright as the plate's light would make them
+        from viewer.cli.plate_commands import own_light_exposure
         from viewer.output.plate_render import plate_look
+        from viewer.scene.look import AUTO
 
-        look = plate_look(look, own_light=plate[3] != "plate")
+        own = plate[3] != "plate" and look.exposure == AUTO
+        look = plate_look(look, own_light_exposure(plate[0], scene, lights, env.pixels if env is not None else None, look)
+                          if own else 0.0)
     from viewer.app import ViewerConfig, run_viewer
 
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,

@@ -77,6 +77,7 @@ def cmd_render_plate(args, look) -> int:
     from viewer.plate.placement import Placement
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
+    from viewer.scene.look import AUTO
     from viewer.scene.resampling import load_sized_scene
 
     out = Path(args.output)
@@ -92,9 +93,12 @@ def cmd_render_plate(args, look) -> int:
     plate = read_plate(args.plate, notes)
     place = Placement(*plate_place(plate, args, notes)[0])
     own = args.envmap or args.lights
-    if own:  # the user's own light; the plate only the backdrop
-        scene, lights, _, look = prepare(args.scene, args.lights, args.envmap, args, look)
-        light_from = str(own)
+    auto = 0.0  # the exposure unless given: the plate's units under its own light
+    if own:  # the user's own light; the plate only the backdrop, and its light the level
+        scene, lights, pixels, look = prepare(args.scene, args.lights, args.envmap, args, look)
+        if look.exposure == AUTO:
+            auto = own_light_exposure(plate, scene, lights, pixels, look)
+        light_from = f"{own}" + (f", exposed {auto:+.2f} stops to the plate's light" if look.exposure == AUTO else "")
     else:  # the plate's light, in its camera's frame (--yaw turns it as any map's)
         scene = load_sized_scene(args.scene, getattr(args, "size", None), getattr(args, "max_size", None))
         env, record = plate_light(plate)
@@ -102,7 +106,7 @@ def cmd_render_plate(args, look) -> int:
         light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     try:
-        matched = render_on_plate(engine, scene, lights, plate_look(look, bool(own)), plate, place, out, outputs[1],
+        matched = render_on_plate(engine, scene, lights, plate_look(look, auto), plate, place, out, outputs[1],
                                   layers_in_exr=args.layers, fixed=rig_lights(args), source=args.scene,
                                   cut_allowed=args.height is not None)
     finally:
@@ -115,6 +119,17 @@ def cmd_render_plate(args, look) -> int:
           f"{matched['defocus_px']:.1f} px and grain {np.mean(matched['grain_levels']):.1f} levels given to the person; "
           f"{seconds:.1f} s)")
     return 0
+
+
+def own_light_exposure(plate, scene, lights, pixels, look) -> float:
+    """The stops that give a person lit by the user's map (``pixels``, else ``lights``, a light file's)
+    the diffuse light the plate's own light gives them (:mod:`viewer.plate.plate_exposure`)."""
+    from viewer.lighting.envmap import EnvMap
+    from viewer.plate.plate_exposure import matched_exposure
+    from viewer.plate.plate_light import plate_light
+
+    light = EnvMap(pixels) if pixels is not None else lights
+    return matched_exposure(plate_light(plate)[0], light, scene.normal[scene.mask], look.yaw, look.tilt)
 
 
 def view_plate(args, notes: list) -> tuple[tuple, Path | None]:

@@ -16,13 +16,13 @@ from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
 from viewer.scene.look import Look
 
 
-def plate_look(look: Look, own_light: bool) -> Look:
+def plate_look(look: Look, auto: float = 0.0) -> Look:
     """``look`` as a plate needs it: no background (the plate is), the ground's shadow unless turned off,
-    and the exposure: lit by the plate's own light, 0 (the plate's units) unless stops are given; by
-    the user's map, the photo's own brightness ("auto") unless given."""
+    and the exposure: the stops given, else ``auto``: 0 (the plate's units) lit by the plate's own
+    light, the matched exposure lit by the user's (:func:`viewer.plate.plate_exposure.matched_exposure`)."""
     from viewer.scene.look import AUTO
 
-    exposure = (AUTO if own_light else 0.0) if look.exposure == AUTO else look.exposure
+    exposure = float(auto) if look.exposure == AUTO else look.exposure
     return replace(look, background="transparent", ground=look.ground is not False, exposure=exposure)
 
 
