@@ -220,6 +220,39 @@ def test_a_person_lit_by_their_own_map_is_exposed_to_the_plates_light():
     assert matched_exposure(env, EnvMap(np.zeros_like(env.pixels)), normals) == 0.0  # no light: left as it is
 
 
+def test_the_persons_lens_is_kept_and_compared_with_the_plates(tmp_path):
+    """A photo's EXIF focal length is read with its pixels, kept in its bundle's frame (and back, a
+    bad one one line), and a plate seeing the person from much farther than their photo did is warned."""
+    from dataclasses import replace
+
+    from viewer.photo.inference import cached_bundle
+    from viewer.photo.photo_frame import read_photo
+    from viewer.plate.placement import Placement, lens_mismatch
+    from viewer.scene.bundle import load_scene, save_scene
+
+    photo = tmp_path / "wide.jpg"
+    exif = Image.Exif()
+    exif.get_ifd(0x8769)[0xA405] = 24
+    Image.new("RGB", (64, 96), (120, 100, 90)).save(photo, "JPEG", exif=exif.tobytes())
+    lens: dict = {}
+    read_photo(photo, [], lens=lens)
+    assert lens == {"focal_35mm": 24.0}
+    bundle, _ = cached_bundle(asset_dir() / "photos" / "underpass.jpg")
+    scene = load_scene(bundle)
+    save_scene(replace(scene, frame=replace(scene.frame, focal_35mm=24.0)), tmp_path / "b")
+    assert load_scene(tmp_path / "b").frame.focal_35mm == 24.0
+    meta = json.loads((tmp_path / "b" / "scene.json").read_text())
+    meta["frame"]["focal_35mm"] = 3000
+    (tmp_path / "b" / "scene.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="focal_35mm"):
+        load_scene(tmp_path / "b")
+    plate_focal = 1500 * 50 / 36  # a 50 mm plate 1500 px wide
+    far = lens_mismatch(26.0, (1000, 1500), 1400.0, Placement(0.5, 0.9, 0.3), (1500, 1000), plate_focal)
+    assert "about 1.3 m (26 mm lens), the plate from about 11.8 m" in far and "a larger --height" in far
+    assert lens_mismatch(50.0, (1000, 1500), 1400.0, Placement(0.5, 0.9, 0.8), (1500, 1000), plate_focal) is None
+    assert lens_mismatch(0.0, (1000, 1500), 1400.0, Placement(0.5, 0.9, 0.3), (1500, 1000), plate_focal) is None  # unknown
+
+
 def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     """The bundled photo's person put into a plate made of a map with a low sun (its own map lights
     it: the shadow falls on the plate's ground) and lit by the plate alone."""

@@ -274,8 +274,8 @@ class Actions:
     def placed_on_plate(self):
         """The person let go on the plate (or scaled): where they stand said, with the camera's warning."""
         p = self.app.plate
-        self.app.message = (f"the feet at {p.place.x:.3f},{p.place.y:.3f}, {p.place.height:.3f} of the plate tall"
-                            + (f"; {p.mismatch}" if p.mismatch else ""))
+        self.app.message = "; ".join([f"the feet at {p.place.x:.3f},{p.place.y:.3f}, {p.place.height:.3f} of the plate tall",
+                                      *p.mismatches(self.app.session.scene)])
 
     def open_plate(self, path: Path):
         """A photo opened as the plate: read, the person placed on its ground (the default place on

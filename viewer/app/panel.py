@@ -515,7 +515,7 @@ def _plate(app):
     if imgui.is_item_hovered():
         imgui.set_tooltip("drag the person to move them; the wheel scales them about their feet\n"
                           "relight render BUNDLE --plate PLATE --at X,Y --height H gives the same")
-    for line in (plate.mismatch, plate.error):
+    for line in (*plate.mismatches(app.session.scene), plate.error):
         if line:
             imgui.push_text_wrap_pos(0.0)
             imgui.text_colored(imgui.ImVec4(1.0, 0.75, 0.3, 1.0), line)

@@ -17,7 +17,7 @@ from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.output.plate_composite import composite_on_plate
 from viewer.output.plate_render import read_person
-from viewer.plate.placement import Placement, camera_mismatch, plate_transform
+from viewer.plate.placement import Placement, camera_mismatch, person_lens_mismatch, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur
 
@@ -87,10 +87,11 @@ class PlateView:
             self._light_env = load_envmap(self.light_map)
         return matched_exposure(self._light_env, EnvMap(pixels), scene.normal[scene.mask], look.yaw, look.tilt)
 
-    @property
-    def mismatch(self) -> str | None:
-        """A line when the placement's camera height is far from the person's photo's (:func:`camera_mismatch`)."""
-        return camera_mismatch(self.place, self.horizon)
+    def mismatches(self, scene) -> list[str]:
+        """What does not match the person's photo where they stand: the plate camera's height
+        (:func:`camera_mismatch`) and its distance (:func:`person_lens_mismatch`, ``scene``'s photo's lens)."""
+        return [line for line in (camera_mismatch(self.place, self.horizon), person_lens_mismatch(scene.frame, self.place, self.plate))
+                if line]
 
     def blur(self, settled: bool) -> float:
         """The plate's defocus where the feet stand, in the copy's pixels: measured again once the

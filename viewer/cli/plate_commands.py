@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +75,7 @@ def cmd_render_plate(args, look) -> int:
     from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare, rig_lights
     from viewer.gl import Engine, create_headless_context
     from viewer.output.plate_render import plate_look, render_on_plate
-    from viewer.plate.placement import Placement
+    from viewer.plate.placement import Placement, person_lens_mismatch
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
     from viewer.scene.look import AUTO
@@ -104,6 +105,9 @@ def cmd_render_plate(args, look) -> int:
         env, record = plate_light(plate)
         lights, _ = fitted_lights(env, lights_count(args, look), args.method)
         light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
+    lens = person_lens_mismatch(scene.frame, place, plate)
+    if lens:
+        warnings.warn(f"{plate.source}: {lens}", stacklevel=2)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     try:
         matched = render_on_plate(engine, scene, lights, plate_look(look, auto), plate, place, out, outputs[1],

@@ -406,14 +406,16 @@ class Stage:
 def _read(photo_path, max_size, picture):
     notes: list[str] = []
     inputs: dict[str, str] = {}  # SHA-256 of the bytes decoded: what this bundle was made from
+    lens: dict = {}  # the photo's EXIF focal length (a plate compares its perspective: viewer.plate.placement)
     if picture is None:
         _check_memory(photo_path, max_size)
-        photo = read_photo(photo_path, notes, inputs)
+        photo = read_photo(photo_path, notes, inputs, lens)
     else:  # a clip's frame, decoded and upright (viewer.photo.clip_inference): the clip's bytes are its input
         photo = picture
     h, w = photo.shape[:2]
     frame = output_frame((w, h), max_size)
-    return {"photo": photo, "frame": frame, "frame_photo": resize(photo, frame), "notes": notes, "inputs": inputs}
+    return {"photo": photo, "frame": frame, "frame_photo": resize(photo, frame), "notes": notes, "inputs": inputs,
+            "focal_35mm": lens.get("focal_35mm")}
 
 
 def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size, steady):
@@ -571,7 +573,7 @@ def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
 # stages that read it. A new stage: its work in a module of viewer/photo/ (as face.py, detail.py),
 # and one line here.
 STAGE_LIST = (
-    Stage("read", _read, ("photo_path", "max_size", "picture"), ("photo", "frame", "frame_photo", "notes", "inputs")),
+    Stage("read", _read, ("photo_path", "max_size", "picture"), ("photo", "frame", "frame_photo", "notes", "inputs", "focal_35mm")),
     Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size",
                           "steady"),
           ("matte", "landmarks", "mask_source", "alpha", "person", "body", "turned", "sizes")),
@@ -648,6 +650,8 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
                     "networks": networks, "detail": detail, "picture": picture, "given_lights": lights,
                     "steady": steady}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
+    if v["focal_35mm"]:  # the photo's lens, kept with its frame
+        scene = replace(scene, frame=replace(scene.frame, focal_35mm=float(v["focal_35mm"])))
     direction, sigma, intensity = v["network_lights"]
     network_lights = AreaLights(direction[0].cpu().numpy(), sigma[0].cpu().numpy(), intensity[0].cpu().numpy())
     record = {"photo": str(photo_path), "mask": v["mask_source"], "inputs_sha256": v["inputs"], "orientation": v["turned"],

@@ -72,13 +72,27 @@ def frame_sizes(photo_size: tuple[int, int], person_box: tuple[int, int], max_si
     return FrameSizes(tuple(photo_size), tuple(frame), tuple(work))
 
 
-def read_image_u8(path, what: str, notes: list, digests: dict | None = None, colours: bool = True) -> np.ndarray:
+def exif_focal_35(exif) -> float | None:
+    """The 35-mm-equivalent focal length (mm) an EXIF block (Pillow's ``Image.Exif``) gives (tag 0xA405,
+    which phones and most cameras write), or None."""
+    sub = exif.get_ifd(0x8769) if exif else {}
+    value = sub.get(0xA405) or (exif.get(0xA405) if exif else None)
+    try:
+        value = float(value) if value else None
+    except (TypeError, ValueError):
+        value = None
+    return value if value and 4.0 <= value <= 2000.0 else None
+
+
+def read_image_u8(path, what: str, notes: list, digests: dict | None = None, colours: bool = True,
+                  lens: dict | None = None) -> np.ndarray:
     """An image file as uint8 (H, W[, C]), upright: the EXIF orientation applied (with a note),
     16-bit images reduced to 8 bits (with a note), palette and other modes converted, colours in an
     embedded ICC profile other than sRGB (Adobe RGB, Display P3, ProPhoto) converted to sRGB by
     LittleCMS (Pillow's ImageCms; with a note; ``colours`` False: values, not colours, as a mask's,
     never converted). The file is read once: ``digests[what]`` (when given)
-    is the SHA-256 of the very bytes decoded (a file replaced meanwhile cannot pass for another)."""
+    is the SHA-256 of the very bytes decoded (a file replaced meanwhile cannot pass for another), and
+    ``lens["focal_35mm"]`` (when given) its EXIF's 35-mm-equivalent focal length, or None."""
     import hashlib
     import io
 
@@ -98,7 +112,13 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
             opened = Image.open(io.BytesIO(data))
         with opened as im:
             check_pixels(path, im.width, im.height, MAX_PIXELS)  # Pillow itself only refuses twice its limit
-            orientation = im.getexif().get(0x0112, 1)
+            exif = im.getexif()
+            orientation = exif.get(0x0112, 1)
+            if lens is not None:
+                try:
+                    lens["focal_35mm"] = exif_focal_35(exif)
+                except Exception:  # a broken EXIF block is no focal length: the pixels are what matters
+                    lens["focal_35mm"] = None
             icc = im.info.get("icc_profile")
             upright = ImageOps.exif_transpose(im)
             upright.load()
@@ -157,13 +177,13 @@ def to_srgb(image, icc: bytes, path, what: str, notes: list):
     return rgb
 
 
-def read_photo(path, notes: list, digests: dict | None = None) -> np.ndarray:
+def read_photo(path, notes: list, digests: dict | None = None, lens: dict | None = None) -> np.ndarray:
     """The photo as (H, W, 3) uint8 sRGB, upright. Grayscale becomes RGB and alpha is dropped,
-    each with a note. ``digests``: see :func:`read_image_u8`."""
+    each with a note. ``digests``, ``lens``: see :func:`read_image_u8`."""
     wrong = wrong_kind(path, "a photo")
     if wrong is not None:
         raise wrong
-    photo = read_image_u8(path, "photo", notes, digests)
+    photo = read_image_u8(path, "photo", notes, digests, lens=lens)
     if min(photo.shape[:2]) < MIN_PERSON_PX:
         raise InputError(path, f"is {photo.shape[1]}x{photo.shape[0]} pixels: a photo of a person needs at least "
                                f"{MIN_PERSON_PX} pixels a side")

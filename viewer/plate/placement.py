@@ -73,6 +73,44 @@ def camera_mismatch(place: Placement, horizon: float | None = None) -> str | Non
     return None
 
 
+BODY_DEPTH_M = 0.3  # a person's depth front to back: how much nearer their front is than their back
+PERSPECTIVE_TOLERANCE = 0.1  # the difference in that share of the distance (photo against plate) warned beyond
+
+
+def lens_mismatch(photo_focal_35: float, frame_size: tuple[int, int], person_px: float, place: Placement,
+                  plate_size: tuple[int, int], plate_focal_px: float) -> str | None:
+    """A line when the person's photo saw them from a distance whose perspective the plate's would not
+    give (a wide lens close up put on a plate seen from afar, or the other way round): each camera's
+    distance from a person of ``PERSON_HEIGHT_M`` ``person_px`` pixels tall in their frame (of
+    ``frame_size``, the photo's EXIF lens ``photo_focal_35`` mm spanning its longer side) and
+    ``place.height`` of the plate tall under ``plate_focal_px``; their front is ``BODY_DEPTH_M`` /
+    distance larger than their back, and a difference of ``PERSPECTIVE_TOLERANCE`` in that is warned.
+    None when the photo's lens is unknown (0) or they agree."""
+    if not photo_focal_35 or person_px <= 0 or place.height <= 0:
+        return None
+    photo_m = photo_focal_35 / 36.0 * max(frame_size) * PERSON_HEIGHT_M / person_px
+    plate_m = plate_focal_px * PERSON_HEIGHT_M / (place.height * plate_size[1])
+    if abs(BODY_DEPTH_M / photo_m - BODY_DEPTH_M / plate_m) <= PERSPECTIVE_TOLERANCE:
+        return None
+    near = photo_m < plate_m  # their photo was taken from nearer than the plate sees them
+    how = ("near parts (hands, a foot forward) look larger than the plate's camera would show them" if near
+           else "they look flatter than the plate's camera would show them")
+    return (f"the person's photo saw them from about {photo_m:.1f} m ({photo_focal_35:g} mm lens), the plate from about "
+            f"{plate_m:.1f} m: {how}; their perspective will not match ({'a larger' if near else 'a smaller'} --height "
+            f"puts them {'nearer' if near else 'farther'}, as their photo did)")
+
+
+def person_lens_mismatch(frame, place: Placement, plate) -> str | None:
+    """:func:`lens_mismatch` of a scene's frame layer (its matte's height, its photo's lens) on ``plate``."""
+    if frame is None:
+        return None
+    rows = np.flatnonzero((frame.alpha > 0.5).any(axis=1))
+    if not len(rows):
+        return None
+    return lens_mismatch(frame.focal_35mm, (frame.width, frame.height), float(rows[-1] - rows[0] + 1), place, plate.size,
+                         plate.focal_px)
+
+
 def check_place_options(at: tuple[float, float] | None, horizon: float | None) -> None:
     """One line for an ``--at`` or ``--horizon`` that is no fraction of the plate (a batch checks them
     before any work; each plate then places the person on its own horizon)."""

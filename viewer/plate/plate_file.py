@@ -55,28 +55,16 @@ class Plate:
         return SRGB_TO_LINEAR[self.srgb]
 
 
-def exif_focal_35(exif) -> float | None:
-    """The 35-mm-equivalent focal length (mm) an EXIF block (Pillow's ``Image.Exif``) gives, or None."""
-    sub = exif.get_ifd(0x8769) if exif else {}
-    value = sub.get(0xA405) or exif.get(0xA405)
-    try:
-        value = float(value) if value else None
-    except (TypeError, ValueError):
-        value = None
-    return value if value and 4.0 <= value <= 2000.0 else None
-
-
 def read_plate(path, notes: list) -> Plate:
     """The plate at ``path``; one line naming the file for what cannot be a plate (not an image, a video,
     fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: exactly 2:1, or longer than ``PANORAMA_ASPECT``)."""
-    from PIL import Image
-
     from viewer.photo.photo_frame import read_image_u8
 
     wrong = wrong_kind(path, "a plate (a photo to put the person into)")
     if wrong is not None:
         raise wrong
-    image = read_image_u8(path, "plate", notes)
+    lens: dict = {}
+    image = read_image_u8(path, "plate", notes, lens=lens)
     if image.shape[0] < MIN_PLATE_PX or image.shape[1] < MIN_PLATE_PX:
         raise InputError(path, f"is {image.shape[1]}x{image.shape[0]} pixels: a plate needs at least {MIN_PLATE_PX} a side")
     if image.shape[0] * image.shape[1] > MAX_PLATE_PIXELS:
@@ -87,12 +75,7 @@ def read_plate(path, notes: list) -> Plate:
     elif image.shape[-1] == 4:
         notes.append("the plate's alpha channel is ignored (a plate is the whole picture behind the person)")
     image = np.ascontiguousarray(image[..., :3])
-    try:
-        with Image.open(path) as im:
-            focal = exif_focal_35(im.getexif())
-    except Exception:  # the pixels were read: a broken EXIF block is no focal length
-        focal = None
-    source = "exif"
+    focal, source = lens.get("focal_35mm"), "exif"
     if focal is None:
         focal, source = DEFAULT_FOCAL_35, "default"
         notes.append(f"the plate's EXIF gives no focal length: taken as {DEFAULT_FOCAL_35:g} mm (35-mm equivalent)")

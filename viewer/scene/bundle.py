@@ -78,6 +78,7 @@ class FrameLayer:
     background_blur: float = 0.0  # radians: the photo's own background defocus, a Gaussian's sigma (viewer.scene.backdrop)
     skin: np.ndarray | None = None  # (Hf, Wf) [0, 1]: how much each pixel is skin (viewer.photo.gloss); None: no skin known
     skin_mm: float = 0.0  # millimetres of the person a frame pixel spans (the skin's light scatters millimetres); 0: unknown
+    focal_35mm: float = 0.0  # the photo's lens, 35-mm equivalent, from its EXIF (spanning the frame's longer side); 0: unknown
 
     @property
     def height(self) -> int:
@@ -110,7 +111,7 @@ class FrameLayer:
         return FrameLayer(albedo=np.clip(resize(self.albedo, size), 0, 1), alpha=np.clip(resize(self.alpha, size), 0, 1),
                           photo=np.maximum(resize(self.photo, size), 0), background_blur=self.background_blur,
                           skin=None if self.skin is None else np.clip(resize(self.skin, size), 0, 1),
-                          skin_mm=self.skin_mm * self.width / size[0])
+                          skin_mm=self.skin_mm * self.width / size[0], focal_35mm=self.focal_35mm)
 
     def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> FrameLayer:
         def file(name):
@@ -144,6 +145,11 @@ class FrameLayer:
             raise InputError(base / "scene.json" if base is not None else "scene.json",
                              f"frame skin_mm must be millimetres per pixel in [0, {MAX_SKIN_MM:g}], got {mm!r}")
         self.skin_mm = float(mm)
+        focal = self.focal_35mm
+        if isinstance(focal, bool) or not isinstance(focal, (int, float)) or not (focal == 0.0 or 4.0 <= float(focal) <= 2000.0):
+            raise InputError(base / "scene.json" if base is not None else "scene.json",
+                             f"frame focal_35mm must be a lens in [4, 2000] mm (0: unknown), got {focal!r}")
+        self.focal_35mm = float(focal)
         mw, mh = maps_size
         if abs(w * mh / mw - h) > ASPECT_TOLERANCE_PX * max(1.0, h / mh):
             raise InputError(file("alpha"), f"the frame {w}x{h} does not have the aspect of the maps ({mw}x{mh})")
@@ -364,7 +370,7 @@ def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
         skin = skin if skin.ndim == 2 else skin[..., 0]
     frame = FrameLayer(albedo=albedo[..., :3] if albedo.ndim == 3 else albedo, alpha=alpha if alpha.ndim == 2 else alpha[..., 0],
                        photo=srgb_to_linear(photo[..., :3]), background_blur=entry.get("background_blur", 0.0),
-                       skin=skin, skin_mm=entry.get("skin_mm", 0.0))
+                       skin=skin, skin_mm=entry.get("skin_mm", 0.0), focal_35mm=entry.get("focal_35mm", 0.0))
     size = (entry.get("width"), entry.get("height"))
     if size != (frame.width, frame.height):
         raise InputError(meta_path, f"frame is {size[0]}x{size[1]} but {files['alpha']} is {frame.width}x{frame.height}")
@@ -409,6 +415,7 @@ def save_scene(scene: Scene, path) -> Path:
         frame_maps = dict(FRAME_FILES) | ({"skin": FRAME_SKIN_FILE} if frame.skin is not None else {})
         meta["frame"] = {"width": frame.width, "height": frame.height, "maps": frame_maps,
                          "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage", "skin": "share"},
-                         "background_blur": frame.background_blur, "skin_mm": frame.skin_mm}
+                         "background_blur": frame.background_blur, "skin_mm": frame.skin_mm,
+                         **({"focal_35mm": frame.focal_35mm} if frame.focal_35mm else {})}
     write_text(path / "scene.json", json.dumps(meta, indent=2) + "\n")
     return path
