@@ -253,6 +253,28 @@ def test_the_persons_lens_is_kept_and_compared_with_the_plates(tmp_path):
     assert lens_mismatch(0.0, (1000, 1500), 1400.0, Placement(0.5, 0.9, 0.3), (1500, 1000), plate_focal) is None  # unknown
 
 
+def test_the_plate_cameras_height_is_read_from_the_people_standing_in_it(tmp_path):
+    """The shared street: its woman standing whole in it (feet near the bottom, 0.78 of it tall) puts
+    its camera about 1.3 m up (lower than eye height), and the default person is sized for that, as
+    tall as she would be there; a plate with no one in it keeps eye height."""
+    from viewer.plate.horizon import plate_horizon
+    from viewer.plate.placement import CAMERA_HEIGHT_M, PERSON_HEIGHT_M, place_on_plate
+    from viewer.plate.plate_people import plate_camera_height
+
+    street = read_plate(SHARED_DATA / "photos" / "unsplash-1535323700481.jpg", [])
+    horizon, _ = plate_horizon(street)
+    camera, people = plate_camera_height(street, horizon)
+    assert people == 1 and 1.15 < camera < 1.45
+    notes = []
+    place, _ = place_on_plate(street, (0.72, 0.92), None, None, notes)
+    assert place.height == pytest.approx((0.92 - horizon) * PERSON_HEIGHT_M / camera)
+    assert any("from 1 person standing in it" in n for n in notes)
+    make_plate(load_envmap(MAP), 0.0, tmp_path / "square.jpg")
+    empty = read_plate(tmp_path / "square.jpg", [])
+    assert plate_camera_height(empty, 0.5) == (None, 0)
+    assert place_on_plate(empty, (0.5, 0.9), None, 0.5)[0].height == pytest.approx(0.4 * PERSON_HEIGHT_M / CAMERA_HEIGHT_M)
+
+
 def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     """The bundled photo's person put into a plate made of a map with a low sun (its own map lights
     it: the shadow falls on the plate's ground) and lit by the plate alone."""

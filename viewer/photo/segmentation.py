@@ -129,6 +129,32 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None, f
     return Person(segmentation.astype(np.float32), landmarks)
 
 
+def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Person]:
+    """Everyone in ``photo`` (H, W, 3) uint8 sRGB the models find (the selfie model's parts, largest
+    first, at most ``most``; the pose model shown each): their segmentation at the photo's size and
+    their landmarks, as :func:`find_person` gives one. An empty list when there is no one."""
+    from viewer.resize import resize, scaled_size
+
+    h, w = photo.shape[:2]
+    small = np.ascontiguousarray(photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE)))
+    sh, sw = small.shape[:2]
+    pose, selfie = _mediapipe(photo_path)
+    with quiet_native_stderr():
+        with selfie.SelfieSegmentation(model_selection=0) as model:
+            everyone = model.process(small).segmentation_mask
+    found = []
+    for part in (_people(np.asarray(everyone) > 0.5) if everyone is not None else [])[:most]:
+        box = grown(part, (sw, sh))
+        seen = _pose(pose, small, box)
+        if seen is None:
+            continue
+        x0, y0, x1, y1 = box[0], box[1], box[0] + box[2], box[1] + box[3]
+        landmarks = {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
+                     for i, lm in enumerate(seen[0].pose_landmarks.landmark) if lm.visibility > VISIBLE}
+        found.append(Person(np.clip(resize(seen[1], (w, h)), 0.0, 1.0).astype(np.float32), landmarks))
+    return found
+
+
 def grown(box: tuple, size: tuple[int, int]) -> tuple[int, int, int, int]:
     """A person's box (x, y, width, height) grown by 15 % of its width and 10 % of its height (and 8 px)
     each side, within an image of ``size`` = (w, h): what the pose model is shown of one person."""

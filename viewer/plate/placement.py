@@ -1,12 +1,13 @@
 """Where the person stands in the plate, and how large: ``--at X,Y`` (the feet, as fractions of the
 plate's width and height) and ``--height H`` (the person's height as a fraction of the plate's).
 
-The default follows the plate's camera. A camera at eye height ``CAMERA_HEIGHT_M`` sees the ground
-below its horizon; a person of ``PERSON_HEIGHT_M`` standing with their feet ``d`` below the horizon
-in the picture (a fraction of its height) is ``d * PERSON_HEIGHT_M / CAMERA_HEIGHT_M`` of it tall,
-whatever the lens or the distance (both scale alike). The horizon is ``--horizon Y``, else the
-middle of a level camera's picture. Without ``--at``, the feet stand at ``DEFAULT_FEET`` of the
-plate's height, centred.
+The default follows the plate's camera. A camera ``c`` metres above the ground sees it below its
+horizon; a person of ``PERSON_HEIGHT_M`` standing with their feet ``d`` below the horizon in the
+picture (a fraction of its height) is ``d * PERSON_HEIGHT_M / c`` of it tall, whatever the lens or
+the distance (both scale alike). ``c`` is what the people standing in the plate say
+(:mod:`viewer.plate.plate_people`), else eye height, ``CAMERA_HEIGHT_M``. The horizon is
+``--horizon Y``, else the plate's own (:mod:`viewer.plate.horizon`). Without ``--at``, the feet
+stand at ``DEFAULT_FEET`` of the plate's height, centred.
 """
 
 from __future__ import annotations
@@ -34,9 +35,11 @@ class Placement:
     height: float
 
 
-def placement(at: tuple[float, float] | None = None, height: float | None = None, horizon: float | None = None) -> Placement:
-    """The person's place in the plate from the options given, the rest as the module says; one line
-    for what cannot be (feet at or above the horizon with no height given, a height of 0)."""
+def placement(at: tuple[float, float] | None = None, height: float | None = None, horizon: float | None = None,
+              camera_height: float | None = None) -> Placement:
+    """The person's place in the plate from the options given, the rest as the module says (the plate's
+    camera ``camera_height`` metres above the ground, else ``CAMERA_HEIGHT_M``); one line for what
+    cannot be (feet at or above the horizon with no height given, a height of 0)."""
     check_place_options(at, horizon)
     horizon = LEVEL_HORIZON if horizon is None else float(horizon)
     x, y = (0.5, DEFAULT_FEET) if at is None else (float(at[0]), float(at[1]))
@@ -44,7 +47,7 @@ def placement(at: tuple[float, float] | None = None, height: float | None = None
         if y <= horizon:
             raise InputError(None, f"--at {x:g},{y:g}: the feet are at or above the horizon ({horizon:g} of the plate's "
                                    "height), where no ground is; give --height, or --horizon")
-        height = (y - horizon) * PERSON_HEIGHT_M / CAMERA_HEIGHT_M
+        height = (y - horizon) * PERSON_HEIGHT_M / (camera_height or CAMERA_HEIGHT_M)
     if not (np.isfinite(height) and 0.0 < height <= 10.0):
         raise InputError(None, f"--height must be a fraction of the plate's height in (0, 10], got {height}")
     return Placement(x, y, float(height))
@@ -174,17 +177,26 @@ def plate_transform(alpha: np.ndarray, place: Placement, plate_size: tuple[int, 
 def place_on_plate(plate, at: tuple[float, float] | None, height: float | None, horizon: float | None,
                    notes: list | None = None) -> tuple[Placement, float]:
     """Where the person stands on ``plate`` (:func:`placement`) on ``horizon`` or the plate's own
-    (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``); (the placement, the horizon). A
-    placement whose camera stands far from eye height is warned in one line."""
+    (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``), as tall as the people standing in
+    it would have them without ``height`` (:func:`viewer.plate.plate_people.plate_camera_height`: the
+    plate camera's height; eye height without anyone); (the placement, the horizon). A placement
+    whose camera stands far from eye height is warned in one line."""
     import warnings
 
     from viewer.plate.horizon import plate_horizon
+    from viewer.plate.plate_people import plate_camera_height
 
     if horizon is None:
         horizon, how = plate_horizon(plate)
         if notes is not None:
             notes.append(f"the plate's horizon at {horizon:.3f} of its height ({how})")
-    place = placement(at, height, horizon)
+    camera = None
+    if height is None:
+        camera, people = plate_camera_height(plate, horizon)
+        if camera is not None and notes is not None:
+            notes.append(f"the plate's camera {camera:.2f} m above the ground, from {people} "
+                         f"{'person' if people == 1 else 'people'} standing in it: the person sized for it")
+    place = placement(at, height, horizon, camera)
     mismatch = camera_mismatch(place, horizon)
     if mismatch:
         warnings.warn(f"{plate.source}: {mismatch}", stacklevel=2)
