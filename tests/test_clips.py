@@ -387,6 +387,42 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
     shutil.rmtree(tmp_path / "d", ignore_errors=True)
 
 
+def test_a_clip_put_into_a_plate_walks_across_it(clip_bundle, tmp_path):
+    """``relight render CLIP_BUNDLE --plate PLATE``: every frame the plate's size with the person in it,
+    placed once (on the first frame with them) so they move across the plate as across their frame
+    (the window 3 pixels a frame: left, by 9 frame pixels times the scale from frame 0 to 4), the frame
+    with no one the plate alone; a clip's layers on a plate are refused in one line."""
+    from test_cli import run_cli
+
+    from viewer.files.imageio import write_png
+
+    rng = np.random.default_rng(4)
+    plate = np.empty((320, 480, 3), np.float32)
+    plate[:150] = (0.6, 0.7, 0.85)
+    plate[150:] = np.clip(0.4 + rng.normal(0.0, 0.02, (170, 480, 1)), 0.0, 1.0)
+    write_png(tmp_path / "square.png", plate)
+    out = tmp_path / "on_square.mp4"
+    res = run_cli("render", str(clip_bundle[0]), "--plate", str(tmp_path / "square.png"), "--at", "0.4,0.95", "--height", "0.6",
+                  "--horizon", "0.47", "-o", str(out))
+    assert res.returncode == 0, res.stderr
+    assert f"wrote {out} (5 frames, 480x320" in res.stdout
+    frames, _, audio = decoded(out)
+    back = read_png(tmp_path / "square.png") * 255.0
+    assert len(frames) == 5 and audio
+    assert np.abs(frames[2].astype(float) - back).mean() < 2.0  # no one: the plate (to the video's coding)
+    centres = []
+    for k in (0, 4):
+        person = np.abs(frames[k].astype(float) - back).max(axis=-1) > 40
+        rows, cols = np.nonzero(person)
+        assert 0.5 * 0.6 * 320 < rows.max() - rows.min() < 1.1 * 0.6 * 320 and abs(rows.max() + 1 - 0.95 * 320) < 6
+        centres.append(cols.mean())
+    scale = 0.6 * 320 / (0.9 * 480)  # the plate's pixels a frame pixel (the person ~0.9 of their 480-px frame)
+    assert 0.4 * 9 * scale < centres[0] - centres[1] < 2.5 * 9 * scale
+    res = run_cli("render", str(clip_bundle[0]), "--plate", str(tmp_path / "square.png"), "--height", "0.6", "--layers",
+                  "-o", str(tmp_path / "x.mp4"))
+    assert res.returncode == 2 and "a clip on a plate has none yet" in res.stderr
+
+
 def test_a_relit_clips_layers_are_an_exr_sequence(clip_bundle, tmp_path):
     """``--layers``: an EXR per frame beside the MP4, its beauty the MP4's frame; a lost frame's are the
     frame before's, a frame with no person has the background alone; run again, the layers are kept;
@@ -747,6 +783,15 @@ def test_a_batch_relights_clips_beside_photos(tmp_path):
     res = batch(tmp_path, folder, "--env", env, "-o", out, "--workers", "1", "--yaw", "90")
     assert res.returncode == 1 and "1 done, 1 failed" in res.stdout and "audio.mp4: is not a file relight wrote" in res.stderr
     assert mine.read_text() == "mine"
+    from viewer.files.imageio import write_png
+
+    write_png(tmp_path / "square.png", np.full((200, 300, 3), 0.5, np.float32))  # a plate look: the clip on it too
+    res = batch(tmp_path, folder, "--plate", tmp_path / "square.png", "--height", "0.6", "--horizon", "0.4", "-o", out,
+                "--workers", "1")
+    assert res.returncode == 0 and "2 done, 0 failed" in res.stdout, res.stdout + res.stderr
+    frames, _, _ = decoded(out / "walk" / "on_square.mp4")
+    # the person on the grey plate, the plate no larger than the batch's --max-size (256)
+    assert len(frames) == 3 and frames[0].shape[:2] == (170, 256) and frames[0].std() > 5
 
 
 def test_a_clip_dataset_measured_against_its_truth(tmp_path):

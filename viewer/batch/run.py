@@ -182,8 +182,8 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
             manifest.add("inferred", item=str(photo), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
                          pid=r.get("pid"), **({"ranges": r["ranges"]} if "ranges" in r else {}))
         for item in waiting.pop(photo):
-            if not r["ok"] or (item.look.plate is not None and is_clip(item.photo)):
-                _failed(manifest, summary, item, r["error"] if not r["ok"] else "a clip on a plate is not made yet")
+            if not r["ok"]:
+                _failed(manifest, summary, item, r["error"])
                 bar.update(1)
                 continue
             manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written

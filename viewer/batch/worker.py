@@ -112,9 +112,18 @@ class Worker:
         bundle = load_clip_bundle(task["bundle"])
         refuse_foreign([audio_sidecar(mp4, bundle.source["path"])])  # where audio an MP4 cannot hold would go
         fixed = AreaLights.from_array(task["rig"]) if task.get("rig") is not None else None
-        result = render_clip(self.ctx, bundle, AreaLights.from_array(task["lights"]),
-                             Look.from_json(task["look"]), mp4, env, fixed, EngineOptions(**task["options"]),
-                             sizes=(None, task["max_size"]), poster=png)
+        lights, look, options = AreaLights.from_array(task["lights"]), Look.from_json(task["look"]), EngineOptions(**task["options"])
+        pictures = None
+        if task.get("plate"):  # the clip's person put into a plate, frame by frame
+            from viewer.output.plate_clip import PlatePictures
+            from viewer.plate.placement import Placement
+            from viewer.plate.plate_file import read_plate
+
+            pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, 0.0, (None, task["max_size"]),
+                                     plate=read_plate(task["plate"], []).within(task["max_size"]), place=Placement(*task["place"]),
+                                     cut_allowed=task["cut_allowed"])
+        result = render_clip(self.ctx, bundle, lights, look, mp4, env, fixed, options, sizes=(None, task["max_size"]), poster=png,
+                             pictures=pictures)
         times = {"render": round(time.perf_counter() - t, 3), "frames": result["frames"]}
         return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]},
                 **({"note": result["audio_note"]} if result["audio_note"] else {})}

@@ -11,7 +11,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from viewer.cli.command_setup import command_lights, engine_options, first_look, rig_lights
+from viewer.cli.command_setup import command_lights, engine_options, first_look, fitted_lights, lights_count, rig_lights
 from viewer.cli.output_paths import not_an_input, writable
 from viewer.errors import InputError
 from viewer.files.clip_reader import check_range, is_clip
@@ -134,9 +134,12 @@ def cmd_render_clip(args, look) -> int:
                                      "or infer its bundle with them")
     if args.per_light and not args.layers:
         raise InputError(None, "--per-light adds layers: give --layers too")
+    if args.plate and args.layers:
+        raise InputError(None, "--layers with --plate writes a photo's layers: a clip on a plate has none yet")
     source = args.scene if is_clip(args.scene) else read_record(args.scene)["source"]["path"]
     sidecar = audio_sidecar(out, source)
-    not_an_input([out, partial_path(out), sidecar], [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None)],
+    not_an_input([out, partial_path(out), sidecar], [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None),
+                                                     args.plate],
                  folders=[parts_folder(out)] + ([layers_folder(out)] if args.layers else []))
     refuse_foreign([out, sidecar], args.force)
     if args.layers:
@@ -144,10 +147,17 @@ def cmd_render_clip(args, look) -> int:
     if partial_path(out).exists():
         raise partial_taken(out)
     env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None  # before hours of inference
-    if args.lights is None and env is None:
+    plate = clip_plate(args) if args.plate else None  # read and placed before hours of inference: one line if it cannot be
+    if plate is not None and args.lights is None and env is None:  # the plate's light, in its camera's frame
+        from viewer.plate.plate_light import plate_light
+
+        lights, _ = fitted_lights(plate_light(plate[0])[0], lights_count(args, look), args.method)
+    elif args.lights is None and env is None:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
-    lights = command_lights(args, look, args.lights, env, args.envmap)
-    look = first_look(args, look, lights)
+    else:
+        lights = command_lights(args, look, args.lights, env, args.envmap)
+    if plate is None:
+        look = first_look(args, look, lights)
     rig = rig_lights(args)
     if args.layers and is_clip(args.scene):  # the disk's room for them, before hours of inference
         from viewer.files.clip_reader import expected_frames, probe_clip
@@ -159,11 +169,15 @@ def cmd_render_clip(args, look) -> int:
     bundle = load_clip_bundle(clip_bundle(args.scene, args) if is_clip(args.scene) else args.scene)
     ctx = create_headless_context()
     t0 = time.perf_counter()
+    pictures = None
     try:
+        if plate is not None:
+            look, pictures = plate_pictures(ctx, bundle, plate, lights, look, env, rig, args, turn)
         with _bar(len(bundle.frames), f"relighting {out.name}") as bar:
             result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
                                  engine_options(args, look), turn, progress=lambda done, total: bar.update(done - bar.n),
-                                 sizes=(args.size, args.max_size), layers=args.layers, per_light=args.per_light)
+                                 sizes=(args.size, args.max_size), layers=args.layers, per_light=args.per_light,
+                                 pictures=pictures)
     finally:
         ctx.release()
     seconds = time.perf_counter() - t0
@@ -176,3 +190,45 @@ def cmd_render_clip(args, look) -> int:
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
     return 0
+
+
+def clip_plate(args) -> tuple:
+    """``--plate`` for a clip: (the plate, no longer on its longer side than ``--max-size``, where the
+    person stands on it); its notes said."""
+    from viewer.cli.plate_commands import plate_place
+    from viewer.photo.photo_frame import MAX_SIZE
+    from viewer.plate.placement import Placement
+    from viewer.plate.plate_file import read_plate
+
+    notes: list = []
+    whole = read_plate(args.plate, notes)
+    plate = whole.within(args.max_size or MAX_SIZE)  # every frame is the plate's size: a video's frame, not a 12-MP still
+    if plate is not whole:
+        notes.append(f"the plate brought to {plate.size[0]}x{plate.size[1]} (--max-size), the video's frame")
+    place = Placement(*plate_place(plate, args, notes)[0])
+    for note in notes:
+        print(f"note: {note}")
+    return plate, place
+
+
+def plate_pictures(ctx, bundle, plate: tuple, lights, look, env, rig, args, turn):
+    """(the look, the frames) of a clip put into ``plate`` (:func:`clip_plate`'s): the plate's look, the
+    exposure the plate's (its own light) or matched to it (the user's, on the clip's first person)."""
+    from viewer.cli.plate_commands import own_light_exposure
+    from viewer.output.plate_clip import PlatePictures
+    from viewer.output.plate_render import plate_look
+    from viewer.scene.look import AUTO
+
+    auto = 0.0
+    if (args.envmap or args.lights) and look.exposure == AUTO:
+        from viewer.output.clip_frames import ClipFrames
+
+        frames = ClipFrames(bundle)
+        scene = frames.scene(frames.people[0], (args.size, args.max_size))
+        auto = own_light_exposure(plate[0], scene, lights, env.pixels if env is not None else None, look)
+    look = plate_look(look, auto)
+    pictures = PlatePictures(ctx, bundle, lights, look, env.pixels if env is not None else None, rig, engine_options(args, look),
+                             turn, (args.size, args.max_size), plate=plate[0], place=plate[1],
+                             cut_allowed=args.height is not None)
+    return look, pictures
+

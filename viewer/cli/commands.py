@@ -111,8 +111,6 @@ def cmd_render(args) -> int:
     look = command_look(args)
     plate_options_need_a_plate(args)
     if is_clip(args.scene) or is_clip_bundle(args.scene):
-        if args.plate:
-            raise InputError(args.plate, "a plate takes a photo's bundle: a clip on a plate is not made yet")
         from viewer.cli.clip_commands import cmd_render_clip
 
         check_video(args)

@@ -62,7 +62,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    "sequence in NAME.layers/ beside NAME.mp4 (docs/video.md); with --plate: the person, the shadow and "
                    "the plate as layers of OUT.exr; a photo's: relight batch --layers")
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
-    add_plate_args(p, "OUT.png and OUT.exr")
+    add_plate_args(p, "OUT.png and OUT.exr; a clip: OUT.mp4, the person placed once on its first frame")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
     add_engine_args(p)
     add_view_args(p)

@@ -54,7 +54,8 @@ class ClipPictures:
         self._rendered = None  # (the look asked, the look resolved): what the engine holds rendered now
         self._exposures: dict[int, float] = {}  # shot -> its exposure (a clip inferred as one)
         self._warned = False
-        self.size = self.frames.scene(self.frames.people[0], sizes).output_size
+        # each frame's size, and the pictures' (a plate's frames are the plate's: viewer.output.plate_clip)
+        self.size = self.frame_size = self.frames.scene(self.frames.people[0], sizes).output_size
 
     def turn_of(self, index: int, person: int) -> tuple[float, float]:
         """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
@@ -85,9 +86,9 @@ class ClipPictures:
         if self._engine is None or self._engine[0] != index:
             self.release()
             scene = self.frames.scene(index, self.sizes)
-            if scene.output_size != self.size:
+            if scene.output_size != self.frame_size:
                 raise InputError(self.bundle.scene_path(index), f"its frame is {scene.output_size[0]}x{scene.output_size[1]}, "
-                                                                f"the clip's {self.size[0]}x{self.size[1]}")
+                                                                f"the clip's {self.frame_size[0]}x{self.frame_size[1]}")
             self._engine = (index, Engine(self.ctx, scene, self.options, self.frames.background_camera(index)), scene)
         _, engine, scene = self._engine
         if self._rendered is None or self._rendered[0] != look:  # (a frame's layers after its picture: rendered once)
@@ -98,6 +99,10 @@ class ClipPictures:
             self._warned = True
         return engine, settings
 
+    def key(self) -> str:
+        """What these frames are made from beyond :func:`render_key`'s (a plate's: :mod:`viewer.output.plate_clip`)."""
+        return ""
+
     def picture(self, index: int) -> np.ndarray:
         """(H, W, 3) uint8: output frame ``index``."""
         index, person = self.frames.shown(index)
@@ -105,7 +110,7 @@ class ClipPictures:
             return self._render(index, self._look(index, index))[0].output.read_display()
         engine = self._render(person, self._look(index, person))[0]
         if shows_filmed_frame(engine):  # the frame itself: there is no one in it to relight
-            return frame_photo(self.bundle, index, self.size)
+            return frame_photo(self.bundle, index, self.frame_size)
         return engine.output.read_background_display()
 
     def person_hdr(self, index: int) -> np.ndarray | None:
@@ -133,7 +138,7 @@ class ClipPictures:
         if shows_filmed_frame(engine):  # the frame itself, as the picture shows it
             from viewer.files.imageio import srgb_to_linear
 
-            photo = srgb_to_linear(frame_photo(self.bundle, index, self.size) / 255.0)
+            photo = srgb_to_linear(frame_photo(self.bundle, index, self.frame_size) / 255.0)
             channels.update({c: np.ascontiguousarray(photo[..., i], np.float32) for i, c in enumerate("RGB")})
         return channels
 
@@ -283,18 +288,20 @@ def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int], light
 
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
                 fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
-                sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False) -> dict:
+                sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False,
+                pictures: ClipPictures | None = None) -> dict:
     """Relight ``bundle`` into the MP4 ``path``; ``progress(done, total)`` after every frame (parts
     kept from an earlier run count at once). Returns what was done: frames, size, parts reused,
     the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with; ``poster``:
     a PNG path for the clip's middle frame, relit (a batch's contact sheet shows it); ``layers``:
     also each frame's layers (:mod:`viewer.output.layers`, ``per_light``: each light's too) as
-    ``NAME.layers/NNNNNN.exr`` (the frame's index), kept beside the video."""
+    ``NAME.layers/NNNNNN.exr`` (the frame's index), kept beside the video; ``pictures``: the frames made
+    otherwise from the same arguments (a clip on a plate, :class:`viewer.output.plate_clip.PlatePictures`)."""
     from viewer.output.layers import write_layers
 
     path = Path(path)
-    pictures = ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
-    key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes)
+    pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
+    key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes) + pictures.key()
     sequence = _open_layers(path, f"{key} {per_light}", len(bundle.frames), pictures.size,
                             layer_lights(lights, fixed, per_light)) if layers else None
 

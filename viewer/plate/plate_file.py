@@ -48,6 +48,15 @@ class Plate:
         """The focal length in the plate's pixels (its longer side spans 36 mm of a 35-mm frame)."""
         return self.focal_35 * max(self.size) / 36.0
 
+    def within(self, longest: int) -> Plate:
+        """The plate no longer than ``longest`` pixels on its longer side (shrunk by area; the same lens: its
+        focal length spans the longer side), or itself: a video's frames on a plate are the plate's size."""
+        from viewer.resize import resize, scaled_size
+
+        if max(self.size) <= longest:
+            return self
+        return Plate(resize(self.srgb, scaled_size(self.size, longest)), self.focal_35, self.focal_source, self.source)
+
     @cached_property
     def linear(self) -> np.ndarray:
         """(H, W, 3) float32 linear RGB in [0, 1] (a table lookup of the 256 sRGB levels), made once: the

@@ -1,0 +1,59 @@
+"""A clip's person put into a plate, frame by frame (``relight render CLIP --plate PLATE -o OUT.mp4``).
+
+The person is placed once, on the clip's first frame with them in it (``--at``, ``--height`` and the
+plate's own horizon, as a photo is: :func:`viewer.plate.placement.plate_transform`), and that one
+scale and offset carries every frame into the plate: the person walks across the plate as they walk
+across their own frame (their camera held still), never jumping to stand where the placement says
+frame after frame. Each frame is the person relit (:class:`viewer.output.clip_render.ClipPictures`'s
+render, the plate's look) composited into the plate as a still is
+(:func:`viewer.output.plate_composite.composite_on_plate`: the ground's shadow, the contact shadow,
+the plate's defocus where the feet first stand and its grain, the same grain pattern every frame as
+the still plate's own); a frame where no one was found is the plate alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from viewer.output.clip_render import ClipPictures
+from viewer.output.plate_composite import composite_on_plate
+from viewer.output.plate_render import read_person
+from viewer.plate.placement import Placement, plate_transform
+from viewer.plate.plate_file import Plate
+from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
+
+
+class PlatePictures(ClipPictures):
+    """The clip's frames in ``plate`` (:class:`ClipPictures`' arguments, then the plate and where the
+    person stands on it; ``cut_allowed``: their feet may be out of their frame, ``--height`` given)."""
+
+    def __init__(self, *args, plate: Plate, place: Placement, cut_allowed: bool = False, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.plate, self.place = plate, place
+        first = self.frames.people[0]
+        alpha = self.frames.scene(first, self.sizes).frame
+        alpha = alpha.alpha if alpha is not None else self.frames.scene(first, self.sizes).mask.astype(np.float32)
+        self.transform = plate_transform(alpha, place, plate.size, self.bundle.scene_path(first), cut_allowed)
+        self.feet = not (alpha[-1] > 0.5).any()  # soles on the ground: a contact shadow
+        self.blur, self.grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
+        self.size = plate.size
+
+    def key(self) -> str:
+        """The plate's pixels and where the person stands on it: a part made on another is not reused."""
+        import hashlib
+
+        return hashlib.sha256(self.plate.srgb.tobytes() + repr((self.plate.size, self.transform)).encode()).hexdigest()[:16]
+
+    def picture(self, index: int) -> np.ndarray:
+        """(H, W, 3) uint8: output frame ``index``, the plate's size."""
+        from viewer.files.imageio import linear_to_srgb
+
+        index, person = self.frames.shown(index)
+        if person != index:  # no one in this frame: the plate as it is
+            return self.plate.srgb
+        engine, _ = self._render(index, self._look(index, index))
+        rgba, shadow, _, sky = read_person(engine)
+        result = composite_on_plate(self.plate.linear, rgba, shadow, self.transform, self.blur, self.plate.focal_px,
+                                    sky if self.feet else 0.0)
+        srgb = with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], self.grain)
+        return (srgb * 255.0 + 0.5).astype(np.uint8)
