@@ -263,7 +263,7 @@ def test_the_plate_cameras_height_is_read_from_the_people_standing_in_it(tmp_pat
 
     street = read_plate(SHARED_DATA / "photos" / "unsplash-1535323700481.jpg", [])
     horizon, _ = plate_horizon(street)
-    camera, people = plate_camera_height(street, horizon)
+    camera, people = plate_camera_height(street, horizon, PERSON_HEIGHT_M)
     assert people == 1 and 1.15 < camera < 1.45
     notes = []
     place, _ = place_on_plate(street, (0.72, 0.92), None, None, notes)
@@ -271,7 +271,7 @@ def test_the_plate_cameras_height_is_read_from_the_people_standing_in_it(tmp_pat
     assert any("from 1 person standing in it" in n for n in notes)
     make_plate(load_envmap(MAP), 0.0, tmp_path / "square.jpg")
     empty = read_plate(tmp_path / "square.jpg", [])
-    assert plate_camera_height(empty, 0.5) == (None, 0)
+    assert plate_camera_height(empty, 0.5, PERSON_HEIGHT_M) == (None, 0)
     assert place_on_plate(empty, (0.5, 0.9), None, 0.5)[0].height == pytest.approx(0.4 * PERSON_HEIGHT_M / CAMERA_HEIGHT_M)
 
 

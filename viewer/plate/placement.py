@@ -192,7 +192,7 @@ def place_on_plate(plate, at: tuple[float, float] | None, height: float | None, 
             notes.append(f"the plate's horizon at {horizon:.3f} of its height ({how})")
     camera = None
     if height is None:
-        camera, people = plate_camera_height(plate, horizon)
+        camera, people = plate_camera_height(plate, horizon, PERSON_HEIGHT_M)
         if camera is not None and notes is not None:
             notes.append(f"the plate's camera {camera:.2f} m above the ground, from {people} "
                          f"{'person' if people == 1 else 'people'} standing in it: the person sized for it")

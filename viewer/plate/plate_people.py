@@ -1,7 +1,8 @@
 """The plate camera's height above the ground, from the people standing in the plate.
 
-A person of ``PERSON_HEIGHT_M`` standing with their feet ``d`` below the horizon and ``T`` tall in
-the picture (both fractions of its height) is seen from ``PERSON_HEIGHT_M * d / T`` metres above the
+A person of ``H`` metres (``viewer.plate.placement.PERSON_HEIGHT_M``, which the caller gives)
+standing with their feet ``d`` below the horizon and ``T`` tall in the picture (both fractions of
+its height) is seen from ``H * d / T`` metres above the
 ground, whatever the lens or their distance (:mod:`viewer.plate.placement`, where the default size
 assumes a camera at eye height). The people are MediaPipe's (:func:`viewer.photo.segmentation.find_people`);
 one counts when they stand whole in the plate: their ankles, hips and shoulders seen, in that order
@@ -16,7 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.plate.placement import PERSON_HEIGHT_M
 from viewer.plate.plate_file import Plate
 
 MIN_TALL = 0.05  # of the plate's height: people smaller are too few pixels to measure
@@ -26,9 +26,9 @@ CAMERA_RANGE = (0.2, 30.0)  # metres: heights outside are not a camera standing 
 ANKLES, HIPS, SHOULDERS, FEET = (27, 28), (23, 24), (11, 12), (29, 30, 31, 32)
 
 
-def standing_heights(plate: Plate, horizon: float) -> list[float]:
+def standing_heights(plate: Plate, horizon: float, person_m: float) -> list[float]:
     """The camera height (metres) each whole standing person in ``plate`` gives, on ``horizon`` (a
-    fraction of its height)."""
+    fraction of its height), each taken as ``person_m`` tall."""
     from viewer.photo.segmentation import find_people
 
     heights = []
@@ -49,13 +49,14 @@ def standing_heights(plate: Plate, horizon: float) -> list[float]:
         tall, wide = feet - top, (cols[-1] + 1 - cols[0]) / h
         if top <= EDGE or (rows[-1] + 1) / h >= 1.0 - EDGE or tall < MIN_TALL or tall < MIN_ASPECT * wide or feet <= horizon:
             continue
-        camera = PERSON_HEIGHT_M * (feet - horizon) / tall
+        camera = person_m * (feet - horizon) / tall
         if CAMERA_RANGE[0] <= camera <= CAMERA_RANGE[1]:
             heights.append(float(camera))
     return heights
 
 
-def plate_camera_height(plate: Plate, horizon: float) -> tuple[float | None, int]:
-    """(the plate camera's height in metres from the people standing in it, or None without any; how many)."""
-    heights = standing_heights(plate, horizon)
+def plate_camera_height(plate: Plate, horizon: float, person_m: float) -> tuple[float | None, int]:
+    """(the plate camera's height in metres from the people standing in it, each ``person_m`` tall, or
+    None without any; how many)."""
+    heights = standing_heights(plate, horizon, person_m)
     return (float(np.median(heights)) if heights else None), len(heights)
