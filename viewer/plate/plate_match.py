@@ -57,6 +57,12 @@ def feet_blur(srgb: np.ndarray, place: Placement) -> float:
 def with_grain(srgb: np.ndarray, coverage: np.ndarray, levels: np.ndarray) -> np.ndarray:
     """``srgb`` (H, W, 3) float in [0, 1] with Gaussian noise of ``levels`` (8-bit levels, per channel)
     added in proportion to ``coverage`` (H, W) in [0, 1]; the same noise on every run."""
+    out = np.clip(srgb, 0.0, 1.0)
+    rows, cols = np.flatnonzero(coverage.any(axis=1)), np.flatnonzero(coverage.any(axis=0))
+    if not len(rows):
+        return out
+    y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1  # the noise drawn where the person is only
     rng = np.random.default_rng(GRAIN_SEED)
-    noise = rng.standard_normal(srgb.shape).astype(np.float32) * (levels / 255.0)
-    return np.clip(srgb + noise * coverage[..., None], 0.0, 1.0)
+    noise = rng.standard_normal((y1 - y0, x1 - x0, srgb.shape[-1])).astype(np.float32) * (levels / 255.0)
+    out[y0:y1, x0:x1] = np.clip(srgb[y0:y1, x0:x1] + noise * coverage[y0:y1, x0:x1, None], 0.0, 1.0)
+    return out
