@@ -97,7 +97,7 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
     maps = tmp_path / "maps"
     maps.mkdir()
     (maps / "venice.hdr").write_bytes((asset_dir() / "envmaps" / "venice_sunset_256.hdr").read_bytes())
-    result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None)
+    result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1)
     assert json.loads((tmp_path / "plates.json").read_text())["summary"] == result["summary"]
     assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median"}
     for row in result["plates"]:
@@ -105,6 +105,7 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
         assert all(np.isfinite(v) and v > 0 for p in row["people"].values() for v in p.values())
         assert row["plate_light_seconds"] < 2.0
     assert result["summary"]["estimate"] < result["summary"]["uniform"]
+    assert 0 < result["summary"]["plate_light_seconds_12mp"] < 10 and 0 < result["summary"]["composite_seconds_2048"] < 60
 
 
 def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():

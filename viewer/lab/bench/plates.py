@@ -29,6 +29,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 import time
 from pathlib import Path
 
@@ -45,15 +46,15 @@ DOMINANT_SHARE = 0.3  # of the lights' summed luminance: a light this strong is 
 LIGHTS = 16
 
 
-def make_plate(env, yaw: float, path: Path) -> float:
-    """The plate of ``env`` at ``yaw`` written to ``path`` (JPEG, 8 bits, the focal length in its
-    EXIF); returns the scale its linear radiance was multiplied by (median luminance 0.18)."""
+def make_plate(env, yaw: float, path: Path, size: tuple[int, int] = PLATE_SIZE) -> float:
+    """The plate of ``env`` at ``yaw`` written to ``path`` (JPEG, 8 bits, ``size`` pixels, the focal length
+    in its EXIF); returns the scale its linear radiance was multiplied by (median luminance 0.18)."""
     from PIL import Image
 
     from viewer.lighting.envmap import LUMINANCE
     from viewer.scene.camera import Camera
 
-    camera = Camera(PLATE_SIZE[0], PLATE_SIZE[1], focal_mm=PLATE_FOCAL_35, sensor_mm=36.0)
+    camera = Camera(size[0], size[1], focal_mm=PLATE_FOCAL_35, sensor_mm=36.0)
     linear = env.seen_through(camera, yaw)
     scale = 0.18 / max(float(np.median(linear @ LUMINANCE.astype(np.float32))), 1e-12)
     srgb = (np.clip(linear_to_srgb(linear * scale), 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
@@ -115,8 +116,9 @@ def person_rmse(image: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float
     return float(np.sqrt(np.mean((image[mask] - truth[mask]) ** 2)))
 
 
-def run_plates_benchmark(maps_dir, output, progress=print) -> dict:
-    """Every map of ``maps_dir`` (.hdr, .exr) measured as the module says; the JSON at ``output``."""
+def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3) -> dict:
+    """Every map of ``maps_dir`` (.hdr, .exr) measured as the module says, and the commands timed
+    (:func:`timings`, ``timing_runs`` each); the JSON at ``output``."""
     from viewer.cli.command_setup import fitted_lights
     from viewer.gl import Engine, create_headless_context
     from viewer.lab.bench.video import map_and_lights
@@ -185,10 +187,53 @@ def run_plates_benchmark(maps_dir, output, progress=print) -> dict:
     result = {"summary": summary, "plates": rows, "maps": [p.name for p in maps], "yaws": list(YAWS),
               "plate": {"size": list(PLATE_SIZE), "focal_35mm": PLATE_FOCAL_35, "jpeg_quality": JPEG_QUALITY},
               "seconds": round(time.perf_counter() - t_start, 1)}
+    progress("timing plate-light on a 12-MP plate and a 2048-px composite (fresh processes, empty light caches)")
+    result["timing"] = timings(maps[0], plates_dir, timing_runs)
+    summary["plate_light_seconds_12mp"] = result["timing"]["plate_light_12mp"]["median"]
+    summary["composite_seconds_2048"] = result["timing"]["composite_2048"]["median"]
     shown = figure(result, maps_dir, plates_dir, output.with_suffix(".jpg"))
     result["figure"] = shown.name if shown is not None else None
     write_text(output, json.dumps(result, indent=1) + "\n")
     return result
+
+
+SECONDS = re.compile(r"([0-9.]+) s\)?$")  # the seconds a command prints last on its line
+
+
+def timings(map_path: Path, folder: Path, runs: int = 3) -> dict:
+    """The two timed steps of the issue, each in ``runs`` fresh processes (process start excluded:
+    the seconds each command prints, from reading the plate to its files written), each with an empty
+    light cache: ``relight plate-light`` of a 4000x3000 plate and ``relight render --plate`` of the
+    bundled photo's bundle into a 2048x1365 plate, both made of ``map_path`` at yaw 0."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    from viewer.lighting.envmap import load_envmap
+    from viewer.photo.inference import cached_bundle
+    from viewer.resources import asset_dir
+
+    env = load_envmap(map_path)
+    big, wide = folder / "timing_12mp.jpg", folder / "timing_2048.jpg"
+    make_plate(env, 0.0, big, (4000, 3000))
+    make_plate(env, 0.0, wide, (2048, 1365))
+    bundle, _ = cached_bundle(asset_dir() / "photos" / "underpass.jpg")
+    commands = {"plate_light_12mp": ["plate-light", str(big), "-o", str(folder / "timing_light.exr")],
+            "composite_2048": ["render", str(bundle), "--plate", str(wide), "--at", "0.5,0.9", "-o", str(folder / "timing_on.png")]}
+    out = {}
+    for name, args in commands.items():
+        seconds = []
+        for _ in range(runs):
+            with tempfile.TemporaryDirectory() as cache:
+                done = subprocess.run([sys.executable, "-m", "viewer.cli.main", *args, "--force"], capture_output=True, text=True,
+                                      env={**os.environ, "RELIGHT_CACHE": cache})
+            lines = [line for line in done.stdout.splitlines() if SECONDS.search(line.strip())]
+            if done.returncode != 0 or not lines:
+                raise RuntimeError(f"{' '.join(args[:2])}: {done.stderr.strip()[-500:]}")
+            seconds.append(float(SECONDS.search(lines[-1].strip()).group(1)))
+        out[name] = {"runs": seconds, "median": float(np.median(seconds)), "args": args}
+    return out
 
 
 FIGURE_PLATES = (("kiara_1_dawn_1k.hdr", 120.0), ("potsdamer_platz_1k.hdr", 240.0), ("rooitou_park_1k.hdr", 240.0),
