@@ -21,6 +21,18 @@ class Controls:
         rx, ry, w, h = self.app.image_rect()
         return (x - rx) / max(w, 1.0), (y - ry) / max(h, 1.0)
 
+    def _dragged(self) -> tuple[float, float]:
+        """The left button's motion (window pixels) since the last call of this drag: from imgui's own press
+        position, so nothing is lost between the press and the first frame that sees it, nor before the release."""
+        from imgui_bundle import imgui
+
+        if not (imgui.is_mouse_down(0) or imgui.is_mouse_released(0)):
+            return 0.0, 0.0
+        total = imgui.get_mouse_drag_delta(0, 0.0)
+        dx, dy = total.x - self.app.drag_applied[0], total.y - self.app.drag_applied[1]
+        self.app.drag_applied = (total.x, total.y)
+        return dx, dy
+
     def handle(self):
         from imgui_bundle import imgui
 
@@ -41,28 +53,18 @@ class Controls:
             self.app.drag_applied = (0.0, 0.0)
             self.app.pace.start_drag()
         if self.app.dragging:
-            # motion since the press, from imgui's own press position: nothing is lost between
-            # the press and the first frame that sees it, nor before the release
-            down = imgui.is_mouse_down(0)
-            if down or imgui.is_mouse_released(0):
-                total = imgui.get_mouse_drag_delta(0, 0.0)
-                dx, dy = total.x - self.app.drag_applied[0], total.y - self.app.drag_applied[1]
-                if dx or dy:
-                    self.app.session.look = ix.dragged(self.app.session.look, dx, dy)
-                    self.app.drag_applied = (total.x, total.y)
-                    self.app.last_motion = now
-            if not down:
+            dx, dy = self._dragged()
+            if dx or dy:
+                self.app.session.look = ix.dragged(self.app.session.look, dx, dy)
+                self.app.last_motion = now
+            if not imgui.is_mouse_down(0):
                 self.app.dragging = False
         if self.app.moving_person:
-            down = imgui.is_mouse_down(0)
-            if down or imgui.is_mouse_released(0):
-                total = imgui.get_mouse_drag_delta(0, 0.0)
-                dx, dy = total.x - self.app.drag_applied[0], total.y - self.app.drag_applied[1]
-                if dx or dy:
-                    _, _, w, h = self.app.image_rect()
-                    plate.moved(dx / max(w, 1.0), dy / max(h, 1.0))
-                    self.app.drag_applied = (total.x, total.y)
-            if not down:
+            dx, dy = self._dragged()
+            if dx or dy:
+                _, _, w, h = self.app.image_rect()
+                plate.moved(dx / max(w, 1.0), dy / max(h, 1.0))
+            if not imgui.is_mouse_down(0):
                 self.app.moving_person = False
                 self.app.actions.placed_on_plate()
         if imgui.is_mouse_clicked(1) and over_image:

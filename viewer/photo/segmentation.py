@@ -83,16 +83,12 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None, f
     Raises :class:`InputError` naming ``photo_path`` when no person is found."""
     import cv2
 
-    from viewer.resize import resize, scaled_size
+    from viewer.resize import resize
 
     notes = notes if notes is not None else []
     h, w = photo.shape[:2]
-    small = np.ascontiguousarray(photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE)))
+    pose, small, everyone = _everyone(photo, photo_path)
     sh, sw = small.shape[:2]
-    pose, selfie = _mediapipe(photo_path)
-    with quiet_native_stderr():
-        with selfie.SelfieSegmentation(model_selection=0) as model:
-            everyone = model.process(small).segmentation_mask
     people = _people(np.asarray(everyone) > 0.5) if everyone is not None else []
     followed = None if follow is None else (follow[0] * sw, follow[1] * sh, follow[2] * sw, follow[3] * sh)
     box = (0, 0, sw, sh)
@@ -112,11 +108,8 @@ def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None, f
                 notes.append("other people in the photo: relighting the one followed from the frame before")
     if found is None:
         raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
-    result = found[0]
-    x0, y0, x1, y1 = box[0], box[1], box[0] + box[2], box[1] + box[3]
     seg = found[1]
-    landmarks = {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
-                 for i, lm in enumerate(result.pose_landmarks.landmark) if lm.visibility > VISIBLE}
+    landmarks = _landmarks(found[0], box, (sw, sh))
     segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
     if not (segmentation > 0.5).any():
         raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
@@ -133,26 +126,41 @@ def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Perso
     """Everyone in ``photo`` (H, W, 3) uint8 sRGB the models find (the selfie model's parts, largest
     first, at most ``most``; the pose model shown each): their segmentation at the photo's size and
     their landmarks, as :func:`find_person` gives one. An empty list when there is no one."""
-    from viewer.resize import resize, scaled_size
+    from viewer.resize import resize
 
     h, w = photo.shape[:2]
-    small = np.ascontiguousarray(photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE)))
+    pose, small, everyone = _everyone(photo, photo_path)
     sh, sw = small.shape[:2]
-    pose, selfie = _mediapipe(photo_path)
-    with quiet_native_stderr():
-        with selfie.SelfieSegmentation(model_selection=0) as model:
-            everyone = model.process(small).segmentation_mask
     found = []
     for part in (_people(np.asarray(everyone) > 0.5) if everyone is not None else [])[:most]:
         box = grown(part, (sw, sh))
         seen = _pose(pose, small, box)
-        if seen is None:
-            continue
-        x0, y0, x1, y1 = box[0], box[1], box[0] + box[2], box[1] + box[3]
-        landmarks = {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
-                     for i, lm in enumerate(seen[0].pose_landmarks.landmark) if lm.visibility > VISIBLE}
-        found.append(Person(np.clip(resize(seen[1], (w, h)), 0.0, 1.0).astype(np.float32), landmarks))
+        if seen is not None:
+            found.append(Person(np.clip(resize(seen[1], (w, h)), 0.0, 1.0).astype(np.float32), _landmarks(seen[0], box, (sw, sh))))
     return found
+
+
+def _everyone(photo: np.ndarray, photo_path):
+    """(MediaPipe's pose solution, the photo scaled to at most ``DETECT_SIZE``, the selfie model's soft
+    mask of everyone in it, or None)."""
+    from viewer.resize import resize, scaled_size
+
+    h, w = photo.shape[:2]
+    small = np.ascontiguousarray(photo if max(h, w) <= DETECT_SIZE else resize(photo, scaled_size((w, h), DETECT_SIZE)))
+    pose, selfie = _mediapipe(photo_path)
+    with quiet_native_stderr():
+        with selfie.SelfieSegmentation(model_selection=0) as model:
+            everyone = model.process(small).segmentation_mask
+    return pose, small, everyone
+
+
+def _landmarks(result, box: tuple, small_size: tuple[int, int]) -> dict:
+    """The pose model's landmarks it sees (visibility above ``VISIBLE``), from the ``box`` (x, y, width,
+    height) of the scaled photo it was shown, as fractions of that photo (``small_size`` = (w, h))."""
+    sw, sh = small_size
+    x0, y0, x1, y1 = box[0], box[1], box[0] + box[2], box[1] + box[3]
+    return {i: ((x0 + lm.x * (x1 - x0)) / sw, (y0 + lm.y * (y1 - y0)) / sh)
+            for i, lm in enumerate(result.pose_landmarks.landmark) if lm.visibility > VISIBLE}
 
 
 def grown(box: tuple, size: tuple[int, int]) -> tuple[int, int, int, int]:
