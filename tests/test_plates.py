@@ -397,3 +397,12 @@ def test_the_horizon_is_read_from_the_plates_vertical_edges():
     plain = np.repeat((100 + 0.2 * yy + 0 * xx).astype(np.uint8)[..., None], 3, axis=-1)
     horizon, how = plate_horizon(Plate(plain, 35.0, "exif"))
     assert horizon == 0.5 and "a level camera assumed" in how
+    # tilted 22 degrees up: no ground in view (its horizon below the plate): the default place is one line
+    from viewer.plate.placement import place_on_plate
+
+    linear = env.seen_through(camera, 240.0, -22.0)
+    sky = Plate((np.clip(linear_to_srgb(linear * 0.18 / np.median(linear @ LUMINANCE)), 0, 1) * 255 + 0.5).astype(np.uint8),
+                35.0, "exif", "up.jpg")
+    assert plate_horizon(sky)[0] > 0.95
+    with pytest.raises(InputError, match="where no ground is"):
+        place_on_plate(sky, None, None, None)
