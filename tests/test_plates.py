@@ -190,6 +190,10 @@ def test_the_ground_beside_the_feet_loses_the_sky_the_person_hides():
     half = contact_shadow(alpha, focal, 0.5)
     np.testing.assert_allclose(1.0 - half, 0.5 * (1.0 - c), atol=1e-6)  # in proportion to the sky's share
     assert contact_shadow(alpha, focal, 0.0) is None and contact_shadow(np.zeros_like(alpha), focal, 1.0) is None
+    # the ground foreshortened by the plate's horizon: just above the feet (seen from low, a row in front
+    # spans more of the ground) the shadow in front is fainter; far above it (seen from high), darker
+    low, high = contact_shadow(alpha, focal, 1.0, horizon_px=340.0), contact_shadow(alpha, focal, 1.0, horizon_px=50.0)
+    assert low[356, 285] > front > high[356, 285]
     sun = AreaLights(np.array([[0.0, 1.0, 0.0]]), np.array([0.1]), np.array([[5.0, 5.0, 5.0]]))
     assert sky_share(sun) == 0.0
     sky = AreaLights(np.array([[0.0, 1.0, 0.0], [0.7, 0.7, 0.0], [-0.7, 0.7, 0.0], [0.0, -1.0, 0.0]]), np.full(4, 0.5),

@@ -67,7 +67,7 @@ class Actions:
             from viewer.output.plate_render import read_person
 
             state["plate"] = plate.to_json()
-            self.app.saves.append(PlateSaveJob(stem, read_person(eng), plate.plate, plate.place,
+            self.app.saves.append(PlateSaveJob(stem, read_person(eng), plate.plate, plate.place, plate.horizon,
                                                json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake))
             self.app.message = f"saving {stem.name}.png (+ .exr with the layers, .json) on the plate in {stem.parent.resolve()}"
             return
@@ -176,7 +176,9 @@ class Actions:
         plate's level (:meth:`viewer.app.plate_view.PlateView.exposure`)."""
         s = self.app.session
         if self.app.plate is not None:
-            s.update(exposure=self.app.plate.exposure(s.environment, s.scene, s.look) if s.environment is not None else 0.0)
+            from viewer.lighting.envmap import EnvMap
+
+            s.update(exposure=self.app.plate.exposure(EnvMap(s.environment) if s.environment is not None else s.lights, s.scene, s.look))
             self.app.message = f"exposure levelled to the plate: {s.look.exposure_stops:+.2f} stops"
             return
         self.app._apply_auto_exposure()
@@ -187,8 +189,6 @@ class Actions:
             self.app.message = "still fitting the previous map"
             return
         self.app.error = ""
-        if self.app.plate is not None:  # the plate's own light, or a map of the user's with the plate only the backdrop
-            self.app.plate.light = "plate" if Path(path) == self.app.plate.light_map else Path(path).name
         self.app.message = f"lights for {Path(path).name}; the window stays live meanwhile"
         self.app.job = LightJob(path, n or self.app.n_lights, self.app.config.method, wake=self.app.window.wake,
                             worker=self.app.workers["lights"])
@@ -283,17 +283,24 @@ class Actions:
         cannot be a plate (the plate before, if any, stays)."""
         from viewer.app.plate_view import PlateView, plate_setting
 
+        if self.app.job is not None or self.app.timeline is not None:
+            self.app.message = ("still fitting the previous map: open the plate once it is done" if self.app.job is not None
+                                else "a clip on a plate is made by relight render CLIP --plate PLATE (not in the window yet)")
+            return
         notes: list = []
         try:
             setting, light_map = plate_setting(path, None, None, None, None, notes)
         except Exception as exc:  # not a photo, a panorama, too large: said, nothing changes
             self.report(f"{Path(path).name} cannot be a plate", exc)
             return
+        s = self.app.session
+        restore = {"background": s.look.background, "ground": s.look.ground, "auto": self.app.auto_exposure}
         if self.app.plate is not None:
+            restore = self.app.plate.restore  # the look before the first plate
             self.app.plate.release()
         self.app.plate = PlateView(self.app.window.ctx, *setting)
+        self.app.plate.restore = restore
         self.app.view = ix.ViewState()
-        s = self.app.session
         s.update(background="transparent", ground=True, exposure=0.0, yaw=0.0, tilt=0.0)
         self.app.auto_exposure = False  # the person is exposed in the plate's units
         self.open_map(light_map)
@@ -301,10 +308,15 @@ class Actions:
 
     def remove_plate(self):
         """The plate gone: the person shown in their frame again, under the lights they have."""
-        if self.app.plate is not None:
-            self.app.plate.release()
+        plate = self.app.plate
+        if plate is not None:
+            plate.release()
             self.app.plate = None
             self.app.view = ix.ViewState()
+            self.app.session.update(background=plate.restore["background"], ground=plate.restore["ground"])
+            self.app.auto_exposure = plate.restore["auto"]
+            if self.app.auto_exposure:  # the photo's own brightness again
+                self.app._apply_auto_exposure()
             self.app.message = "the plate removed"
 
     def set_turn_frames(self, frames: int):

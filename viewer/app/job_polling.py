@@ -70,7 +70,8 @@ class JobPolling:
         elif new_map:  # as the first map: its brightest light on the camera's side
             self.app.session.update(yaw=facing_yaw(res.lights))
         if new_map and plate is not None:  # on a plate the plate sets the level: its own light's, or matched to it
-            self.app.session.update(exposure=plate.exposure(res.env.pixels, self.app.session.scene, self.app.session.look))
+            plate.light = "plate" if job.path == plate.light_map else job.path.name  # what lights the person now
+            self.app.session.update(exposure=plate.exposure(res.env, self.app.session.scene, self.app.session.look))
         self.app.env_path = job.path
         self.app.n_lights = len(res.lights)
         # the exposure stays (chosen when the photo opened): a night map looks like night, a bright

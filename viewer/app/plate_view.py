@@ -20,6 +20,7 @@ from viewer.output.plate_render import read_person
 from viewer.plate.placement import Placement, camera_mismatch, person_lens_mismatch, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur
+from viewer.scene.look import Look
 
 VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
 SCALE_PER_NOTCH = 1.06  # the person's height per wheel notch
@@ -53,17 +54,14 @@ class PlateView:
     plate's copy's size), where the person stands (:attr:`place`) and the plate's horizon."""
 
     def __init__(self, ctx, plate: Plate, place: Placement, horizon: float, light: str, light_map: Path):
-        import cv2
         import moderngl
 
         self.plate, self.place, self.horizon = plate, place, float(horizon)
         self.light = light  # "plate": lit by the plate's own light; else the name of the map that lights the person
         self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.plate_light.plate_light_file)
         self._light_env = None  # that map, read when a map of the user's is to be exposed to it
-        w, h = plate.size
-        k = min(1.0, VIEW_LONGER / max(w, h))
-        self.size = (max(int(round(w * k)), 1), max(int(round(h * k)), 1))
-        self.linear = plate.linear if k == 1.0 else cv2.resize(plate.linear, self.size, interpolation=cv2.INTER_AREA)
+        shown = plate.within(VIEW_LONGER)  # the copy composited on
+        self.size, self.linear = shown.size, shown.linear
         self.texture = ctx.texture(self.size, 3, dtype="f1")
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.texture.write(srgb8(self.linear).tobytes())
@@ -73,19 +71,21 @@ class PlateView:
         self.box: tuple[float, float, float, float] | None = None  # the person's box in the copy's pixels (x0, y0, x1, y1)
         self._frame = None  # (the transform shown, the person's frame size (w, h)): where a point of the plate is in it
         self.error = ""  # why the last placement asked for could not be shown (the one before stays)
+        # the look's fields the plate changed, and whether the exposure was automatic: back when it is removed
+        self.restore = {"background": Look().background, "ground": Look().ground, "auto": True}
 
-    def exposure(self, pixels: np.ndarray, scene, look) -> float:
-        """The person's exposure on this plate under a map's ``pixels`` turned by ``look``: 0 (the plate's
-        units) under the plate's own light, else the stops that give them the plate's light's diffuse
-        level (:func:`viewer.plate.plate_exposure.matched_exposure`)."""
-        from viewer.lighting.envmap import EnvMap, load_envmap
-        from viewer.plate.plate_exposure import matched_exposure
+    def exposure(self, light, scene, look) -> float:
+        """The person's exposure on this plate under ``light`` (a map, or a light file's lights) turned by
+        ``look``: 0 (the plate's units) under the plate's own light, else the stops that give them the
+        plate's light's diffuse level (:func:`viewer.plate.plate_exposure.person_exposure`)."""
+        from viewer.lighting.envmap import load_envmap
+        from viewer.plate.plate_exposure import person_exposure
 
         if self.light == "plate":
             return 0.0
         if self._light_env is None:
             self._light_env = load_envmap(self.light_map)
-        return matched_exposure(self._light_env, EnvMap(pixels), scene.normal[scene.mask], look.yaw, look.tilt)
+        return person_exposure(self._light_env, light, scene, look)
 
     def mismatches(self, scene) -> list[str]:
         """What does not match the person's photo where they stand: the plate camera's height
@@ -120,7 +120,7 @@ class PlateView:
             self.error = ""
             feet = not (alpha[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
             result = composite_on_plate(self.linear, person, shadow, transform, blur,
-                                        self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0)
+                                        self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0, self.horizon)
             self.texture.write(srgb8(result.image).tobytes())
             ys, xs = np.nonzero(alpha > 0.5)
             s, (ox, oy) = transform.scale, transform.offset
@@ -153,12 +153,24 @@ class PlateView:
 
         x = min(max(self.place.x + du, -AT_REACH), 1.0 + AT_REACH)
         y = min(max(self.place.y + dv, -AT_REACH), 1.0 + AT_REACH)
-        self.place = replace(self.place, x=x, y=y)
+        self._place(replace(self.place, x=x, y=y))
 
     def scaled(self, notches: float):
         """The person larger (or smaller) by the wheel, about their feet."""
         height = self.place.height * SCALE_PER_NOTCH ** float(notches)
-        self.place = replace(self.place, height=min(max(height, HEIGHT_RANGE[0]), HEIGHT_RANGE[1]))
+        self._place(replace(self.place, height=min(max(height, HEIGHT_RANGE[0]), HEIGHT_RANGE[1])))
+
+    def _place(self, place: Placement):
+        """``place`` taken where the person's frame can stand there (not wholly off the plate, not too
+        small: :func:`plate_transform`); else the place before stays, and :attr:`error` says why."""
+        if self._person is not None:
+            try:
+                plate_transform(self._person[3], place, self.size, cut_allowed=True)
+            except InputError as exc:
+                self.error = str(exc)
+                return
+        self.error = ""
+        self.place = place
 
     def to_json(self) -> dict:
         return {"source": self.plate.source, "at": [round(self.place.x, 6), round(self.place.y, 6)],

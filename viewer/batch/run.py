@@ -35,6 +35,7 @@ class ResolvedLook:
     rig_sha: str = ""
     error: str | None = None
     place: list | None = None  # a plate look: the feet (x, y) and the height, fractions of the plate
+    horizon: float | None = None  # ... and the plate's horizon, a fraction of its height (the contact shadow's ground)
 
 
 @dataclass
@@ -92,7 +93,7 @@ def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) ->
             if look.lights is not None and shas[p]:
                 item.settings = {"look": look.look_json, "options": look.options,
                                  **{k: v for k, v in settings.items() if k not in KEYLESS},
-                                 **({"place": look.place} if look.place is not None else {})}
+                                 **({"place": look.place, "horizon": look.horizon} if look.place is not None else {})}
                 item.key = item_key(shas[p], look.source_sha, look.rig_sha,
                                     np.concatenate([look.lights] + ([look.rig] if look.rig is not None else [])), item.settings)
             items.append(item)
@@ -236,7 +237,7 @@ def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, sett
             "lights": look.lights.tolist(), "rig": look.rig.tolist() if look.rig is not None else None,
             "look": look.look_json, "options": look.options, "max_size": settings["max_size"],
             "layers": bool(settings.get("layers")), "per_light": bool(settings.get("per_light")), "clip": is_clip(item.photo),
-            **({"plate": str(look.spec.plate), "place": look.place, "cut_allowed": settings["cut_allowed"]}
+            **({"plate": str(look.spec.plate), "place": look.place, "horizon": look.horizon, "cut_allowed": settings["cut_allowed"]}
                if look.spec.plate is not None else {})}
 
 

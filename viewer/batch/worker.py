@@ -121,7 +121,7 @@ class Worker:
 
             pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, 0.0, (None, task["max_size"]),
                                      plate=read_plate(task["plate"], []).within(task["max_size"]), place=Placement(*task["place"]),
-                                     cut_allowed=task["cut_allowed"])
+                                     horizon=task["horizon"], cut_allowed=task["cut_allowed"])
         result = render_clip(self.ctx, bundle, lights, look, mp4, env, fixed, options, sizes=(None, task["max_size"]), poster=png,
                              pictures=pictures)
         times = {"render": round(time.perf_counter() - t, 3), "frames": result["frames"]}
@@ -168,7 +168,7 @@ class Worker:
 
             render_on_plate(self._engine, self._scene, lights, look, read_plate(task["plate"], []), Placement(*task["place"]),
                             png, folder / task["outputs"][1], folder / task["outputs"][2] if task.get("layers") else None,
-                            fixed=fixed, source=task["bundle"], cut_allowed=task["cut_allowed"])
+                            fixed=fixed, source=task["bundle"], cut_allowed=task["cut_allowed"], horizon=task["horizon"])
             times["render"] = round(time.perf_counter() - t, 3)
             return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]}}
         render_to_files(self._engine, self._scene, lights, png.parent, png.stem, look, environment=env, passes=False,

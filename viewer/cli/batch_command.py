@@ -164,7 +164,7 @@ def resolve_looks(specs, args) -> list:
                     if spec.plate is not None:  # the plate's own light, estimated and fitted once
                         plate = read_plate(spec.plate, [])
                         lights = fitted_lights(plate_light(plate)[0], n, args.method)[0]
-                        places[spec.plate] = plate_place(plate, args)[0]
+                        places[spec.plate] = plate_place(plate, args)
                     else:
                         env = load_envmap(spec.envmap) if spec.envmap is not None else None
                         lights = command_lights(args, look, spec.lights_file, env, spec.envmap)  # the one rule, as render's
@@ -183,7 +183,8 @@ def resolve_looks(specs, args) -> list:
             rig = to_area_lights(load_rig(spec.rig)).to_array() if spec.rig is not None else None
             looks.append(ResolvedLook(spec, look.to_json(), _options(engine_options(args, look)), lights.to_array(), rig, sha,
                                       file_sha256(spec.rig) if spec.rig is not None else "",
-                                      place=places.get(spec.plate) if spec.plate is not None else None))
+                                      place=places[spec.plate][0] if spec.plate is not None else None,
+                                      horizon=places[spec.plate][1] if spec.plate is not None else None))
         except InputError as exc:
             looks.append(ResolvedLook(spec, error=str(exc)))
     return looks

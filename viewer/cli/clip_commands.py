@@ -156,7 +156,7 @@ def cmd_render_clip(args, look) -> int:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
     else:
         lights = command_lights(args, look, args.lights, env, args.envmap)
-    if plate is None:
+    if plate is None or args.envmap or args.lights:  # the plate's own light is in its camera's frame (yaw 0 unless given)
         look = first_look(args, look, lights)
     rig = rig_lights(args)
     if args.layers and is_clip(args.scene):  # the disk's room for them, before hours of inference
@@ -194,7 +194,7 @@ def cmd_render_clip(args, look) -> int:
 
 def clip_plate(args) -> tuple:
     """``--plate`` for a clip: (the plate, no longer on its longer side than ``--max-size``, where the
-    person stands on it); its notes said."""
+    person stands on it, its horizon); its notes said."""
     from viewer.cli.plate_commands import plate_place
     from viewer.photo.photo_frame import MAX_SIZE
     from viewer.plate.placement import Placement
@@ -202,13 +202,13 @@ def clip_plate(args) -> tuple:
 
     notes: list = []
     whole = read_plate(args.plate, notes)
+    place, horizon = plate_place(whole, args, notes)  # on the whole plate, as a batch places it
     plate = whole.within(args.max_size or MAX_SIZE)  # every frame is the plate's size: a video's frame, not a 12-MP still
     if plate is not whole:
         notes.append(f"the plate brought to {plate.size[0]}x{plate.size[1]} (--max-size), the video's frame")
-    place = Placement(*plate_place(plate, args, notes)[0])
     for note in notes:
         print(f"note: {note}")
-    return plate, place
+    return plate, Placement(*place), horizon
 
 
 def plate_pictures(ctx, bundle, plate: tuple, lights, look, env, rig, args, turn):
@@ -225,10 +225,12 @@ def plate_pictures(ctx, bundle, plate: tuple, lights, look, env, rig, args, turn
 
         frames = ClipFrames(bundle)
         scene = frames.scene(frames.people[0], (args.size, args.max_size))
-        auto = own_light_exposure(plate[0], scene, lights, env.pixels if env is not None else None, look)
+        from viewer.plate.plate_light import plate_light
+
+        auto = own_light_exposure(plate_light(plate[0])[0], scene, lights, env.pixels if env is not None else None, look)
     look = plate_look(look, auto)
     pictures = PlatePictures(ctx, bundle, lights, look, env.pixels if env is not None else None, rig, engine_options(args, look),
-                             turn, (args.size, args.max_size), plate=plate[0], place=plate[1],
+                             turn, (args.size, args.max_size), plate=plate[0], place=plate[1], horizon=plate[2],
                              cut_allowed=args.height is not None)
     return look, pictures
 

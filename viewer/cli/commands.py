@@ -229,17 +229,17 @@ def cmd_view(args) -> int:
         if window is not None:
             window.release()
         raise
-    if plate is None:
+    if plate is None or plate[3] != "plate":  # the plate's own light is in its camera's frame (yaw 0 unless given)
         look = first_look(args, look, lights)
-    else:  # the plate's light is in its camera's frame (yaw 0 unless given); the person exposed in the plate's units,
-        # or lit by the user's own light, as bright as the plate's light would make them
+    if plate is not None:  # exposed in the plate's units; lit by the user's own light, as bright as the plate's makes them
         from viewer.cli.plate_commands import own_light_exposure
+        from viewer.lighting.envmap import load_envmap as read_map
         from viewer.output.plate_render import plate_look
         from viewer.scene.look import AUTO
 
         own = plate[3] != "plate" and look.exposure == AUTO
-        look = plate_look(look, own_light_exposure(plate[0], scene, lights, env.pixels if env is not None else None, look)
-                          if own else 0.0)
+        look = plate_look(look, own_light_exposure(read_map(plate[4]), scene, lights, env.pixels if env is not None else None,
+                                                   look) if own else 0.0)
     from viewer.app import ViewerConfig, run_viewer
 
     config = ViewerConfig(scene=scene, lights=lights, environment=env.pixels if env is not None else None,

@@ -22,7 +22,8 @@ def add_plate_args(p, what: str):
     p.add_argument("--at", help="with --plate: where the feet stand, X,Y as fractions of the plate's width and height "
                                 "(default 0.5,0.88; a negative X as --at=-0.1,0.9)")
     p.add_argument("--height", type=float, help="with --plate: the person's height as a fraction of the plate's (default: "
-                                                "what a 1.7 m person at --at is, seen from eye height)")
+                                                "what a 1.7 m person at --at is, seen from the plate's camera: its height "
+                                                "read from the people standing in it, else eye height)")
     p.add_argument("--horizon", type=float, help="with --plate: the horizon's height, a fraction of the plate's from its top "
                                                  "(default: read from the plate's vertical edges; 0.5 when it has none)")
 

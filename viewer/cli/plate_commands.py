@@ -92,13 +92,14 @@ def cmd_render_plate(args, look) -> int:
     notes: list = []
     start = time.perf_counter()  # the plate read, its light, the render and the composite: process start excluded
     plate = read_plate(args.plate, notes)
-    place = Placement(*plate_place(plate, args, notes)[0])
+    place, horizon = plate_place(plate, args, notes)
+    place = Placement(*place)
     own = args.envmap or args.lights
     auto = 0.0  # the exposure unless given: the plate's units under its own light
     if own:  # the user's own light; the plate only the backdrop, and its light the level
-        scene, lights, pixels, look = prepare(args.scene, args.lights, args.envmap, args, look)
+        scene, lights, pixels, look = prepare(args.scene, args.lights, args.envmap, args, look, automatic_yaw=True)
         if look.exposure == AUTO:
-            auto = own_light_exposure(plate, scene, lights, pixels, look)
+            auto = own_light_exposure(plate_light(plate)[0], scene, lights, pixels, look)
         light_from = f"{own}" + (f", exposed {auto:+.2f} stops to the plate's light" if look.exposure == AUTO else "")
     else:  # the plate's light, in its camera's frame (--yaw turns it as any map's)
         scene = load_sized_scene(args.scene, getattr(args, "size", None), getattr(args, "max_size", None))
@@ -112,7 +113,7 @@ def cmd_render_plate(args, look) -> int:
     try:
         matched = render_on_plate(engine, scene, lights, plate_look(look, auto), plate, place, out, outputs[1],
                                   layers_in_exr=args.layers, fixed=rig_lights(args), source=args.scene,
-                                  cut_allowed=args.height is not None)
+                                  cut_allowed=args.height is not None, horizon=horizon)
     finally:
         engine.release()
     seconds = time.perf_counter() - start
@@ -125,15 +126,13 @@ def cmd_render_plate(args, look) -> int:
     return 0
 
 
-def own_light_exposure(plate, scene, lights, pixels, look) -> float:
+def own_light_exposure(plate_env, scene, lights, pixels, look) -> float:
     """The stops that give a person lit by the user's map (``pixels``, else ``lights``, a light file's)
-    the diffuse light the plate's own light gives them (:mod:`viewer.plate.plate_exposure`)."""
+    the diffuse light the plate's own light (``plate_env``) gives them (:mod:`viewer.plate.plate_exposure`)."""
     from viewer.lighting.envmap import EnvMap
-    from viewer.plate.plate_exposure import matched_exposure
-    from viewer.plate.plate_light import plate_light
+    from viewer.plate.plate_exposure import person_exposure
 
-    light = EnvMap(pixels) if pixels is not None else lights
-    return matched_exposure(plate_light(plate)[0], light, scene.normal[scene.mask], look.yaw, look.tilt)
+    return person_exposure(plate_env, EnvMap(pixels) if pixels is not None else lights, scene, look)
 
 
 def view_plate(args, notes: list) -> tuple[tuple, Path | None]:

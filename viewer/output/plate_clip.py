@@ -24,15 +24,15 @@ from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
 
 
 class PlatePictures(ClipPictures):
-    """The clip's frames in ``plate`` (:class:`ClipPictures`' arguments, then the plate and where the
-    person stands on it; ``cut_allowed``: their feet may be out of their frame, ``--height`` given)."""
+    """The clip's frames in ``plate`` (:class:`ClipPictures`' arguments, then the plate, where the person
+    stands on it and its horizon; ``cut_allowed``: their feet may be out of their frame, ``--height`` given)."""
 
-    def __init__(self, *args, plate: Plate, place: Placement, cut_allowed: bool = False, **kwargs):
+    def __init__(self, *args, plate: Plate, place: Placement, horizon: float | None = None, cut_allowed: bool = False, **kwargs):
         super().__init__(*args, **kwargs)
-        self.plate, self.place = plate, place
+        self.plate, self.place, self.horizon = plate, place, horizon
         first = self.frames.people[0]
-        alpha = self.frames.scene(first, self.sizes).frame
-        alpha = alpha.alpha if alpha is not None else self.frames.scene(first, self.sizes).mask.astype(np.float32)
+        scene = self.frames.scene(first, self.sizes)
+        alpha = scene.frame.alpha if scene.frame is not None else scene.mask.astype(np.float32)
         self.transform = plate_transform(alpha, place, plate.size, self.bundle.scene_path(first), cut_allowed)
         self.feet = not (alpha[-1] > 0.5).any()  # soles on the ground: a contact shadow
         self.blur, self.grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
@@ -54,6 +54,6 @@ class PlatePictures(ClipPictures):
         engine, _ = self._render(index, self._look(index, index))
         rgba, shadow, _, sky = read_person(engine)
         result = composite_on_plate(self.plate.linear, rgba, shadow, self.transform, self.blur, self.plate.focal_px,
-                                    sky if self.feet else 0.0)
+                                    sky if self.feet else 0.0, self.horizon)
         srgb = with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], self.grain)
         return (srgb * 255.0 + 0.5).astype(np.uint8)

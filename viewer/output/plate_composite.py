@@ -56,13 +56,14 @@ def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[i
 
 
 def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow_share: np.ndarray | None,
-                       transform: PlateTransform, blur: float = 0.0, focal_px: float = 0.0, sky: float = 0.0) -> PlateComposite:
+                       transform: PlateTransform, blur: float = 0.0, focal_px: float = 0.0, sky: float = 0.0,
+                       horizon: float | None = None) -> PlateComposite:
     """The person (premultiplied RGBA, the frame's size) and the ground's shadow share (any size over
     the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3); the person's layer
     blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.plate_match`);
     with ``sky`` > 0 (the share of the ground's light a contact shadow hides) the ground around the
     feet darkened too (:func:`viewer.plate.contact.contact_shadow`, the plate's focal length ``focal_px``
-    in its pixels), in the shadow layer."""
+    in its pixels, its ``horizon`` a fraction of its height), in the shadow layer."""
     import cv2
 
     from viewer.plate.contact import REACH, contact_shadow
@@ -87,7 +88,8 @@ def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow
     if shadow_share is not None:
         share = cv2.resize(np.ascontiguousarray(shadow_share, np.float32), (fw, fh), interpolation=cv2.INTER_LINEAR)
         shadow[:] = np.clip(1.0 - np.nan_to_num(into_plate(share.reshape(fh, fw, -1), local, size), nan=0.0), 0.0, 1.0)
-    contact = contact_shadow(person[..., 3], focal_px, sky) if sky > 0.0 and focal_px > 0.0 else None
+    horizon_px = None if horizon is None else horizon * h - y0  # in the region's rows
+    contact = contact_shadow(person[..., 3], focal_px, sky, horizon_px) if sky > 0.0 and focal_px > 0.0 else None
     if contact is not None:  # the darker of the lights' shadow and the sky's share hidden at the feet
         np.minimum(shadow, contact[..., None], out=shadow)
     out_image[y0:y1, x0:x1] = plate_linear[y0:y1, x0:x1] * shadow * (1.0 - person[..., 3:4]) + person[..., :3]

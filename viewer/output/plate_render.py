@@ -41,7 +41,8 @@ def read_person(engine) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, floa
 
 
 def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Placement, png, exr, layers=None,
-                    layers_in_exr: bool = False, fixed=None, source=None, cut_allowed: bool = False) -> dict:
+                    layers_in_exr: bool = False, fixed=None, source=None, cut_allowed: bool = False,
+                    horizon: float | None = None) -> dict:
     """Render ``scene`` (the engine's) under ``lights`` (and ``fixed``, a rig) and ``look`` (as
     :func:`plate_look` made it), composite it into ``plate`` at ``place`` and write the files
     (:func:`write_on_plate`). Returns what was matched: the exposure, the defocus and the grain."""
@@ -50,16 +51,17 @@ def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Plac
     engine.set_lights(lights, fixed)
     engine.set_look(resolve_exposure(engine, scene, look))
     engine.render()
-    return write_on_plate(read_person(engine), plate, place, png, exr, layers, layers_in_exr, source, cut_allowed)
+    return write_on_plate(read_person(engine), plate, place, png, exr, layers, layers_in_exr, source, cut_allowed, horizon)
 
 
 def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layers=None, layers_in_exr: bool = False,
-                   source=None, cut_allowed: bool = False) -> dict:
+                   source=None, cut_allowed: bool = False, horizon: float | None = None) -> dict:
     """The person (``frame``: :func:`read_person`'s) composited into ``plate`` at ``place``, matched to
     the plate's defocus and grain, and written: ``png`` (8-bit sRGB, the plate's grain on the person),
     ``exr`` (linear; with ``layers_in_exr`` also the layers: the person premultiplied, the shadow as a
     multiplier, the plate) and ``layers`` (those layers in a file of their own, a batch's), all
-    replaced together. No GL: a window's save writes it on a thread."""
+    replaced together; ``horizon`` the plate's (a fraction of its height: the contact shadow's ground).
+    No GL: a window's save writes it on a thread."""
     from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
     from viewer.output.layers import write_layers
 
@@ -68,7 +70,7 @@ def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layer
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
     feet = not (alpha[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
-    result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0)
+    result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0, horizon)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}
     parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},
              **{f"shadow.{c}": result.shadow[..., k] for k, c in enumerate("RGB")},

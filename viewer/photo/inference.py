@@ -64,7 +64,7 @@ STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rend
                 "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-7"  # bundles cached by an older pipeline are inferred again (frame-7: the skin's share and scale in the frame)
+PIPELINE = "frame-8"  # bundles cached by an older pipeline are inferred again (frame-8: the photo's lens in the frame)
 
 
 @dataclass(frozen=True)

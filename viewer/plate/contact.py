@@ -11,10 +11,10 @@ loses the cosine-weighted share ``dphi / 2 pi * h^2 / (h^2 + r^2)`` of its sky t
 ``dphi`` it spans over a cosine-weighted hemisphere, up to its top ``h`` seen from ``r`` away); per
 foot the larger of the box's and the leg's, summed over the feet, at most ``MAX_OCCLUSION``. Metres
 come from the person's height (``PERSON_HEIGHT_M``) in plate pixels; the ground's foreshortening (a
-metre towards the camera spans ``c`` times a metre across, ``c = camera height / distance``) from a
-camera at eye height (``CAMERA_HEIGHT_M``, as the default placement assumes), so ``c =
-CAMERA_HEIGHT_M * T / (PERSON_HEIGHT_M * f)`` for a person ``T`` pixels tall under a focal length of
-``f`` pixels.
+metre towards the camera spans ``c`` times a metre across, ``c = camera height / distance``) from the
+plate's horizon, ``c = (feet - horizon) / f`` (rows, a focal length of ``f`` pixels, a level camera),
+else from a camera at eye height (``CAMERA_HEIGHT_M``), ``c = CAMERA_HEIGHT_M * T / (PERSON_HEIGHT_M
+* f)`` for a person ``T`` pixels tall.
 
 Only the sky's share of the ground's light is hidden so: under a sun the ground around the feet
 keeps the sun's light (its shadow is the engine's), so the occlusion is scaled by :func:`sky_share`.
@@ -35,19 +35,24 @@ POINTS = 8  # of a foot's columns taken as its outline (every k-th)
 
 
 def sky_share(lights) -> float:
-    """The share of a level ground's light (its irradiance) that is not the strongest light's: what a
-    contact shadow hides (1 under an overcast sky, ~0.1-0.3 under a clear sun). ``lights``: area lights
-    in camera space (y up)."""
+    """The share of a level ground's light (its irradiance) that is not the strongest light's (with those
+    near it: a sun a fit split over several, :func:`viewer.scene.area_lights.strongest_group`): what a
+    contact shadow hides (1 under an overcast sky, ~0.1-0.5 under a clear sun). ``lights``: area
+    lights in camera space (y up)."""
+    from viewer.scene.area_lights import strongest_group
+
     up = np.clip(np.asarray(lights.direction, np.float64)[:, 1], 0.0, None)
     each = np.asarray(lights.intensity, np.float64).mean(axis=1) * up
-    total = float(each.sum())
-    return 1.0 - float(each.max()) / total if total > 0.0 and len(each) else 0.0
+    if not len(each) or float(each.sum()) <= 0.0:
+        return 0.0
+    return 1.0 - strongest_group(lights, each)[1]
 
 
-def contact_shadow(alpha: np.ndarray, focal_px: float, sky: float) -> np.ndarray | None:
+def contact_shadow(alpha: np.ndarray, focal_px: float, sky: float, horizon_px: float | None = None) -> np.ndarray | None:
     """(H, W) float32 multiplier of the plate (1 where nothing is hidden) for the person whose matte in
-    the plate is ``alpha`` (H, W), their feet on the ground; None when nothing is to darken (no
-    matte, no sky)."""
+    the plate is ``alpha`` (H, W), their feet on the ground, the plate's horizon at row ``horizon_px``
+    (of ``alpha``'s rows; None: unknown, a camera at eye height assumed); None when nothing is to
+    darken (no matte, no sky)."""
     person = alpha > 0.5
     if sky <= 0.0 or not person.any():
         return None
@@ -60,7 +65,11 @@ def contact_shadow(alpha: np.ndarray, focal_px: float, sky: float) -> np.ndarray
     if not on_ground.any():
         return None
     per_m = tall / PERSON_HEIGHT_M  # plate pixels a metre, across, where the person stands
-    squash = min(max(CAMERA_HEIGHT_M * tall / (PERSON_HEIGHT_M * max(focal_px, 1.0)), 0.02), 1.0)
+    if horizon_px is not None and feet > horizon_px:  # a level camera: the feet's depth below the horizon
+        squash = (feet - horizon_px) / max(focal_px, 1.0)
+    else:
+        squash = CAMERA_HEIGHT_M * tall / (PERSON_HEIGHT_M * max(focal_px, 1.0))
+    squash = min(max(squash, 0.02), 1.0)
     x_c, z_c = cols[on_ground], lowest[on_ground] + 1.0
     parts = np.split(np.arange(len(x_c)), np.flatnonzero(np.diff(x_c) > 2) + 1)  # the feet: runs of columns
     h, w = alpha.shape

@@ -40,6 +40,11 @@ def mean_irradiance(light: EnvMap | AreaLights, normals: np.ndarray, yaw: float 
     return float(np.clip(e @ LUMINANCE, 0.0, None).mean())
 
 
+def person_exposure(plate_light: EnvMap, light: EnvMap | AreaLights, scene, look) -> float:
+    """:func:`matched_exposure` for ``scene``'s person (its normals inside its mask) under ``look``'s turn."""
+    return matched_exposure(plate_light, light, scene.normal[scene.mask], look.yaw, look.tilt)
+
+
 def matched_exposure(plate_light: EnvMap, light: EnvMap | AreaLights, normals: np.ndarray, yaw: float = 0.0,
                      tilt: float = 0.0) -> float:
     """Stops for a person of ``normals`` lit by ``light`` (turned by ``yaw``, ``tilt``) to get the

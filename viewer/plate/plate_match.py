@@ -16,6 +16,7 @@ not. Two measures of the plate, each from a well-known estimator:
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -25,6 +26,7 @@ from viewer.scene.backdrop import edge_blur
 
 NOISE_KERNEL = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
 GRAIN_SEED = 47  # the grain is the same on every run of the same composite
+GRAIN_TILE = 256  # pixels: the grain's pattern repeats this far apart, pinned to the plate's pixels
 
 
 def grain_levels(srgb: np.ndarray) -> np.ndarray:
@@ -56,13 +58,20 @@ def feet_blur(srgb: np.ndarray, place: Placement) -> float:
 
 def with_grain(srgb: np.ndarray, coverage: np.ndarray, levels: np.ndarray) -> np.ndarray:
     """``srgb`` (H, W, 3) float in [0, 1] with Gaussian noise of ``levels`` (8-bit levels, per channel)
-    added in proportion to ``coverage`` (H, W) in [0, 1]; the same noise on every run."""
+    added in proportion to ``coverage`` (H, W) in [0, 1]: the same noise at the same plate pixel on every
+    run and every frame of a clip (a tile of ``GRAIN_TILE`` pixels, pinned to the plate, as the still
+    plate's own grain is), added where the person is only."""
     out = np.clip(srgb, 0.0, 1.0)
     rows, cols = np.flatnonzero(coverage.any(axis=1)), np.flatnonzero(coverage.any(axis=0))
     if not len(rows):
         return out
-    y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1  # the noise drawn where the person is only
-    rng = np.random.default_rng(GRAIN_SEED)
-    noise = rng.standard_normal((y1 - y0, x1 - x0, srgb.shape[-1])).astype(np.float32) * (levels / 255.0)
-    out[y0:y1, x0:x1] = np.clip(srgb[y0:y1, x0:x1] + noise * coverage[y0:y1, x0:x1, None], 0.0, 1.0)
+    y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    noise = _grain_tile()[np.arange(y0, y1)[:, None] % GRAIN_TILE, np.arange(x0, x1)[None, :] % GRAIN_TILE]
+    out[y0:y1, x0:x1] = np.clip(srgb[y0:y1, x0:x1] + noise * (levels / 255.0) * coverage[y0:y1, x0:x1, None], 0.0, 1.0)
     return out
+
+
+@functools.cache
+def _grain_tile() -> np.ndarray:
+    """(GRAIN_TILE, GRAIN_TILE, 3) float32 unit Gaussian noise, the same in every process."""
+    return np.random.default_rng(GRAIN_SEED).standard_normal((GRAIN_TILE, GRAIN_TILE, 3)).astype(np.float32)

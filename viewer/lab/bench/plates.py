@@ -19,7 +19,7 @@ linear units:
 
 Per plate: the RMSE of each against the truth over the person's pixels (the scene's mask at the
 maps' resolution), and where the true map has a dominant light (its strongest fitted light, with
-those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more), the
+those within ``viewer.scene.area_lights.CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more), the
 angle between it and the estimate's strongest light (grouped the same way). The JSON's ``summary``
 holds the means over all plates (``estimate``, ``uniform``, ``sh``) and ``direction_deg_median``.
 """
@@ -68,21 +68,6 @@ def make_plate(env, yaw: float, path: Path, size: tuple[int, int] = PLATE_SIZE) 
     return scale
 
 
-CLUSTER_DEG = 20.0  # lights this near the strongest are one light with it (a fit splits a sun over several)
-
-
-def strongest(lights) -> tuple[np.ndarray, float]:
-    """(the direction of the lights' strongest, with those within ``CLUSTER_DEG`` of it, weighted by
-    luminance; their share of the lights' summed luminance)."""
-    from viewer.lighting.envmap import LUMINANCE
-
-    lum = (lights.intensity @ LUMINANCE.astype(np.float32)).astype(np.float64)
-    dirs = lights.direction.astype(np.float64)
-    near = dirs @ dirs[int(np.argmax(lum))] >= math.cos(math.radians(CLUSTER_DEG))
-    direction = (dirs[near] * lum[near, None]).sum(axis=0)
-    return direction / max(float(np.linalg.norm(direction)), 1e-30), float(lum[near].sum() / max(float(lum.sum()), 1e-30))
-
-
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.acos(float(np.clip(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))))
 
@@ -127,7 +112,7 @@ def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3)
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import placed_plate, plate_light
-    from viewer.scene.area_lights import AreaLights, rotation_matrix
+    from viewer.scene.area_lights import AreaLights, rotation_matrix, strongest_group
 
     output = Path(output)
     plates_dir = output.parent / "plates"
@@ -167,11 +152,11 @@ def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3)
                         "sh": person_rmse(lambert(scene, sh.irradiance(coeffs, scene.normal)), truth, mask)}
                 for key in ("estimate", "uniform", "sh"):
                     row[key] = float(np.mean([p[key] for p in row["people"].values()]))
-                true_dir, share = strongest(true_lights)
+                true_dir, share = strongest_group(true_lights)
                 if share >= DOMINANT_SHARE:
                     turned = rotation_matrix(yaw, 0.0) @ true_dir
                     row["dominant_share"] = round(share, 3)
-                    row["direction_deg"] = round(angle_deg(turned, strongest(est_lights)[0]), 2)
+                    row["direction_deg"] = round(angle_deg(turned, strongest_group(est_lights)[0]), 2)
                 rows.append(row)
                 progress(f"{path.name} yaw {yaw:.0f}: person RMSE estimate {row['estimate']:.4f}, uniform {row['uniform']:.4f}, "
                          f"sh {row['sh']:.4f}" + (f"; dominant light {row['direction_deg']:.0f} deg off" if "direction_deg" in row else ""))
