@@ -36,10 +36,10 @@ POINTS = 8  # of a foot's columns taken as its outline (every k-th)
 
 def sky_share(lights) -> float:
     """The share of a level ground's light (its irradiance) that is not the strongest light's (with those
-    near it: a sun a fit split over several, :func:`viewer.scene.area_lights.strongest_group`): what a
+    near it: a sun a fit split over several, :func:`viewer.lighting.dominant.strongest_group`): what a
     contact shadow hides (1 under an overcast sky, ~0.1-0.5 under a clear sun). ``lights``: area
     lights in camera space (y up)."""
-    from viewer.scene.area_lights import strongest_group
+    from viewer.lighting.dominant import strongest_group
 
     up = np.clip(np.asarray(lights.direction, np.float64)[:, 1], 0.0, None)
     each = np.asarray(lights.intensity, np.float64).mean(axis=1) * up

@@ -19,7 +19,7 @@ linear units:
 
 Per plate: the RMSE of each against the truth over the person's pixels (the scene's mask at the
 maps' resolution), and where the true map has a dominant light (its strongest fitted light, with
-those within ``viewer.scene.area_lights.CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more), the
+those within ``viewer.lighting.dominant.CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more), the
 angle between it and the estimate's strongest light (grouped the same way). The JSON's ``summary``
 holds the means over all plates (``estimate``, ``uniform``, ``sh``) and ``direction_deg_median``.
 """
@@ -108,11 +108,12 @@ def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3)
     from viewer.gl import Engine, create_headless_context
     from viewer.lab.bench.video import map_and_lights
     from viewer.lighting import sh
+    from viewer.lighting.dominant import strongest_group
     from viewer.lighting.envmap import SUFFIXES, EnvMap
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import placed_plate, plate_light
-    from viewer.scene.area_lights import AreaLights, rotation_matrix, strongest_group
+    from viewer.scene.area_lights import AreaLights, rotation_matrix
 
     output = Path(output)
     plates_dir = output.parent / "plates"
