@@ -44,9 +44,15 @@ def test_a_plates_light_keeps_what_it_shows_and_mirrors_it_behind_the_camera(tmp
     # seen: the plate's own radiance where it looks (ahead, and 20 degrees right and up), within JPEG's error
     for d in ([0, 0, -1], [np.sin(0.35), 0.0, -np.cos(0.35)], [0.0, np.sin(0.2), -np.cos(0.2)]):
         assert at(lum, d) == pytest.approx(at(truth, d), rel=0.25, abs=0.02), d
-    # behind the camera: the view ahead mirrored (blurred), not black, not the truth's own
+    # behind the camera: the view ahead mirrored (blurred), not black, not the truth's own, and the plate's
+    # mean light once more (BEHIND_GAIN 2: a subject is lit better than the background)
+    from viewer.plate.plate_light import BEHIND_GAIN, CLIP
+
     centre = plate.linear[220:420, 380:580] @ LUMINANCE  # the blur's reach about the view's centre
-    assert at(lum, [0, 0, 1]) == pytest.approx(float(centre.mean()), rel=0.3)
+    unclipped = (plate.srgb < CLIP).all(axis=-1)
+    added = (BEHIND_GAIN - 1.0) * float((plate.linear[unclipped] @ LUMINANCE).mean())
+    assert at(lum, [0, 0, 1]) == pytest.approx(float(centre.mean()) + added, rel=0.3)
+    assert at(lum, [0.3, 0.0, 0.95]) - at(lum, [0.3, 0.0, -0.95]) == pytest.approx(added, rel=0.5, abs=0.02)
     # up and down: the plate's top edge (sky) above, its ground below
     assert at(lum, [0, 1, 0]) > at(lum, [0, -1, 0])
 
@@ -106,6 +112,29 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
         assert row["plate_light_seconds"] < 2.0
     assert result["summary"]["estimate"] < result["summary"]["uniform"]
     assert 0 < result["summary"]["plate_light_seconds_12mp"] < 10 and 0 < result["summary"]["composite_seconds_2048"] < 60
+
+
+def test_a_person_put_back_into_their_own_photo_is_measured_against_it(tmp_path):
+    """The bench's real-photo check: the bundled photo's person removed from it (filled from around them,
+    the rest of the photo untouched), then put back lit by the light read from what is left: their
+    exposure error and RMSE against the photo itself, finite and within 2 stops."""
+    from viewer.lab.bench.plates import identity, without_person
+    from viewer.photo.inference import cached_bundle
+    from viewer.scene.bundle import load_scene
+
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    plate = read_plate(photo, [])
+    alpha = load_scene(cached_bundle(photo)[0]).frame.alpha
+    empty = without_person(plate, alpha)
+    far = np.ones(alpha.shape, bool)
+    far[np.nonzero(alpha > 0.01)[0].min() - 8:, :] = False  # well above the person (and the grown hole): untouched
+    assert np.array_equal(empty.srgb[far], plate.srgb[far])
+    inside = alpha > 0.9
+    assert np.abs(empty.srgb[inside].astype(int) - plate.srgb[inside]).mean() > 10  # the person is gone from it
+    result = identity([photo], tmp_path, progress=lambda line: None)
+    row, = result["photos"]
+    assert np.isfinite(row["stops"]) and abs(row["stops"]) < 2.0 and 0 < row["rmse_levels"] < 100
+    assert result["median_stops"] == row["stops"] and (tmp_path / "underpass_in_itself.png").is_file()
 
 
 def test_the_person_stands_where_placed_and_the_plate_is_untouched_elsewhere():

@@ -737,11 +737,11 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     assert s["plate"]["light"] == "plate" and s["look"]["yaw"] == 0.0 and s["look"]["exposure"] == 0.0
     x, y, w, h = s["image_rect"]
     assert abs(w / h - 480 / 320) < 0.01  # the plate is what the window shows
-    k = w / 480  # window pixels a plate pixel
-    x0, y0, x1, y1 = s["plate_box"]
-    assert abs(0.5 * (x0 + x1) / 480 - 0.5) < 0.05 and abs(y1 / 320 - 0.88) < 0.01  # the feet where they stand
-    v.drag(int(x + k * 0.5 * (x0 + x1)), int(y + k * 0.5 * (y0 + y1)), -100, 0)
-    s = v.wait_for(lambda s: s["plate"]["at"][0] < 0.45 and s["plate_box"][0] < x0 - 10)
+    x0, y0, x1, y1 = s["plate_box"]  # fractions of the plate
+    assert abs(0.5 * (x0 + x1) - 0.5) < 0.05 and abs(y1 - 0.88) < 0.01  # the feet where they stand
+    assert any("35 mm" in n for n in s["plate_notes"])  # what reading the plate said (no EXIF: 35 mm taken)
+    v.drag(int(x + w * 0.5 * (x0 + x1)), int(y + h * 0.5 * (y0 + y1)), -100, 0)
+    s = v.wait_for(lambda s: s["plate"]["at"][0] < 0.45 and s["plate_box"][0] < x0 - 10 / 480)
     assert abs(s["plate"]["at"][0] - (0.5 - 100 / w)) < 0.01 and abs(s["plate"]["at"][1] - 0.88) < 0.01
     assert s["look"]["yaw"] == 0.0  # the person moved, the lighting did not turn
     v.drag(int(x + 0.9 * w), int(y + 0.1 * h), -60, 0)  # off the person: the lighting turns
@@ -774,5 +774,6 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     v.click("browser open")
     s = v.wait_for(lambda s: s["plate"]["source"] == str(other) and not s["fitting"] and s["shown_map"] == s["map"], 60)
     assert s["plate"]["light"] == "plate" and s["scene_size"] == [SIZE, SIZE] and "dusk-light-" in s["map"]
-    v.click("remove the plate", until=lambda s: s["plate"] is None)
+    s = v.click("remove the plate", until=lambda s: s["plate"] is None)
+    assert s["look"]["background"] != "transparent"  # the person in their frame again
     assert v.quit() == 0

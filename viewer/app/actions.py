@@ -294,12 +294,15 @@ class Actions:
             self.report(f"{Path(path).name} cannot be a plate", exc)
             return
         s = self.app.session
-        restore = {"background": s.look.background, "ground": s.look.ground, "auto": self.app.auto_exposure}
+        restore = {"background": s.look.background, "ground": s.look.ground, "auto": self.app.auto_exposure,
+                   "map": self.app.env_path}
         if self.app.plate is not None:
             restore = self.app.plate.restore  # the look before the first plate
             self.app.plate.release()
         self.app.plate = PlateView(self.app.window.ctx, *setting)
-        self.app.plate.restore = restore
+        self.app.plate.restore, self.app.plate.notes = restore, notes
+        for note in notes:
+            print(f"note: {note}", flush=True)
         self.app.view = ix.ViewState()
         s.update(background="transparent", ground=True, exposure=0.0, yaw=0.0, tilt=0.0)
         self.app.auto_exposure = False  # the person is exposed in the plate's units
@@ -318,6 +321,8 @@ class Actions:
             if self.app.auto_exposure:  # the photo's own brightness again
                 self.app._apply_auto_exposure()
             self.app.message = "the plate removed"
+            if plate.restore["map"] is not None and plate.restore["map"] != self.app.env_path:  # the map before it, back
+                self.open_map(plate.restore["map"])
 
     def set_turn_frames(self, frames: int):
         self.turn_frames = int(frames)

@@ -71,7 +71,8 @@ class ViewerConfig:
     gl_threads: int = 2  # llvmpipe's threads, as main sized them (the cores it may use): reported in the state file
     clip: object = None  # a clip bundle (viewer.scene.clip_bundle.ClipBundle) played with a timeline; scene is its first frame's
     size: int | None = None  # the maps' size its frames are read at (relight view --size)
-    plate: tuple | None = None  # (Plate, Placement, horizon, what lights the person): the person put into a plate (--plate)
+    plate: tuple | None = None  # the person put into a plate (--plate): viewer.app.plate_view.PlateView's arguments
+    plate_notes: tuple = ()  # what reading and placing the plate said (shown in its panel section)
 
 
 class ViewerApp:
@@ -107,6 +108,7 @@ class ViewerApp:
             from viewer.app.plate_view import PlateView
 
             self.plate = PlateView(self.window.ctx, *config.plate)
+            self.plate.notes = list(config.plate_notes)
         self.moving_person = False  # the person being dragged on the plate
         if self.timeline is not None:
             self.timeline.began(self.session)

@@ -100,7 +100,9 @@ def draw_panel(app):
         _keys()
     imgui.pop_item_width()
     app.panel.height = imgui.get_cursor_pos_y() + imgui.get_style().window_padding.y  # all of it, scrolled or not
-    if imgui.is_any_item_active():  # a slider held (or a click): the preview until it is let go (app._render)
+    # a slider held (or a click): the preview until it is let go (app._render); a text box being typed in
+    # (the browser's path) holds nothing of the lighting: the picture stays the full-quality one
+    if imgui.is_any_item_active() and not imgui.get_io().want_text_input:
         app.panel.adjusted = time.perf_counter()
     imgui.end()
 
@@ -511,6 +513,10 @@ def _plate(app):
         return
     p = plate.place
     imgui.text(f"{plate.plate.size[0]}x{plate.plate.size[1]}, lit by " + ("its own light" if plate.light == "plate" else plate.light))
+    if plate.notes:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled("; ".join(plate.notes))
+        imgui.pop_text_wrap_pos()
     imgui.text(f"feet at {p.x:.2f},{p.y:.2f}; {p.height:.2f} of it tall")
     if imgui.is_item_hovered():
         imgui.set_tooltip("drag the person to move them; the wheel scales them about their feet\n"

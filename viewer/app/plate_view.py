@@ -17,7 +17,7 @@ from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.output.plate_composite import composite_on_plate
 from viewer.output.plate_render import read_person
-from viewer.plate.placement import Placement, camera_mismatch, person_lens_mismatch, plate_transform
+from viewer.plate.placement import Placement, camera_mismatch, enlarged, person_lens_mismatch, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur
 from viewer.scene.look import Look
@@ -72,7 +72,8 @@ class PlateView:
         self._frame = None  # (the transform shown, the person's frame size (w, h)): where a point of the plate is in it
         self.error = ""  # why the last placement asked for could not be shown (the one before stays)
         # the look's fields the plate changed, and whether the exposure was automatic: back when it is removed
-        self.restore = {"background": Look().background, "ground": Look().ground, "auto": True}
+        self.restore = {"background": Look().background, "ground": Look().ground, "auto": True, "map": None}
+        self.notes: list[str] = []  # what reading and placing it said (its lens, horizon, camera height)
 
     def exposure(self, light, scene, look) -> float:
         """The person's exposure on this plate under ``light`` (a map, or a light file's lights) turned by
@@ -89,9 +90,11 @@ class PlateView:
 
     def mismatches(self, scene) -> list[str]:
         """What does not match the person's photo where they stand: the plate camera's height
-        (:func:`camera_mismatch`) and its distance (:func:`person_lens_mismatch`, ``scene``'s photo's lens)."""
-        return [line for line in (camera_mismatch(self.place, self.horizon), person_lens_mismatch(scene.frame, self.place, self.plate))
-                if line]
+        (:func:`camera_mismatch`), its distance (:func:`person_lens_mismatch`, ``scene``'s photo's lens)
+        and their frame's pixels enlarged (:func:`enlarged`)."""
+        scale = None if self._frame is None else self._frame[0].scale * self.plate.size[0] / self.size[0]
+        return [line for line in (camera_mismatch(self.place, self.horizon), person_lens_mismatch(scene.frame, self.place, self.plate),
+                                  enlarged(scale)) if line]
 
     def blur(self, settled: bool) -> float:
         """The plate's defocus where the feet stand, in the copy's pixels: measured again once the
@@ -128,6 +131,13 @@ class PlateView:
             self._frame = (transform, (alpha.shape[1], alpha.shape[0]))
             self._shown = shown
         return self.texture
+
+    def box_fractions(self) -> list[float] | None:
+        """The person's box on the plate (x0, y0, x1, y1) as fractions of its width and height, or None."""
+        if self.box is None:
+            return None
+        w, h = self.size
+        return [self.box[0] / w, self.box[1] / h, self.box[2] / w, self.box[3] / h]
 
     def holds(self, u: float, v: float) -> bool:
         """Whether the point (``u``, ``v``), fractions of the plate, is on the person's box."""

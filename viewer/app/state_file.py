@@ -57,7 +57,9 @@ class StateFile:
             "out_dir": str(app.config.out_dir.resolve()),  # where S and R write (--out-dir)
             "videos": app.videos,
             "plate": app.plate.to_json() if app.plate is not None else None,
-            "plate_box": list(app.plate.box) if app.plate is not None and app.plate.box is not None else None,
+            # the person's box on the plate (x0, y0, x1, y1), fractions of the plate's width and height
+            "plate_box": app.plate.box_fractions() if app.plate is not None else None,
+            "plate_notes": app.plate.notes if app.plate is not None else [],
             "message": app.message,
             "error": app.error,
             "gl_threads": app.config.gl_threads,  # llvmpipe's, sized when the window opened (viewer/cli/main.py)

@@ -192,15 +192,14 @@ def cmd_view(args) -> int:
 
     rig = load_rig(args.rig) if args.rig else ()  # before any window: a bad file is one line
     check_fps(args)
-    plate = None
+    plate, plate_notes = None, []
     if args.plate:  # read, placed and its light made before any window: a bad plate is one line
         from viewer.cli.plate_commands import view_plate
 
         if clip:
             raise InputError(args.scene, "a clip on a plate is not made yet: give a photo or a scene bundle with --plate")
-        notes: list = []
-        plate, plate_map = view_plate(args, notes)
-        for note in notes:
+        plate, plate_map = view_plate(args, plate_notes)
+        for note in plate_notes:
             print(f"note: {note}")
         if plate_map is not None:
             env_path = plate_map
@@ -250,7 +249,7 @@ def cmd_view(args) -> int:
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=look.preset,
                           window=window, rig=rig, max_size=args.max_size, device=args.device,
                           gl_threads=gl_threads(), clip=clip_bundle.bundle if clip_bundle else None, size=args.size,
-                          plate=plate)
+                          plate=plate, plate_notes=tuple(plate_notes))
     return run_viewer(config)
 
 

@@ -21,6 +21,13 @@ from viewer.errors import InputError
 DATA_VARIABLE = "RELIGHT_DATA"
 
 
+def plate_photos(folders) -> list[Path]:
+    """The photos (.jpg, .jpeg, .png; not a mask, hand-made or automatic) of ``folders``, sorted: the plates
+    bench's people put back into their own photo."""
+    return sorted(p for f in folders for p in Path(f).iterdir()
+                  if p.suffix.lower() in (".jpg", ".jpeg", ".png") and "mask" not in p.name.lower() and not p.name.startswith("."))
+
+
 def shared_folder(given: str | None, part: str, option: str) -> Path:
     """The folder given on the command line, else ``$RELIGHT_DATA/<part>``; one line when neither."""
     if given:
@@ -179,10 +186,13 @@ def cmd_bench(args) -> int:
 
         out = Path(args.output or "out/bench-plates/plates.json")
         maps = heldout_maps(out.parent / "maps", args.procedural) if args.procedural else shared_folder(args.maps, "hdri", "--maps")
-        summary = run_plates_benchmark(maps, out)["summary"]
+        photos = None if args.procedural else plate_photos([shared_folder(args.photos, "photos", "--photos"), *(args.set or [])])
+        summary = run_plates_benchmark(maps, out, photos=photos)["summary"]
         print(f"person RMSE (means): estimate {summary['estimate']:.4f}, uniform {summary['uniform']:.4f} "
               f"({summary['estimate_over_uniform']:.2f} x), sh {summary['sh']:.4f} ({summary['estimate_over_sh']:.2f} x); "
-              f"dominant light off by {summary['direction_deg_median']} degrees (median); wrote {out}")
+              f"dominant light off by {summary['direction_deg_median']} degrees (median)"
+              + (f"; a person put back into their own photo {summary['identity_median_stops']:+.2f} stops, RMSE "
+                 f"{summary['identity_median_rmse_levels']:.1f} levels (medians)" if photos else "") + f"; wrote {out}")
     elif args.what == "video" and args.truth:
         from viewer.lab.bench.clip_truth import run_truth_benchmark, truth_table
 
@@ -387,9 +397,11 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--end", type=float, default=2.0, help="video: seconds into each clip to stop at (default 2)")
     p.add_argument("--max-size", type=int, default=2048, help="video: the frames' longer side at most (default 2048)")
     p.add_argument("--count", type=int, default=20, help="batch: distinct photos (default 20)")
-    p.add_argument("--photos", help="photos, matte, upsample: folder of .jpg photos, hand-made masks beside them as <stem>.mask.png "
+    p.add_argument("--photos", help="photos, matte, upsample, plates: folder of .jpg photos, hand-made masks beside them "
+                   "as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
-    p.add_argument("--set", nargs="+", metavar="DIR", help="photos: every photo of these folders through the whole photo "
+    p.add_argument("--set", nargs="+", metavar="DIR", help="plates: more folders of photos whose people are put back into "
+                   "their own photo; photos: every photo of these folders through the whole photo "
                    "path (holes and speckle on skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
                    "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/)")
     p.add_argument("--before", help="photos --set: a photo_set.json of an earlier run, shown beside this one")

@@ -4,13 +4,14 @@ EXR (and the layers' EXR) together. ``relight render --plate`` and a batch's pla
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from viewer.output.plate_composite import composite_on_plate
-from viewer.plate.placement import Placement, plate_transform
+from viewer.plate.placement import Placement, enlarged, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
 from viewer.scene.look import Look
@@ -67,6 +68,9 @@ def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layer
 
     person, shadow, alpha, sky = frame
     transform = plate_transform(alpha, place, plate.size, source, cut_allowed)
+    soft = enlarged(transform.scale)
+    if soft:
+        warnings.warn(f"{plate.source}: {soft}", stacklevel=2)
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
     feet = not (alpha[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow

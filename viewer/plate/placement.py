@@ -103,6 +103,17 @@ def lens_mismatch(photo_focal_35: float, frame_size: tuple[int, int], person_px:
             f"puts them {'nearer' if near else 'farther'}, as their photo did)")
 
 
+ENLARGED = 2.0  # the person's frame shown this many times its pixels or more on the plate: warned (it looks soft)
+
+
+def enlarged(scale: float | None) -> str | None:
+    """A line when the person's frame is shown ``scale`` times its pixels on the plate, ``ENLARGED`` or more."""
+    if scale is None or scale < ENLARGED:
+        return None
+    return (f"the person is shown at {scale:.1f} x their photo's pixels: they will look softer than the plate "
+            "(a smaller --height, a larger photo of them, or a plate brought down to their size)")
+
+
 def person_lens_mismatch(frame, place: Placement, plate) -> str | None:
     """:func:`lens_mismatch` of a scene's frame layer (its matte's height, its photo's lens) on ``plate``."""
     if frame is None:

@@ -14,7 +14,14 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    mirrored through the image plane (from the blurred plate, as step 2), as Khan et al. (2006) fill the sphere from one photo: a
    street behind the camera looks like the street ahead, a room's far wall like its near one.
    This is the estimate's main guess, and where it fails: a sun or a window behind the camera, or
-   a dark wall in front of a bright one, is not in the plate and not in the map.
+   a dark wall in front of a bright one, is not in the plate and not in the map. That half gets
+   ``BEHIND_GAIN - 1`` times the plate's mean (unclipped) light more, evenly: photos' subjects are lit
+   better than their backgrounds (a photographer turns a person to the light; a studio lights the
+   person, not the wall); evenly, so that a sun in view, mirrored, does not outshine itself.
+   Measured on twelve real photos (``relight bench plates``: each photo's person put back into their
+   own photo, lit by the light read from it without them): 1 put them 1.22 stops too dark (median),
+   2 puts them 0.29 stops too dark and halves the exposure error's median (1.22 to 0.52 stops);
+   on the maps' plates (exposed to their median, not to a subject) it costs 11 % of person RMSE.
 4. **Clipped highlights** (a channel at ``CLIP`` of 255 or above) are at least that bright and
    likely brighter: their radiance is multiplied by ``CLIP_GAIN``.
 5. **Not yet**: a sun. A sun in view is clipped like a white wall (its true radiance, some 1e4
@@ -44,6 +51,7 @@ MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
 CLIP = 250  # of 255: a channel this high was clipped by the camera (or the JPEG)
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
 FILL_BLUR = 0.05  # of the plate's longer side: the blur of the plate the unseen sphere is filled from
+BEHIND_GAIN = 2.0  # the light behind the camera: the mirror plus (this - 1) x the plate's mean: a photo's subject is lit better
 
 
 def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
@@ -64,6 +72,11 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
     dirs = pixel_directions(height, 2 * height)
     seen, x, y = _projected(dirs, focal, size)
     pixels = np.where(seen[..., None], _sample(radiance, x, y), _sample(blurred, x, y))
+    # the half behind the camera brighter by (BEHIND_GAIN - 1) times the plate's mean unclipped light, added
+    # evenly (not the mirror scaled: a sun in view, mirrored, must not outshine itself)
+    unclipped = clipped < 0.5
+    level = linear[unclipped].mean(axis=0) if unclipped.any() else linear.reshape(-1, 3).mean(axis=0)
+    pixels[dirs[..., 2] > 0.0] += (BEHIND_GAIN - 1.0) * level
     pixels = np.maximum(pixels, 0.0).astype(np.float32)
     record = {"focal_35mm": round(plate.focal_35, 2), "focal_from": plate.focal_source,
               "field_of_view_deg": round(math.degrees(across), 2), "clipped_share": round(float(clipped.mean()), 5),
@@ -115,7 +128,7 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
     return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
 
 
-LIGHT_VERSION = 1  # bump when a change here changes the map a plate gives (its file is made again)
+LIGHT_VERSION = 2  # bump when a change here changes the map a plate gives (its file is made again)
 
 
 def plate_light_file(plate: Plate, directory) -> Path:

@@ -101,9 +101,10 @@ def person_rmse(image: np.ndarray, truth: np.ndarray, mask: np.ndarray) -> float
     return float(np.sqrt(np.mean((image[mask] - truth[mask]) ** 2)))
 
 
-def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3) -> dict:
-    """Every map of ``maps_dir`` (.hdr, .exr) measured as the module says, and the commands timed
-    (:func:`timings`, ``timing_runs`` each); the JSON at ``output``."""
+def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3, photos: list | None = None) -> dict:
+    """Every map of ``maps_dir`` (.hdr, .exr) measured as the module says, the commands timed
+    (:func:`timings`, ``timing_runs`` each), and with ``photos`` each one's person put back into their own
+    photo (:func:`identity`); the JSON at ``output``."""
     from viewer.cli.command_setup import fitted_lights
     from viewer.gl import Engine, create_headless_context
     from viewer.lab.bench.video import map_and_lights
@@ -177,6 +178,11 @@ def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3)
     result["timing"] = timings(maps[0], plates_dir, timing_runs)
     summary["plate_light_seconds_12mp"] = result["timing"]["plate_light_12mp"]["median"]
     summary["composite_seconds_2048"] = result["timing"]["composite_2048"]["median"]
+    if photos:
+        progress(f"each of {len(photos)} photos' person put back into their own photo, lit by the light read from it")
+        result["identity"] = identity(photos, plates_dir / "identity", progress)
+        summary["identity_median_stops"] = result["identity"]["median_stops"]
+        summary["identity_median_rmse_levels"] = result["identity"]["median_rmse_levels"]
     shown = figure(result, maps_dir, plates_dir, output.with_suffix(".jpg"))
     result["figure"] = shown.name if shown is not None else None
     write_text(output, json.dumps(result, indent=1) + "\n")
@@ -269,3 +275,83 @@ def heldout_maps(folder: Path, count: int, first_seed: int = 9000) -> Path:
             save_envmap(folder / f"procedural_{seed}_{made.kind}.hdr", made.env)
         seed += 1
     return folder
+
+
+IDENTITY_ALPHA = 0.9  # the person's pixels compared: their photo's matte at least this
+
+
+def without_person(plate, alpha: np.ndarray):
+    """``plate`` with the person (their matte ``alpha``, the plate's size or the frame's) filled from what
+    is around them (OpenCV's Telea inpainting at 512 pixels, taken only inside the grown matte): the
+    background a plate of that place would show, so that the light read from it does not see the person."""
+    import cv2
+
+    from viewer.plate.plate_file import Plate
+
+    w, h = plate.size
+    hole = cv2.resize(np.asarray(alpha, np.float32), (w, h), interpolation=cv2.INTER_LINEAR) > 0.1
+    hole = cv2.dilate(hole.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
+    k = min(1.0, 512.0 / max(w, h))
+    small = (max(round(w * k), 1), max(round(h * k), 1))
+    filled = cv2.inpaint(cv2.resize(plate.srgb, small, interpolation=cv2.INTER_AREA),
+                         (cv2.resize(hole.astype(np.uint8), small, interpolation=cv2.INTER_NEAREST) > 0).astype(np.uint8),
+                         5, cv2.INPAINT_TELEA)
+    srgb = np.where(hole[..., None], cv2.resize(filled, (w, h), interpolation=cv2.INTER_LINEAR), plate.srgb)
+    return Plate(np.ascontiguousarray(srgb, np.uint8), plate.focal_35, plate.focal_source, plate.source)
+
+
+def identity(photos: list[Path], folder: Path, progress=print) -> dict:
+    """Each photo's person put back into their own photo, lit by the light read from it without them
+    (:func:`without_person`), standing where they stood, as ``relight render --plate`` composites: the
+    photo is the truth. Per photo: the person's exposure error (log2 of the composite's mean luminance
+    over the photo's, over the matte above ``IDENTITY_ALPHA``) and RMSE (sRGB levels); the median error
+    and the median of its size."""
+    import cv2
+
+    from viewer.cli.command_setup import fitted_lights
+    from viewer.files.imageio import read_png, srgb_to_linear
+    from viewer.gl import Engine, create_headless_context
+    from viewer.lighting.envmap import LUMINANCE
+    from viewer.lighting.lightfit.methods import DEFAULT_METHOD
+    from viewer.output.plate_render import plate_look, render_on_plate
+    from viewer.photo.inference import cached_bundle
+    from viewer.plate.placement import Placement, feet
+    from viewer.plate.plate_file import read_plate
+    from viewer.plate.plate_light import plate_light
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.look import Look
+
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = []
+    ctx = create_headless_context()
+    try:
+        for photo in photos:
+            bundle, _ = cached_bundle(photo, ctx=ctx)
+            scene = load_scene(bundle)
+            alpha = scene.frame.alpha
+            fx, fy, tall, _ = feet(alpha, photo, cut_allowed=True)
+            h, w = alpha.shape
+            place = Placement(fx / w, fy / h, tall / h)
+            plate = read_plate(photo, [])
+            lights, _ = fitted_lights(plate_light(without_person(plate, alpha))[0], LIGHTS, DEFAULT_METHOD)
+            engine = Engine(ctx, scene)
+            out = folder / f"{Path(photo).stem}_in_itself.png"
+            try:
+                render_on_plate(engine, scene, lights, plate_look(Look(yaw=0.0)), plate, place, out, out.with_suffix(".exr"),
+                                cut_allowed=True)
+            finally:
+                engine.release()
+            made = read_png(out)
+            person = cv2.resize(alpha, plate.size, interpolation=cv2.INTER_LINEAR) >= IDENTITY_ALPHA
+            mine = float((srgb_to_linear(made[person]) @ LUMINANCE).mean())
+            truth = float((plate.linear[person] @ LUMINANCE).mean())
+            row = {"photo": Path(photo).name, "stops": round(math.log2(max(mine, 1e-9) / max(truth, 1e-9)), 3),
+                   "rmse_levels": round(float(np.sqrt(((made[person] - plate.srgb[person] / 255.0) ** 2).mean())) * 255.0, 2)}
+            rows.append(row)
+            progress(f"{row['photo']}: the person in their own photo {row['stops']:+.2f} stops, RMSE {row['rmse_levels']:.1f} levels")
+    finally:
+        ctx.release()
+    stops = [r["stops"] for r in rows]
+    return {"photos": rows, "median_stops": float(np.median(stops)) if stops else None,
+            "median_abs_stops": float(np.median(np.abs(stops))) if stops else None,
+            "median_rmse_levels": float(np.median([r["rmse_levels"] for r in rows])) if rows else None}
