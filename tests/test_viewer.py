@@ -744,6 +744,12 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     s = v.wait_for(lambda s: s["plate"]["at"][0] < 0.45 and s["plate_box"][0] < x0 - 10 / 480)
     assert abs(s["plate"]["at"][0] - (0.5 - 100 / w)) < 0.01 and abs(s["plate"]["at"][1] - 0.88) < 0.01
     assert s["look"]["yaw"] == 0.0  # the person moved, the lighting did not turn
+    height = s["plate"]["height"]
+    x0, y0, x1, y1 = s["plate_box"]
+    v.drag(int(x + w * 0.5 * (x0 + x1)), int(y + h * 0.5 * (y0 + y1)), 0, -40)  # farther away: smaller, on the ground
+    s = v.wait_for(lambda s: s["plate"]["at"][1] < 0.86)
+    below = s["plate"]["at"][1] - 0.5
+    assert s["plate"]["height"] == pytest.approx(height * below / 0.38, rel=1e-4)
     v.drag(int(x + 0.9 * w), int(y + 0.1 * h), -60, 0)  # off the person: the lighting turns
     s = v.wait_for(lambda s: s["look"]["yaw"] != 0.0)
     height = s["plate"]["height"]

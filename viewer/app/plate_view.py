@@ -25,6 +25,7 @@ from viewer.scene.look import Look
 VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
 SCALE_PER_NOTCH = 1.06  # the person's height per wheel notch
 HEIGHT_RANGE = (0.02, 3.0)  # of the plate's height, as the wheel leaves it
+MIN_BELOW = 0.01  # of the plate's height: feet this far below the horizon or more are on ground the person is scaled along
 
 
 def srgb8(linear: np.ndarray) -> np.ndarray:
@@ -158,12 +159,18 @@ class PlateView:
         return (a, b) if 0.0 <= a < 1.0 and 0.0 <= b < 1.0 else None
 
     def moved(self, du: float, dv: float):
-        """The feet moved by (``du``, ``dv``), fractions of the plate (kept where --at may put them)."""
+        """The feet moved by (``du``, ``dv``), fractions of the plate (kept where --at may put them); on the
+        ground below the horizon the person grows as they come nearer and shrinks as they go (their height
+        in proportion to the feet's distance below the horizon, as the plate's camera would see them)."""
         from viewer.plate.placement import AT_REACH
 
         x = min(max(self.place.x + du, -AT_REACH), 1.0 + AT_REACH)
         y = min(max(self.place.y + dv, -AT_REACH), 1.0 + AT_REACH)
-        self._place(replace(self.place, x=x, y=y))
+        height = self.place.height
+        before, after = self.place.y - self.horizon, y - self.horizon
+        if before > MIN_BELOW and after > MIN_BELOW:
+            height = min(max(height * after / before, HEIGHT_RANGE[0]), HEIGHT_RANGE[1])
+        self._place(replace(self.place, x=x, y=y, height=height))
 
     def scaled(self, notches: float):
         """The person larger (or smaller) by the wheel, about their feet."""
