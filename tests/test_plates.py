@@ -309,6 +309,33 @@ def test_the_plate_cameras_height_is_read_from_the_people_standing_in_it(tmp_pat
     assert place_on_plate(empty, (0.5, 0.9), None, 0.5)[0].height == pytest.approx(0.4 * PERSON_HEIGHT_M / CAMERA_HEIGHT_M)
 
 
+def test_the_plates_own_people_in_front_hide_the_person():
+    """The street's woman (feet at 0.95 of it) hides a person whose feet are higher up (farther) where they
+    overlap, with her own matte; not one whose feet are lower (nearer), nor one beside her; where she
+    hides them the composite is the plate, their layer empty and no shadow on her."""
+    from viewer.output.plate_composite import composite_on_plate
+    from viewer.plate.placement import Placement, plate_transform
+    from viewer.plate.plate_people import feet_row, in_front
+
+    street = read_plate(SHARED_DATA / "photos" / "unsplash-1535323700481.jpg", [])
+    woman, = street.people
+    assert 0.93 < feet_row(woman) < 0.98
+    w, h = street.size
+    over = (0.3 * w, 0.2 * h, 0.45 * w, 0.85 * h)  # her body's part of the plate
+    front = in_front(street, 0.86, over)
+    assert front is not None and front.shape == (h, w) and front[int(0.5 * h), int(0.36 * w)] > 0.9
+    assert in_front(street, 0.97, over) is None and in_front(street, 0.86, (0.8 * w, 0.2 * h, 0.95 * w, 0.85 * h)) is None
+    frame = np.zeros((200, 100, 4), np.float32)
+    frame[30:180, 40:60] = (0.5, 0.4, 0.3, 1.0)
+    t = plate_transform(frame[..., 3], Placement(0.37, 0.86, 0.5), street.size)
+    out = composite_on_plate(street.linear, frame, np.full((100, 50, 3), 0.5, np.float32), t, front=front)
+    hidden = front > 0.999
+    assert hidden.sum() > 1000
+    np.testing.assert_allclose(out.image[hidden], street.linear[hidden], atol=2e-3)
+    assert out.person[hidden].max() < 1e-3 and out.shadow[hidden].min() > 0.999
+    assert (out.person[..., 3] > 0.99).sum() > 100  # the rest of them shows beside her
+
+
 def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     """The bundled photo's person put into a plate made of a map with a low sun (its own map lights
     it: the shadow falls on the plate's ground) and lit by the plate alone."""

@@ -17,9 +17,10 @@ from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.output.plate_composite import composite_on_plate
 from viewer.output.plate_render import read_person
-from viewer.plate.placement import Placement, camera_mismatch, enlarged, person_lens_mismatch, plate_transform
+from viewer.plate.placement import Placement, camera_mismatch, enlarged, landing_box, person_lens_mismatch, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur
+from viewer.plate.plate_people import in_front
 from viewer.scene.look import Look
 
 VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
@@ -61,8 +62,9 @@ class PlateView:
         self.light = light  # "plate": lit by the plate's own light; else the name of the map that lights the person
         self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.plate_light.plate_light_file)
         self._light_env = None  # that map, read when a map of the user's is to be exposed to it
-        shown = plate.within(VIEW_LONGER)  # the copy composited on
-        self.size, self.linear = shown.size, shown.linear
+        self.shown = plate.within(VIEW_LONGER)  # the copy composited on
+        self.size, self.linear = self.shown.size, self.shown.linear
+        self._mattes: dict = {}  # the mattes of the plate's people found standing in front, by index
         self.texture = ctx.texture(self.size, 3, dtype="f1")
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.texture.write(srgb8(self.linear).tobytes())
@@ -123,12 +125,12 @@ class PlateView:
                 return self.texture
             self.error = ""
             feet = not (alpha[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
+            self.box = landing_box(alpha, transform)
+            front = in_front(self.shown, self.place.y, self.box, self._mattes)  # the plate's people nearer hide them
             result = composite_on_plate(self.linear, person, shadow, transform, blur,
-                                        self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0, self.horizon)
+                                        self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0, self.horizon,
+                                        front)
             self.texture.write(srgb8(result.image).tobytes())
-            ys, xs = np.nonzero(alpha > 0.5)
-            s, (ox, oy) = transform.scale, transform.offset
-            self.box = (ox + s * xs.min(), oy + s * ys.min(), ox + s * (xs.max() + 1), oy + s * (ys.max() + 1))
             self._frame = (transform, (alpha.shape[1], alpha.shape[0]))
             self._shown = shown
         return self.texture

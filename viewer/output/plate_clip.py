@@ -18,9 +18,10 @@ import numpy as np
 from viewer.output.clip_render import ClipPictures
 from viewer.output.plate_composite import composite_on_plate
 from viewer.output.plate_render import read_person
-from viewer.plate.placement import Placement, plate_transform
+from viewer.plate.placement import Placement, landing_box, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
+from viewer.plate.plate_people import in_front
 
 
 class PlatePictures(ClipPictures):
@@ -37,6 +38,7 @@ class PlatePictures(ClipPictures):
         self.feet = not (alpha[-1] > 0.5).any()  # soles on the ground: a contact shadow
         self.blur, self.grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
         self.size = plate.size
+        self._mattes: dict = {}  # the mattes of the plate's people found standing in front, by index
 
     def key(self) -> str:
         """The plate's pixels and where the person stands on it: a part made on another is not reused."""
@@ -52,8 +54,10 @@ class PlatePictures(ClipPictures):
         if person != index:  # no one in this frame: the plate as it is
             return self.plate.srgb
         engine, _ = self._render(index, self._look(index, index))
-        rgba, shadow, _, sky = read_person(engine)
+        rgba, shadow, alpha, sky = read_person(engine)
+        box = landing_box(alpha, self.transform)  # where this frame's person lands: the plate's people nearer hide them
+        front = in_front(self.plate, box[3] / self.plate.size[1], box, self._mattes)
         result = composite_on_plate(self.plate.linear, rgba, shadow, self.transform, self.blur, self.plate.focal_px,
-                                    sky if self.feet else 0.0, self.horizon)
+                                    sky if self.feet else 0.0, self.horizon, front)
         srgb = with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], self.grain)
         return (srgb * 255.0 + 0.5).astype(np.uint8)

@@ -57,13 +57,15 @@ def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[i
 
 def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow_share: np.ndarray | None,
                        transform: PlateTransform, blur: float = 0.0, focal_px: float = 0.0, sky: float = 0.0,
-                       horizon: float | None = None) -> PlateComposite:
+                       horizon: float | None = None, front: np.ndarray | None = None) -> PlateComposite:
     """The person (premultiplied RGBA, the frame's size) and the ground's shadow share (any size over
     the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3); the person's layer
     blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.plate_match`);
     with ``sky`` > 0 (the share of the ground's light a contact shadow hides) the ground around the
     feet darkened too (:func:`viewer.plate.contact.contact_shadow`, the plate's focal length ``focal_px``
-    in its pixels, its ``horizon`` a fraction of its height), in the shadow layer."""
+    in its pixels, its ``horizon`` a fraction of its height), in the shadow layer; ``front`` (H, W), the
+    matte of what of the plate stands in front of the person (its people nearer the camera,
+    :func:`viewer.plate.plate_people.in_front`), hides the person and their shadow there."""
     import cv2
 
     from viewer.plate.contact import REACH, contact_shadow
@@ -92,6 +94,10 @@ def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow
     contact = contact_shadow(person[..., 3], focal_px, sky, horizon_px) if sky > 0.0 and focal_px > 0.0 else None
     if contact is not None:  # the darker of the lights' shadow and the sky's share hidden at the feet
         np.minimum(shadow, contact[..., None], out=shadow)
+    if front is not None:  # the plate's own people in front: the person behind them, and no shadow on them
+        hidden = np.clip(front[y0:y1, x0:x1], 0.0, 1.0)[..., None]
+        person *= 1.0 - hidden
+        shadow[:] = hidden + (1.0 - hidden) * shadow
     out_image[y0:y1, x0:x1] = plate_linear[y0:y1, x0:x1] * shadow * (1.0 - person[..., 3:4]) + person[..., :3]
     out_person[y0:y1, x0:x1] = person
     return PlateComposite(out_image, out_person, out_shadow)

@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from viewer.output.plate_composite import composite_on_plate
-from viewer.plate.placement import Placement, enlarged, plate_transform
+from viewer.plate.placement import Placement, enlarged, landing_box, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
+from viewer.plate.plate_people import in_front
 from viewer.scene.look import Look
 
 
@@ -74,7 +75,8 @@ def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layer
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
     feet = not (alpha[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
-    result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0, horizon)
+    front = in_front(plate, place.y, landing_box(alpha, transform))
+    result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0, horizon, front)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}
     parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},
              **{f"shadow.{c}": result.shadow[..., k] for k, c in enumerate("RGB")},

@@ -149,6 +149,15 @@ class PlateTransform:
 MIN_PERSON_PX = 8  # a person placed smaller than this many plate pixels tall is refused
 
 
+def landing_box(alpha: np.ndarray, transform: PlateTransform) -> tuple[float, float, float, float]:
+    """(x0, y0, x1, y1): the box of the matte ``alpha`` (above 0.5) brought into the plate by ``transform``."""
+    ys, xs = np.nonzero(alpha > 0.5)
+    if not len(ys):
+        return 0.0, 0.0, 0.0, 0.0
+    s, (ox, oy) = transform.scale, transform.offset
+    return ox + s * xs.min(), oy + s * ys.min(), ox + s * (xs.max() + 1), oy + s * (ys.max() + 1)
+
+
 def feet(alpha: np.ndarray, source=None, cut_allowed: bool = False) -> tuple[float, float, float, tuple]:
     """(x, y, height, box) in the frame's pixels (edges: a pixel spans [i, i + 1]): the middle of the
     person's lowest rows (their feet), the bottom of the person, the person's height (the matte above

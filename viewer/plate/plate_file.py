@@ -58,6 +58,15 @@ class Plate:
         return Plate(resize(self.srgb, scaled_size(self.size, longest)), self.focal_35, self.focal_source, self.source)
 
     @cached_property
+    def people(self) -> list:
+        """The people standing in the plate (:func:`viewer.photo.segmentation.find_people`: their
+        segmentation and landmarks), found once: the camera's height and what stands in front of the
+        person both read them."""
+        from viewer.photo.segmentation import find_people
+
+        return find_people(self.srgb, self.source)
+
+    @cached_property
     def linear(self) -> np.ndarray:
         """(H, W, 3) float32 linear RGB in [0, 1] (a table lookup of the 256 sRGB levels), made once: the
         light's estimate and the composite both read it."""

@@ -29,10 +29,8 @@ ANKLES, HIPS, SHOULDERS, FEET = (27, 28), (23, 24), (11, 12), (29, 30, 31, 32)
 def standing_heights(plate: Plate, horizon: float, person_m: float) -> list[float]:
     """The camera height (metres) each whole standing person in ``plate`` gives, on ``horizon`` (a
     fraction of its height), each taken as ``person_m`` tall."""
-    from viewer.photo.segmentation import find_people
-
     heights = []
-    for person in find_people(plate.srgb, plate.source):
+    for person in plate.people:
         lm = person.landmarks
         if not all(i in lm for i in (*ANKLES, *HIPS, *SHOULDERS)):
             continue
@@ -60,3 +58,40 @@ def plate_camera_height(plate: Plate, horizon: float, person_m: float) -> tuple[
     None without any; how many)."""
     heights = standing_heights(plate, horizon, person_m)
     return (float(np.median(heights)) if heights else None), len(heights)
+
+
+NEARER = 0.01  # of the plate's height: a person of the plate whose feet are this much lower stands in front
+
+
+def feet_row(person) -> float:
+    """Where a person of the plate stands (a fraction of its height): the lowest of their heels, toes and
+    ankles seen, else their segmentation's bottom."""
+    seen = [person.landmarks[i][1] for i in (*FEET, *ANKLES) if i in person.landmarks]
+    if seen:
+        return float(max(seen))
+    rows = np.flatnonzero((person.segmentation > 0.5).any(axis=1))
+    return float((rows[-1] + 1) / person.segmentation.shape[0]) if len(rows) else 0.0
+
+
+def in_front(plate: Plate, feet: float, box: tuple[float, float, float, float], mattes: dict | None = None) -> np.ndarray | None:
+    """(H, W) float32 at the plate's size: the matte of the plate's people who stand nearer the camera
+    than feet at ``feet`` (a fraction of its height) and overlap ``box`` (x0, y0, x1, y1, the plate's
+    pixels): they hide the person put behind them. Their mattes are the photo pipeline's
+    (:func:`viewer.photo.matting.automatic_matte`: the colour cut and the closed-form edge; kept in
+    ``mattes`` by the person's index when given, for the next placement); None when no one stands in front."""
+    from viewer.photo.matting import automatic_matte
+
+    out = None
+    mattes = {} if mattes is None else mattes
+    for k, person in enumerate(plate.people):
+        if feet_row(person) < feet + NEARER:
+            continue
+        rows = np.flatnonzero((person.segmentation > 0.5).any(axis=1))
+        cols = np.flatnonzero((person.segmentation > 0.5).any(axis=0))
+        if not len(rows) or cols[-1] + 1 <= box[0] or cols[0] >= box[2] or rows[-1] + 1 <= box[1] or rows[0] >= box[3]:
+            continue
+        if k not in mattes:
+            mattes[k] = automatic_matte(plate.srgb, person).alpha
+        out = mattes[k] if out is None else np.maximum(out, mattes[k])
+    return None if out is None else out.astype(np.float32)
+
