@@ -151,7 +151,9 @@ class ViewerApp:
         self.state_file = StateFile(config.state_file) if config.state_file is not None else None
         self.thumbnail = MapThumbnail(self.window.ctx)
         self.shown = self._showing()  # the map the picture on screen was made under: what the panel shows
-        self.browser = FileBrowser(config.env_path.parent if config.env_path else Path.cwd(), OPENS)
+        start = (Path(config.plate[0].source).parent if config.plate is not None and config.plate[0].source  # near the plates
+                 else config.env_path.parent if config.env_path else Path.cwd())
+        self.browser = FileBrowser(start, OPENS)
         self.actions = Actions(self)
         self.jobs = JobPolling(self)
         self.controls = Controls(self)
