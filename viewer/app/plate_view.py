@@ -26,7 +26,7 @@ from viewer.scene.look import Look
 VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
 SCALE_PER_NOTCH = 1.06  # the person's height per wheel notch
 HEIGHT_RANGE = (0.02, 3.0)  # of the plate's height, as the wheel leaves it
-MIN_BELOW = 0.01  # of the plate's height: feet this far below the horizon or more are on ground the person is scaled along
+MIN_BELOW = 0.01  # of the plate's height: the least distance below the horizon the person is scaled by
 
 
 def srgb8(linear: np.ndarray) -> np.ndarray:
@@ -168,10 +168,9 @@ class PlateView:
 
         x = min(max(self.place.x + du, -AT_REACH), 1.0 + AT_REACH)
         y = min(max(self.place.y + dv, -AT_REACH), 1.0 + AT_REACH)
-        height = self.place.height
-        before, after = self.place.y - self.horizon, y - self.horizon
-        if before > MIN_BELOW and after > MIN_BELOW:
-            height = min(max(height * after / before, HEIGHT_RANGE[0]), HEIGHT_RANGE[1])
+        # (feet at or above the horizon count as just below it: a drag there and back gives the height back)
+        before, after = max(self.place.y - self.horizon, MIN_BELOW), max(y - self.horizon, MIN_BELOW)
+        height = min(max(self.place.height * after / before, HEIGHT_RANGE[0]), HEIGHT_RANGE[1])
         self._place(replace(self.place, x=x, y=y, height=height))
 
     def scaled(self, notches: float):

@@ -23,6 +23,8 @@ from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
 from viewer.plate.plate_people import in_front
 
+COMPOSITE_VERSION = 2  # bump when the composite changes what a part shows (2: the plate's people in front hide the person)
+
 
 class PlatePictures(ClipPictures):
     """The clip's frames in ``plate`` (:class:`ClipPictures`' arguments, then the plate, where the person
@@ -44,7 +46,8 @@ class PlatePictures(ClipPictures):
         """The plate's pixels and where the person stands on it: a part made on another is not reused."""
         import hashlib
 
-        return hashlib.sha256(self.plate.srgb.tobytes() + repr((self.plate.size, self.transform)).encode()).hexdigest()[:16]
+        return hashlib.sha256(self.plate.srgb.tobytes() + repr((self.plate.size, self.transform, self.horizon,
+                                                                COMPOSITE_VERSION)).encode()).hexdigest()[:16]
 
     def picture(self, index: int) -> np.ndarray:
         """(H, W, 3) uint8: output frame ``index``, the plate's size."""

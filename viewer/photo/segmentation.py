@@ -135,8 +135,10 @@ def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Perso
     for part in (_people(np.asarray(everyone) > 0.5) if everyone is not None else [])[:most]:
         box = grown(part, (sw, sh))
         seen = _pose(pose, small, box)
-        if seen is not None:
-            found.append(Person(np.clip(resize(seen[1], (w, h)), 0.0, 1.0).astype(np.float32), _landmarks(seen[0], box, (sw, sh))))
+        if seen is not None:  # its own parts only: a neighbour in the padded crop is left out, as find_person does
+            landmarks = _landmarks(seen[0], box, (sw, sh))
+            segmentation = keep_person(np.clip(resize(seen[1], (w, h)), 0.0, 1.0), list(landmarks.values()), [])
+            found.append(Person(segmentation.astype(np.float32), landmarks))
     return found
 
 

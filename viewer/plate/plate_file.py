@@ -55,7 +55,13 @@ class Plate:
 
         if max(self.size) <= longest:
             return self
-        return Plate(resize(self.srgb, scaled_size(self.size, longest)), self.focal_35, self.focal_source, self.source)
+        size = scaled_size(self.size, longest)
+        smaller = Plate(resize(self.srgb, size), self.focal_35, self.focal_source, self.source)
+        if "people" in self.__dict__:  # found on the whole plate: the same people (their landmarks are fractions)
+            from viewer.photo.segmentation import Person
+
+            smaller.__dict__["people"] = [Person(np.clip(resize(p.segmentation, size), 0.0, 1.0), p.landmarks) for p in self.people]
+        return smaller
 
     @cached_property
     def people(self) -> list:

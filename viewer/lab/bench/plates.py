@@ -333,11 +333,12 @@ def identity(photos: list[Path], folder: Path, progress=print) -> dict:
             h, w = alpha.shape
             place = Placement(fx / w, fy / h, tall / h)
             plate = read_plate(photo, [])
-            lights, _ = fitted_lights(plate_light(without_person(plate, alpha))[0], LIGHTS, DEFAULT_METHOD)
+            empty = without_person(plate, alpha)  # the place without them: its light, and what they are put into
+            lights, _ = fitted_lights(plate_light(empty)[0], LIGHTS, DEFAULT_METHOD)
             engine = Engine(ctx, scene)
             out = folder / f"{Path(photo).stem}_in_itself.png"
             try:
-                render_on_plate(engine, scene, lights, plate_look(Look(yaw=0.0)), plate, place, out, out.with_suffix(".exr"),
+                render_on_plate(engine, scene, lights, plate_look(Look(yaw=0.0)), empty, place, out, out.with_suffix(".exr"),
                                 cut_allowed=True)
             finally:
                 engine.release()
