@@ -170,8 +170,11 @@ def run() -> None:
 
     from viewer.stop_signals import route_to_main_thread
 
+    received: list[str] = []  # the stop signals raised in the main thread, by name
+
     def stop(signum, _frame):  # SIGTERM and SIGHUP end the work as Ctrl-C does: temporary files removed, old outputs kept
-        raise KeyboardInterrupt(signal.Signals(signum).name)
+        received.append(signal.Signals(signum).name)
+        raise KeyboardInterrupt(received[-1])
 
     out = _writable_streams()
     try:  # a signal from the first handler set on is an interruption, said in one line
@@ -182,6 +185,13 @@ def run() -> None:
     except KeyboardInterrupt as exc:  # before main's own handling began (the campaign's held-back seed
         # caught one while the signals' thread was starting)
         print(_interrupted(exc), file=sys.stderr)
+        code = 130
+    except Exception:  # a module's native initialisation that swallowed the interruption into an error of
+        # its own with no trace of it (numba: "ImportError: numba._devicearray failed to import" when
+        # SIGTERM came during its import): after a stop signal, the stop is what happened
+        if not received:
+            raise
+        print(_interrupted(KeyboardInterrupt(received[0])), file=sys.stderr)
         code = 130
     atexit._run_exitfuncs()  # what registered for the exit (logging's flush, ...) still runs
     out.flush()
