@@ -82,3 +82,27 @@ def test_a_signal_within_held_is_delivered_when_the_block_ends():
     proc = subprocess.run([sys.executable, "-c", HELD], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == f"['block'] stopped by {int(signal.SIGHUP)} True"
+
+
+SWALLOWED = """
+import os, signal, time
+import viewer.cli.main as entry
+
+def work(argv=None):
+    os.kill(os.getpid(), signal.SIGTERM)
+    try:
+        time.sleep(5)  # the signal arrives here, as a KeyboardInterrupt
+    except KeyboardInterrupt:
+        pass  # native initialisation code that swallows it ...
+    raise ImportError("numba._devicearray failed to import")  # ... into an error of its own, with no trace of it
+
+entry.main = work
+entry.run()
+"""
+
+
+def test_a_stop_swallowed_into_another_error_is_said_as_the_stop():
+    """SIGTERM during a module's native initialisation (numba's import: "failed to import") ends the
+    program as the stop it was: one line, exit 130, no traceback."""
+    proc = subprocess.run([sys.executable, "-c", SWALLOWED], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130 and proc.stderr.strip() == "relight: interrupted (SIGTERM)", proc.stderr
