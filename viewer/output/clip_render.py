@@ -202,8 +202,11 @@ def _keyed(folder: Path, record: str, key: str) -> Path:
     if folder.exists() and not _same_key(folder / record, key):
         take_away(folder)
     if not folder.exists():
-        folder.mkdir(parents=True)
-        write_text(folder / record, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
+        from viewer.stop_signals import held
+
+        with held():  # the folder and its record made together: a stop between them left a folder no run could take
+            folder.mkdir(parents=True)
+            write_text(folder / record, json.dumps({"key": key, MARK[0]: MARK[1]}) + "\n")
     return folder
 
 
