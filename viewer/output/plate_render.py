@@ -47,7 +47,7 @@ def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Plac
                     horizon: float | None = None) -> dict:
     """Render ``scene`` (the engine's) under ``lights`` (and ``fixed``, a rig) and ``look`` (as
     :func:`plate_look` made it), composite it into ``plate`` at ``place`` and write the files
-    (:func:`write_on_plate`). Returns what was matched: the exposure, the defocus and the grain."""
+    (:func:`write_on_plate`). Returns what was matched: the defocus and the grain."""
     from viewer.output.render import resolve_exposure
 
     engine.set_lights(lights, fixed)
