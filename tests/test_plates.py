@@ -57,6 +57,67 @@ def test_a_plates_light_keeps_what_it_shows_and_mirrors_it_behind_the_camera(tmp
     assert at(lum, [0, 1, 0]) > at(lum, [0, -1, 0])
 
 
+def _sky_plate(sun_azimuth_deg: float, sun_elevation_deg: float, colour=(0.5, 0.7, 1.0), sunless=False, tilt_deg=0.0) -> Plate:
+    """A 960x640 plate (35 mm; level, or tilted up by ``tilt_deg``) of a Perez clear sky (turbidity 3) with its sun
+    at the azimuth (degrees from the view's centre towards the right) and elevation given, over a grey textured ground."""
+    from viewer.plate.plate_sky import perez
+
+    w, h = 960, 640
+    f = 35.0 * w / 36.0
+    v, u = np.mgrid[0:h, 0:w] + 0.5
+    d = np.stack([(u - w / 2) / f, -(v - h / 2) / f, -np.ones((h, w))], axis=-1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    c, t = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+    d = np.stack([d[..., 0], d[..., 1] * c - d[..., 2] * t, d[..., 2] * c + d[..., 1] * t], axis=-1)  # the world's
+    az, el = np.radians(sun_azimuth_deg), np.radians(sun_elevation_deg)
+    sun = np.array([np.cos(el) * np.sin(az), np.sin(el), -np.cos(el) * np.cos(az)])
+    gamma = np.full((h, w), np.pi / 2) if sunless else np.arccos(np.clip(d @ sun, -1, 1))
+    sky = 0.12 * perez(d[..., 1], gamma, 3.0)[..., None] * np.asarray(colour)
+    ground = 0.08 + 0.04 * np.random.default_rng(1).random((h, w, 1))
+    linear = np.where(d[..., 1:2] > 0, sky, ground)
+    return Plate((np.clip(linear_to_srgb(linear), 0, 1) * 255 + 0.5).astype(np.uint8), 35.0, "exif", "sky.png")
+
+
+@pytest.mark.parametrize("azimuth,elevation,tilt", [(40.0, 10.0, 0.0), (-90.0, 20.0, 0.0), (150.0, 15.0, 0.0), (10.0, 30.0, 0.0),
+                                                   (-60.0, 12.0, 10.0)])
+def test_a_sun_is_read_from_a_clear_sky_in_view_or_not(azimuth, elevation, tilt):
+    from viewer.plate.plate_sky import plate_sky
+
+    # the camera's tilt from the horizon: tilted up by t, it is f tan(t) below the middle
+    horizon = 0.5 + 35.0 * 960 / 36.0 * np.tan(np.radians(tilt)) / 640
+    sun, said = plate_sky(_sky_plate(azimuth, elevation, tilt_deg=tilt), horizon)
+    assert sun is not None, said
+    a, e = np.radians(azimuth), np.radians(elevation)
+    world = np.array([np.cos(e) * np.sin(a), np.sin(e), -np.cos(e) * np.cos(a)])
+    c, t = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+    truth = np.array([world[0], world[1] * c + world[2] * t, world[2] * c - world[1] * t])  # in the camera's frame
+    assert np.degrees(np.arccos(np.clip(sun.direction @ truth, -1, 1))) < 15.0, said
+    # its strength: a clear day's direct light, 5-15 times the open sky's diffuse light on the ground
+    # (the plate's sky: 0.12 x Perez, its luminance about 0.12 x 0.67)
+    from viewer.plate.plate_sky import _sky_irradiance
+
+    sky = 0.12 * float(np.array([0.5, 0.7, 1.0]) @ LUMINANCE) * _sky_irradiance(world, 3.0)
+    assert np.isfinite(sun.irradiance).all() and 4.0 < sun.irradiance[0] / sky < 16.0
+    if tilt:
+        return
+    # and it is in the plate's light, as its brightest texels
+    estimate, record = plate_light(_sky_plate(azimuth, elevation))
+    lum = estimate.pixels @ LUMINANCE.astype(np.float32)
+    u, v = direction_to_uv(sun.direction)
+    i, j = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    assert abs(i - v * lum.shape[0]) <= 3 and min(abs(j - u * lum.shape[1]), lum.shape[1] - abs(j - u * lum.shape[1])) <= 3
+    assert record["sun"].startswith("a sun read from the clear sky")
+
+
+def test_no_sun_is_read_from_a_grey_sky_a_sky_the_same_all_round_or_no_sky():
+    from viewer.plate.plate_sky import plate_sky
+
+    assert "not a clear blue sky" in plate_sky(_sky_plate(40.0, 10.0, colour=(0.8, 0.8, 0.8)), 0.5)[1]
+    assert "no sun explains" in plate_sky(_sky_plate(40.0, 10.0, sunless=True), 0.5)[1]
+    assert "open sky" in plate_sky(_sky_plate(40.0, 10.0), 0.02)[1]  # the horizon at the plate's top: no sky
+    assert plate_light(_sky_plate(40.0, 10.0, colour=(0.8, 0.8, 0.8)))[1]["sun"].startswith("no sun")
+
+
 def test_bad_plates_are_one_line(tmp_path):
     Image.fromarray(np.full((8, 8, 3), 128, np.uint8)).save(tmp_path / "tiny.png")
     with pytest.raises(InputError, match="at least 16"):

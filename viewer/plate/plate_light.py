@@ -24,12 +24,12 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    levels); on the maps' plates the person RMSE went from 0.99 to 0.98 x the uniform light's.
 4. **Clipped highlights** (a channel at ``CLIP`` of 255 or above) are at least that bright and
    likely brighter: their radiance is multiplied by ``CLIP_GAIN``.
-5. **Not yet**: a sun. A sun in view is clipped like a white wall (its true radiance, some 1e4
-   times the sky's, is lost), and one outside the view shows only in the plate's shadows. A first
-   rule (the largest compact clipped blob above the horizon, given five times the sky's
-   irradiance) took windows, lamps and bright clouds for suns and made the estimate worse on every
-   plate where it fired (``relight bench plates``: docs/plates.md); it is left out until the plate's
-   shadows can confirm a sun.
+5. **A sun** read from a clear blue sky (:mod:`viewer.plate.plate_sky`: where the sky is brightest),
+   in view or not, as a disc of ``SUN_RADIUS_DEG``. A sun in a sky that is not clear and blue (a
+   sunset, haze), or high overhead, or seen only in the plate's shadows, is not found. (A first rule,
+   the largest compact clipped blob above the horizon given five times the sky's irradiance, took
+   windows, lamps and bright clouds for suns and made the estimate worse on every plate where it
+   fired: not taken.)
 
 The map's units are the plate's linear values (a plate's exposure is the person's:
 :mod:`viewer.plate` composites in them). Measured against the true maps in ``relight bench plates``
@@ -45,12 +45,15 @@ from pathlib import Path
 import numpy as np
 
 from viewer.lighting.envmap import EnvMap, pixel_directions
+from viewer.plate.horizon import plate_horizon
 from viewer.plate.plate_file import Plate
+from viewer.plate.plate_sky import ClearSky, plate_sky
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
 CLIP = 250  # of 255: a channel this high was clipped by the camera (or the JPEG)
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
 FILL_BLUR = 0.05  # of the plate's longer side: the blur of the plate the unseen sphere is filled from
+SUN_RADIUS_DEG = 1.5  # the radius of the disc a sun read from the sky is drawn as
 BEHIND_GAIN = 2.0  # the light behind the camera: the mirror plus (this - 1) x the plate's mean: a photo's subject is lit better
 
 
@@ -72,16 +75,36 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
     dirs = pixel_directions(height, 2 * height)
     seen, x, y = _projected(dirs, focal, size)
     pixels = np.where(seen[..., None], _sample(radiance, x, y), _sample(blurred, x, y))
-    # the half behind the camera brighter by (BEHIND_GAIN - 1) times the plate's mean unclipped light, added
-    # evenly (not the mirror scaled: a sun in view, mirrored, must not outshine itself)
-    unclipped = clipped < 0.5
-    level = linear[unclipped].mean(axis=0) if unclipped.any() else linear.reshape(-1, 3).mean(axis=0)
-    pixels[dirs[..., 2] > 0.0] += (BEHIND_GAIN - 1.0) * level
+    sky, said = plate_sky(plate, plate_horizon(plate)[0])
+    if sky is None:
+        # the half behind the camera brighter by (BEHIND_GAIN - 1) times the plate's mean unclipped light, added
+        # evenly (not the mirror scaled: a sun in view, mirrored, must not outshine itself)
+        unclipped = clipped < 0.5
+        level = linear[unclipped].mean(axis=0) if unclipped.any() else linear.reshape(-1, 3).mean(axis=0)
+        pixels[dirs[..., 2] > 0.0] += (BEHIND_GAIN - 1.0) * level
+    else:  # the unseen sky the fitted clear sky, where the plate's edge it is filled from is sky; and its sun
+        mask = cv2.GaussianBlur(cv2.resize(sky.mask, size, interpolation=cv2.INTER_AREA), (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+        share = np.where(seen, 0.0, _sample(mask, x, y))[..., None]
+        pixels = (1.0 - share) * pixels + share * sky.radiance(dirs)
+        _draw_sun(pixels, dirs, sky)
     pixels = np.maximum(pixels, 0.0).astype(np.float32)
     record = {"focal_35mm": round(plate.focal_35, 2), "focal_from": plate.focal_source,
               "field_of_view_deg": round(math.degrees(across), 2), "clipped_share": round(float(clipped.mean()), 5),
-              "seconds": round(time.perf_counter() - t0, 3)}
+              "sun": said, "seconds": round(time.perf_counter() - t0, 3)}
     return EnvMap(pixels, plate.source), record
+
+
+def _draw_sun(pixels: np.ndarray, dirs: np.ndarray, sun: ClearSky):
+    """``sun``'s sun added to the map as a disc of ``SUN_RADIUS_DEG`` (at least a texel) holding its irradiance."""
+    h = pixels.shape[0]
+    texel = math.pi / h
+    radius = max(math.radians(SUN_RADIUS_DEG), texel)
+    disc = dirs @ sun.direction >= math.cos(radius)
+    if not disc.any():  # a disc narrower than the texels' spacing: the nearest texel
+        disc = np.zeros(dirs.shape[:2], bool)
+        disc.flat[int(np.argmax(dirs.reshape(-1, 3) @ sun.direction))] = True
+    solid = texel * (2.0 * math.pi / pixels.shape[1]) * np.sqrt(np.maximum(1.0 - dirs[..., 1] ** 2, 0.0))
+    pixels[disc] += sun.irradiance / float(solid[disc].sum())
 
 
 def _projected(dirs: np.ndarray, focal: float, size: tuple[int, int]):
@@ -128,7 +151,7 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
     return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
 
 
-LIGHT_VERSION = 2  # bump when a change here changes the map a plate gives (its file is made again)
+LIGHT_VERSION = 3  # bump when a change here changes the map a plate gives (its file is made again)
 
 
 def plate_light_file(plate: Plate, directory) -> Path:
