@@ -144,6 +144,11 @@ def test_plate_light_writes_a_map_to_use_as_any(tmp_path):
     done = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "light.exr"), "--record")
     assert done.returncode == 0, done.stderr
     assert "35 mm from exif" in done.stdout and json.loads(done.stdout.splitlines()[-1])["focal_from"] == "exif"
+    assert "note: no sun read from the sky" in done.stdout  # the overcast square: said why
+    Image.fromarray(_sky_plate(-120.0, 15.0).srgb).save(tmp_path / "park.png")  # a clear sky, its sun behind the camera
+    sunny = run_cli("plate-light", str(tmp_path / "park.png"), "-o", str(tmp_path / "park.exr"))
+    assert sunny.returncode == 0 and "note: a sun read from the clear sky" in sunny.stdout
+    assert "to the left of ahead, behind the camera" in sunny.stdout, sunny.stdout
     env = load_envmap(tmp_path / "light.exr")
     assert env.pixels.shape == (256, 512, 3)
     again = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "light.exr"), "--height", "64")
@@ -154,6 +159,22 @@ def test_plate_light_writes_a_map_to_use_as_any(tmp_path):
     refused = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "mine.exr"))
     assert refused.returncode == 2 and "not a file relight wrote" in refused.stderr and len(refused.stderr.splitlines()) == 1
     assert (tmp_path / "mine.exr").stat().st_size == 100
+
+
+def test_the_plates_light_file_is_made_once_with_its_record(tmp_path):
+    from viewer.plate.plate_light import plate_light_file
+
+    plate = _sky_plate(60.0, 20.0)
+    notes = []
+    path = plate_light_file(plate, tmp_path, notes)
+    record = json.loads(path.with_suffix(".json").read_text())
+    assert path.is_file() and notes == [record["sun"]] and record["sun"].startswith("a sun read from the clear sky")
+    made = path.stat().st_mtime_ns
+    again = []
+    assert plate_light_file(plate, tmp_path, again) == path and again == notes and path.stat().st_mtime_ns == made  # read, not made
+    path.with_suffix(".json").write_text("{not json")  # a record that cannot be read: the map is made again
+    assert plate_light_file(plate, tmp_path, []) == path and json.loads(path.with_suffix(".json").read_text()) == record | {
+        "seconds": json.loads(path.with_suffix(".json").read_text())["seconds"]}
 
 
 def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):

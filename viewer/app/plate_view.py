@@ -47,7 +47,7 @@ def plate_setting(path, at: tuple[float, float] | None, height: float | None, ho
 
     plate = read_plate(path, notes)
     place, horizon = place_on_plate(plate, at, height, horizon, notes)
-    light_map = plate_light_file(plate, cache_dir() / "plates")
+    light_map = plate_light_file(plate, cache_dir() / "plates", notes)
     return (plate, place, horizon, Path(own_light).name if own_light else "plate", light_map), None if own_light else light_map
 
 

@@ -38,6 +38,7 @@ def cmd_plate_light(args) -> int:
     env, record = plate_light(plate, args.height)
     seconds = time.perf_counter() - start
     save_envmap(out, env)
+    notes.append(record["sun"])
     for note in notes:
         print(f"note: {note}")
     print(f"{out}: the light of {args.plate} ({plate.size[0]}x{plate.size[1]}, {record['focal_35mm']:g} mm from "
@@ -104,6 +105,7 @@ def cmd_render_plate(args, look) -> int:
     else:  # the plate's light, in its camera's frame (--yaw turns it as any map's)
         scene = load_sized_scene(args.scene, getattr(args, "size", None), getattr(args, "max_size", None))
         env, record = plate_light(plate)
+        notes.append(record["sun"])
         lights, _ = fitted_lights(env, lights_count(args, look), args.method)
         light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
     lens = person_lens_mismatch(scene.frame, place, plate)

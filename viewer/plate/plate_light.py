@@ -154,19 +154,34 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
 LIGHT_VERSION = 3  # bump when a change here changes the map a plate gives (its file is made again)
 
 
-def plate_light_file(plate: Plate, directory) -> Path:
+def plate_light_file(plate: Plate, directory, notes: list | None = None) -> Path:
     """The plate's light (:func:`plate_light`) as an EXR in ``directory``, made once: named by the
     plate's content (its pixels, its focal length, this module's version) so that it opens as any map
     (the viewer fits it, refits it at another count, turns it) and a plate changed by one pixel, or
-    read with another focal length, gets a file of its own."""
+    read with another focal length, gets a file of its own. Its record (:func:`plate_light`'s) is a
+    JSON beside it, written after it: a map without its record is made again. What it says of the
+    sun goes to ``notes``."""
     import hashlib
+    import json
 
+    from viewer.files.imageio import write_text
     from viewer.lighting.envmap import save_envmap
 
     digest = hashlib.sha256(np.asarray(plate.srgb.shape, np.int64).tobytes() + plate.srgb.tobytes()
                             + f"{plate.focal_35:.4f}-{MAP_HEIGHT}-{LIGHT_VERSION}".encode()).hexdigest()[:20]
     stem = Path(plate.source).stem if plate.source else "plate"
     path = Path(directory) / f"{stem}-light-{digest}.exr"
-    if not path.is_file():
-        save_envmap(path, plate_light(plate)[0])
+    said = None
+    if path.is_file():
+        try:
+            said = json.loads(path.with_suffix(".json").read_text())["sun"]
+        except (OSError, ValueError, KeyError, TypeError):
+            said = None
+    if not isinstance(said, str):
+        env, record = plate_light(plate)
+        save_envmap(path, env)
+        write_text(path.with_suffix(".json"), json.dumps(record) + "\n")
+        said = record["sun"]
+    if notes is not None:
+        notes.append(said)
     return path

@@ -143,8 +143,17 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     # beside them (the glow about the sun), not only those the fit read
     fill = _joined_to_top(sky | (clipped.any(axis=-1) & (world[..., 1] > 0.0)))
     return (ClearSky(sun, turbidity, scale, colour, irradiance, pitch, round(explained, 3), fill.astype(np.float32)),
-            f"a sun read from the clear sky, {math.degrees(elevation):.0f} degrees up (the sky's fit leaves "
-            f"{100 * explained:.0f} % of a sun-less sky's error)")
+            f"a sun read from the clear sky: {math.degrees(elevation):.0f} degrees up, {_bearing(sun)}; the sky's fit "
+            f"leaves {100 * explained:.0f} % of a sun-less sky's error")
+
+
+def _bearing(sun: np.ndarray) -> str:
+    """Where ``sun`` (world) is round the camera, in words."""
+    azimuth = math.degrees(math.atan2(float(sun[0]), -float(sun[2])))
+    if abs(azimuth) < 1.0:
+        return "ahead"
+    side = "right" if azimuth > 0 else "left"
+    return f"{abs(azimuth):.0f} degrees to the {side} of ahead" + (", behind the camera" if abs(azimuth) > 90.0 else "")
 
 
 def _world_directions(size: tuple[int, int], focal: float, pitch: float) -> np.ndarray:
