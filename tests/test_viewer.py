@@ -731,7 +731,7 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     import OpenEXR
 
     plate = street_plate(tmp_path / "street.png")
-    v = viewer_factory("--plate", str(plate), "--horizon", "0.5")
+    v = viewer_factory("--plate", str(plate), "--horizon", "0.5", "--record-frames", "3")
     s = v.wait_for(lambda s: s["plate_box"] is not None)
     assert s["plate"]["at"] == [0.5, 0.88] and abs(s["plate"]["height"] - 0.38 * 1.7 / 1.6) < 1e-5
     assert s["plate"]["light"] == "plate" and s["look"]["yaw"] == 0.0 and s["look"]["exposure"] == 0.0
@@ -771,6 +771,11 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     assert np.abs(mine - read_png(plate)).max() > 0.2  # the person is in it
     layers = OpenEXR.File(str(saved.with_suffix(".exr"))).channels()
     assert {"person", "shadow", "plate"} <= set(layers)
+    v.xdotool("key", "t")  # a turn recorded on the plate: the plate with the person in it, the plate's size
+    s = v.wait_for(lambda s: len(s["videos"]) == 1 and s["recording"] is None, 120)
+    frames, _ = read_video(s["videos"][0])
+    assert frames.shape == (3, 320, 480, 3)
+    assert np.abs(frames[0].astype(np.float32) / 255.0 - mine).mean() < 3.0 / 255.0  # the saved composite (H.264: loosely)
     v.click("open a file")
     v.wait_for(lambda s: "browser path" in s["widgets"], 30)
     v.click("plate next")

@@ -98,7 +98,7 @@ class Actions:
             return
         if self.app.timeline is not None:
             self.app.timeline.play(False)  # a recording sets the lighting or the frames: the clip's clock stops
-        size = self.app.session.scene.output_size
+        size = self.app.plate.size if self.app.plate is not None else self.app.session.scene.output_size  # on a plate: the plate's copy
         path = self._capture_stem().with_suffix(".mp4")
         try:
             if kind == "turntable":
@@ -293,6 +293,8 @@ class Actions:
         except Exception as exc:  # not a photo, a panorama, too large: said, nothing changes
             self.report(f"{Path(path).name} cannot be a plate", exc)
             return
+        if self.app.recording is not None:  # its frames are the plate's size: it ends with the frames it has
+            self.finish_recording(stopped=True)
         s = self.app.session
         restore = {"background": s.look.background, "ground": s.look.ground, "auto": self.app.auto_exposure,
                    "map": self.app.env_path}
@@ -313,6 +315,8 @@ class Actions:
         """The plate gone: the person shown in their frame again, under the lights they have."""
         plate = self.app.plate
         if plate is not None:
+            if self.app.recording is not None:  # its frames are the plate's: it ends with the frames it has
+                self.finish_recording(stopped=True)
             plate.release()
             self.app.plate = None
             self.app.view = ix.ViewState()

@@ -251,7 +251,10 @@ class ViewerApp:
         self.session.camera_turn = (0.0, 0.0)
 
     def picture(self, eng) -> np.ndarray:
-        """(H, W, 3) uint8: the frame ``eng`` shows, as recorded (a clip's frame without the person: the background alone)."""
+        """(H, W, 3) uint8: the frame ``eng`` shows, as recorded (a clip's frame without the person: the background
+        alone; on a plate, the person in it at the window's copy's size)."""
+        if self.plate is not None:
+            return self.plate.picture(eng, (self.session.state_key(), eng.refined_current))
         return self.timeline.picture(eng) if self.timeline is not None else eng.output.read_display()
 
     def picture_hdr(self, eng) -> np.ndarray:

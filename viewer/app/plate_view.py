@@ -67,7 +67,8 @@ class PlateView:
         self._mattes: dict = {}  # the mattes of the plate's people found standing in front, by index
         self.texture = ctx.texture(self.size, 3, dtype="f1")
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self.texture.write(srgb8(self.linear).tobytes())
+        self._srgb = srgb8(self.linear)  # what the texture shows: the plate alone, then with the person
+        self.texture.write(self._srgb.tobytes())
         self._person = None  # (key, the person premultiplied and exposed, the shadow share, the matte) of the engine's frame
         self._shown = None  # (person key, place, blur) the texture shows
         self._blur: tuple[Placement, float] | None = None  # the plate's defocus (copy's pixels) where the feet stand
@@ -110,10 +111,20 @@ class PlateView:
     def frame_texture(self, eng, key, settled: bool = True):
         """The texture showing ``eng``'s person (its last complete frame, whose state is ``key``) in
         the plate where :attr:`place` says: composited again when either changed."""
+        self._composite(eng, key, settled)
+        return self.texture
+
+    def picture(self, eng, key) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB at the copy's size: what :meth:`frame_texture` shows (a recording's frame)."""
+        return self._composite(eng, key, True).copy()
+
+    def _composite(self, eng, key, settled: bool) -> np.ndarray:
+        """The plate with ``eng``'s person in it, sRGB uint8 (and in :attr:`texture`), made again when the
+        person's frame or where they stand changed; the plate alone until the person's first frame."""
         if eng.complete and (self._person is None or self._person[0] != (id(eng), key)):
             self._person = ((id(eng), key), *read_person(eng))
         if self._person is None:
-            return self.texture  # the plate alone until the person's first frame is complete
+            return self._srgb  # the plate alone until the person's first frame is complete
         blur = self.blur(settled)
         shown = (self._person[0], self.place, blur)
         if shown != self._shown:
@@ -122,7 +133,7 @@ class PlateView:
                 transform = plate_transform(alpha, self.place, self.size, cut_allowed=True)
             except InputError as exc:  # wholly off the plate, too small: the placement before stays
                 self.error = str(exc)
-                return self.texture
+                return self._srgb
             self.error = ""
             feet = not (alpha[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
             self.box = landing_box(alpha, transform)
@@ -130,10 +141,11 @@ class PlateView:
             result = composite_on_plate(self.linear, person, shadow, transform, blur,
                                         self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0, self.horizon,
                                         front)
-            self.texture.write(srgb8(result.image).tobytes())
+            self._srgb = srgb8(result.image)
+            self.texture.write(self._srgb.tobytes())
             self._frame = (transform, (alpha.shape[1], alpha.shape[0]))
             self._shown = shown
-        return self.texture
+        return self._srgb
 
     def box_fractions(self) -> list[float] | None:
         """The person's box on the plate (x0, y0, x1, y1) as fractions of its width and height, or None."""
