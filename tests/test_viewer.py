@@ -707,6 +707,46 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
             proc.kill()
 
 
+def test_a_clip_on_a_plate_walks_across_it_and_records_as_render_makes_it(viewer_factory, tmp_path, monkeypatch):
+    """``relight view CLIP --plate``: the clip's person placed once (by its first frame with them in it) and
+    every frame carried into the plate alike, a frame with no one in it the plate alone; R records the
+    clip on the plate at the plate's size, as ``relight render CLIP --plate`` makes it at that place."""
+    from test_cli import run_cli
+    from test_clips import blank_frame, decoded, person_frames, write_clip
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
+    people = person_frames(4)
+    clip = write_clip(tmp_path / "walk.mp4", people[:2] + [blank_frame()] + people[2:])
+    plate = street_plate(tmp_path / "street.png")
+    v = viewer_factory(str(clip), "--plate", str(plate), "--horizon", "0.5")
+    s = v.wait_for(lambda s: s["plate_box"] is not None and s["clip"]["shown"] == [0, 0] and not s["switching"], 60)
+    first = s["plate_box"]
+    v.xdotool("mousemove", 10, 10)
+    v.xdotool("key", "End")
+    s = v.wait_for(lambda s: s["clip"]["shown"] == [4, 4] and not s["switching"] and s["plate_box"] != first, 60)
+    # the same place and scale carry the person as they moved in their frame (3 pixels a frame, to the
+    # left in it): not put back where the feet were placed
+    assert s["plate"]["at"] == [0.5, 0.88] and s["plate_box"][0] != pytest.approx(first[0], abs=1e-4)
+    assert s["plate_box"][2] - s["plate_box"][0] == pytest.approx(first[2] - first[0], abs=0.01)
+    v.xdotool("key", "Home")
+    v.wait_for(lambda s: s["clip"]["shown"] == [0, 0] and not s["switching"], 60)
+    v.xdotool("key", "r")
+    s = v.wait_for(lambda s: len(s["videos"]) == 1 and s["recording"] is None, 180)
+    recorded, _, _ = decoded(s["videos"][0])
+    assert len(recorded) == 5 and recorded[0].shape == (320, 480, 3)
+    assert np.abs(recorded[2].astype(np.float32) - read_png(plate) * 255.0).mean() < 2.0  # no one: the plate alone
+    cli = tmp_path / "cli.mp4"
+    place = v.state()["plate"]  # (their feet are cut by their frame: --height places them anyway, as the window does)
+    res = run_cli("render", str(clip), "--look", str(v.state_path), "--size", str(SIZE), "--plate", str(plate), "--horizon", "0.5",
+                  "--at=" + ",".join(f"{c:.6f}" for c in place["at"]), "--height", str(place["height"]), "-o", str(cli))
+    assert res.returncode == 0, res.stderr
+    rendered = decoded(cli)[0]
+    for k in range(5):  # H.264 both ways, and the grain render gives the person: loosely
+        assert np.abs(recorded[k].astype(np.float32) - rendered[k]).mean() < 2.0, k
+    assert np.abs(recorded[1].astype(np.float32) - recorded[2]).mean() > 0.5  # the person gone
+    assert v.quit() == 0
+
+
 def street_plate(path: Path, width: int = 480, height: int = 320, sky=(0.55, 0.7, 0.9), ground=(0.35, 0.33, 0.3)) -> Path:
     """A plate made here: a sky over a textured ground meeting at the middle, a few dark poles."""
     from viewer.files.imageio import write_png

@@ -63,12 +63,19 @@ class Actions:
         if t is not None:  # which frame of which clip (as relight render's frames count them, from 0)
             state["clip"] = {"bundle": str(t.bundle.path), "frame": t.on_screen, "seconds": round(t.times[t.on_screen], 6)}
         plate = self.app.plate
+        if plate is not None and t is not None and not t.has_person:  # a clip's frame with no one in it: the plate alone
+            state["plate"] = plate.to_json()
+            self.app.saves.append(SaveJob(stem, plate.plate.srgb, plate.plate.linear, json.dumps({**state, MARK[0]: MARK[1]}, indent=2)
+                                          + "\n", wake=self.app.window.wake))
+            self.app.message = f"saving {stem.name}.png (+ .exr, .json): the plate, no one in this frame, in {stem.parent.resolve()}"
+            return
         if plate is not None:  # the person into the whole plate, on the save's thread
             from viewer.output.plate_render import read_person
 
             state["plate"] = plate.to_json()
             self.app.saves.append(PlateSaveJob(stem, read_person(eng), plate.plate, plate.place, plate.horizon,
-                                               json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake))
+                                               json.dumps({**state, MARK[0]: MARK[1]}, indent=2) + "\n", wake=self.app.window.wake,
+                                               anchor=plate.anchor))
             self.app.message = f"saving {stem.name}.png (+ .exr with the layers, .json) on the plate in {stem.parent.resolve()}"
             return
         self.app.saves.append(SaveJob(stem, self.app.picture(eng), self.app.picture_hdr(eng),
@@ -281,15 +288,15 @@ class Actions:
         """A photo opened as the plate: read, the person placed on its ground (the default place on
         its own horizon), lit by its light (a map made from it, fitted as any map's); one line when it
         cannot be a plate (the plate before, if any, stays)."""
-        from viewer.app.plate_view import PlateView, plate_setting
+        from viewer.app.plate_view import PlateView, clip_anchor, plate_setting
 
-        if self.app.job is not None or self.app.timeline is not None:
-            self.app.message = ("still fitting the previous map: open the plate once it is done" if self.app.job is not None
-                                else "a clip on a plate is made by relight render CLIP --plate PLATE (not in the window yet)")
+        if self.app.job is not None:
+            self.app.message = "still fitting the previous map: open the plate once it is done"
             return
         notes: list = []
         try:
-            setting, light_map = plate_setting(path, None, None, None, None, notes)
+            anchor = clip_anchor(self.app.timeline) if self.app.timeline is not None else None  # a clip: placed by its first person
+            setting, light_map = plate_setting(path, None, None, None, None, notes, anchor)
         except Exception as exc:  # not a photo, a panorama, too large: said, nothing changes
             self.report(f"{Path(path).name} cannot be a plate", exc)
             return

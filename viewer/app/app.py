@@ -254,7 +254,8 @@ class ViewerApp:
         """(H, W, 3) uint8: the frame ``eng`` shows, as recorded (a clip's frame without the person: the background
         alone; on a plate, the person in it at the window's copy's size)."""
         if self.plate is not None:
-            return self.plate.picture(eng, (self.session.state_key(), eng.refined_current))
+            return self.plate.picture(eng, (self.session.state_key(), eng.refined_current),
+                                      person=self.timeline is None or self.timeline.has_person)
         return self.timeline.picture(eng) if self.timeline is not None else eng.output.read_display()
 
     def picture_hdr(self, eng) -> np.ndarray:
@@ -407,7 +408,8 @@ class ViewerApp:
                 eng, kind = self._render()
                 if self.plate is not None:  # the person in the plate, composited again when either changed
                     self._drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
-                                                           settled=not self.moving_person)
+                                                           settled=not self.moving_person,
+                                                           person=self.timeline is None or self.timeline.has_person)
                 else:
                     self._drawn = self._texture(eng)
                 w.draw_image(self._drawn, self.image_rect(eng), self.image_area())

@@ -347,8 +347,8 @@ class PlateSaveJob(SaveJob):
     written on a thread (:func:`viewer.output.plate_render.write_on_plate`: the PNG, its EXR with the
     person, shadow and plate layers, as ``relight render --plate --layers``), and the JSON."""
 
-    def __init__(self, stem: Path, frame: tuple, plate, place, horizon: float, state_json: str, wake=lambda: None):
-        self.frame, self.plate, self.place, self.horizon = frame, plate, place, horizon
+    def __init__(self, stem: Path, frame: tuple, plate, place, horizon: float, state_json: str, wake=lambda: None, anchor=None):
+        self.frame, self.plate, self.place, self.horizon, self.anchor = frame, plate, place, horizon, anchor
         super().__init__(stem, None, None, state_json, wake)
 
     def work(self) -> Path:
@@ -357,6 +357,6 @@ class PlateSaveJob(SaveJob):
 
         png = self.stem.with_suffix(".png")
         write_on_plate(self.frame, self.plate, self.place, png, self.stem.with_suffix(".exr"), layers_in_exr=True,
-                       cut_allowed=True, horizon=self.horizon)
+                       cut_allowed=True, horizon=self.horizon, anchor=self.anchor)
         write_text(self.stem.with_suffix(".json"), self.state_json)
         return png

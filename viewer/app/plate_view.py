@@ -35,11 +35,13 @@ def srgb8(linear: np.ndarray) -> np.ndarray:
 
 
 def plate_setting(path, at: tuple[float, float] | None, height: float | None, horizon: float | None, own_light,
-                  notes: list) -> tuple[tuple, Path | None]:
+                  notes: list, anchor=None) -> tuple[tuple, Path | None]:
     """A photo opened as a plate: (the plate, where the person stands on it, its horizon, what lights the
-    person: "plate" or the name of ``own_light``, the plate's light as a map file: :class:`PlateView`'s
-    arguments), and that map file to open as any map's, None where ``own_light`` (a map or a light
-    file) lights the person. One line when it cannot be a plate (:func:`viewer.plate.plate_file.read_plate`)."""
+    person: "plate" or the name of ``own_light``, the plate's light as a map file, ``anchor`` (a clip's
+    first person's matte, which places every frame): :class:`PlateView`'s arguments), and that map file
+    to open as any map's, None where ``own_light`` (a map or a light file) lights the person. One line
+    when it cannot be a plate (:func:`viewer.plate.plate_file.read_plate`) or the person cannot stand
+    where asked (:func:`viewer.plate.placement.plate_transform`)."""
     from viewer.lighting.lightfit.cache import cache_dir
     from viewer.plate.placement import place_on_plate
     from viewer.plate.plate_file import read_plate
@@ -47,18 +49,31 @@ def plate_setting(path, at: tuple[float, float] | None, height: float | None, ho
 
     plate = read_plate(path, notes)
     place, horizon = place_on_plate(plate, at, height, horizon, notes)
-    light_map = plate_light_file(plate, cache_dir() / "plates", notes)
-    return (plate, place, horizon, Path(own_light).name if own_light else "plate", light_map), None if own_light else light_map
+    if anchor is not None:  # a clip's person placed once: one line before the window if they cannot stand there
+        plate_transform(anchor, place, plate.within(VIEW_LONGER).size, cut_allowed=True)
+    light_map = plate_light_file(plate, cache_dir() / "plates", notes, horizon)
+    return (plate, place, horizon, Path(own_light).name if own_light else "plate", light_map, anchor), None if own_light else light_map
+
+
+def clip_anchor(timeline) -> np.ndarray:
+    """The matte a clip's person is placed on a plate by: its first frame with the person's (as
+    :class:`viewer.output.plate_clip.PlatePictures` places them)."""
+    first = timeline.frames.people[0]
+    scene = timeline.frames.scene(first, timeline.sizes)
+    return scene.frame.alpha if scene.frame is not None else scene.mask.astype(np.float32)
 
 
 class PlateView:
     """A plate shown in the window with the person in it: its texture (the composite, sRGB, the
     plate's copy's size), where the person stands (:attr:`place`) and the plate's horizon."""
 
-    def __init__(self, ctx, plate: Plate, place: Placement, horizon: float, light: str, light_map: Path):
+    def __init__(self, ctx, plate: Plate, place: Placement, horizon: float, light: str, light_map: Path, anchor=None):
         import moderngl
 
         self.plate, self.place, self.horizon = plate, place, float(horizon)
+        # a clip's: the matte of its first frame with the person, which places every frame (they walk across
+        # the plate as across their frame, :mod:`viewer.output.plate_clip`); a photo's own frame places it
+        self.anchor = anchor
         self.light = light  # "plate": lit by the plate's own light; else the name of the map that lights the person
         self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.plate_light.plate_light_file)
         self._light_env = None  # that map, read when a map of the user's is to be exposed to it
@@ -108,19 +123,26 @@ class PlateView:
             self._blur = (self.place, feet_blur(self.plate.srgb, self.place) * k)
         return self._blur[1]
 
-    def frame_texture(self, eng, key, settled: bool = True):
+    def frame_texture(self, eng, key, settled: bool = True, person: bool = True):
         """The texture showing ``eng``'s person (its last complete frame, whose state is ``key``) in
-        the plate where :attr:`place` says: composited again when either changed."""
-        self._composite(eng, key, settled)
+        the plate where :attr:`place` says: composited again when either changed; the plate alone
+        without ``person`` (a clip's frame with no one in it)."""
+        self._composite(eng, key, settled, person)
         return self.texture
 
-    def picture(self, eng, key) -> np.ndarray:
+    def picture(self, eng, key, person: bool = True) -> np.ndarray:
         """(H, W, 3) uint8 sRGB at the copy's size: what :meth:`frame_texture` shows (a recording's frame)."""
-        return self._composite(eng, key, True).copy()
+        return self._composite(eng, key, True, person).copy()
 
-    def _composite(self, eng, key, settled: bool) -> np.ndarray:
+    def _composite(self, eng, key, settled: bool, shows_person: bool = True) -> np.ndarray:
         """The plate with ``eng``'s person in it, sRGB uint8 (and in :attr:`texture`), made again when the
-        person's frame or where they stand changed; the plate alone until the person's first frame."""
+        person's frame or where they stand changed; the plate alone until the person's first frame, and
+        without ``shows_person``."""
+        if not shows_person:
+            if self._shown is not None:
+                self._srgb, self._shown = srgb8(self.linear), None
+                self.texture.write(self._srgb.tobytes())
+            return self._srgb
         if eng.complete and (self._person is None or self._person[0] != (id(eng), key)):
             self._person = ((id(eng), key), *read_person(eng))
         if self._person is None:
@@ -129,13 +151,14 @@ class PlateView:
         shown = (self._person[0], self.place, blur)
         if shown != self._shown:
             _, person, shadow, alpha, sky = self._person
+            placed_by = alpha if self.anchor is None else self.anchor
             try:
-                transform = plate_transform(alpha, self.place, self.size, cut_allowed=True)
+                transform = plate_transform(placed_by, self.place, self.size, cut_allowed=True)
             except InputError as exc:  # wholly off the plate, too small: the placement before stays
                 self.error = str(exc)
                 return self._srgb
             self.error = ""
-            feet = not (alpha[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
+            feet = not (placed_by[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
             self.box = landing_box(alpha, transform)
             front = in_front(self.shown, self.place.y, self.box, self._mattes)  # the plate's people nearer hide them
             result = composite_on_plate(self.linear, person, shadow, transform, blur,
@@ -193,9 +216,10 @@ class PlateView:
     def _place(self, place: Placement):
         """``place`` taken where the person's frame can stand there (not wholly off the plate, not too
         small: :func:`plate_transform`); else the place before stays, and :attr:`error` says why."""
-        if self._person is not None:
+        placed_by = self.anchor if self.anchor is not None else None if self._person is None else self._person[3]
+        if placed_by is not None:
             try:
-                plate_transform(self._person[3], place, self.size, cut_allowed=True)
+                plate_transform(placed_by, place, self.size, cut_allowed=True)
             except InputError as exc:
                 self.error = str(exc)
                 return

@@ -163,8 +163,8 @@ def resolve_looks(specs, args) -> list:
                 try:
                     if spec.plate is not None:  # the plate's own light, estimated and fitted once
                         plate = read_plate(spec.plate, [])
-                        lights = fitted_lights(plate_light(plate)[0], n, args.method)[0]
                         places[spec.plate] = plate_place(plate, args)
+                        lights = fitted_lights(plate_light(plate, horizon=places[spec.plate][1])[0], n, args.method)[0]
                     else:
                         env = load_envmap(spec.envmap) if spec.envmap is not None else None
                         lights = command_lights(args, look, spec.lights_file, env, spec.envmap)  # the one rule, as render's

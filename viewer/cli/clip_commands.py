@@ -126,7 +126,8 @@ def cmd_render_clip(args, look) -> int:
                                "--start and --end)")
     turn = 0.0 if args.turn is None else args.turn
     check_range(args.scene, args.start, args.end)
-    if look.background == "transparent":
+    if look.background == "transparent" and not args.plate:  # (on a plate the plate is the background: a window's state on one
+        # says transparent)
         raise InputError(out, "an MP4 (H.264) holds no transparency: give the video another --background")
     writable(out)
     if not is_clip(args.scene) and (args.start != 0.0 or args.end is not None or args.temporal is not None):
@@ -151,7 +152,7 @@ def cmd_render_clip(args, look) -> int:
     if plate is not None and args.lights is None and env is None:  # the plate's light, in its camera's frame
         from viewer.plate.plate_light import plate_light
 
-        lights, _ = fitted_lights(plate_light(plate[0])[0], lights_count(args, look), args.method)
+        lights, _ = fitted_lights(plate_light(plate[0], horizon=plate[2])[0], lights_count(args, look), args.method)
     elif args.lights is None and env is None:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
     else:
@@ -227,7 +228,7 @@ def plate_pictures(ctx, bundle, plate: tuple, lights, look, env, rig, args, turn
         scene = frames.scene(frames.people[0], (args.size, args.max_size))
         from viewer.plate.plate_light import plate_light
 
-        auto = own_light_exposure(plate_light(plate[0])[0], scene, lights, env.pixels if env is not None else None, look)
+        auto = own_light_exposure(plate_light(plate[0], horizon=plate[2])[0], scene, lights, env.pixels if env is not None else None, look)
     look = plate_look(look, auto)
     pictures = PlatePictures(ctx, bundle, lights, look, env.pixels if env is not None else None, rig, engine_options(args, look),
                              turn, (args.size, args.max_size), plate=plate[0], place=plate[1], horizon=plate[2],

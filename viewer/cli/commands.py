@@ -196,9 +196,7 @@ def cmd_view(args) -> int:
     if args.plate:  # read, placed and its light made before any window: a bad plate is one line
         from viewer.cli.plate_commands import view_plate
 
-        if clip:
-            raise InputError(args.scene, "a clip on a plate is not made yet: give a photo or a scene bundle with --plate")
-        plate, plate_map = view_plate(args, plate_notes)
+        plate, plate_map = view_plate(args, plate_notes)  # a clip's person is placed once its first frame is inferred
         for note in plate_notes:
             print(f"note: {note}")
         if plate_map is not None:
@@ -224,6 +222,13 @@ def cmd_view(args) -> int:
         scene = load_sized_scene(scene_path, args.size, args.max_size)
         env = load_envmap(env_path, repair=args.repair) if env_path is not None else None
         lights = command_lights(args, look, args.lights, env, env_path)
+        if plate is not None and clip:  # every frame placed as the clip's first person is (relight render CLIP --plate)
+            from viewer.app.plate_view import VIEW_LONGER
+            from viewer.plate.placement import plate_transform
+
+            anchor = scene.frame.alpha if scene.frame is not None else scene.mask.astype(np.float32)
+            plate_transform(anchor, plate[1], plate[0].within(VIEW_LONGER).size, args.scene, cut_allowed=True)
+            plate = (*plate[:5], anchor)
     except BaseException:
         if window is not None:
             window.release()

@@ -100,11 +100,11 @@ def cmd_render_plate(args, look) -> int:
     if own:  # the user's own light; the plate only the backdrop, and its light the level
         scene, lights, pixels, look = prepare(args.scene, args.lights, args.envmap, args, look, automatic_yaw=True)
         if look.exposure == AUTO:
-            auto = own_light_exposure(plate_light(plate)[0], scene, lights, pixels, look)
+            auto = own_light_exposure(plate_light(plate, horizon=horizon)[0], scene, lights, pixels, look)
         light_from = f"{own}" + (f", exposed {auto:+.2f} stops to the plate's light" if look.exposure == AUTO else "")
     else:  # the plate's light, in its camera's frame (--yaw turns it as any map's)
         scene = load_sized_scene(args.scene, getattr(args, "size", None), getattr(args, "max_size", None))
-        env, record = plate_light(plate)
+        env, record = plate_light(plate, horizon=horizon)
         notes.append(record["sun"])
         lights, _ = fitted_lights(env, lights_count(args, look), args.method)
         light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"

@@ -57,24 +57,27 @@ def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Plac
 
 
 def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layers=None, layers_in_exr: bool = False,
-                   source=None, cut_allowed: bool = False, horizon: float | None = None) -> dict:
+                   source=None, cut_allowed: bool = False, horizon: float | None = None, anchor: np.ndarray | None = None) -> dict:
     """The person (``frame``: :func:`read_person`'s) composited into ``plate`` at ``place``, matched to
     the plate's defocus and grain, and written: ``png`` (8-bit sRGB, the plate's grain on the person),
     ``exr`` (linear; with ``layers_in_exr`` also the layers: the person premultiplied, the shadow as a
     multiplier, the plate) and ``layers`` (those layers in a file of their own, a batch's), all
-    replaced together; ``horizon`` the plate's (a fraction of its height: the contact shadow's ground).
-    No GL: a window's save writes it on a thread."""
+    replaced together; ``horizon`` the plate's (a fraction of its height: the contact shadow's ground);
+    ``anchor`` the matte the person is placed by when not the frame's own (a clip's first person's: every
+    frame carried into the plate alike, :mod:`viewer.output.plate_clip`). No GL: a window's save writes it
+    on a thread."""
     from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
     from viewer.output.layers import write_layers
 
     person, shadow, alpha, sky = frame
-    transform = plate_transform(alpha, place, plate.size, source, cut_allowed)
+    placed_by = alpha if anchor is None else anchor
+    transform = plate_transform(placed_by, place, plate.size, source, cut_allowed)
     soft = enlarged(transform.scale)
     if soft:
         warnings.warn(f"{plate.source}: {soft}", stacklevel=2)
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
-    feet = not (alpha[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
+    feet = not (placed_by[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
     front = in_front(plate, place.y, landing_box(alpha, transform))
     result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0, horizon, front)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}

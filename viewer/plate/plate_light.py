@@ -17,16 +17,20 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    a dark wall in front of a bright one, is not in the plate and not in the map. That half gets
    ``BEHIND_GAIN - 1`` times the plate's mean (unclipped) light more, evenly: photos' subjects are lit
    better than their backgrounds (a photographer turns a person to the light; a studio lights the
-   person, not the wall); evenly, so that a sun in view, mirrored, does not outshine itself.
+   person, not the wall); evenly, so that a sun in view, mirrored, does not outshine itself. Not
+   where a clear sky is found (step 5): the light behind the camera is then its fitted sky and sun.
    Measured on twelve real photos (``relight bench plates``: each photo's person put back into their
    own photo, lit by the light read from it without them): without it they came back 1.22 stops too
    dark (median), with it 0.40 (the exposure error's median 1.22 to 0.49 stops, RMSE 40.7 to 27.0
    levels); on the maps' plates the person RMSE went from 0.99 to 0.98 x the uniform light's.
 4. **Clipped highlights** (a channel at ``CLIP`` of 255 or above) are at least that bright and
    likely brighter: their radiance is multiplied by ``CLIP_GAIN``.
-5. **A sun** read from a clear blue sky (:mod:`viewer.plate.plate_sky`: where the sky is brightest),
-   in view or not, as a disc of ``SUN_RADIUS_DEG``. A sun in a sky that is not clear and blue (a
-   sunset, haze), or high overhead, or seen only in the plate's shadows, is not found. (A first rule,
+5. **A clear sky and its sun** read from a clear blue sky (:mod:`viewer.plate.plate_sky`: the Perez
+   sky fitted to it, its sun where its glow says, in view or not): the sun drawn as a disc of radius
+   ``SUN_RADIUS_DEG``; the unseen sky (where the plate's edge it is filled from is sky) the fitted
+   sky, not the mirror. A sun in a sky that is not clear and blue (a sunset, haze, a sky clipped
+   white), or high behind the camera (the sky nearly the same all round), or seen only in the
+   plate's shadows, is not found. (A first rule,
    the largest compact clipped blob above the horizon given five times the sky's irradiance, took
    windows, lamps and bright clouds for suns and made the estimate worse on every plate where it
    fired: not taken.)
@@ -57,9 +61,11 @@ SUN_RADIUS_DEG = 1.5  # the radius of the disc a sun read from the sky is drawn 
 BEHIND_GAIN = 2.0  # the light behind the camera: the mirror plus (this - 1) x the plate's mean: a photo's subject is lit better
 
 
-def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
+def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = None) -> tuple[EnvMap, dict]:
     """(the plate's light as an equirectangular map, height x 2 height, in the plate camera's frame;
-    a record of how: the focal length and where it came from, the field of view, the share clipped, seconds)."""
+    a record of how: the focal length and where it came from, the field of view, the share clipped, what
+    the sky said of a sun, seconds). ``horizon``: the plate's (a fraction of its height, from its top: the
+    camera's tilt, which the sky's fit reads elevations by), else its own (:func:`viewer.plate.horizon.plate_horizon`)."""
     import cv2
 
     t0 = time.perf_counter()
@@ -75,7 +81,7 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT) -> tuple[EnvMap, dict]:
     dirs = pixel_directions(height, 2 * height)
     seen, x, y = _projected(dirs, focal, size)
     pixels = np.where(seen[..., None], _sample(radiance, x, y), _sample(blurred, x, y))
-    sky, said = plate_sky(plate, plate_horizon(plate)[0])
+    sky, said = plate_sky(plate, plate_horizon(plate)[0] if horizon is None else horizon)
     if sky is None:
         # the half behind the camera brighter by (BEHIND_GAIN - 1) times the plate's mean unclipped light, added
         # evenly (not the mirror scaled: a sun in view, mirrored, must not outshine itself)
@@ -154,13 +160,13 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
 LIGHT_VERSION = 3  # bump when a change here changes the map a plate gives (its file is made again)
 
 
-def plate_light_file(plate: Plate, directory, notes: list | None = None) -> Path:
+def plate_light_file(plate: Plate, directory, notes: list | None = None, horizon: float | None = None) -> Path:
     """The plate's light (:func:`plate_light`) as an EXR in ``directory``, made once: named by the
     plate's content (its pixels, its focal length, this module's version) so that it opens as any map
     (the viewer fits it, refits it at another count, turns it) and a plate changed by one pixel, or
-    read with another focal length, gets a file of its own. Its record (:func:`plate_light`'s) is a
-    JSON beside it, written after it: a map without its record is made again. What it says of the
-    sun goes to ``notes``."""
+    read with another focal length or on another ``horizon`` (:func:`plate_light`'s), gets a file of its
+    own. Its record (:func:`plate_light`'s) is a JSON beside it, written after it: a map without its
+    record is made again. What it says of the sun goes to ``notes``."""
     import hashlib
     import json
 
@@ -168,7 +174,7 @@ def plate_light_file(plate: Plate, directory, notes: list | None = None) -> Path
     from viewer.lighting.envmap import save_envmap
 
     digest = hashlib.sha256(np.asarray(plate.srgb.shape, np.int64).tobytes() + plate.srgb.tobytes()
-                            + f"{plate.focal_35:.4f}-{MAP_HEIGHT}-{LIGHT_VERSION}".encode()).hexdigest()[:20]
+                            + f"{plate.focal_35:.4f}-{MAP_HEIGHT}-{LIGHT_VERSION}-{horizon!r}".encode()).hexdigest()[:20]
     stem = Path(plate.source).stem if plate.source else "plate"
     path = Path(directory) / f"{stem}-light-{digest}.exr"
     said = None
@@ -178,7 +184,7 @@ def plate_light_file(plate: Plate, directory, notes: list | None = None) -> Path
         except (OSError, ValueError, KeyError, TypeError):
             said = None
     if not isinstance(said, str):
-        env, record = plate_light(plate)
+        env, record = plate_light(plate, horizon=horizon)
         save_envmap(path, env)
         write_text(path.with_suffix(".json"), json.dumps(record) + "\n")
         said = record["sun"]

@@ -10,21 +10,26 @@ the horizon on the sun's side (the Perez et al. 1993 all-weather sky model, with
    sky's level, and joined to the plate's top edge. Their directions are the world's (the camera's
    tilt read from the horizon).
 2. **A clear sky**: blue (its median blue over red at least ``BLUE``: Rayleigh scattering; an
-   overcast sky, a white wall or a sunset is not), and at least ``MIN_SKY`` of the plate.
+   overcast sky, a white wall or a sunset is not), at least ``MIN_SKY`` of the plate, and ending at the
+   horizon: the smooth, bright, blue area joined to the top does not run on below it (by more than
+   ``RUNS_ON`` of the sky above: a blue wall or backdrop does).
 3. **The fit**: every sun direction (``STEP_DEG`` apart, ``MIN_ELEVATION`` to 87 degrees up) and turbidity
    of ``TURBIDITIES``, the log luminance fitted up to a scale; the best refined to a degree. The sun is
    believed where it explains the sky's variation across azimuth: its error at most ``EXPLAINED`` of
-   that of the best sky that varies with elevation alone (a quadratic in the zenith angle's cosine).
-   A sun high overhead leaves the sky nearly the same in every azimuth and is not found.
+   that of the best sky that varies with elevation alone (a quadratic in the zenith angle's cosine)
+   seen through a lens darkening towards its corners (a term in the squared distance from the
+   picture's middle: a lens's vignetting is no sun's glow); and a sun the fit puts in view must be
+   where the plate is clipped (a sun always is). A sun high behind the camera leaves the sky nearly
+   the same in every azimuth and is not found.
 4. **Its strength**: the open sky's diffuse light on the ground (the fitted sky integrated) times a
    clear day's direct-to-diffuse ratio at the sun's elevation (Meinel's direct normal irradiance over
-   Haurwitz's global irradiance less the direct: 7 to 10 for elevations above 10 degrees), white (the
-   plate's white balance is the sun's). The measured maps' clear sun: 8.7 times (``relight bench plates``).
+   Haurwitz's global irradiance less the direct: 6.7 to 9.4 for elevations from 10 to 90
+   degrees, 12 at 3), white (the plate's white balance is the sun's). The measured maps' clear sun: 8.7 times (``relight bench plates``).
 
 Measured in ``relight bench plates`` (docs/plates.md): the shared maps' clear-sky park's sun found 8, 9
 and 15 degrees off from its three plates (ahead-right, to the left, behind the camera), its person
 RMSE 0.209, 0.067, 0.158 where the uniform light's is 0.195, 0.159, 0.382. A sky clipped white, a
-sunset, or a sun high overhead is not found (the plate's light is then as it was).
+sunset, or a sun high behind the camera is not found (the plate's light is then as it was).
 """
 
 from __future__ import annotations
@@ -40,6 +45,7 @@ SKY_WIDTH = 240  # pixels: the plate's width its sky is read at
 MIN_ELEVATION = 3.0  # degrees above the horizon: the lowest sky pixel, and the lowest sun
 SMOOTH = 0.25  # the log luminance's Sobel gradient at SKY_WIDTH: a sky pixel's is below this
 BRIGHT = 0.35  # of the 95th percentile of the luminance above the horizon: a sky pixel is at least this
+RUNS_ON = 0.25  # the smooth bright blue area joined to the top, below the horizon, over the sky above it: more, and it is no sky
 BLUE = 1.5  # the sky's median blue over red: a clear sky's is at least this
 MIN_SKY = 0.02  # of the plate: less sky than this tells nothing of a sun
 MIN_SKY_PIXELS = 64  # and fewer sky pixels than this (a tiny plate) neither
@@ -118,23 +124,31 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     focal = plate.focal_px * size[0] / w
     pitch = math.atan((horizon - 0.5) * size[1] / focal)  # the horizon below the middle: the camera tilted up
     world = _world_directions(size, focal, pitch)
-    sky = _sky_pixels(linear, clipped, world)
+    sky, below = _sky_pixels(linear, clipped, world)
     share = float(sky.mean())
     if share < MIN_SKY or int(sky.sum()) < MIN_SKY_PIXELS:
         return None, f"no sun read from the sky: {100 * share:.1f} % of the plate is open sky"
+    if below > RUNS_ON * share:
+        return None, ("no sun read from the sky: the smooth blue area down from the plate's top runs on below the horizon "
+                      "(a wall, a backdrop: not a sky)")
     rgb = linear[sky].astype(np.float64)
     blue = float(np.median(rgb[:, 2] / np.maximum(rgb[:, 0], 1e-6)))
     if blue < BLUE:
         return None, f"no sun read from the sky: it is not a clear blue sky (blue / red {blue:.2f})"
     dirs = world[sky]
     lum = np.maximum(rgb @ LUMINANCE.astype(np.float64), 1e-6)
-    step = max(len(lum) // FIT_PIXELS, 1)
-    dirs, lum = dirs[::step], lum[::step]
-    flat = _flat_error(dirs, lum)
+    v, u = np.mgrid[0:size[1], 0:size[0]]
+    r2 = (((u + 0.5) / size[0] - 0.5) * 2.0) ** 2 + (((v + 0.5) / size[1] - 0.5) * 2.0 * size[1] / size[0]) ** 2
+    step = max(len(lum) // FIT_PIXELS, 1)  # (r2: the squared distance from the picture's middle, a lens's vignetting)
+    dirs, lum, r2 = dirs[::step], lum[::step], r2[sky][::step]
+    flat = _flat_error(dirs, lum, r2)
     error, sun, turbidity, scale = _fit(dirs, lum)
     explained = error / max(flat, 1e-12)
     if explained > EXPLAINED:
         return None, f"no sun read from the sky: no sun explains how it varies (the best leaves {explained:.2f} of a sun-less sky's error)"
+    seen = _in_view(_camera_direction(sun, pitch), focal, size)
+    if seen is not None and not clipped[seen[1], seen[0]].any():
+        return None, "no sun read from the sky: the sun its glow points to is in view, and the plate is not bright there"
     diffuse = scale * _sky_irradiance(sun, turbidity)  # the open sky's luminance on the ground
     elevation = math.asin(float(np.clip(sun[1], -1.0, 1.0)))
     irradiance = np.full(3, direct_to_diffuse(elevation) * diffuse, np.float32)
@@ -176,8 +190,18 @@ def _camera_direction(world: np.ndarray, pitch: float) -> np.ndarray:
     return _world(np.asarray(world, np.float64), -pitch)
 
 
-def _sky_pixels(linear: np.ndarray, clipped: np.ndarray, world: np.ndarray) -> np.ndarray:
-    """(H, W) bool: the plate's sky as the module says (step 1)."""
+def _in_view(direction: np.ndarray, focal: float, size: tuple[int, int]) -> tuple[int, int] | None:
+    """The pixel (x, y) a direction (the camera's frame) is seen at, or None out of view."""
+    if direction[2] >= 0.0:
+        return None
+    x = 0.5 * size[0] + focal * direction[0] / -direction[2]
+    y = 0.5 * size[1] - focal * direction[1] / -direction[2]
+    return (int(x), int(y)) if 0.0 <= x < size[0] and 0.0 <= y < size[1] else None
+
+
+def _sky_pixels(linear: np.ndarray, clipped: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, float]:
+    """((H, W) bool: the plate's sky as the module says, step 1; the share of the plate the smooth, bright
+    and blue area joined to the top covers more than ``MIN_ELEVATION`` below the horizon: a sky ends there)."""
     import cv2
 
     lum = linear @ LUMINANCE.astype(np.float32)
@@ -185,9 +209,11 @@ def _sky_pixels(linear: np.ndarray, clipped: np.ndarray, world: np.ndarray) -> n
     gradient = np.hypot(cv2.Sobel(log, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(log, cv2.CV_32F, 0, 1, ksize=3))
     above = world[..., 1] > math.sin(math.radians(MIN_ELEVATION))
     if not above.any():
-        return above
-    sky = above & (gradient < SMOOTH) & ~clipped.any(axis=-1) & (lum >= BRIGHT * np.percentile(lum[above], 95))
-    return _joined_to_top(sky)
+        return above, 0.0
+    smooth = (gradient < SMOOTH) & ~clipped.any(axis=-1) & (lum >= BRIGHT * np.percentile(lum[above], 95))
+    blue = linear[..., 2] >= BLUE * np.maximum(linear[..., 0], 1e-6)
+    below = _joined_to_top(smooth & blue) & (world[..., 1] < -math.sin(math.radians(MIN_ELEVATION)))
+    return _joined_to_top(above & smooth), float(below.mean())
 
 
 def _joined_to_top(mask: np.ndarray) -> np.ndarray:
@@ -199,10 +225,11 @@ def _joined_to_top(mask: np.ndarray) -> np.ndarray:
     return np.isin(labels, touching[touching > 0])
 
 
-def _flat_error(dirs: np.ndarray, lum: np.ndarray) -> float:
-    """The mean squared log-luminance error of the best sky varying with elevation alone."""
+def _flat_error(dirs: np.ndarray, lum: np.ndarray, r2: np.ndarray) -> float:
+    """The mean squared log-luminance error of the best sky varying with elevation alone, seen through a
+    lens that darkens towards its corners (a term in ``r2``, the squared distance from the picture's middle)."""
     c = dirs[:, 1]
-    basis = np.stack([np.ones_like(c), c, c * c], axis=-1)
+    basis = np.stack([np.ones_like(c), c, c * c, r2], axis=-1)
     coeffs, *_ = np.linalg.lstsq(basis, np.log(lum), rcond=None)
     return float(np.mean((basis @ coeffs - np.log(lum)) ** 2))
 
