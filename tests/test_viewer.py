@@ -744,6 +744,16 @@ def test_a_clip_on_a_plate_walks_across_it_and_records_as_render_makes_it(viewer
     for k in range(5):  # H.264 both ways, and the grain render gives the person: loosely
         assert np.abs(recorded[k].astype(np.float32) - rendered[k]).mean() < 2.0, k
     assert np.abs(recorded[1].astype(np.float32) - recorded[2]).mean() > 0.5  # the person gone
+    # another plate opened from the panel while the clip is open: the clip's person on it, placed the same way
+    v.click("open a file")
+    v.wait_for(lambda s: "browser path" in s["widgets"], 30)
+    v.click("plate next")
+    other = street_plate(tmp_path / "dusk.png", 400, 300, sky=(0.9, 0.5, 0.3), ground=(0.2, 0.18, 0.2))
+    v.click("browser path")
+    v.xdotool("type", str(other))
+    v.click("browser open")
+    s = v.wait_for(lambda s: s["plate"]["source"] == str(other) and s["plate_box"] is not None and not s["fitting"], 60)
+    assert s["clip"]["frames"] == 5 and s["error"] == ""
     assert v.quit() == 0
 
 

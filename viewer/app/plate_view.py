@@ -4,7 +4,10 @@ code), on a copy of the plate at most ``VIEW_LONGER`` pixels long; dragging the 
 their feet stand, the wheel scales them about their feet. The plate's own pixels, its defocus where
 the feet stand and its placement are this object's; the person and their shadow are the engine's
 frame, read back when it changes (not when only the placement does). S writes the composite at the
-plate's full size (:func:`viewer.output.plate_render.write_on_plate`, on a thread)."""
+plate's full size (:func:`viewer.output.plate_render.write_on_plate`, on a thread); a recording's
+frames are the composite (:meth:`PlateView.picture`). A clip's person is placed once, by the matte of
+its first frame with them in it (:func:`clip_anchor`), and every frame carried alike, as ``relight
+render CLIP --plate`` does (:mod:`viewer.output.plate_clip`)."""
 
 from __future__ import annotations
 

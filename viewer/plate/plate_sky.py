@@ -127,7 +127,7 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     sky, below = _sky_pixels(linear, clipped, world)
     share = float(sky.mean())
     if share < MIN_SKY or int(sky.sum()) < MIN_SKY_PIXELS:
-        return None, f"no sun read from the sky: {100 * share:.1f} % of the plate is open sky"
+        return None, f"no sun read from the sky: {100 * share:.1f} % of the plate is open sky (at least {100 * MIN_SKY:.0f} % is needed)"
     if below > RUNS_ON * share:
         return None, ("no sun read from the sky: the smooth blue area down from the plate's top runs on below the horizon "
                       "(a wall, a backdrop: not a sky)")
