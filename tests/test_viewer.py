@@ -802,8 +802,13 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     assert s["plate"]["height"] == pytest.approx(height * below / 0.38, rel=1e-4)
     v.drag(int(x + 0.9 * w), int(y + 0.1 * h), -60, 0)  # off the person: the lighting turns
     s = v.wait_for(lambda s: s["look"]["yaw"] != 0.0)
-    height = s["plate"]["height"]
-    v.xdotool("mousemove", int(x + 0.9 * w), int(y + 0.5 * h))
+    height, exposure = s["plate"]["height"], s["look"]["exposure"]
+    v.xdotool("mousemove", int(x + 0.9 * w), int(y + 0.5 * h))  # the wheel off the person: the exposure, as anywhere
+    v.xdotool("click", 4)
+    s = v.wait_for(lambda s: s["look"]["exposure"] != exposure)
+    assert s["plate"]["height"] == height
+    x0, y0, x1, y1 = s["plate_box"]
+    v.xdotool("mousemove", int(x + w * 0.5 * (x0 + x1)), int(y + h * 0.5 * (y0 + y1)))  # on the person: scaled
     v.xdotool("click", 4)
     v.xdotool("click", 4)
     s = v.wait_for(lambda s: s["plate"]["height"] > height * 1.06 ** 2 - 1e-6)
@@ -814,8 +819,8 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     at = ",".join(f"{c:.6f}" for c in place["plate"]["at"])
     out = tmp_path / "rendered.png"
     subprocess.run([*RELIGHT, "render", str(sample_scene_dir()), "--size", str(SIZE), "--plate", str(plate), "--at=" + at,
-                    "--height", str(place["plate"]["height"]), "--horizon", "0.5", "--yaw", str(place["look"]["yaw"]),
-                    "-o", str(out)], env=v.env, check=True, capture_output=True)
+                    "--height", str(place["plate"]["height"]), "--horizon", "0.5", "--look", str(saved.with_suffix(".json")),
+                    "-o", str(out)], env=v.env, check=True, capture_output=True)  # (the saved look: its turn and exposure)
     mine, theirs = read_png(saved), read_png(out)
     assert mine.shape == (320, 480, 3) and np.abs(mine - theirs).max() <= 1.5 / 255  # what render makes, to a level
     assert np.abs(mine - read_png(plate)).max() > 0.2  # the person is in it

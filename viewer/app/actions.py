@@ -316,7 +316,7 @@ class Actions:
         s.update(background="transparent", ground=True, exposure=0.0, yaw=0.0, tilt=0.0)
         self.app.auto_exposure = False  # the person is exposed in the plate's units
         self.open_map(light_map)
-        self.app.message = f"plate {Path(path).name}: " + "; ".join(notes + ["drag the person to move them, the wheel scales them"])
+        self.app.message = f"plate {Path(path).name}: " + "; ".join(notes + ["drag the person to move them, the wheel on them scales them"])
 
     def remove_plate(self):
         """The plate gone: the person shown in their frame again, under the lights they have."""

@@ -1,5 +1,5 @@
 """The window's mouse and keys, read once a frame from imgui: a drag turns the lighting (on a plate, a
-drag on the person moves them and the wheel scales them), the right
+drag on the person moves them and the wheel on them scales them), the right
 button pans, the wheel changes the exposure (with Ctrl: zooms), a click aims a placed light, and
 the keys of the viewer's table (viewer/app/layout.py) save, record, compare and undo; for a clip,
 space plays and pauses and the arrows step a frame."""
@@ -77,7 +77,7 @@ class Controls:
         if over_image and io.mouse_wheel:
             if io.key_ctrl:
                 self.app.view = ix.zoomed(self.app.view, io.mouse_wheel, cursor=(mx - ax, my - ay), area=(aw, ah))
-            elif plate is not None:  # on a plate the wheel scales the person about their feet
+            elif plate is not None and plate.holds(*self._on_plate(mx - ax, my - ay)):  # on the person: scaled about their feet
                 plate.scaled(io.mouse_wheel)
                 self.app.actions.placed_on_plate()
             else:

@@ -519,7 +519,7 @@ def _plate(app):
         imgui.pop_text_wrap_pos()
     imgui.text(f"feet at {p.x:.2f},{p.y:.2f}; {p.height:.2f} of it tall")
     if imgui.is_item_hovered():
-        imgui.set_tooltip("drag the person to move them; the wheel scales them about their feet\n"
+        imgui.set_tooltip("drag the person to move them; the wheel on them scales them about their feet\n"
                           "relight render BUNDLE --plate PLATE --at X,Y --height H gives the same")
     for line in (*plate.mismatches(app.session.scene), plate.error):
         if line:

@@ -1,7 +1,7 @@
 """The plate in the window (issue 47): the person composited into a background photo as ``relight
 render --plate`` composites them (:func:`viewer.output.plate_composite.composite_on_plate`: the same
 code), on a copy of the plate at most ``VIEW_LONGER`` pixels long; dragging the person moves where
-their feet stand, the wheel scales them about their feet. The plate's own pixels, its defocus where
+their feet stand, the wheel on them scales them about their feet. The plate's own pixels, its defocus where
 the feet stand and its placement are this object's; the person and their shadow are the engine's
 frame, read back when it changes (not when only the placement does). S writes the composite at the
 plate's full size (:func:`viewer.output.plate_render.write_on_plate`, on a thread); a recording's
