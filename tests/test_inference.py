@@ -469,3 +469,18 @@ def test_the_stages_declare_what_they_read_and_make():
             inference.run_stages({"photo_path": "x", "max_size": 64}, lambda name: None)
     finally:
         inference.STAGE_LIST = saved
+
+
+def test_a_person_lying_sideways_is_said_and_one_bent_over_on_their_feet_is_not():
+    from viewer.photo.inference import orientation_note
+
+    def pose(head, hips, ankles=None):
+        points = {0: head, 11: head, 12: head, 23: hips, 24: hips}
+        return points | ({27: ankles, 28: ankles} if ankles is not None else {})
+
+    assert orientation_note(pose((0.5, 0.2), (0.5, 0.5), (0.5, 0.9))) is None  # upright
+    assert orientation_note(pose((0.3, 0.45), (0.55, 0.5), (0.6, 0.9))) is None  # bent over, dribbling: feet below the hips
+    lying = orientation_note(pose((0.2, 0.5), (0.5, 0.5), (0.9, 0.5)))  # the photo turned: the feet beside the hips too
+    assert lying is not None and "sideways (head to the left)" in lying
+    assert "sideways" in orientation_note(pose((0.2, 0.5), (0.5, 0.5)))  # no ankles seen: the head beside the hips says it
+    assert "upside down" in orientation_note(pose((0.5, 0.8), (0.5, 0.5), (0.5, 0.1)))

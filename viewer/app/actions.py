@@ -91,7 +91,7 @@ class Actions:
         png = job.result
         self.app.captures.append(str(png))
         self.app.message = f"saved {png.name} (+ .exr, .json) in {png.parent.resolve()}"
-        print(f"saved {png} {png.with_suffix('.exr')} {png.with_suffix('.json')}", flush=True)
+        print(f"saved {png.resolve()} {png.with_suffix('.exr').resolve()} {png.with_suffix('.json').resolve()}", flush=True)
 
     def toggle_recording(self, kind: str):
         rec = self.app.recording
@@ -175,7 +175,7 @@ class Actions:
         self.app.videos.append(str(path))
         note = f" ({rec.note})" if getattr(rec, "note", None) else ""
         self.app.message = f"{how} {rec.done} frames: {path.name} in {Path(path).parent.resolve()}{note}"
-        print(f"{how} {rec.done} frames to {path}{note}", flush=True)
+        print(f"{how} {rec.done} frames to {Path(path).resolve()}{note}", flush=True)
 
     def level_exposure(self):
         """The exposure that keeps the photo's brightness under the lights now (what a photo gets

@@ -517,10 +517,13 @@ def _plate(app):
         imgui.push_text_wrap_pos(0.0)
         imgui.text_disabled("; ".join(plate.notes))
         imgui.pop_text_wrap_pos()
-    imgui.text(f"feet at {p.x:.2f},{p.y:.2f}; {p.height:.2f} of it tall")
+    clip = plate.anchor is not None  # a clip's: placed by its first frame with the person, the others moving with them
+    imgui.text(f"feet at {p.x:.2f},{p.y:.2f}; {p.height:.2f} of it tall" + (" (in the clip's first frame with them)" if clip else ""))
     if imgui.is_item_hovered():
         imgui.set_tooltip("drag the person to move them; the wheel on them scales them about their feet\n"
-                          "relight render BUNDLE --plate PLATE --at X,Y --height H gives the same")
+                          + ("a clip's person is placed by their first frame; they walk across the plate as across their frame\n"
+                             "relight render CLIP --plate PLATE --at X,Y --height H gives the same" if clip else
+                             "relight render BUNDLE --plate PLATE --at X,Y --height H gives the same"))
     for line in (*plate.mismatches(app.session.scene), plate.error):
         if line:
             imgui.push_text_wrap_pos(0.0)

@@ -111,11 +111,13 @@ class PlateView:
         return person_exposure(self._light_env, light, scene, look)
 
     def mismatches(self, scene) -> list[str]:
-        """What does not match the person's photo where they stand: the plate camera's height
+        """What does not match the person's photo where they stand: feet off the plate, the plate camera's height
         (:func:`camera_mismatch`), its distance (:func:`person_lens_mismatch`, ``scene``'s photo's lens)
         and their frame's pixels enlarged (:func:`enlarged`)."""
         scale = None if self._frame is None else self._frame[0].scale * self.plate.size[0] / self.size[0]
-        return [line for line in (camera_mismatch(self.place, self.horizon), person_lens_mismatch(scene.frame, self.place, self.plate),
+        off = ("the feet are off the plate: where they stand, and their shadow there, are not seen"
+               if not (0.0 <= self.place.x <= 1.0 and 0.0 <= self.place.y <= 1.0) else "")
+        return [line for line in (off, camera_mismatch(self.place, self.horizon), person_lens_mismatch(scene.frame, self.place, self.plate),
                                   enlarged(scale)) if line]
 
     def blur(self, settled: bool) -> float:

@@ -291,8 +291,8 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
 
 def orientation_note(landmarks: dict) -> str | None:
     """What to say when the pose lies sideways or upside down in the photo (its head beside or below
-    its hips: a photo whose EXIF rotation was lost), else None. The ground and its shadow take the
-    photo's bottom for the floor."""
+    its hips, and its ankles not below them: a photo whose EXIF rotation was lost; someone bent over on
+    their feet is upright), else None. The ground and its shadow take the photo's bottom for the floor."""
     needed = (0, 11, 12, 23, 24)  # nose, shoulders, hips
     if not all(i in landmarks for i in needed):
         return None
@@ -301,6 +301,11 @@ def orientation_note(landmarks: dict) -> str | None:
     dx, dy = hips - head  # image coordinates: y down; upright, the hips are below the head
     if dy > abs(dx):
         return None
+    ankles = [landmarks[i] for i in (27, 28) if i in landmarks]
+    if ankles and -dy <= abs(dx):  # head beside the hips: lying down, or bent over on legs that stand (feet below the hips)
+        lx, ly = np.mean(ankles, axis=0) - hips
+        if ly > abs(lx):
+            return None
     where = "upside down" if -dy > abs(dx) else f"sideways (head to the {'left' if dx > 0 else 'right'})"
     return (f"the person is {where} in the photo: if the photo lost its rotation (EXIF), turn it upright; the ground "
             "and its shadow take the photo's bottom for the floor")

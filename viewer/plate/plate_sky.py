@@ -127,7 +127,7 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     sky, below = _sky_pixels(linear, clipped, world)
     share = float(sky.mean())
     if share < MIN_SKY or int(sky.sum()) < MIN_SKY_PIXELS:
-        return None, f"no sun read from the sky: {100 * share:.1f} % of the plate is open sky (at least {100 * MIN_SKY:.0f} % is needed)"
+        return None, f"no sun read from the sky: {100 * share:.2f} % of the plate is open sky (at least {100 * MIN_SKY:.0f} % is needed)"
     if below > RUNS_ON * share:
         return None, ("no sun read from the sky: the smooth blue area down from the plate's top runs on below the horizon "
                       "(a wall, a backdrop: not a sky)")
@@ -145,7 +145,9 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     error, sun, turbidity, scale = _fit(dirs, lum)
     explained = error / max(flat, 1e-12)
     if explained > EXPLAINED:
-        return None, f"no sun read from the sky: no sun explains how it varies (the best leaves {explained:.2f} of a sun-less sky's error)"
+        accounted = max(100.0 * (1.0 - explained), 0.0)
+        return None, (f"no sun read from the sky: no sun explains how it varies (the best accounts for {accounted:.0f} % "
+                      f"of what a sky without one leaves; {100 * (1 - EXPLAINED):.0f} % is needed)")
     seen = _in_view(_camera_direction(sun, pitch), focal, size)
     if seen is not None and not clipped[seen[1], seen[0]].any():
         return None, "no sun read from the sky: the sun its glow points to is in view, and the plate is not bright there"
@@ -157,8 +159,8 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     # beside them (the glow about the sun), not only those the fit read
     fill = _joined_to_top(sky | (clipped.any(axis=-1) & (world[..., 1] > 0.0)))
     return (ClearSky(sun, turbidity, scale, colour, irradiance, pitch, round(explained, 3), fill.astype(np.float32)),
-            f"a sun read from the clear sky: {math.degrees(elevation):.0f} degrees up, {_bearing(sun)}; the sky's fit "
-            f"leaves {100 * explained:.0f} % of a sun-less sky's error")
+            f"a sun read from the clear sky: {math.degrees(elevation):.0f} degrees up, {_bearing(sun)} (its glow accounts for "
+            f"{100 * (1 - explained):.0f} % of how the sky varies beyond a sky without a sun)")
 
 
 def _bearing(sun: np.ndarray) -> str:
