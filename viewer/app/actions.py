@@ -154,7 +154,7 @@ class Actions:
         while not rec.finished:
             self.apply_moment(rec.moment(rec.done))
             self.app.session.render()
-            rec.add(self.app.session.final.output.read_display())
+            rec.add(self.app.picture(self.app.session.final))  # (on a plate: the person in it, the video's size)
 
     def finish_recording(self, stopped: bool = False):
         rec, self.app.recording = self.app.recording, None

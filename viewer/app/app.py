@@ -248,6 +248,8 @@ class ViewerApp:
         if self.timeline is not None:
             self.timeline.release()
             self.timeline = None
+        if self.plate is not None:  # the new person is placed by their own frame, not the clip's first one
+            self.plate.unanchor()
         self.session.camera_turn = (0.0, 0.0)
 
     def picture(self, eng) -> np.ndarray:
@@ -406,7 +408,9 @@ class ViewerApp:
                 self._advance_clip()
                 self.session.poll_refinement()
                 eng, kind = self._render()
-                if self.plate is not None:  # the person in the plate, composited again when either changed
+                if self.plate is not None and self.timeline is not None and eng is self.session.outgoing:
+                    self._drawn = self.plate.texture  # a clip's next person still being drawn: what was drawn stays
+                elif self.plate is not None:  # the person in the plate, composited again when either changed
                     self._drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
                                                            settled=not self.moving_person,
                                                            person=self.timeline is None or self.timeline.has_person)

@@ -45,7 +45,8 @@ class Controls:
         plate = self.app.plate
         if self.app.aiming is not None and imgui.is_mouse_clicked(0) and over_image:
             self.app.actions.aim_at(mx - ax, my - ay)
-        elif imgui.is_mouse_clicked(0) and over_image and plate is not None and plate.holds(*self._on_plate(mx - ax, my - ay)):
+        elif (imgui.is_mouse_clicked(0) and over_image and plate is not None and plate.holds(*self._on_plate(mx - ax, my - ay))
+              and not recording_turn):  # (a recording's frames keep the person where they stood)
             self.app.moving_person = True  # the person dragged on the plate: their feet follow the mouse
             self.app.drag_applied = (0.0, 0.0)
         elif imgui.is_mouse_clicked(0) and over_image and not recording_turn:
@@ -78,8 +79,9 @@ class Controls:
             if io.key_ctrl:
                 self.app.view = ix.zoomed(self.app.view, io.mouse_wheel, cursor=(mx - ax, my - ay), area=(aw, ah))
             elif plate is not None and plate.holds(*self._on_plate(mx - ax, my - ay)):  # on the person: scaled about their feet
-                plate.scaled(io.mouse_wheel)
-                self.app.actions.placed_on_plate()
+                if not recording_turn:
+                    plate.scaled(io.mouse_wheel)
+                    self.app.actions.placed_on_plate()
             else:
                 self.app.session.look = ix.wheeled(self.app.session.look, io.mouse_wheel)
         shortcuts = self.app.window.take_shortcuts()

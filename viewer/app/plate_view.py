@@ -146,10 +146,12 @@ class PlateView:
         if not shows_person:
             if self._shown is not None:
                 self._srgb, self._shown = srgb8(self.linear), None
+                self.box = self._frame = None  # no one to drag, scale or aim at
                 self.texture.write(self._srgb.tobytes())
             return self._srgb
-        if eng.complete and (self._person is None or self._person[0] != (id(eng), key)):
-            self._person = ((id(eng), key), *read_person(eng))
+        # (the engine itself, not its id: a released engine's id can be a new one's)
+        if eng.complete and (self._person is None or self._person[0][0] is not eng or self._person[0][1] != key):
+            self._person = ((eng, key), *read_person(eng))
         if self._person is None:
             return self._srgb  # the plate alone until the person's first frame is complete
         blur = self.blur(settled)
@@ -165,7 +167,9 @@ class PlateView:
             self.error = ""
             feet = not (placed_by[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
             self.box = landing_box(alpha, transform)
-            front = in_front(self.shown, self.place.y, self.box, self._mattes)  # the plate's people nearer hide them
+            # the plate's people nearer hide them: nearer than where this frame's feet land (a clip's person walks)
+            feet_y = self.place.y if self.anchor is None else self.box[3] / self.size[1]
+            front = in_front(self.shown, feet_y, self.box, self._mattes)
             result = composite_on_plate(self.linear, person, shadow, transform, blur,
                                         self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0, self.horizon,
                                         front)
@@ -174,6 +178,10 @@ class PlateView:
             self._frame = (transform, (alpha.shape[1], alpha.shape[0]))
             self._shown = shown
         return self._srgb
+
+    def unanchor(self):
+        """No longer a clip's: the person is placed by their own frame again."""
+        self.anchor, self._shown = None, None
 
     def box_fractions(self) -> list[float] | None:
         """The person's box on the plate (x0, y0, x1, y1) as fractions of its width and height, or None."""

@@ -78,7 +78,8 @@ def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layer
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
     feet = not (placed_by[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
-    front = in_front(plate, place.y, landing_box(alpha, transform))
+    box = landing_box(alpha, transform)
+    front = in_front(plate, place.y if anchor is None else box[3] / plate.size[1], box)  # (a clip's: where this frame's feet land)
     result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0, horizon, front)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}
     parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},
