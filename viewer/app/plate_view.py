@@ -18,12 +18,10 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
-from viewer.output.plate_composite import composite_on_plate
-from viewer.output.plate_render import read_person
-from viewer.plate.placement import Placement, camera_mismatch, enlarged, landing_box, person_lens_mismatch, plate_transform
+from viewer.output.plate_render import composite_frame, read_person
+from viewer.plate.placement import Placement, camera_mismatch, enlarged, person_lens_mismatch, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur
-from viewer.plate.plate_people import in_front
 from viewer.scene.look import Look
 
 VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
@@ -157,22 +155,16 @@ class PlateView:
         blur = self.blur(settled)
         shown = (self._person[0], self.place, blur)
         if shown != self._shown:
-            _, person, shadow, alpha, sky = self._person
-            placed_by = alpha if self.anchor is None else self.anchor
+            frame = self._person[1:]  # (the person, the shadow, the matte, the sky's share)
             try:
-                transform = plate_transform(placed_by, self.place, self.size, cut_allowed=True)
+                result, transform, self.box = composite_frame(frame, self.shown, self.place, blur, self.horizon, self.anchor,
+                                                              cut_allowed=True, mattes=self._mattes,
+                                                              focal_px=self.plate.focal_px * self.size[0] / self.plate.size[0])
             except InputError as exc:  # wholly off the plate, too small: the placement before stays
                 self.error = str(exc)
                 return self._srgb
             self.error = ""
-            feet = not (placed_by[-1] > 0.5).any()  # as write_on_plate: no contact shadow without soles
-            self.box = landing_box(alpha, transform)
-            # the plate's people nearer hide them: nearer than where this frame's feet land (a clip's person walks)
-            feet_y = self.place.y if self.anchor is None else self.box[3] / self.size[1]
-            front = in_front(self.shown, feet_y, self.box, self._mattes)
-            result = composite_on_plate(self.linear, person, shadow, transform, blur,
-                                        self.plate.focal_px * self.size[0] / self.plate.size[0], sky if feet else 0.0, self.horizon,
-                                        front)
+            alpha = frame[2]
             self._srgb = srgb8(result.image)
             self.texture.write(self._srgb.tobytes())
             self._frame = (transform, (alpha.shape[1], alpha.shape[0]))

@@ -6,7 +6,7 @@ scale and offset carries every frame into the plate: the person walks across the
 across their own frame (their camera held still), never jumping to stand where the placement says
 frame after frame. Each frame is the person relit (:class:`viewer.output.clip_render.ClipPictures`'s
 render, the plate's look) composited into the plate as a still is
-(:func:`viewer.output.plate_composite.composite_on_plate`: the ground's shadow, the contact shadow,
+(:func:`viewer.output.plate_render.composite_frame`: the ground's shadow, the contact shadow,
 the plate's defocus where the feet first stand and its grain, the same grain pattern every frame as
 the still plate's own); a frame where no one was found is the plate alone.
 """
@@ -16,12 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.output.clip_render import ClipPictures
-from viewer.output.plate_composite import composite_on_plate
-from viewer.output.plate_render import read_person
-from viewer.plate.placement import Placement, landing_box, plate_transform
+from viewer.output.plate_render import composite_frame, read_person
+from viewer.plate.placement import Placement, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
-from viewer.plate.plate_people import in_front
 
 COMPOSITE_VERSION = 2  # bump when the composite changes what a part shows (2: the plate's people in front hide the person)
 
@@ -35,9 +33,8 @@ class PlatePictures(ClipPictures):
         self.plate, self.place, self.horizon = plate, place, horizon
         first = self.frames.people[0]
         scene = self.frames.scene(first, self.sizes)
-        alpha = scene.frame.alpha if scene.frame is not None else scene.mask.astype(np.float32)
-        self.transform = plate_transform(alpha, place, plate.size, self.bundle.scene_path(first), cut_allowed)
-        self.feet = not (alpha[-1] > 0.5).any()  # soles on the ground: a contact shadow
+        self.anchor = scene.frame.alpha if scene.frame is not None else scene.mask.astype(np.float32)  # places every frame
+        self.transform = plate_transform(self.anchor, place, plate.size, self.bundle.scene_path(first), cut_allowed)
         self.blur, self.grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
         self.size = plate.size
         self._mattes: dict = {}  # the mattes of the plate's people found standing in front, by index
@@ -57,10 +54,7 @@ class PlatePictures(ClipPictures):
         if person != index:  # no one in this frame: the plate as it is
             return self.plate.srgb
         engine, _ = self._render(index, self._look(index, index))
-        rgba, shadow, alpha, sky = read_person(engine)
-        box = landing_box(alpha, self.transform)  # where this frame's person lands: the plate's people nearer hide them
-        front = in_front(self.plate, box[3] / self.plate.size[1], box, self._mattes)
-        result = composite_on_plate(self.plate.linear, rgba, shadow, self.transform, self.blur, self.plate.focal_px,
-                                    sky if self.feet else 0.0, self.horizon, front)
+        result, _, _ = composite_frame(read_person(engine), self.plate, self.place, self.blur, self.horizon, self.anchor,
+                                       cut_allowed=True, mattes=self._mattes)
         srgb = with_grain(np.clip(linear_to_srgb(result.image), 0.0, 1.0), result.person[..., 3], self.grain)
         return (srgb * 255.0 + 0.5).astype(np.uint8)

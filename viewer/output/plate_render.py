@@ -56,6 +56,26 @@ def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Plac
     return write_on_plate(read_person(engine), plate, place, png, exr, layers, layers_in_exr, source, cut_allowed, horizon)
 
 
+def composite_frame(frame: tuple, plate: Plate, place: Placement, blur: float, horizon: float | None, anchor: np.ndarray | None = None,
+                    source=None, cut_allowed: bool = False, mattes: dict | None = None, focal_px: float | None = None):
+    """The person of ``frame`` (:func:`read_person`'s) composited into ``plate`` at ``place`` as every plate
+    output does (a still, a window's copy, a clip's frame): placed by their frame's matte, or by ``anchor``
+    (a clip's first person's: every frame carried into the plate alike); a contact shadow only where the
+    placing matte's soles reach the ground; the plate's people nearer than the feet hiding them (the
+    place's feet, a clip's where this frame's land; their mattes kept in ``mattes`` when given). ``blur``
+    the plate's defocus there (plate pixels), ``focal_px`` the plate's (its own unless given). (the
+    composite, the transform, the person's box in the plate's pixels); one line when they cannot stand there."""
+    person, shadow, alpha, sky = frame
+    placed_by = alpha if anchor is None else anchor
+    transform = plate_transform(placed_by, place, plate.size, source, cut_allowed)
+    soles = not (placed_by[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
+    box = landing_box(alpha, transform)
+    front = in_front(plate, place.y if anchor is None else box[3] / plate.size[1], box, mattes)
+    result = composite_on_plate(plate.linear, person, shadow, transform, blur, plate.focal_px if focal_px is None else focal_px,
+                                sky if soles else 0.0, horizon, front)
+    return result, transform, box
+
+
 def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layers=None, layers_in_exr: bool = False,
                    source=None, cut_allowed: bool = False, horizon: float | None = None, anchor: np.ndarray | None = None) -> dict:
     """The person (``frame``: :func:`read_person`'s) composited into ``plate`` at ``place``, matched to
@@ -69,18 +89,12 @@ def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layer
     from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
     from viewer.output.layers import write_layers
 
-    person, shadow, alpha, sky = frame
-    placed_by = alpha if anchor is None else anchor
-    transform = plate_transform(placed_by, place, plate.size, source, cut_allowed)
+    blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
+    linear = plate.linear
+    result, transform, _ = composite_frame(frame, plate, place, blur, horizon, anchor, source, cut_allowed)
     soft = enlarged(transform.scale)
     if soft:
         warnings.warn(f"{plate.source}: {soft}", stacklevel=2)
-    blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
-    linear = plate.linear
-    feet = not (placed_by[-1] > 0.5).any()  # a person cut by their photo's bottom has no soles on the ground: no contact shadow
-    box = landing_box(alpha, transform)
-    front = in_front(plate, place.y if anchor is None else box[3] / plate.size[1], box)  # (a clip's: where this frame's feet land)
-    result = composite_on_plate(linear, person, shadow, transform, blur, plate.focal_px, sky if feet else 0.0, horizon, front)
     image = {c: result.image[..., k] for k, c in enumerate("RGB")}
     parts = {**{f"person.{c}": result.person[..., k] for k, c in enumerate("RGBA")},
              **{f"shadow.{c}": result.shadow[..., k] for k, c in enumerate("RGB")},
