@@ -23,6 +23,7 @@ from viewer.files.imageio import srgb_to_linear
 DEFAULT_FOCAL_35 = 35.0  # mm, 35-mm equivalent: what a plate without a focal length in its EXIF is taken as
 MIN_PLATE_PX = 16  # a plate smaller than this a side holds no light to read
 MAX_PLATE_PIXELS = 60_000_000  # 60 MP: a larger plate is refused (give a smaller copy)
+CLIP = 250  # of 255: a channel this high was clipped by the camera (or the JPEG)
 PANORAMA_ASPECT = 2.5  # a longer side this many times the shorter (a phone's panorama), or exactly 2:1 (equirectangular): no plate
 
 

@@ -48,13 +48,12 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.lighting.envmap import EnvMap, pixel_directions
+from viewer.lighting.envmap import EnvMap, pixel_directions, solid_angles
 from viewer.plate.horizon import plate_horizon
-from viewer.plate.plate_file import Plate
+from viewer.plate.plate_file import CLIP, Plate
 from viewer.plate.plate_sky import ClearSky, plate_sky
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
-CLIP = 250  # of 255: a channel this high was clipped by the camera (or the JPEG)
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
 FILL_BLUR = 0.05  # of the plate's longer side: the blur of the plate the unseen sphere is filled from
 SUN_RADIUS_DEG = 1.5  # the radius of the disc a sun read from the sky is drawn as
@@ -109,7 +108,7 @@ def _draw_sun(pixels: np.ndarray, dirs: np.ndarray, sun: ClearSky):
     if not disc.any():  # a disc narrower than the texels' spacing: the nearest texel
         disc = np.zeros(dirs.shape[:2], bool)
         disc.flat[int(np.argmax(dirs.reshape(-1, 3) @ sun.direction))] = True
-    solid = texel * (2.0 * math.pi / pixels.shape[1]) * np.sqrt(np.maximum(1.0 - dirs[..., 1] ** 2, 0.0))
+    solid = np.broadcast_to(solid_angles(*pixels.shape[:2])[:, None], disc.shape)
     pixels[disc] += sun.irradiance / float(solid[disc].sum())
 
 

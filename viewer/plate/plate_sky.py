@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
+from viewer.plate.plate_file import CLIP
 
 SKY_WIDTH = 240  # pixels: the plate's width its sky is read at
 MIN_ELEVATION = 3.0  # degrees above the horizon: the lowest sky pixel, and the lowest sun
@@ -53,7 +54,6 @@ EXPLAINED = 0.5  # the sun's fit leaves at most this share of the error of a sky
 TURBIDITIES = (2.0, 3.0, 5.0, 8.0)
 STEP_DEG = 4.0  # degrees between the sun directions tried first
 FIT_PIXELS = 800  # sky pixels the fit reads at most (a regular subset)
-CLIP = 250  # of 255: a channel this high is clipped
 
 
 @dataclass(frozen=True)
@@ -81,10 +81,9 @@ class ClearSky:
 
     def radiance(self, dirs: np.ndarray) -> np.ndarray:
         """(..., 3) the sky's radiance at ``dirs`` (the camera's frame); below the horizon, the horizon's."""
-        c, s = math.cos(self.pitch), math.sin(self.pitch)
-        up = dirs[..., 1] * c - dirs[..., 2] * s
-        gamma = np.arccos(np.clip(_world(dirs, self.pitch) @ self.sun, -1.0, 1.0))
-        lum = self.scale * perez(np.maximum(up, 0.0), gamma, self.turbidity)
+        world = _world(dirs, self.pitch)
+        gamma = np.arccos(np.clip(world @ self.sun, -1.0, 1.0))
+        lum = self.scale * perez(np.maximum(world[..., 1], 0.0), gamma, self.turbidity)
         return (lum[..., None] * self.colour).astype(np.float32)
 
 
