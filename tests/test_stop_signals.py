@@ -106,3 +106,29 @@ def test_a_stop_swallowed_into_another_error_is_said_as_the_stop():
     program as the stop it was: one line, exit 130, no traceback."""
     proc = subprocess.run([sys.executable, "-c", SWALLOWED], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 130 and proc.stderr.strip() == "relight: interrupted (SIGTERM)", proc.stderr
+
+
+IN_CALLBACK = """
+import ctypes, os, signal, time
+import viewer.cli.main as entry
+
+def work(argv=None):
+    def callback():  # a native library's call back into Python (llvmlite's object cache, numba compiling)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the stop arrives here, inside the callback: ctypes cannot let it out
+    ctypes.CFUNCTYPE(None)(callback)()
+    time.sleep(5)  # the work goes on after the callback: the stop must come here
+    print("finished")
+    return 0
+
+entry.main = work
+entry.run()
+"""
+
+
+def test_a_stop_raised_inside_a_native_callback_is_not_lost():
+    """SIGTERM while native code runs a Python callback: the stop is not swallowed (no "Exception ignored",
+    no finished work with exit 0): one line, exit 130."""
+    proc = subprocess.run([sys.executable, "-c", IN_CALLBACK], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 130 and proc.stderr.strip() == "relight: interrupted (SIGTERM)", proc.stderr
+    assert "finished" not in proc.stdout

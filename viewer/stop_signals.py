@@ -19,9 +19,11 @@ from __future__ import annotations
 import _thread
 import contextlib
 import signal
+import sys
 import threading
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+AGAIN_AFTER = 0.02  # seconds: a stop lost in a native callback is delivered again this long after
 
 
 def route_to_main_thread() -> None:
@@ -32,6 +34,29 @@ def route_to_main_thread() -> None:
         raise RuntimeError("stop signals are routed from the main thread")
     signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     threading.Thread(target=_forward, name="stop-signals", daemon=True).start()
+
+
+def keep_stops_raised() -> None:
+    """A stop's ``KeyboardInterrupt`` raised inside native code's call back into Python (a ctypes
+    callback: llvmlite's object cache while numba compiles during an infer) cannot leave it: Python
+    prints it as "Exception ignored" and the work goes on as if no stop had come (the robustness
+    campaign's SIGTERM at 65 % of an infer once ended with exit 0 and that traceback). Such a stop is
+    delivered again from a thread (:func:`deliver`, ``AGAIN_AFTER`` later) to land between the main thread's next bytecodes
+    outside the callback; nothing is printed for it. Other unraisable exceptions are reported as before."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable):
+        exc = unraisable.exc_value
+        if not isinstance(exc, KeyboardInterrupt):
+            previous(unraisable)
+            return
+        name = exc.args[0] if exc.args and isinstance(exc.args[0], str) else ""  # the stop handler's: the signal's name
+        signum = signal.Signals[name] if name in signal.Signals.__members__ else signal.SIGINT
+        again = threading.Timer(AGAIN_AFTER, deliver, (signum,))  # (after the hook has returned: not raised inside it)
+        again.daemon = True
+        again.start()
+
+    sys.unraisablehook = hook
 
 
 def _forward() -> None:

@@ -168,7 +168,7 @@ def run() -> None:
     import os
     import signal
 
-    from viewer.stop_signals import route_to_main_thread
+    from viewer.stop_signals import keep_stops_raised, route_to_main_thread
 
     received: list[str] = []  # the stop signals raised in the main thread, by name
 
@@ -181,6 +181,7 @@ def run() -> None:
         for sig in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, stop)
         route_to_main_thread()  # never inside native code: llvmpipe's shader compiler crashed on one
+        keep_stops_raised()  # nor lost in a native call back into Python
         code = main()
     except KeyboardInterrupt as exc:  # before main's own handling began (the campaign's held-back seed
         # caught one while the signals' thread was starting)
