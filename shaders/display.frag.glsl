@@ -42,7 +42,7 @@ void main() {
         color = vec4(linear_to_srgb(fg), c.a);
         return;
     }
-    vec3 back = tonemap(bg * scale, tonemap_op);
+    vec3 back = background_mode == BACKGROUND_PHOTO ? clamp(bg, 0.0, 1.0) : tonemap(bg * scale, tonemap_op);  // the photo as it is
     color = vec4(linear_to_srgb(mix(back, fg, c.a)), 1.0);
 #endif
 }

@@ -4,7 +4,8 @@
 // with A_frame the detail albedo at the frame's resolution and D, S the diffuse and specular
 // shading sums of the work-resolution composite (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
 // brought to the frame by filled_sample (bilinear, normalized by the mask, filled past it); then,
-// over the cached background, exposure, tone map and sRGB as the work display does.
+// over the cached background, exposure, tone map and sRGB as the work display does; the photo's own
+// background is shown as the photo is (no exposure, no tone curve: the photo's display values).
 // output_mode OUTPUT_DISPLAY writes the display image; OUTPUT_PERSON_HDR the person's HDR and matte; OUTPUT_COMPOSITED_HDR the HDR composited over
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG;
 // OUTPUT_BACKGROUND_DISPLAY the display image with no person and no shadow of theirs (a clip's
@@ -26,6 +27,7 @@ uniform int max_lod;
 uniform vec2 term_weights;             // (diffuse, specular): 1 shown, 0 left out
 uniform bool unit_albedo;              // show shading: albedo replaced by 1
 uniform bool transparent;
+uniform bool photo_background;         // the background is the photo's own: shown as it is
 uniform float exposure;                // stops
 uniform int tonemap_op;
 uniform int output_mode;
@@ -69,6 +71,6 @@ void main() {
     float scale = exp2(exposure);
     vec3 front = tonemap(fg * scale, tonemap_op);
     if (transparent) { color = vec4(linear_to_srgb(front), aa.a); return; }
-    vec3 back = aa.a >= 1.0 ? vec3(0.0) : tonemap(bg * scale, tonemap_op);
+    vec3 back = aa.a >= 1.0 ? vec3(0.0) : photo_background ? clamp(bg, 0.0, 1.0) : tonemap(bg * scale, tonemap_op);
     color = vec4(linear_to_srgb(mix(back, front, aa.a)), 1.0);
 }

@@ -9,6 +9,7 @@ import shutil
 import pytest
 
 from viewer.gl.programs import ProgramCache, explain_errors, shader_dir
+from viewer.scene.look import TONEMAPS
 
 
 def _broken_copy(tmp_path, fname: str, after_line: int):
@@ -89,11 +90,11 @@ def test_shaders_compare_modes_by_name_not_by_number():
 
 
 def test_the_tone_curves_in_glsl_and_in_numpy_agree(ctx, tmp_path):
-    """shaders/tonemap.glsl drawn over inputs from 0 to past its cap, against viewer.output.render's numpy
-    curves (the auto exposure and the white warning use them)."""
+    """shaders/tonemap.glsl drawn over inputs from 0 to past its cap, grey and coloured, against
+    viewer.output.render's numpy curves (the auto exposure and the white warning use them)."""
     import numpy as np
 
-    from viewer.output.render import tonemap_curve
+    from viewer.output.render import tonemap
     from viewer.shader_modes import code
 
     for p in shader_dir().glob("*.glsl"):
@@ -102,18 +103,19 @@ def test_the_tone_curves_in_glsl_and_in_numpy_agree(ctx, tmp_path):
         '#include "tonemap.glsl"\nuniform sampler2D values;\nuniform int op;\nout vec4 color;\n'
         "void main() { color = vec4(tonemap(texelFetch(values, ivec2(gl_FragCoord.xy), 0).rgb, op), 1.0); }\n")
     x = np.concatenate([np.linspace(0, 4, 200), np.geomspace(4, 1e8, 56)]).astype(np.float32)
-    values = np.repeat(x[:, None], 3, axis=1).reshape(1, -1, 3)
-    tex = ctx.texture((x.size, 1), 3, values.tobytes(), dtype="f4")
-    out = ctx.texture((x.size, 1), 4, dtype="f4")
+    grey = np.repeat(x[:, None], 3, axis=1)
+    values = np.concatenate([grey, grey * np.float32([1.0, 0.45, 0.1]), grey * np.float32([0.2, 0.3, 1.0])]).astype(np.float32)
+    tex = ctx.texture((len(values), 1), 3, values.tobytes(), dtype="f4")
+    out = ctx.texture((len(values), 1), 4, dtype="f4")
     fbo = ctx.framebuffer([out])
     prog = ProgramCache(ctx, tmp_path).get("fullscreen.vert.glsl", "tonemap_probe.frag.glsl")
     vao = ctx.vertex_array(prog, [])
-    for op in ("aces", "reinhard", "clamp"):
+    for op in TONEMAPS:
         prog["values"], prog["op"] = 0, code("TONEMAP", op)
         fbo.use()
         tex.use(0)
         vao.render(vertices=3)
-        got = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(-1, 4)[:, 0]
-        assert np.abs(got - tonemap_curve(x, op)).max() < 1e-5, op
+        got = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(-1, 4)[:, :3]
+        assert np.abs(got - tonemap(values, op)).max() < 1e-5, op
     for r in (vao, fbo, out, tex):
         r.release()

@@ -15,9 +15,12 @@ MIN_ALPHA = 1e-3  # GGX alpha = max(roughness^2, MIN_ALPHA): roughness 0 stays f
 SPECULAR_SCALE = 0.08  # Disney: F0 = SPECULAR_SCALE * specular
 FILLED_MIN_COVERAGE = 0.05  # filled_sample: mask coverage below which a coarser mip level is read
 TONEMAP_INPUT_MAX = 1e6  # the ACES curve is 1 long before; beyond, x^2 would overflow float32
+TONEMAP_KNEE = 0.76  # the neutral tone curve is linear up to this (Khronos PBR Neutral's start of compression)
+TONEMAP_DESATURATION = 0.15  # the neutral curve's move towards white per unit compressed away (Khronos PBR Neutral's)
 
 GLSL_CONSTANTS = {"PI": PI, "MIN_ALPHA": MIN_ALPHA, "SPECULAR_SCALE": SPECULAR_SCALE,
-                  "FILLED_MIN_COVERAGE": FILLED_MIN_COVERAGE, "TONEMAP_INPUT_MAX": TONEMAP_INPUT_MAX}
+                  "FILLED_MIN_COVERAGE": FILLED_MIN_COVERAGE, "TONEMAP_INPUT_MAX": TONEMAP_INPUT_MAX,
+                  "TONEMAP_KNEE": TONEMAP_KNEE, "TONEMAP_DESATURATION": TONEMAP_DESATURATION}
 
 
 def glsl_defines() -> list[str]:

@@ -35,3 +35,11 @@ def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         return np.concatenate([resize(image[..., i:i + 4], size) for i in range(0, channels, 4)], axis=-1)
     out = cv2.resize(image, tuple(int(v) for v in size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
     return out[..., None] if channels == 1 else out
+
+
+def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """:func:`resize` of ``image`` (H, W, C) weighted by ``weight`` (H, W): what lies outside a
+    person does not darken its edge."""
+    num = resize((image * weight[..., None]).astype(np.float32), size)
+    den = resize(weight.astype(np.float32), size)
+    return num / np.maximum(den, 1e-6)[..., None]

@@ -11,7 +11,7 @@ its enum. Adding a mode is adding its name here and its branch in the shader.
 from __future__ import annotations
 
 MODES = {
-    "TONEMAP": ("aces", "reinhard", "clamp"),  # the display's tone curve (shaders/tonemap.glsl)
+    "TONEMAP": ("neutral", "aces", "reinhard", "clamp"),  # the display's tone curve (shaders/tonemap.glsl)
     "BACKGROUND": ("color", "photo", "environment", "transparent"),  # behind the person
     "VISIBILITY": ("soft", "hard", "none", "refined"),  # the shadows the composite uses
     "INSPECT": ("albedo", "normal", "depth", "specular", "roughness", "shadow"),  # an inspection view

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from viewer.scene.look import TONEMAPS
+
 
 def add_engine_args(p, presets: bool = False):
     """The engine's options; ``presets``: several presets (``--preset A B``, dest ``presets``: a batch's looks)."""
@@ -68,7 +70,8 @@ def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
     p.add_argument("--exposure", type=auto_or("stops"),
                    help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
                         "(0 stops for a scene without a photo)")
-    p.add_argument("--tonemap", choices=("aces", "reinhard", "clamp"), help="tone curve (default aces)")
+    p.add_argument("--tonemap", choices=TONEMAPS, help="tone curve (default neutral: the photo's tones as they are up "
+                   "to a knee, highlights rolled off keeping their hue; aces: the filmic curve, per channel)")
     p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
                    help="behind the person: the environment map seen through the photo's camera (default), the "
                         "photo's own background, a grey, or transparent (PNG and EXR with alpha)")

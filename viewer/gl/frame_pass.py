@@ -127,18 +127,17 @@ class FrameCompositePass:
         self.box = frame.box
         self.skin = skin  # the SkinScatterPass whose image replaces D on the skin when shown (None: no skin)
 
-    def run(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, box=None):
+    def run(self, shading, background: moderngl.Texture, terms, look: Look, mode: str, box=None):
         with self.kit.timed(self.name):
-            self.draw(self.fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY, box)
+            self.draw(self.fbo, shading, background, terms, look, mode, OUTPUT_DISPLAY, box)
 
-    def draw_band(self, shading, background: moderngl.Texture, terms, look: Look, transparent: bool, band: int,
-                  bands: int):
+    def draw_band(self, shading, background: moderngl.Texture, terms, look: Look, mode: str, band: int, bands: int):
         """Band ``band`` of ``bands`` (rows) of the display image, into the back image (:meth:`swap`)."""
         if self.back is None:
             self.back = self.kit.texture(self.size, 4, dtype="f1")
             self.back_fbo = self.kit.ctx.framebuffer(color_attachments=[self.back])
         with self.kit.timed(self.name):
-            self.draw(self.back_fbo, shading, background, terms, look, transparent, OUTPUT_DISPLAY,
+            self.draw(self.back_fbo, shading, background, terms, look, mode, OUTPUT_DISPLAY,
                       band_box(self.size, band, bands))
 
     def swap(self):
@@ -146,10 +145,11 @@ class FrameCompositePass:
         self.image, self.back = self.back, self.image
         self.fbo, self.back_fbo = self.back_fbo, self.fbo
 
-    def draw(self, fbo: moderngl.Framebuffer, shading, background: moderngl.Texture, terms, look: Look, transparent: bool,
+    def draw(self, fbo: moderngl.Framebuffer, shading, background: moderngl.Texture, terms, look: Look, mode: str,
              output_mode: int = OUTPUT_DISPLAY, box=None):
         """The frame composite into ``fbo``: the display image (``output_mode`` 0) over ``box``
-        (None: the whole frame), or one of the HDR outputs."""
+        (None: the whole frame), or one of the HDR outputs; ``mode`` the background shown (the
+        look's, resolved to what the scene has)."""
         kit = self.kit
         prog = kit.programs.get("fullscreen.vert.glsl", "frame_composite.frag.glsl")
         fbo.scissor = box
@@ -181,19 +181,20 @@ class FrameCompositePass:
         diffuse, specular, unit_albedo = terms
         prog["term_weights"] = (diffuse, specular)
         prog["unit_albedo"] = unit_albedo
-        prog["transparent"] = transparent
+        prog["transparent"] = mode == "transparent"
+        prog["photo_background"] = mode == "photo"
         prog["exposure"] = look.exposure_stops
         prog["tonemap_op"] = code("TONEMAP", look.tonemap)
         prog["output_mode"] = output_mode
         kit.fullscreen(prog)
         fbo.scissor = None
 
-    def read(self, shading, background, terms, look: Look, transparent: bool, output_mode: int) -> np.ndarray:
+    def read(self, shading, background, terms, look: Look, mode: str, output_mode: int) -> np.ndarray:
         """(H, W, 4) float32: the person's HDR and matte (``OUTPUT_PERSON_HDR``), the HDR over
         the background (``OUTPUT_COMPOSITED_HDR``) or the display of the background alone
         (``OUTPUT_BACKGROUND_DISPLAY``, in [0, 1]), drawn into a texture made for the call."""
         with self.kit.scratch_target(self.size) as (tex, fbo):
-            self.draw(fbo, shading, background, terms, look, transparent, output_mode)
+            self.draw(fbo, shading, background, terms, look, mode, output_mode)
             return self.kit.read(tex, 4)
 
     def release(self):

@@ -116,11 +116,10 @@ class FramePicture:
         (swapped to the front) once all its bands are drawn, so no frame of a window shows half of
         one; False when the budget ran out first (the bands drawn are kept for the next call; the
         engine calls :meth:`restart` first when anything changed meanwhile)."""
-        transparent = i.background == "transparent"
         if work is None:
             self._bands = None
             self._ready(i)
-            self.last.run(i.composite.shading, self.background.image, i.terms, i.look, transparent,
+            self.last.run(i.composite.shading, self.background.image, i.terms, i.look, i.background,
                           box=None if whole else self.last.box)
             return True
         if self._bands is None:
@@ -149,7 +148,7 @@ class FramePicture:
         while b["frame"] < BANDS:
             if work.spent("frame_band"):
                 return False
-            self.last.draw_band(i.composite.shading, self.background.image, i.terms, i.look, transparent, b["frame"], BANDS)
+            self.last.draw_band(i.composite.shading, self.background.image, i.terms, i.look, i.background, b["frame"], BANDS)
             b["frame"] += 1
         self.last.swap()
         self._bands = None
@@ -157,8 +156,7 @@ class FramePicture:
 
     def _read(self, i: PictureInputs, terms, output_mode: int) -> np.ndarray:
         self._ready(i)
-        return self.last.read(i.composite.shading, self.background.image, terms, i.look, i.background == "transparent",
-                              output_mode)
+        return self.last.read(i.composite.shading, self.background.image, terms, i.look, i.background, output_mode)
 
     def read_person(self, i: PictureInputs) -> np.ndarray:
         return self._read(i, i.terms, OUTPUT_PERSON_HDR)

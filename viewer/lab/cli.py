@@ -260,6 +260,16 @@ def cmd_bench(args) -> int:
         for name, t in result["targets"].items():
             print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
         print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
+    elif args.what == "colour":
+        from viewer.lab.bench.colour import run_colour
+
+        out_dir = Path(args.output or "out/bench-colour")
+        result = run_colour(args.set or [shared_folder(args.photos, "photos", "--photos")], shared_folder(args.maps, "hdri", "--maps"),
+                            out_dir, progress=lambda line: print(line, flush=True))
+        for group, g in result["summary"].items():
+            print(f"{group} ({len(g['photos'])} photos): " + ", ".join(
+                f"{k} worst {v['worst']} median {v['median']}" for k, v in g.items() if isinstance(v, dict)))
+        print(f"wrote {out_dir / 'colour.json'} and the contact sheets in {result['seconds'] / 60:.1f} min")
     elif args.what == "photos" and args.set:
         from viewer.lab.bench.photo_set import run_photo_set, set_table
 
@@ -364,7 +374,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p = commands["bench"] = argparse.ArgumentParser(prog="relight bench", description="benchmarks that print figures and save JSON")
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
-                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory", "plates"),
+                                    "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory", "plates",
+                                    "colour"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -384,7 +395,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "error against the input's, frames a minute, stages, peak memory; clip-memory: the peak memory of "
                         "`relight render CLIP` on clips of 10 s and 60 s made from the bundled photo; plates: the light "
                         "estimated from plates made of each map of --maps at three yaws, the person relit by it against the "
-                        "true map, a uniform light and spherical harmonics")
+                        "true map, a uniform light and spherical harmonics; colour: every photo of --set relit under a "
+                        "uniform white map (its colours against the photo's: drift and cast in u'v'), a side key light "
+                        "(the face skin's brightness, the backdrop kept) and two maps, contact sheets (out/bench-colour/)")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--procedural", type=int, help="plates: instead of --maps, this many procedural maps (two of a kind at "
                    "most, seeds from 9000), made into the output's folder: maps never looked at while the estimate was made")
@@ -403,7 +416,8 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("--set", nargs="+", metavar="DIR", help="plates: more folders of photos whose people are put back into "
                    "their own photo; photos: every photo of these folders through the whole photo "
                    "path (holes and speckle on skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
-                   "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/)")
+                   "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/); colour: the "
+                   "photos measured")
     p.add_argument("--before", help="photos --set: a photo_set.json of an earlier run, shown beside this one")
     p.add_argument("--campaign-seed", type=int, default=17, help="robustness: the generators' seed (default 17; another seed "
                                                                   "makes held-back variants of every generated class)")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.constants import TONEMAP_INPUT_MAX
+from viewer.constants import TONEMAP_DESATURATION, TONEMAP_INPUT_MAX, TONEMAP_KNEE
 from viewer.errors import InputError
 from viewer.files.imageio import atomic_paths, linear_to_srgb, write_exr, write_png
 from viewer.files.ownership import folder_lock
@@ -17,9 +17,16 @@ from viewer.scene.bundle import Scene
 from viewer.scene.look import AUTO, Look
 
 
-def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
-    """The display tone curves of shaders/tonemap.glsl, in numpy."""
-    x = np.clip(np.asarray(x, np.float64), 0.0, TONEMAP_INPUT_MAX)
+def tonemap(rgb: np.ndarray, op: str) -> np.ndarray:
+    """The display tone curves of shaders/tonemap.glsl, in numpy: ``rgb`` (..., 3) linear, exposed."""
+    x = np.clip(np.asarray(rgb, np.float64), 0.0, TONEMAP_INPUT_MAX)
+    if op == "neutral":
+        peak = x.max(axis=-1, keepdims=True)
+        d = 1.0 - TONEMAP_KNEE
+        top = 1.0 - d * d / (np.maximum(peak, TONEMAP_KNEE) + d - TONEMAP_KNEE)
+        g = 1.0 - 1.0 / (TONEMAP_DESATURATION * (peak - top) + 1.0)
+        rolled = x * (top / np.maximum(peak, 1e-300)) * (1.0 - g) + top * g
+        return np.where(peak <= TONEMAP_KNEE, x, rolled)
     if op == "aces":
         return np.clip((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0)
     if op == "reinhard":
@@ -27,25 +34,46 @@ def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
     return np.clip(x, 0.0, 1.0)
 
 
-def photo_exposure(engine, scene: Scene, tonemap: str) -> float:
-    """Exposure (stops) at which the relit person's median luminance, tone-mapped, matches the
-    photo's own median luminance over the person: the photo's exposure carried over, so a
-    brighter map does not wash out black clothes nor a dim one sink the person (0 for a scene
-    without a photo). Uses the engine's current work-resolution render."""
-    from viewer.photo.detail import luminance
+def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
+    """The tone curve of grey values (luminance): :func:`tonemap` of ``x`` in every channel."""
+    x = np.asarray(x, np.float64)
+    return tonemap(np.repeat(x[..., None], 3, axis=-1), op)[..., 0]
 
-    if scene.photo is None:
+
+METER = 90  # percentile of the metered region's luminance: its lit part (a key's shadow below it does not count)
+METER_SKIN = 50  # work pixels of skin at least to meter on it (else the whole person)
+
+
+def photo_exposure(engine, scene: Scene, tonemap_op: str) -> float:
+    """Exposure (stops) that shows the person's lit skin as bright as the photo shows it, as a
+    photographer exposes for the key-lit skin (0 for a scene without a photo): the ``METER``-th
+    percentile of the relit luminance over the person's skin (the whole person where the photo
+    shows too little skin), tone-mapped, matches the photo's over the same pixels. A key light
+    that leaves half the person in shadow exposes the lit half at the photo's level instead of
+    lifting the shadow's (which blew the lit skin out), and a bright or dim map neither washes out
+    black clothes nor sinks the person. Uses the engine's current work-resolution render."""
+    from viewer.photo.detail import luminance
+    from viewer.resize import resize
+
+    if scene.photo is None or not scene.mask.any():
         return 0.0
-    relit = luminance(engine.output.read_work_hdr()[scene.mask])
-    shown = luminance(scene.photo[scene.mask])
-    r, p = float(np.median(relit)), float(np.median(shown))
+    region = scene.mask
+    if scene.frame is not None and scene.frame.skin is not None:
+        skin = scene.mask & (resize(scene.frame.skin.astype(np.float32), (scene.width, scene.height)) > 0.5)
+        region = skin if skin.sum() >= METER_SKIN else region
+    relit = luminance(engine.output.read_work_hdr()[region]).astype(np.float64)
+    shown = luminance(scene.photo[region]).astype(np.float64)
+    relit = relit[np.isfinite(relit)]
+    if not relit.size:
+        return 0.0
+    r, p = float(np.percentile(relit, METER)), float(np.percentile(shown, METER))
     if not (r > 0 and p > 0):
         return 0.0
     # tone_curve(2^e r) = p: bisection on e (the curves increase monotonically)
     lo, hi = -30.0, 30.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap) < min(p, 0.999) else (lo, mid)
+        lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap_op) < min(p, 0.999) else (lo, mid)
     return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
 
 

@@ -9,14 +9,13 @@ photo's detail comes in through ``A_frame``, made once at inference by one of:
 - ``highpass``: the network's albedo times the photo's high-frequency ratio, photo over its
   low-pass (a mask-normalized Gaussian of about one network pixel);
 - ``quotient``: the photo divided by its own shading: ``Q = (photo - S_old) / D_old`` with D_old,
-  S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo.photo_lighting`),
-  upsampled exactly as the frame composite upsamples the new ones, D_old's colour low-passed
-  (``smooth_colour``: the photo's light changes colour slowly; at the outline the networks'
-  normals would tint the edge). Under new lights the output is
-  then the photo times D_new / D_old, the quotient image, with the old highlights taken out.
+  S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo.photo_lighting`:
+  colourless, so Q keeps the photo's colours), upsampled exactly as the frame composite upsamples
+  the new ones. Under new lights the output is then the photo times D_new / D_old, the quotient
+  image, with the old highlights taken out.
   Where D_old is dark (below ``DARK`` of its mean over the person) the quotient is noise over a
-  small number: there it fades to ``highpass``. The subtraction of the old highlights never
-  removes more than ``HIGHLIGHT_KEEP`` of a pixel.
+  small number: there it fades to ``highpass``. The subtraction of the old highlights keeps at
+  least ``HIGHLIGHT_KEEP`` of every channel of a pixel, and its hue (:func:`sheen_room`).
   Q carries whatever of the photo's light the model did not explain. Where Q is *darker* than the
   network's albedo N at coarse scale, that is mostly albedo the network missed (black clothes,
   dark hair: kept as the photo has them); where it is *brighter*, it is mostly light the model
@@ -47,7 +46,6 @@ BRIGHT_SHARE = 0.5  # of a coarse excess of brightness over the network's albedo
 CLEAN_DARK = 0.35  # of the person's median D_old: shading darker than this has its albedo regularized (clean_in_shade)
 CLEAN_CONTRAST = 0.15  # ln-luminance: a step of the photo larger than this is kept through the regularization
 CLEAN_RADIUS = 2  # pixels: the regularization's reach
-LIGHT_COLOUR_SCALE = 3.0  # network pixels: the colour of the photo's shading is low-passed at this scale (smooth_colour)
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:
@@ -81,13 +79,14 @@ def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.nd
     return out.reshape(image.shape).astype(np.float32, copy=False)
 
 
-def smooth_colour(shading: np.ndarray, weight: np.ndarray, sigma: float) -> np.ndarray:
-    """``shading`` (H, W, 3) with its own luminance per pixel and the colour of its low-pass (a
-    Gaussian of ``sigma`` pixels over ``weight``): the photo's light changes colour slowly over the
-    person, and where the networks' normals are least sure (the outline, turned away from the
-    camera) a colour of the shading's own would tint the quotient's edge."""
-    low = masked_lowpass(shading, weight, sigma)
-    return (luminance(shading)[..., None] * low / np.maximum(luminance(low), 1e-12)[..., None]).astype(np.float32)
+def sheen_room(colour: np.ndarray, specular: np.ndarray) -> np.ndarray:
+    """(H, W) in [0, 1]: the share of the sheen ``specular`` (H, W, 3) that the photo's ``colour``
+    (H, W, 3, linear) leaves room for. A sheen adds its colour to every channel of a pixel, so the
+    photo's darkest channel bounds it: at most ``1 - HIGHLIGHT_KEEP`` of each channel may be sheen.
+    One share per pixel, for all channels alike, so that taking the sheen out keeps its hue (a
+    per-channel bound took less from a saturated colour's dark channels than from its bright one)."""
+    room = (1.0 - HIGHLIGHT_KEEP) * np.asarray(colour, np.float32) / np.maximum(np.asarray(specular, np.float32), 1e-12)
+    return np.clip(room.min(axis=-1), 0.0, 1.0).astype(np.float32)
 
 
 def highpass_ratio(photo: np.ndarray, alpha: np.ndarray, sigma: float) -> np.ndarray:
@@ -146,10 +145,10 @@ def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_alb
                 raise ValueError("the quotient needs the photo's own shading")
             diffuse, specular = shading
             person = alpha > 0.5
-            diffuse = smooth_colour(diffuse, person, LIGHT_COLOUR_SCALE * lowpass_sigma)
             mean = diffuse[person].mean(axis=0) if person.any() else np.ones(3, np.float32)
             floor = np.maximum(DARK * mean, 1e-12).astype(np.float32)
-            lit = photo - np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)
+            removed = specular * sheen_room(photo, specular)[..., None]
+            lit = photo - removed
             quotient = lit / np.maximum(diffuse, floor)
             # weight 0 below the floor, 1 from twice the floor up, per channel
             w = np.clip(diffuse / floor - 1.0, 0.0, 1.0)
@@ -163,9 +162,10 @@ def detail_albedo(method: str, photo: np.ndarray, alpha: np.ndarray, network_alb
                 albedo = albedo / np.maximum(excess, 1.0)[..., None] ** BRIGHT_SHARE
             albedo, stats["cleaned_fraction"] = clean_in_shade(albedo, photo, diffuse, person)
             stats["dark_fraction"] = float((w[person] < 1).any(axis=-1).mean()) if person.any() else 0.0
-            stats["highlight_removed"] = float((np.minimum(specular, (1.0 - HIGHLIGHT_KEEP) * photo)[person]).mean()
-                                              / max(float(photo[person].mean()), 1e-12)) if person.any() else 0.0
+            stats["highlight_removed"] = float(removed[person].mean() / max(float(photo[person].mean()), 1e-12)) \
+                if person.any() else 0.0
     clipped = (albedo > 1.0).any(axis=-1) & inside
     stats["clipped_fraction"] = float(clipped.sum() / max(int(inside.sum()), 1))
-    albedo = np.where(inside[..., None], np.clip(albedo, 0.0, 1.0), 0.0).astype(np.float32)
-    return albedo, stats
+    albedo = np.maximum(albedo, 0.0)
+    albedo = albedo / np.maximum(albedo.max(axis=-1, keepdims=True), 1.0)  # brought into [0, 1] whole: its hue kept
+    return np.where(inside[..., None], albedo, 0.0).astype(np.float32), stats

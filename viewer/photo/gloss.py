@@ -10,14 +10,21 @@ keeps the network's roughness; the rest is made at least ``MATTE_ROUGHNESS``. Ha
 (the photo's own highlights stay in the detail albedo). Without a face (a photo the pose model does
 not find, a synthetic scene), nothing changes. docs/photos.md shows dark cloth under a low sun
 before and after, and measures the prior on held-out pairs.
+
+The networks' specular map is nearly uniform too, and the photo bounds it: a sheen adds to every
+channel, so where the photo's colour is saturated (a red jacket with no green in it) it has
+little sheen, whatever the map says. :func:`bounded_sheen` scales the map there, once the photo's
+own light is known; under a new light such a surface keeps its colour (a uniform white light
+turned that jacket pink).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from viewer.photo.detail import luminance
+from viewer.photo.detail import luminance, masked_lowpass, sheen_room
 from viewer.photo.matting import face_mask
+from viewer.resize import mask_normalized_resize, resize
 
 MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)
 SKIN_DISTANCE = 3.0  # Mahalanobis distance in the skin's log-chromaticity where skin turns to not skin
@@ -74,3 +81,27 @@ def skin_mm(face_width_px: float | None, person_height_px: float) -> float:
     if face_width_px is not None and face_width_px > 0:
         return FACE_WIDTH_MM / float(face_width_px)
     return PERSON_HEIGHT_MM / max(float(person_height_px), 1.0)
+
+
+def bounded_sheen(scene, specular_old: np.ndarray, colour: np.ndarray, network_px: float):
+    """(``scene`` with its specular map scaled where the photo leaves no room for the sheen, the
+    photo's sheen under its own lights ``specular_old`` (H, W, 3 at the frame) scaled alike, the
+    share of the person whose sheen was lessened). The room (:func:`viewer.photo.detail.sheen_room`)
+    is read from the photo's ``colour`` (linear, the frame's size) at the maps' level of detail (a
+    low-pass of ``network_px`` frame pixels); the map takes its least over the frame pixels one work
+    pixel's shading reaches (its footprint and the bilinear reach around it), so that no frame pixel
+    gets more sheen than its photo allows; the photo's sheen is scaled by that map brought back."""
+    from dataclasses import replace
+
+    import cv2
+
+    alpha = scene.frame.alpha
+    person = alpha > 0.5
+    room = sheen_room(masked_lowpass(colour, person, network_px), specular_old)
+    side = 2 * int(np.ceil(alpha.shape[1] / scene.width)) + 1
+    least = cv2.erode(room, np.ones((side, side), np.uint8))
+    work = np.clip(mask_normalized_resize(least[..., None], alpha, (scene.width, scene.height))[..., 0], 0.0, 1.0)
+    share = np.clip(resize(work, (alpha.shape[1], alpha.shape[0])), 0.0, 1.0)
+    bounded = replace(scene, specular=np.where(scene.mask, scene.specular * work, 0.0).astype(np.float32)).validate()
+    lessened = float((share[person] < 0.99).mean()) if person.any() else 0.0
+    return bounded, (specular_old * share[..., None]).astype(np.float32), lessened

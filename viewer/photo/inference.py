@@ -52,7 +52,7 @@ from viewer.photo.photo_frame import (
     read_photo,
     square,
 )
-from viewer.resize import resize
+from viewer.resize import mask_normalized_resize, resize
 from viewer.resources import network_dir
 from viewer.scene.backdrop import photo_blur
 
@@ -61,7 +61,7 @@ NETWORK_RES = 256
 # for assets/photos/underpass.jpg (681x1024) on the 2-core CPU machine, 2026-11-25
 STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rendering": 0.21, "depth": 0.07,
                 "maps to the work frame": 0.24, "face": 0.10, "steady along the clip": 0.05, "fit the photo's lights": 1.65,
-                "render the photo's shading": 0.45, "detail": 0.17, "write": 0.3}
+                "render the photo's shading": 0.45, "the photo's sheen": 0.05, "detail": 0.17, "write": 0.3}
 FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
 NETWORKS = ("inverse", "depth")
 PIPELINE = "frame-8"  # bundles cached by an older pipeline are inferred again (frame-8: the photo's lens in the frame)
@@ -170,14 +170,6 @@ def scene_maps(work: np.ndarray, mask: np.ndarray, distance: float) -> dict:
             "roughness": np.where(mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
             "normal": np.where(inside, normal, 0).astype(np.float32),
             "depth": np.where(mask, np.maximum(work[..., 8], 0.1), distance).astype(np.float32)}
-
-
-def mask_normalized_resize(image: np.ndarray, weight: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """Area resize of ``image`` weighted by ``weight`` (what lies outside the person does not
-    darken its edge)."""
-    num = resize((image * weight[..., None]).astype(np.float32), size)
-    den = resize(weight.astype(np.float32), size)
-    return num / np.maximum(den, 1e-6)[..., None]
 
 
 def check_device(device: str) -> str:
@@ -546,7 +538,7 @@ def _steady(scene, frame_photo, steady):
 
 
 def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface, given_lights):
-    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights, white_balanced
+    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights
 
     # the photo at the maps' level of detail: one network pixel of low-pass
     target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, side_work / NETWORK_RES)
@@ -557,7 +549,6 @@ def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, 
         return {"lights": given_lights, "fit": {"lights": len(given_lights), "given": "the shot's, fitted on its first frame"},
                 "target": target, "valid": valid}
     lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
-    lights, fit["white_balance_gains"] = white_balanced(lights)  # the camera balanced the photo's light
     return {"lights": lights, "fit": fit, "target": target, "valid": valid}
 
 
@@ -566,6 +557,12 @@ def _photo_shading(engine, lights, fit, target, valid):
     explained = engine.render().output.read_work_hdr()
     diffuse, specular = engine.output.read_frame_shading()
     return {"explained": explained, "shading": (diffuse, specular), "fit": {**fit, "psnr_db": fit_psnr(explained, target, valid)}}
+
+
+def _sheen(scene, shading, framing, matte, gloss_record):
+    diffuse, specular = shading
+    scene, specular, lessened = gloss.bounded_sheen(scene, specular, matte.foreground, framing.side / NETWORK_RES)
+    return {"scene": scene, "shading": (diffuse, specular), "gloss_record": {**gloss_record, "sheen_lessened": round(lessened, 4)}}
 
 
 def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
@@ -598,6 +595,8 @@ STAGE_LIST = (
                                                         "face_surface", "given_lights"), ("lights", "fit", "target", "valid")),
     Stage("render the photo's shading", _photo_shading, ("engine", "lights", "fit", "target", "valid"),
           ("explained", "shading", "fit")),
+    Stage("the photo's sheen", _sheen, ("scene", "shading", "framing", "matte", "gloss_record"),
+          ("scene", "shading", "gloss_record")),
     Stage("detail", _detail, ("scene", "frame_network_albedo", "shading", "framing", "matte", "detail"), ("scene", "detail_stats")),
 )
 ENGINE_STAGES = ("fit the photo's lights", "render the photo's shading")  # the stages that read ``engine``

@@ -49,7 +49,7 @@ class Look:
     yaw: float = 0.0  # degrees: the lighting (and the map behind) turned about the vertical axis
     tilt: float = 0.0  # degrees, about the camera's horizontal axis
     exposure: float | str = 0.0  # stops, or "auto" (a photo keeps its own brightness; 0 until resolved)
-    tonemap: str = "aces"
+    tonemap: str = "neutral"  # TONEMAPS: the photo's tones kept, highlights rolled off with their hue (tonemap.glsl)
     background: str = "environment"  # environment | photo | color | transparent
     background_color: tuple = (0.18, 0.18, 0.18)  # linear RGB of the "color" background
     shadows: str = "soft"  # soft (EngineOptions.soft: PCSS or CSM) | refined (network) | hard (shadow map) | none
