@@ -122,3 +122,23 @@ def test_the_colour_bench_runs_on_a_photo_and_writes_its_figures(tmp_path):
     row = json.loads((out / "colour.json").read_text())["photos"][0]
     assert row["studio_backdrop"] and row["white"]["drift"] <= 0.005 and abs(row["key"]["p90_stops"]) <= 0.5
     assert (out / row["contact_sheet"]).stat().st_size > 10_000
+
+
+def test_the_face_is_where_the_exposure_meters_and_its_box_goes_with_the_bundle(studio, tmp_path):
+    from dataclasses import replace
+
+    from viewer.errors import InputError
+    from viewer.output.render import metered
+    from viewer.resize import resize
+    from viewer.scene.bundle import load_scene, save_scene
+
+    x, y, w, h = studio.frame.face_box
+    rows = np.flatnonzero((studio.frame.alpha > 0.5).any(axis=1))
+    assert 0 < w < 0.3 and (y + h / 2 - rows[0] / studio.frame.height) < 0.2 * len(rows) / studio.frame.height  # the head
+    face = metered(studio)
+    skin = studio.mask & (resize(studio.frame.skin, (studio.width, studio.height)) > 0.5)
+    assert 50 <= face.sum() < skin.sum() and not (face & ~skin).any()  # the face's skin, not the arms'
+    assert metered(replace(studio, frame=replace(studio.frame, face_box=None))).sum() == skin.sum()
+    assert load_scene(save_scene(studio, tmp_path / "b")).frame.face_box == pytest.approx(studio.frame.face_box, abs=1e-5)
+    with pytest.raises(InputError, match="face_box"):
+        replace(studio.frame, face_box=(0.5, 0.5, 0.6, 0.1)).validate((studio.width, studio.height))

@@ -41,26 +41,41 @@ def tonemap_curve(x: np.ndarray, op: str) -> np.ndarray:
 
 
 METER = 90  # percentile of the metered region's luminance: its lit part (a key's shadow below it does not count)
-METER_SKIN = 50  # work pixels of skin at least to meter on it (else the whole person)
+METER_SKIN = 50  # work pixels at least to meter on (the face's skin, else all the skin, else the whole person)
+
+
+def metered(scene: Scene) -> np.ndarray:
+    """(H, W) bool of the work frame: what the automatic exposure meters. The face's skin (the
+    frame's skin where its face is), else all the skin, else the whole person, whichever first has
+    ``METER_SKIN`` pixels."""
+    from viewer.resize import resize
+
+    frame = scene.frame
+    if frame is None or frame.skin is None:
+        return scene.mask
+    skin = scene.mask & (resize(frame.skin.astype(np.float32), (scene.width, scene.height)) > 0.5)
+    if frame.face_box is not None:
+        x, y, w, h = frame.face_box
+        face = np.zeros_like(skin)
+        face[int(y * scene.height):int(np.ceil((y + h) * scene.height)), int(x * scene.width):int(np.ceil((x + w) * scene.width))] = True
+        if (skin & face).sum() >= METER_SKIN:
+            return skin & face
+    return skin if skin.sum() >= METER_SKIN else scene.mask
 
 
 def photo_exposure(engine, scene: Scene, tonemap_op: str) -> float:
     """Exposure (stops) that shows the person's lit skin as bright as the photo shows it, as a
-    photographer exposes for the key-lit skin (0 for a scene without a photo): the ``METER``-th
-    percentile of the relit luminance over the person's skin (the whole person where the photo
-    shows too little skin), tone-mapped, matches the photo's over the same pixels. A key light
+    photographer exposes for the key-lit face (0 for a scene without a photo): the ``METER``-th
+    percentile of the relit luminance over the face's skin (:func:`metered`), tone-mapped,
+    matches the photo's over the same pixels. A key light
     that leaves half the person in shadow exposes the lit half at the photo's level instead of
     lifting the shadow's (which blew the lit skin out), and a bright or dim map neither washes out
     black clothes nor sinks the person. Uses the engine's current work-resolution render."""
     from viewer.photo.detail import luminance
-    from viewer.resize import resize
 
     if scene.photo is None or not scene.mask.any():
         return 0.0
-    region = scene.mask
-    if scene.frame is not None and scene.frame.skin is not None:
-        skin = scene.mask & (resize(scene.frame.skin.astype(np.float32), (scene.width, scene.height)) > 0.5)
-        region = skin if skin.sum() >= METER_SKIN else region
+    region = metered(scene)
     relit = luminance(engine.output.read_work_hdr()[region]).astype(np.float64)
     shown = luminance(scene.photo[region]).astype(np.float64)
     relit = relit[np.isfinite(relit)]

@@ -520,6 +520,12 @@ def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record, steady):
     if steady is not None:  # a clip's frame: the face's landmarks smoothed from frame to frame
         faces = steady[0].steady_faces(faces, steady[1])
     scene, face_record, face_surface = with_face(scene, faces, sizes.work_scale)
+    if faces:  # where the face is: what the automatic exposure meters (viewer.output.render.photo_exposure)
+        h, w = alpha.shape
+        (x0, y0), (x1, y1) = np.clip(faces[0].points[:, :2].min(axis=0), 0, None), faces[0].points[:, :2].max(axis=0)
+        x1, y1 = min(float(x1), w), min(float(y1), h)
+        if x1 > x0 and y1 > y0:
+            scene = replace(scene, frame=replace(scene.frame, face_box=(x0 / w, y0 / h, (x1 - x0) / w, (y1 - y0) / h)))
     if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
         mm = gloss.skin_mm(faces[0].width if faces else None, person_box(body)[2])
         scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm))  # validated with the detail's

@@ -79,6 +79,7 @@ class FrameLayer:
     skin: np.ndarray | None = None  # (Hf, Wf) [0, 1]: how much each pixel is skin (viewer.photo.gloss); None: no skin known
     skin_mm: float = 0.0  # millimetres of the person a frame pixel spans (the skin's light scatters millimetres); 0: unknown
     focal_35mm: float = 0.0  # the photo's lens, 35-mm equivalent, from its EXIF (spanning the frame's longer side); 0: unknown
+    face_box: tuple | None = None  # (x, y, width, height) of the person's face, fractions of the frame; None: none found
 
     @property
     def height(self) -> int:
@@ -111,7 +112,7 @@ class FrameLayer:
         return FrameLayer(albedo=np.clip(resize(self.albedo, size), 0, 1), alpha=np.clip(resize(self.alpha, size), 0, 1),
                           photo=np.maximum(resize(self.photo, size), 0), background_blur=self.background_blur,
                           skin=None if self.skin is None else np.clip(resize(self.skin, size), 0, 1),
-                          skin_mm=self.skin_mm * self.width / size[0], focal_35mm=self.focal_35mm)
+                          skin_mm=self.skin_mm * self.width / size[0], focal_35mm=self.focal_35mm, face_box=self.face_box)
 
     def validate(self, maps_size: tuple[int, int], base: Path | None = None) -> FrameLayer:
         def file(name):
@@ -150,6 +151,17 @@ class FrameLayer:
             raise InputError(base / "scene.json" if base is not None else "scene.json",
                              f"frame focal_35mm must be a lens in [4, 2000] mm (0: unknown), got {focal!r}")
         self.focal_35mm = float(focal)
+        box = self.face_box
+        if box is not None:
+            try:
+                box = tuple(float(v) for v in box if not isinstance(v, bool))
+            except (TypeError, ValueError):
+                box = ()
+            if len(box) != 4 or not all(np.isfinite(box)) or min(box) < 0 or box[2] <= 0 or box[3] <= 0 \
+                    or box[0] + box[2] > 1 + 1e-4 or box[1] + box[3] > 1 + 1e-4:
+                raise InputError(base / "scene.json" if base is not None else "scene.json",
+                                 f"frame face_box must be [x, y, width, height], fractions of the frame, got {self.face_box!r}")
+            self.face_box = box
         mw, mh = maps_size
         if abs(w * mh / mw - h) > ASPECT_TOLERANCE_PX * max(1.0, h / mh):
             raise InputError(file("alpha"), f"the frame {w}x{h} does not have the aspect of the maps ({mw}x{mh})")
@@ -370,7 +382,8 @@ def _load_frame(path: Path, meta: dict, meta_path: Path) -> FrameLayer | None:
         skin = skin if skin.ndim == 2 else skin[..., 0]
     frame = FrameLayer(albedo=albedo[..., :3] if albedo.ndim == 3 else albedo, alpha=alpha if alpha.ndim == 2 else alpha[..., 0],
                        photo=srgb_to_linear(photo[..., :3]), background_blur=entry.get("background_blur", 0.0),
-                       skin=skin, skin_mm=entry.get("skin_mm", 0.0), focal_35mm=entry.get("focal_35mm", 0.0))
+                       skin=skin, skin_mm=entry.get("skin_mm", 0.0), focal_35mm=entry.get("focal_35mm", 0.0),
+                       face_box=entry.get("face_box"))
     size = (entry.get("width"), entry.get("height"))
     if size != (frame.width, frame.height):
         raise InputError(meta_path, f"frame is {size[0]}x{size[1]} but {files['alpha']} is {frame.width}x{frame.height}")
@@ -416,6 +429,7 @@ def save_scene(scene: Scene, path) -> Path:
         meta["frame"] = {"width": frame.width, "height": frame.height, "maps": frame_maps,
                          "color_space": {"photo": "sRGB", "albedo": "linear", "alpha": "linear coverage", "skin": "share"},
                          "background_blur": frame.background_blur, "skin_mm": frame.skin_mm,
-                         **({"focal_35mm": frame.focal_35mm} if frame.focal_35mm else {})}
+                         **({"focal_35mm": frame.focal_35mm} if frame.focal_35mm else {}),
+                         **({"face_box": [round(v, 5) for v in frame.face_box]} if frame.face_box is not None else {})}
     write_text(path / "scene.json", json.dumps(meta, indent=2) + "\n")
     return path
