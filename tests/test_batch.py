@@ -362,3 +362,23 @@ def test_a_photo_swapped_while_it_is_inferred_leaves_no_bundle(tmp_path, monkeyp
     with pytest.raises(InputError, match="changed while it was being inferred"):
         inference.cached_bundle(photo, max_size=256, bundles=bundles)
     assert not bundles.exists() or not any(bundles.iterdir())
+
+
+def test_the_automatic_yaw_turns_maps_and_leaves_the_users_own_lights(tmp_path):
+    """``--yaw auto`` (the default) starts each look as ``relight render`` does: a light file of the
+    user's own stays as written (its picture at auto is its picture at yaw 0, to the bit), a map and a
+    light file fitted to a map turn their brightest light to the camera (another picture than at 0)."""
+    from test_cli import key_light_file
+
+    from viewer.files.imageio import read_png
+
+    own = key_light_file(tmp_path / "key.json")
+    fitted = asset_dir() / "envmaps" / "venice_sunset_256.lights.json"
+    out = tmp_path / "out"
+    res = batch(tmp_path, PHOTO, "--env", MAPS[1], "--lights", own, fitted, "--yaw", "auto", "0", "-o", out,
+                "--workers", "1")
+    assert res.returncode == 0, res.stderr
+    picture = lambda look: read_png(out / "underpass" / f"{look}.png")  # noqa: E731
+    np.testing.assert_array_equal(picture("key_yauto"), picture("key_y0"))
+    for look in ("studio_small_03_256", "venice_sunset_256"):
+        assert np.abs(picture(f"{look}_yauto") - picture(f"{look}_y0")).mean() > 0.01, look

@@ -281,3 +281,44 @@ def test_render_turns_the_map_as_view_and_batch_do(tmp_path):
         pictures[name] = read_png(tmp_path / f"{name}.png")
     np.testing.assert_array_equal(pictures["auto"], pictures["given"])
     assert np.abs(pictures["auto"] - pictures["zero"]).mean() > 0.01
+
+
+def key_light_file(path: Path, degrees: float = 60.0) -> Path:
+    """A light file of the user's own: one key light ``degrees`` to the camera's right, a little above,
+    written as by hand (no fit record: not a map's lights)."""
+    a = np.radians(degrees)
+    d = np.array([np.sin(a), 0.3, np.cos(a)])
+    path.write_text(json.dumps({"format": "relight-lights", "version": 1, "lights": [
+        {"direction": (d / np.linalg.norm(d)).tolist(), "sigma": 4.0, "intensity": [6.0, 6.0, 6.0]}]}))
+    return path
+
+
+def test_placed_lights_stay_where_placed(tmp_path):
+    """A light file of the user's own is where they put it: no --yaw is --yaw 0 (the picture the same to the
+    bit), with a rig beside it and with a map behind it; the automatic yaw would have turned its key light to
+    the front (another picture). A light file fitted to a map (its fit record names the map) is that map's
+    lights: turned as the map is."""
+    from viewer.lighting.placed_lights import rig, save_rig
+    from viewer.scene.area_lights import facing_yaw, load_lights
+
+    own = key_light_file(tmp_path / "key.json")
+    rig_file = save_rig(tmp_path / "rig.json", rig("rim", 1.0))
+    fitted = asset_dir() / "envmaps" / "venice_sunset_256.lights.json"  # relight fit-lights' record: the map's lights
+    turned = facing_yaw(load_lights(own))  # what the automatic yaw would turn the key light by
+    assert abs(turned + 60.0) < 1.0
+    scene, size = str(sample_scene_dir()), ["--size", "96", "--max-size", "192"]
+    looks = {"own": [str(own)], "own_rig": [str(own), "--rig", str(rig_file)],
+             "own_map": [str(own), "--env", str(asset_dir() / "envmaps" / "studio_small_03_256.hdr")]}
+    for name, given in looks.items():
+        pictures = {}
+        for yaw, extra in (("none", []), ("zero", ["--yaw=0"]), ("turned", [f"--yaw={turned}"])):
+            assert main(["render", scene, *given, *size, *extra, "-o", str(tmp_path / f"{name}_{yaw}.png")]) == 0
+            pictures[yaw] = read_png(tmp_path / f"{name}_{yaw}.png")
+        np.testing.assert_array_equal(pictures["none"], pictures["zero"], err_msg=name)
+        assert np.abs(pictures["turned"] - pictures["zero"]).mean() > 0.01, name  # the key light in front: it shows
+    pictures = {}
+    for yaw, extra in (("none", []), ("facing", [f"--yaw={facing_yaw(load_lights(fitted))}"]), ("zero", ["--yaw=0"])):
+        assert main(["render", scene, str(fitted), *size, *extra, "-o", str(tmp_path / f"fitted_{yaw}.png")]) == 0
+        pictures[yaw] = read_png(tmp_path / f"fitted_{yaw}.png")
+    np.testing.assert_array_equal(pictures["none"], pictures["facing"])
+    assert np.abs(pictures["none"] - pictures["zero"]).mean() > 0.01

@@ -387,6 +387,23 @@ def test_clip_commands(clip_bundle, clip_with_everything, tmp_path):
     shutil.rmtree(tmp_path / "d", ignore_errors=True)
 
 
+def test_a_clip_lit_by_the_users_own_lights_is_not_turned(clip_bundle, tmp_path):
+    """``relight render CLIP_BUNDLE LIGHTS.json``: a light file of the user's own stays where they put it
+    (no --yaw is --yaw 0, every frame to the bit); turned as the automatic yaw would, it is another clip."""
+    from test_cli import key_light_file
+
+    from viewer.cli.main import main
+    from viewer.scene.area_lights import facing_yaw, load_lights
+
+    own = key_light_file(tmp_path / "key.json")
+    clips = {}
+    for yaw, extra in (("none", []), ("zero", ["--yaw=0"]), ("turned", [f"--yaw={facing_yaw(load_lights(own))}"])):
+        assert main(["render", str(clip_bundle[0]), str(own), *extra, "-o", str(tmp_path / f"{yaw}.mp4")]) == 0
+        clips[yaw] = np.stack(decoded(tmp_path / f"{yaw}.mp4")[0]).astype(np.int16)
+    np.testing.assert_array_equal(clips["none"], clips["zero"])
+    assert np.abs(clips["turned"] - clips["zero"]).max() > 20
+
+
 def test_a_clip_put_into_a_plate_walks_across_it(clip_bundle, tmp_path):
     """``relight render CLIP_BUNDLE --plate PLATE``: every frame the plate's size with the person in it,
     placed once (on the first frame with them) so they move across the plate as across their frame

@@ -60,6 +60,7 @@ def test_bad_light_files_are_named(tmp_path, edit, message):
 def test_facing_yaw_turns_the_brightest_light_to_the_camera():
     from viewer.cli.command_setup import first_look
     from viewer.cli.parser import build_parser
+    from viewer.lighting.map_lights import MAP, PLACED, PLATE
     from viewer.scene.area_lights import AreaLights, facing_yaw
     from viewer.scene.look import Look
 
@@ -72,8 +73,34 @@ def test_facing_yaw_turns_the_brightest_light_to_the_camera():
         assert abs(x) < 1e-5 and z > 0.0 and y == pytest.approx(lights.direction[k, 1], abs=1e-6)
     dark = AreaLights(np.array([[0.0, 0.0, -1.0]]), [1.0], [[0.0, 0.0, 0.0]])
     assert facing_yaw(dark) == 0.0
-    # the viewer's first look: facing, unless a yaw was asked for
+    # the viewer's first look: a map's lights facing, unless a yaw was asked for; the plate's own light and
+    # the user's own lights as they are
     behind = AreaLights(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), [1.0, 1.0], [[5.0, 5.0, 5.0], [1.0, 1.0, 1.0]])
     parser = build_parser()
-    assert abs(first_look(parser.parse_args(["view"]), Look(), behind).yaw) == pytest.approx(180.0)
-    assert first_look(parser.parse_args(["view", "--yaw", "30"]), Look(yaw=30.0), behind).yaw == 30.0
+    assert abs(first_look(parser.parse_args(["view"]), Look(), behind, MAP).yaw) == pytest.approx(180.0)
+    assert first_look(parser.parse_args(["view", "--yaw", "30"]), Look(yaw=30.0), behind, MAP).yaw == 30.0
+    assert first_look(parser.parse_args(["view"]), Look(), behind, PLACED).yaw == 0.0
+    assert first_look(parser.parse_args(["view"]), Look(), behind, PLATE).yaw == 0.0
+    assert first_look(parser.parse_args(["view", "--yaw", "30"]), Look(yaw=30.0), behind, PLACED).yaw == 30.0
+
+
+def test_where_lights_come_from(tmp_path, monkeypatch):
+    """A light file is a map's lights when its fit record names the map (relight fit-lights, the bundled
+    maps' files); written by hand, a bundle's lights of its own photo or the paper's .npy, it is the user's;
+    no light file: the map's, found by the one rule; the plate's own light first."""
+    from viewer.cli.main import main
+    from viewer.lighting.map_lights import MAP, PLACED, PLATE, lights_source
+    from viewer.resources import asset_dir
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache"))
+    assert lights_source() == MAP and lights_source(None, plate=True) == PLATE
+    assert lights_source(asset_dir() / "envmaps" / "venice_sunset_256.lights.json") == MAP
+    studio = asset_dir() / "envmaps" / "studio_small_03_256.hdr"
+    assert main(["fit-lights", str(studio), "-n", "4", "--method", "median-cut", "-o", str(tmp_path / "fitted.json")]) == 0
+    assert lights_source(tmp_path / "fitted.json") == MAP
+    own = AreaLights(np.array([[0.6, 0.3, 0.74]]) / np.linalg.norm([0.6, 0.3, 0.74]), [2.0], [[5.0, 5.0, 5.0]])
+    own.save(tmp_path / "own.json")
+    own.save(tmp_path / "photo.json", fit={"source": "photo.jpg", "method": "inverse-rendering network"})
+    np.save(tmp_path / "paper.npy", own.to_array())
+    for name in ("own.json", "photo.json", "paper.npy"):
+        assert lights_source(tmp_path / name) == PLACED, name

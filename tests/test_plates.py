@@ -591,3 +591,25 @@ def test_the_horizon_is_read_from_the_plates_vertical_edges():
     assert plate_horizon(sky)[0] > 0.95
     with pytest.raises(InputError, match="where no ground is"):
         place_on_plate(sky, None, None, None)
+
+
+def test_the_users_own_lights_on_a_plate_stay_where_placed(tmp_path):
+    """``render --plate`` lit by a light file of the user's own: no --yaw is --yaw 0 (to the bit), the
+    automatic yaw's turn another picture; lit by the plate's own light, no --yaw is its camera's view."""
+    from test_cli import key_light_file
+
+    from viewer.cli.main import main
+    from viewer.files.imageio import read_png
+    from viewer.resources import sample_scene_dir
+    from viewer.scene.area_lights import facing_yaw, load_lights
+
+    make_plate(load_envmap(MAP), 0.0, tmp_path / "plate.jpg")
+    own = key_light_file(tmp_path / "key.json")
+    scene, common = str(sample_scene_dir()), ["--plate", str(tmp_path / "plate.jpg"), "--height", "0.5", "--size", "96"]
+    for name, light in (("own", [str(own)]), ("plate", [])):
+        pictures = {}
+        for yaw, extra in (("none", []), ("zero", ["--yaw=0"]), ("turned", [f"--yaw={facing_yaw(load_lights(own))}"])):
+            assert main(["render", scene, *light, *common, *extra, "-o", str(tmp_path / f"{name}_{yaw}.png")]) == 0
+            pictures[yaw] = read_png(tmp_path / f"{name}_{yaw}.png")
+        np.testing.assert_array_equal(pictures["none"], pictures["zero"], err_msg=name)
+        assert np.abs(pictures["turned"] - pictures["zero"]).max() > 0.05, name

@@ -346,6 +346,45 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, hea
     assert res.returncode == 2 and str(rig) in res.stderr and "kelvin" in res.stderr and "Traceback" not in res.stderr
 
 
+def test_the_users_own_lights_and_the_placed_ones_stay_where_placed(viewer_factory, tmp_path):
+    """``relight view --lights FILE --rig RIG``: a light file of the user's own (no fit record: not a
+    map's) opens as written, at yaw 0 (not turned by the automatic yaw); a map opened then turns its
+    own brightest light to the camera, and the rig's lights, fixed to the camera, stay where placed."""
+    from viewer.lighting.placed_lights import load_rig, rig, save_rig, to_area_lights
+
+    data = json.loads((asset_dir() / DEMO_LIGHTS).read_text())
+    del data["fit"]  # the map's lights, as a file of the user's own
+    own = tmp_path / "own.json"
+    own.write_text(json.dumps(data))
+    rig_file = save_rig(tmp_path / "rig.json", rig("key and fill", 1.0))
+    placed = to_area_lights(load_rig(rig_file)).direction
+
+    def rendered(v) -> np.ndarray:
+        """The directions of the lights a saved frame was rendered with: the map's (or the file's), then the placed."""
+        saved = json.loads(v.save().with_suffix(".json").read_text())
+        return np.array([light["direction"] for light in saved["lights"]["lights"]])
+
+    v = viewer_factory("--lights", str(own), "--rig", str(rig_file))
+    s = v.wait_for(lambda s: len(s["placed"]) == 2, 30)
+    assert s["look"]["yaw"] == 0.0 and abs(FIRST_YAW) > 90.0  # the automatic yaw would have turned them by FIRST_YAW
+    lights = rendered(v)
+    np.testing.assert_allclose(lights[:16], load_lights(own).direction, atol=1e-5)
+    np.testing.assert_allclose(lights[16:], placed, atol=1e-5)
+    new_map = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")
+    v.click("open a file")
+    v.wait_for(lambda s: "browser path" in s["widgets"], 30)
+    v.click("browser path")
+    v.xdotool("type", new_map)
+    v.click("browser open")
+    s = v.wait_for(lambda s: s["map"] == new_map and not s["switching"] and s["message"].startswith("16 lights"), 60)
+    venice = load_lights(asset_dir() / "envmaps" / "venice_sunset_256.lights.json")
+    assert s["look"]["yaw"] == pytest.approx(facing_yaw(venice), abs=1e-3) and abs(s["look"]["yaw"]) > 90.0
+    lights = rendered(v)
+    np.testing.assert_allclose(lights[:16], venice.rotated(s["look"]["yaw"]).direction, atol=1e-4)  # the map turned
+    np.testing.assert_allclose(lights[16:], placed, atol=1e-5)  # the placed lights where they were
+    assert v.quit() == 0
+
+
 DROP_SCRIPT = r"""
 import json, sys, threading, time
 from pathlib import Path

@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 
 from viewer.app import interaction as ix
-from viewer.scene.area_lights import facing_yaw
+from viewer.lighting.map_lights import MAP, PLATE, start_yaw
 
 
 class JobPolling:
@@ -65,12 +65,14 @@ class JobPolling:
         self.app.session.set_lights(res.lights, environment=res.env.pixels, new_map=new_map)
         self.app.thumbnail.prepare(res.env.pixels, res.thumbnail)
         plate = self.app.plate
-        if new_map and plate is not None and job.path == plate.light_map:  # the plate's own light: in its camera's frame
-            self.app.session.update(yaw=0.0, tilt=0.0)
-        elif new_map:  # as the first map: its brightest light on the camera's side
-            self.app.session.update(yaw=facing_yaw(res.lights))
+        own = plate is not None and job.path == plate.light_map  # the plate's own light: in its camera's frame
+        if new_map:  # the yaw a map's lights start with: its brightest light on the camera's side (the placed lights,
+            # fixed to the camera, stay where they are)
+            self.app.session.update(yaw=start_yaw(res.lights, PLATE if own else MAP))
+        if new_map and own:
+            self.app.session.update(tilt=0.0)
         if new_map and plate is not None:  # on a plate the plate sets the level: its own light's, or matched to it
-            plate.light = "plate" if job.path == plate.light_map else job.path.name  # what lights the person now
+            plate.light = "plate" if own else job.path.name  # what lights the person now
             self.app.session.update(exposure=plate.exposure(res.env, self.app.session.scene, self.app.session.look))
         self.app.env_path = job.path
         self.app.n_lights = len(res.lights)

@@ -57,7 +57,7 @@ def is_photo(path: Path) -> bool:
 @dataclass(frozen=True)
 class LookSpec:
     """One look of the batch: where the lights come from (a map, a light file, or a plate's own light),
-    the yaw ("auto": the brightest light turned to the camera; a plate's: its light as seen), the rig
+    the yaw ("auto": as ``relight render`` starts, viewer.lighting.map_lights.start_yaw), the rig
     added, the preset."""
 
     name: str

@@ -20,7 +20,8 @@ def add_batch_parser(sub) -> None:
     p.add_argument("--env", "--envmap", dest="envmaps", nargs="+", default=[], help="environment maps: one look each")
     p.add_argument("--lights", dest="light_files", nargs="+", default=[], help="area-light files: one look each (no map behind)")
     p.add_argument("--yaw", dest="yaws", nargs="+", type=auto_or("degrees"),
-                   help="yaws of every look, degrees, or auto (default): the brightest light turned to the camera")
+                   help="yaws of every look, degrees, or auto (default): a map's brightest light turned to the camera, "
+                        "a light file of your own as written, a plate's light as seen")
     p.add_argument("--rig", dest="rigs", nargs="+", default=[], help="rigs (placed lights saved by the viewer): each look "
                    "once with each rig")
     p.add_argument("--plate", dest="plates", nargs="+", default=[], help="background photos: one look each, the person put "
@@ -144,11 +145,11 @@ def resolve_looks(specs, args) -> list:
     from viewer.cli.plate_commands import plate_place
     from viewer.files.ownership import file_sha256
     from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import lights_source, start_yaw
     from viewer.lighting.placed_lights import load_rig, to_area_lights
     from viewer.output.plate_render import plate_look
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
-    from viewer.scene.area_lights import facing_yaw
 
     base = command_look(args)
     found: dict = {}  # (source, n) -> (lights, sha) or the error line
@@ -175,11 +176,12 @@ def resolve_looks(specs, args) -> list:
                 looks.append(ResolvedLook(spec, error=found[(source, n)]))
                 continue
             lights, sha = found[(source, n)]
-            if spec.plate is not None:  # a plate's light as its camera saw it, unless turned
-                look = plate_look(look.replace(yaw=0.0 if spec.yaw == "auto" else float(spec.yaw)))
-            else:
-                yaw = facing_yaw(lights) if spec.yaw == "auto" else float(spec.yaw)
-                look = look.replace(yaw=yaw)  # no map behind a light file's look: the engine falls back to the photo's background
+            # "auto": the yaw these lights start with, by where they come from (as render's); no map behind a
+            # light file's look: the engine falls back to the photo's background
+            source = lights_source(spec.lights_file, spec.plate is not None)
+            look = look.replace(yaw=start_yaw(lights, source) if spec.yaw == "auto" else float(spec.yaw))
+            if spec.plate is not None:
+                look = plate_look(look)
             rig = to_area_lights(load_rig(spec.rig)).to_array() if spec.rig is not None else None
             looks.append(ResolvedLook(spec, look.to_json(), _options(engine_options(args, look)), lights.to_array(), rig, sha,
                                       file_sha256(spec.rig) if spec.rig is not None else "",

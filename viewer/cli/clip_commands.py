@@ -107,6 +107,7 @@ def cmd_infer_clip(args) -> int:
 def cmd_render_clip(args, look) -> int:
     from viewer.gl import create_headless_context
     from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import PLATE, lights_source
     from viewer.output.clip_render import (
         check_layers_folder,
         check_layers_room,
@@ -153,12 +154,12 @@ def cmd_render_clip(args, look) -> int:
         from viewer.plate.plate_light import plate_light
 
         lights, _ = fitted_lights(plate_light(plate[0], horizon=plate[2])[0], lights_count(args, look), args.method)
+        source = PLATE
     elif args.lights is None and env is None:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
     else:
-        lights = command_lights(args, look, args.lights, env, args.envmap)
-    if plate is None or args.envmap or args.lights:  # the plate's own light is in its camera's frame (yaw 0 unless given)
-        look = first_look(args, look, lights)
+        lights, source = command_lights(args, look, args.lights, env, args.envmap), lights_source(args.lights)
+    look = first_look(args, look, lights, source)
     rig = rig_lights(args)
     if args.layers and is_clip(args.scene):  # the disk's room for them, before hours of inference
         from viewer.files.clip_reader import expected_frames, probe_clip

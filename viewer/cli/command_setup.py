@@ -67,15 +67,18 @@ def fitted_lights(env, n, method, refit=False):
 
 def prepare(scene_path, lights_path, envmap_path, args, look, automatic_yaw: bool = False):
     """Scene (resampled to ``--size``), lights (a file, or the map's by the one rule), map pixels
-    and the look (``automatic_yaw``: turned as :func:`first_look` turns it)."""
+    and the look (``automatic_yaw``: its yaw chosen by :func:`first_look` for where these lights came from)."""
     from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import lights_source
 
     scene = load_sized_scene(scene_path, getattr(args, "size", None), getattr(args, "max_size", None))
     env = load_envmap(envmap_path, repair=getattr(args, "repair", False)) if envmap_path else None
     if lights_path is None and env is None:
         raise InputError(None, "give a light file or an environment map (--env) to fit lights to")
     lights = command_lights(args, look, lights_path, env, envmap_path)
-    return scene, lights, (env.pixels if env is not None else None), (first_look(args, look, lights) if automatic_yaw else look)
+    if automatic_yaw:
+        look = first_look(args, look, lights, lights_source(lights_path))
+    return scene, lights, (env.pixels if env is not None else None), look
 
 
 def command_lights(args, look, lights_path, env, env_path):
@@ -142,15 +145,16 @@ def rig_lights(args):
     return to_area_lights(load_rig(args.rig)) if getattr(args, "rig", None) else None
 
 
-def first_look(args, look, lights):
-    """The look of ``render`` and ``view`` (``batch``'s yaw "auto" is the same rule): the brightest
-    light turned to the camera's side (a photo must not be lit from behind) unless a yaw was given
-    (``--yaw``, or a saved ``--look``)."""
-    from viewer.scene.area_lights import facing_yaw
+def first_look(args, look, lights, source: str):
+    """The look of ``render`` and ``view`` (a photo's, a clip's, on a plate; ``batch``'s yaw "auto" is
+    the same rule): unless a yaw was given (``--yaw``, or a saved ``--look``), the yaw that lights from
+    ``source`` start with (:func:`viewer.lighting.map_lights.start_yaw`: a map's brightest light on the
+    camera's side, the user's own lights and a plate's own light as they are)."""
+    from viewer.lighting.map_lights import start_yaw
 
     if args.yaw is not None or getattr(args, "look", None):
         return look
-    return look.replace(yaw=facing_yaw(lights))
+    return look.replace(yaw=start_yaw(lights, source))
 
 
 def gl_threads() -> int:

@@ -172,6 +172,7 @@ def cmd_render(args) -> int:
 def cmd_view(args) -> int:
     from viewer.files.clip_reader import is_clip
     from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import lights_source
     from viewer.scene.bundle import PHOTO_SUFFIXES
     from viewer.scene.clip_bundle import is_clip_bundle
 
@@ -233,8 +234,7 @@ def cmd_view(args) -> int:
         if window is not None:
             window.release()
         raise
-    if plate is None or plate[3] != "plate":  # the plate's own light is in its camera's frame (yaw 0 unless given)
-        look = first_look(args, look, lights)
+    look = first_look(args, look, lights, lights_source(args.lights, plate is not None and plate[3] == "plate"))
     if plate is not None:  # exposed in the plate's units; lit by the user's own light, as bright as the plate's makes them
         from viewer.cli.plate_commands import own_light_exposure
         from viewer.lighting.envmap import load_envmap as read_map

@@ -82,7 +82,8 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
                    "options below override its values")
     p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
-                   help="initial rotation of the lighting, degrees (default: the brightest light turned toward the camera)")
+                   help="initial rotation of the lighting, degrees (default: a map's brightest light turned toward the "
+                        "camera, a light file of your own as written)")
     p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
     p.add_argument("--exposure", type=auto_or("stops"),
                    help="initial exposure, stops, or auto (default): a photo keeps its own brightness")

@@ -73,8 +73,9 @@ def cmd_render_plate(args, look) -> int:
     """``relight render BUNDLE --plate PLATE -o OUT.png``: the person relit by the plate's light (or
     ``--env``'s) and composited into it, standing on its ground with their shadow; OUT.exr beside it
     (linear; with ``--layers``, the person and the shadow as layers too)."""
-    from viewer.cli.command_setup import engine_options, fitted_lights, lights_count, prepare, rig_lights
+    from viewer.cli.command_setup import engine_options, first_look, fitted_lights, lights_count, prepare, rig_lights
     from viewer.gl import Engine, create_headless_context
+    from viewer.lighting.map_lights import PLATE
     from viewer.output.plate_render import plate_look, render_on_plate
     from viewer.plate.placement import Placement, person_lens_mismatch
     from viewer.plate.plate_file import read_plate
@@ -107,6 +108,7 @@ def cmd_render_plate(args, look) -> int:
         env, record = plate_light(plate, horizon=horizon)
         notes.append(record["sun"])
         lights, _ = fitted_lights(env, lights_count(args, look), args.method)
+        look = first_look(args, look, lights, PLATE)
         light_from = f"the plate ({record['field_of_view_deg']:.0f} degrees seen, the rest filled)"
     lens = person_lens_mismatch(scene.frame, place, plate)
     if lens:

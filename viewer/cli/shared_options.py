@@ -64,8 +64,9 @@ def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
     if yaws:
         p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
                        help="rotate the lighting (and the map behind) about the vertical axis, degrees (default "
-                            + (f"{yaw_default:g}" if yaw_default is not None else "automatic: the map's brightest light on the "
-                               "camera's side") + "); a video starts there")
+                            + (f"{yaw_default:g}" if yaw_default is not None else
+                               "automatic: a map's brightest light on the camera's side, a light file of your own as "
+                               "written") + "); a video starts there")
     p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
     p.add_argument("--exposure", type=auto_or("stops"),
                    help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "

@@ -4,6 +4,10 @@ In order: a light file the user gave; the lights shipped beside the map (``MAP.l
 the bundled maps have) when they were fitted to that very map (its content's hash), for the same count by the method asked or one at
 least as accurate; the fitting cache; a fit now (the caller's: in process with progress bars on
 the command line, in a niced child process in the window).
+
+Where a look's lights come from also decides the yaw it starts with (:func:`start_yaw`): a map's are
+turned with the map behind to face the camera; the plate's own light and the lights the user placed
+stay as they are.
 """
 
 from __future__ import annotations
@@ -16,9 +20,10 @@ from viewer.files.imageio import read_json
 from viewer.lighting.envmap import EnvMap
 from viewer.lighting.lightfit.cache import FIT_VERSION, cached_lights, map_hash
 from viewer.lighting.lightfit.methods import serves
-from viewer.scene.area_lights import AreaLights, load_lights
+from viewer.scene.area_lights import AreaLights, facing_yaw, load_lights
 
 LIGHTS_SUFFIX = ".lights.json"  # a map's lights beside it: MAP.lights.json
+MAP, PLATE, PLACED = "map", "plate", "placed"  # where a look's lights come from (lights_source, start_yaw)
 
 
 def lights_beside(map_path) -> Path:
@@ -62,3 +67,28 @@ def map_lights(env: EnvMap, env_path, n: int, method: str,
         return cached, "cached"
     lights, was_cached = fit(env)
     return lights, "cached" if was_cached else "fitted"
+
+
+def lights_source(light_file=None, plate: bool = False) -> str:
+    """Where a look's lights come from: PLATE, the plate's own light (``plate``); MAP, a map's (no
+    ``light_file``: found for the map by :func:`map_lights`; or a light file fitted to a map, whose fit
+    record names the map's content, as ``relight fit-lights`` writes it and the lights shipped beside a
+    map have it); PLACED, the user's own (any other light file: written by hand, a scene bundle's lights
+    of its own photo, the paper's .npy)."""
+    if plate:
+        return PLATE
+    if light_file is None:
+        return MAP
+    data = None if Path(light_file).suffix.lower() == ".npy" else read_json(light_file, "light file")
+    fit = data.get("fit") if isinstance(data, dict) else None
+    return MAP if isinstance(fit, dict) and "map" in fit else PLACED
+
+
+def start_yaw(lights: AreaLights, source: str) -> float:
+    """The yaw a look starts with when none is given (``--yaw``, a saved look), by where its ``lights``
+    come from (:func:`lights_source`): a map's are turned with the map behind so that their brightest
+    light falls on the camera's side (:func:`viewer.scene.area_lights.facing_yaw`: a photo is not lit
+    from behind); the plate's own light stays as its camera saw it and the user's own lights where
+    they were put (0). A rig's lights and those placed in the window are fixed to the camera: no yaw
+    turns them."""
+    return facing_yaw(lights) if source == MAP else 0.0
