@@ -658,7 +658,7 @@ def test_shading_views_are_exposed_for_display_not_clipped_to_white(ctx, scene):
 
     eng = make_engine(ctx, scene)
     eng.set_lights(AreaLights(unit([[0.3, 0.5, 1.0], [-0.4, 0.3, 1.0]]), [2.0, 4.0], [[30.0, 30.0, 30.0], [10.0, 9.0, 8.0]]))
-    look = Look(background="color", exposure=1.0)
+    look = Look(background="color", exposure=1.0, tonemap="clamp")
     eng.set_look(look)
     eng.render()
     relit = eng.output.read_display()[scene.mask]

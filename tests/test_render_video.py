@@ -28,8 +28,8 @@ LIGHTS = asset_dir() / "envmaps/immenstadter_horn_256.lights.json"
 
 
 def test_render_matches_the_stored_reference_image(tmp_path):
-    """tests/data/render_yaw210.png was written by the command below; a change to the engine that
-    moves the picture shows here."""
+    """tests/data/render_yaw210.png was written by the command below (again when the default tone curve
+    became the neutral one, issue 59); a change to the engine that moves the picture shows here."""
     out = tmp_path / "frame.png"
     assert main(["render", str(sample_scene_dir()), str(LIGHTS), "--env", str(MAP), "--rotate", "210", "--size", "256",
                  "--out", str(out)]) == 0

@@ -1,4 +1,4 @@
-"""6. The display (display.frag.glsl) of a scene without a frame layer: exposure, ACES / Reinhard /
+"""6. The display (display.frag.glsl) of a scene without a frame layer: exposure, neutral / ACES / Reinhard /
 clamp, sRGB over the environment map, the background image or a colour, at the maps' resolution;
 and the inspection views (inspect.frag.glsl) of any scene: its maps, or one light's shadow."""
 
