@@ -116,11 +116,15 @@ class FrameCompositePass:
     inputs = ("composite", "skin", "skin_scatter")  # redrawn over the matte's box only
     whole_inputs = ("display", "view", "environment", "ground", "ground_shadow")  # redrawn over the whole frame
 
-    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture, ground: moderngl.Texture, skin=None):
+    def __init__(self, kit: PassKit, frame: FrameLayer, photo: moderngl.Texture, ground: moderngl.Texture, work_width: int,
+                 skin=None):
         self.kit, self.photo = kit, photo  # the photo (FrameBackgroundPass's): the "before" of look.compare
         self.ground = ground  # GroundShadowPass's: the background's darkening by the person's shadow
         size = self.size = (frame.width, frame.height)
         self.albedo_alpha = kit.texture(size, 4, frame.texels[1], dtype="f2")
+        self.albedo_alpha.build_mipmaps()  # its mean at the work frame's scale: the sheen's detail
+        self.albedo_alpha.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        self.sheen_lod = max(float(np.log2(frame.width / max(work_width, 1))) + 1.0, 0.0)
         self.image = kit.texture(size, 4, dtype="f1")
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
         self.back = self.back_fbo = None  # the image drawn in bands while the front is shown (made when first needed)
@@ -171,6 +175,7 @@ class FrameCompositePass:
         prog["skin_box"] = self.skin.box if scattered else (0, 0, 0, 0)
         prog["skin_box_to_uv"] = self.skin.box_to_uv if scattered else (0.0, 0.0)
         prog["frame_albedo_alpha"] = 0
+        prog["sheen_lod"] = self.sheen_lod
         prog["shading_diffuse"] = 1
         prog["shading_specular"] = 2
         prog["background"] = 3

@@ -89,7 +89,7 @@ class FramePicture:
         self.background = FrameBackgroundPass(kit, frame, background_camera or camera)
         self.mipmaps = FrameMipmapsPass(kit)
         self.scatter = SkinScatterPass(kit, frame) if SkinScatterPass.applies(frame) else None
-        self.last = FrameCompositePass(kit, frame, self.background.photo, ground, self.scatter)
+        self.last = FrameCompositePass(kit, frame, self.background.photo, ground, camera.width, self.scatter)
         self.passes = (self.mipmaps, *([self.scatter] if self.scatter else []), self.background, self.last)
         self._bands = None  # a budgeted draw under way: the background's and the frame's bands drawn
 
