@@ -16,7 +16,10 @@ So the matte is decided from the photo, in three steps (docs/photos.md measures 
    contrast-sensitive smoothness that puts the outline on the photo's edges. Solved at a size
    where the person is ``SOLVE_HEIGHT`` pixels tall; then, at the frame's resolution, pixels of
    the person whose colour is the local background's beyond doubt are punched out
-   (:func:`background_holes`: slivers between the thighs, too thin for the band's resolution).
+   (:func:`background_holes`: slivers between the thighs, too thin for the band's resolution),
+   and so are the regions of a plain backdrop the person encloses, at any depth and where the
+   local models confuse the backdrop with the person beside it (:func:`backdrop_gaps`: between
+   the hair and the neck, an arm and the body, the legs; not a white top on a white studio).
 2. **The soft edge** (:func:`edge_alpha`): a narrow trimap (``EDGE`` of the person's height either
    side of that outline) solved at the frame's resolution by closed-form matting
    (``pymatting``), chosen against KNN, large-kernel, random-walk and learning-based alpha by
