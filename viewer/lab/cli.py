@@ -410,15 +410,16 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                    "as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--set", nargs="+", metavar="DIR", help="plates: more folders of photos whose people are put back into "
-                   "their own photo; matte --backdrops: more folders of photos with hand-made masks; photos: every photo "
-                   "of these folders through the whole photo path (holes and speckle on skin, bleed, kept, detail kept, "
-                   "light moved, infer time; contact sheets of "
+                   "their own photo; matte --backdrops: more folders of photos with hand-made masks; "
+                   "photos: every photo of these folders through the whole photo path (holes and speckle on "
+                   "skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
                    "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/)")
-    p.add_argument("--before", help="photos --set, matte --backdrops: the JSON of an earlier run, shown beside this one")
-    p.add_argument("--backdrops", action="store_true", help="matte: instead, the people of --photos (and --set) with "
-                   "hand-made masks composited on plain backdrops (flat and studio; pink, navy, white, grey), through the "
-                   "automatic matte and relit: kept, spill, cut, the gaps the person encloses found, bleed, the matte's "
-                   "time (out/bench_backdrops.json)")
+    p.add_argument("--before", help="photos --set, matte --backdrops: the JSON of an earlier run, shown beside "
+                   "this one")
+    p.add_argument("--backdrops", action="store_true", help="matte: instead, the people of --photos (and --set) "
+                   "with hand-made masks composited on plain backdrops (flat and studio; pink, navy, white, grey), "
+                   "through the automatic matte and relit: kept, spill, cut, the gaps the person encloses found, "
+                   "bleed, the matte's time (out/bench_backdrops.json)")
     p.add_argument("--campaign-seed", type=int, default=17, help="robustness: the generators' seed (default 17; another seed "
                                                                   "makes held-back variants of every generated class)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")

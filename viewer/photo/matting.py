@@ -73,7 +73,7 @@ GAP_REG = 2e-5  # added to that model's covariance (colours in [0, 1]): a flat b
 GAP_SUPPORT = 0.02  # the window's weight of sure background under which a pixel has no backdrop model (too deep inside)
 PLAIN = 0.08  # a backdrop whose model spreads less than this (the square root of its covariance's trace) is plain
 GAP_MATCH = 3.5  # Mahalanobis distance: a pixel this near its backdrop's model has the backdrop's colour
-GAP_AREA = 5e-5  # of the person's height squared: smaller regions are left to the holes and the soft edge (24 px at 700)
+GAP_AREA = 5e-5  # of the height squared: smaller regions are left to the holes and the soft edge (24 px at 700)
 GAP_RING = 3  # pixels: the ring around a region whose colours are judged
 GAP_CONTRAST = 8.0  # Mahalanobis distance: ring pixels farther than this from the backdrop's model are unlike it
 GAP_RING_SHARE = 0.5  # a gap's ring is at least this much unlike the backdrop (an edge nearly all around it)
@@ -82,7 +82,7 @@ GAP_RATIO = 2.5  # the person's colours are at least this many times farther fro
 GAP_FLOOR = 1.0  # Mahalanobis distance: the least the backdrop's distance counts for in that ratio
 GAP_ON_BONES = 0.5  # a region this much on the pose's bones, torso or face is the person
 GAP_SURE = 0.9  # a region where the segmentation is at least this everywhere is the person (it hesitates over a gap)
-GAP_EDGE = 0.5  # of the soft edge's half-width: its band on the person's side of a gap (whose outline is found per pixel)
+GAP_EDGE = 0.5  # of the soft edge's half-width: its band on the person's side of a gap (outlined per pixel)
 # The pose model's bones (MediaPipe's POSE_CONNECTIONS without the fingers, 17-22, which it guesses)
 BONES = ((0, 1), (0, 4), (1, 2), (2, 3), (3, 7), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12), (11, 13), (11, 23),
          (12, 14), (12, 24), (13, 15), (14, 16), (23, 24), (23, 25), (24, 26), (25, 27), (26, 28), (27, 29),
@@ -480,13 +480,12 @@ def gap_regions(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation
         at = index[box][region]
         colour = np.median(image[box][region], axis=0).astype(np.float32)
         backdrop, inv = mean[at].mean(axis=0), inverse[at].mean(axis=0)
-        to_person = reference - colour
+        to_person = np.einsum("ni,ij,nj->n", reference - colour, inv, reference - colour)
         figures.append({
             "area": int(area),
             "ring_unlike": float((distance[box][ring] > GAP_CONTRAST).mean()) if ring.any() else 0.0,
             "to_backdrop": float(np.sqrt(max((colour - backdrop) @ inv @ (colour - backdrop), 0.0))),
-            "to_person": float(np.sqrt(max(np.quantile(np.einsum("ni,ij,nj->n", to_person, inv, to_person), GAP_PERSON), 0.0)))
-            if len(reference) else np.inf,
+            "to_person": float(np.sqrt(max(np.quantile(to_person, GAP_PERSON), 0.0))) if len(reference) else np.inf,
             "on_bones": float(bones[box][region].mean()),
             "segmentation_least": float(segmentation[box][region].min())})
     return labels, figures, model
@@ -499,7 +498,8 @@ def is_gap(figures: dict | None) -> bool:
             and figures["on_bones"] < GAP_ON_BONES and figures["segmentation_least"] < GAP_SURE)
 
 
-def backdrop_gaps(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation: np.ndarray, landmarks: dict) -> BackdropGaps:
+def backdrop_gaps(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation: np.ndarray,
+                  landmarks: dict) -> BackdropGaps:
     """Regions of a plain backdrop the person encloses (between an arm and the body, a hand and the
     head, a collar and the neck, the legs), found in ``person`` (H, W) bool at ``image``'s size
     (float RGB in [0, 1]); ``segmentation`` the pose model's there, ``landmarks`` its landmarks.
@@ -656,7 +656,8 @@ def automatic_matte(photo: np.ndarray, person, carried: Carried | None = None) -
     foreground = srgb_to_linear(foreground_colours(photo.astype(np.float32) / 255.0, alpha, half_width))
     t3 = time.perf_counter()
     return Matte(alpha, foreground, {"method": "automatic: pose segmentation, colour min cut, closed-form edge",
-                                     "holes_px": int(holes.sum()), "gaps_px": int(gaps.sum()), "held_px": int(held.sum()),
+                                     "holes_px": int(holes.sum()), "gaps_px": int(gaps.sum()),
+                                     "held_px": int(held.sum()),
                                      "seconds": {"band": round(t1 - t0, 3), "edge": round(t2 - t1, 3),
                                                  "foreground": round(t3 - t2, 3)}}, held)
 

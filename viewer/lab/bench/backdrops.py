@@ -41,7 +41,8 @@ BACKDROPS = {"pink": (236, 150, 190), "navy": (30, 40, 80), "white": (242, 242, 
 
 def media(dirs) -> list[tuple[Path, Path]]:
     """(photo, its hand-made mask) of every photo of ``dirs`` with a ``<stem>.mask.png`` beside it."""
-    return [(p, p.with_name(p.stem + ".mask.png")) for p in collect(dirs) if p.with_name(p.stem + ".mask.png").is_file()]
+    pairs = [(p, p.with_name(p.stem + ".mask.png")) for p in collect(dirs)]
+    return [(photo, mask) for photo, mask in pairs if mask.is_file()]
 
 
 def _round(v):
@@ -89,9 +90,9 @@ def run_backdrops_benchmark(dirs, maps_dir, output="out/bench_backdrops.json", b
         photo = resize(photo, frame)
         for colour, rgb in BACKDROPS.items():
             for kind, composite in (("flat", on_backdrop), ("studio", on_studio)):
-                row = {"photo": path.name, "backdrop": colour, "kind": kind,
-                       **measure_composite(composite(photo, hand, rgb), hand, f"{path.stem} on {kind} {colour}", ctx, nets,
-                                           light_cache, Path(maps_dir))}
+                figures = measure_composite(composite(photo, hand, rgb), hand, f"{path.stem} on {kind} {colour}", ctx,
+                                            nets, light_cache, Path(maps_dir))
+                row = {"photo": path.name, "backdrop": colour, "kind": kind, **figures}
                 rows.append(row)
                 progress(f"  {path.name} on {kind} {colour}: kept outside {row['kept_outside']}, spill {row['spill']}, "
                          f"cut {row['cut']}, gaps found {row['gaps_found']}, bleed {row['bleed']}")

@@ -76,7 +76,8 @@ def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges,
     for solver in solvers:
         for edge in edges:
             half = max(matting.MIN_EDGE, edge * height)
-            alpha, t_edge = _timed(partial(matting.edge_alpha, photo, decided, half, holes, _solver(solver), gaps), repeats)
+            solve = partial(matting.edge_alpha, photo, decided, half, holes, _solver(solver), gaps)
+            alpha, t_edge = _timed(solve, repeats)
             fg, t_fg = _timed(lambda alpha=alpha, half=half: srgb_to_linear(
                 matting.foreground_colours(photo.astype(np.float32) / 255.0, alpha, half)), repeats)
             row["edges"].append({"solver": solver, "edge": edge, "half_width_px": round(half, 2),

@@ -189,7 +189,8 @@ def backdrop_coloured(photo_srgb: np.ndarray) -> np.ndarray:
     return np.linalg.norm(lab - np.median(border(lab), axis=0), axis=-1) < KEPT_DELTA_E
 
 
-def kept_backdrop(alpha: np.ndarray, photo_srgb: np.ndarray, truth: np.ndarray, where: np.ndarray | None = None) -> float:
+def kept_backdrop(alpha: np.ndarray, photo_srgb: np.ndarray, truth: np.ndarray,
+                  where: np.ndarray | None = None) -> float:
     """For a photo on a plain backdrop: the pixels kept as the person (alpha > 0.5) of the
     backdrop's colour (:func:`backdrop_coloured`), per pixel of the true mask's outline; only
     ``where`` (H, W) bool when given (outside the true mask: backdrop kept, the person's own clothes
@@ -267,8 +268,8 @@ def on_studio(photo_srgb: np.ndarray, matte: np.ndarray, colour=(236, 150, 190),
     cast = cv2.GaussianBlur(cast, (0, 0), 0.012 * tall)
     feet = np.flatnonzero(person[int(bottom - 0.04 * tall):].any(axis=0))
     contact = np.zeros((h, w), np.float32)
-    cv2.ellipse(contact, (int(feet.mean()), int(bottom - 0.004 * tall)), (int(0.55 * np.ptp(feet)) + 6, int(0.008 * tall) + 2),
-                0, 0, 360, 1, -1)
+    axes = (int(0.55 * np.ptp(feet)) + 6, int(0.008 * tall) + 2)
+    cv2.ellipse(contact, (int(feet.mean()), int(bottom - 0.004 * tall)), axes, 0, 0, 360, 1, -1)
     contact = cv2.GaussianBlur(contact, (0, 0), 0.006 * tall + 1)
     backdrop = backdrop * (1 - 0.22 * cast[..., None]) * (1 - 0.3 * contact[..., None])
     backdrop = backdrop + np.random.default_rng(seed).normal(0, 1.5, backdrop.shape)
