@@ -143,6 +143,15 @@ def cmd_bench(args) -> int:
         photos = shared_folder(args.photos, "photos", "--photos") if args.photos or os.environ.get(DATA_VARIABLE) else None
         maps = shared_folder(args.maps, "hdri", "--maps") if args.maps or os.environ.get(DATA_VARIABLE) else None
         run_viewer_benchmark(sizes=args.sizes, photos=photos, output=output, maps=maps)
+    elif args.what == "matte" and args.backdrops:
+        from viewer.lab.bench.backdrops import backdrops_table, run_backdrops_benchmark
+
+        output = args.output or "out/bench_backdrops.json"
+        result = run_backdrops_benchmark([shared_folder(args.photos, "photos", "--photos"), *(args.set or [])],
+                                         shared_folder(args.maps, "hdri", "--maps"), output, before=args.before,
+                                         progress=lambda what: print(what, flush=True))
+        print(backdrops_table(result))
+        print(f"wrote {output} in {result['seconds'] / 60:.1f} min")
     elif args.what == "matte":
         from viewer.lab.bench.matte import run_matte_benchmark, table
 
@@ -414,11 +423,17 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                    "as <stem>.mask.png "
                    "(default $RELIGHT_DATA/photos)")
     p.add_argument("--set", nargs="+", metavar="DIR", help="plates: more folders of photos whose people are put back into "
-                   "their own photo; photos: every photo of these folders through the whole photo "
-                   "path (holes and speckle on skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
-                   "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/); colour: the "
-                   "photos measured")
-    p.add_argument("--before", help="photos --set: a photo_set.json of an earlier run, shown beside this one")
+                   "their own photo; matte --backdrops: more folders of photos with hand-made masks; "
+                   "photos: every photo of these folders through the whole photo path (holes and speckle on "
+                   "skin, bleed, kept, detail kept, light moved, infer time; contact sheets of "
+                   "100 %% crops), split in a half to tune on and a half held back (issue 42; out/bench-photo-set/); "
+                   "colour: the photos measured")
+    p.add_argument("--before", help="photos --set, matte --backdrops: the JSON of an earlier run, shown beside "
+                   "this one")
+    p.add_argument("--backdrops", action="store_true", help="matte: instead, the people of --photos (and --set) "
+                   "with hand-made masks composited on plain backdrops (flat and studio; pink, navy, white, grey), "
+                   "through the automatic matte and relit: kept, spill, cut, the gaps the person encloses found, "
+                   "bleed, the matte's time (out/bench_backdrops.json)")
     p.add_argument("--campaign-seed", type=int, default=17, help="robustness: the generators' seed (default 17; another seed "
                                                                   "makes held-back variants of every generated class)")
     p.add_argument("--quick", action="store_true", help="report: the small configuration CI runs (under 5 minutes)")

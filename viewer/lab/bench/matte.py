@@ -6,8 +6,8 @@ only), at the output frame (the photo capped at 2048 px), and for the same perso
 plain pink backdrop by that mask (:func:`viewer.lab.bench.metrics.on_backdrop`):
 
 - the pose model's segmentation alone (thresholded at 0.5);
-- the band decided by colour and the background's holes (:func:`viewer.photo.matting.decided_outline`),
-  with no soft edge;
+- the band decided by colour, the background's holes and the plain backdrop the person encloses
+  (:func:`viewer.photo.matting.decided_outline`), with no soft edge;
 - the soft edge solved by each of pymatting's alpha solvers (closed-form, KNN, large-kernel,
   random-walk, learning-based) at several band widths, with the foreground colours;
 
@@ -69,13 +69,15 @@ def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges,
     row: dict = {"frame": [w, h], "person_height": height, "find_person_seconds": round(t_find, 3)}
     seg = (person.segmentation > 0.5).astype(np.float32)
     row["segmentation"] = _scores(seg, linear, linear, hand, photo, backdrop)
-    (decided, holes, half), t_band = _timed(lambda: matting.decided_outline(photo, person), repeats)
-    row["band"] = {**_scores((decided & ~holes).astype(np.float32), linear, linear, hand, photo, backdrop), "seconds": t_band}
+    (decided, holes, gaps, half), t_band = _timed(lambda: matting.decided_outline(photo, person), repeats)
+    row["band"] = {**_scores((decided & ~holes & ~gaps).astype(np.float32), linear, linear, hand, photo, backdrop),
+                   "seconds": t_band}
     row["edges"] = []
     for solver in solvers:
         for edge in edges:
             half = max(matting.MIN_EDGE, edge * height)
-            alpha, t_edge = _timed(partial(matting.edge_alpha, photo, decided, half, holes, _solver(solver)), repeats)
+            solve = partial(matting.edge_alpha, photo, decided, half, holes, _solver(solver), gaps)
+            alpha, t_edge = _timed(solve, repeats)
             fg, t_fg = _timed(lambda alpha=alpha, half=half: srgb_to_linear(
                 matting.foreground_colours(photo.astype(np.float32) / 255.0, alpha, half)), repeats)
             row["edges"].append({"solver": solver, "edge": edge, "half_width_px": round(half, 2),

@@ -16,9 +16,11 @@ skin and on the limbs' skin. Per photo: *bleed* and *kept* on the final image (s
 rendered with a transparent background under ``potsdamer_platz_1k`` (overcast: nearly uniform; and the
 bleed of the diffuse term alone, to tell the old background from a specular rim), kept
 only meaningful on a plain backdrop (``plain``: the photo's border within ``PLAIN_DELTA_E`` of its
-median), *detail kept* under the two maps, *light moved* between a sun from the left and from the
-right (:mod:`viewer.lab.bench.metrics`), and *white shift*: how far the person's whites move in
-colour under a neutral white light (:func:`white_shift`); under the key rig, what the light
+median; it counts the person's own clothes of the backdrop's colour, and *kept, enclosed* beside it
+only what the person encloses: :func:`viewer.lab.bench.metrics.enclosed_backdrop`), *detail kept*
+under the two maps, *light moved* between a sun from the left and from the right
+(:mod:`viewer.lab.bench.metrics`), and *white shift*: how far the person's whites move in colour
+under a neutral white light (:func:`white_shift`); under the key rig, what the light
 scattered under the skin does to the face's edges (:func:`terminator`: sharper or softer, warmer);
 *held*: the share of the person's pixels that are objects it holds or stands on, added to the
 segmentation's person by :mod:`viewer.photo.held_objects` (0 where nothing is held).
@@ -44,7 +46,7 @@ import numpy as np
 from viewer.files.imageio import linear_to_srgb, write_jpeg, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.lab.bench.face_metrics import face_skin, holes, limb_skin, speckle
-from viewer.lab.bench.metrics import bleed, border, cielab, detail_kept, kept_backdrop, light_moved, luminance
+from viewer.lab.bench.metrics import bleed, border, cielab, detail_kept, enclosed_backdrop, kept_backdrop, light_moved, luminance
 from viewer.lab.bench.photos import neutral_lights, sun_and_sky
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
@@ -151,6 +153,30 @@ def _round(v):
     return None if v is None else round(float(v), 4)
 
 
+def lights_loader():
+    """A map's fitted lights and pixels by its path, (AreaLights, pixels), each map loaded and
+    fitted once."""
+    loaded = {}
+
+    def load(path: Path):
+        if path not in loaded:
+            env = load_envmap(path)
+            loaded[path] = (lights_for_map(env)[0], env.pixels)
+        return loaded[path]
+
+    return load
+
+
+def relit_person(eng, scene, light_cache, maps_dir: Path, **look) -> tuple[np.ndarray, np.ndarray]:
+    """(the relit person's colour, not premultiplied, (H, W, 3); its alpha (H, W)) at the output
+    frame, rendered over a transparent background under the neutral map (``NEUTRAL``) at its
+    automatic yaw: what bleed is measured on."""
+    neutral, env = light_cache(maps_dir / f"{NEUTRAL}.hdr")
+    rgba, _ = _render(eng, scene, neutral, env, facing_yaw(neutral), background="transparent", **look)
+    a = rgba[..., 3]
+    return rgba[..., :3] / np.maximum(a, 1e-6)[..., None], a
+
+
 def _crop_boxes(scene, skin_record, landmarks) -> dict:
     """name -> (x, y, side) of the contact sheet's crops in the output frame."""
     alpha = scene.frame.alpha
@@ -234,15 +260,12 @@ def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache,
                 figures[name]["detail_kept"] = _round(detail_kept(display.astype(np.float32) / 255, photo8.astype(np.float32) / 255,
                                                                   alpha > 0.5))
         row["lightings"] = figures
-        neutral, env = light_cache(maps_dir / f"{NEUTRAL}.hdr")
-        rgba, _ = _render(eng, scene, neutral, env, facing_yaw(neutral), background="transparent")
-        a = rgba[..., 3]
-        person = rgba[..., :3] / np.maximum(a, 1e-6)[..., None]
+        person, a = relit_person(eng, scene, light_cache, maps_dir)
         row["bleed"] = _round(bleed(person, a, photo))
-        rgba_d, _ = _render(eng, scene, neutral, env, facing_yaw(neutral), background="transparent", specular=False)
-        row["bleed_diffuse"] = _round(bleed(rgba_d[..., :3] / np.maximum(rgba_d[..., 3], 1e-6)[..., None], rgba_d[..., 3], photo))
+        row["bleed_diffuse"] = _round(bleed(*relit_person(eng, scene, light_cache, maps_dir, specular=False), photo))
         row["plain_backdrop"] = _plain(photo8)
         row["kept"] = _round(kept_backdrop(a, photo8, a > 0.5))
+        row["kept_enclosed"] = _round(kept_backdrop(a, photo8, a > 0.5, enclosed_backdrop(a, photo8)))
         if skin is not None:
             keyed = [_render(eng, scene, RIGS["key 60"], None, 0.0, background="color", exposure=0.0, skin=on)[0]
                      for on in (True, False)]
@@ -286,9 +309,10 @@ def summary(rows: list[dict]) -> dict:
             vals = [r.get(key) for r in chosen if r.get(key) is not None]
             if vals:
                 figures[key] = {"max": max(vals), "min": min(vals), "mean": round(float(np.mean(vals)), 4)}
-        vals = [r["kept"] for r in chosen if r["plain_backdrop"]]
-        if vals:
-            figures["kept (plain backdrops)"] = {"max": max(vals), "mean": round(float(np.mean(vals)), 4)}
+        for key in ("kept", "kept_enclosed"):
+            vals = [r[key] for r in chosen if r["plain_backdrop"] and r.get(key) is not None]
+            if vals:
+                figures[f"{key} (plain backdrops)"] = {"max": max(vals), "mean": round(float(np.mean(vals)), 4)}
         out[part] = {"photos": len(chosen), **figures}
     return out
 
@@ -302,14 +326,7 @@ def run_photo_set(dirs, maps_dir, out_dir="out/bench-photo-set", before=None, pr
     photos = collect(dirs)
     ctx = create_headless_context()
     nets = load_networks()
-    loaded = {}
-
-    def light_cache(path: Path):
-        if path not in loaded:
-            env = load_envmap(path)
-            loaded[path] = (lights_for_map(env)[0], env.pixels)
-        return loaded[path]
-
+    light_cache = lights_loader()
     rows = []
     parts = halves(photos)
     t = time.perf_counter()
@@ -340,6 +357,7 @@ COLUMNS = (("holes studio", lambda r: r["lightings"]["studio"]["holes"]),
            ("bleed", lambda r: r["bleed"]),
            ("bleed, diffuse term", lambda r: r.get("bleed_diffuse")),
            ("kept (plain)", lambda r: r["kept"] if r["plain_backdrop"] else None),
+           ("kept, enclosed (plain)", lambda r: r["kept_enclosed"] if r["plain_backdrop"] else None),
            ("white shift", lambda r: r.get("white_shift")),
            ("detail kept", lambda r: r["lightings"]["studio"]["detail_kept"]),
            ("light moved", lambda r: r["light_moved"]),
