@@ -35,6 +35,7 @@ void main() {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) / vec2(textureSize(hdr, 0))).rgb, 0.0, 1.0);
     }
 #ifdef HDR_OUTPUT
+    if (background_mode == BACKGROUND_PHOTO) bg /= scale;  // shown unexposed: the HDR times 2^exposure is the display's
     color = background_mode == BACKGROUND_TRANSPARENT ? vec4(c.rgb * c.a, c.a) : vec4(mix(bg, c.rgb, c.a), 1.0);
 #else
     vec3 fg = tonemap(c.rgb * scale, tonemap_op);

@@ -7,7 +7,8 @@
 // albedo's fine detail (a smooth sheen over the photo's texture flattened it: detail kept 0.74-0.79
 // on the street photo, 0.99-1.05 with it, docs/photos.md); then,
 // over the cached background, exposure, tone map and sRGB as the work display does; the photo's own
-// background is shown as the photo is (no exposure, no tone curve: the photo's display values).
+// background is shown as the photo is (no exposure, no tone curve: the photo's display values), and
+// in the HDR outputs divided by the exposure, so that the HDR exposed is what the display shows.
 // output_mode OUTPUT_DISPLAY writes the display image; OUTPUT_PERSON_HDR the person's HDR and matte; OUTPUT_COMPOSITED_HDR the HDR composited over
 // the background before exposure (transparent: premultiplied), the EXR beside a display PNG;
 // OUTPUT_BACKGROUND_DISPLAY the display image with no person and no shadow of theirs (a clip's
@@ -18,8 +19,10 @@
 // D is the light scattered under it (skin_scatter.frag.glsl) when that pass ran.
 #include "filled_sample.glsl"
 #include "tonemap.glsl"
-uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution, mipmapped
-uniform float sheen_lod;               // the albedo's mip level as coarse as the work frame's shading (the sheen's detail)
+uniform sampler2D frame_albedo_alpha;  // detail albedo (rgb, linear) and matte (a), frame resolution
+uniform sampler2D albedo_mean;         // (the albedo's luminance where the person is, where the person is), mipmapped
+uniform float sheen_lod;               // its mip level as coarse as the work frame's shading (the sheen's detail)
+uniform bool sheen_detail;             // the sheen takes the albedo's fine detail (off: the smooth sum, as inference reads it)
 uniform sampler2D shading_diffuse;     // work resolution, premultiplied by the mask, mipmapped
 uniform sampler2D shading_specular;
 uniform sampler2D background;          // linear, the frame's resolution or less (frame_background.frag.glsl), bilinear
@@ -57,11 +60,13 @@ void main() {
             if (scattered.a > 1e-4) d = mix(d, scattered.rgb / scattered.a, own);
         }
         vec3 s = filled_sample(shading_specular, uv, max_lod);
-        // the sheen takes the photo's fine detail as the albedo has it (weave, strands, pores): the albedo's
-        // luminance over its mean at the scale the work frame's shading resolves (matte-normalized)
-        vec4 coarse = textureLod(frame_albedo_alpha, uv, sheen_lod);
-        const vec3 Y = vec3(0.2126, 0.7152, 0.0722);
-        s *= clamp(dot(aa.rgb, Y) / max(dot(coarse.rgb, Y) / max(coarse.a, 1e-3), 1e-4), SHEEN_DETAIL_MIN, SHEEN_DETAIL_MAX);
+        if (sheen_detail) {
+            // the sheen takes the photo's fine detail as the albedo has it (weave, strands, pores): the albedo's
+            // luminance over its mean over the person at the scale the work frame's shading resolves
+            vec2 mean = textureLod(albedo_mean, uv, sheen_lod).rg;
+            float y = dot(aa.rgb, vec3(0.2126, 0.7152, 0.0722));
+            s *= clamp(y / max(mean.r / max(mean.g, 1e-3), 1e-4), SHEEN_DETAIL_MIN, SHEEN_DETAIL_MAX);
+        }
         fg = term_weights.x * (unit_albedo ? vec3(1.0) : aa.rgb) * d + term_weights.y * s;
     }
     if (output_mode == OUTPUT_PERSON_HDR) { color = vec4(fg, aa.a); return; }
@@ -70,6 +75,7 @@ void main() {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) * frame_to_uv).rgb, 0.0, 1.0);
     }
     if (output_mode == OUTPUT_COMPOSITED_HDR || output_mode == OUTPUT_BACKGROUND_HDR) {
+        if (photo_background) bg *= exp2(-exposure);  // shown unexposed: the HDR times 2^exposure is the display's
         color = transparent ? vec4(fg * aa.a, aa.a) : vec4(mix(bg, fg, aa.a), 1.0);
         return;
     }

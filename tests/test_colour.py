@@ -142,3 +142,64 @@ def test_the_face_is_where_the_exposure_meters_and_its_box_goes_with_the_bundle(
     assert load_scene(save_scene(studio, tmp_path / "b")).frame.face_box == pytest.approx(studio.frame.face_box, abs=1e-5)
     with pytest.raises(InputError, match="face_box"):
         replace(studio.frame, face_box=(0.5, 0.5, 0.6, 0.1)).validate((studio.width, studio.height))
+
+
+def test_the_photos_backdrop_in_the_exr_is_the_pngs_once_exposed(ctx, studio):
+    from viewer.gl import Engine, EngineOptions
+    from viewer.lab.bench.colour import KEY
+    from viewer.output.render import render_look
+    from viewer.scene.look import Look
+
+    engine = Engine(ctx, studio, EngineOptions())
+    try:
+        look, _ = render_look(engine, studio, KEY, Look(exposure=-2.0, background="photo"))
+        hdr = engine.output.read_output_hdr()[..., :3]
+    finally:
+        engine.release()
+    away = studio.frame.alpha == 0
+    np.testing.assert_allclose(hdr[away] * 2.0 ** look.exposure, studio.frame.photo[away], atol=2e-3)
+
+
+def test_a_near_white_face_is_exposed_in_proportion_not_by_inverting_the_roll_off(ctx, studio):
+    """The photo's level above the tone curve's knee is a display value: a face twice as bright in
+    the photo asks for one stop more, not for the stops that would push its relit level up the
+    curve's asymptote (5.9 stops more for a face at 1.0)."""
+    from dataclasses import replace
+
+    from viewer.gl import Engine, EngineOptions
+    from viewer.lab.bench.colour import KEY
+    from viewer.output.render import metered, photo_exposure, render_look
+    from viewer.photo.detail import luminance
+    from viewer.scene.look import Look
+
+    engine = Engine(ctx, studio, EngineOptions())
+    try:
+        render_look(engine, studio, KEY, Look(exposure=0.0))
+        level = float(np.percentile(luminance(studio.photo[metered(studio)]), 90))
+        brighter = {k: replace(studio, photo=(studio.photo * k / level).astype(np.float32)) for k in (0.4, 0.95, 1.9)}
+        stops = {k: photo_exposure(engine, s, "neutral") for k, s in brighter.items()}
+    finally:
+        engine.release()
+    assert stops[1.9] - stops[0.95] == pytest.approx(1.0, abs=0.01)
+    assert stops[0.95] - stops[0.4] == pytest.approx(np.log2(0.95 / 0.4), abs=0.01)
+
+
+def test_the_sheen_takes_the_albedos_detail_and_keeps_its_level_at_the_soft_edge(ctx, studio):
+    from viewer.gl import Engine, EngineOptions
+    from viewer.lab.bench.colour import KEY
+    from viewer.output.render import render_look
+    from viewer.scene.look import Look
+
+    engine = Engine(ctx, studio, EngineOptions())
+    try:
+        render_look(engine, studio, KEY, Look(exposure=0.0))
+        textured = engine.output.read_frame_shading()[1]
+        smooth = engine.output.read_frame_shading(sheen_detail=False)[1]
+    finally:
+        engine.release()
+    alpha = studio.frame.alpha
+    lit = smooth.max(axis=-1) > 1e-3
+    t = textured.max(axis=-1)[lit] / smooth.max(axis=-1)[lit]
+    edge, core = ((alpha > 0.05) & (alpha < 0.7))[lit], (alpha > 0.99)[lit]
+    assert abs(np.median(t[edge]) - 1.0) < 0.15 and abs(np.median(t[core]) - 1.0) < 0.05  # the level kept
+    assert np.std(t[core]) > 0.05  # the detail: the sheen is not the smooth sum

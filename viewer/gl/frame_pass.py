@@ -11,7 +11,8 @@ composite also writes the two shading sums ``D = sum_l V_l I_l S_diff_l`` and
    colour or nothing), kept in a texture: redrawn only when the background, the map or its
    rotation changes;
 2. **frame composite** (``shaders/frame_composite.frag.glsl``): at every frame pixel
-   ``HDR = A_frame D + S`` (alpha = the matte), D and S mipmapped after the work composite and
+   ``HDR = A_frame D + S t`` (alpha = the matte; t the albedo's fine detail, its luminance over
+   its mean at the work frame's scale, which the sheen takes), D and S mipmapped after the work composite and
    sampled with ``filled_sample`` (bilinear, normalized by the mask, filled past it, so the
    person's shading never mixes with the empty background at the matte's edge), then over the
    background, exposure, tone map and sRGB: the display image, in the same pass. The same shader
@@ -108,7 +109,7 @@ class FrameMipmapsPass:
 
 
 class FrameCompositePass:
-    """8. At each frame pixel A_frame D + S over the background, then exposure, tone map and sRGB:
+    """8. At each frame pixel A_frame D + S t over the background, then exposure, tone map and sRGB:
     the display image (or, on request, the frame's HDR). Owns the frame's albedo and matte and the
     display image."""
 
@@ -122,8 +123,12 @@ class FrameCompositePass:
         self.ground = ground  # GroundShadowPass's: the background's darkening by the person's shadow
         size = self.size = (frame.width, frame.height)
         self.albedo_alpha = kit.texture(size, 4, frame.texels[1], dtype="f2")
-        self.albedo_alpha.build_mipmaps()  # its mean at the work frame's scale: the sheen's detail
-        self.albedo_alpha.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        # the albedo's mean luminance over the person at the work frame's scale: the sheen's detail
+        inside = (frame.alpha > 0).astype(np.float32)
+        luminance = frame.albedo @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+        self.albedo_mean = kit.texture(size, 2, np.dstack([luminance * inside, inside]).astype(np.float16).tobytes(), dtype="f2")
+        self.albedo_mean.build_mipmaps()
+        self.albedo_mean.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         self.sheen_lod = max(float(np.log2(frame.width / max(work_width, 1))) + 1.0, 0.0)
         self.image = kit.texture(size, 4, dtype="f1")
         self.fbo = kit.ctx.framebuffer(color_attachments=[self.image])
@@ -150,10 +155,11 @@ class FrameCompositePass:
         self.fbo, self.back_fbo = self.back_fbo, self.fbo
 
     def draw(self, fbo: moderngl.Framebuffer, shading, background: moderngl.Texture, terms, look: Look, mode: str,
-             output_mode: int = OUTPUT_DISPLAY, box=None):
+             output_mode: int = OUTPUT_DISPLAY, box=None, sheen_detail: bool = True):
         """The frame composite into ``fbo``: the display image (``output_mode`` 0) over ``box``
         (None: the whole frame), or one of the HDR outputs; ``mode`` the background shown (the
-        look's, resolved to what the scene has)."""
+        look's, resolved to what the scene has); ``sheen_detail`` False: the sheen as the work frame
+        sums it (the photo's own, which inference takes out), without the albedo's fine detail."""
         kit = self.kit
         prog = kit.programs.get("fullscreen.vert.glsl", "frame_composite.frag.glsl")
         fbo.scissor = box
@@ -164,6 +170,9 @@ class FrameCompositePass:
         background.use(3)
         self.photo.use(4)
         self.ground.use(5)
+        self.albedo_mean.use(8)
+        prog["albedo_mean"] = 8
+        prog["sheen_detail"] = sheen_detail
         prog["ground_occlusion"] = 5
         prog["ground"] = look.ground
         scattered = self.skin is not None and self.skin.shown
@@ -194,15 +203,17 @@ class FrameCompositePass:
         kit.fullscreen(prog)
         fbo.scissor = None
 
-    def read(self, shading, background, terms, look: Look, mode: str, output_mode: int) -> np.ndarray:
+    def read(self, shading, background, terms, look: Look, mode: str, output_mode: int,
+             sheen_detail: bool = True) -> np.ndarray:
         """(H, W, 4) float32: the person's HDR and matte (``OUTPUT_PERSON_HDR``), the HDR over
         the background (``OUTPUT_COMPOSITED_HDR``) or the display of the background alone
-        (``OUTPUT_BACKGROUND_DISPLAY``, in [0, 1]), drawn into a texture made for the call."""
+        (``OUTPUT_BACKGROUND_DISPLAY``, in [0, 1]), drawn into a texture made for the call
+        (``sheen_detail``: :meth:`draw`)."""
         with self.kit.scratch_target(self.size) as (tex, fbo):
-            self.draw(fbo, shading, background, terms, look, mode, output_mode)
+            self.draw(fbo, shading, background, terms, look, mode, output_mode, sheen_detail=sheen_detail)
             return self.kit.read(tex, 4)
 
     def release(self):
-        for obj in (self.fbo, self.image, self.back_fbo, self.back, self.albedo_alpha):
+        for obj in (self.fbo, self.image, self.back_fbo, self.back, self.albedo_alpha, self.albedo_mean):
             if obj is not None:
                 obj.release()

@@ -57,11 +57,12 @@ class Readback:
         return self.picture.read_person(self._picture_inputs())
 
     @in_context
-    def read_frame_shading(self) -> tuple[np.ndarray, np.ndarray]:
+    def read_frame_shading(self, sheen_detail: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """The diffuse and specular shading sums (sum_l V_l I_l S_diff_l and sum_l V_l I_l S_spec_l),
         (H, W, 3) each at the output frame's resolution, upsampled exactly as the frame composite
-        upsamples them (a scene with a frame layer; after render())."""
-        return self.picture.read_shading(self._picture_inputs())
+        upsamples them, the specular with the albedo's fine detail as the composite gives it
+        (``sheen_detail`` False: without; a scene with a frame layer; after render())."""
+        return self.picture.read_shading(self._picture_inputs(), sheen_detail)
 
     @in_context
     def read_work_hdr(self) -> np.ndarray:

@@ -68,7 +68,7 @@ class ImagePicture:
     def read_output(self, i: PictureInputs) -> np.ndarray:
         return self.last.read_hdr_output(i.composite.hdr, i.look, i.background)
 
-    def read_shading(self, i: PictureInputs):
+    def read_shading(self, i: PictureInputs, sheen_detail: bool = True):
         raise ValueError("the scene has no frame layer")
 
     def read_background_display(self, i: PictureInputs):
@@ -154,9 +154,10 @@ class FramePicture:
         self._bands = None
         return True
 
-    def _read(self, i: PictureInputs, terms, output_mode: int) -> np.ndarray:
+    def _read(self, i: PictureInputs, terms, output_mode: int, sheen_detail: bool = True) -> np.ndarray:
         self._ready(i)
-        return self.last.read(i.composite.shading, self.background.image, terms, i.look, i.background, output_mode)
+        return self.last.read(i.composite.shading, self.background.image, terms, i.look, i.background, output_mode,
+                              sheen_detail)
 
     def read_person(self, i: PictureInputs) -> np.ndarray:
         return self._read(i, i.terms, OUTPUT_PERSON_HDR)
@@ -172,10 +173,11 @@ class FramePicture:
         """(H, W, 4) float32: the HDR with no person in it, as :meth:`read_output` (alpha 1, or 0 transparent)."""
         return self._read(i, i.terms, OUTPUT_BACKGROUND_HDR)
 
-    def read_shading(self, i: PictureInputs):
-        """The diffuse and specular sums at the frame, upsampled as the frame composite does."""
+    def read_shading(self, i: PictureInputs, sheen_detail: bool = True):
+        """The diffuse and specular sums at the frame, upsampled as the frame composite does
+        (``sheen_detail`` False: the specular without the albedo's fine detail, the sum the lights make)."""
         return (self._read(i, (1.0, 0.0, True), OUTPUT_PERSON_HDR)[..., :3],
-                self._read(i, (0.0, 1.0, False), OUTPUT_PERSON_HDR)[..., :3])
+                self._read(i, (0.0, 1.0, False), OUTPUT_PERSON_HDR, sheen_detail)[..., :3])
 
     def release(self):
         for p in (self.last, self.background, self.scatter):

@@ -6,7 +6,7 @@ the EXR a frame writes beside its PNG).
     person.R/G/B/A           the relit person alone and its matte:  person = albedo x diffuse + specular
     albedo.R/G/B             the detail albedo the frame composite multiplies (the photo's, delit)
     diffuse.R/G/B            sum_l V_l I_l S_diff_l: the shadowed diffuse shading
-    specular.R/G/B           sum_l V_l I_l S_spec_l
+    specular.R/G/B           sum_l V_l I_l S_spec_l, with the albedo's fine detail (as the frame composite draws it)
     unshadowed.R/G/B         the diffuse shading with every light's visibility 1
     visibility.Y             diffuse / unshadowed (luminance): 0 in full shadow, 1 lit, for regrading shadows
     normal.X/Y/Z, depth.Z    the scene's maps (camera space, metres), brought to the frame's size

@@ -78,18 +78,21 @@ def photo_exposure(engine, scene: Scene, tonemap_op: str) -> float:
     region = metered(scene)
     relit = luminance(engine.output.read_work_hdr()[region]).astype(np.float64)
     shown = luminance(scene.photo[region]).astype(np.float64)
-    relit = relit[np.isfinite(relit)]
-    if not relit.size:
+    finite = np.isfinite(relit)
+    if not finite.any():
         return 0.0
-    r, p = float(np.percentile(relit, METER)), float(np.percentile(shown, METER))
+    r, p = float(np.percentile(relit[finite], METER)), float(np.percentile(shown[finite], METER))
     if not (r > 0 and p > 0):
         return 0.0
-    # tone_curve(2^e r) = p: bisection on e (the curves increase monotonically)
+    # tone_curve(2^e r) = the photo's level up to the curve's knee (bisection: the curves increase monotonically);
+    # a photo's level above it is a display value the camera gave, reached in proportion (not by inverting
+    # the roll-off, which would lift a near-white face by stops)
+    target = min(p, TONEMAP_KNEE)
     lo, hi = -30.0, 30.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap_op) < min(p, 0.999) else (lo, mid)
-    return float(np.clip(0.5 * (lo + hi), -20.0, 20.0))
+        lo, hi = (mid, hi) if tonemap_curve(2.0 ** mid * r, tonemap_op) < target else (lo, mid)
+    return float(np.clip(0.5 * (lo + hi) + np.log2(p / target), -20.0, 20.0))
 
 
 UNSEEN_SHARE = 0.9  # of the person's pixels clipped to white (or black): the lights far too bright (dim) for the exposure

@@ -561,7 +561,7 @@ def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, 
 def _photo_shading(engine, lights, fit, target, valid):
     engine.set_lights(lights)
     explained = engine.render().output.read_work_hdr()
-    diffuse, specular = engine.output.read_frame_shading()
+    diffuse, specular = engine.output.read_frame_shading(sheen_detail=False)  # the photo's sheen as its lights make it
     return {"explained": explained, "shading": (diffuse, specular), "fit": {**fit, "psnr_db": fit_psnr(explained, target, valid)}}
 
 
