@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-CELL = 320  # the bench's contact sheet: rows and columns of this many pixels (viewer/lab/bench/colour.py: _sheet)
-LABEL = 120  # pixels of the label column
+from viewer.lab.bench.photo_set import SHEET_CELL as CELL, SHEET_LABEL as LABEL
+
 LOOKS = ("white", "studio", "key")  # the sheet's rows after the photo's
 
 

@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.files.imageio import srgb_to_linear, write_jpeg, write_text
+from viewer.files.imageio import srgb_to_linear, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.lab.bench.face_metrics import face_skin
-from viewer.lab.bench.photo_set import _crop_boxes, _srgb8, collect, halves
+from viewer.lab.bench.photo_set import _crop_boxes, _srgb8, collect, contact_sheet, halves
 from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.output.render import render_look
@@ -134,36 +134,6 @@ def _display(eng, scene, lights, env, look: Look) -> np.ndarray:
     return eng.output.read_display()
 
 
-def _sheet(path: Path, photo8: np.ndarray, tiles: dict, boxes: dict, out_dir: Path) -> Path | None:
-    """The contact sheet: a row per picture (the photo first), a column per crop, at 100 %."""
-    from PIL import Image, ImageDraw
-
-    if not boxes:
-        return None
-    cell = 320
-    rows = [("photo", photo8)] + list(tiles.items())
-    sheet = Image.new("RGB", (cell * len(boxes) + 120, cell * len(rows)), (128, 128, 128))
-    draw = ImageDraw.Draw(sheet)
-    for r, (label, image) in enumerate(rows):
-        draw.text((4, r * cell + 4), label, fill=(255, 255, 255))
-        for c, (x, y, s) in enumerate(boxes.values()):
-            crop = np.ascontiguousarray(image[y:y + s, x:x + s])
-            if crop.shape[-1] == 4:  # over mid grey, as the sheet
-                a = crop[..., 3:].astype(np.float32) / 255.0
-                crop = (crop[..., :3] * a + 128 * (1 - a) + 0.5).astype(np.uint8)
-            tile = Image.fromarray(crop)
-            if s > cell:  # larger than the cell: the middle at 100 %
-                o = (s - cell) // 2
-                tile = tile.crop((o, o, o + cell, o + cell))
-            elif 2 * s <= cell:  # a small crop: each pixel shown as a square of pixels
-                k = cell // s
-                tile = tile.resize((k * s, k * s), Image.NEAREST)
-            sheet.paste(tile, (120 + c * cell, r * cell))
-    for c, name in enumerate(boxes):
-        draw.text((120 + c * cell + 4, 4), name, fill=(255, 255, 0))
-    return write_jpeg(out_dir / f"colour_{path.stem}.jpg", np.asarray(sheet).astype(np.float32) / 255.0, quality=90)
-
-
 def measure_photo(path: Path, part: str, ctx, nets, lightings: dict, out_dir: Path | None) -> dict:
     """One photo's row (see the module's docstring)."""
     t = time.perf_counter()
@@ -201,7 +171,7 @@ def measure_photo(path: Path, part: str, ctx, nets, lightings: dict, out_dir: Pa
         else:
             x, y, s = boxes["face"]
             boxes["clothes"] = (x, min(y + 2 * s, alpha.shape[0] - s), s)
-        sheet = _sheet(path, photo8, {k: tiles[k] for k in ("white", "studio", "key")}, boxes, out_dir)
+        sheet = contact_sheet(out_dir / f"colour_{path.stem}.jpg", photo8, {k: tiles[k] for k in ("white", "studio", "key")}, boxes)
         row["contact_sheet"] = sheet.name if sheet else None
     return row
 

@@ -202,24 +202,41 @@ def _crop_boxes(scene, skin_record, landmarks) -> dict:
     return boxes
 
 
-def _contact(path: Path, photo8: np.ndarray, tiles: dict, boxes: dict, out_dir: Path) -> Path | None:
+SHEET_CELL = 320  # pixels of a contact sheet's cell: its crops at 100 % (tools/colour_figure.py reads this layout)
+SHEET_LABEL = 120  # pixels of its label column
+
+
+def contact_sheet(out: Path, photo8: np.ndarray, tiles: dict, boxes: dict) -> Path | None:
+    """A contact sheet at ``out``: a row per picture (``photo8`` first, then ``tiles``: label -> uint8
+    RGB or RGBA, the frame's size), a column per crop of ``boxes`` (name -> (x, y, side)), at 100 %:
+    a crop larger than the cell shows its middle, a small one each pixel as a square of pixels, an
+    RGBA one over the sheet's mid grey. None without crops."""
     from PIL import Image, ImageDraw
 
     if not boxes:
         return None
-    cell = 256
+    cell = SHEET_CELL
     rows = [("photo", photo8)] + list(tiles.items())
-    sheet = Image.new("RGB", (cell * len(boxes) + 110, cell * len(rows)), (40, 40, 40))
+    sheet = Image.new("RGB", (cell * len(boxes) + SHEET_LABEL, cell * len(rows)), (128, 128, 128))
     draw = ImageDraw.Draw(sheet)
     for r, (label, image) in enumerate(rows):
-        draw.text((4, r * cell + 4), label, fill=(230, 230, 230))
+        draw.text((4, r * cell + 4), label, fill=(255, 255, 255))
         for c, (x, y, s) in enumerate(boxes.values()):
-            crop = Image.fromarray(np.ascontiguousarray(image[y:y + s, x:x + s])).resize((cell, cell),
-                                                                                         Image.NEAREST if s < cell else Image.LANCZOS)
-            sheet.paste(crop, (110 + c * cell, r * cell))
+            crop = np.ascontiguousarray(image[y:y + s, x:x + s])
+            if crop.shape[-1] == 4:
+                a = crop[..., 3:].astype(np.float32) / 255.0
+                crop = (crop[..., :3] * a + 128 * (1 - a) + 0.5).astype(np.uint8)
+            tile = Image.fromarray(crop)
+            if s > cell:
+                o = (s - cell) // 2
+                tile = tile.crop((o, o, o + cell, o + cell))
+            elif 2 * s <= cell:
+                k = cell // s
+                tile = tile.resize((k * s, k * s), Image.NEAREST)
+            sheet.paste(tile, (SHEET_LABEL + c * cell, r * cell))
     for c, name in enumerate(boxes):
-        draw.text((110 + c * cell + 4, 4), name, fill=(255, 255, 0))
-    return write_jpeg(out_dir / f"contact_{path.stem}.jpg", np.asarray(sheet).astype(np.float32) / 255.0, quality=88)
+        draw.text((SHEET_LABEL + c * cell + 4, 4), name, fill=(255, 255, 0))
+    return write_jpeg(out, np.asarray(sheet).astype(np.float32) / 255.0, quality=90)
 
 
 def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache, out_dir: Path | None, progress=print) -> dict:
@@ -287,7 +304,7 @@ def measure_photo(path: Path, part: str, ctx, nets, maps_dir: Path, light_cache,
             landmarks = find_person(photo8, path).landmarks
         except Exception:  # noqa: BLE001 -- a photo the pose model misses still has its face crops
             landmarks = {}
-        sheet = _contact(path, photo8, tiles, _crop_boxes(scene, rec, landmarks), out_dir)
+        sheet = contact_sheet(out_dir / f"contact_{path.stem}.jpg", photo8, tiles, _crop_boxes(scene, rec, landmarks))
         row["contact_sheet"] = sheet.name if sheet else None
     progress(f"  {path.name}: " + ", ".join(f"{k} holes {v['holes']} speckle {v['speckle_face']}/{v['speckle_limbs']}"
                                             for k, v in row["lightings"].items()) + f"; bleed {row['bleed']} kept {row['kept']}")
