@@ -203,3 +203,23 @@ def test_the_sheen_takes_the_albedos_detail_and_keeps_its_level_at_the_soft_edge
     edge, core = ((alpha > 0.05) & (alpha < 0.7))[lit], (alpha > 0.99)[lit]
     assert abs(np.median(t[edge]) - 1.0) < 0.15 and abs(np.median(t[core]) - 1.0) < 0.05  # the level kept
     assert np.std(t[core]) > 0.05  # the detail: the sheen is not the smooth sum
+
+
+def test_a_look_file_with_some_fields_keeps_the_commands_defaults_for_the_others(studio, tmp_path):
+    """A look of its background alone (``{"look": {"background": "photo"}}``) is rendered with the
+    automatic exposure and yaw, as the command line's ``--background photo`` is (it gave exposure 0
+    and yaw 0: a backlit person three stops dark)."""
+    from viewer.cli.main import main
+    from viewer.files.imageio import read_png
+    from viewer.scene.bundle import save_scene
+
+    bundle = save_scene(studio, tmp_path / "bundle")
+    env = SHARED_DATA / "hdri" / "venice_sunset_1k.hdr"
+    (tmp_path / "look.json").write_text(json.dumps({"look": {"background": "photo"}}))
+    common = ["render", str(bundle), "--env", str(env), "-n", "4", "--no-ground"]
+    assert main(common + ["--look", str(tmp_path / "look.json"), "-o", str(tmp_path / "a.png")]) == 0
+    assert main(common + ["--background", "photo", "-o", str(tmp_path / "b.png")]) == 0
+    np.testing.assert_array_equal(read_png(tmp_path / "a.png"), read_png(tmp_path / "b.png"))
+    (tmp_path / "look.json").write_text(json.dumps({"look": {"background": "photo", "yaw": 0, "exposure": 0}}))
+    assert main(common + ["--look", str(tmp_path / "look.json"), "-o", str(tmp_path / "c.png")]) == 0
+    assert np.abs(read_png(tmp_path / "c.png") - read_png(tmp_path / "b.png")).mean() > 0.01  # the file's own values

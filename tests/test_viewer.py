@@ -349,11 +349,13 @@ def test_placed_lights_rig_undo_redo_and_saved_rig(viewer_factory, tmp_path, hea
 def test_the_users_own_lights_and_the_placed_ones_stay_where_placed(viewer_factory, tmp_path):
     """``relight view --lights FILE --rig RIG``: a light file of the user's own (no fit record: not a
     map's) opens as written, at yaw 0 (not turned by the automatic yaw); a map opened then turns its
-    own brightest light to the camera, and the rig's lights, fixed to the camera, stay where placed."""
+    own brightest light to the camera, is fitted with the preset's count of lights (not the file's),
+    and the rig's lights, fixed to the camera, stay where placed."""
     from viewer.lighting.placed_lights import load_rig, rig, save_rig, to_area_lights
 
     data = json.loads((asset_dir() / DEMO_LIGHTS).read_text())
-    del data["fit"]  # the map's lights, as a file of the user's own
+    del data["fit"]  # the map's four brightest lights, as a file of the user's own
+    data["lights"] = sorted(data["lights"], key=lambda light: -sum(light["intensity"]))[:4]
     own = tmp_path / "own.json"
     own.write_text(json.dumps(data))
     rig_file = save_rig(tmp_path / "rig.json", rig("key and fill", 1.0))
@@ -366,10 +368,10 @@ def test_the_users_own_lights_and_the_placed_ones_stay_where_placed(viewer_facto
 
     v = viewer_factory("--lights", str(own), "--rig", str(rig_file))
     s = v.wait_for(lambda s: len(s["placed"]) == 2, 30)
-    assert s["look"]["yaw"] == 0.0 and abs(FIRST_YAW) > 90.0  # the automatic yaw would have turned them by FIRST_YAW
+    assert s["look"]["yaw"] == 0.0 and abs(facing_yaw(load_lights(own))) > 90.0  # the automatic yaw would have turned them
     lights = rendered(v)
-    np.testing.assert_allclose(lights[:16], load_lights(own).direction, atol=1e-5)
-    np.testing.assert_allclose(lights[16:], placed, atol=1e-5)
+    np.testing.assert_allclose(lights[:4], load_lights(own).direction, atol=1e-5)
+    np.testing.assert_allclose(lights[4:], placed, atol=1e-5)
     new_map = str(asset_dir() / "envmaps" / "venice_sunset_256.hdr")
     v.click("open a file")
     v.wait_for(lambda s: "browser path" in s["widgets"], 30)

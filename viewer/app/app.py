@@ -73,6 +73,7 @@ class ViewerConfig:
     size: int | None = None  # the maps' size its frames are read at (relight view --size)
     plate: tuple | None = None  # the person put into a plate (--plate): viewer.app.plate_view.PlateView's arguments
     plate_notes: tuple = ()  # what reading and placing the plate said (shown in its panel section)
+    lights_count: int = 16  # how many lights a map opened in the window is fitted with (-n, else the preset's)
 
 
 class ViewerApp:
@@ -118,7 +119,7 @@ class ViewerApp:
         self.session.set_placed(config.rig, record=False)
         self.session.wake = self.window.wake
         self.env_path = config.env_path
-        self.n_lights = len(config.lights)
+        self.n_lights = config.lights_count  # not the count of a light file the window opened with
         self.preset = config.preset
         self.view = ix.ViewState()  # zoom and pan; the rotation and exposure are the session's look
         if self.auto_exposure:

@@ -115,11 +115,13 @@ LOOK_OPTIONS = (("yaw", "yaw"), ("tilt", "tilt"), ("exposure", "exposure"), ("to
 
 def command_look(args, yaw_default: float = 0.0):
     """The look of a command: a saved one (``--look FILE``: a frame saved by the viewer, its state
-    file, or a bare look object) or the defaults, with every option given on the command line in
-    its place (the preset among them: what the engine options and the lights' count follow)."""
+    file, or a bare look object, whose missing fields are the command's defaults) or the defaults,
+    with every option given on the command line in its place (the preset among them: what the
+    engine options and the lights' count follow)."""
     from viewer.scene.look import AUTO, Look
 
-    base = read_look(args.look) if getattr(args, "look", None) else Look(yaw=yaw_default, exposure=AUTO)
+    base = Look(yaw=yaw_default, exposure=AUTO)
+    base = read_look(args.look, base) if getattr(args, "look", None) else base
     given = {field: getattr(args, option) for field, option in LOOK_OPTIONS if getattr(args, option, None) is not None}
     try:
         look = base.replace(**given)
@@ -129,13 +131,19 @@ def command_look(args, yaw_default: float = 0.0):
     return look
 
 
-def read_look(path):
-    """The look in a JSON file (``{"look": {...}}`` as the viewer saves it, or the look itself)."""
+def look_fields(path):
+    """The look's object in a JSON file (``{"look": {...}}`` as the viewer saves it, or the look itself)."""
     from viewer.files.imageio import read_json
-    from viewer.scene.look import Look
 
     data = read_json(path, "JSON look file")
-    return Look.from_json(data.get("look", data) if isinstance(data, dict) else data, where=path)
+    return data.get("look", data) if isinstance(data, dict) else data
+
+
+def read_look(path, base=None):
+    """The look in a JSON file (:func:`look_fields`), the fields it lacks ``base``'s."""
+    from viewer.scene.look import Look
+
+    return Look.from_json(look_fields(path), where=path, base=base)
 
 
 def rig_lights(args):
@@ -147,12 +155,13 @@ def rig_lights(args):
 
 def first_look(args, look, lights, source: str):
     """The look of ``render`` and ``view`` (a photo's, a clip's, on a plate; ``batch``'s yaw "auto" is
-    the same rule): unless a yaw was given (``--yaw``, or a saved ``--look``), the yaw that lights from
-    ``source`` start with (:func:`viewer.lighting.map_lights.start_yaw`: a map's brightest light on the
-    camera's side, the user's own lights and a plate's own light as they are)."""
+    the same rule): unless a yaw was given (``--yaw``, or a saved ``--look`` that holds one), the yaw
+    that lights from ``source`` start with (:func:`viewer.lighting.map_lights.start_yaw`: a map's
+    brightest light on the camera's side, the user's own lights and a plate's own light as they are)."""
     from viewer.lighting.map_lights import start_yaw
 
-    if args.yaw is not None or getattr(args, "look", None):
+    saved = getattr(args, "look", None)
+    if args.yaw is not None or (saved and "yaw" in look_fields(saved)):
         return look
     return look.replace(yaw=start_yaw(lights, source))
 

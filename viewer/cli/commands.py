@@ -16,6 +16,7 @@ from viewer.cli.command_setup import (
     fitted_lights,
     gl_threads,
     light_count_option,
+    lights_count,
     prepare,
     rig_lights,
     warn_if_dark,
@@ -254,7 +255,7 @@ def cmd_view(args) -> int:
                           bundled_maps=tuple(sorted((assets / "envmaps").glob("*.hdr"))), preset=look.preset,
                           window=window, rig=rig, max_size=args.max_size, device=args.device,
                           gl_threads=gl_threads(), clip=clip_bundle.bundle if clip_bundle else None, size=args.size,
-                          plate=plate, plate_notes=tuple(plate_notes))
+                          plate=plate, plate_notes=tuple(plate_notes), lights_count=lights_count(args, look))
     return run_viewer(config)
 
 

@@ -138,9 +138,10 @@ class Look:
         return out
 
     @classmethod
-    def from_json(cls, data, where=None) -> Look:
-        """A look saved by :meth:`to_json`, or by an older version (``visibility`` for ``shadows``);
-        unknown keys are ignored, a bad value is one line naming ``where``."""
+    def from_json(cls, data, where=None, base: Look | None = None) -> Look:
+        """A look saved by :meth:`to_json`, or by an older version (``visibility`` for ``shadows``), or
+        a part of one (the fields it lacks are ``base``'s, the defaults when None); unknown keys are
+        ignored, a bad value is one line naming ``where``."""
         if not isinstance(data, dict):
             raise InputError(where, f"the look must be a JSON object, got {type(data).__name__}")
         data = dict(data)
@@ -148,6 +149,6 @@ class Look:
             data["shadows"] = data.pop("visibility")
         known = {f.name for f in fields(cls)}
         try:
-            return cls(**{k: v for k, v in data.items() if k in known})
+            return cls(**{**(asdict(base) if base is not None else {}), **{k: v for k, v in data.items() if k in known}})
         except InputError as exc:
             raise InputError(where, exc.problem) from None
