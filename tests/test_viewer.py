@@ -256,6 +256,21 @@ def test_a_photo_is_inferred_and_shown_with_refined_shadows(viewer_factory, tmp_
     assert v.quit() == 0
 
 
+def test_the_photos_own_background_is_shown_as_it_is_whatever_the_exposure(viewer_factory, tmp_path, monkeypatch):
+    """relight view PHOTO --background photo: behind the person the photo as it was, at any exposure
+    (the panel's "behind" offers it too)."""
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
+    photo = asset_dir() / "photos" / "underpass.jpg"
+    v = viewer_factory(str(photo), "--background", "photo", "--exposure", "2")
+    s = v.wait_for(lambda s: s["look"]["background"] == "photo" and "behind" in s["widgets"], 60)
+    assert s["look"]["exposure"] == 2.0
+    shot, original = read_png(v.save()), read_png(photo)
+    mask = read_png(photo.with_suffix(".mask.png"))
+    away = (mask if mask.ndim == 2 else mask[..., 0]) == 0
+    assert np.abs(shot[away] - original[away]).mean() < 1.0 / 255  # the photo as it was, not two stops brighter
+    assert v.quit() == 0
+
+
 def test_sigma_slider_softens_that_lights_shadow(viewer_factory, headless):
     scene, base, engine = headless
     v = viewer_factory()

@@ -16,7 +16,7 @@ from imgui_bundle import imgui, implot
 from viewer.app.interaction import exposed
 from viewer.app.layout import KEYS, SMALL_HEIGHT, panel_width
 from viewer.app.preview import PREVIEW_LEVELS
-from viewer.app.session import SHADOW_MODES, VIEW_NAMES
+from viewer.app.session import BACKGROUND_NAMES, SHADOW_MODES, VIEW_NAMES
 from viewer.gl.presets import PRESETS
 from viewer.lighting.median_cut import LUMINANCE
 from viewer.lighting.placed_lights import MAX_SIZE, RIGS, PlacedLight, free_spot, kelvin_to_rgb
@@ -25,7 +25,7 @@ from viewer.scene.look import VIEWS
 from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 # the labels drawn beside sliders and combos (each widget leaves the longest one's room: none is cut)
-LABELS = ("longitude", "tilt", "exposure", "map", "yours", "before | after", "quality", "shadows", "view",
+LABELS = ("longitude", "tilt", "exposure", "map", "yours", "before | after", "quality", "shadows", "behind", "view",
           "number of lights", "turn frames", "frame")
 LIGHT_COUNT_SLIDER = 64  # the map's lights the slider offers (the final preset's count; a light file holds up to area_lights.MAX_LIGHTS)
 SIGMA_SLIDER = 30.0  # the size sliders' top, sigma units (the fits give at most light_size.SIGMA_MAX, 20)
@@ -290,6 +290,15 @@ def _shading(app):
     _remember(app, "shadows")
     if changed:
         s.update(shadows=SHADOW_MODES[names[i]])
+    names = list(BACKGROUND_NAMES)
+    shown = list(BACKGROUND_NAMES.values())
+    changed, i = imgui.combo("behind", shown.index(lk.background) if lk.background in shown else 0, names)
+    _remember(app, "behind")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("behind the person: the map, the photo's own background (shown as it is, whatever the\n"
+                          "exposure), or a grey")
+    if changed:
+        s.update(background=BACKGROUND_NAMES[names[i]])
     if s.refine_error:  # the network failed: the mode went back to soft, and this says why
         imgui.text_colored(imgui.ImVec4(1.0, 0.45, 0.4, 1.0), s.refine_error)
     elif lk.shadows == "refined":  # one line, there all the time under "refined": nothing below it moves

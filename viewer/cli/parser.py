@@ -95,6 +95,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--backdrop-blur", type=auto_or("degrees"),
                    help="the map behind the person blurred, degrees, or auto (default): as the photo's own background")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
+    p.add_argument("--background", choices=("environment", "photo", "color"),
+                   help="behind the person at first (the panel's 'behind'): the map (default), the photo's own "
+                        "background (shown as it is, whatever the exposure), or a grey")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
     p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")
     p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
