@@ -11,6 +11,7 @@ from viewer.cli.plate_commands import cmd_plate_light
 from viewer.cli.shared_options import add_clip_range_args, add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 from viewer.plate.plate_light import MAP_HEIGHT
+from viewer.scene.look import BACKGROUNDS
 
 COMMAND_GROUP = "relight.commands"
 
@@ -95,7 +96,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--backdrop-blur", type=auto_or("degrees"),
                    help="the map behind the person blurred, degrees, or auto (default): as the photo's own background")
     p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
-    p.add_argument("--background", choices=("environment", "photo", "color"),
+    p.add_argument("--background", choices=tuple(b for b in BACKGROUNDS if b != "transparent"),
                    help="behind the person at first (the panel's 'behind'): the map (default), the photo's own "
                         "background (shown as it is, whatever the exposure), or a grey")
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
