@@ -25,7 +25,7 @@ from viewer.scene.look import VIEWS
 from viewer.scene.shadow_space import ANGULAR_SIGMA
 
 # the labels drawn beside sliders and combos (each widget leaves the longest one's room: none is cut)
-LABELS = ("longitude", "tilt", "exposure", "map", "yours", "before | after", "quality", "shadows", "behind", "view",
+LABELS = ("longitude", "tilt", "exposure", "map", "yours", "before | after", "quality", "shadows", "view",
           "number of lights", "turn frames", "frame")
 LIGHT_COUNT_SLIDER = 64  # the map's lights the slider offers (the final preset's count; a light file holds up to area_lights.MAX_LIGHTS)
 SIGMA_SLIDER = 30.0  # the size sliders' top, sigma units (the fits give at most light_size.SIGMA_MAX, 20)
@@ -262,13 +262,26 @@ def _lighting_controls(app, held):
         _remember(app, "compare")
         if changed:
             s.update(compare=compare)
-    changed, ground = imgui.checkbox("shadow on the ground (G)", held.ground if held is not None else s.ground_shown)
+    changed, ground = imgui.checkbox("ground shadow (G)", held.ground if held is not None else s.ground_shown)
     _remember(app, "ground")
     if imgui.is_item_hovered():
         imgui.set_tooltip("the person's shadow on the ground at the feet, over the background\n"
                           "(on by default when the feet are in the frame and the map is behind)")
     if changed:
         s.update(ground=ground)
+    imgui.same_line()  # what the ground's shadow falls on, on its row
+    names = list(BACKGROUND_NAMES)
+    shown = list(BACKGROUND_NAMES.values())
+    background = held.look.background if held is not None else s.look.background
+    imgui.set_next_item_width(imgui.get_content_region_avail().x - imgui.calc_text_size("behind").x
+                              - imgui.get_style().item_inner_spacing.x)
+    changed, i = imgui.combo("behind", shown.index(background) if background in shown else 0, names)
+    _remember(app, "behind")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("behind the person: the map, the photo's own background (shown as it is, whatever the\n"
+                          "exposure), or a grey")
+    if changed:
+        s.update(background=BACKGROUND_NAMES[names[i]])
 
 
 def _shading(app):
@@ -290,15 +303,6 @@ def _shading(app):
     _remember(app, "shadows")
     if changed:
         s.update(shadows=SHADOW_MODES[names[i]])
-    names = list(BACKGROUND_NAMES)
-    shown = list(BACKGROUND_NAMES.values())
-    changed, i = imgui.combo("behind", shown.index(lk.background) if lk.background in shown else 0, names)
-    _remember(app, "behind")
-    if imgui.is_item_hovered():
-        imgui.set_tooltip("behind the person: the map, the photo's own background (shown as it is, whatever the\n"
-                          "exposure), or a grey")
-    if changed:
-        s.update(background=BACKGROUND_NAMES[names[i]])
     if s.refine_error:  # the network failed: the mode went back to soft, and this says why
         imgui.text_colored(imgui.ImVec4(1.0, 0.45, 0.4, 1.0), s.refine_error)
     elif lk.shadows == "refined":  # one line, there all the time under "refined": nothing below it moves

@@ -25,7 +25,7 @@ from viewer.scene.bundle import Scene
 from viewer.scene.look import Look
 
 SHADOW_MODES = {"soft (area lights)": "soft", "refined (network)": "refined", "shadow map (hard)": "hard", "none": "none"}
-BACKGROUND_NAMES = {"the map": "environment", "the photo's own": "photo", "grey": "color"}  # what the panel offers behind
+BACKGROUND_NAMES = {"map": "environment", "photo": "photo", "grey": "color"}  # what the panel offers behind the person
 VIEW_NAMES = {
     "final": "relit image", "diffuse_shading": "diffuse shading", "specular_shading": "specular shading",
     "albedo": "albedo", "normal": "normal", "depth": "depth", "specular": "specular", "roughness": "roughness",
