@@ -923,3 +923,43 @@ def test_a_bystander_who_comes_nearer_stays_out_of_the_matte(tmp_path):
     for entry in bundle.frames:
         alpha = load_scene(bundle.scene_path(entry.index)).frame.alpha
         assert alpha[:, split:].sum() > 0.95 * alpha.sum() and alpha[:, split:].sum() > 1000, entry.index
+
+
+def test_the_person_chosen_is_followed_and_their_absence_said_once(tmp_path, capsys):
+    """`relight infer CLIP --person X,Y` relights the person pointed at (not the larger one beside
+    them) in every frame they are in, says whom it chose with a preview, and a frame they are out of
+    shows no one, said once with its frame; another person is never relit in their place."""
+    from test_segmentation import two_people
+
+    from viewer.cli.main import main
+    from viewer.files.imageio import read_png
+    from viewer.resize import resize
+    from viewer.scene.bundle import load_scene
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    two, split = two_people()
+    scale = 600 / two.shape[0]
+    frame = resize(two, (int(two.shape[1] * scale) // 2 * 2, 600))
+    split = int(split * scale)
+    alone = frame.copy()
+    alone[:, split:] = frame[:20, split:].mean(axis=(0, 1)).astype(np.uint8)  # the right-hand person gone
+    clip = write_clip(tmp_path / "two.mp4", [frame, frame, alone, frame], audio=None)
+    x = (split + 0.5 * (frame.shape[1] - split)) / frame.shape[1]
+    assert main(["infer", str(clip), "-o", str(tmp_path / "bundle"), "--person", f"{x:.3f},0.8"]) == 0
+    said = capsys.readouterr().out
+    assert "relighting the person at" in said and "under --person" in said and "1 other there left out" in said
+    assert "no one relit in frame 2 (0.20-0.20 s): the person followed is not in the picture (1 other in it)" in said
+    bundle = load_clip_bundle(tmp_path / "bundle")
+    assert [e.state for e in bundle.frames] == ["person", "person", "no person", "person"]
+    for index in (0, 1, 3):
+        a = load_scene(bundle.scene_path(index)).frame.alpha
+        assert a[:, split:].sum() > 0.95 * a.sum() and a[:, split:].sum() > 1000, index
+    preview = read_png(tmp_path / "bundle" / "person.png")
+    assert preview.shape[2] == 3 and preview[..., 1].max() > 0.9  # the chosen one outlined in green
+    with pytest.raises(SystemExit):
+        main(["infer", str(clip), "-o", str(tmp_path / "b2"), "--person", "1.5,0.2"])
+    assert "fractions of the frame" in capsys.readouterr().err
+    photo = SHARED_DATA / "photos" / "unsplash-1507274733827.jpg"
+    assert main(["infer", str(photo), "-o", str(tmp_path / "b3"), "--people", "all"]) == 2
+    assert "--people is for a clip: this is not one" in capsys.readouterr().err
+    assert not (tmp_path / "b3").exists()

@@ -54,17 +54,35 @@ def test_the_largest_of_several_people_is_kept_with_a_note():
 
 
 def test_in_a_clip_the_person_followed_is_kept_not_the_largest():
-    """A bystander nearer the camera (larger) stays out: the person whose box overlaps the frame
-    before's is segmented, alone; with no overlap, the largest."""
+    """A bystander nearer the camera (larger) stays out: the person the clip follows (chosen by a
+    point on them) is segmented, alone; someone who is not them is never relit in their place."""
+    from viewer.photo.person_track import PersonTrack, choose
+    from viewer.photo.segmentation import frame_people
+
     two, split = two_people()
     h, w = two.shape[:2]
-    small_box = (split / w, 0.4, 1 - split / w, 0.6)  # the right-hand person's part of the frame, as the frame before had it
+    _, _, parts = frame_people(two)
+    assert len(parts) == 2
+    pick = choose(parts, ((split + 0.5 * (w - split)) / w, 0.8))  # a point on the right-hand person
+    assert parts[pick].box[0] > 0.9 * split / w
+    assert choose(parts) != pick  # unasked: the larger, more central one
+    chosen = {"box": list(parts[pick].box), "signature": parts[pick].signature.tolist(), "frame": 0}
+    track = PersonTrack(chosen)
+    track.at(1)
     notes = []
-    matte = find_person(two, "two people", notes, follow=small_box).segmentation > 0.5
-    assert any("followed from the frame before" in n for n in notes)
+    matte = find_person(two, "two people", notes, follow=track).segmentation > 0.5
     assert matte[:, split:].sum() > 0.95 * matte.sum() and matte[:, split:].sum() > 0.1 * 600 * (w - split)  # the person, whole
-    matte = find_person(two, "two people", [], follow=(0.0, 0.0, 0.01, 0.01)).segmentation > 0.5  # overlaps no one
-    assert matte[:, :split].sum() > 0.95 * matte.sum()
+    assert track.last_index == 1
+    # the person gone (only the larger one left, far from where they were): no one relit, one line
+    alone = two.copy()
+    alone[:, split:] = 0
+    track.at(40)
+    with pytest.raises(InputError, match="not in the picture"):
+        find_person(alone, "one left", [], follow=track)
+    # --people all: both relit, the person followed lending the landmarks
+    track.at(41)
+    both = find_person(two, "two people", [], follow=track, everyone_too=True).segmentation > 0.5
+    assert both[:, :split].sum() > 0.3 * both.sum() and both[:, split:].sum() > 0.1 * both.sum()
 
 
 def test_no_person_is_one_clear_line():

@@ -25,20 +25,30 @@ def _bar(total: int, what: str):
     return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True)
 
 
+INFERRED_ONLY = "--start, --end, --temporal, --person and --people"
+
+
+def inferred_only(args) -> bool:
+    """Whether ``args`` set an option that only a clip's inference takes (:data:`INFERRED_ONLY`)."""
+    return args.start != 0.0 or args.end is not None or any(getattr(args, k, None) is not None
+                                                             for k in ("temporal", "person", "people"))
+
+
 def clip_bundle(clip, args, out=None, window=None) -> Path:
     """The clip bundle of ``clip`` (--start, --end, --size, --max-size, --device of ``args``): written
     into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left
     (and in ``window``, a window already open, whose context the inference then uses)."""
     from viewer.lighting.lightfit.cache import cache_dir
-    from viewer.photo.clip_inference import cached_clip_path, infer_clip
+    from viewer.photo.clip_inference import cached_clip_path, infer_clip, person_said
     from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 
     size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
     max_size = getattr(args, "max_size", None) or MAX_SIZE
     temporal = args.temporal or "on"
+    person, people = getattr(args, "person", None), getattr(args, "people", None) or "one"
     digest = file_sha256(clip)  # read once: the cache's path and the bundle's key
     target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
-                                                                size, max_size, temporal, digest)
+                                                                size, max_size, temporal, digest, person, people)
     t0 = time.perf_counter()
     with _bar(0, f"inferring {Path(clip).name}") as bar:
         def progress(done, total, entry):
@@ -53,11 +63,15 @@ def clip_bundle(clip, args, out=None, window=None) -> Path:
         if window is not None:
             window.show_message(f"Preparing {Path(clip).name}", 0.0, "reading the clip, finding the person...")
         record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size, device=getattr(args, "device", "cpu"),
-                            progress=progress, temporal=temporal, digest=digest, ctx=window.ctx if window is not None else None)
+                            progress=progress, temporal=temporal, digest=digest, ctx=window.ctx if window is not None else None,
+                            person=person, people=people)
     kept, states = record["frames_kept_from_earlier_run"], record["states"]
     seconds = time.perf_counter() - t0
     rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
     shots = f", {record['shots']} shot{'s' if record['shots'] != 1 else ''}" if record.get("shots") else ", frame by frame"
+    print(person_said(clip, record, target))
+    for gap in record.get("gaps", []):
+        print(gap)
     print(f"clip bundle of {clip}: {target} ({record['frames']} frames: {states['person']} with the person, "
           f"{states['no person']} without, {states['lost']} lost{shots}; {kept} kept from an earlier run; {seconds:.1f} s{rate})")
     return target
@@ -79,8 +93,8 @@ def view_clip_bundle(args) -> ViewedClip:
 
     if is_clip(args.scene):
         check_range(args.scene, args.start, args.end)
-    elif args.start != 0.0 or args.end is not None or args.temporal is not None:
-        raise InputError(args.scene, "--start, --end and --temporal choose how a clip is inferred: give the clip itself, "
+    elif inferred_only(args):
+        raise InputError(args.scene, f"{INFERRED_ONLY} choose how a clip is inferred: give the clip itself, "
                                      "or infer its bundle with them")
     window = Window(960, 720, f"relight - {Path(args.scene).name}")
     try:
@@ -131,8 +145,8 @@ def cmd_render_clip(args, look) -> int:
         # says transparent)
         raise InputError(out, "an MP4 (H.264) holds no transparency: give the video another --background")
     writable(out)
-    if not is_clip(args.scene) and (args.start != 0.0 or args.end is not None or args.temporal is not None):
-        raise InputError(args.scene, "--start, --end and --temporal choose how a clip is inferred: give the clip itself, "
+    if not is_clip(args.scene) and inferred_only(args):
+        raise InputError(args.scene, f"{INFERRED_ONLY} choose how a clip is inferred: give the clip itself, "
                                      "or infer its bundle with them")
     if args.per_light and not args.layers:
         raise InputError(None, "--per-light adds layers: give --layers too")

@@ -94,8 +94,9 @@ def not_a_clip_range(args, given) -> None:
     """Refuse --start / --end for what is not a clip (they would be silently ignored)."""
     if getattr(args, "start", 0.0) != 0.0 or getattr(args, "end", None) is not None:
         raise InputError(given, "--start and --end choose a part of a clip: this is not one")
-    if getattr(args, "temporal", None) is not None:
-        raise InputError(given, "--temporal is for a clip: this is not one")
+    for flag in ("temporal", "person", "people"):
+        if getattr(args, flag, None) is not None:
+            raise InputError(given, f"--{flag} is for a clip: this is not one")
 
 
 def check_fps(args):

@@ -94,9 +94,26 @@ def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
                         "(refined), the shadow map (hard) or none")
 
 
+def point_arg(text: str) -> tuple[float, float]:
+    """X,Y: two fractions in [0, 1] (a point on the frame)."""
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"give X,Y as two fractions of the frame, e.g. 0.4,0.5; got {text!r}") from None
+    if not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0):
+        raise argparse.ArgumentTypeError(f"X and Y are fractions of the frame's width and height, in [0, 1]; got {text!r}")
+    return x, y
+
+
 def add_clip_range_args(p) -> None:
     """--start and --end: the part of a clip to work on, seconds."""
     p.add_argument("--start", type=float, default=0.0, help="a clip: seconds from its start to begin at (default 0)")
     p.add_argument("--end", type=float, help="a clip: seconds from its start to stop at (default: its end)")
     p.add_argument("--temporal", choices=("on", "off"), help="a clip: on (default) estimates the photo's lighting and the "
                    "exposure once per shot; off relights every frame exactly as a photo (its own estimates), for comparison")
+    p.add_argument("--person", type=point_arg, metavar="X,Y",
+                   help="a clip: the person to relight, a point on them in the first frame anyone is in (fractions of its "
+                        "width and height); default: the largest and most central, followed through the clip")
+    p.add_argument("--people", choices=("one", "all"),
+                   help="a clip: one (default) relights the person chosen (others are left in the old scene's place); "
+                        "all relights everyone")

@@ -28,6 +28,16 @@ def plate_photos(folders) -> list[Path]:
                   if p.suffix.lower() in (".jpg", ".jpeg", ".png") and "mask" not in p.name.lower() and not p.name.startswith("."))
 
 
+def clip_files(given: list) -> list[Path]:
+    """The clips named, a folder's clips (sorted) in its place."""
+    from viewer.files.clip_reader import VIDEO_SUFFIXES
+
+    clips = []
+    for path in map(Path, given):
+        clips += sorted(p for p in path.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES) if path.is_dir() else [path]
+    return clips
+
+
 def shared_folder(given: str | None, part: str, option: str) -> Path:
     """The folder given on the command line, else ``$RELIGHT_DATA/<part>``; one line when neither."""
     if given:
@@ -209,14 +219,11 @@ def cmd_bench(args) -> int:
         print(truth_table(run_truth_benchmark(Path(args.truth), out.parent, output=out)))
         print(f"wrote {out}")
     elif args.what == "video":
-        from viewer.files.clip_reader import VIDEO_SUFFIXES
         from viewer.lab.bench.video import run_video_benchmark, synthetic_clip, video_table
 
         out = Path(args.output or "out/bench-video/video.json")
-        clips = [synthetic_clip(out.parent)] if args.synthetic else []
-        for given in args.clips or ([] if args.synthetic else [shared_folder(None, "videos", "--clips")]):
-            given = Path(given)
-            clips += sorted(p for p in given.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES) if given.is_dir() else [given]
+        clips = ([synthetic_clip(out.parent)] if args.synthetic else []) + \
+            clip_files(args.clips or ([] if args.synthetic else [shared_folder(None, "videos", "--clips")]))
         maps = [Path(m) for m in args.env] if args.env else [shared_folder(args.maps, "hdri", "--maps") / f"{m}_1k.hdr"
                                                              for m in ("potsdamer_platz", "rooitou_park")]
         print(video_table(run_video_benchmark(clips, maps, out.parent, args.start, args.end, args.max_size, output=out)))
@@ -269,6 +276,14 @@ def cmd_bench(args) -> int:
         for name, t in result["targets"].items():
             print(f"target {name}: {'met' if t['met'] else 'NOT met'}")
         print(f"wrote {Path(result['out_dir']) / 'results.md'} (+ results.json and figures) in {result['seconds'] / 60:.1f} min")
+    elif args.what == "people":
+        from viewer.lab.bench.people import people_table, run_people
+
+        out_dir = Path(args.output or "out/bench-people")
+        result = run_people(clip_files(args.clips or [shared_folder(None, "videos", "--clips")]), out_dir, min(args.max_size, 1280),
+                            progress=lambda line: print(line, flush=True))
+        print(people_table(result))
+        print(f"wrote {out_dir / 'people.json'} and a strip of frames per clip in {result['seconds'] / 60:.1f} min")
     elif args.what == "colour":
         from viewer.lab.bench.colour import run_colour
 
@@ -384,7 +399,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
                                     "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory", "plates",
-                                    "colour"),
+                                    "colour", "people"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -406,7 +421,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "estimated from plates made of each map of --maps at three yaws, the person relit by it against the "
                         "true map, a uniform light and spherical harmonics; colour: every photo of --set relit under a "
                         "uniform white map (its colours against the photo's: drift and cast in u'v'), a side key light "
-                        "(the face skin's brightness, the backdrop kept) and two maps, contact sheets (out/bench-colour/)")
+                        "(the face skin's brightness, the backdrop kept) and two maps, contact sheets (out/bench-colour/); people: whom "
+                        "each clip of --clips relights in every frame (the person chosen and followed), against CLIP.json "
+                        "beside it when there is one: frames with the person missing, swapped or another beside them")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--procedural", type=int, help="plates: instead of --maps, this many procedural maps (two of a kind at "
                    "most, seeds from 9000), made into the output's folder: maps never looked at while the estimate was made")

@@ -37,6 +37,7 @@ from viewer.files.ownership import file_is_ours, file_sha256, folder_lock, take_
 from viewer.memory_needs import frames_freed
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
+from viewer.photo.person_track import PersonTrack
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON, output_frame
 from viewer.photo.shots import ShotCuts
 from viewer.photo.steady import SteadyMaps
@@ -66,18 +67,28 @@ def clip_key(digest: str, options: dict, version: str) -> str:
 TEMPORAL = ("on", "off")
 
 
-def clip_options(start: float, end: float | None, size: int, max_size: int, temporal: str = "on") -> dict:
+PEOPLE = ("one", "all")
+
+
+def clip_options(start: float, end: float | None, size: int, max_size: int, temporal: str = "on", person: tuple | None = None,
+                 people: str = "one") -> dict:
+    """A clip bundle's options as its record keeps them: the part of the clip, the sizes, ``temporal``,
+    ``person`` (x, y as fractions of the first frame with anyone: the person to relight; None: the
+    largest and most central) and ``people`` ("one": that person; "all": everyone)."""
     if temporal not in TEMPORAL:
         raise InputError(None, f"--temporal must be on or off, got {temporal!r}")
+    if people not in PEOPLE:
+        raise InputError(None, f"--people must be one or all, got {people!r}")
     return {"start": float(start), "end": None if end is None else float(end), "size": int(size), "max_size": int(max_size),
-            "temporal": temporal}
+            "temporal": temporal, "person": None if person is None else [float(person[0]), float(person[1])], "people": people}
 
 
 def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int,
-                     temporal: str = "on", digest: str | None = None) -> Path:
+                     temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one") -> Path:
     """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``);
     ``digest``: the clip's SHA-256 when already known."""
-    key = clip_key(digest or file_sha256(clip_path), clip_options(start, end, size, max_size, temporal), inference_version())
+    key = clip_key(digest or file_sha256(clip_path), clip_options(start, end, size, max_size, temporal, person, people),
+                   inference_version())
     return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
 
 
@@ -90,7 +101,7 @@ def clip_target(out_dir) -> Path:
         raise InputError(out_dir, "exists and is not a folder: give a folder for the clip bundle")
     if out_dir.is_dir() and any(out_dir.iterdir()):
         names = {p.name for p in out_dir.iterdir()}
-        if not file_is_ours(out_dir / RECORD) or not names <= {RECORD, FRAMES}:
+        if not file_is_ours(out_dir / RECORD) or not names <= {RECORD, FRAMES, PREVIEW}:
             raise InputError(out_dir, "is a folder with files relight did not write there: give a new or empty folder for "
                                       "the clip bundle (nothing was written)")
     return out_dir
@@ -156,16 +167,18 @@ def locked_bundle(clip_path, out_dir, start: float, end: float | None) -> tuple[
 
 
 def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-                     max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None) -> tuple[Path, dict, dict | None]:
+                     max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, person: tuple | None = None,
+                     people: str = "one") -> tuple[Path, dict, dict | None]:
     """Make ``out_dir`` ready for the clip bundle of ``clip_path`` with these options (its maker holding
     :func:`locked_bundle`'s lock): (the folder, its record as written now (not complete), the earlier
     record when the bundle there is whole already). An earlier bundle of another clip or options
     there is taken away; one of the same is kept (its finished frames are not inferred again, and
     the ranges it was split in, when it was, are kept: :mod:`viewer.photo.clip_ranges`). ``digest``:
-    the clip's SHA-256 when the caller has just read it."""
+    the clip's SHA-256 when the caller has just read it. The person to relight is chosen here, once
+    for the clip (:func:`choose_person`), with its preview."""
     out_dir = Path(out_dir)
     info = probe_clip(clip_path)
-    options = clip_options(start, end, size, max_size, temporal)
+    options = clip_options(start, end, size, max_size, temporal, person, people)
     digest = digest or file_sha256(clip_path)
     key = clip_key(digest, options, inference_version())
     total = expected_frames(info, start, end)
@@ -181,24 +194,28 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
             _start_over(out_dir)
         elif earlier.get("complete") and _whole(out_dir, earlier):
             return out_dir, record, earlier  # whole: nothing to do
-        else:  # the same bundle, unfinished: split as it was begun
-            record.update({k: earlier[k] for k in ("expected_frames", "shot_starts", "ranges") if k in earlier})
+        else:  # the same bundle, unfinished: split as it was begun, its person as chosen
+            record.update({k: earlier[k] for k in ("expected_frames", "shot_starts", "ranges", "person") if k in earlier})
     (out_dir / FRAMES).mkdir(parents=True, exist_ok=True)
     _check_disk(clip_path, info, max_size, out_dir, total)
+    if "person" not in record:
+        record["person"] = choose_person(clip_path, out_dir, start, end, max_size, person)
     write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
     return out_dir, record, None
 
 
 def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
                max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
-               temporal: str = "on", digest: str | None = None) -> dict:
+               temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one") -> dict:
     """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
     ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
     the header's estimate). Frames already finished by an earlier run of the same clip and options
-    are kept. ``digest``: the clip's SHA-256 when the caller has just read it."""
+    are kept. ``digest``: the clip's SHA-256 when the caller has just read it; ``person``, ``people``:
+    :func:`clip_options`."""
     out_dir, lock = locked_bundle(clip_path, out_dir, start, end)
     with lock:
-        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
+        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest, person,
+                                                    people)
         if earlier is not None:
             return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
         if record.get("ranges"):  # begun in ranges by a batch (viewer.photo.clip_ranges): finished range by range, as begun
@@ -208,6 +225,69 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
             return finish_ranges(clip_path, out_dir, ranges, done)
         done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
         return finish_record(clip_path, out_dir, record, [done])
+
+
+PREVIEW = "person.png"  # the clip's first frame with anyone, the person chosen outlined, the others dimmed
+CHOOSE_WITHIN = 300  # frames: how far into the clip the person to relight is looked for
+
+
+def choose_person(clip_path, out_dir: Path, start: float, end: float | None, max_size: int, point: tuple | None) -> dict | None:
+    """The person the clip relights, chosen on its first frame with anyone in it (within
+    ``CHOOSE_WITHIN`` frames; :func:`viewer.photo.person_track.choose`, ``point`` given or not),
+    with the preview written into ``out_dir``: what the record keeps ("person"), or None when no
+    one is seen there (each frame then relights whom it finds)."""
+    from viewer.photo.person_track import choose, preview
+    from viewer.photo.segmentation import frame_people
+
+    for frame in clip_frames(clip_path, start, end):
+        if frame.index >= CHOOSE_WITHIN:
+            break
+        if frame.rgb is None:
+            continue
+        small, masks, parts = frame_people(resize(frame.rgb, output_frame((frame.rgb.shape[1], frame.rgb.shape[0]), max_size)),
+                                           clip_path)
+        pick = choose(parts, point)
+        if pick is None:
+            continue
+        write_png(out_dir / PREVIEW, preview(small, masks, pick))
+        box = parts[pick].box
+        return {"frame": frame.index, "seconds": round(frame.seconds, 6), "box": [round(float(v), 5) for v in box],
+                "signature": [round(float(v), 6) for v in parts[pick].signature], "others": len(parts) - 1,
+                "point": None if point is None else list(point)}
+    return None
+
+
+def person_said(clip_path, record: dict, out_dir: Path) -> str:
+    """One line: whom the clip relights (record's "person", :func:`choose_person`), and how to choose otherwise."""
+    chosen, options = record.get("person"), record["options"]
+    if chosen is None:
+        return f"{clip_path}: no one seen in its first {CHOOSE_WITHIN} frames; each frame relights the person it finds"
+    x, y, w, h = chosen["box"]
+    how = "under --person" if chosen.get("point") else "the largest and most central"
+    who = "everyone (--people all)" if options.get("people") == "all" else \
+        f"the person at {100 * (x + w / 2):.0f} % across, {100 * h:.0f} % of the frame's height tall ({how})"
+    others = chosen.get("others", 0)
+    rest = (f"; {others} other{'s' if others != 1 else ''} there left out (--person X,Y chooses another, --people all "
+            "relights everyone)") if others and options.get("people") != "all" else ""
+    return f"{clip_path}: relighting {who}, first seen at {chosen['seconds']:.2f} s{rest}; preview: {Path(out_dir) / PREVIEW}"
+
+
+def person_gaps(clip_path, out_dir: Path, record: dict) -> list[str]:
+    """One line per run of frames without the person (the frame's state "no person") of a complete
+    ``record``, with its frames and times on the clip's clock: the relit clip shows the new
+    background alone there."""
+    gaps, run, count, start = [], None, int(record["frames"]), float(record["options"]["start"])
+    for i in range(count):
+        entry = read_frame_entry(Path(out_dir) / FRAMES / f"{frame_name(i)}.json")
+        if entry.state == "no person":
+            run = [entry, entry] if run is None else [run[0], entry]
+        if run is not None and (entry.state != "no person" or i == count - 1):
+            a, b = run
+            frames = f"frame {a.index}" if a.index == b.index else f"frames {a.index}-{b.index}"
+            gaps.append(f"{clip_path}: no one relit in {frames} ({a.seconds + start:.2f}-{b.seconds + start:.2f} s): {a.note}; "
+                        "the new background alone there")
+            run = None
+    return gaps
 
 
 def _whole(out_dir: Path, record: dict) -> bool:
@@ -272,6 +352,7 @@ def finish_record(clip_path, out_dir: Path, record: dict, runs: list[dict], **mo
               "frames_kept_from_earlier_run": sum(r["kept"] for r in runs),
               "shots": runs[-1]["shots"] if record["temporal"] == "on" else None, "seconds": round(sum(r["seconds"] for r in runs), 3),
               **more}
+    record["gaps"] = person_gaps(clip_path, out_dir, record)
     write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
     return record
 
@@ -305,6 +386,8 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
         (lambda index, rgb: cuts.shot_of(rgb))
     steady = SteadyMaps() if temporal == "on" else None
     motion = CameraMotion() if temporal == "on" else None
+    follow = PersonTrack(record["person"]) if record.get("person") else None  # the person chosen once for the clip
+    everyone_too = options.get("people") == "all"
     frame_size = output_frame((info.width, info.height), max_size)  # the bundle's frame
     to_output = frame_size[0] / info.width  # source pixels -> the bundle's frame
     shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
@@ -325,8 +408,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
     with frames_freed() as after_frame:
         try:
             if mid_shot:
-                lights = _shot_lights(clip_path, frames_dir, start, end, shot_starts[begin_shot], begin, size, max_size, device,
-                                      networks_now, ctx)
+                lights = _shot_lights(clip_path, frames_dir, record, shot_starts[begin_shot], begin, device, networks_now, ctx)
                 if lights is not None:
                     shot_lights[begin_shot] = lights
             for frame in clip_frames(clip_path, start, end):
@@ -338,6 +420,8 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                 writing = frame.index >= first
                 shot = shot_of(frame.index, frame.rgb) if temporal == "on" else frame.index
                 counted_from = begin if mid_shot and shot == begin_shot else None
+                if follow is not None:
+                    follow.at(frame.index)
                 entry = _finished(frames_dir, frame.index)
                 alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
                 if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
@@ -345,10 +429,13 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                     kept += writing
                     if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
                         shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
-                    if temporal == "on" and entry.state == "person":  # the next frame steadied from this one's maps as written
+                    if entry.state == "person" and (temporal == "on" or follow is not None):
                         scene = load_scene(frames_dir / frame_name(frame.index))
-                        steady.carry(scene, resize(frame.rgb, frame_size), shot)
                         alpha = scene.frame.alpha
+                        if follow is not None:  # the person followed from where this frame relit them
+                            follow.seen_in(resize(frame.rgb, frame_size), alpha > 0.5)
+                        if steady is not None:  # the next frame steadied from this one's maps as written
+                            steady.carry(scene, resize(frame.rgb, frame_size), shot)
                     elif steady is not None:
                         steady.restart()
                 else:
@@ -365,7 +452,8 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                             with warned.frame(label):
                                 result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
                                                      ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
-                                                     steady=(steady, shot) if steady is not None else None)
+                                                     steady=(steady, shot) if steady is not None else None, follow=follow,
+                                                     everyone_too=everyone_too)
                         except NoPersonError as exc:  # the frame as it is: what a photo background shows there
                             if steady is not None:
                                 steady.restart()
@@ -436,11 +524,14 @@ class FrameWarnings:
         self.counts.clear()
 
 
-def _shot_lights(clip_path, frames_dir: Path, start: float, end, shot_start: int, begin: int, size: int, max_size: int,
-                 device: str, networks, ctx):
+def _shot_lights(clip_path, frames_dir: Path, record: dict, shot_start: int, begin: int, device: str, networks, ctx):
     """The photo's lights of the shot that began at frame ``shot_start``, for a range that begins at
     ``begin``, later in that shot: fitted on the shot's first frame with a person, as the run that
-    infers that frame fits them (read from it when it is finished). None: no person before ``begin``."""
+    infers that frame fits them (read from it when it is finished; the person followed as the
+    ``record`` chose them). None: no person before ``begin``."""
+    options = record["options"]
+    start, end, size, max_size = options["start"], options["end"], options["size"], options["max_size"]
+    follow = PersonTrack(record["person"]) if record.get("person") else None
     for frame in clip_frames(clip_path, start, end):
         if frame.index < shot_start or frame.rgb is None:
             continue
@@ -451,9 +542,12 @@ def _shot_lights(clip_path, frames_dir: Path, start: float, end, shot_start: int
             if entry.state == "person":
                 return load_lights(frames_dir / frame_name(frame.index) / "lights.json")
             continue
+        if follow is not None:
+            follow.at(frame.index)
         try:
             return infer_scene(f"{clip_path} at {frame.seconds + start:.3f} s", None, size=size, max_size=max_size, device=device,
-                               networks=networks(), ctx=ctx, picture=frame.rgb)["lights"]
+                               networks=networks(), ctx=ctx, picture=frame.rgb, follow=follow,
+                               everyone_too=options.get("people") == "all")["lights"]
         except NoPersonError:
             continue
     return None

@@ -415,7 +415,7 @@ def _read(photo_path, max_size, picture):
             "focal_35mm": lens.get("focal_35mm")}
 
 
-def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size, steady):
+def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size, steady, follow, everyone_too):
     from viewer.photo.segmentation import find_person
 
     h, w = photo.shape[:2]
@@ -431,7 +431,7 @@ def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size,
     else:
         # a clip's frame: the person followed among others, and the frame before's person, carried along
         # the flow, steadies where the outline is decided
-        found = find_person(frame_photo, photo_path, notes, steady[0].followed(steady[1]) if steady is not None else None)
+        found = find_person(frame_photo, photo_path, notes, follow, everyone_too)
         carried = steady[0].carried_matte(frame_photo, steady[1]) if steady is not None else None
         matte = automatic_matte(frame_photo, found, carried)
         landmarks = found.landmarks
@@ -583,7 +583,7 @@ def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
 STAGE_LIST = (
     Stage("read", _read, ("photo_path", "max_size", "picture"), ("photo", "frame", "frame_photo", "notes", "inputs", "focal_35mm")),
     Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size",
-                          "steady"),
+                          "steady", "follow", "everyone_too"),
           ("matte", "landmarks", "mask_source", "alpha", "person", "body", "turned", "sizes")),
     Stage("load networks", _load_networks, ("photo_path", "mask_path", "frame_photo", "alpha", "body", "networks", "device"),
           ("framing", "small", "small_mask", "nets")),
@@ -611,9 +611,10 @@ STAGES = tuple(st.name for st in STAGE_LIST) + ("write",)  # what infer() report
 
 def run_stages(values: dict, stage, ctx=None) -> dict:
     """Run :data:`STAGE_LIST` over ``values`` (the given ones: photo_path, mask_path, size,
-    max_size, device, networks, detail, picture, given_lights, steady), reporting each to ``stage``; returns every value. Under
-    ``torch.no_grad`` (nothing here learns); the engine the two engine stages share is made over
-    the scene before them and released after them, whatever happens."""
+    max_size, device, networks, detail, picture, given_lights, steady, follow, everyone_too), reporting
+    each to ``stage``; returns every value. Under ``torch.no_grad`` (nothing here learns); the engine
+    the two engine stages share is made over the scene before them and released after them,
+    whatever happens."""
     import torch
 
     from viewer.gl import Engine, EngineOptions, create_headless_context
@@ -643,14 +644,17 @@ def run_stages(values: dict, stage, ctx=None) -> dict:
 
 def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
-                keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None, steady=None) -> dict:
+                keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None, steady=None, follow=None,
+                everyone_too: bool = False) -> dict:
     """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
     (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
     network's maps and the photo's shading at the frame (for the benchmarks). The work is
     :data:`STAGE_LIST`, run by :func:`run_stages`. ``picture``: the photo's pixels already decoded
     (H, W, 3) uint8 sRGB upright (a clip's frame), ``photo_path`` then only names it in messages;
     ``lights``: the photo's own lights already known (a clip's shot), not fitted again; ``steady``:
-    (a clip's :class:`viewer.photo.steady.SteadyMaps`, the frame's shot), its maps made steady."""
+    (a clip's :class:`viewer.photo.steady.SteadyMaps`, the frame's shot), its maps made steady;
+    ``follow``: a clip's :class:`viewer.photo.person_track.PersonTrack`, the person it relights;
+    ``everyone_too``: everyone found is relit (:func:`viewer.photo.segmentation.find_person`)."""
     import torch
 
     from viewer.scene.area_lights import AreaLights
@@ -658,7 +662,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size, "device": device,
                     "networks": networks, "detail": detail, "picture": picture, "given_lights": lights,
-                    "steady": steady}, stage, ctx)
+                    "steady": steady, "follow": follow, "everyone_too": everyone_too}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
     if v["focal_35mm"]:  # the photo's lens, kept with its frame
         scene = replace(scene, frame=replace(scene.frame, focal_35mm=float(v["focal_35mm"])))

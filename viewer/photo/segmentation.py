@@ -13,10 +13,13 @@ model trained on real people, and nothing else that installs offline segments fu
 2. With several people in the photo (MediaPipe's selfie segmentation finds them all), the pose
    model is shown the largest, with a one-line note; connected parts of the segmentation that
    hold none of its landmarks and do not touch it (someone else) are left out. In a clip the
-   person is followed instead: the one whose box overlaps most the person's box in the frame
-   before (``follow``), so a bystander who comes nearer the camera than the person, and looks
-   larger, stays out of the matte; where the two touch (one part of the selfie model's mask) and
-   the pose model takes the bystander, it is shown again only where the person was a frame ago.
+   person chosen once is followed instead (:mod:`viewer.photo.person_track` picks their part of
+   the selfie model's mask by colours and place; :func:`_followed`): the pose model is shown that
+   part (the whole frame when no one else is in it), and what it finds is kept only when it is theirs (a neighbour touching
+   them is one part, and the pose model takes the most prominent: it is then shown where the person
+   was a frame ago, and failing that the person is their part without the neighbour). A frame
+   where they are not, or are hidden, relights no one (never a bystander in their place).
+   ``everyone_too`` (``--people all``): everyone's segmentation, the person's landmarks.
 No person found: one line naming the photo.
 """
 
@@ -35,6 +38,12 @@ DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they wo
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person
 VISIBLE = 0.5  # landmarks the pose model sees with at least this visibility are kept
 FOLLOW_IOU = 0.3  # in a clip, a person found whose box overlaps the frame before's less than this is someone else
+LEAST_PART = 0.001  # of the frame: the smallest part of the selfie model's mask a clip follows as a person
+SMALL_PART = 0.3  # of the frame's height: a part of the selfie model's mask this small is looked at again, closer
+ZOOMED = 8  # the most parts looked at again in a frame
+CONFIRMED = 0.3  # of a part of the selfie model's mask: what the pose model's person must cover for the part to be one
+HIDDEN = 0.15  # of their part of the selfie model's mask: less of a person left beside someone else is hidden
+ALONE = 1.3  # a part of the selfie model's mask at most this many times the person's area holds no one else
 
 
 @dataclass(frozen=True)
@@ -76,50 +85,152 @@ def _mediapipe(photo_path):
     return pose, selfie_segmentation
 
 
-def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None, follow: tuple | None = None) -> Person:
+def find_person(photo: np.ndarray, photo_path=None, notes: list | None = None, follow=None, everyone_too: bool = False) -> Person:
     """The person in ``photo`` (H, W, 3) uint8 sRGB; the largest when there are several (with a
-    note), or, given ``follow`` (the person's box in a clip's frame before: x, y, width, height as
-    fractions of the frame), the one whose box overlaps it most (the largest when none does).
-    Raises :class:`InputError` naming ``photo_path`` when no person is found."""
+    note), or, given ``follow`` (a clip's :class:`viewer.photo.person_track.PersonTrack`), the one
+    it follows (:func:`_followed`). ``everyone_too``: everyone the models find is in the
+    segmentation (the landmarks stay the person's). Raises :class:`NoPersonError` naming
+    ``photo_path`` when no person is found (or the one followed is not in the picture)."""
     import cv2
 
     from viewer.resize import resize
 
     notes = notes if notes is not None else []
     h, w = photo.shape[:2]
-    pose, small, everyone = _everyone(photo, photo_path)
+    pose, small, everyone = _everyone(photo, photo_path, zoom=follow is not None)
     sh, sw = small.shape[:2]
-    people = _people(np.asarray(everyone) > 0.5) if everyone is not None else []
-    followed = None if follow is None else (follow[0] * sw, follow[1] * sh, follow[2] * sw, follow[3] * sh)
-    box = (0, 0, sw, sh)
-    if len(people) > 1:  # the pose model takes one person: show it the largest, or the one followed
-        overlaps = [box_iou(b, followed) if followed else 0.0 for b in people]
-        box = grown(people[int(np.argmax(overlaps)) if max(overlaps) > 0 else 0], (sw, sh))
-        notes.append(f"{len(people)} people in the photo: relighting "
-                     + ("the one followed from the frame before" if max(overlaps) > 0 else "the largest"))
-    found = _pose(pose, small, box)
-    if followed and (found is None or box_iou(found[2], followed) < FOLLOW_IOU):
-        # people touching are one part of the selfie model's mask, and the pose model takes the most
-        # prominent: shown only where the person was a frame ago, it finds the person followed
-        near = _pose(pose, small, grown(followed, (sw, sh)))
-        if near is not None and box_iou(near[2], followed) >= FOLLOW_IOU:
-            found, box = near, grown(followed, (sw, sh))
-            if not any("followed" in n for n in notes):
-                notes.append("other people in the photo: relighting the one followed from the frame before")
+    people = _people(np.asarray(everyone) > 0.5, everyone=follow is not None) if everyone is not None else []
+    if follow is not None:
+        found, box = _followed(pose, small, everyone, people, follow, photo_path, everyone_too)
+    else:
+        box = (0, 0, sw, sh)
+        if len(people) > 1:  # the pose model takes one person: show it the largest
+            box = grown(people[0][0], (sw, sh))
+            notes.append(f"{len(people)} people in the photo: relighting the largest")
+        found = _pose(pose, small, box)
     if found is None:
         raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
     seg = found[1]
-    landmarks = _landmarks(found[0], box, (sw, sh))
-    segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
+    landmarks = _landmarks(found[0], box, (sw, sh)) if found[0] is not None else {}
+    if everyone_too and everyone is not None:
+        seg = np.maximum(seg, np.asarray(everyone, np.float32))
+        segmentation = np.clip(resize(seg, (w, h)), 0.0, 1.0)
+        if len(people) > 1:
+            notes.append(f"relighting everyone: {len(people)} people")
+    else:
+        segmentation = keep_person(np.clip(resize(seg, (w, h)), 0.0, 1.0), list(landmarks.values()), notes)
     if not (segmentation > 0.5).any():
         raise NoPersonError(photo_path, "no person found in the photo; give the person's mask with --mask")
-    if everyone is not None and not any("people in the photo" in n or "left out" in n for n in notes):
+    if everyone is not None and not everyone_too and not any("people in the photo" in n or "left out" in n for n in notes):
         # people standing together are one part of the selfie model's mask: count what the pose model's person leaves
         person = cv2.dilate((seg > 0.5).astype(np.uint8), np.ones((15, 15), np.uint8)) > 0
         others = (np.asarray(everyone) > 0.5) & ~person
         if others.sum() >= OTHER_PERSON_FRACTION * max(int((seg > 0.5).sum()), 1):
             notes.append("other people or objects in the photo are left out: relighting the most prominent person")
     return Person(segmentation.astype(np.float32), landmarks)
+
+
+def frame_people(photo: np.ndarray, photo_path=None, most: int = 8) -> tuple[np.ndarray, list, list]:
+    """Everyone the models find in ``photo`` (H, W, 3) uint8 sRGB, as a clip's first frame is looked
+    at to choose its person: (the photo scaled as the models see it, each person's mask there (bool),
+    their :class:`viewer.photo.person_track.Part`). A part of the selfie model's mask (largest first,
+    at most ``most``) is a person when the pose model, shown it, finds one covering at least
+    ``CONFIRMED`` of it (a patch of pavement is not), and is then the pose model's outline; when no
+    part is, the pose model's person in the whole frame (the selfie model misses small people)."""
+    pose, small, everyone = _everyone(photo, photo_path, zoom=True)
+    sh, sw = small.shape[:2]
+    masks = []
+    people = (_people(np.asarray(everyone) > 0.5, everyone=True) if everyone is not None else [])[:most]
+    for box, part in people:
+        seen = _pose(pose, small, (0, 0, sw, sh)) if len(people) == 1 else None  # alone: the whole frame, as a photo
+        seen = seen if seen is not None else _pose(pose, small, grown(box, (sw, sh)))
+        person = seen[1] > 0.5 if seen is not None else None
+        if person is not None and (person & part).sum() >= CONFIRMED * part.sum() and \
+                not any((person & m).sum() > 0.5 * min(person.sum(), m.sum()) for m in masks):
+            masks.append(person)
+    if not masks:
+        seen = _pose(pose, small, (0, 0, sw, sh))
+        if seen is not None and (seen[1] > 0.5).any():
+            masks.append(seen[1] > 0.5)
+    return small, masks, [part_of(small, m) for m in masks]
+
+
+def part_of(small: np.ndarray, person: np.ndarray):
+    """The :class:`viewer.photo.person_track.Part` of the person ``person`` (bool mask of ``small``)."""
+    from viewer.photo.person_track import Part, signature
+
+    sh, sw = small.shape[:2]
+    top, left, tall, wide = person_box(person)
+    return Part((left / sw, top / sh, wide / sw, tall / sh), signature(small, person, (left, top, wide, tall)))
+
+
+def frame_parts(small: np.ndarray, people: list) -> list:
+    """The selfie model's people (:func:`_people`) as :class:`viewer.photo.person_track.Part` of the
+    scaled photo ``small``."""
+    from viewer.photo.person_track import Part, signature
+
+    sh, sw = small.shape[:2]
+    return [Part((b[0] / sw, b[1] / sh, b[2] / sw, b[3] / sh), signature(small, part, b)) for b, part in people]
+
+
+def _followed(pose, small: np.ndarray, everyone, people: list, follow, photo_path, everyone_too: bool):
+    """A clip's frame: (the pose model's find of the person ``follow`` (a
+    :class:`viewer.photo.person_track.PersonTrack`) picks among ``people``, as :func:`_pose` gives
+    it, or their part of the selfie model's mask alone; the box the pose model was shown), and
+    ``follow`` told where they were relit. Where people touch (one part of the selfie model's mask)
+    the pose model takes the most prominent: what it finds is theirs only when it wears their colours
+    (or stands where they just were); else it is shown where they were a frame ago, and failing that
+    the person is what is left of the part without the one it found. Raises :class:`NoPersonError`
+    when no one is picked, or all that is left of them is hidden behind someone else."""
+    import cv2
+
+    from viewer.photo.person_track import MERGED, SAME
+
+    sh, sw = small.shape[:2]
+    parts = frame_parts(small, people)
+    pick = follow.pick(parts)
+    if pick is None and everyone_too and people:
+        pick = 0  # everyone relit: the largest lends the landmarks
+    # no part is theirs (the selfie model misses a small or blurred person): the pose model, shown the
+    # whole frame as a photo's, may find them
+    part_box, part_mask = people[pick] if pick is not None else ((0, 0, sw, sh), None)
+    last = follow.near_box()
+    followed = part_box if last is None else (last[0] * sw, last[1] * sh, last[2] * sw, last[3] * sh)
+
+    def theirs(seen) -> bool:
+        if seen is None or not (seen[1] > 0.5).any():
+            return False
+        colour = follow.unlike(part_of(small, seen[1] > 0.5))
+        return colour <= SAME or (colour <= MERGED and box_iou(seen[2], followed) >= FOLLOW_IOU)
+
+    # alone in the frame, they are shown the whole frame as a photo is, then their part; among
+    # others, their part; then (people touching) where they were a frame ago
+    whole, own = (0, 0, sw, sh), grown(part_box, (sw, sh)) if part_mask is not None else None
+    boxes = [own, whole] if own is not None and len(people) > 1 else [whole, own]
+    boxes = list(dict.fromkeys(b for b in boxes + [grown(followed, (sw, sh)) if last is not None else None] if b is not None))
+    tried = []
+    for box in boxes:
+        tried.append((_pose(pose, small, box), box))
+        if theirs(tried[-1][0]):
+            break
+    found, box = tried[-1] if theirs(tried[-1][0]) else (None, boxes[0])
+    if found is None and part_mask is None:
+        others = f" ({len(parts)} other{'s' if len(parts) != 1 else ''} in it)" if parts else ""
+        raise NoPersonError(photo_path, f"the person followed is not in the picture{others}")
+    if found is None:
+        # what the pose model found is someone else (or no one): the person is the rest of their part
+        taken = np.zeros(part_mask.shape, bool)
+        for seen, _ in tried:
+            if seen is not None:
+                taken |= seen[1] > 0.5
+        rest = part_mask & ~(cv2.dilate(taken.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0)
+        if rest.sum() < HIDDEN * part_mask.sum() or follow.unlike(part_of(small, rest)) > MERGED:
+            raise NoPersonError(photo_path, "the person followed is hidden behind someone else")
+        found, box = (None, np.where(rest, np.asarray(everyone, np.float32), 0.0), part_box), (0, 0, sw, sh)
+    person = found[1] > 0.5
+    alone = len(people) <= 1 or part_mask is not None and int(part_mask.sum()) <= ALONE * int(person.sum())
+    follow.seen(part_of(small, person), alone=alone)
+    return found, box
 
 
 def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Person]:
@@ -132,7 +243,7 @@ def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Perso
     pose, small, everyone = _everyone(photo, photo_path)
     sh, sw = small.shape[:2]
     found = []
-    for part in (_people(np.asarray(everyone) > 0.5) if everyone is not None else [])[:most]:
+    for part, _ in (_people(np.asarray(everyone) > 0.5) if everyone is not None else [])[:most]:
         box = grown(part, (sw, sh))
         seen = _pose(pose, small, box)
         if seen is not None:  # its own parts only: a neighbour in the padded crop is left out, as find_person does
@@ -142,9 +253,11 @@ def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Perso
     return found
 
 
-def _everyone(photo: np.ndarray, photo_path):
+def _everyone(photo: np.ndarray, photo_path, zoom: bool = False):
     """(MediaPipe's pose solution, the photo scaled to at most ``DETECT_SIZE``, the selfie model's soft
-    mask of everyone in it, or None)."""
+    mask of everyone in it, or None). ``zoom`` (a clip's frames): the model looks again, closer, at
+    each part under ``SMALL_PART`` of the frame's height (it sees the whole frame at 256 pixels, where
+    a small person is a few blobs), and what it finds there is added."""
     from viewer.resize import resize, scaled_size
 
     h, w = photo.shape[:2]
@@ -153,6 +266,16 @@ def _everyone(photo: np.ndarray, photo_path):
     with quiet_native_stderr():
         with selfie.SelfieSegmentation(model_selection=0) as model:
             everyone = model.process(small).segmentation_mask
+            if zoom and everyone is not None:
+                everyone = np.array(everyone, np.float32)
+                sh, sw = small.shape[:2]
+                for (bx, by, bw, bh), _ in _people(everyone > 0.5, everyone=True)[:ZOOMED]:
+                    if bh >= SMALL_PART * sh:
+                        continue
+                    x, y, cw, ch = grown((bx - bw, by - 0.5 * bh, 3 * bw, 2 * bh), (sw, sh))
+                    closer = model.process(np.ascontiguousarray(small[y:y + ch, x:x + cw])).segmentation_mask
+                    if closer is not None:
+                        everyone[y:y + ch, x:x + cw] = np.maximum(everyone[y:y + ch, x:x + cw], closer)
     return pose, small, everyone
 
 
@@ -202,16 +325,19 @@ def box_iou(a: tuple, b: tuple) -> float:
     return float(inter / union) if union > 0 else 0.0
 
 
-def _people(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
-    """Boxes (x, y, w, h) of the mask's parts at least OTHER_PERSON_FRACTION of the largest, largest first."""
+def _people(mask: np.ndarray, everyone: bool = False) -> list[tuple[tuple[int, int, int, int], np.ndarray]]:
+    """The mask's parts at least OTHER_PERSON_FRACTION of the largest (``everyone``: at least
+    ``LEAST_PART`` of the frame, however small beside the largest: a clip's person far behind a
+    bystander), largest first: each its box (x, y, w, h) and its pixels (bool, the mask's shape)."""
     import cv2
 
-    count, _, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     if count <= 1:
         return []
     areas = stats[1:, cv2.CC_STAT_AREA]
     order = np.argsort(-areas)
-    return [tuple(int(v) for v in stats[1 + i, :4]) for i in order if areas[i] >= OTHER_PERSON_FRACTION * areas[order[0]]]
+    least = LEAST_PART * mask.size if everyone else OTHER_PERSON_FRACTION * areas[order[0]]
+    return [(tuple(int(v) for v in stats[1 + i, :4]), labels == 1 + i) for i in order if areas[i] >= least]
 
 
 def keep_person(matte: np.ndarray, landmarks: list, notes: list) -> np.ndarray:

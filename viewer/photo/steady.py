@@ -24,7 +24,6 @@ from dataclasses import replace
 import numpy as np
 
 from viewer.photo.flow import backward_flow, dis_flow, resized_flow, shrunk_grey, warp
-from viewer.photo.photo_frame import person_box
 from viewer.resize import resize
 
 KEEP = 0.6  # the previous frame's share where the flow holds
@@ -100,17 +99,6 @@ class SteadyMaps:
         if shot != self.shot:
             self.faces.restart()
         return self.faces.smooth(faces)
-
-    def followed(self, shot: int | None = None) -> tuple | None:
-        """The person's box in the frame before (x, y, width, height, fractions of the frame), which
-        the segmentation follows among several people (:func:`viewer.photo.segmentation.find_person`);
-        None for a shot's first frame."""
-        previous = self._previous if shot == self.shot else None
-        if previous is None or previous[1].frame is None or not (previous[1].frame.alpha > 0.5).any():
-            return None
-        h, w = previous[1].frame.alpha.shape
-        top, left, height, width = person_box(previous[1].frame.alpha > 0.5)
-        return left / w, top / h, width / w, height / h
 
     def carried_matte(self, frame_photo: np.ndarray, shot: int | None = None):
         """The frame before's matte carried to this frame along the flow, and where the flow holds
