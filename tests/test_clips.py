@@ -963,3 +963,49 @@ def test_the_person_chosen_is_followed_and_their_absence_said_once(tmp_path, cap
     assert main(["infer", str(photo), "-o", str(tmp_path / "b3"), "--people", "all"]) == 2
     assert "--people is for a clip: this is not one" in capsys.readouterr().err
     assert not (tmp_path / "b3").exists()
+
+
+def test_the_new_ground_is_where_the_clips_camera_sees_its_own(tmp_path):
+    """A clip filmed by a camera looking 10 degrees down on a city square: the camera's pitch is read
+    from the square's converging verticals (the person's own edges left out), and the map behind the
+    relit person is tilted by as much, so its horizon lies where the square's did (within 3 % of the
+    frame's height), not across the middle."""
+    from viewer.files.imageio import linear_to_srgb
+    from viewer.lighting.envmap import LUMINANCE, load_envmap
+    from viewer.output.clip_frames import ClipFrames
+    from viewer.photo.clip_inference import infer_clip
+    from viewer.photo.photo_frame import read_photo
+    from viewer.plate.plate_file import DEFAULT_FOCAL_35
+    from viewer.resize import resize
+    from viewer.scene.area_lights import rotation_matrix
+    from viewer.scene.camera import Camera
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    square = SHARED_DATA / "hdri" / "potsdamer_platz_1k.hdr"
+    env = load_envmap(square)
+    camera = Camera(640, 426, focal_mm=DEFAULT_FOCAL_35, sensor_mm=36.0)  # the lens a clip without EXIF is taken to have
+    linear = env.seen_through(camera, 240.0, 10.0)
+    background = (np.clip(linear_to_srgb(linear * 0.18 / np.median(linear @ LUMINANCE)), 0, 1) * 255 + 0.5).astype(np.uint8)
+    seen = camera.view_directions() @ rotation_matrix(240.0, 10.0)
+    truth = np.argmin(np.abs(seen[:, 320, 1])) / 426.0  # where the square's horizon crosses the middle column
+    assert truth < 0.3  # looking down: the horizon high in the frame
+    photo = read_photo(SHARED_DATA / "photos" / "unsplash-1507274733827.jpg", [])
+    mask = read_png(SHARED_DATA / "photos" / "unsplash-1507274733827.mask.png")
+    mask = mask[..., 0] if mask.ndim == 3 else mask
+    tall = 300
+    size = (photo.shape[1] * tall // photo.shape[0], tall)
+    person, alpha = resize(photo, size), resize(mask.astype(np.float32), size)[..., None]
+    x0 = 320 - size[0] // 2
+    frame = background.copy()
+    frame[426 - tall:, x0:x0 + size[0]] = (alpha * person + (1 - alpha) * frame[426 - tall:, x0:x0 + size[0]]).astype(np.uint8)
+    clip = write_clip(tmp_path / "square.mp4", [frame, frame], audio=None)
+    infer_clip(clip, tmp_path / "bundle")
+    frames = ClipFrames(load_clip_bundle(tmp_path / "bundle"))
+    pitch, how = frames.pitch(0)
+    assert "from" in how and "down" in how, how
+    yaw, tilt = frames.camera_turn(1, 1)
+    assert tilt == pytest.approx(pitch, abs=0.5)  # the still camera turned no further
+    # the map the relit frame shows behind, seen through the bundle's camera tilted so: its horizon where the square's was
+    back = frames.background_camera(0)
+    directions = Camera(640, 426, focal_mm=back.focal_mm, sensor_mm=back.sensor_mm).view_directions() @ rotation_matrix(0.0, tilt)
+    assert np.argmin(np.abs(directions[:, 320, 1])) / 426.0 == pytest.approx(truth, abs=0.03)

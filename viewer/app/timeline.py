@@ -51,7 +51,7 @@ class ClipTimeline:
     def began(self, session):
         """The window's first frame: the session was made with frame 0's person's scene and lens."""
         index, person = self.current = self.frames.shown(0)
-        session.camera_turn = self.frames.pan_turn(index, person)
+        session.camera_turn = self.frames.camera_turn(index, person)
 
     # ------------------------------------------------------------------ the clock
     @property
@@ -173,7 +173,7 @@ class ClipTimeline:
                 return None
             session.set_scene(scene, self.frames.background_camera(person))
             change = "person"
-        session.camera_turn = self.frames.pan_turn(index, person)
+        session.camera_turn = self.frames.camera_turn(index, person)
         self.current = (index, person)
         if self.playing:
             self.shown_at.append(time.perf_counter())

@@ -203,6 +203,7 @@ def cmd_render_clip(args, look) -> int:
           + (f"; {result['parts_reused']} parts kept from an earlier run" if result["parts_reused"] else "") + ")")
     if result["layers"] is not None:
         print(f"wrote {result['layers']}/ ({result['frames']} frames' layers, {layer_name(0)} ...)")
+    print(f"note: {result['pitch']} (the first shot's; each shot's read on its first frame with the person)")
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
     return 0

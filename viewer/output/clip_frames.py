@@ -26,6 +26,7 @@ class ClipFrames:
         source = bundle.source  # the bundle's frame, before --max-size at render: what the pans are measured in
         self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
         self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
+        self._pitches: dict[int, tuple[float, str]] = {}  # shot -> (degrees the map is tilted by, how it was read)
         self.people = [e.index for e in bundle.frames if e.state == "person"]
         self._shot_starts: dict[int, int] = {}  # shot -> its first frame with a person
         for k in self.people:
@@ -71,6 +72,43 @@ class ClipFrames:
             self._cameras[source] = Camera.from_json(read_json(self.bundle.scene_path(source) / "scene.json",
                                                                "scene bundle description")["camera"])
         return self._cameras[source]
+
+    def pitch(self, person: int) -> tuple[float, str]:
+        """(degrees the map is tilted by so that its horizon lies where the clip's camera sees its own,
+        how that was read) for the shot of frame ``person`` (a person's): read once, on the shot's first
+        frame with a person, from the old scene's vertical edges (:func:`viewer.plate.horizon.vertical_horizon`,
+        the person's own edges left out), as a plate's horizon is read. A camera looking down sees the
+        new ground under the person's feet, not the map's horizon across the middle of the frame. 0 frame
+        by frame (each frame relit exactly as a photo, which has no such reading)."""
+        import cv2
+        import numpy as np
+
+        from viewer.files.imageio import linear_to_srgb
+        from viewer.plate.horizon import vertical_horizon
+        from viewer.plate.plate_file import DEFAULT_FOCAL_35
+
+        if not self.bundle.temporal:
+            return 0.0, "frame by frame: the camera taken as level"
+        shot = self.bundle.frames[person].shot
+        if shot not in self._pitches:
+            first = self.shot_start(shot)
+            frame = self.scene(first).frame
+            srgb = (np.clip(linear_to_srgb(frame.photo), 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+            person_px = cv2.dilate((frame.alpha > 0.05).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
+            # the lens the clip was filmed with (its EXIF, else a phone's, as a plate's) finds the horizon's row;
+            # the map is seen through the background camera, whose tilt puts its horizon on that row
+            lens = (frame.focal_35mm or DEFAULT_FOCAL_35) / 36.0 * max(srgb.shape[:2])
+            below, how = vertical_horizon(srgb, lens, person_px)
+            camera = self.background_camera(first)
+            seen_through = camera.focal_mm / camera.sensor_mm * max(srgb.shape[:2])
+            self._pitches[shot] = (0.0 if below is None else -float(np.degrees(np.arctan(below * lens / seen_through))), how)
+        return self._pitches[shot]
+
+    def camera_turn(self, index: int, person: int) -> tuple[float, float]:
+        """(yaw, tilt) in degrees the map turns at frame ``index`` with the clip's camera: the shot's
+        pitch (:meth:`pitch`) and the turn since the shot began (:meth:`pan_turn`)."""
+        yaw, tilt = self.pan_turn(index, person)
+        return yaw, self.pitch(person)[0] + tilt
 
     def pan_turn(self, index: int, person: int) -> tuple[float, float]:
         """(yaw, tilt) in degrees the camera turned at frame ``index`` since its shot began (the old

@@ -59,9 +59,9 @@ class ClipPictures:
 
     def turn_of(self, index: int, person: int) -> tuple[float, float]:
         """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
-        and turned as the camera turned since its shot began (``person``: the frame whose background
-        camera is used, :meth:`ClipFrames.pan_turn`)."""
-        yaw, tilt = self.frames.pan_turn(index, person)
+        tilted as the shot's camera looks up or down and turned as the camera turned since its shot
+        began (``person``: the frame whose background camera is used, :meth:`ClipFrames.camera_turn`)."""
+        yaw, tilt = self.frames.camera_turn(index, person)
         return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration + yaw, self.look.tilt + tilt
 
     def _look(self, index: int, person: int) -> Look:
@@ -347,5 +347,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
             pictures.release()
     note = join_relit(bundle, parts, path)
     take_away(folder)
+    pitch, how = pictures.frames.pitch(pictures.frames.people[0])
     return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
-            "layers": sequence}
+            "layers": sequence, "pitch": f"the clip's horizon ({how}): the new map's horizon put there"
+            + (f" (the map tilted {pitch:.1f} degrees)" if pitch else "")}

@@ -269,7 +269,8 @@ def person_said(clip_path, record: dict, out_dir: Path) -> str:
     others = chosen.get("others", 0)
     rest = (f"; {others} other{'s' if others != 1 else ''} there left out (--person X,Y chooses another, --people all "
             "relights everyone)") if others and options.get("people") != "all" else ""
-    return f"{clip_path}: relighting {who}, first seen at {chosen['seconds']:.2f} s{rest}; preview: {Path(out_dir) / PREVIEW}"
+    at = chosen["seconds"] + float(options["start"])
+    return f"{clip_path}: relighting {who}, first seen at {at:.2f} s{rest}; preview: {Path(out_dir) / PREVIEW}"
 
 
 def person_gaps(clip_path, out_dir: Path, record: dict) -> list[str]:

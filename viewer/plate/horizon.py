@@ -29,26 +29,40 @@ TRIM, TRIM_ROUNDS = 0.3, 2  # each round, the share of segments that miss the me
 
 def plate_horizon(plate: Plate) -> tuple[float, str]:
     """(the horizon's height as a fraction of the plate's, from its top; how it was found)."""
+    h = plate.size[1]
+    below, how = vertical_horizon(plate.srgb, plate.focal_px)
+    return (0.5, how) if below is None else (float(np.clip(0.5 + below * plate.focal_px / h, 0.0, 1.0)), how)
+
+
+def vertical_horizon(srgb: np.ndarray, focal_px: float, away: np.ndarray | None = None) -> tuple[float | None, str]:
+    """(how far below the middle of ``srgb`` (H, W, 3) uint8 the horizon is, in focal lengths (the
+    tangent of the camera's upward tilt; None: a level camera assumed), how it was found) from its
+    vertical edges (module docstring); ``focal_px``: the focal length in ``srgb``'s pixels; ``away``
+    (H, W) bool: where edges are not the scene's (a person's limbs)."""
     import cv2
 
     from viewer.resize import resize, scaled_size
 
-    w, h = plate.size
-    grey = cv2.cvtColor(plate.srgb, cv2.COLOR_RGB2GRAY)
+    h, w = srgb.shape[:2]
+    grey = cv2.cvtColor(srgb, cv2.COLOR_RGB2GRAY)
     if max(w, h) > SIDE:
         grey = resize(grey, scaled_size((w, h), SIDE))
     sh, sw = grey.shape
     scale = sw / w
-    focal = plate.focal_px * scale
+    focal = focal_px * scale
     found = cv2.createLineSegmentDetector().detect(grey)[0]
     if found is None:
-        return 0.5, "no lines in the plate: a level camera assumed"
+        return None, "no lines: a level camera assumed"
     x1, y1, x2, y2 = (found.reshape(-1, 4).astype(np.float64)).T
     length = np.hypot(x2 - x1, y2 - y1)
     lean = np.degrees(np.arctan2(np.abs(x2 - x1), np.abs(y2 - y1)))
     keep = (lean <= MAX_LEAN) & (length >= MIN_LENGTH * sh)
+    if away is not None:  # a segment whose middle lies on what is not the scene does not vote
+        mx = np.clip(((x1 + x2) / 2 / scale).astype(int), 0, w - 1)
+        my = np.clip(((y1 + y2) / 2 / scale).astype(int), 0, h - 1)
+        keep &= ~away[my, mx]
     if keep.sum() < MIN_SEGMENTS:
-        return 0.5, f"{int(keep.sum())} vertical edges in the plate: a level camera assumed"
+        return None, f"{int(keep.sum())} vertical edges: a level camera assumed"
     cx, cy = 0.5 * sw, 0.5 * sh
     a = np.stack([(x1[keep] - cx) / focal, (y1[keep] - cy) / focal, np.ones(int(keep.sum()))], axis=1)
     b = np.stack([(x2[keep] - cx) / focal, (y2[keep] - cy) / focal, np.ones(int(keep.sum()))], axis=1)
@@ -62,10 +76,10 @@ def plate_horizon(plate: Plate) -> tuple[float, str]:
     _, _, vt = np.linalg.svd(lines * weight[:, None])
     u, v, w_ = vt[-1]
     if abs(v) < 1e-12:
-        return 0.5, "the vertical edges lean sideways only: a level camera assumed"
+        return None, "the vertical edges lean sideways only: a level camera assumed"
     horizon = -w_ / v  # normalized: the vertical vanishing point at v / w below the centre puts the horizon at -w / v
     tilt = math.degrees(math.atan(horizon))
     if abs(tilt) > MAX_TILT:
-        return 0.5, f"a tilt of {tilt:.0f} degrees read from the plate's verticals is not believed: a level camera assumed"
-    return float(np.clip(0.5 + horizon * focal / sh, 0.0, 1.0)), (f"from {int(keep.sum())} vertical edges: the camera tilted "
-                                                                  f"{abs(tilt):.1f} degrees {'up' if tilt > 0 else 'down'}")
+        return None, f"a tilt of {tilt:.0f} degrees read from the vertical edges is not believed: a level camera assumed"
+    return float(horizon), (f"from {int(keep.sum())} vertical edges: the camera tilted {abs(tilt):.1f} degrees "
+                            f"{'up' if tilt > 0 else 'down'}")
