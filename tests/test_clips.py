@@ -766,6 +766,30 @@ def test_the_warping_error_sees_flicker_and_not_motion():
     assert meter.result("person")["flicker"] > 20 * meter.result("person")["input"]
 
 
+def test_pieces_of_matte_that_come_and_go_are_counted():
+    """A matte that moves with the scene has no piece coming or going (its outline a pixel off is no
+    piece either); a blob of the old background kept in one frame only counts where it comes and
+    where it goes."""
+    import cv2
+
+    from viewer.lab.bench.video import MattePieces
+
+    rng = np.random.default_rng(4)
+    texture = cv2.GaussianBlur((rng.random((200, 300, 3)) * 255).astype(np.uint8), (0, 0), 3.0)
+    steady, popping = MattePieces(), MattePieces()
+    for t in range(6):
+        frame = np.ascontiguousarray(texture[20:140, 10 + 2 * t:170 + 2 * t])
+        alpha = np.zeros((120, 160), np.float32)
+        alpha[30:90, 50 - 2 * t:110 - 2 * t + (t % 2)] = 1.0  # the person, moving with the scene (a pixel of jitter)
+        steady.add(t, frame, alpha)
+        kept = alpha.copy()
+        if t == 3:
+            kept[10:28, 120:140] = 1.0  # a piece of background kept in frame 3 alone
+        popping.add(t, frame, kept)
+    assert steady.result() == {"pieces": 0, "pairs": 5, "frames_with_pieces": []}
+    assert popping.result() == {"pieces": 2, "pairs": 5, "frames_with_pieces": [3, 4]}
+
+
 def test_a_batch_relights_clips_beside_photos(tmp_path):
     """A folder with a clip and a photo: the clip relit into CLIP/LOOK.mp4 (its frames and sound) with
     its middle frame as CLIP/LOOK.png (in the contact sheet), the photo as ever; run again, nothing

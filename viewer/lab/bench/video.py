@@ -14,6 +14,9 @@ clip bundle and relit under each map, as ``relight render CLIP`` does, in a chil
   photo is; on: the photo's lighting and the exposure estimated once per shot);
 - throughput end to end (decode to relit MP4), frames a minute, with the stages' shares (each
   frame's inference stages from its bundle's record; the render);
+- **pieces of matte that come and go** between consecutive frames, not explained by the motion
+  (:class:`MattePieces`): a piece of the old background kept in one frame and not the next, or of the
+  person lost in one, both ways;
 - the child's peak resident memory.
 The shared clips are evaluation only: their figures go in the docs, their frames never.
 """
@@ -103,6 +106,66 @@ def clip_warping_errors(clip, start: float, end: float, relit: dict, alpha=None)
     return {r: meter.result(r) for r in REGIONS}
 
 
+PIECE = 0.0002  # of the frame's area: a piece of matte this large that comes or goes between two frames counts
+SLIVER = 5  # pixels: what a square this wide does not hold (an outline that moved a pixel or two) is no piece
+
+
+class MattePieces:
+    """Pieces of matte that come or go between consecutive frames, not explained by the input's
+    motion, fed frame by frame (:meth:`add`): where the flow holds, the frame's matte (above 0.5)
+    against the frame before's carried along it, the difference opened by a square of ``SLIVER``
+    pixels (an outline that moved a pixel or two is no piece), its connected pieces of at least
+    ``PIECE`` of the frame. A piece of the old background kept in one frame and not the next (or of
+    the person lost in one) is such a piece: counted where it comes and again where it goes."""
+
+    def __init__(self):
+        self.flow, self._before = dis_flow(), None
+        self.pieces, self.pairs, self.frames = 0, 0, []
+
+    def add(self, index: int, source: np.ndarray | None, alpha: np.ndarray | None) -> None:
+        """Frame ``index``: the input ``source`` (uint8 RGB) at the matte ``alpha``'s size; None for a
+        frame with no one (or lost): the next pair starts afresh."""
+        import cv2
+
+        if source is None or alpha is None:
+            self._before = None
+            return
+        current = grey(source)
+        if self._before is not None:
+            back, held = backward_flow(self.flow, current, self._before[0])
+            carried = warp(self._before[1].astype(np.float32), back)
+            changed = (held & ((alpha > 0.5) != (carried > 0.5))).astype(np.uint8)
+            changed = cv2.morphologyEx(changed, cv2.MORPH_OPEN, np.ones((SLIVER, SLIVER), np.uint8))
+            count, _, stats, _ = cv2.connectedComponentsWithStats(changed, connectivity=8)
+            found = int((stats[1:, cv2.CC_STAT_AREA] >= PIECE * alpha.size).sum()) if count > 1 else 0
+            self.pieces, self.pairs = self.pieces + found, self.pairs + 1
+            if found:
+                self.frames.append(index)
+        self._before = (current, alpha)
+
+    def result(self) -> dict:
+        return {"pieces": self.pieces, "pairs": self.pairs, "frames_with_pieces": self.frames}
+
+
+def matte_pieces(clip, start: float, end: float, bundle) -> dict:
+    """:class:`MattePieces` over a clip ``bundle``'s mattes (its frames' frame_alpha.png) and the input
+    clip from ``start`` to ``end`` seconds: the pieces, the frame pairs measured and those with a piece."""
+    from viewer.files.clip_reader import clip_frames
+    from viewer.files.imageio import read_png
+    from viewer.resize import resize
+
+    meter = MattePieces()
+    for frame in clip_frames(clip, start, end):
+        entry = bundle.frames[frame.index] if frame.index < len(bundle.frames) else None
+        if frame.rgb is None or entry is None or entry.state != "person":
+            meter.add(frame.index, None, None)
+            continue
+        alpha = read_png(bundle.scene_path(frame.index) / "frame_alpha.png")
+        alpha = alpha[..., 0] if alpha.ndim == 3 else alpha
+        meter.add(frame.index, resize(frame.rgb, (alpha.shape[1], alpha.shape[0])), alpha)
+    return meter.result()
+
+
 def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max_size: int, queue) -> None:
     """The child process: infer and relight one clip, report its figures on ``queue``."""
     import resource
@@ -169,6 +232,7 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
                 render_seconds[name] = round(time.perf_counter() - t1, 2)
                 relit[f"{mode} {name}"] = out
             n, kept = record["frames"], record["frames_kept_from_earlier_run"]
+            figures.setdefault("matte_pieces", {})[mode] = matte_pieces(clip, start, end, bundle)
             figures["modes"][mode] = {
                 "infer_seconds": round(infer_seconds, 2), "frames_kept": kept, "render_seconds": render_seconds,
                 "shots": record.get("shots"), "states": record["states"],
@@ -291,8 +355,11 @@ def _line(f: dict) -> str:
     ratios = ", ".join(f"{k} {v:.2f}x (person {f['ratio_to_input_person'].get(k, float('nan')):.2f}x)"
                        for k, v in f["ratio_to_input"].items())
     rates = ", ".join(f"{mode} {m['frames_per_minute']:.1f}" for mode, m in f["modes"].items() if m["frames_per_minute"])
+    pieces = ", ".join(f"{mode} {p['pieces']} in {len(p['frames_with_pieces'])} of {p['pairs']} frame pairs"
+                       for mode, p in f.get("matte_pieces", {}).items())
     return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; warping error input {f['warping_error']['input']:.5f}, "
-            f"relit {ratios} of it; frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
+            f"relit {ratios} of it; matte pieces coming and going: {pieces}; frames a minute {rates or '(bundles reused)'}; "
+            f"peak {f['peak_rss_gb']:.2f} GB")
 
 
 def video_table(result: dict) -> str:
