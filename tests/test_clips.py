@@ -764,6 +764,8 @@ def test_the_warping_error_sees_flicker_and_not_motion():
     assert e["same"] == e["input"] and e["input"] < 1e-3
     assert e["flicker"] > 20 * e["input"] and e["still"] > 20 * e["input"]
     assert meter.result("person")["flicker"] > 20 * meter.result("person")["input"]
+    similar = meter.result(ssim=True)
+    assert similar["same"] == similar["input"] > 0.99 and similar["still"] < 0.95 and similar["flicker"] < similar["input"]
 
 
 def test_pieces_of_matte_that_come_and_go_are_counted():

@@ -9,7 +9,9 @@ clip bundle and relit under each map, as ``relight render CLIP`` does, in a chil
   resized to the output's size, from frame t to t-1; pixels failing a forward-backward check (the
   two flows disagree by more than 1 pixel plus 5 % of their length) are left out; the mean over t of
   the mean over kept pixels of the squared RGB distance (summed over channels, values in [0, 1])
-  between output frame t and output frame t-1 warped by that flow. Reported for the input clip
+  between output frame t and output frame t-1 warped by that flow; and the **Warp-SSIM** (the mean
+  SSIM, 7-pixel windows, over the same pixels, of frame t against frame t-1 so carried: 1 when nothing
+  changes but the motion), as video relighting papers report both. Reported for the input clip
   itself, and for each relit clip, inferred both ways (``--temporal off``: every frame relit as a
   photo is; on: the photo's lighting and the exposure estimated once per shot);
 - throughput end to end (decode to relit MP4), frames a minute, with the stages' shares (each
@@ -49,11 +51,14 @@ class WarpingError:
         self.flow = dis_flow()
         self.names = list(names)
         self.sums = {n: {r: [] for r in REGIONS} for n in self.names}
+        self.ssims = {n: {r: [] for r in REGIONS} for n in self.names}
         self._previous = None
 
     def add(self, source: np.ndarray, outputs: dict, alpha: np.ndarray | None = None) -> None:
         """``source``: the input frame at the outputs' size (uint8 RGB); ``outputs``: name -> uint8 RGB;
         ``alpha``: the person's matte at that size (None: the whole frame only)."""
+        from skimage.metrics import structural_similarity
+
         current = grey(source)
         frames = {n: outputs[n].astype(np.float32) / 255.0 for n in self.names}
         if self._previous is not None:
@@ -64,14 +69,20 @@ class WarpingError:
                 carried = warp(previous_alpha, back)
                 regions.update(person=held & (alpha > 0.5) & (carried > 0.5), background=held & (alpha < 0.05) & (carried < 0.05))
             for n in self.names:
-                diff = ((frames[n] - warp(previous[n], back)) ** 2).sum(axis=2)
+                carried_frame = warp(previous[n], back)
+                diff = ((frames[n] - carried_frame) ** 2).sum(axis=2)
+                _, similar = structural_similarity(frames[n], carried_frame, data_range=1.0, channel_axis=-1, win_size=7, full=True)
+                similar = similar.mean(axis=2)
                 for r, where in regions.items():
                     if where.any():
                         self.sums[n][r].append(float(diff[where].mean()))
+                        self.ssims[n][r].append(float(similar[where].mean()))
         self._previous = (current, frames, alpha)
 
-    def result(self, region: str = "all") -> dict:
-        return {n: float(np.mean(v[region])) if v[region] else float("nan") for n, v in self.sums.items()}
+    def result(self, region: str = "all", ssim: bool = False) -> dict:
+        """name -> the warping error over ``region`` (``ssim``: the Warp-SSIM, the mean SSIM of each
+        frame against the frame before carried by the flow, 1 for a still picture)."""
+        return {n: float(np.mean(v[region])) if v[region] else float("nan") for n, v in (self.ssims if ssim else self.sums).items()}
 
 
 def _video_frames(path):
@@ -103,7 +114,7 @@ def clip_warping_errors(clip, start: float, end: float, relit: dict, alpha=None)
         source = resize(frame.rgb, (w, h))
         matte = alpha(frame.index) if alpha is not None else None
         meter.add(source, {"input": source, **outs}, resize(matte, (w, h)) if matte is not None else None)
-    return {r: meter.result(r) for r in REGIONS}
+    return {r: meter.result(r) for r in REGIONS} | {f"ssim {r}": meter.result(r, ssim=True) for r in REGIONS}
 
 
 PIECE = 0.0002  # of the frame's area: a piece of matte this large that comes or goes between two frames counts
@@ -250,6 +261,7 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
 
     errors = clip_warping_errors(clip, start, end, relit, alpha)
     figures["warping_error"] = {k: round(v, 6) for k, v in errors["all"].items()}
+    figures["warp_ssim"] = {r: {k: round(v, 4) for k, v in errors[f"ssim {r}"].items()} for r in REGIONS}
     figures["ratio_to_input"] = {k: round(v / max(errors["all"]["input"], 1e-12), 3) for k, v in errors["all"].items() if k != "input"}
     for region in ("person", "background"):
         e = errors[region]
@@ -357,9 +369,10 @@ def _line(f: dict) -> str:
     rates = ", ".join(f"{mode} {m['frames_per_minute']:.1f}" for mode, m in f["modes"].items() if m["frames_per_minute"])
     pieces = ", ".join(f"{mode} {p['pieces']} in {len(p['frames_with_pieces'])} of {p['pairs']} frame pairs"
                        for mode, p in f.get("matte_pieces", {}).items())
-    return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; warping error input {f['warping_error']['input']:.5f}, "
-            f"relit {ratios} of it; matte pieces coming and going: {pieces}; frames a minute {rates or '(bundles reused)'}; "
-            f"peak {f['peak_rss_gb']:.2f} GB")
+    similar = ", ".join(f"{k} {v:.3f}" for k, v in f.get("warp_ssim", {}).get("all", {}).items())
+    return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; "
+            f"warping error input {f['warping_error']['input']:.5f}, relit {ratios} of it; Warp-SSIM {similar}; "
+            f"matte pieces coming and going: {pieces}; frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
 
 
 def video_table(result: dict) -> str:
