@@ -767,6 +767,50 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
             proc.kill()
 
 
+def test_a_clips_slider_and_words_say_the_frame_on_screen_and_no_bar_shows_for_it(viewer_factory, tmp_path, monkeypatch):
+    """The slider and the words under it say the frame on screen whatever is asked for or coming (they
+    had disagreed: the slider the frame asked for, the words the frame shown), and no "drawing the new
+    light" bar shows for a clip's next frame (it had, for each, while nothing but the frame changed)."""
+    import re
+
+    from test_clips import blank_frame, person_frames, write_clip
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
+    people = person_frames(6)
+    clip = write_clip(tmp_path / "walk.mp4", people[:3] + [blank_frame()] + people[3:])
+    v = viewer_factory(str(clip))
+
+    def sampled(until, timeout=60) -> list[dict]:
+        """The states written until ``until`` holds (each checked: the slider and the words say the frame
+        on screen, and no bar shows)."""
+        states, end = [], time.monotonic() + timeout
+        while time.monotonic() < end:
+            s = v.state()
+            if s is not None:
+                states.append(s)
+                c = s["clip"]
+                slider, words = c["slider_and_words"]
+                assert slider == int(re.search(r"frame (\d+) of", words).group(1)) == c["on_screen"] + 1, c
+                assert "progress" not in s["widgets"], c
+                if until(s):
+                    return states
+            time.sleep(0.01)
+        raise AssertionError(f"timed out; last clip state: {states[-1]['clip'] if states else None}")
+
+    v.xdotool("mousemove", 10, 10)
+    v.xdotool("key", "End")  # asked for: the words follow the frame on screen, not the one asked for
+    sampled(lambda s: s["clip"]["on_screen"] == 6 and not s["switching"])
+    v.xdotool("key", "Home")
+    sampled(lambda s: s["clip"]["on_screen"] == 0 and not s["switching"])
+    v.xdotool("key", "space")
+    states = sampled(lambda s: not s["clip"]["playing"] and s["clip"]["on_screen"] == 6 and not s["switching"])
+    assert any(s["clip"]["index"] != s["clip"]["on_screen"] for s in states)  # (a frame asked for and not yet on screen)
+    for _ in range(3):  # stepped back while each comes in
+        v.xdotool("key", "Left")
+    sampled(lambda s: s["clip"]["index"] == 3 and s["clip"]["on_screen"] == 3 and s["clip"]["shown"] == [3, 2] and not s["switching"])
+    assert v.quit() == 0
+
+
 def test_a_clip_on_a_plate_walks_across_it_and_records_as_render_makes_it(viewer_factory, tmp_path, monkeypatch):
     """``relight view CLIP --plate``: the clip's person placed once (by its first frame with them in it) and
     every frame carried into the plate alike, a frame with no one in it the plate alone; R records the

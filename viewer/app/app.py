@@ -1,6 +1,6 @@
-"""``relight view``: the interactive viewer. One loop on the window's thread: events, input, panel,
-one engine render of the current state, draw, swap. Light fitting and video encoding run on their
-own threads; GL stays on this one.
+"""``relight view``: the interactive viewer. One loop on the window's thread: events, input, one
+engine render of the current state, the panel (of the picture drawn), draw, swap. Light fitting and
+video encoding run on their own threads; GL stays on this one.
 """
 
 from __future__ import annotations
@@ -267,13 +267,16 @@ class ViewerApp:
 
     def _texture(self, eng):
         """What the window draws for ``eng``'s frame: its display, or the timeline's picture of a clip's
-        frame; while the person before is shown (a clip's next frame being drawn), what was drawn of it
-        (the timeline's picture of a frame with no one in it, else that engine's display)."""
-        if self.timeline is None:
+        frame (the timeline told which frame is on screen, :meth:`ClipTimeline.drew`); while the person
+        before is shown (a clip's next frame being drawn), what was drawn of it (the timeline's picture
+        of a frame with no one in it, else that engine's display), the frame on screen unchanged."""
+        t = self.timeline
+        if t is None:
             return eng.display
         if eng is self.session.outgoing:
-            return self._drawn if self._drawn is not None and self._drawn is self.timeline.own_texture else eng.display
-        return self.timeline.texture(eng, self.session.state_key())
+            return self._drawn if self._drawn is not None and self._drawn is t.own_texture else eng.display
+        t.drew(t.current[0])
+        return t.texture(eng, self.session.state_key())
 
     def exposed_again(self):
         """After new lights or a new person: auto exposure, unless the user has set one since, set
@@ -401,10 +404,6 @@ class ViewerApp:
                 for path in w.take_dropped():
                     self.actions.open_file(Path(path))
                 self.jobs.saves_written()
-                draw_panel(self)
-                draw_progress(self)
-                if self.log.count == 0:
-                    self._fit_panel()
                 self.jobs.poll()
                 self._advance_clip()
                 self.session.poll_refinement()
@@ -415,9 +414,18 @@ class ViewerApp:
                     self._drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
                                                            settled=not self.moving_person,
                                                            person=self.timeline is None or self.timeline.has_person)
+                    if self.timeline is not None:
+                        self.timeline.drew(self.timeline.current[0])
                 else:
                     self._drawn = self._texture(eng)
                 w.draw_image(self._drawn, self.image_rect(eng), self.image_area())
+                # the panel after the picture is drawn: what it says (a clip's frame, the lighting held while a new
+                # one comes in) is of that picture; what its widgets change (engines made again, a plate removed)
+                # is drawn from the next frame, never a texture it released in this one
+                draw_panel(self)
+                draw_progress(self)
+                if self.log.count == 0:
+                    self._fit_panel()
                 w.end_frame()
                 ms = self.log.record(start, kind)
                 if kind == "drag":
