@@ -55,7 +55,7 @@ class Actions:
         here (GL) and written on a thread (:class:`viewer.app.jobs.SaveJob`: encoding them was ~0.5 s of
         the window's frame at 2048 pixels); :meth:`saved` says when they are there."""
         t = self.app.timeline
-        if t is not None and not t.in_session:  # the frame asked for (still coming: its scene being read or drawn)
+        if t is not None and not t.in_session:  # the frame asked for (on screen from its relit picture, or coming)
             t.advance(self.app.session, wait=True)
         eng = self.app.session.render(preview=False)
         stem = self._capture_stem()

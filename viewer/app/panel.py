@@ -212,10 +212,14 @@ def _clip(app):
     words = t.describe()
     imgui.text_wrapped(words)
     app.panel.clip_shown = (t.on_screen + 1, words)
-    # the rate on a line of its own, there whether playing or not: the widgets below never move
+    # the rate and the frames relit ahead on a line of their own, there whether playing or not: the widgets below never move
     slow = t.playing and t.rate is not None and t.rate < 0.9 * t.fps
-    imgui.text_disabled("" if not slow else f"{t.rate:.1f} frames a second, slower than its {t.fps:.0f}" if t.every_frame
-                        else f"showing {t.rate:.1f} of its {t.fps:.0f} frames a second")
+    line = ("" if not slow else f"{t.rate:.1f} frames a second, slower than its {t.fps:.0f}" if t.every_frame
+            else f"showing {t.rate:.1f} of its {t.fps:.0f} frames a second")
+    relit = app.relit.count if app.relit is not None and app.plate is None else t.count
+    if relit < t.count:
+        line += ("; " if line else "") + f"{relit} of {t.count} relit ahead"
+    imgui.text_disabled(line)
 
 
 def _lighting(app):
