@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import json
 import shutil
+import time
 from fractions import Fraction
 from pathlib import Path
 
@@ -1035,3 +1036,45 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own(tmp_path):
     back = frames.background_camera(0)
     directions = Camera(640, 426, focal_mm=back.focal_mm, sensor_mm=back.sensor_mm).view_directions() @ rotation_matrix(0.0, tilt)
     assert np.argmin(np.abs(directions[:, 320, 1])) / 426.0 == pytest.approx(truth, abs=0.03)
+
+
+def test_the_windows_relit_frames_are_what_it_shows_live(clip_bundle, ctx):
+    """``relight view CLIP`` plays a clip from the pictures it relit ahead (viewer/app/relit_frames.py):
+    each is the picture the window shows of that frame live (the person's, the lost frame's, the empty
+    frame's background alone), and a change of the lighting drops them."""
+    from viewer.app.relit_frames import RelitFrames
+    from viewer.app.session import Session
+    from viewer.app.timeline import ClipTimeline
+    from viewer.lighting.envmap import load_envmap
+    from viewer.scene.area_lights import load_lights
+    from viewer.scene.clip_bundle import load_clip_bundle
+    from viewer.scene.look import Look
+
+    timeline = ClipTimeline(ctx, load_clip_bundle(clip_bundle[0]))
+    first = timeline.frames.shown(0)[1]
+    env = load_envmap(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
+    session = Session(ctx, timeline.frames.scene(first), load_lights(asset_dir() / "envmaps/immenstadter_horn_256.lights.json"),
+                      env.pixels, look=Look(yaw=150.0, exposure=0.5), background_camera=timeline.frames.background_camera(first))
+    timeline.began(session)
+    relit = RelitFrames(ctx, timeline)
+    try:
+        relit.follow(session)
+        for _ in range(2000):
+            if not relit.prepare(session, 0.05) and relit.count < timeline.count:
+                time.sleep(0.01)  # a scene being read
+            if relit.count == timeline.count:
+                break
+        assert relit.count == timeline.count == 5 and relit.error == ""
+        for k in range(timeline.count):
+            timeline.seek(k)
+            timeline.advance(session, wait=True)
+            live = timeline.picture(session.render()).astype(np.int16)
+            assert np.abs(relit.pictures[k] - live).max() <= 1, k
+        assert np.abs(relit.pictures[2].astype(np.int16) - relit.pictures[0]).mean() > 5.0  # (no one in frame 2)
+        session.update(yaw=10.0)
+        relit.follow(session)
+        assert relit.count == 0 and not relit.ready(0)  # another lighting: relit again
+    finally:
+        relit.release()
+        timeline.release()
+        session.release()

@@ -241,3 +241,28 @@ def test_a_damaged_exr_is_one_line_with_openexrs_own_words(tmp_path, cut):
     assert proc.returncode == 2 and proc.stdout == "", (proc.stdout, proc.stderr)
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"relight: error: {bundle / 'albedo.exr'}: cannot read EXR"), lines
+
+
+def test_exrs_read_on_two_threads_at_once_leave_the_streams_as_they_were():
+    """Reading an EXR points the process's stdout and stderr at a sink for OpenEXR's own lines; two
+    threads at once (a clip's frames read ahead in the window beside the frame asked for) had crossed
+    them, leaving sys.stderr on a closed sink: every later print failed and the window ended."""
+    import sys
+    import threading
+
+    from viewer.files.imageio import read_exr
+
+    streams = sys.stdout, sys.stderr
+    exrs = sorted((ROOT / "assets" / "sample_scene").glob("*.exr"))
+
+    def read():
+        for _ in range(10):
+            for path in exrs:
+                read_exr(path)
+
+    threads = [threading.Thread(target=read) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert (sys.stdout, sys.stderr) == streams and not sys.stderr.closed

@@ -767,6 +767,58 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
             proc.kill()
 
 
+def test_a_clip_relit_ahead_plays_every_frame_at_its_rate_and_says_the_frame_on_screen(viewer_factory, tmp_path, monkeypatch):
+    """A clip open in the window is relit ahead while the window is idle (a cached clip had played at 1.3
+    of its frames a second, relighting each as it fell due): played, every frame shows at the clip's own
+    rate. The slider and the words under it say the frame on screen whatever is asked for or coming (they
+    had disagreed), and no "drawing the new light" bar shows for a clip's frame (it had, for each)."""
+    import re
+
+    from test_clips import FPS, blank_frame, person_frames, write_clip
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
+    people = person_frames(6)
+    clip = write_clip(tmp_path / "walk.mp4", people[:3] + [blank_frame()] + people[3:])
+    v = viewer_factory(str(clip))
+
+    def sampled(until, timeout=60) -> list[dict]:
+        """The states written until ``until`` holds (each checked: the slider and the words say the frame
+        on screen, and no bar shows)."""
+        states, end = [], time.monotonic() + timeout
+        while time.monotonic() < end:
+            s = v.state()
+            if s is not None:
+                states.append(s)
+                c = s["clip"]
+                slider, words = c["slider_and_words"]
+                assert slider == int(re.search(r"frame (\d+) of", words).group(1)) == c["on_screen"] + 1, c
+                assert "progress" not in s["widgets"], c
+                if until(s):
+                    return states
+            time.sleep(0.01)
+        raise AssertionError(f"timed out; last clip state: {states[-1]['clip'] if states else None}")
+
+    v.xdotool("mousemove", 10, 10)
+    v.xdotool("key", "End")  # asked for while relit: the words follow the frame on screen, not the one asked for
+    sampled(lambda s: s["clip"]["on_screen"] == 6 and not s["switching"])
+    v.xdotool("key", "Home")
+    sampled(lambda s: s["clip"]["relit"] == 7 and s["clip"]["on_screen"] == 0 and not s["switching"], 120)
+    v.xdotool("key", "space")
+    states = sampled(lambda s: not s["clip"]["playing"] and s["clip"]["on_screen"] == 6)
+    shown = [k for i, k in enumerate(s["clip"]["on_screen"] for s in states) if i == 0 or k != states[i - 1]["clip"]["on_screen"]]
+    assert shown == list(range(7))  # every frame, in order: none skipped
+    assert states[-1]["clip"]["played"] == 6 and states[-1]["clip"]["rate"] >= 0.9 * FPS
+    for _ in range(3):  # stepped back while each comes in live (paused, the session brought to it)
+        v.xdotool("key", "Left")
+    sampled(lambda s: s["clip"]["index"] == 3 and s["clip"]["on_screen"] == 3 and s["clip"]["shown"] == [3, 2] and not s["switching"])
+    # the lighting dragged: the frames relit ahead were of the lighting before, and are relit again
+    x, y, w, h = v.state()["image_rect"]
+    v.drag(int(x + w * 0.3), int(y + h * 0.5), 80, 0)
+    sampled(lambda s: s["clip"]["relit"] < 7)
+    sampled(lambda s: s["clip"]["relit"] == 7, 120)
+    assert v.quit() == 0
+
+
 def test_a_clip_on_a_plate_walks_across_it_and_records_as_render_makes_it(viewer_factory, tmp_path, monkeypatch):
     """``relight view CLIP --plate``: the clip's person placed once (by its first frame with them in it) and
     every frame carried into the plate alike, a frame with no one in it the plate alone; R records the

@@ -54,14 +54,16 @@ class Actions:
         """The current state at full quality: display PNG, HDR EXR and a JSON of lights and look, read
         here (GL) and written on a thread (:class:`viewer.app.jobs.SaveJob`: encoding them was ~0.5 s of
         the window's frame at 2048 pixels); :meth:`saved` says when they are there."""
+        t = self.app.timeline
+        if t is not None and not t.in_session:  # the frame asked for (on screen from its relit picture, or coming)
+            t.advance(self.app.session, wait=True)
         eng = self.app.session.render(preview=False)
         stem = self._capture_stem()
         state = {"look": look_json(self.app), "map": str(self.app.env_path) if self.app.env_path else None, "preset": self.app.preset}
         state["lights"] = self.app.session.rendered_lights().to_json()  # what was rendered: the map's and the placed
         state["rig"] = [asdict(p) for p in self.app.session.placed]
-        t = self.app.timeline
-        if t is not None:  # which frame of which clip (as relight render's frames count them, from 0)
-            state["clip"] = {"bundle": str(t.bundle.path), "frame": t.on_screen, "seconds": round(t.times[t.on_screen], 6)}
+        if t is not None:  # which frame of which clip (as relight render's frames count them, from 0): the one saved
+            state["clip"] = {"bundle": str(t.bundle.path), "frame": t.current[0], "seconds": round(t.times[t.current[0]], 6)}
         plate = self.app.plate
         if plate is not None and t is not None and not t.has_person:  # a clip's frame with no one in it: the plate alone
             state["plate"] = plate.to_json()

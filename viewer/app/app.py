@@ -1,6 +1,6 @@
-"""``relight view``: the interactive viewer. One loop on the window's thread: events, input, panel,
-one engine render of the current state, draw, swap. Light fitting and video encoding run on their
-own threads; GL stays on this one.
+"""``relight view``: the interactive viewer. One loop on the window's thread: events, input, one
+engine render of the current state, the panel (of the picture drawn), draw, swap. Light fitting and
+video encoding run on their own threads; GL stays on this one.
 """
 
 from __future__ import annotations
@@ -96,12 +96,16 @@ class ViewerApp:
         self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
         self.timeline = None  # a clip's (viewer/app/timeline.py): the frame shown, playing or paused
+        self.relit = None  # its relit pictures, prepared while the window is idle (viewer/app/relit_frames.py)
         camera = None
         if config.clip is not None:
+            from viewer.app.relit_frames import RelitFrames
             from viewer.app.timeline import ClipTimeline
 
             self.timeline = ClipTimeline(self.window.ctx, config.clip, (config.size, config.max_size))
             self.timeline.wake = self.window.wake
+            self.relit = RelitFrames(self.window.ctx, self.timeline)
+            self.relit.wake = self.window.wake
             camera = self.timeline.frames.background_camera(self.timeline.frames.shown(0)[1])
         self.session = Session(self.window.ctx, sc, config.lights, config.environment, config.options, look, camera)
         self.plate = None  # the plate the person is put into (viewer/app/plate_view.py), or None
@@ -218,6 +222,8 @@ class ViewerApp:
         if t is None or self.recording is not None or self.switched or self.scene_job is not None:
             return
         t.tick()
+        if t.playing and self._from_relit():
+            return  # its picture is drawn (_texture): the session is brought to the frame where playing stops
         try:
             change = t.advance(self.session)
         except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk): said, the clip pauses
@@ -248,7 +254,8 @@ class ViewerApp:
             self.actions.finish_recording(stopped=True)
         if self.timeline is not None:
             self.timeline.release()
-            self.timeline = None
+            self.relit.release()
+            self.timeline = self.relit = None
         if self.plate is not None:  # the new person is placed by their own frame, not the clip's first one
             self.plate.unanchor()
         self.session.camera_turn = (0.0, 0.0)
@@ -265,15 +272,42 @@ class ViewerApp:
         """(H, W, 3) float32: :meth:`picture`'s linear HDR, as saved with S."""
         return self.timeline.picture_hdr(eng) if self.timeline is not None else eng.output.read_output_hdr()[..., :3]
 
+    def _from_relit(self) -> bool:
+        """Whether the clip's frame asked for has its relit picture ready under the lighting now (on a plate
+        none is: the person is composited into it live)."""
+        if self.relit is None or self.plate is not None:
+            return False
+        self.relit.follow(self.session)
+        return self.relit.ready(self.timeline.index)
+
     def _texture(self, eng):
-        """What the window draws for ``eng``'s frame: its display, or the timeline's picture of a clip's
-        frame; while the person before is shown (a clip's next frame being drawn), what was drawn of it
-        (the timeline's picture of a frame with no one in it, else that engine's display)."""
-        if self.timeline is None:
+        """What the window draws for ``eng``'s frame: its display, or a clip's frame (the timeline tells
+        which frame is on screen, :meth:`ClipTimeline.drew`). A clip's frame asked for and not in the
+        session yet (being read or drawn) shows its relit picture when ready; else what is on screen
+        stays (a relit picture, the timeline's picture of a frame with no one in it, the person before's
+        display) until the session's frame is drawn whole."""
+        t = self.timeline
+        if t is None:
             return eng.display
-        if eng is self.session.outgoing:
-            return self._drawn if self._drawn is not None and self._drawn is self.timeline.own_texture else eng.display
-        return self.timeline.texture(eng, self.session.state_key())
+        outgoing = eng is self.session.outgoing
+        if outgoing or not t.in_session:
+            if self._from_relit():
+                t.drew(t.frames.shown(t.index)[0])
+                return self.relit.texture(t.index)
+            kept = self._drawn is not None and (self._drawn is self.relit.own_texture or outgoing and self._drawn is t.own_texture)
+            if kept or outgoing:
+                return self._drawn if kept else eng.display
+        t.drew(t.current[0])
+        return t.texture(eng, self.session.state_key())
+
+    def _prepare_relit(self) -> bool:
+        """An idle frame (nothing to draw, no one dragging, paused) relights a slice of the clip's next
+        frame not ready (:meth:`RelitFrames.prepare`); False when there was none to do."""
+        if (self.relit is None or self.plate is not None or self.timeline.playing or self.recording is not None
+                or self.dragging or time.perf_counter() - self.panel.adjusted < STILL_SECONDS):
+            return False
+        self.relit.follow(self.session)
+        return self.relit.prepare(self.session, max(SWAP_BUDGET - (time.perf_counter() - self._frame_start), 0.005))
 
     def exposed_again(self):
         """After new lights or a new person: auto exposure, unless the user has set one since, set
@@ -388,7 +422,7 @@ class ViewerApp:
                 # "warm" frame: on until the drag preview's engines are ready (a step a frame, not one per
                 # IDLE_WAIT); a new map or person: on until its frame, drawn over budgeted frames, shows
                 busy = (self.dragging or self.panning or self.recording is not None or self.settling is not None
-                        or self.switched or kind == "warm" or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
+                        or self.switched or kind in ("warm", "prepare") or time.perf_counter() - self.panel.adjusted < 2 * STILL_SECONDS)
                 waiting = self.job is not None or self.scene_job is not None or self.session.refining
                 timeout = None if busy else (JOB_WAIT if waiting else IDLE_WAIT)
                 due = self.timeline.seconds_to_next() if self.timeline is not None else None
@@ -401,23 +435,30 @@ class ViewerApp:
                 for path in w.take_dropped():
                     self.actions.open_file(Path(path))
                 self.jobs.saves_written()
-                draw_panel(self)
-                draw_progress(self)
-                if self.log.count == 0:
-                    self._fit_panel()
                 self.jobs.poll()
                 self._advance_clip()
                 self.session.poll_refinement()
                 eng, kind = self._render()
+                if kind == "idle" and self._prepare_relit():
+                    kind = "prepare"  # (the loop goes on at once while there is more)
                 if self.plate is not None and self.timeline is not None and eng is self.session.outgoing:
                     self._drawn = self.plate.texture  # a clip's next person still being drawn: what was drawn stays
                 elif self.plate is not None:  # the person in the plate, composited again when either changed
                     self._drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
                                                            settled=not self.moving_person,
                                                            person=self.timeline is None or self.timeline.has_person)
+                    if self.timeline is not None:
+                        self.timeline.drew(self.timeline.current[0])
                 else:
                     self._drawn = self._texture(eng)
                 w.draw_image(self._drawn, self.image_rect(eng), self.image_area())
+                # the panel after the picture is drawn: what it says (a clip's frame, the lighting held while a new
+                # one comes in) is of that picture; what its widgets change (engines made again, a plate removed)
+                # is drawn from the next frame, never a texture it released in this one
+                draw_panel(self)
+                draw_progress(self)
+                if self.log.count == 0:
+                    self._fit_panel()
                 w.end_frame()
                 ms = self.log.record(start, kind)
                 if kind == "drag":
@@ -438,6 +479,7 @@ class ViewerApp:
                     worker.close()
                 if self.timeline is not None:
                     self.timeline.release()
+                    self.relit.release()
                 self.session.release()
                 if self.plate is not None:
                     self.plate.release()

@@ -47,6 +47,7 @@ class PanelState:
     ids: dict = field(default_factory=dict)  # imgui's ID of each widget drawn this frame -> its name
     content_right: float = 0.0  # the panel's content's right edge (screen x): no widget or label past it
     id_conflicts: list = field(default_factory=list)  # names of widgets that shared an ID with another (imgui's "conflicting ID")
+    clip_shown: tuple = ()  # a clip's (frame slider's value, the words under it) as drawn this frame (the state file's)
 
 
 def _remember(app, name: str):
@@ -117,7 +118,7 @@ def draw_progress(app):
     rec = app.recording
     job = app.scene_job or app.job
     rendering = rec is not None and not (isinstance(rec, InteractionRecording) and rec.capturing) and rec.total
-    if job is None and not rendering and not app.switched:
+    if job is None and not rendering and app.held is None:  # (a clip's next frame being drawn is no new light)
         return
     x, y, w, _ = app.image_rect()
     area_x, area_y, area_w, _ = app.image_area()
@@ -135,7 +136,7 @@ def draw_progress(app):
         imgui.text_wrapped(app.message or "working")
         imgui.text_wrapped(job.stage)
         imgui.progress_bar(job.fraction, imgui.ImVec2(-1, 0), f"{100 * job.fraction:.0f} %")
-    elif app.switched:  # the job's result being drawn (its shadows, over frames): the panel changes with it
+    elif app.held is not None:  # a job's result being drawn (its shadows, over frames): the panel changes with it
         imgui.text_wrapped("drawing the new light")
         imgui.progress_bar(-imgui.get_time(), imgui.ImVec2(-1, 0), "")
     if rendering:
@@ -201,17 +202,24 @@ def _clip(app):
         imgui.same_line()
         _, t.every_frame = imgui.checkbox("every frame", t.every_frame)
         _remember(app, "clip every frame")
-        changed, frame = imgui.slider_int("frame", t.index + 1, 1, t.count)
+        # the frame on screen, as the words below say (the one asked for may still be coming)
+        changed, frame = imgui.slider_int("frame", t.on_screen + 1, 1, t.count)
         _remember(app, "clip frame")
         if changed:
             t.seek(frame - 1)
     finally:
         imgui.end_disabled()
-    imgui.text_wrapped(t.describe())
-    # the rate on a line of its own, there whether playing or not: the widgets below never move
+    words = t.describe()
+    imgui.text_wrapped(words)
+    app.panel.clip_shown = (t.on_screen + 1, words)
+    # the rate and the frames relit ahead on a line of their own, there whether playing or not: the widgets below never move
     slow = t.playing and t.rate is not None and t.rate < 0.9 * t.fps
-    imgui.text_disabled("" if not slow else f"{t.rate:.1f} frames a second, slower than its {t.fps:.0f}" if t.every_frame
-                        else f"showing {t.rate:.1f} of its {t.fps:.0f} frames a second")
+    line = ("" if not slow else f"{t.rate:.1f} frames a second, slower than its {t.fps:.0f}" if t.every_frame
+            else f"showing {t.rate:.1f} of its {t.fps:.0f} frames a second")
+    relit = app.relit.count if app.relit is not None and app.plate is None else t.count
+    if relit < t.count:
+        line += ("; " if line else "") + f"{relit} of {t.count} relit ahead"
+    imgui.text_disabled(line)
 
 
 def _lighting(app):

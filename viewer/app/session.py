@@ -75,7 +75,12 @@ class Session:
     @property
     def rendered_look(self) -> Look:
         """The look the engines render: the user's, its map turned on by a clip frame's :attr:`camera_turn`."""
-        yaw, tilt = self.camera_turn
+        return self.turned_look(self.camera_turn)
+
+    def turned_look(self, turn: tuple[float, float]) -> Look:
+        """The user's look, its map turned on by ``turn`` (yaw, tilt) degrees: a clip frame's, whether it is
+        the frame the session shows or one prepared ahead (:mod:`viewer.app.relit_frames`)."""
+        yaw, tilt = turn
         return replace(self.look, yaw=self.look.yaw + yaw, tilt=self.look.tilt + tilt) if yaw or tilt else self.look
 
     def rotated_lights(self) -> AreaLights:
@@ -170,9 +175,13 @@ class Session:
         return self.look.ground_shown(self.final.feet, background)
 
     def state_key(self) -> bytes:
-        """What a frame shows, as bytes: the look, the map's lights and sigmas, the placed lights."""
-        return (repr((self.look, self.placed, self.camera_turn)).encode() + self.sigma.tobytes()
-                + self.base_lights.direction.tobytes())
+        """What a frame shows, as bytes: the look, the map's lights and sigmas, the placed lights, the clip
+        frame's camera turn."""
+        return self.lighting_key() + repr(self.camera_turn).encode()
+
+    def lighting_key(self) -> bytes:
+        """:meth:`state_key` but the camera turn: what every frame of a clip is lit by alike."""
+        return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
 
     @property
     def outgoing(self) -> Engine | None:

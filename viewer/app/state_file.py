@@ -71,6 +71,8 @@ class StateFile:
                 "index": app.timeline.index, "frames": app.timeline.count, "playing": app.timeline.playing,
                 "shown": list(app.timeline.current) if app.timeline.current is not None else None,
                 "rate": app.timeline.rate, "played": len(app.timeline.shown_at), "every_frame": app.timeline.every_frame,
+                "on_screen": app.timeline.on_screen, "slider_and_words": list(app.panel.clip_shown),
+                "relit": app.relit.count if app.relit is not None else 0,
                 "camera_turn": list(app.session.camera_turn)},  # a clip's timeline
         }
         text = json.dumps(state)

@@ -1,16 +1,19 @@
 """A clip bundle in the window (``relight view CLIP``): which frame shows, playing or paused.
 
-Playing keeps the clip's own clock: the frame shown is the one due at the time played so far, so a
-frame slower to relight than the clip's frame interval is skipped over, never slowed down (a
-software renderer relights a 720p frame in about a second; the recording, R, renders every frame).
-Each frame's scene is read on a thread ahead of the frame that shows it (:meth:`ClipTimeline.advance`),
-the next one it will show while playing read behind it. The session keeps the lighting, the user's
-lights and the look from frame to frame (one exposure for the clip, set from its first frame when
-the window opens, the user's after: what the window shows of a frame is what R records of it, and
-``relight render --look`` of the state saved with S); a frame brings its person (:meth:`Session.set_scene`, with
-its shot's lens for the map behind) and how far its camera turned (:attr:`Session.camera_turn`). A
-frame without the person shows the new background alone, as the nearest frame with the person sees
-it (:meth:`ClipTimeline.texture`), as the relit MP4 does (:mod:`viewer.output.clip_render`).
+Playing keeps the clip's own clock: the frame shown is the one due at the time played so far, so a frame
+slower to show than the clip's frame interval is skipped over, never slowed down (a software renderer
+relights a 720p frame in about 0.7 s; the recording, R, renders every frame). A frame whose relit
+picture is ready (:mod:`viewer.app.relit_frames`, prepared while the window is idle) is drawn from it;
+one that is not is relit live: its scene read on a thread ahead of the frame that shows it
+(:meth:`ClipTimeline.advance`), the next one it will show while playing read behind it. What the slider
+and the words say is the frame on screen (:meth:`ClipTimeline.drew`), not the one asked for. The session
+keeps the lighting, the user's lights and the look from frame to frame (one exposure for the clip, set
+from its first frame when the window opens, the user's after: what the window shows of a frame is what R
+records of it, and ``relight render --look`` of the state saved with S); a frame brings its person
+(:meth:`Session.set_scene`, with its shot's lens for the map behind) and how far its camera turned
+(:attr:`Session.camera_turn`). A frame without the person shows the new background alone, as the nearest
+frame with the person sees it (:meth:`ClipTimeline.texture`), as the relit MP4 does
+(:mod:`viewer.output.clip_render`).
 """
 
 from __future__ import annotations
@@ -34,8 +37,9 @@ class ClipTimeline:
         self.times = [e.seconds for e in bundle.frames]
         self.shots = len({e.shot for e in bundle.frames})
         self.fps = float(bundle.source.get("fps") or 30.0)
-        self.index = 0  # the frame asked for: the slider's
-        self.current: tuple[int, int] | None = None  # (frame shown, the frame with a person whose scene renders it)
+        self.index = 0  # the frame asked for (the slider's, the arrows', the clock's)
+        self.current: tuple[int, int] | None = None  # the session's (frame, the frame with a person whose scene renders it)
+        self.showing: int | None = None  # the frame whose picture is on screen (drew)
         self.playing = False
         self.every_frame = False  # play every frame (as fast as they are drawn, never faster than the clip), not the clip's clock
         self._clock: tuple[float, float] | None = None  # (perf_counter when play began, the clip's seconds then)
@@ -45,7 +49,7 @@ class ClipTimeline:
         self._texture = None  # the background alone, for a frame without the person
         self._texture_key = None
         self._filmed_frame = None  # ((frame, size), the frame as filmed): a frame without the person under the photo background
-        self.shown_at: list[float] = []  # perf_counter of each frame shown while playing (its rate)
+        self.shown_at: list[float] = []  # perf_counter of each new frame drawn while playing (its rate)
         self.wake = lambda: None  # called when a frame's scene is read (the window's wake: the loop sleeps meanwhile)
 
     def began(self, session):
@@ -90,7 +94,7 @@ class ClipTimeline:
             return
         if self.every_frame:
             now = time.perf_counter()
-            if self.current is not None and self.current[0] >= self.index:
+            if self.on_screen >= self.frames.shown(self.index)[0]:
                 if self.index >= self.count - 1:
                     self.playing, self._clock = False, None
                 elif now - self._stepped >= self.times[self.index + 1] - self.times[self.index]:
@@ -176,9 +180,19 @@ class ClipTimeline:
         session.camera_turn = self.frames.camera_turn(index, person)
         self.current = (index, person)
         if self.playing:
-            self.shown_at.append(time.perf_counter())
             self._read_ahead()
         return change
+
+    @property
+    def in_session(self) -> bool:
+        """Whether the session has the frame asked for (its person's scene and its camera's turn)."""
+        return self.current == self.frames.shown(self.index)
+
+    def drew(self, index: int):
+        """The window drew frame ``index``'s picture: the frame on screen (its rate counted while playing)."""
+        if index != self.showing and self.playing:
+            self.shown_at.append(time.perf_counter())
+        self.showing = index
 
     def _read_ahead(self):
         """While playing: the scene of the frame likely due when this one has shown, read meanwhile."""
@@ -194,22 +208,26 @@ class ClipTimeline:
         return self.current is not None and self.current[0] == self.current[1]
 
     def picture(self, engine) -> np.ndarray:
-        """(H, W, 3) uint8: the frame shown as the relit MP4 shows it, from ``engine`` (its scene the frame's
-        person's, rendered): the relit frame, or with no person the new background alone (under the photo
-        background the frame as filmed)."""
-        if self.has_person:
+        """(H, W, 3) uint8: the session's frame as the relit MP4 shows it (:meth:`picture_of`)."""
+        return self.picture_of(engine, *self.current)
+
+    def picture_of(self, engine, index: int, person: int) -> np.ndarray:
+        """(H, W, 3) uint8: frame ``index`` as the relit MP4 shows it, from ``engine`` (frame ``person``'s
+        scene, rendered with the frame's turn): the relit frame, or with no person the new background
+        alone (under the photo background the frame as filmed)."""
+        if index == person:
             return engine.output.read_display()
         if shows_filmed_frame(engine):
-            return self._filmed(engine.output_size)
+            return self._filmed(index, engine.output_size)
         return engine.output.read_background_display()
 
-    def _filmed(self, size: tuple[int, int]) -> np.ndarray:
-        """The frame shown as filmed, at ``size`` (kept while it is shown: a drag redraws it every frame)."""
+    def _filmed(self, index: int, size: tuple[int, int]) -> np.ndarray:
+        """Frame ``index`` as filmed, at ``size`` (kept while it is shown: a drag redraws it every frame)."""
         from viewer.output.clip_render import frame_photo
 
-        key = (self.current[0], size)
+        key = (index, size)
         if self._filmed_frame is None or self._filmed_frame[0] != key:
-            self._filmed_frame = (key, frame_photo(self.bundle, self.current[0], size))
+            self._filmed_frame = (key, frame_photo(self.bundle, index, size))
         return self._filmed_frame[1]
 
     def picture_hdr(self, engine) -> np.ndarray:
@@ -219,7 +237,7 @@ class ClipTimeline:
         if self.has_person:
             return engine.output.read_output_hdr()[..., :3]
         if shows_filmed_frame(engine):
-            return srgb_to_linear(self._filmed(engine.output_size) / 255.0).astype(np.float32)
+            return srgb_to_linear(self._filmed(self.current[0], engine.output_size) / 255.0).astype(np.float32)
         return engine.output.read_background_hdr()[..., :3]
 
     @property
@@ -246,9 +264,9 @@ class ClipTimeline:
 
     @property
     def on_screen(self) -> int:
-        """The frame the picture is of: while playing, the one shown (the frame due may still be coming);
-        paused, the one asked for."""
-        return self.current[0] if self.playing and self.current is not None else self.index
+        """The frame the picture on screen is of (the frame asked for may still be coming, playing or not):
+        what the slider and :meth:`describe` show."""
+        return self.showing if self.showing is not None else self.index
 
     def describe(self) -> str:
         """The frame on screen, in words: its time, number and shot, and whether it has the person."""

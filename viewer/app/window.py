@@ -193,6 +193,7 @@ class Window:
         self.end_frame()
 
     def end_frame(self):
+        self.ctx.screen.use()  # the panel's widgets may have rendered since the picture was drawn (an engine's framebuffer bound)
         imgui.render()
         self.imgui.render(imgui.get_draw_data())
         glfw.swap_buffers(self.handle)

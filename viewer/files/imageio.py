@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -143,6 +144,12 @@ def write_text(path, text: str) -> Path:
     return path
 
 
+# one block at a time: the descriptors and sys.stdout / sys.stderr are the process's, and two threads
+# reading EXRs at once (a clip's frames read ahead beside the frame asked for) crossed them, the second
+# to finish putting back the first's sink, closed: every later print failed and the window ended
+_NATIVE_OUTPUT = threading.RLock()
+
+
 @contextlib.contextmanager
 def native_output():
     """Collect what native code and the bindings write to the process's stdout and stderr during the
@@ -155,29 +162,30 @@ def native_output():
 
     libc = ctypes.CDLL(None)
     printed: list[str] = []
-    for stream in (sys.stdout, sys.stderr):
-        stream.flush()
-    libc.fflush(None)
-    with tempfile.TemporaryFile() as sink:
-        saved = [os.dup(1), os.dup(2)]
-        # the bindings' own lines (pybind11's py::print) go to Python's sys.stdout, which the
-        # program keeps on a private copy of descriptor 1 (cli.main): it is pointed at the sink too
-        streams = sys.stdout, sys.stderr
-        caught = open(os.dup(sink.fileno()), "w", encoding="utf-8", errors="replace", closefd=True)
-        try:
-            os.dup2(sink.fileno(), 1)
-            os.dup2(sink.fileno(), 2)
-            sys.stdout = sys.stderr = caught
-            yield printed
-        finally:
-            sys.stdout, sys.stderr = streams
-            caught.close()
-            libc.fflush(None)  # C stdio's buffer (std::cout) to the sink before the descriptors go back
-            for fd, old in zip((1, 2), saved):
-                os.dup2(old, fd)
-                os.close(old)
-            sink.seek(0)
-            printed.append(sink.read().decode("utf-8", "replace"))
+    with _NATIVE_OUTPUT:
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        libc.fflush(None)
+        with tempfile.TemporaryFile() as sink:
+            saved = [os.dup(1), os.dup(2)]
+            # the bindings' own lines (pybind11's py::print) go to Python's sys.stdout, which the
+            # program keeps on a private copy of descriptor 1 (cli.main): it is pointed at the sink too
+            streams = sys.stdout, sys.stderr
+            caught = open(os.dup(sink.fileno()), "w", encoding="utf-8", errors="replace", closefd=True)
+            try:
+                os.dup2(sink.fileno(), 1)
+                os.dup2(sink.fileno(), 2)
+                sys.stdout = sys.stderr = caught
+                yield printed
+            finally:
+                sys.stdout, sys.stderr = streams
+                caught.close()
+                libc.fflush(None)  # C stdio's buffer (std::cout) to the sink before the descriptors go back
+                for fd, old in zip((1, 2), saved):
+                    os.dup2(old, fd)
+                    os.close(old)
+                sink.seek(0)
+                printed.append(sink.read().decode("utf-8", "replace"))
 
 
 def replay(printed: list[str]) -> None:
