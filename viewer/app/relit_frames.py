@@ -17,6 +17,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
+from viewer.app.picture_texture import PictureTexture
 from viewer.lighting.placed_lights import to_area_lights
 
 MEMORY = 2 << 30  # bytes of pictures kept (~770 frames at 1280x720): the frames past it are relit live
@@ -32,8 +33,7 @@ class RelitFrames:
         self._engine = None  # (frame with a person, its Engine) being relit
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="relit-frames")
         self._read: tuple[int, Future] | None = None  # (frame with a person, its scene being read)
-        self._texture = None
-        self._texture_of = None  # (frame, key) the texture holds
+        self._texture = PictureTexture(ctx)  # keyed by (frame, lighting)
         self.wake = lambda: None  # called when a scene is read (the window's wake: the loop sleeps meanwhile)
 
     def follow(self, session):
@@ -109,34 +109,20 @@ class RelitFrames:
 
     def texture(self, index: int):
         """Frame ``index``'s picture in the window's texture (written again only for another frame or lighting)."""
-        if self._texture_of != (index, self.key):
-            rgb = self.pictures[index]
-            h, w = rgb.shape[:2]
-            if self._texture is None or self._texture.size != (w, h):
-                self._release_texture()
-                self._texture = self.ctx.texture((w, h), 3, dtype="f1")
-            self._texture.write(rgb.tobytes())  # row 0 at v = 0, as the engine's display (Engine.display)
-            self._texture_of = (index, self.key)
-        return self._texture
+        return self._texture.show((index, self.key), lambda: self.pictures[index])
 
     @property
     def own_texture(self):
         """The texture last drawn from the pictures (None before one was)."""
-        return self._texture
+        return self._texture.texture
 
     def _release_engine(self):
         if self._engine is not None:
             self._engine[1].release()
             self._engine = None
 
-    def _release_texture(self):
-        if self._texture is not None:
-            self._texture.release()
-            self._texture = None
-            self._texture_of = None
-
     def release(self):
         self.wake = lambda: None
         self._release_engine()
-        self._release_texture()
+        self._texture.release()
         self._pool.shutdown(wait=False, cancel_futures=True)  # a read under way ends on its own (numpy, no GL)

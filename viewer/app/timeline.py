@@ -24,6 +24,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
+from viewer.app.picture_texture import PictureTexture
 from viewer.output.clip_frames import ClipFrames, shows_filmed_frame
 from viewer.scene.clip_bundle import ClipBundle
 
@@ -46,8 +47,7 @@ class ClipTimeline:
         self._stepped = 0.0  # when every_frame last stepped
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="clip-frames")
         self._loads: dict[int, Future] = {}  # frame -> its scene being read (at most two: the one asked, the next)
-        self._texture = None  # the background alone, for a frame without the person
-        self._texture_key = None
+        self._texture = PictureTexture(ctx)  # the background alone, for a frame without the person
         self._filmed_frame = None  # ((frame, size), the frame as filmed): a frame without the person under the photo background
         self.shown_at: list[float] = []  # perf_counter of each new frame drawn while playing (its rate)
         self.wake = lambda: None  # called when a frame's scene is read (the window's wake: the loop sleeps meanwhile)
@@ -243,7 +243,7 @@ class ClipTimeline:
     @property
     def own_texture(self):
         """The texture of the last frame drawn with no one in it (None before one was)."""
-        return self._texture
+        return self._texture.texture
 
     def texture(self, engine, key: bytes):
         """What the window draws for the frame shown: ``engine``'s display, or for a frame without the
@@ -251,16 +251,8 @@ class ClipTimeline:
         session's state, or the engine changes)."""
         if self.has_person:
             return engine.display
-        key = (key, engine, self.current)  # (the engine itself: an id can be another's once it is released)
-        if self._texture_key != key:
-            rgb = self.picture(engine)
-            h, w = rgb.shape[:2]
-            if self._texture is None or self._texture.size != (w, h):
-                self.release_texture()
-                self._texture = self.ctx.texture((w, h), 3, dtype="f1")
-            self._texture.write(np.ascontiguousarray(rgb).tobytes())  # row 0 at v = 0, as the display's (Engine.display)
-            self._texture_key = key
-        return self._texture
+        # (the engine itself: an id can be another's once it is released)
+        return self._texture.show((key, engine, self.current), lambda: self.picture(engine))
 
     @property
     def on_screen(self) -> int:
@@ -276,13 +268,7 @@ class ClipTimeline:
         return (f"{entry.seconds:.2f} / {self.bundle.duration:.2f} s, frame {k + 1} of {self.count}"
                 + (f", shot {entry.shot + 1} of {self.shots}" if self.shots > 1 else "") + state)
 
-    def release_texture(self):
-        if self._texture is not None:
-            self._texture.release()
-            self._texture = None
-            self._texture_key = None
-
     def release(self):
         self.wake = lambda: None  # a read still under way ends after the window
-        self.release_texture()
+        self._texture.release()
         self._pool.shutdown(wait=False, cancel_futures=True)  # a read under way ends on its own (numpy, no GL)
