@@ -434,7 +434,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                         scene = load_scene(frames_dir / frame_name(frame.index))
                         alpha = scene.frame.alpha
                         if follow is not None:  # the person followed from where this frame relit them
-                            follow.seen_in(resize(frame.rgb, frame_size), alpha > 0.5)
+                            follow.seen_in(alpha > 0.5)
                         if steady is not None:  # the next frame steadied from this one's maps as written
                             steady.carry(scene, resize(frame.rgb, frame_size), shot)
                     elif steady is not None:

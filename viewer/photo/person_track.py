@@ -6,7 +6,7 @@ merely hard to see. So:
 
 1. **Chosen once** (:func:`choose`), on the clip's first frame with anyone in it: the person
    MediaPipe's selfie segmentation finds there (its connected parts, as
-   :func:`viewer.photo.segmentation.people_parts` gives them) who is largest and most central
+   :func:`viewer.photo.segmentation.frame_people` gives them) who is largest and most central
    (height x (1 - distance of the box's centre from the frame's, as a fraction of the half
    diagonal)), or the one under ``--person X,Y`` (fractions of the frame). Kept in the clip
    bundle's record, so every worker of a split clip follows the same person.
@@ -81,6 +81,22 @@ def signature(photo: np.ndarray, mask: np.ndarray, box: tuple) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def box_of(person: np.ndarray) -> tuple[float, float, float, float]:
+    """The box (x, y, width, height) of ``person``'s pixels (bool (H, W)) as fractions of its frame."""
+    from viewer.photo.photo_frame import person_box
+
+    h, w = person.shape
+    top, left, tall, wide = person_box(person)
+    return left / w, top / h, wide / w, tall / h
+
+
+def part_of(image: np.ndarray, person: np.ndarray) -> Part:
+    """The :class:`Part` of the person whose pixels are ``person`` (bool (H, W)) in ``image`` (H, W, 3) uint8."""
+    x, y, w, h = box_of(person)
+    sh, sw = person.shape
+    return Part((x, y, w, h), signature(image, person, (round(x * sw), round(y * sh), round(w * sw), round(h * sh))))
+
+
 def distance(a: np.ndarray, b: np.ndarray) -> float:
     """How unlike two signatures are: the mean Bhattacharyya distance over the histograms both
     hold (0 the same colours, 1 none in common; 1 when they share no part)."""
@@ -127,8 +143,8 @@ def preview(small: np.ndarray, masks: list, pick: int) -> np.ndarray:
 
 class PersonTrack:
     """The person a clip relights, followed from frame to frame (module docstring). Made from the
-    choice kept in the clip bundle's record (:meth:`to_json`); :meth:`pick` chooses among a frame's
-    parts, :meth:`seen` tells it where the person was relit."""
+    choice kept in the clip bundle's record (:func:`viewer.photo.clip_inference.choose_person`);
+    :meth:`pick` chooses among a frame's parts, :meth:`seen` tells it where the person was relit."""
 
     def __init__(self, chosen: dict):
         self.first = np.asarray(chosen["signature"], np.float32)
@@ -136,10 +152,6 @@ class PersonTrack:
         self.box = tuple(chosen["box"])
         self.last_index = int(chosen.get("frame", 0))
         self.index = self.last_index
-
-    def to_json(self) -> dict:
-        return {"box": [round(float(v), 5) for v in self.box], "frame": self.last_index,
-                "signature": [round(float(v), 6) for v in self.first]}
 
     def unlike(self, part: Part) -> float:
         """The colour distance of ``part`` to the person (the nearer of their first and running signatures)."""
@@ -173,15 +185,11 @@ class PersonTrack:
         shown them again when a neighbour took its eye), else None."""
         return self.box if self.index - self.last_index <= 1 else None
 
-    def seen_in(self, frame: np.ndarray, person: np.ndarray) -> None:
-        """The person relit where ``person`` (bool (H, W)) is in ``frame`` (H, W, 3) uint8: a frame an
-        earlier run finished, read instead of inferred (the running signature is left as it is)."""
-        from viewer.photo.photo_frame import person_box
-
+    def seen_in(self, person: np.ndarray) -> None:
+        """The person relit where ``person`` (bool (H, W)) is in a frame an earlier run finished, read
+        instead of inferred (the running signature is left as it is)."""
         if person.any():
-            h, w = person.shape
-            top, left, tall, wide = person_box(person)
-            self.seen(Part((left / w, top / h, wide / w, tall / h), self.running), alone=False)
+            self.seen(Part(box_of(person), self.running), alone=False)
 
     def seen(self, part: Part, alone: bool) -> None:
         """The person relit at ``part`` (box and signature of what was relit) in the frame last

@@ -137,6 +137,8 @@ def frame_people(photo: np.ndarray, photo_path=None, most: int = 8) -> tuple[np.
     at most ``most``) is a person when the pose model, shown it, finds one covering at least
     ``CONFIRMED`` of it (a patch of pavement is not), and is then the pose model's outline; when no
     part is, the pose model's person in the whole frame (the selfie model misses small people)."""
+    from viewer.photo.person_track import part_of
+
     pose, small, everyone = _everyone(photo, photo_path, zoom=True)
     sh, sw = small.shape[:2]
     masks = []
@@ -148,29 +150,11 @@ def frame_people(photo: np.ndarray, photo_path=None, most: int = 8) -> tuple[np.
         if person is not None and (person & part).sum() >= CONFIRMED * part.sum() and \
                 not any((person & m).sum() > 0.5 * min(person.sum(), m.sum()) for m in masks):
             masks.append(person)
-    if not masks:
+    if not masks and len(people) != 1:  # (one part alone was shown the whole frame already)
         seen = _pose(pose, small, (0, 0, sw, sh))
         if seen is not None and (seen[1] > 0.5).any():
             masks.append(seen[1] > 0.5)
     return small, masks, [part_of(small, m) for m in masks]
-
-
-def part_of(small: np.ndarray, person: np.ndarray):
-    """The :class:`viewer.photo.person_track.Part` of the person ``person`` (bool mask of ``small``)."""
-    from viewer.photo.person_track import Part, signature
-
-    sh, sw = small.shape[:2]
-    top, left, tall, wide = person_box(person)
-    return Part((left / sw, top / sh, wide / sw, tall / sh), signature(small, person, (left, top, wide, tall)))
-
-
-def frame_parts(small: np.ndarray, people: list) -> list:
-    """The selfie model's people (:func:`_people`) as :class:`viewer.photo.person_track.Part` of the
-    scaled photo ``small``."""
-    from viewer.photo.person_track import Part, signature
-
-    sh, sw = small.shape[:2]
-    return [Part((b[0] / sw, b[1] / sh, b[2] / sw, b[3] / sh), signature(small, part, b)) for b, part in people]
 
 
 def _followed(pose, small: np.ndarray, everyone, people: list, follow, photo_path, everyone_too: bool):
@@ -184,10 +168,10 @@ def _followed(pose, small: np.ndarray, everyone, people: list, follow, photo_pat
     when no one is picked, or all that is left of them is hidden behind someone else."""
     import cv2
 
-    from viewer.photo.person_track import MERGED, SAME
+    from viewer.photo.person_track import MERGED, SAME, part_of
 
     sh, sw = small.shape[:2]
-    parts = frame_parts(small, people)
+    parts = [part_of(small, part) for _, part in people]
     pick = follow.pick(parts)
     if pick is None and everyone_too and people:
         pick = 0  # everyone relit: the largest lends the landmarks
@@ -208,19 +192,20 @@ def _followed(pose, small: np.ndarray, everyone, people: list, follow, photo_pat
     whole, own = (0, 0, sw, sh), grown(part_box, (sw, sh)) if part_mask is not None else None
     boxes = [own, whole] if own is not None and len(people) > 1 else [whole, own]
     boxes = list(dict.fromkeys(b for b in boxes + [grown(followed, (sw, sh)) if last is not None else None] if b is not None))
-    tried = []
-    for box in boxes:
-        tried.append((_pose(pose, small, box), box))
-        if theirs(tried[-1][0]):
+    tried, found, box = [], None, boxes[0]
+    for shown in boxes:
+        seen = _pose(pose, small, shown)
+        tried.append(seen)
+        if theirs(seen):
+            found, box = seen, shown
             break
-    found, box = tried[-1] if theirs(tried[-1][0]) else (None, boxes[0])
     if found is None and part_mask is None:
         others = f" ({len(parts)} other{'s' if len(parts) != 1 else ''} in it)" if parts else ""
         raise NoPersonError(photo_path, f"the person followed is not in the picture{others}")
     if found is None:
         # what the pose model found is someone else (or no one): the person is the rest of their part
         taken = np.zeros(part_mask.shape, bool)
-        for seen, _ in tried:
+        for seen in tried:
             if seen is not None:
                 taken |= seen[1] > 0.5
         rest = part_mask & ~(cv2.dilate(taken.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0)
