@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from viewer.cli.command_setup import command_lights, engine_options, first_look, fitted_lights, lights_count, rig_lights
-from viewer.cli.output_paths import not_an_input, writable
+from viewer.cli.output_paths import INFERRED_ONLY, inferred_only, not_an_input, writable
 from viewer.errors import InputError
 from viewer.files.clip_reader import check_range, is_clip
 from viewer.files.ownership import file_sha256, refuse_foreign
@@ -23,15 +23,6 @@ def _bar(total: int, what: str):
     from tqdm import tqdm
 
     return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True)
-
-
-INFERRED_ONLY = "--start, --end, --temporal, --person and --people"
-
-
-def inferred_only(args) -> bool:
-    """Whether ``args`` set an option that only a clip's inference takes (:data:`INFERRED_ONLY`)."""
-    return args.start != 0.0 or args.end is not None or any(getattr(args, k, None) is not None
-                                                             for k in ("temporal", "person", "people"))
 
 
 def clip_bundle(clip, args, out=None, window=None) -> Path:

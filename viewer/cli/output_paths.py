@@ -90,11 +90,21 @@ def check_video(args):
         raise InputError(None, f"--turn must be a finite number of degrees within +-36000, got {args.turn}")
 
 
+CLIP_FLAGS = ("temporal", "person", "people")  # besides --start and --end, what only a clip's inference takes
+INFERRED_ONLY = "--start, --end, --temporal, --person and --people"
+
+
+def inferred_only(args) -> bool:
+    """Whether ``args`` set an option that only a clip's inference takes (:data:`INFERRED_ONLY`)."""
+    return getattr(args, "start", 0.0) != 0.0 or getattr(args, "end", None) is not None or \
+        any(getattr(args, k, None) is not None for k in CLIP_FLAGS)
+
+
 def not_a_clip_range(args, given) -> None:
     """Refuse --start / --end for what is not a clip (they would be silently ignored)."""
     if getattr(args, "start", 0.0) != 0.0 or getattr(args, "end", None) is not None:
         raise InputError(given, "--start and --end choose a part of a clip: this is not one")
-    for flag in ("temporal", "person", "people"):
+    for flag in CLIP_FLAGS:
         if getattr(args, flag, None) is not None:
             raise InputError(given, f"--{flag} is for a clip: this is not one")
 
