@@ -775,20 +775,21 @@ def test_pieces_of_matte_that_come_and_go_are_counted():
     where it goes."""
     import cv2
 
-    from viewer.lab.bench.video import MattePieces
+    from viewer.lab.bench.video import MattePieces, WarpingError
 
     rng = np.random.default_rng(4)
     texture = cv2.GaussianBlur((rng.random((200, 300, 3)) * 255).astype(np.uint8), (0, 0), 3.0)
-    steady, popping = MattePieces(), MattePieces()
+    steady, popping, flows = MattePieces(), MattePieces(), WarpingError(["input"])
     for t in range(6):
         frame = np.ascontiguousarray(texture[20:140, 10 + 2 * t:170 + 2 * t])
+        flow = flows.add(frame, {"input": frame})
         alpha = np.zeros((120, 160), np.float32)
         alpha[30:90, 50 - 2 * t:110 - 2 * t + (t % 2)] = 1.0  # the person, moving with the scene (a pixel of jitter)
-        steady.add(t, frame, alpha)
+        steady.add(t, flow, alpha)
         kept = alpha.copy()
         if t == 3:
             kept[10:28, 120:140] = 1.0  # a piece of background kept in frame 3 alone
-        popping.add(t, frame, kept)
+        popping.add(t, flow, kept)
     assert steady.result() == {"pieces": 0, "pairs": 5, "frames_with_pieces": []}
     assert popping.result() == {"pieces": 2, "pairs": 5, "frames_with_pieces": [3, 4]}
 

@@ -54,16 +54,19 @@ class WarpingError:
         self.ssims = {n: {r: [] for r in REGIONS} for n in self.names}
         self._previous = None
 
-    def add(self, source: np.ndarray, outputs: dict, alpha: np.ndarray | None = None) -> None:
+    def add(self, source: np.ndarray, outputs: dict, alpha: np.ndarray | None = None) -> tuple | None:
         """``source``: the input frame at the outputs' size (uint8 RGB); ``outputs``: name -> uint8 RGB;
-        ``alpha``: the person's matte at that size (None: the whole frame only)."""
+        ``alpha``: the person's matte at that size (None: the whole frame only). Returns the input's
+        backward flow to the frame before and where it holds (None for the first frame), which
+        :class:`MattePieces` judges by too."""
         from skimage.metrics import structural_similarity
 
         current = grey(source)
         frames = {n: outputs[n].astype(np.float32) / 255.0 for n in self.names}
+        flow = None
         if self._previous is not None:
             previous_grey, previous, previous_alpha = self._previous
-            back, held = backward_flow(self.flow, current, previous_grey)
+            back, held = flow = backward_flow(self.flow, current, previous_grey)
             regions = {"all": held}
             if alpha is not None and previous_alpha is not None:
                 carried = warp(previous_alpha, back)
@@ -78,6 +81,7 @@ class WarpingError:
                         self.sums[n][r].append(float(diff[where].mean()))
                         self.ssims[n][r].append(float(similar[where].mean()))
         self._previous = (current, frames, alpha)
+        return flow
 
     def result(self, region: str = "all", ssim: bool = False) -> dict:
         """name -> the warping error over ``region`` (``ssim``: the Warp-SSIM, the mean SSIM of each
@@ -95,26 +99,35 @@ def _video_frames(path):
             yield frame.to_ndarray(format="rgb24")
 
 
-def clip_warping_errors(clip, start: float, end: float, relit: dict, alpha=None) -> dict:
+def clip_warping_errors(clip, start: float, end: float, relit: dict, alpha=None, mattes: dict | None = None) -> dict:
     """Warping errors (region -> name -> error) of the input clip (``start`` to ``end`` seconds)
     and of each relit MP4 (name -> path), the input resized to the relit size; frames lost in the
-    input are left out of the pairs they are in. ``alpha(index)``: frame index's matte (or None)."""
+    input are left out of the pairs they are in. ``alpha(index)``: frame index's matte (or None).
+    ``mattes``: name -> its ``alpha`` of another bundle, whose :class:`MattePieces` are counted along
+    the same flow (under "pieces")."""
     from viewer.files.clip_reader import clip_frames
     from viewer.resize import resize
 
     names = ["input", *relit]
     meter = WarpingError(names)
+    pieces = {n: MattePieces() for n in mattes or {}}
     readers = {n: _video_frames(p) for n, p in relit.items()}
     for frame in clip_frames(clip, start, end):
         outs = {n: next(r) for n, r in readers.items()}
         if frame.rgb is None:
             meter._previous = None
+            for counter in pieces.values():
+                counter.add(frame.index, None, None)
             continue
         h, w = next(iter(outs.values())).shape[:2]
         source = resize(frame.rgb, (w, h))
         matte = alpha(frame.index) if alpha is not None else None
-        meter.add(source, {"input": source, **outs}, resize(matte, (w, h)) if matte is not None else None)
-    return {r: meter.result(r) for r in REGIONS} | {f"ssim {r}": meter.result(r, ssim=True) for r in REGIONS}
+        flow = meter.add(source, {"input": source, **outs}, resize(matte, (w, h)) if matte is not None else None)
+        for n, counter in pieces.items():
+            own = mattes[n](frame.index)
+            counter.add(frame.index, flow, resize(own, (w, h)) if own is not None else None)
+    return {r: meter.result(r) for r in REGIONS} | {f"ssim {r}": meter.result(r, ssim=True) for r in REGIONS} | \
+        {"pieces": {n: counter.result() for n, counter in pieces.items()}}
 
 
 PIECE = 0.0002  # of the frame's area: a piece of matte this large that comes or goes between two frames counts
@@ -123,28 +136,28 @@ SLIVER = 5  # pixels: what a square this wide does not hold (an outline that mov
 
 class MattePieces:
     """Pieces of matte that come or go between consecutive frames, not explained by the input's
-    motion, fed frame by frame (:meth:`add`): where the flow holds, the frame's matte (above 0.5)
-    against the frame before's carried along it, the difference opened by a square of ``SLIVER``
-    pixels (an outline that moved a pixel or two is no piece), its connected pieces of at least
-    ``PIECE`` of the frame. A piece of the old background kept in one frame and not the next (or of
+    motion, fed frame by frame (:meth:`add`, with the flow :meth:`WarpingError.add` found): where
+    the flow holds, the frame's matte (above 0.5) against the frame before's carried along it, the
+    difference opened by a square of ``SLIVER`` pixels (an outline that moved a pixel or two is no
+    piece), its connected pieces of at least ``PIECE`` of the frame. A piece of the old background kept in one frame and not the next (or of
     the person lost in one) is such a piece: counted where it comes and again where it goes."""
 
     def __init__(self):
-        self.flow, self._before = dis_flow(), None
+        self._before = None  # the frame before's matte
         self.pieces, self.pairs, self.frames = 0, 0, []
 
-    def add(self, index: int, source: np.ndarray | None, alpha: np.ndarray | None) -> None:
-        """Frame ``index``: the input ``source`` (uint8 RGB) at the matte ``alpha``'s size; None for a
-        frame with no one (or lost): the next pair starts afresh."""
+    def add(self, index: int, flow: tuple | None, alpha: np.ndarray | None) -> None:
+        """Frame ``index``: the input's backward flow to the frame before and where it holds (None: no
+        frame before), and the matte ``alpha`` at the flow's size; None for a frame with no one (or
+        lost): the next pair starts afresh."""
         import cv2
 
-        if source is None or alpha is None:
+        if alpha is None:
             self._before = None
             return
-        current = grey(source)
-        if self._before is not None:
-            back, held = backward_flow(self.flow, current, self._before[0])
-            carried = warp(self._before[1].astype(np.float32), back)
+        if self._before is not None and flow is not None:
+            back, held = flow
+            carried = warp(self._before.astype(np.float32), back)
             changed = (held & ((alpha > 0.5) != (carried > 0.5))).astype(np.uint8)
             changed = cv2.morphologyEx(changed, cv2.MORPH_OPEN, np.ones((SLIVER, SLIVER), np.uint8))
             count, _, stats, _ = cv2.connectedComponentsWithStats(changed, connectivity=8)
@@ -152,29 +165,10 @@ class MattePieces:
             self.pieces, self.pairs = self.pieces + found, self.pairs + 1
             if found:
                 self.frames.append(index)
-        self._before = (current, alpha)
+        self._before = alpha
 
     def result(self) -> dict:
         return {"pieces": self.pieces, "pairs": self.pairs, "frames_with_pieces": self.frames}
-
-
-def matte_pieces(clip, start: float, end: float, bundle) -> dict:
-    """:class:`MattePieces` over a clip ``bundle``'s mattes (its frames' frame_alpha.png) and the input
-    clip from ``start`` to ``end`` seconds: the pieces, the frame pairs measured and those with a piece."""
-    from viewer.files.clip_reader import clip_frames
-    from viewer.files.imageio import read_png
-    from viewer.resize import resize
-
-    meter = MattePieces()
-    for frame in clip_frames(clip, start, end):
-        entry = bundle.frames[frame.index] if frame.index < len(bundle.frames) else None
-        if frame.rgb is None or entry is None or entry.state != "person":
-            meter.add(frame.index, None, None)
-            continue
-        alpha = read_png(bundle.scene_path(frame.index) / "frame_alpha.png")
-        alpha = alpha[..., 0] if alpha.ndim == 3 else alpha
-        meter.add(frame.index, resize(frame.rgb, (alpha.shape[1], alpha.shape[0])), alpha)
-    return meter.result()
 
 
 def _one_clip(clip: str, out_dir: str, maps: list, start: float, end: float, max_size: int, queue) -> None:
@@ -243,7 +237,6 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
                 render_seconds[name] = round(time.perf_counter() - t1, 2)
                 relit[f"{mode} {name}"] = out
             n, kept = record["frames"], record["frames_kept_from_earlier_run"]
-            figures.setdefault("matte_pieces", {})[mode] = matte_pieces(clip, start, end, bundle)
             figures["modes"][mode] = {
                 "infer_seconds": round(infer_seconds, 2), "frames_kept": kept, "render_seconds": render_seconds,
                 "shots": record.get("shots"), "states": record["states"],
@@ -253,13 +246,21 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
                            size=list(output_frame((bundle.source["width"], bundle.source["height"]), max_size)))
     finally:
         ctx.release()
-    off = load_clip_bundle(out_dir / "bundles" / f"{clip.stem}-off")
+    bundles = {mode: load_clip_bundle(out_dir / "bundles" / f"{clip.stem}-{mode}") for mode in ("off", "on")}
 
-    def alpha(index):  # the regions: each frame's own matte (frame by frame)
-        entry = off.frames[index] if index < len(off.frames) else None
-        return read_png(off.scene_path(index) / "frame_alpha.png") if entry is not None and entry.state == "person" else None
+    def matte_of(bundle):
+        def alpha(index):  # frame index's matte in ``bundle`` (None: no one there)
+            entry = bundle.frames[index] if index < len(bundle.frames) else None
+            if entry is None or entry.state != "person":
+                return None
+            matte = read_png(bundle.scene_path(index) / "frame_alpha.png")
+            return matte[..., 0] if matte.ndim == 3 else matte
+        return alpha
 
-    errors = clip_warping_errors(clip, start, end, relit, alpha)
+    mattes = {mode: matte_of(b) for mode, b in bundles.items()}
+    # the regions: each frame's own matte (frame by frame); the pieces: each mode's
+    errors = clip_warping_errors(clip, start, end, relit, mattes["off"], mattes)
+    figures["matte_pieces"] = errors["pieces"]
     figures["warping_error"] = {k: round(v, 6) for k, v in errors["all"].items()}
     figures["warp_ssim"] = {r: {k: round(v, 4) for k, v in errors[f"ssim {r}"].items()} for r in REGIONS}
     figures["ratio_to_input"] = {k: round(v / max(errors["all"]["input"], 1e-12), 3) for k, v in errors["all"].items() if k != "input"}
