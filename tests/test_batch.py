@@ -227,6 +227,39 @@ def test_a_clip_split_over_ray_actors_with_one_killed(tmp_path, ray_cluster):
     assert len(frames) == 32
 
 
+def test_a_clip_rendered_over_ray_workers(tmp_path, ray_cluster):
+    """``relight render CLIP --ray``: 44 frames at 10 a second inferred in two ranges and relit in
+    three parts over two actors, joined with the source's audio; the same clip rendered by one process
+    from that bundle is the same to the bit (every frame a function of its index: no seam)."""
+    from test_clips import decoded, person_frames, write_clip
+
+    there = person_frames(11, 90, 180)  # there and back, twice: the photo is only so wide
+    clip = write_clip(tmp_path / "walk.mp4", 2 * (there + there[::-1]))
+    common = ["--env", MAPS[0], "--max-size", "256"]
+    env = {**ray_cluster, "RELIGHT_CACHE": str(tmp_path / "cache" / "lights")}
+    spread = subprocess.run([sys.executable, "-m", "viewer.cli.main", "render", str(clip), *map(str, common), "-o",
+                             str(tmp_path / "spread.mp4"), "--ray", "auto"], capture_output=True, text=True, env=env, timeout=900)
+    assert spread.returncode == 0, spread.stderr
+    assert "2 Ray workers started" in spread.stdout and "in 2 ranges over 2 workers" in spread.stdout, spread.stdout
+    assert "0 kept from an earlier run" in spread.stdout and "parts kept" not in spread.stdout
+    bundle = next((tmp_path / "cache" / "bundles").glob("walk-clip-*"))
+    assert len(json.loads((bundle / "clip.json").read_text())["ranges"]) == 2
+    one = subprocess.run([sys.executable, "-m", "viewer.cli.main", "render", str(clip), *map(str, common), "-o",
+                          str(tmp_path / "one.mp4")], capture_output=True, text=True, env=env, timeout=900)
+    assert one.returncode == 0 and "44 kept from an earlier run" in one.stdout, one.stderr
+    frames, times, audio = decoded(tmp_path / "spread.mp4")
+    alone, alone_times, _ = decoded(tmp_path / "one.mp4")
+    assert len(frames) == 44 and times == alone_times and audio
+    assert all(np.array_equal(a, b) for a, b in zip(frames, alone))
+    assert not (tmp_path / "spread.parts").exists()
+
+
+def test_ray_is_for_a_clip(tmp_path):
+    res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "render", str(PHOTO), "--env", str(MAPS[0]), "-o",
+                          str(tmp_path / "p.png"), "--ray", "local"], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "--ray and --workers spread a clip's frames" in res.stderr
+
+
 def test_an_idle_worker_killed_is_replaced(tmp_path):
     """A worker killed while it waits (the kernel's out-of-memory killer picks any) leaves no lock
     held: the batch goes on with a new one."""

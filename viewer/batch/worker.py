@@ -46,7 +46,8 @@ class Worker:
         """Run one task; an error the user can act on comes back as its one line."""
         start = time.perf_counter()
         try:
-            result = {"infer": self.infer, "infer_range": self.infer_range, "render": self.render}[task["kind"]](task)
+            result = {"infer": self.infer, "infer_range": self.infer_range, "render": self.render,
+                      "render_parts": self.render_parts}[task["kind"]](task)
             return {**result, "ok": True, "pid": os.getpid(), "seconds": round(time.perf_counter() - start, 3)}
         except InputError as exc:
             return {"ok": False, "error": str(exc), "pid": os.getpid()}
@@ -92,41 +93,57 @@ class Worker:
                              ctx=self.ctx)
         return {"range_result": result}
 
-    def render_clip(self, task: dict) -> dict:
-        """A clip item: the relit clip (the map does not turn; the source's framing at --max-size) and
-        its middle frame as a PNG."""
-        from viewer.files.ownership import file_sha256, refuse_foreign
+    def _clip_render(self, task: dict) -> dict:
+        """What a clip's render takes, from ``task``: render_clip's arguments (the pictures a plate's)."""
         from viewer.gl.options import EngineOptions
         from viewer.lighting.envmap import load_envmap
-        from viewer.output.clip_render import render_clip
-        from viewer.output.video import audio_sidecar
         from viewer.scene.area_lights import AreaLights
         from viewer.scene.clip_bundle import load_clip_bundle
         from viewer.scene.look import Look
 
         self._drop_engine()  # a clip's frames each have their engine
-        t = time.perf_counter()
-        env = load_envmap(task["envmap"]).pixels if task.get("envmap") else None
-        folder = Path(task["folder"])
-        png, mp4 = (folder / rel for rel in task["outputs"])
+        env = load_envmap(task["envmap"], repair=task.get("repair", False)).pixels if task.get("envmap") else None
         bundle = load_clip_bundle(task["bundle"])
-        refuse_foreign([audio_sidecar(mp4, bundle.source["path"])])  # where audio an MP4 cannot hold would go
         fixed = AreaLights.from_array(task["rig"]) if task.get("rig") is not None else None
         lights, look, options = AreaLights.from_array(task["lights"]), Look.from_json(task["look"]), EngineOptions(**task["options"])
+        sizes, turn = tuple(task.get("sizes") or (None, task["max_size"])), task.get("turn", 0.0)
         pictures = None
         if task.get("plate"):  # the clip's person put into a plate, frame by frame
             from viewer.output.plate_clip import PlatePictures
             from viewer.plate.placement import Placement
             from viewer.plate.plate_file import read_plate
 
-            pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, 0.0, (None, task["max_size"]),
-                                     plate=read_plate(task["plate"], []).within(task["max_size"]), place=Placement(*task["place"]),
+            pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, turn, sizes,
+                                     plate=read_plate(task["plate"], []).within(task.get("plate_size") or sizes[1]),
+                                     place=Placement(*task["place"]),
                                      horizon=task["horizon"], cut_allowed=task["cut_allowed"])
-        result = render_clip(self.ctx, bundle, lights, look, mp4, env, fixed, options, sizes=(None, task["max_size"]), poster=png,
-                             pictures=pictures)
+        return {"bundle": bundle, "lights": lights, "look": look, "environment": env, "fixed": fixed, "options": options,
+                "turn": turn, "sizes": sizes, "pictures": pictures}
+
+    def render_clip(self, task: dict) -> dict:
+        """A clip item: the relit clip (the map does not turn; the source's framing at --max-size) and
+        its middle frame as a PNG."""
+        from viewer.files.ownership import file_sha256, refuse_foreign
+        from viewer.output.clip_render import render_clip
+        from viewer.output.video import audio_sidecar
+
+        t = time.perf_counter()
+        folder = Path(task["folder"])
+        png, mp4 = (folder / rel for rel in task["outputs"])
+        made = self._clip_render(task)
+        refuse_foreign([audio_sidecar(mp4, made["bundle"].source["path"])])  # where audio an MP4 cannot hold would go
+        result = render_clip(self.ctx, path=mp4, poster=png, **made)
         times = {"render": round(time.perf_counter() - t, 3), "frames": result["frames"]}
         return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]},
                 **({"note": result["audio_note"]} if result["audio_note"] else {})}
+
+    def render_parts(self, task: dict) -> dict:
+        """Some parts of a relit clip (``relight render CLIP --ray``: :mod:`viewer.batch.spread_clip`),
+        into the parts folder its driver made ready."""
+        from viewer.output.clip_render import render_clip
+
+        return render_clip(self.ctx, path=task["output"], layers=task.get("layers", False), per_light=task.get("per_light", False),
+                           only=task["parts"], **self._clip_render(task))
 
     def render(self, task: dict) -> dict:
         if task.get("clip"):

@@ -25,10 +25,11 @@ def _bar(total: int, what: str):
     return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True)
 
 
-def clip_bundle(clip, args, out=None, window=None) -> Path:
+def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
     """The clip bundle of ``clip`` (--start, --end, --size, --max-size, --device of ``args``): written
     into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left
-    (and in ``window``, a window already open, whose context the inference then uses)."""
+    (and in ``window``, a window already open, whose context the inference then uses; or by ``pool``'s
+    workers, a range of frames each: :mod:`viewer.batch.spread_clip`)."""
     from viewer.lighting.lightfit.cache import cache_dir
     from viewer.photo.clip_inference import cached_clip_path, infer_clip, person_said
     from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
@@ -53,13 +54,22 @@ def clip_bundle(clip, args, out=None, window=None) -> Path:
 
         if window is not None:
             window.show_message(f"Preparing {Path(clip).name}", 0.0, "reading the clip, finding the person...")
-        record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size, device=getattr(args, "device", "cpu"),
-                            progress=progress, temporal=temporal, digest=digest, ctx=window.ctx if window is not None else None,
-                            person=person, people=people)
+        if pool is not None:
+            from viewer.batch.spread_clip import infer_spread
+
+            record = infer_spread(pool, clip, target, args.start, args.end, size, max_size, temporal, digest, person, people,
+                                  device=getattr(args, "device", "cpu"), progress=progress)
+        else:
+            record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size,
+                                device=getattr(args, "device", "cpu"), progress=progress, temporal=temporal, digest=digest,
+                                ctx=window.ctx if window is not None else None, person=person, people=people)
     kept, states = record["frames_kept_from_earlier_run"], record["states"]
     seconds = time.perf_counter() - t0
     rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
     shots = f", {record['shots']} shot{'s' if record['shots'] != 1 else ''}" if record.get("shots") else ", frame by frame"
+    if pool is not None and record["frames"] > kept:
+        count = len(record.get("ranges") or [0])
+        shots += f"; in {count} range{'s' if count != 1 else ''} over {pool.size} workers"
     print(person_said(clip, record, target))
     for gap in record.get("gaps", []):
         print(gap)
@@ -173,21 +183,42 @@ def cmd_render_clip(args, look) -> int:
         info = probe_clip(args.scene)
         check_layers_room(out, expected_frames(info, args.start, args.end),
                           output_frame((info.width, info.height), args.max_size or MAX_SIZE), layer_lights(lights, rig, args.per_light))
-    bundle = load_clip_bundle(clip_bundle(args.scene, args) if is_clip(args.scene) else args.scene)
-    ctx = create_headless_context()
     t0 = time.perf_counter()
-    pictures = None
+    pool = None
+    if args.ray:
+        from viewer.batch.spread_clip import open_pool
+
+        pool = open_pool(args.ray, args.workers)
+        print(f"{pool.size} Ray worker{'s' if pool.size != 1 else ''} started in {time.perf_counter() - t0:.1f} s")
+    elif args.workers is not None:
+        raise InputError(None, "--workers: the workers of a Ray cluster: give --ray too")
+    ctx = None
     try:
+        bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool) if is_clip(args.scene) else args.scene)
+        ctx = create_headless_context()
+        t1 = time.perf_counter()
+        pictures = None
         if plate is not None:
             look, pictures = plate_pictures(ctx, bundle, plate, lights, look, env, rig, args, turn)
         with _bar(len(bundle.frames), f"relighting {out.name}") as bar:
+            def progress(done, total):
+                bar.update(done - bar.n)
+
+            share = None
+            if pool is not None:
+                from viewer.batch.spread_clip import parts_sharer
+
+                share = parts_sharer(pool, parts_task(bundle, out, args, lights, look, rig, turn, plate, engine_options(args, look)),
+                                     parts_folder(out), progress)
             result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
-                                 engine_options(args, look), turn, progress=lambda done, total: bar.update(done - bar.n),
-                                 sizes=(args.size, args.max_size), layers=args.layers, per_light=args.per_light,
-                                 pictures=pictures)
+                                 engine_options(args, look), turn, progress=progress, sizes=(args.size, args.max_size),
+                                 layers=args.layers, per_light=args.per_light, pictures=pictures, share=share)
     finally:
-        ctx.release()
-    seconds = time.perf_counter() - t0
+        if ctx is not None:
+            ctx.release()
+        if pool is not None:
+            pool.close()
+    seconds = time.perf_counter() - t1
     w, h = result["size"]
     print(f"wrote {out} ({result['frames']} frames, {w}x{h}, the source's timing; {seconds:.1f} s, "
           f"{60 * result['frames'] / max(seconds, 1e-9):.1f} frames a minute"
@@ -198,6 +229,24 @@ def cmd_render_clip(args, look) -> int:
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
     return 0
+
+
+def parts_task(bundle, out: Path, args, lights, look, rig, turn: float, plate: tuple | None, options) -> dict:
+    """What every worker's share of the relit parts holds (:meth:`viewer.batch.worker.Worker.render_parts`):
+    the render's arguments as plain data, paths absolute (a worker on another node reads the same)."""
+    from dataclasses import asdict
+
+    from viewer.photo.photo_frame import MAX_SIZE
+
+    task = {"bundle": str(Path(bundle.path).resolve()), "output": str(out.resolve()), "lights": lights.to_array().tolist(),
+            "envmap": str(Path(args.envmap).resolve()) if args.envmap else None, "repair": bool(getattr(args, "repair", False)),
+            "rig": rig.to_array().tolist() if rig is not None else None, "look": look.to_json(), "options": asdict(options),
+            "sizes": [args.size, args.max_size], "turn": turn, "layers": bool(args.layers), "per_light": bool(args.per_light)}
+    if plate is not None:
+        place = plate[1]
+        task.update(plate=str(Path(args.plate).resolve()), place=[place.x, place.y, place.height], horizon=plate[2],
+                    cut_allowed=args.height is not None, plate_size=args.max_size or MAX_SIZE)
+    return task
 
 
 def clip_plate(args) -> tuple:

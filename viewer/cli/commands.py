@@ -117,6 +117,9 @@ def cmd_render(args) -> int:
         check_video(args)
         return cmd_render_clip(args, look)
     not_a_clip_range(args, args.scene)
+    if args.ray or args.workers is not None:
+        raise InputError(args.scene, "--ray and --workers spread a clip's frames over workers: this is not a clip "
+                                     "(relight batch --ray spreads photos)")
     if args.plate:
         from viewer.cli.plate_commands import cmd_render_plate
 

@@ -66,6 +66,10 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
     add_plate_args(p, "OUT.png and OUT.exr; a clip: OUT.mp4, the person placed once on its first frame")
     p.add_argument("--force", action="store_true", help="replace files at the output paths that relight did not write")
+    p.add_argument("--ray", help="a clip: its frames spread over a Ray cluster's workers, in ranges (inferred) and parts "
+                                 "(relit): auto (the cluster this machine belongs to), an address, or local (one started "
+                                 "for this run)")
+    p.add_argument("--workers", type=int, help="with --ray: the workers, one CPU each (default: the cluster's CPUs)")
     add_engine_args(p)
     add_view_args(p)
     p.set_defaults(func=cmd_render)

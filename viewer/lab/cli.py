@@ -284,6 +284,16 @@ def cmd_bench(args) -> int:
                             progress=lambda line: print(line, flush=True))
         print(people_table(result))
         print(f"wrote {out_dir / 'people.json'} and a strip of frames per clip in {result['seconds'] / 60:.1f} min")
+    elif args.what == "spread":
+        from viewer.lab.bench.spread import run_spread_benchmark
+
+        out_dir = Path(args.output or "out/bench-spread")
+        maps = shared_folder(args.maps, "hdri", "--maps")
+        result = run_spread_benchmark(clip_files(args.clips or [shared_folder(None, "videos", "--clips")]),
+                                      Path(args.env[0]) if args.env else maps / "potsdamer_platz_1k.hdr", out_dir, end=args.end,
+                                      max_size=min(args.max_size, 1280), repeats=args.repeats,
+                                      progress=lambda line: print(line, flush=True))
+        print(f"wrote {out_dir / 'spread.json'}")
     elif args.what == "colour":
         from viewer.lab.bench.colour import run_colour
 
@@ -399,7 +409,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
                                     "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory", "plates",
-                                    "colour", "people"),
+                                    "colour", "people", "spread"),
                    help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
@@ -423,7 +433,9 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "uniform white map (its colours against the photo's: drift and cast in u'v'), a side key light "
                         "(the face skin's brightness, the backdrop kept) and two maps, contact sheets (out/bench-colour/); people: whom "
                         "each clip of --clips relights in every frame (the person chosen and followed), against CLIP.json "
-                        "beside it when there is one: frames with the person missing, swapped or another beside them")
+                        "beside it when there is one: frames with the person missing, swapped or another beside them; spread: "
+                        "each clip of --clips relit end to end by one process and with --ray local (--end seconds, "
+                        "--repeats runs each way): the time, the warping error at the joins against elsewhere")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--procedural", type=int, help="plates: instead of --maps, this many procedural maps (two of a kind at "
                    "most, seeds from 9000), made into the output's folder: maps never looked at while the estimate was made")

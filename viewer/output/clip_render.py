@@ -23,6 +23,7 @@ import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -147,6 +148,26 @@ class ClipPictures:
             self._engine[1].release()
             self._engine = None
         self._rendered = None
+
+
+class Part(NamedTuple):
+    """Part ``index`` of a relit clip: frames ``first`` to ``last`` (excluded), written as :attr:`name`
+    in the parts folder."""
+
+    index: int
+    first: int
+    last: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.index:06d}.mp4"
+
+
+def clip_parts(bundle: ClipBundle) -> list[Part]:
+    """The parts a relit ``bundle`` is written in: ``PART_SECONDS`` of the clip each."""
+    per = max(int(round(PART_SECONDS * float(bundle.source.get("fps") or 30.0))), 1)
+    count = len(bundle.frames)
+    return [Part(k, first, min(first + per, count)) for k, first in enumerate(range(0, count, per))]
 
 
 def join_relit(bundle: ClipBundle, parts: list[tuple[Path, float]], path, duration: float | None = None) -> str | None:
@@ -292,38 +313,54 @@ def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int], light
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
                 fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
                 sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False,
-                pictures: ClipPictures | None = None) -> dict:
+                pictures: ClipPictures | None = None, share=None, only: list[int] | None = None) -> dict:
     """Relight ``bundle`` into the MP4 ``path``; ``progress(done, total)`` after every frame (parts
     kept from an earlier run count at once). Returns what was done: frames, size, parts reused,
     the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with; ``poster``:
     a PNG path for the clip's middle frame, relit (a batch's contact sheet shows it); ``layers``:
     also each frame's layers (:mod:`viewer.output.layers`, ``per_light``: each light's too) as
     ``NAME.layers/NNNNNN.exr`` (the frame's index), kept beside the video; ``pictures``: the frames made
-    otherwise from the same arguments (a clip on a plate, :class:`viewer.output.plate_clip.PlatePictures`)."""
+    otherwise from the same arguments (a clip on a plate, :class:`viewer.output.plate_clip.PlatePictures`).
+
+    Spread over workers (``relight render CLIP --ray``, :mod:`viewer.batch.spread_clip`): ``share(parts)``
+    is handed the parts not made yet (:class:`Part` each) once the folders are ready, and returns when
+    the workers have made them; each worker makes its own with ``only`` (the parts' numbers: the folders
+    are the caller's, opened and checked by it, and nothing is joined: returns the parts made). Every frame
+    is a function of its index alone, so the parts join without a seam."""
     from viewer.output.layers import write_layers
 
     path = Path(path)
     pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
     key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes) + pictures.key()
-    sequence = _open_layers(path, f"{key} {per_light}", len(bundle.frames), pictures.size,
-                            layer_lights(lights, fixed, per_light)) if layers else None
+    layers_key = f"{key} {per_light}"
+    if only is not None:  # a worker's share: the folders are the caller's, made ready for this render
+        folder, sequence = parts_folder(path), layers_folder(path) if layers else None
+        for record, held in ((folder / PARTS_RECORD, key), (sequence / LAYERS_RECORD if sequence else None, layers_key)):
+            if record is not None and not _same_key(record, held):
+                raise InputError(record.parent, "is not ready for this render (made again by another run?): run again")
+    else:
+        sequence = _open_layers(path, layers_key, len(bundle.frames), pictures.size,
+                                layer_lights(lights, fixed, per_light)) if layers else None
+        folder = _open_parts(path, key)
 
     def frame_layers(i: int) -> None:  # frame i's layers, unless the same render's are there
         if sequence is not None and not file_is_ours(sequence / layer_name(i)):
             write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
 
-    folder = _open_parts(path, key)
     fps = float(bundle.source.get("fps") or 30.0)
     frames = bundle.frames
-    per = max(int(round(PART_SECONDS * fps)), 1)
+    shared = [p for p in clip_parts(bundle) if not file_is_ours(folder / p.name)] if share is not None else []
+    if shared:
+        share(shared)
     parts, reused = [], 0
     with frames_freed() as after_frame:
         try:
-            for k, first in enumerate(range(0, len(frames), per)):
-                part = folder / f"{k:06d}.mp4"
-                last = min(first + per, len(frames))
-                if file_is_ours(part):  # finished by an earlier run of the same render
-                    reused += 1
+            for k, first, last in clip_parts(bundle):
+                if only is not None and k not in only:
+                    continue
+                part = folder / Part(k, first, last).name
+                if file_is_ours(part):  # finished by an earlier run of the same render, or by a worker just now
+                    reused += (k, first, last) not in shared
                     for i in range(first, last):  # its layers, where a stop left them out
                         frame_layers(i)
                 else:
@@ -345,6 +382,8 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
                 write_png(poster, pictures.picture(len(frames) // 2) / 255.0)
         finally:
             pictures.release()
+    if only is not None:
+        return {"parts": [p.name for p, _ in parts], "reused": reused}
     note = join_relit(bundle, parts, path)
     take_away(folder)
     pitch, how = pictures.frames.pitch(pictures.frames.people[0])

@@ -71,15 +71,18 @@ class RangedBundle:
 
 
 def open_ranges(clip_path, out_dir, workers: int, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-                max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, overlap: int = OVERLAP) -> RangedBundle:
+                max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, overlap: int = OVERLAP,
+                person: tuple | None = None, people: str = "one") -> RangedBundle:
     """Make ``out_dir`` ready for the clip bundle of ``clip_path`` inferred in ranges (as
-    :func:`viewer.photo.clip_inference.open_clip_bundle`, with the shots found and the ranges in its
-    record; an unfinished bundle of the same clip and options keeps the ranges it was begun in)."""
+    :func:`viewer.photo.clip_inference.open_clip_bundle`, with the shots found, the person chosen and
+    the ranges in its record; an unfinished bundle of the same clip and options keeps the ranges it
+    was begun in)."""
     out_dir, lock = locked_bundle(clip_path, out_dir, start, end)
     held = contextlib.ExitStack()
     held.enter_context(lock)
     try:
-        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest)
+        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest,
+                                                       person, people)
         if earlier is not None:
             return RangedBundle(out_dir, [], earlier, held, record["key"])
         if not record.get("ranges") or not record.get("shot_starts"):
