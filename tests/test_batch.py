@@ -199,13 +199,14 @@ def test_a_ray_cluster_with_a_worker_killed_mid_batch(tmp_path, ray_cluster):
 
 
 def test_a_clip_split_over_ray_actors_with_one_killed(tmp_path, ray_cluster):
-    """A clip of 32 frames on two actors: inferred in two overlapping ranges; an actor killed while
-    the ranges run, its range taken up again where it stopped; the relit clip whole."""
+    """A clip of 44 frames on two actors: inferred in two overlapping ranges; an actor killed while
+    the ranges run, its range taken up again where it stopped; the relit clip whole, its three parts
+    relit by the actors and joined."""
     from test_clips import decoded
 
     from viewer.lab.bench.clip_memory import panning_clip
 
-    clip = panning_clip(tmp_path / "walk.mp4", 3.2, fps=10, size=(120, 180))
+    clip = panning_clip(tmp_path / "walk.mp4", 4.4, fps=10, size=(120, 180))
     out = tmp_path / "out"
     proc = batch(tmp_path, clip, "--env", MAPS[0], "-o", out, "--ray", "auto", "--threads", "1", wait=False, env=ray_cluster)
     killed = None
@@ -224,7 +225,7 @@ def test_a_clip_split_over_ray_actors_with_one_killed(tmp_path, ray_cluster):
     inferred = [e for e in events(out) if e["event"] == "inferred"]
     assert len(inferred) == 1 and inferred[0]["ranges"] == 2
     frames, _, _ = decoded(next((out / "walk").glob("*.mp4")))
-    assert len(frames) == 32
+    assert len(frames) == 44 and not list((out / "walk").glob("*.parts"))
 
 
 def test_a_clip_rendered_over_ray_workers(tmp_path, ray_cluster):

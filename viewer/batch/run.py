@@ -1,6 +1,9 @@
 """The batch's driver: photos x looks -> items; the items not done yet (by content key) handed to a
 pool as an inference per photo, then a render per item as soon as its photo's bundle is there; each
-result recorded in the manifest as it arrives; a progress bar with the time left; a summary."""
+result recorded in the manifest as it arrives; a progress bar with the time left; a summary. With
+more than one worker a clip's inference goes in ranges (:mod:`viewer.batch.clip_split`) and each of its
+items' relit parts go to the workers (:func:`viewer.batch.spread_clip.part_tasks`) before its render joins
+them."""
 
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ from viewer.batch.clip_split import SplitClip
 from viewer.batch.contact_sheet import SHEET, contact_sheet
 from viewer.batch.manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
 from viewer.batch.plan import Item, LookSpec, clip_bundle_key, item_key, photo_names
+from viewer.batch.spread_clip import part_tasks
 from viewer.files.clip_reader import is_clip
 from viewer.files.ownership import file_sha256
 
@@ -169,6 +173,7 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
     for item in todo:
         waiting.setdefault(item.photo, []).append(item)
     tasks: dict[int, tuple[str, object]] = {}
+    spread: dict[str, dict] = {}  # clip items whose relit parts are out: their render task, parts' tasks left, an error
     ids = itertools.count()
     bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
 
@@ -188,7 +193,40 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
                 bar.update(1)
                 continue
             manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
-            submit("render", item, _render_task(item, by_look[item.look], r["bundle"], folder, settings))
+            task = _render_task(item, by_look[item.look], r["bundle"], folder, settings)
+            if task["clip"] and pool.size > 1:  # its relit parts spread over the workers, then joined by its render
+                spread[item.name] = {"task": task, "left": 0, "error": None}
+                submit("open", item, {**task, "kind": "open_parts", "output": str(folder / item.outputs[1]), "layers": False})
+            else:
+                submit("render", item, task)
+
+    def opened(item: Item, r: dict) -> None:
+        """A clip item's folders made ready: its relit parts not made yet handed out."""
+        if not r["ok"]:
+            return joined(item, r["error"])
+        state = spread[item.name]
+        for part in part_tasks({**state["task"], "output": str(folder / item.outputs[1]), "layers": False},
+                               [index for index, _, _ in r["parts"]]):
+            state["left"] += 1
+            submit("part", item, part)
+        if not state["left"]:
+            joined(item, None)
+
+    def part_done(item: Item, r: dict) -> None:
+        state = spread[item.name]
+        state["left"] -= 1
+        state["error"] = state["error"] or (None if r["ok"] else r["error"])
+        if not state["left"]:
+            joined(item, state["error"])
+
+    def joined(item: Item, error: str | None) -> None:
+        """A clip item's parts all in: its render joins them (and writes its poster), or it failed."""
+        state = spread.pop(item.name)
+        if error is not None:
+            _failed(manifest, summary, item, error, folder)
+            bar.update(1)
+        else:
+            submit("render", item, state["task"])
 
     splits: dict[Path, SplitClip] = {}
     to_split = []  # clips whose frames go in ranges, one a worker
@@ -215,6 +253,10 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
                     done = splits[what[0]].take(what[1], r)
                     if done is not None:
                         inferred(what[0], done)
+                elif kind == "open":
+                    opened(what, r)
+                elif kind == "part":
+                    part_done(what, r)
                 elif kind == "render":
                     if r["ok"]:
                         manifest.add("done", item=what.name, key=what.key, photo=str(what.photo), look=what.look.name,

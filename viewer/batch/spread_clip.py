@@ -1,5 +1,6 @@
 """One clip spread over a pool's workers (``relight render CLIP --ray``): Ray actors, each one process
-with its own GL context and networks.
+with its own GL context and networks. (A batch spreads a clip's relit parts with :func:`part_tasks` too,
+:mod:`viewer.batch.run`.)
 
 - **The inference in ranges of frames** (:mod:`viewer.photo.clip_ranges`): the shots found and the
   person chosen once by this driver, each range begun ``OVERLAP`` frames early so that what one frame
@@ -87,11 +88,14 @@ def parts_sharer(pool, task: dict, folder: Path, progress=None):
             if progress is not None:
                 progress(sum(p.last - p.first for p in parts if (folder / p.name).is_file()), total)
 
-        tasks = [{**task, "kind": "render_parts", "parts": [p.index for p in parts[k:k + PARTS_A_TASK]]}
-                 for k in range(0, len(parts), PARTS_A_TASK)]
-        run_tasks(pool, tasks, poll)
+        run_tasks(pool, part_tasks(task, [p.index for p in parts]), poll)
 
     return share
+
+
+def part_tasks(task: dict, parts: list[int]) -> list[dict]:
+    """The workers' tasks for the relit ``parts`` (their numbers), ``PARTS_A_TASK`` a task."""
+    return [{**task, "kind": "render_parts", "parts": parts[k:k + PARTS_A_TASK]} for k in range(0, len(parts), PARTS_A_TASK)]
 
 
 def open_pool(address: str, workers: int | None):

@@ -47,7 +47,7 @@ class Worker:
         start = time.perf_counter()
         try:
             result = {"infer": self.infer, "infer_range": self.infer_range, "render": self.render,
-                      "render_parts": self.render_parts}[task["kind"]](task)
+                      "open_parts": self.open_parts, "render_parts": self.render_parts}[task["kind"]](task)
             return {**result, "ok": True, "pid": os.getpid(), "seconds": round(time.perf_counter() - start, 3)}
         except InputError as exc:
             return {"ok": False, "error": str(exc), "pid": os.getpid()}
@@ -136,6 +136,15 @@ class Worker:
         times = {"render": round(time.perf_counter() - t, 3), "frames": result["frames"]}
         return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]},
                 **({"note": result["audio_note"]} if result["audio_note"] else {})}
+
+    def open_parts(self, task: dict) -> dict:
+        """A clip item's folders made ready for its relit parts; the parts not made yet (each [index,
+        first, last]), which the batch hands out (:mod:`viewer.batch.clip_split`)."""
+        from viewer.output.clip_render import open_render
+
+        made = self._clip_render(task)
+        return {"parts": [list(p) for p in open_render(self.ctx, path=task["output"], layers=task.get("layers", False),
+                                                       per_light=task.get("per_light", False), **made)]}
 
     def render_parts(self, task: dict) -> dict:
         """Some parts of a relit clip (``relight render CLIP --ray``: :mod:`viewer.batch.spread_clip`),

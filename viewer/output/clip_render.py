@@ -310,6 +310,38 @@ def _open_layers(path: Path, key: str, frames: int, size: tuple[int, int], light
     return _keyed(folder, LAYERS_RECORD, key)
 
 
+def _folders(pictures: ClipPictures, path: Path, layers: bool, per_light: bool, ready: bool = False) -> tuple[Path, Path | None]:
+    """(the parts folder, the layers folder or None) of ``pictures`` relit into ``path``: made ready for
+    this render (kept when they hold its parts and layers, else made anew), or, ``ready``, checked to
+    be so (a worker's share: the folders are its driver's)."""
+    p = pictures
+    key = render_key(p.bundle, p.lights, p.look, p.environment, p.fixed, p.options, p.turn, p.sizes) + p.key()
+    layers_key = f"{key} {per_light}"
+    if not ready:
+        sequence = _open_layers(path, layers_key, len(p.bundle.frames), p.size, layer_lights(p.lights, p.fixed, per_light)) \
+            if layers else None
+        return _open_parts(path, key), sequence
+    folder, sequence = parts_folder(path), layers_folder(path) if layers else None
+    for record, held in ((folder / PARTS_RECORD, key), (sequence / LAYERS_RECORD if sequence else None, layers_key)):
+        if record is not None and not _same_key(record, held):
+            raise InputError(record.parent, "is not ready for this render (made again by another run?): run again")
+    return folder, sequence
+
+
+def open_render(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
+                fixed: AreaLights | None = None, options=None, turn: float = 0.0, sizes: tuple = (None, None),
+                layers: bool = False, per_light: bool = False, pictures: ClipPictures | None = None) -> list[Part]:
+    """What :func:`render_clip` does first, alone: the folders made ready for this render; returns the
+    parts not made yet (a batch hands them to its workers, ``render_clip(only=...)``, before the item's
+    own render joins them)."""
+    pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
+    try:
+        folder, _ = _folders(pictures, Path(path), layers, per_light)
+    finally:
+        pictures.release()
+    return [p for p in clip_parts(bundle) if not file_is_ours(folder / p.name)]
+
+
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
                 fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
                 sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False,
@@ -331,17 +363,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
 
     path = Path(path)
     pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
-    key = render_key(bundle, lights, look, environment, fixed, options, turn, sizes) + pictures.key()
-    layers_key = f"{key} {per_light}"
-    if only is not None:  # a worker's share: the folders are the caller's, made ready for this render
-        folder, sequence = parts_folder(path), layers_folder(path) if layers else None
-        for record, held in ((folder / PARTS_RECORD, key), (sequence / LAYERS_RECORD if sequence else None, layers_key)):
-            if record is not None and not _same_key(record, held):
-                raise InputError(record.parent, "is not ready for this render (made again by another run?): run again")
-    else:
-        sequence = _open_layers(path, layers_key, len(bundle.frames), pictures.size,
-                                layer_lights(lights, fixed, per_light)) if layers else None
-        folder = _open_parts(path, key)
+    folder, sequence = _folders(pictures, path, layers, per_light, ready=only is not None)
 
     def frame_layers(i: int) -> None:  # frame i's layers, unless the same render's are there
         if sequence is not None and not file_is_ours(sequence / layer_name(i)):
