@@ -519,7 +519,7 @@ def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
     infer_clip(clip, tmp_path / "whole")
     bundle = open_ranges(clip, tmp_path / "ranges", 2, overlap=2)
     out = bundle.path
-    assert bundle.earlier is None and [r.to_json() for r in bundle.ranges] == [[0, 5, 0], [5, 10, 2]]
+    assert bundle.earlier is None and [r.to_json() for r in bundle.ranges] == [[0, 6, 0], [6, 10, 2]]
     with pytest.raises(InputError, match="another relight is making this clip bundle now"):
         infer_clip(clip, out)
     infer_range(clip, out, bundle.ranges[1], bundle.key)
@@ -530,8 +530,8 @@ def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
         infer_clip(clip, tmp_path / "whole")
     record = infer_clip(clip, out)
     assert record["complete"] and record["frames"] == 10 and record["states"]["person"] == 10 and record["shots"] == 1
-    assert record["frames_kept_from_earlier_run"] == 5
-    assert set(record["pan_offsets"]) == {"3"}
+    assert record["frames_kept_from_earlier_run"] == 4
+    assert set(record["pan_offsets"]) == {"4"}
     whole, split = load_clip_bundle(tmp_path / "whole"), load_clip_bundle(out)
     for a, b in zip(whole.frames, split.frames, strict=True):
         assert a.shot == b.shot and a.state == b.state and b.pan_from is None
@@ -541,7 +541,7 @@ def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
         sa, sb = load_scene(whole.scene_path(a.index)), load_scene(split.scene_path(a.index))
         if sa.mask.shape == sb.mask.shape:
             assert np.abs(sa.normal - sb.normal)[sa.mask & sb.mask].mean() < 0.01, a.index
-    assert js.loads((out / "frames/000006.json").read_text())["pan_from"] == 3
+    assert js.loads((out / "frames/000007.json").read_text())["pan_from"] == 4
 
 
 def test_a_warning_every_frame_gives_is_shown_once_and_counted():
