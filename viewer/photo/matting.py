@@ -650,6 +650,8 @@ def decided_outline(photo: np.ndarray, person, carried: Carried | None = None
     """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
     decided by colour (and by the frame before's, ``carried``, in a clip); the background's holes
     in it; the plain backdrop it encloses (:func:`backdrop_gaps`); the soft edge's half-width, pixels)."""
+    from scipy.ndimage import binary_fill_holes
+
     from viewer.resize import height_capped, resize
 
     h, w = photo.shape[:2]
@@ -665,7 +667,12 @@ def decided_outline(photo: np.ndarray, person, carried: Carried | None = None
     decided = resize(person_small.astype(np.float32), (w, h)) > 0.5
     half_width = max(MIN_EDGE, EDGE * height)
     image = photo.astype(np.float32) / 255.0
-    gaps = backdrop_gaps(small, person_small, tri, segmentation, person.landmarks, carried).at(image, decided)
+    # the gaps are looked for in the person with the background it encloses: a strip between an arm
+    # and the body the band already decided background (narrower than the soft edge's band on both
+    # sides) was otherwise left to the soft edge, which filled it with the person
+    enclosed = binary_fill_holes(person_small)
+    gaps = backdrop_gaps(small, enclosed, tri, segmentation, person.landmarks, carried).at(
+        image, resize(enclosed.astype(np.float32), (w, h)) > 0.5)
     return decided, background_holes(image, decided, models, HOLE_DEPTH * half_width), gaps, half_width
 
 
