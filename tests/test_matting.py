@@ -168,9 +168,9 @@ def test_nothing_held_is_nothing_added(matted):
 def test_a_clips_frame_before_steadies_where_the_outline_is_decided():
     """Where colour does not tell the person from the background (the same grey), the band is decided
     by the segmentation; a clip's frame before, carried along the flow, moves the decision towards
-    its own outline where the flow holds (TEMPORAL nats) and this frame's own evidence leaves it open
-    (inside the segmentation's outline), and nowhere the flow fails. Beyond the segmentation's
-    outline, where this frame's own evidence is the background's, it pulls nothing in: a frame before
+    its own outline where the flow holds (TEMPORAL nats) inside the segmentation's outline, and nowhere
+    the flow fails. Beyond the segmentation's outline, where this frame's own evidence is the
+    background's, it pulls nothing in: a frame before
     4 px larger than the segmentation grows the person there by under a quarter of a pixel (what the
     outline's smoothness drags along; before, by 0.74 px, a ring of the old background handed on)."""
     import cv2

@@ -380,11 +380,10 @@ def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels, carried: C
     labelled by :func:`min_cut` with the colour ``models`` (which cover the band); ``carried``: a
     clip's frame before, its matte carried here along the flow (at ``image``'s size): where the flow
     holds, going against its decision costs ``TEMPORAL`` nats, except that it never pulls towards the
-    person a pixel this frame's own evidence (its colours and its segmentation) calls background: a
-    wrong flow, or a piece of the old background the frame before kept, would otherwise be handed on
-    from frame to frame (the top of a post beside a head, a strip of wall between an arm and the body,
-    kept for a few frames and then dropped: pieces that pop in and out). It still holds an outline the
-    frame's own evidence leaves open (dark hair against a dark background) as it was a frame ago."""
+    person a pixel outside this frame's own segmentation: a wrong flow, or a piece of the old
+    background the frame before kept, would otherwise be handed on from frame to frame (kept for a few
+    frames and then dropped: pieces that pop in and out). Inside it, it still holds an outline the
+    frame's colours leave open (dark hair against a dark background) as it was a frame ago."""
     band = tri.band
     if not band.any() or not tri.sure_background.any():
         return tri.inside > 0
@@ -393,7 +392,7 @@ def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels, carried: C
     cost_background = np.maximum(llr, 0) + PRIOR * np.minimum(tri.inside[band] / (CORE * tri.height), 1.0)
     if carried is not None:
         weight = TEMPORAL * carried.held[band]
-        refused = cost_person > cost_background  # this frame alone calls it background
+        refused = tri.outside[band] > 0  # this frame's segmentation calls it background
         pull_person = np.where(refused, 0.0, weight * carried.alpha[band])
         cost_person += weight * (1.0 - carried.alpha[band])
         cost_background += pull_person
