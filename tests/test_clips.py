@@ -663,11 +663,12 @@ def test_grain_does_not_speckle_the_steadied_maps():
 def test_the_steadied_matte_neither_adds_coverage_nor_cuts_holes():
     """A still person before a plain wall (the flow holds everywhere): frame 0's matte also covers a
     block of the wall, frame 1's covers a hand frame 0 did not have. Steadied, frame 1's matte is 0
-    wherever its own is (no block of the old background carried in), 1 over the new hand (no hole)
-    and the soft edge values it shares with frame 0 are blended."""
+    wherever its own is (no block of the old background carried in), 1 over the new hand (no hole),
+    stays under one half where its own calls it background (a faint 0.05 of its own where frame 0 had
+    1 came out 0.62: the person's there) and the soft edge values it shares with frame 0 are blended."""
     from dataclasses import replace
 
-    from viewer.photo.steady import KEEP, SteadyMaps
+    from viewer.photo.steady import KEEP, OWN_BACKGROUND, SteadyMaps
     from viewer.resources import sample_scene_dir
     from viewer.scene.bundle import FrameLayer, load_scene
 
@@ -684,8 +685,10 @@ def test_the_steadied_matte_neither_adds_coverage_nor_cuts_holes():
 
     before = edge.copy()
     before[10:40, 10:40] = 1.0  # the wall block
+    before[10:40, w - 40:w - 10] = 1.0  # another, which frame 1's soft edge touches faintly
     now = edge.copy()
     now[h - 40:h - 10, w - 40:w - 10] = 1.0  # the new hand
+    now[10:40, w - 40:w - 10] = 0.05
     now[edge == 0.5] = 0.3
     steady = SteadyMaps()
     steady.steady(scene_with(before), photo, shot=0)
@@ -693,6 +696,7 @@ def test_the_steadied_matte_neither_adds_coverage_nor_cuts_holes():
     alpha = out.frame.alpha
     assert alpha[now == 0].max() == 0.0
     assert alpha[h - 40:h - 10, w - 40:w - 10].min() == 1.0
+    assert alpha[now < OWN_BACKGROUND].max() <= 0.5
     soft = (edge == 0.5) & (now == 0.3)
     assert np.allclose(np.median(alpha[soft]), (1 - KEEP) * 0.3 + KEEP * 0.5, atol=0.02)
 

@@ -83,6 +83,7 @@ GAP_FLOOR = 1.0  # Mahalanobis distance: the least the backdrop's distance count
 GAP_ON_BONES = 0.5  # a region this much on the pose's bones, torso or face is the person
 GAP_SURE = 0.9  # a region where the segmentation is at least this everywhere is the person (it hesitates over a gap)
 GAP_EDGE = 0.5  # of the soft edge's half-width: its band on the person's side of a gap (outlined per pixel)
+GAP_CARRIED = 0.5  # a region the frame before had as background over this share of it (a clip's, where the flow holds)
 # The pose model's bones (MediaPipe's POSE_CONNECTIONS without the fingers, 17-22, which it guesses)
 BONES = ((0, 1), (0, 4), (1, 2), (2, 3), (3, 7), (4, 5), (5, 6), (6, 8), (9, 10), (11, 12), (11, 13), (11, 23),
          (12, 14), (12, 24), (13, 15), (14, 16), (23, 24), (23, 25), (24, 26), (25, 27), (26, 28), (27, 29),
@@ -378,7 +379,11 @@ def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels, carried: C
     """(H, W) bool: the person at ``image``'s size (float RGB in [0, 1]), the trimap's band
     labelled by :func:`min_cut` with the colour ``models`` (which cover the band); ``carried``: a
     clip's frame before, its matte carried here along the flow (at ``image``'s size): where the flow
-    holds, going against its decision costs ``TEMPORAL`` nats."""
+    holds, going against its decision costs ``TEMPORAL`` nats, except that it never pulls towards the
+    person a pixel outside this frame's own segmentation: a wrong flow, or a piece of the old
+    background the frame before kept, would otherwise be handed on from frame to frame (kept for a few
+    frames and then dropped: pieces that pop in and out). Inside it, it still holds an outline the
+    frame's colours leave open (dark hair against a dark background) as it was a frame ago."""
     band = tri.band
     if not band.any() or not tri.sure_background.any():
         return tri.inside > 0
@@ -387,8 +392,10 @@ def decide_band(image: np.ndarray, tri: Trimap, models: ColourModels, carried: C
     cost_background = np.maximum(llr, 0) + PRIOR * np.minimum(tri.inside[band] / (CORE * tri.height), 1.0)
     if carried is not None:
         weight = TEMPORAL * carried.held[band]
+        refused = tri.outside[band] > 0  # this frame's segmentation calls it background
+        pull_person = np.where(refused, 0.0, weight * carried.alpha[band])
         cost_person += weight * (1.0 - carried.alpha[band])
-        cost_background += weight * carried.alpha[band]
+        cost_background += pull_person
     person = min_cut(image, tri.sure_person, tri.sure_background, cost_person, cost_background)
     return keep_connected(person, tri.sure_person)
 
@@ -443,10 +450,12 @@ class BackdropGaps:
         return out
 
 
-def gap_regions(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation: np.ndarray, landmarks: dict):
+def gap_regions(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation: np.ndarray, landmarks: dict,
+                carried: Carried | None = None):
     """The candidates of :func:`backdrop_gaps`: (their labels (H, W) int, 0 where none; each
     region's figures, a dict per label from 1; the backdrop's model, as :class:`BackdropGaps`
-    holds it, with nothing found yet)."""
+    holds it, with nothing found yet). ``carried``: a clip's frame before (at ``image``'s size,
+    ``held`` 0 or 1), whose background over each region is one of its figures."""
     import cv2
 
     h, w = person.shape
@@ -467,6 +476,10 @@ def gap_regions(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation
     count, labels, stats, _ = cv2.connectedComponentsWithStats(candidates.astype(np.uint8), connectivity=8)
     bones = bones_mask(landmarks, (w, h), max(1, int(round(BONE * tri.height)))) & person
     reference = image[bones].astype(np.float32)
+    face = face_mask(landmarks, (w, h))
+    # where limbs and body meet (GAPS), a bone drawn beside a gap is no sign of the person: the upper
+    # arm's bone and the torso's side run along the gap between the arm and the body
+    on_body = bones & ~(gaps_mask(landmarks, (w, h)) & ~(face if face is not None else False))
     ring_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * GAP_RING + 1,) * 2)
     figures = [None]
     for label in range(1, count):
@@ -486,20 +499,27 @@ def gap_regions(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation
             "ring_unlike": float((distance[box][ring] > GAP_CONTRAST).mean()) if ring.any() else 0.0,
             "to_backdrop": float(np.sqrt(max((colour - backdrop) @ inv @ (colour - backdrop), 0.0))),
             "to_person": float(np.sqrt(max(np.quantile(to_person, GAP_PERSON), 0.0))) if len(reference) else np.inf,
-            "on_bones": float(bones[box][region].mean()),
-            "segmentation_least": float(segmentation[box][region].min())})
+            "on_bones": float(on_body[box][region].mean()),
+            "segmentation_least": float(segmentation[box][region].min()),
+            "carried_background": float(((carried.held[box] > 0) & (carried.alpha[box] < 0.5))[region].mean())
+            if carried is not None else 0.0})
     return labels, figures, model
 
 
 def is_gap(figures: dict | None) -> bool:
-    """Whether a candidate region of :func:`gap_regions` is backdrop seen through the person."""
-    return (figures is not None and figures["ring_unlike"] >= GAP_RING_SHARE
-            and figures["to_person"] >= GAP_RATIO * max(figures["to_backdrop"], GAP_FLOOR)
-            and figures["on_bones"] < GAP_ON_BONES and figures["segmentation_least"] < GAP_SURE)
+    """Whether a candidate region of :func:`gap_regions` is backdrop seen through the person (the
+    guards: :func:`backdrop_gaps`). A region a clip's frame before had as background needs only the
+    colour's guards: the edge all around it and the segmentation's hesitation come and go as an arm
+    moves along the body, and the same gap was background in one frame and the old wall in the next."""
+    if figures is None or figures["to_person"] < GAP_RATIO * max(figures["to_backdrop"], GAP_FLOOR) \
+            or figures["on_bones"] >= GAP_ON_BONES:
+        return False
+    return figures["carried_background"] >= GAP_CARRIED or (
+        figures["ring_unlike"] >= GAP_RING_SHARE and figures["segmentation_least"] < GAP_SURE)
 
 
 def backdrop_gaps(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentation: np.ndarray,
-                  landmarks: dict) -> BackdropGaps:
+                  landmarks: dict, carried: Carried | None = None) -> BackdropGaps:
     """Regions of a plain backdrop the person encloses (between an arm and the body, a hand and the
     head, a collar and the neck, the legs), found in ``person`` (H, W) bool at ``image``'s size
     (float RGB in [0, 1]); ``segmentation`` the pose model's there, ``landmarks`` its landmarks.
@@ -515,12 +535,19 @@ def backdrop_gaps(image: np.ndarray, person: np.ndarray, tri: Trimap, segmentati
       colours on the pose's bones, torso and face): the white stripes of a shirt on a white studio
       are the shirt's white, found on its torso too;
     - not on the bones, torso or face (``GAP_ON_BONES``): a white strap on a foot, the eye's white;
+      where limbs and body meet (``GAPS``, the face excepted) the bones do not count: the upper arm's
+      bone and the torso's side run along the gap between the arm and the body (a strip of a white
+      studio's wall there was 72 % on them and kept);
     - the segmentation hesitates somewhere in it (below ``GAP_SURE``): it fills a gap with less
       than certainty, and is certain of a silver clasp on a bag or a boot's grey panel.
 
+    In a clip (``carried``: the frame before's matte carried here, at ``image``'s size), a region the
+    frame before had as background over ``GAP_CARRIED`` of it needs only the colour's two guards (the
+    backdrop's colour, not on the bones): found once, a gap stays background while it shows the backdrop.
+
     Measured on composites on plain backdrops (docs/photos.md: the person's own clothes of the
     backdrop's colour are not taken)."""
-    labels, figures, model = gap_regions(image, person, tri, segmentation, landmarks)
+    labels, figures, model = gap_regions(image, person, tri, segmentation, landmarks, carried)
     keep = np.array([is_gap(f) for f in figures])
     return BackdropGaps(keep[labels], model.index, model.mean, model.inverse)
 
@@ -622,6 +649,8 @@ def decided_outline(photo: np.ndarray, person, carried: Carried | None = None
     """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
     decided by colour (and by the frame before's, ``carried``, in a clip); the background's holes
     in it; the plain backdrop it encloses (:func:`backdrop_gaps`); the soft edge's half-width, pixels)."""
+    from scipy.ndimage import binary_fill_holes
+
     from viewer.resize import height_capped, resize
 
     h, w = photo.shape[:2]
@@ -637,7 +666,12 @@ def decided_outline(photo: np.ndarray, person, carried: Carried | None = None
     decided = resize(person_small.astype(np.float32), (w, h)) > 0.5
     half_width = max(MIN_EDGE, EDGE * height)
     image = photo.astype(np.float32) / 255.0
-    gaps = backdrop_gaps(small, person_small, tri, segmentation, person.landmarks).at(image, decided)
+    # the gaps are looked for in the person with the background it encloses: a strip between an arm
+    # and the body the band already decided background (narrower than the soft edge's band on both
+    # sides) was otherwise left to the soft edge, which filled it with the person
+    enclosed = binary_fill_holes(person_small)
+    gaps = backdrop_gaps(small, enclosed, tri, segmentation, person.landmarks, carried).at(
+        image, resize(enclosed.astype(np.float32), (w, h)) > 0.5)
     return decided, background_holes(image, decided, models, HOLE_DEPTH * half_width), gaps, half_width
 
 
