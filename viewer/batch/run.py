@@ -173,7 +173,7 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
     for item in todo:
         waiting.setdefault(item.photo, []).append(item)
     tasks: dict[int, tuple[str, object]] = {}
-    spread: dict[str, dict] = {}  # clip items whose relit parts are out: their render task, parts' tasks left, an error
+    spread: dict[str, dict] = {}  # clip items whose relit parts are out: their render task, their parts' tasks' fields, left, an error
     ids = itertools.count()
     bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
 
@@ -195,8 +195,9 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
             manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
             task = _render_task(item, by_look[item.look], r["bundle"], folder, settings)
             if task["clip"] and pool.size > 1:  # its relit parts spread over the workers, then joined by its render
-                spread[item.name] = {"task": task, "left": 0, "error": None}
-                submit("open", item, {**task, "kind": "open_parts", "output": str(folder / item.outputs[1]), "layers": False})
+                parts = {**task, "output": str(folder / item.outputs[1]), "layers": False}  # (a batch's clip has no layers)
+                spread[item.name] = {"task": task, "parts": parts, "left": 0, "error": None}
+                submit("open", item, {**parts, "kind": "open_parts"})
             else:
                 submit("render", item, task)
 
@@ -205,8 +206,7 @@ def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest
         if not r["ok"]:
             return joined(item, r["error"])
         state = spread[item.name]
-        for part in part_tasks({**state["task"], "output": str(folder / item.outputs[1]), "layers": False},
-                               [index for index, _, _ in r["parts"]]):
+        for part in part_tasks(state["parts"], [index for index, _, _ in r["parts"]]):
             state["left"] += 1
             submit("part", item, part)
         if not state["left"]:

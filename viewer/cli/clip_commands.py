@@ -68,7 +68,7 @@ def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
     rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
     shots = f", {record['shots']} shot{'s' if record['shots'] != 1 else ''}" if record.get("shots") else ", frame by frame"
     if pool is not None and record["frames"] > kept:
-        count = len(record.get("ranges") or [0])
+        count = len(record["ranges"])  # (open_ranges writes them for every bundle it leaves to the workers)
         shots += f"; in {count} range{'s' if count != 1 else ''} over {pool.size} workers"
     print(person_said(clip, record, target))
     for gap in record.get("gaps", []):

@@ -377,12 +377,12 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     parts, reused = [], 0
     with frames_freed() as after_frame:
         try:
-            for k, first, last in clip_parts(bundle):
-                if only is not None and k not in only:
+            for piece in clip_parts(bundle):
+                if only is not None and piece.index not in only:
                     continue
-                part = folder / Part(k, first, last).name
+                first, last, part = piece.first, piece.last, folder / piece.name
                 if file_is_ours(part):  # finished by an earlier run of the same render, or by a worker just now
-                    reused += (k, first, last) not in shared
+                    reused += piece not in shared
                     for i in range(first, last):  # its layers, where a stop left them out
                         frame_layers(i)
                 else:

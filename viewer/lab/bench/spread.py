@@ -77,13 +77,13 @@ def _pair_errors(clip: Path, end: float, relit: dict[str, Path]) -> dict[str, li
     return errors
 
 
-def _joins(bundle: Path, frames: int) -> dict[str, list[int]]:
+def _joins(bundle: Path) -> dict[str, list[int]]:
     """The frames the spread clip's pieces begin at (after the first): its ranges' and its parts'."""
-    from viewer.output.clip_render import PART_SECONDS
+    from viewer.output.clip_render import clip_parts
+    from viewer.scene.clip_bundle import load_clip_bundle
 
-    record = json.loads((bundle / "clip.json").read_text())
-    per = max(int(round(PART_SECONDS * float(record["source"].get("fps") or 30.0))), 1)
-    return {"ranges": [r[0] for r in record.get("ranges", [])[1:]], "parts": list(range(per, frames, per))}
+    clip = load_clip_bundle(bundle)
+    return {"ranges": [r[0] for r in clip.record.get("ranges", [])[1:]], "parts": [p.first for p in clip_parts(clip)[1:]]}
 
 
 def _seams(errors: list[float], joins: list[int]) -> dict:
@@ -122,7 +122,7 @@ def run_spread_benchmark(clips: list[Path], env_map: Path, out_dir, end: float =
                     progress(f"{clip.name}, {run}: {done['seconds']:.1f} s (load {load:.1f})")
                     if "ray" in run:
                         frames = json.loads((done["bundle"] / "clip.json").read_text())["frames"]
-                        joins = _joins(done["bundle"], frames)
+                        joins = _joins(done["bundle"])
         median = {r: statistics.median(v) for r, v in figures["runs"].items()}
         errors = _pair_errors(clip, end, {r: outs[r] for r in RUNS})
         figures.update(frames=frames, median_seconds=median,
