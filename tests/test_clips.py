@@ -501,6 +501,59 @@ def test_a_stopped_clip_render_goes_on_when_run_again(clip_bundle, tmp_path):
     assert len(decoded(out)[0]) == 5 and not (tmp_path / "relit.parts").exists()
 
 
+def test_a_clip_relit_as_it_is_inferred_is_the_same_to_the_bit(tmp_path, monkeypatch, capsys):
+    """``relight render CLIP`` relights each frame as soon as its inference (a child process) has made
+    it final: the first frames, with no one in them, wait for the first person; parts of two frames
+    are written while the inference goes on. The MP4 is the one the bundle relit whole afterwards
+    gives, byte for byte. A parent killed outright takes its child with it (the bundle's lock is free
+    at once) and the same command goes on from the frames and parts it left; a clip with no one in it
+    is one line."""
+    import signal
+    import subprocess
+    import sys
+
+    from viewer.cli.main import main
+    from viewer.output import clip_render
+
+    monkeypatch.setenv("RELIGHT_CACHE", str(tmp_path / "cache" / "lights"))
+    monkeypatch.setattr(clip_render, "PART_SECONDS", 0.2)
+    people = person_frames(4)
+    clip = write_clip(tmp_path / "walk.mp4", [blank_frame(), blank_frame(), people[0], people[1], people[2], people[3]])
+    env = str(asset_dir() / "envmaps/immenstadter_horn_256.hdr")
+    assert main(["render", str(clip), "--env", env, "-o", str(tmp_path / "followed.mp4")]) == 0
+    said = capsys.readouterr().out
+    assert "(6 frames, 320x480" in said and "inferred and relit together" in said, said
+    assert "6 frames: 4 with the person, 2 without" in said
+    assert main(["render", str(clip), "--env", env, "-o", str(tmp_path / "whole.mp4")]) == 0
+    said = capsys.readouterr().out
+    assert "(6 frames, 320x480" in said and "inferred and relit together" not in said, said
+    assert (tmp_path / "followed.mp4").read_bytes() == (tmp_path / "whole.mp4").read_bytes()
+    frames, _, audio = decoded(tmp_path / "followed.mp4")
+    assert len(frames) == 6 and audio
+
+    # killed outright (SIGKILL: no handler runs) once a frame is in: the child goes with it
+    other = write_clip(tmp_path / "other.mp4", person_frames(5))
+    out = tmp_path / "killed.mp4"
+    cmd = [sys.executable, "-m", "viewer.cli.main", "render", str(other), "--env", env, "-o", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 300
+    while not list((tmp_path / "cache").glob("bundles/other-*/frames/000001.json")) and time.monotonic() < deadline \
+            and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    kept = int(res.stdout.split(" kept from an earlier run")[0].rsplit("; ", 1)[1])
+    assert kept >= 2, res.stdout
+    assert len(decoded(out)[0]) == 5
+
+    empty = write_clip(tmp_path / "empty.mp4", [blank_frame()] * 3)
+    assert main(["render", str(empty), "--env", env, "-o", str(tmp_path / "empty_relit.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "empty.mp4" in err and "Traceback" not in err, err
+
+
 def test_a_clip_inferred_in_ranges_joins_without_a_seam(tmp_path):
     """A panning clip inferred whole, and in two ranges (the later one run first, as a worker may, so
     its overlap is inferred, not read; then the batch stops, and ``relight render CLIP``'s inference

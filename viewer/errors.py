@@ -20,3 +20,12 @@ class InputError(ValueError):
 class NoPersonError(InputError):
     """No person to relight in a picture (none found, an empty mask, too small): a photo is refused
     with it; a clip's frame with it shows only the new background."""
+
+
+def task_error(exc: Exception) -> str:
+    """A failed task's one line: the user's own mistake as it is said (InputError), anything else as
+    its type and the first line of its message."""
+    if isinstance(exc, InputError):
+        return str(exc)
+    text = f"{type(exc).__name__}: {exc}".strip().splitlines()
+    return text[0] if text else type(exc).__name__

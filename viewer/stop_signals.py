@@ -95,3 +95,13 @@ def held():
             signal.signal(sig, handler)
     if caught:
         deliver(caught[0])
+
+
+def die_with_parent() -> None:
+    """prctl(PR_SET_PDEATHSIG, SIGKILL): Linux ends this process when its parent ends."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass  # not Linux: the pipe's end is seen at the next task

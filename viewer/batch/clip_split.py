@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from viewer.batch.plan import cache_path
-from viewer.batch.worker import task_error
+from viewer.errors import task_error
 
 
 class SplitClip:

@@ -9,16 +9,8 @@ import os
 import time
 from pathlib import Path
 
-from viewer.errors import InputError
-
-
-def task_error(exc: Exception) -> str:
-    """A failed task's one line: the user's own mistake as it is said (InputError), anything else as
-    its type and the first line of its message."""
-    if isinstance(exc, InputError):
-        return str(exc)
-    text = f"{type(exc).__name__}: {exc}".strip().splitlines()
-    return text[0] if text else type(exc).__name__
+from viewer.errors import InputError, task_error
+from viewer.stop_signals import die_with_parent
 
 
 class Worker:
@@ -213,7 +205,7 @@ def serve(threads: int, conn, parent: int) -> None:
     so nothing is written for a batch that is no longer there. Ctrl-C is the batch's to handle."""
     import signal
 
-    _die_with_parent()
+    die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if os.getppid() != parent:  # the parent went before the request took effect
         return
@@ -226,14 +218,3 @@ def serve(threads: int, conn, parent: int) -> None:
         if task is None:
             return
         conn.send({**worker.run(task), "kind": "result", "id": task["id"]})
-
-
-def _die_with_parent() -> None:
-    """prctl(PR_SET_PDEATHSIG, SIGKILL): Linux ends this process when its parent ends."""
-    import ctypes
-    import signal
-
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
-    except (OSError, AttributeError):
-        pass  # not Linux: the pipe's end is seen at the next task

@@ -19,19 +19,18 @@ from viewer.files.ownership import file_sha256, refuse_foreign
 from viewer.output.video import audio_sidecar, partial_path, partial_taken
 
 
-def _bar(total: int, what: str):
+def _bar(total: int, what: str, position: int | None = None):
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True)
+    return tqdm(total=total, unit="frame", desc=what, leave=False, dynamic_ncols=True, position=position)
 
 
-def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
-    """The clip bundle of ``clip`` (--start, --end, --size, --max-size, --device of ``args``): written
-    into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left
-    (and in ``window``, a window already open, whose context the inference then uses; or by ``pool``'s
-    workers, a range of frames each: :mod:`viewer.batch.spread_clip`)."""
+def _bundle_options(clip, args, out=None) -> tuple[Path, dict]:
+    """(where the clip bundle of ``clip`` goes: ``out``, or the cache's when None; the options it is
+    inferred with, :func:`viewer.photo.clip_inference.infer_clip`'s) from ``args`` (--start, --end,
+    --size, --max-size, --device, --temporal, --person, --people)."""
     from viewer.lighting.lightfit.cache import cache_dir
-    from viewer.photo.clip_inference import cached_clip_path, infer_clip, person_said
+    from viewer.photo.clip_inference import cached_clip_path
     from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 
     size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
@@ -41,6 +40,35 @@ def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
     digest = file_sha256(clip)  # read once: the cache's path and the bundle's key
     target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
                                                                 size, max_size, temporal, digest, person, people)
+    return target, {"start": args.start, "end": args.end, "size": size, "max_size": max_size, "temporal": temporal,
+                    "digest": digest, "person": person, "people": people, "device": getattr(args, "device", "cpu")}
+
+
+def _said(clip, target: Path, record: dict, seconds: float, pool=None) -> None:
+    """What a clip's inference did, said: whom it relit, where no one is, the bundle's frames and speed."""
+    from viewer.photo.clip_inference import person_said
+
+    kept, states = record["frames_kept_from_earlier_run"], record["states"]
+    rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
+    shots = f", {record['shots']} shot{'s' if record['shots'] != 1 else ''}" if record.get("shots") else ", frame by frame"
+    if pool is not None and record["frames"] > kept:
+        count = len(record["ranges"])  # (open_ranges writes them for every bundle it leaves to the workers)
+        shots += f"; in {count} range{'s' if count != 1 else ''} over {pool.size} workers"
+    print(person_said(clip, record, target))
+    for gap in record.get("gaps", []):
+        print(gap)
+    print(f"clip bundle of {clip}: {target} ({record['frames']} frames: {states['person']} with the person, "
+          f"{states['no person']} without, {states['lost']} lost{shots}; {kept} kept from an earlier run; {seconds:.1f} s{rate})")
+
+
+def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
+    """The clip bundle of ``clip`` (:func:`_bundle_options`): written into ``out``, or the cache's when
+    None; a progress bar with frames, their rate and the time left (and in ``window``, a window already
+    open, whose context the inference then uses; or by ``pool``'s workers, a range of frames each:
+    :mod:`viewer.batch.spread_clip`)."""
+    from viewer.photo.clip_inference import infer_clip
+
+    target, options = _bundle_options(clip, args, out)
     t0 = time.perf_counter()
     with _bar(0, f"inferring {Path(clip).name}") as bar:
         def progress(done, total, entry):
@@ -57,24 +85,12 @@ def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
         if pool is not None:
             from viewer.batch.spread_clip import infer_spread
 
-            record = infer_spread(pool, clip, target, args.start, args.end, size, max_size, temporal, digest, person, people,
-                                  device=getattr(args, "device", "cpu"), progress=progress)
+            record = infer_spread(pool, clip, target, args.start, args.end, options["size"], options["max_size"],
+                                  options["temporal"], options["digest"], options["person"], options["people"],
+                                  device=options["device"], progress=progress)
         else:
-            record = infer_clip(clip, target, args.start, args.end, size=size, max_size=max_size,
-                                device=getattr(args, "device", "cpu"), progress=progress, temporal=temporal, digest=digest,
-                                ctx=window.ctx if window is not None else None, person=person, people=people)
-    kept, states = record["frames_kept_from_earlier_run"], record["states"]
-    seconds = time.perf_counter() - t0
-    rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
-    shots = f", {record['shots']} shot{'s' if record['shots'] != 1 else ''}" if record.get("shots") else ", frame by frame"
-    if pool is not None and record["frames"] > kept:
-        count = len(record["ranges"])  # (open_ranges writes them for every bundle it leaves to the workers)
-        shots += f"; in {count} range{'s' if count != 1 else ''} over {pool.size} workers"
-    print(person_said(clip, record, target))
-    for gap in record.get("gaps", []):
-        print(gap)
-    print(f"clip bundle of {clip}: {target} ({record['frames']} frames: {states['person']} with the person, "
-          f"{states['no person']} without, {states['lost']} lost{shots}; {kept} kept from an earlier run; {seconds:.1f} s{rate})")
+            record = infer_clip(clip, target, progress=progress, ctx=window.ctx if window is not None else None, **options)
+    _said(clip, target, record, time.perf_counter() - t0, pool)
     return target
 
 
@@ -192,16 +208,23 @@ def cmd_render_clip(args, look) -> int:
         print(f"{pool.size} Ray worker{'s' if pool.size != 1 else ''} started in {time.perf_counter() - t0:.1f} s")
     elif args.workers is not None:
         raise InputError(None, "--workers: the workers of a Ray cluster: give --ray too")
-    ctx = None
+    ctx = follow = infer_bar = None
     try:
-        bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool) if is_clip(args.scene) else args.scene)
-        ctx = create_headless_context()
         t1 = time.perf_counter()
+        if is_clip(args.scene) and pool is None and not turn and not _whole(_bundle_options(args.scene, args)[0]):
+            infer_bar = _bar(0, f"inferring {Path(args.scene).name}", position=0)
+            follow = _followed(args.scene, args, infer_bar)  # inferred in a child, each frame relit here as soon as it is final
+            bundle = follow(0)
+        else:
+            bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool) if is_clip(args.scene) else args.scene)
+            t1 = time.perf_counter()
+        ctx = create_headless_context()
         pictures = None
         if plate is not None:
             look, pictures = plate_pictures(ctx, bundle, plate, lights, look, env, rig, args, turn)
-        with _bar(len(bundle.frames), f"relighting {out.name}") as bar:
+        with _bar(len(bundle.frames), f"relighting {out.name}", position=1 if follow is not None else None) as bar:
             def progress(done, total):
+                bar.total = total
                 bar.update(done - bar.n)
 
             share = None
@@ -212,16 +235,24 @@ def cmd_render_clip(args, look) -> int:
                                      parts_folder(out), progress)
             result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
                                  engine_options(args, look), turn, progress=progress, sizes=(args.size, args.max_size),
-                                 layers=args.layers, per_light=args.per_light, pictures=pictures, share=share)
+                                 layers=args.layers, per_light=args.per_light, pictures=pictures, share=share, follow=follow)
+        if follow is not None:
+            infer_bar.close()
+            _said(args.scene, follow.target, follow.wait(), time.perf_counter() - t1)
     finally:
         if ctx is not None:
             ctx.release()
         if pool is not None:
             pool.close()
+        if follow is not None:
+            follow.close()
+        if infer_bar is not None:
+            infer_bar.close()
     seconds = time.perf_counter() - t1
     w, h = result["size"]
     print(f"wrote {out} ({result['frames']} frames, {w}x{h}, the source's timing; {seconds:.1f} s, "
           f"{60 * result['frames'] / max(seconds, 1e-9):.1f} frames a minute"
+          + (", inferred and relit together" if follow is not None else "")
           + (f"; {result['parts_reused']} parts kept from an earlier run" if result["parts_reused"] else "") + ")")
     if result["layers"] is not None:
         print(f"wrote {result['layers']}/ ({result['frames']} frames' layers, {layer_name(0)} ...)")
@@ -229,6 +260,31 @@ def cmd_render_clip(args, look) -> int:
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
     return 0
+
+
+def _whole(target: Path) -> bool:
+    """Whether the clip bundle at ``target`` is there whole (a run before inferred it all)."""
+    from viewer.scene.clip_bundle import RECORD, read_record
+
+    try:
+        return (target / RECORD).is_file() and bool(read_record(target).get("complete"))
+    except InputError:
+        return False
+
+
+def _followed(clip, args, bar):
+    """The clip's bundle inferred into the cache by a child process (:mod:`viewer.photo.clip_follow`),
+    its frames counted on ``bar``, for a relighting that follows it."""
+    from viewer.cores import work_threads
+    from viewer.photo.clip_follow import FollowedInference
+
+    target, options = _bundle_options(clip, args)
+
+    def progress(done, total):
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return FollowedInference(clip, target, options, work_threads(), progress)
 
 
 def parts_task(bundle, out: Path, args, lights, look, rig, turn: float, plate: tuple | None, options) -> dict:

@@ -32,6 +32,14 @@ class ClipFrames:
         for k in self.people:
             self._shot_starts.setdefault(bundle.frames[k].shot, k)
 
+    def grown(self, bundle: ClipBundle) -> ClipFrames:
+        """These frames' answers over ``bundle``: the same clip with more of its frames inferred (a relit
+        clip that follows its inference, :mod:`viewer.photo.clip_follow`). What was read (the lenses,
+        the shots' horizons) is kept: it came from frames already final."""
+        grown = ClipFrames(bundle)
+        grown._cameras, grown._pitches = self._cameras, self._pitches
+        return grown
+
     def nearest(self, index: int, state: str | None = None) -> int:
         """The nearest frame to ``index`` (earlier first) that is not lost (``state``: in that state)."""
         frames = self.bundle.frames

@@ -18,6 +18,7 @@ command goes on from there. The parts are removed once the video is in place.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import re
 import shutil
@@ -100,6 +101,12 @@ class ClipPictures:
             self._warned = True
         return engine, settings
 
+    def follow(self, bundle: ClipBundle) -> None:
+        """The same clip with more of its frames inferred (``bundle``, a relit clip that follows its
+        inference): what was resolved from the frames before is kept (each is final)."""
+        if bundle is not self.bundle:
+            self.bundle, self.frames = bundle, self.frames.grown(bundle)
+
     def key(self) -> str:
         """What these frames are made from beyond :func:`render_key`'s (a plate's: :mod:`viewer.output.plate_clip`)."""
         return ""
@@ -163,11 +170,25 @@ class Part(NamedTuple):
         return f"{self.index:06d}.mp4"
 
 
+def part_frames(bundle: ClipBundle) -> int:
+    """The frames in each part but the last: ``PART_SECONDS`` of the clip."""
+    return max(int(round(PART_SECONDS * float(bundle.source.get("fps") or 30.0))), 1)
+
+
 def clip_parts(bundle: ClipBundle) -> list[Part]:
     """The parts a relit ``bundle`` is written in: ``PART_SECONDS`` of the clip each."""
-    per = max(int(round(PART_SECONDS * float(bundle.source.get("fps") or 30.0))), 1)
-    count = len(bundle.frames)
+    per, count = part_frames(bundle), len(bundle.frames)
     return [Part(k, first, min(first + per, count)) for k, first in enumerate(range(0, count, per))]
+
+
+def _following_parts(bundle: ClipBundle, follow):
+    """The parts of a clip still being inferred, each as its first frame is (``follow``, :func:`render_clip`'s),
+    ``PART_SECONDS`` long until the inference ends (the last part's frames are then cut to the clip's)."""
+    per = part_frames(bundle)
+    for k in itertools.count():
+        if k * per >= len(follow(k * per).frames):  # (a bundle shorter than that is the whole clip)
+            return
+        yield Part(k, k * per, (k + 1) * per)
 
 
 def join_relit(bundle: ClipBundle, parts: list[tuple[Path, float]], path, duration: float | None = None) -> str | None:
@@ -345,7 +366,7 @@ def open_render(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
 def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
                 fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
                 sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False,
-                pictures: ClipPictures | None = None, share=None, only: list[int] | None = None) -> dict:
+                pictures: ClipPictures | None = None, share=None, only: list[int] | None = None, follow=None) -> dict:
     """Relight ``bundle`` into the MP4 ``path``; ``progress(done, total)`` after every frame (parts
     kept from an earlier run count at once). Returns what was done: frames, size, parts reused,
     the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with; ``poster``:
@@ -358,9 +379,18 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     is handed the parts not made yet (:class:`Part` each) once the folders are ready, and returns when
     the workers have made them; each worker makes its own with ``only`` (the parts' numbers: the folders
     are the caller's, opened and checked by it, and nothing is joined: returns the parts made). Every frame
-    is a function of its index alone, so the parts join without a seam."""
+    is a function of its index alone, so the parts join without a seam.
+
+    Following the clip's inference (``relight render CLIP``: the relighting on one core while the
+    inference takes the other, :mod:`viewer.photo.clip_follow`): ``bundle`` holds the frames inferred
+    so far, and ``follow(i)`` returns the bundle once frame ``i`` is final (inferred, and the frame with
+    a person it shows known), or the whole bundle once the inference has ended; each frame is then
+    what the whole bundle would make of it."""
     from viewer.output.layers import write_layers
 
+    if follow is not None and (share is not None or only is not None or turn):
+        raise ValueError("a relighting that follows the inference is one process's (no share, no only), "
+                         "its map turned by no clip length (no turn)")
     path = Path(path)
     pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
     folder, sequence = _folders(pictures, path, layers, per_light, ready=only is not None)
@@ -369,39 +399,51 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
         if sequence is not None and not file_is_ours(sequence / layer_name(i)):
             write_layers(sequence / layer_name(i), pictures.layers(i, per_light))
 
+    def frames_of(piece: Part):  # the part's frames, each once it is final
+        for i in range(piece.first, piece.last):
+            if follow is not None:
+                now = follow(i)
+                if i >= len(now.frames):  # the inference has ended: the clip is shorter
+                    return
+                pictures.follow(now)
+            yield i
+
+    def total() -> int:  # the frames to relight (following: the inference's estimate until it ends)
+        return max(follow.total, len(pictures.bundle.frames)) if follow is not None else len(bundle.frames)
+
     fps = float(bundle.source.get("fps") or 30.0)
-    frames = bundle.frames
     shared = [p for p in clip_parts(bundle) if not file_is_ours(folder / p.name)] if share is not None else []
     if shared:
         share(shared)
     parts, reused = [], 0
     with frames_freed() as after_frame:
         try:
-            for piece in clip_parts(bundle):
+            for piece in clip_parts(bundle) if follow is None else _following_parts(bundle, follow):
                 if only is not None and piece.index not in only:
                     continue
-                first, last, part = piece.first, piece.last, folder / piece.name
+                part = folder / piece.name
                 if file_is_ours(part):  # finished by an earlier run of the same render, or by a worker just now
                     reused += piece not in shared
-                    for i in range(first, last):  # its layers, where a stop left them out
+                    for i in frames_of(piece):  # its layers, where a stop left them out
                         frame_layers(i)
                 else:
                     with VideoWriter(part, *pictures.size, fps=fps) as video:
-                        for i in range(first, last):
+                        for i in frames_of(piece):
                             picture = pictures.picture(i)
-                            video.write(picture, seconds=frames[i].seconds)
+                            video.write(picture, seconds=pictures.bundle.frames[i].seconds)
                             after_frame()
-                            if poster is not None and i == len(frames) // 2:
+                            if poster is not None and follow is None and i == len(bundle.frames) // 2:
                                 write_png(poster, picture / 255.0)
                                 poster = None
                             frame_layers(i)
                             if progress is not None:
-                                progress(i + 1, len(frames))
+                                progress(i + 1, total())
                 if progress is not None:
-                    progress(last, len(frames))
-                parts.append((part, frames[first].seconds))
+                    progress(min(piece.last, len(pictures.bundle.frames)), total())
+                parts.append((part, pictures.bundle.frames[piece.first].seconds))
+            bundle = pictures.bundle if follow is None else follow(len(pictures.bundle.frames))  # (following: the whole clip)
             if poster is not None:  # its part was kept from an earlier run: the frame made again
-                write_png(poster, pictures.picture(len(frames) // 2) / 255.0)
+                write_png(poster, pictures.picture(len(bundle.frames) // 2) / 255.0)
         finally:
             pictures.release()
     if only is not None:
@@ -409,6 +451,6 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     note = join_relit(bundle, parts, path)
     take_away(folder)
     pitch, how = pictures.frames.pitch(pictures.frames.people[0])
-    return {"frames": len(frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
+    return {"frames": len(bundle.frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
             "layers": sequence, "pitch": f"the clip's horizon ({how}): the new map's horizon put there"
             + (f" (the map tilted {pitch:.1f} degrees)" if pitch else "")}
