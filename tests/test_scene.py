@@ -170,3 +170,25 @@ def test_a_bundle_is_a_closed_box_no_file_is_read_through_a_link(tmp_path):
         assert name in str(info.value) and "\n" not in str(info.value)
     assert json.loads((source / "scene.json").read_text())["format"] == "relight-scene"
     load_scene(source)  # the untouched bundle loads
+
+
+def test_a_stage_checks_the_maps_it_replaced():
+    """``validate(only=...)``: a stage that replaced some maps of a scene checked whole checks those:
+    a NaN or an out-of-range value in them is refused, naming the map; a map it did not replace is
+    not read again; a map name that is not one is a programming error."""
+    sc = plane_and_box(24)
+    sc.mask[:3] = False
+    sc = sc.validate()
+    bad = sc.specular.copy()
+    bad[sc.mask] = np.nan
+    with pytest.raises(InputError, match="specular.exr: .* NaN or Inf"):
+        replace(sc, specular=bad).validate(only=frozenset({"specular"}))
+    far = sc.depth.copy()
+    far[sc.mask] = 1e9
+    with pytest.raises(InputError, match="depth.* implausible"):
+        replace(sc, depth=far).validate(only=frozenset({"normal", "depth"}))
+    zeroed = replace(sc, specular=np.where(sc.mask, 0.25, 7.0).astype(np.float32)).validate(only=frozenset({"specular"}))
+    assert zeroed.specular[~sc.mask].max() == 0.0 and zeroed.specular[sc.mask].min() == 0.25
+    assert zeroed.normal is sc.normal  # not read again
+    with pytest.raises(ValueError, match="no such maps"):
+        sc.validate(only=frozenset({"specularity"}))

@@ -380,7 +380,7 @@ def with_face(scene, faces: list[FaceLandmarks], scale: float):
         return scene, record, None
     normal, depth = blend(scene.normal, scene.depth, surface, scene.camera.focal_px)
     record["fitted"] = faces[0].to_json() | {"work_pixels": int(surface.region.sum())}
-    return replace(scene, normal=normal, depth=depth).validate(), record, surface
+    return replace(scene, normal=normal, depth=depth).validate(only=frozenset({"normal", "depth"})), record, surface
 
 
 def light_fit_weight(surface: FaceSurface | None, valid: np.ndarray) -> np.ndarray | None:

@@ -102,6 +102,7 @@ def bounded_sheen(scene, specular_old: np.ndarray, colour: np.ndarray, network_p
     least = cv2.erode(room, np.ones((side, side), np.uint8))
     work = np.clip(mask_normalized_resize(least[..., None], alpha, (scene.width, scene.height))[..., 0], 0.0, 1.0)
     share = np.clip(resize(work, (alpha.shape[1], alpha.shape[0])), 0.0, 1.0)
-    bounded = replace(scene, specular=np.where(scene.mask, scene.specular * work, 0.0).astype(np.float32)).validate()
+    bounded = replace(scene, specular=np.where(scene.mask, scene.specular * work, 0.0).astype(np.float32)).validate(
+        only=frozenset({"specular"}))
     lessened = float((share[person] < 0.99).mean()) if person.any() else 0.0
     return bounded, (specular_old * share[..., None]).astype(np.float32), lessened

@@ -695,7 +695,7 @@ def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarr
                                              lowpass_sigma=framing_side / NETWORK_RES, shared_scale=shared_scale)
     work = mask_normalized_resize(albedo, frame.alpha, (scene.width, scene.height))
     return replace(scene, albedo=np.where(scene.mask[..., None], np.clip(work, 0, 1), 0).astype(np.float32),
-                   frame=replace(frame, albedo=albedo)).validate(), stats
+                   frame=replace(frame, albedo=albedo)).validate(only=frozenset({"albedo", "frame"})), stats
 
 
 def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float:
