@@ -43,7 +43,7 @@ from __future__ import annotations
 import contextlib
 import io
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,6 +58,8 @@ COLOUR_CLIP = 10.0  # the colour log-likelihood ratio is bounded to this (nats)
 PRIOR = 6.0  # cost (nats) of going against the segmentation at the band's far edge
 SMOOTH = 20.0  # contrast-sensitive smoothness between neighbours (GrabCut's gamma; its default is 50)
 SOLVE_HEIGHT = 700  # the band is decided where the person is this many pixels tall (or less)
+WINDOW_MARGIN = 0.25  # of the person's height: the outline is decided within their box grown this much
+WINDOW_SHARE = 0.8  # a window larger than this share of the frame is the frame
 EDGE = 0.004  # half-width of the soft edge's band, of the person's height (8 px at 2048)
 MIN_EDGE = 1.5  # pixels
 FLOW_SCALE = 256  # capacities are integers: costs times this
@@ -644,11 +646,57 @@ def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) 
     return out
 
 
+def solve_window(segmentation: np.ndarray) -> tuple[slice, slice] | None:
+    """(rows, columns) of the frame the outline is decided in: the person's box (``segmentation``
+    over one half) grown by ``WINDOW_MARGIN`` of their height on every side, its corner on a multiple of
+    8 pixels; None where that is most of the frame (``WINDOW_SHARE``) or the person is taller than
+    ``SOLVE_HEIGHT`` (the frame is brought to that height first, and a window would move the pixel grid
+    it is brought to): the whole frame is solved."""
+    seg = segmentation > 0.5
+    if not seg.any():
+        return None
+    h, w = seg.shape
+    rows, cols = np.flatnonzero(seg.any(axis=1)), np.flatnonzero(seg.any(axis=0))
+    if rows[-1] - rows[0] + 1 > SOLVE_HEIGHT:
+        return None
+    margin = int(np.ceil(WINDOW_MARGIN * (rows[-1] - rows[0] + 1)))
+    y0, x0 = max(rows[0] - margin, 0) // 8 * 8, max(cols[0] - margin, 0) // 8 * 8
+    y1, x1 = min(rows[-1] + 1 + margin, h), min(cols[-1] + 1 + margin, w)
+    if (y1 - y0) * (x1 - x0) > WINDOW_SHARE * h * w:
+        return None
+    return slice(y0, y1), slice(x0, x1)
+
+
 def decided_outline(photo: np.ndarray, person, carried: Carried | None = None
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Step 1 of the automatic matte: (the person (H, W) bool at ``photo``'s size, its band
     decided by colour (and by the frame before's, ``carried``, in a clip); the background's holes
-    in it; the plain backdrop it encloses (:func:`backdrop_gaps`); the soft edge's half-width, pixels)."""
+    in it; the plain backdrop it encloses (:func:`backdrop_gaps`); the soft edge's half-width, pixels).
+
+    Decided in the window around the person (:func:`solve_window`), the rest of the frame being sure
+    background: everything it decides lies within ``OUTER`` of the person's height of them, and what
+    it reads (the colour models' windows, the backdrop's) within three of its sigmas. A person a fifth of a
+    1280x720 frame took 0.40 s a frame decided over the whole frame."""
+    window = solve_window(person.segmentation)
+    if window is None:
+        return _decided_outline(photo, person, carried)
+    rows, cols = window
+    h, w = photo.shape[:2]
+    x0, y0, cw, ch = cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start
+    landmarks = {i: ((x * w - x0) / cw, (y * h - y0) / ch) for i, (x, y) in person.landmarks.items()}
+    inside = replace(person, segmentation=person.segmentation[window], landmarks=landmarks)
+    carried = Carried(carried.alpha[window], carried.held[window]) if carried is not None else None
+    *masks, half_width = _decided_outline(np.ascontiguousarray(photo[window]), inside, carried)
+    whole = []
+    for mask in masks:
+        out = np.zeros((h, w), bool)
+        out[window] = mask
+        whole.append(out)
+    return (*whole, half_width)
+
+
+def _decided_outline(photo: np.ndarray, person, carried: Carried | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     from scipy.ndimage import binary_fill_holes
 
     from viewer.resize import height_capped, resize
