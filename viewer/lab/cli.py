@@ -285,13 +285,14 @@ def cmd_bench(args) -> int:
         print(people_table(result))
         print(f"wrote {out_dir / 'people.json'} and a strip of frames per clip in {result['seconds'] / 60:.1f} min")
     elif args.what == "spread":
-        from viewer.lab.bench.spread import run_spread_benchmark
+        from viewer.lab.bench.spread import NAMES, RUNS, run_spread_benchmark
 
         out_dir = Path(args.output or "out/bench-spread")
         maps = shared_folder(args.maps, "hdri", "--maps")
         result = run_spread_benchmark(clip_files(args.clips or [shared_folder(None, "videos", "--clips")]),
                                       Path(args.env[0]) if args.env else maps / "potsdamer_platz_1k.hdr", out_dir, end=args.end,
                                       max_size=min(args.max_size, 1280), repeats=args.repeats,
+                                      ways=tuple(r for r in RUNS if NAMES[r] in (args.ways or ["then", "one", "ray"]) + ["one"]),
                                       progress=lambda line: print(line, flush=True))
         print(f"wrote {out_dir / 'spread.json'}")
     elif args.what == "colour":
@@ -434,9 +435,13 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "(the face skin's brightness, the backdrop kept) and two maps, contact sheets (out/bench-colour/); people: whom "
                         "each clip of --clips relights in every frame (the person chosen and followed), against CLIP.json "
                         "beside it when there is one: frames with the person missing, swapped or another beside them; spread: "
-                        "each clip of --clips relit end to end by one process and with --ray local (--end seconds, "
-                        "--repeats runs each way): the time, the warping error at the joins against elsewhere")
+                        "each clip of --clips relit end to end (--end seconds, --repeats runs each way) inferred then relit, "
+                        "by relight render CLIP (the relighting following the inference) and with --ray local: the time, "
+                        "the warping error at the joins against elsewhere")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
+    p.add_argument("--ways", nargs="+", choices=("then", "one", "ray"),
+                   help="spread: the ways each clip is relit: inferred then relit, one process (always), --ray local "
+                        "(default all three)")
     p.add_argument("--procedural", type=int, help="plates: instead of --maps, this many procedural maps (two of a kind at "
                    "most, seeds from 9000), made into the output's folder: maps never looked at while the estimate was made")
     p.add_argument("--synthetic", action="store_true", help="video: also (or, without --clips, only) a clip made from the "
