@@ -22,6 +22,8 @@ from pathlib import Path
 from viewer.errors import InputError, task_error
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, absolute_pan, frame_name, load_clip_bundle, read_frame_entry, read_record
 
+RELIGHT_NICE = 10  # the parent's lower priority once its child infers
+
 
 def _infer(conn, parent: int, threads: int, clip: str, target: str, options: dict) -> None:
     """The child: the clip's bundle inferred into ``target``, each finished frame said on ``conn``
@@ -71,6 +73,10 @@ class FollowedInference:
         self._child = mp.Process(target=_infer, args=(theirs, os.getpid(), threads, str(clip), str(target), options), daemon=True)
         self._child.start()
         theirs.close()
+        try:  # the clip goes at the inference's pace: the relighting takes what the child leaves of the cores
+            os.nice(RELIGHT_NICE)
+        except OSError:
+            pass
 
     def __enter__(self) -> FollowedInference:
         return self
