@@ -351,3 +351,44 @@ def test_a_unit_never_timed_counts_as_long_as_the_longest_of_the_call():
     assert work.spent("new")  # never timed: expected to take 30 ms too, so not started
     quick = WorkBudget(Clockless(), 0.05, {})
     assert not quick.spent("fast") and not quick.spent("new")  # the call's units so far were short
+
+
+def test_a_map_with_no_ground_gets_a_floor_behind_the_feet(ctx, person, tmp_path):
+    """A sky-only map (its lower half black) leaves the feet over darkness: a floor of 18 % albedo lit
+    by the map's sky is laid under its horizon, behind the person only (the map's file, and every map
+    with a ground, unchanged: the bundled ones, and the shared ones where they are), and the command says so."""
+    from conftest import SHARED_DATA
+    from test_cli import run_cli
+
+    from viewer.files.imageio import write_exr
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.floor import FLOOR_ALBEDO, ground_share, laid_floor
+    from viewer.resources import asset_dir
+
+    sky = np.zeros((64, 128, 3), np.float32)
+    sky[:32] = [2.0, 1.8, 1.6]  # a uniform sky: a white floor under it reflects its radiance
+    assert ground_share(sky) == 0.0
+    floor = laid_floor(sky)
+    np.testing.assert_allclose(floor[40:], np.broadcast_to(FLOOR_ALBEDO * sky[0, 0], floor[40:].shape), rtol=0.01)
+    assert (floor[:32] == sky[:32]).all()
+    maps = sorted(asset_dir().glob("envmaps/*.hdr")) + sorted((SHARED_DATA / "hdri").glob("*.hdr"))
+    for path in maps:
+        pixels = load_envmap(path).pixels
+        assert laid_floor(pixels) is pixels, (path, ground_share(pixels))
+
+    eng = Engine(ctx, person, EngineOptions(shadow_resolution=256))
+    eng.set_lights(sun_and_sky())
+    eng.set_environment(sky)
+    eng.set_look(Look(background="environment", exposure=0.0))
+    eng.render()
+    shown = eng.output.read_display().astype(float)
+    rows = np.nonzero(person.mask.any(axis=1))[0]
+    below = shown[rows.max() + 2:]  # the backdrop under the feet
+    assert below.size and below.mean() > 40, below.mean()  # a grey floor, not black
+    eng.release()
+
+    write_exr(tmp_path / "sky_only.exr", sky)
+    res = run_cli("render", str(sample_scene_dir()), "--env", str(tmp_path / "sky_only.exr"), "-o", str(tmp_path / "out.png"))
+    assert res.returncode == 0, res.stderr
+    assert "the map shows no ground" in res.stdout and "grey floor" in res.stdout
+    assert (load_envmap(tmp_path / "sky_only.exr").pixels[40:] == 0).all()  # the file as it was

@@ -83,7 +83,8 @@ def prepare(scene_path, lights_path, envmap_path, args, look, automatic_yaw: boo
 
 def command_lights(args, look, lights_path, env, env_path):
     """The light file given, or the map's lights by the one rule (:mod:`viewer.lighting.map_lights`), the
-    fit in this process with its progress bars; said on a line when they come from the map."""
+    fit in this process with its progress bars; said on a line when they come from the map, and a floor
+    laid under a map with no ground said on another (:mod:`viewer.lighting.floor`)."""
     from viewer.lighting.map_lights import map_lights
     from viewer.scene.area_lights import load_lights
 
@@ -94,6 +95,12 @@ def command_lights(args, look, lights_path, env, env_path):
         lights, how = map_lights(env, env_path, n, args.method, lambda e: fitted_lights(e, n, args.method))
         print(f"{len(lights)} lights for {env_path}: {HOW[how]}")
     warn_if_dark(lights, lights_path or env_path)
+    if env is not None:
+        from viewer.lighting.floor import floor_note
+
+        note = floor_note(env.pixels)  # (the engine lays it behind the person: viewer.gl.look_state)
+        if note:
+            print(f"note: {env_path}: {note}")
     return lights
 
 

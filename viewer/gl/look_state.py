@@ -11,6 +11,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.gl.scene_resources import SceneResources
+from viewer.lighting.floor import laid_floor
 from viewer.lighting.median_cut import LUMINANCE
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.backdrop import blurred_map
@@ -88,12 +89,13 @@ class LookState:
     def set_environment(self, pixels: np.ndarray | None) -> list[str]:
         """A new map behind the person (H, W, 3) linear RGB, or None: none (a look lit by a light
         file); returns the inputs it changed (the background too where the look's falls back
-        differently)."""
+        differently). A map that shows no ground gets a floor laid under its horizon
+        (:mod:`viewer.lighting.floor`)."""
         had = self._environment is not None
         if pixels is None:
             self._environment = None
             return self.replace(self.asked) if had else []
-        self._environment = np.asarray(pixels, dtype=np.float32)
+        self._environment = laid_floor(np.asarray(pixels, dtype=np.float32))  # a map with no ground: a floor behind the feet
         return self._upload() + ([] if had else self.replace(self.asked))
 
     def _upload(self) -> list[str]:
