@@ -183,6 +183,20 @@ def test_the_plane_goes_through_both_feet():
     assert np.allclose(steep.normal, [0.0, 1.0, 0.0]) and np.isclose(steep.offset, steep.contacts[:, 1].min())
 
 
+def test_a_foot_whose_lowest_row_is_in_pieces_still_stands_on_the_plane():
+    """A foot blob whose lowest row is two pixels 10 px apart (a heel and a toe; a street clip's frame
+    matted so stopped its inference with a traceback): its contact is one of its own pixels, and the
+    plane goes through it."""
+    scene = _two_feet(3.9, 4.05)
+    mask = scene.mask.copy()
+    mask[110:114, 44:54] = False  # the right foot's toe and heel reach lower, apart
+    mask[110:114, 44] = mask[110:114, 53] = True
+    plane = ground_plane(replace(scene, mask=mask).validate())
+    assert plane.feet and len(plane.contacts) == 2
+    for x, y in contacts(mask):
+        assert mask[y, x]
+
+
 def test_each_foot_darkens_the_ground_it_stands_on(ctx, person):
     """Under a sky of 16 lights, the feet's contact points darken the ground beside them beyond
     what the shadow maps alone do (the occlusion at contact their bias leaves out)."""

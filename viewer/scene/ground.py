@@ -63,8 +63,8 @@ class GroundPlane:
 
 
 def contacts(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(x, y) pixels of the mask where the feet touch the ground: the lowest pixel (the middle of
-    the lowest row) of each of the two largest blobs of the mask's bottom band (``BAND`` of the
+    """(x, y) pixels of the mask where the feet touch the ground: the lowest pixel (the one of the
+    lowest row nearest its middle) of each of the two largest blobs of the mask's bottom band (``BAND`` of the
     person's height; a blob under ``MIN_BLOB`` of the largest is not a foot); none when the mask
     reaches the frame's bottom edge (the feet are cut off) or is empty."""
     import cv2
@@ -86,7 +86,8 @@ def contacts(mask: np.ndarray) -> list[tuple[int, int]]:
             continue
         ys, xs = np.nonzero(labels == i + 1)
         bottom = ys.max()
-        out.append((int(round(xs[ys == bottom].mean())), int(bottom)))
+        lowest = xs[ys == bottom]  # (a blob whose lowest row is in pieces: its middle may not be the mask's)
+        out.append((int(lowest[np.argmin(np.abs(lowest - lowest.mean()))]), int(bottom)))
     return out
 
 
