@@ -5,6 +5,8 @@ and things that touch no hand or foot are not kept; a mask file that includes an
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from conftest import SHARED_DATA
 
@@ -128,3 +130,31 @@ def test_a_mask_that_includes_an_object_keeps_it():
     photo = (image * 255).astype(np.uint8)
     matte = matting.mask_matte(photo, (person | stick).astype(np.float32))
     assert (matte.alpha[stick] > 0.5).mean() > 0.8
+
+
+def test_in_a_clip_an_object_is_kept_from_its_second_frame_in_a_row():
+    """Found frame by frame, held objects came and went (a shoe's shard, a piece of a sign in one frame
+    of a street clip): in a clip an object is kept once the frame before found it too, carried here
+    (within 1 % of the frame); a find of one frame alone is not kept. A photo, or a shot's first
+    frame, keeps what it finds."""
+    stick = _line((H, W), (70, 200), (30, 330), 4)
+    board = _line((H, W), (90, 362), (215, 362), 6)
+    found = stick | board
+    kept = matting.confirmed(found, _line((H, W), (72, 203), (32, 333), 3))  # the stick, moved 3 px: seen before
+    assert (kept == stick).all()
+    assert not matting.confirmed(found, np.zeros((H, W), bool)).any()
+    assert not matting.confirmed(np.zeros((H, W), bool), found).any()
+    assert not matting.confirmed(board, _line((H, W), (90, 330), (215, 330), 6)).any()  # 32 px away: another
+
+    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.segmentation import find_person
+
+    photo = read_photo(SKIER, [])
+    person = find_person(photo, SKIER)
+    alone = matting.automatic_matte(photo, person)  # a photo (or a shot's first frame): kept as found
+    assert alone.held.any() and (alone.objects == alone.held).all()
+    before = matting.Carried(alone.alpha, np.ones(alone.alpha.shape, np.float32), np.zeros(alone.alpha.shape, bool))
+    first = matting.automatic_matte(photo, person, before)  # found now, not the frame before: not kept yet
+    assert not first.held.any() and first.objects.any() and first.record["held_px"] == 0
+    again = matting.automatic_matte(photo, person, replace(before, objects=first.objects))  # found in both
+    assert again.held.any() and (again.held == again.objects).all() and (again.objects == first.objects).all()

@@ -434,6 +434,8 @@ def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size,
         found = find_person(frame_photo, photo_path, notes, follow, everyone_too)
         carried = steady[0].carried_matte(frame_photo, steady[1]) if steady is not None else None
         matte = automatic_matte(frame_photo, found, carried)
+        if steady is not None:  # the objects found held, confirmed by the next frame's
+            steady[0].found_objects(matte.objects)
         landmarks = found.landmarks
         mask_source = "automatic (MediaPipe pose segmentation, matted: viewer.photo.matting)"
     alpha = matte.alpha

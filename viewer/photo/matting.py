@@ -109,6 +109,7 @@ class Carried:
 
     alpha: np.ndarray
     held: np.ndarray
+    objects: np.ndarray | None = None  # (H, W) bool: what the frame before was found holding (confirmed or not), carried here
 
 
 @dataclass(frozen=True)
@@ -122,6 +123,7 @@ class Matte:
     foreground: np.ndarray
     record: dict
     held: np.ndarray | None = None  # (H, W) bool: what the person holds or stands on (automatic mattes)
+    objects: np.ndarray | None = None  # (H, W) bool: what was found held, kept or not (a clip's next frame confirms it)
 
     @property
     def body(self) -> np.ndarray:
@@ -685,7 +687,7 @@ def decided_outline(photo: np.ndarray, person, carried: Carried | None = None
     x0, y0, cw, ch = cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start
     landmarks = {i: ((x * w - x0) / cw, (y * h - y0) / ch) for i, (x, y) in person.landmarks.items()}
     inside = replace(person, segmentation=person.segmentation[window], landmarks=landmarks)
-    carried = Carried(carried.alpha[window], carried.held[window]) if carried is not None else None
+    carried = Carried(carried.alpha[window], carried.held[window]) if carried is not None else None  # (objects: not read here)
     *masks, half_width = _decided_outline(np.ascontiguousarray(photo[window]), inside, carried)
     whole = []
     for mask in masks:
@@ -730,7 +732,8 @@ def automatic_matte(photo: np.ndarray, person, carried: Carried | None = None) -
 
     t0 = time.perf_counter()
     decided, holes, gaps, half_width = decided_outline(photo, person, carried)
-    held = held_objects(photo, decided, person.landmarks, person_height(decided)) & ~decided
+    found = held_objects(photo, decided, person.landmarks, person_height(decided)) & ~decided
+    held = confirmed(found, carried.objects) if carried is not None and carried.objects is not None else found
     decided = decided | held
     t1 = time.perf_counter()
     alpha = edge_alpha(photo, decided, half_width, holes, gaps=gaps)
@@ -739,9 +742,30 @@ def automatic_matte(photo: np.ndarray, person, carried: Carried | None = None) -
     t3 = time.perf_counter()
     return Matte(alpha, foreground, {"method": "automatic: pose segmentation, colour min cut, closed-form edge",
                                      "holes_px": int(holes.sum()), "gaps_px": int(gaps.sum()),
-                                     "held_px": int(held.sum()),
+                                     "held_px": int(held.sum()), "held_found_px": int(found.sum()),
                                      "seconds": {"band": round(t1 - t0, 3), "edge": round(t2 - t1, 3),
-                                                 "foreground": round(t3 - t2, 3)}}, held)
+                                                 "foreground": round(t3 - t2, 3)}}, held, found)
+
+
+CONFIRM_REACH = 0.01  # of the frame's longer side: how near the frame before's find an object found again must be
+
+
+def confirmed(found: np.ndarray, before: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the objects of ``found`` (a clip's frame's held objects, :mod:`viewer.photo.held_objects`)
+    that the frame before found too (``before``, carried here along the flow), within ``CONFIRM_REACH``.
+    Found frame by frame, an object came and went: the crowd clip's 60 frames had objects in 7 frames,
+    6 of them alone (a shoe's shard, a piece of a sign); an object is kept from its second frame in a row."""
+    import cv2
+
+    if not found.any() or not before.any():
+        return np.zeros_like(found)
+    reach = max(1, int(round(CONFIRM_REACH * max(found.shape))))
+    near = cv2.dilate(before.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+    count, labels = cv2.connectedComponents(found.astype(np.uint8), connectivity=8)
+    keep = np.zeros(count, bool)
+    keep[np.unique(labels[found & near])] = True
+    keep[0] = False
+    return keep[labels]
 
 
 BINARY_GREY = 0.25  # a mask with fewer grey pixels (2 % to 98 %) than this share of its outline is binary

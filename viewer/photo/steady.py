@@ -63,18 +63,24 @@ class SteadyMaps:
         self._previous = None  # (grey photo at the flow's size, the steadied scene)
         self.shot = None
         self._flow = None  # (the frame's photo, what _flow_for made of it): computed once a frame, for the matte and the maps
+        self._objects = None  # (H, W) bool: what the frame before was found holding (viewer.photo.matting.confirmed)
 
     def restart(self) -> None:
         """A new shot (or a frame lost): the next frame starts afresh."""
-        self._previous = self._flow = None
+        self._previous = self._flow = self._objects = None
         self.faces.restart()
+
+    def found_objects(self, objects: np.ndarray | None) -> None:
+        """What this frame's matte found the person holding (:attr:`viewer.photo.matting.Matte.objects`),
+        for the next frame's :meth:`carried_matte`."""
+        self._objects = objects
 
     def carry(self, scene, frame_photo: np.ndarray, shot: int | None = None) -> None:
         """Take ``scene`` (already steadied: a frame finished by an earlier run) as the frame before
         the next one."""
         if shot != self.shot:
             self.shot = shot
-        self._previous, self._flow = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene), None
+        self._previous, self._flow, self._objects = (shrunk_grey(frame_photo, FLOW_SIDE)[0], scene), None, None
         self.faces.restart()  # (its landmarks are not kept in the bundle: the face's filter starts at the next frame)
 
     def _flow_for(self, frame_photo: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
@@ -115,7 +121,11 @@ class SteadyMaps:
         old = previous[1].frame.alpha
         if back is None or old.shape != (h, w):
             return None
-        return Carried(warp(old.astype(np.float32), resized_flow(back, (w, h))), resize(weight, (w, h)))
+        flow = resized_flow(back, (w, h))
+        objects = self._objects
+        if objects is not None:
+            objects = warp(objects.astype(np.float32), flow) > 0.5 if objects.shape == (h, w) else None
+        return Carried(warp(old.astype(np.float32), flow), resize(weight, (w, h)), objects)
 
     def steady(self, scene, frame_photo: np.ndarray, shot: int | None = None):
         """``scene`` (a frame's, with its frame layer) with its maps blended along the flow from the
