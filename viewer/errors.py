@@ -29,3 +29,10 @@ def task_error(exc: Exception) -> str:
         return str(exc)
     text = f"{type(exc).__name__}: {exc}".strip().splitlines()
     return text[0] if text else type(exc).__name__
+
+
+def one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """``warnings.showwarning`` for relight's processes: a warning is one line, like an error."""
+    import sys
+
+    print(f"relight: warning: {message}", file=sys.stderr if file is None else file, flush=True)

@@ -61,14 +61,14 @@ def _said(clip, target: Path, record: dict, seconds: float, pool=None) -> None:
           f"{states['no person']} without, {states['lost']} lost{shots}; {kept} kept from an earlier run; {seconds:.1f} s{rate})")
 
 
-def clip_bundle(clip, args, out=None, window=None, pool=None) -> Path:
-    """The clip bundle of ``clip`` (:func:`_bundle_options`): written into ``out``, or the cache's when
-    None; a progress bar with frames, their rate and the time left (and in ``window``, a window already
-    open, whose context the inference then uses; or by ``pool``'s workers, a range of frames each:
-    :mod:`viewer.batch.spread_clip`)."""
+def clip_bundle(clip, args, out=None, window=None, pool=None, planned: tuple | None = None) -> Path:
+    """The clip bundle of ``clip`` (:func:`_bundle_options`, or ``planned``: what it gave already): written
+    into ``out``, or the cache's when None; a progress bar with frames, their rate and the time left (and
+    in ``window``, a window already open, whose context the inference then uses; or by ``pool``'s
+    workers, a range of frames each: :mod:`viewer.batch.spread_clip`)."""
     from viewer.photo.clip_inference import infer_clip
 
-    target, options = _bundle_options(clip, args, out)
+    target, options = planned or _bundle_options(clip, args, out)
     t0 = time.perf_counter()
     with _bar(0, f"inferring {Path(clip).name}") as bar:
         def progress(done, total, entry):
@@ -211,12 +211,13 @@ def cmd_render_clip(args, look) -> int:
     ctx = follow = infer_bar = None
     try:
         t1 = time.perf_counter()
-        if is_clip(args.scene) and pool is None and not turn and not _whole(_bundle_options(args.scene, args)[0]):
+        planned = _bundle_options(args.scene, args) if is_clip(args.scene) else None  # (the clip's bytes read once)
+        if planned is not None and pool is None and not turn and not _whole(planned[0]):
             infer_bar = _bar(0, f"inferring {Path(args.scene).name}", position=0)
-            follow = _followed(args.scene, args, infer_bar)  # inferred in a child, each frame relit here as soon as it is final
+            follow = _followed(args.scene, planned, infer_bar)  # inferred in a child, each frame relit here as soon as it is final
             bundle = follow(0)
         else:
-            bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool) if is_clip(args.scene) else args.scene)
+            bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool, planned=planned) if planned else args.scene)
             t1 = time.perf_counter()
         ctx = create_headless_context()
         pictures = None
@@ -272,13 +273,13 @@ def _whole(target: Path) -> bool:
         return False
 
 
-def _followed(clip, args, bar):
-    """The clip's bundle inferred into the cache by a child process (:mod:`viewer.photo.clip_follow`),
-    its frames counted on ``bar``, for a relighting that follows it."""
+def _followed(clip, planned: tuple, bar):
+    """The clip's bundle inferred into the cache by a child process (:mod:`viewer.photo.clip_follow`;
+    ``planned``: :func:`_bundle_options`'), its frames counted on ``bar``, for a relighting that follows it."""
     from viewer.cores import work_threads
     from viewer.photo.clip_follow import FollowedInference
 
-    target, options = _bundle_options(clip, args)
+    target, options = planned
 
     def progress(done, total):
         bar.total = total

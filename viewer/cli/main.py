@@ -8,11 +8,7 @@ import sys
 
 from viewer.cli.parser import build_parser, command_plugins
 from viewer.cores import allowed_cores, size_pools, work_threads
-from viewer.errors import InputError
-
-
-def _one_line_warning(message, category, filename, lineno, file=None, line=None):
-    print(f"relight: warning: {message}", file=sys.stderr if file is None else file, flush=True)
+from viewer.errors import InputError, one_line_warning
 
 
 def main(argv=None) -> int:
@@ -20,7 +16,7 @@ def main(argv=None) -> int:
 
     argv = list(sys.argv[1:] if argv is None else argv)
     with warnings.catch_warnings():  # a warning is one line, like an error; the hook is put back after
-        warnings.showwarning = _one_line_warning
+        warnings.showwarning = one_line_warning
         return _main(argv)
 
 

@@ -11,7 +11,10 @@ relit are those the whole bundle makes, bit for bit.
 
 The child dies with its parent (the kernel kills it, a SIGKILL included) and ignores the terminal's
 Ctrl-C, which is the parent's to handle: the parent kills it, and a frame cut short is not there
-(each is written whole), so the same command goes on from the last finished frame.
+(each is written whole), so the same command goes on from the last finished frame. Its warnings are
+one line each, as the parent's. Once the child runs, the parent lowers its own priority
+(``RELIGHT_NICE``): the clip goes at the inference's pace, and beside a relighting at the same
+priority the inference's torch and llvmpipe stages were 30-60 % slower (docs/video.md).
 """
 
 from __future__ import annotations
@@ -31,12 +34,15 @@ def _infer(conn, parent: int, threads: int, clip: str, target: str, options: dic
     or ("failed", line) for anything else."""
     import os
     import signal
+    import warnings
 
     from viewer.cores import size_pools
+    from viewer.errors import one_line_warning
     from viewer.stop_signals import die_with_parent
 
     die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    warnings.showwarning = one_line_warning  # (as the parent's: relight.cli.main)
     if os.getppid() != parent:  # the parent went before the request took effect
         return
     size_pools(threads)

@@ -140,6 +140,7 @@ def run_spread_benchmark(clips: list[Path], env_map: Path, out_dir, end: float =
                     frames = json.loads((done["bundle"] / "clip.json").read_text())["frames"]
                     if run == RAY:
                         joins = _joins(done["bundle"])
+            parts = _joins(done["bundle"])["parts"]  # (any way's bundle: the parts follow the clip's rate and length)
         median = {r: statistics.median(v) for r, v in figures["runs"].items()}
         errors = _pair_errors(clip, end, outs)
         figures.update(frames=frames, median_seconds=median,
@@ -148,7 +149,6 @@ def run_spread_benchmark(clips: list[Path], env_map: Path, out_dir, end: float =
                        warping_error={r: round(float(np.nanmean(e)), 6) for r, e in errors.items()},
                        difference={r: _difference(outs[ONE], outs[r]) for r in ways if r != ONE},
                        same_bytes={r: outs[ONE].read_bytes() == outs[r].read_bytes() for r in ways if r != ONE})
-        parts = _joins(done["bundle"])["parts"]
         figures["seams"] = {"one process's parts": _seams(errors[ONE], parts)}
         if RAY in ways:
             figures.update(joins=joins)
