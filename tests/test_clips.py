@@ -531,17 +531,23 @@ def test_a_clip_relit_as_it_is_inferred_is_the_same_to_the_bit(tmp_path, monkeyp
     frames, _, audio = decoded(tmp_path / "followed.mp4")
     assert len(frames) == 6 and audio
 
-    # killed outright (SIGKILL: no handler runs) once a frame is in: the child goes with it
+    # stopped (SIGTERM) once a frame is in: one line at once, then killed outright (SIGKILL: no handler
+    # runs) at the next: the child goes with it both times
     other = write_clip(tmp_path / "other.mp4", person_frames(5))
     out = tmp_path / "killed.mp4"
     cmd = [sys.executable, "-m", "viewer.cli.main", "render", str(other), "--env", env, "-o", str(out)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 300
-    while not list((tmp_path / "cache").glob("bundles/other-*/frames/000001.json")) and time.monotonic() < deadline \
-            and proc.poll() is None:
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.communicate(timeout=60)
+    for frame, stop in (("000000", signal.SIGTERM), ("000001", signal.SIGKILL)):
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 300
+        while not list((tmp_path / "cache").glob(f"bundles/other-*/frames/{frame}.json")) and time.monotonic() < deadline \
+                and proc.poll() is None:
+            time.sleep(0.05)
+        stopped = time.monotonic()
+        proc.send_signal(stop)
+        _, err = proc.communicate(timeout=60)
+        if stop == signal.SIGTERM:
+            assert proc.returncode == 130 and "relight: interrupted (SIGTERM)" in err and "Traceback" not in err, err
+            assert time.monotonic() - stopped < 10  # not at the child's next word
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr
     kept = int(res.stdout.split(" kept from an earlier run")[0].rsplit("; ", 1)[1])

@@ -212,7 +212,7 @@ def cmd_render_clip(args, look) -> int:
     try:
         t1 = time.perf_counter()
         planned = _bundle_options(args.scene, args) if is_clip(args.scene) else None  # (the clip's bytes read once)
-        if planned is not None and pool is None and not turn and not _whole(planned[0]):
+        if planned is not None and pool is None and not turn and _followable(planned[0]):
             infer_bar = _bar(0, f"inferring {Path(args.scene).name}", position=0)
             follow = _followed(args.scene, planned, infer_bar)  # inferred in a child, each frame relit here as soon as it is final
             bundle = follow(0)
@@ -239,7 +239,8 @@ def cmd_render_clip(args, look) -> int:
                                  layers=args.layers, per_light=args.per_light, pictures=pictures, share=share, follow=follow)
         if follow is not None:
             infer_bar.close()
-            _said(args.scene, follow.target, follow.wait(), time.perf_counter() - t1)
+            record = follow.wait()
+            _said(args.scene, follow.target, record, record.get("seconds", time.perf_counter() - t1))
     finally:
         if ctx is not None:
             ctx.release()
@@ -263,14 +264,17 @@ def cmd_render_clip(args, look) -> int:
     return 0
 
 
-def _whole(target: Path) -> bool:
-    """Whether the clip bundle at ``target`` is there whole (a run before inferred it all)."""
+def _followable(target: Path) -> bool:
+    """Whether the clip bundle at ``target`` is to be inferred with its relighting following it: not
+    there whole (a run before inferred it all: read as it is), nor begun in ranges (``--ray``, a batch:
+    finished range by range, so its frames are not final in order)."""
     from viewer.scene.clip_bundle import RECORD, read_record
 
     try:
-        return (target / RECORD).is_file() and bool(read_record(target).get("complete"))
+        record = read_record(target) if (target / RECORD).is_file() else {}
     except InputError:
-        return False
+        return True  # (made again by the inference)
+    return not record.get("complete") and not record.get("ranges")
 
 
 def _followed(clip, planned: tuple, bar):

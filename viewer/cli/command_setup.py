@@ -95,7 +95,7 @@ def command_lights(args, look, lights_path, env, env_path):
         lights, how = map_lights(env, env_path, n, args.method, lambda e: fitted_lights(e, n, args.method))
         print(f"{len(lights)} lights for {env_path}: {HOW[how]}")
     warn_if_dark(lights, lights_path or env_path)
-    if env is not None:
+    if env is not None and look.background == "environment":  # (behind the person only: another background shows none)
         from viewer.lighting.floor import floor_note
 
         note = floor_note(env.pixels)  # (the engine lays it behind the person: viewer.gl.look_state)

@@ -24,22 +24,29 @@ from viewer.lighting.envmap import LUMINANCE
 NO_GROUND = 0.01  # a ground reflecting less than this of its sky's light is none
 FLOOR_ALBEDO = 0.18  # the floor laid: a neutral grey
 GROUND_BAND = (5.0, 60.0)  # degrees below the horizon: where the ground under the feet is seen
+SAMPLE_WIDTH = 512  # the map is judged on every k-th pixel, k its width over this (a 4k map took 0.25 s a frame)
 
 
-def _elevations(height: int) -> np.ndarray:
-    """Each row's elevation (degrees, + up) of an equirectangular map ``height`` rows tall."""
-    return 90.0 - (np.arange(height) + 0.5) * 180.0 / height
+def _elevations(height: int, step: int = 1) -> np.ndarray:
+    """The elevation (degrees, + up) of every ``step``-th row of an equirectangular map ``height`` rows tall."""
+    return 90.0 - (np.arange(0, height, step) + 0.5) * 180.0 / height
+
+
+def _sampled(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(every k-th pixel of the map, every k-th row's elevation), k = its width over ``SAMPLE_WIDTH``."""
+    step = max(1, pixels.shape[1] // SAMPLE_WIDTH)
+    return pixels[::step, ::step], _elevations(pixels.shape[0], step)
 
 
 def sky_light(pixels: np.ndarray) -> np.ndarray:
     """(3,) what a white floor reflects under the map's sky: its irradiance on an upward-facing plane
     from the upper hemisphere, over pi (linear RGB)."""
-    h, w = pixels.shape[:2]
-    el = np.radians(_elevations(h))
+    sample, el = _sampled(pixels)
+    el = np.radians(el)
     up = el > 0
-    # solid angle of a pixel: cos(el) dtheta dphi; the plane's cosine: sin(el)
-    weight = (np.cos(el) * np.sin(el) * (np.pi / h) * (2 * np.pi / w))[up]
-    rows = np.nan_to_num(pixels[up].astype(np.float64), nan=0.0, posinf=0.0).sum(axis=1)  # (rows, 3)
+    # a pixel's solid angle: cos(el) dtheta dphi; the plane's cosine: sin(el)
+    weight = (np.cos(el) * np.sin(el) * (np.pi / len(el)) * (2 * np.pi / sample.shape[1]))[up]
+    rows = np.nan_to_num(sample[up].astype(np.float64), nan=0.0, posinf=0.0).sum(axis=1)  # (rows, 3)
     return (weight[:, None] * rows).sum(axis=0) / np.pi
 
 
@@ -47,12 +54,11 @@ def ground_share(pixels: np.ndarray) -> float:
     """The map's ground as it reflects its sky's light: the mean luminance seen ``GROUND_BAND`` below
     the horizon (solid-angle weighted) over a white floor's under that sky (0: a black ground; nan: no
     sky light at all)."""
-    h = pixels.shape[0]
-    el = _elevations(h)
+    sample, el = _sampled(pixels)
     band = (el < -GROUND_BAND[0]) & (el > -GROUND_BAND[1])
     weight = np.cos(np.radians(el[band]))
-    ground = np.nan_to_num(pixels[band].astype(np.float64), nan=0.0, posinf=0.0) @ LUMINANCE  # (rows, w)
-    mean = float((weight[:, None] * ground).sum() / (weight.sum() * pixels.shape[1]))
+    ground = np.nan_to_num(sample[band].astype(np.float64), nan=0.0, posinf=0.0) @ LUMINANCE  # (rows, w)
+    mean = float((weight[:, None] * ground).sum() / max(weight.sum() * sample.shape[1], 1e-12))
     white = float(sky_light(pixels) @ LUMINANCE)
     return mean / white if white > 0 else float("nan")
 

@@ -442,7 +442,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
                     progress(min(piece.last, len(pictures.bundle.frames)), total())
                 parts.append((part, pictures.bundle.frames[piece.first].seconds))
             bundle = pictures.bundle if follow is None else follow(len(pictures.bundle.frames))  # (following: the whole clip)
-            if poster is not None:  # its part was kept from an earlier run: the frame made again
+            if poster is not None:  # its part was kept from an earlier run (or the middle was known only at the end): made again
                 write_png(poster, pictures.picture(len(bundle.frames) // 2) / 255.0)
         finally:
             pictures.release()

@@ -25,7 +25,8 @@ from pathlib import Path
 from viewer.errors import InputError, task_error
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, absolute_pan, frame_name, load_clip_bundle, read_frame_entry, read_record
 
-RELIGHT_NICE = 10  # the parent's lower priority once its child infers
+RELIGHT_NICE = 10  # the parent's lower priority once its child infers (for the rest of the process's life)
+POLL_SECONDS = 0.25  # the longest a wait on the child lasts before a stop is seen
 
 
 def _infer(conn, parent: int, threads: int, clip: str, target: str, options: dict) -> None:
@@ -53,7 +54,16 @@ def _infer(conn, parent: int, threads: int, clip: str, target: str, options: dic
         conn.send(("done", record))
     except InputError as exc:
         conn.send(("refused", exc.path, exc.problem))
-    except Exception as exc:  # noqa: BLE001 - said by the parent in one line
+    except MemoryError:
+        conn.send(("refused", None, "out of memory (is the process's memory limited, ulimit -v?): give it more, or a smaller "
+                                    "--max-size / --size"))
+    except OSError as exc:  # the system refused a read or a write the checks could not foresee
+        conn.send(("refused", exc.filename, exc.strerror or str(exc)))
+    except Exception as exc:  # noqa: BLE001 - a fault of the program's: its trace here, the parent stops on it
+        import sys
+        import traceback
+
+        traceback.print_exc(file=sys.stderr)
         conn.send(("failed", task_error(exc)))
 
 
@@ -99,7 +109,10 @@ class FollowedInference:
     def __call__(self, index: int) -> ClipBundle:
         """The clip bundle once frame ``index`` is final (it and a frame with a person inferred: the
         frames it holds are the clip's first, each as the whole bundle will hold it), or the whole bundle
-        when the inference has ended; waits for it."""
+        when the inference has ended; waits for it (what the child said meanwhile read first: its
+        progress shown as it goes, and its pipe never full)."""
+        while self._whole is None and self._conn.poll():
+            self._receive()
         while True:
             if self._whole is not None:
                 return self._whole
@@ -114,7 +127,12 @@ class FollowedInference:
         return self.record
 
     def _receive(self) -> None:
+        """The child's next message, waited for in short waits: a stop (Ctrl-C, SIGTERM) reaches this
+        thread between them (:mod:`viewer.stop_signals`), not only when the child next speaks."""
         try:
+            while not self._conn.poll(POLL_SECONDS):
+                if not self._child.is_alive() and not self._conn.poll():
+                    raise EOFError
             message = self._conn.recv()
         except (EOFError, OSError):
             self._child.join()
@@ -133,7 +151,7 @@ class FollowedInference:
         elif kind == "refused":
             raise InputError(message[1], message[2])
         else:
-            raise InputError(None, f"the clip's inference failed: {message[1]}")
+            raise RuntimeError(f"the clip's inference (a child process) failed: {message[1]} (its trace is above)")
 
     def _grow(self, known: int) -> None:
         """Frames up to ``known`` (excluded) read: each finished in this run, its record written before it was said."""

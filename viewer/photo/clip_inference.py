@@ -29,6 +29,7 @@ import hashlib
 import json
 import queue
 import shutil
+import sys
 import threading
 import time
 from dataclasses import dataclass, replace
@@ -492,7 +493,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                         writes.after(functools.partial(progress, count - first, max(total - first, count - first), entry))
         finally:
             try:
-                writes.close()
+                writes.close(quiet=sys.exc_info()[0] is not None)  # (an error on its way out is the one said)
             finally:
                 warned.close()
                 if own_ctx:
@@ -513,7 +514,8 @@ class FrameWrites:
 
     def __init__(self):
         self._queue: queue.Queue = queue.Queue(maxsize=self.AHEAD)
-        self._error: BaseException | None = None
+        self._error: BaseException | None = None  # the write that failed, until raised
+        self._failed = False  # a write failed: nothing after it is written (stays set once raised)
         self._ready: collections.deque = collections.deque()  # calls whose writes are done, for the caller's thread
         self._thread = threading.Thread(target=self._loop, name="frame-writes", daemon=True)
         self._thread.start()
@@ -533,19 +535,22 @@ class FrameWrites:
         while self._ready:
             self._ready.popleft()()
 
-    def close(self) -> None:
-        """Wait for every write put; raise the first that failed; make the calls left."""
+    def close(self, quiet: bool = False) -> None:
+        """Wait for every write put; raise the first that failed (``quiet``: not, another exception is on
+        its way out); make the calls left."""
         self._queue.put(None)
         self._thread.join()
+        if quiet:
+            self._error = None
         self.deliver()
 
     def _loop(self) -> None:
         while (write := self._queue.get()) is not None:
-            if self._error is None:
+            if not self._failed:
                 try:
                     write()
                 except BaseException as exc:  # noqa: BLE001 - raised on the inference's thread
-                    self._error = exc
+                    self._error, self._failed = exc, True
 
     def _raise_pending(self) -> None:
         if self._error is not None:

@@ -542,6 +542,8 @@ def _steady(scene, frame_photo, steady):
         return {"scene": scene, "steady_share": None}
     maps, shot = steady
     scene, share = maps.steady(scene, frame_photo, shot)
+    # the maps blended: checked here, as the stages after it check only the maps they replace
+    scene = scene.validate(only=frozenset({"albedo", "specular", "roughness", "normal", "depth"}))
     return {"scene": scene, "steady_share": round(share, 4)}
 
 
