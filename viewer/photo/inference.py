@@ -541,10 +541,10 @@ def _steady(scene, frame_photo, steady):
     if steady is None:
         return {"scene": scene, "steady_share": None}
     maps, shot = steady
-    scene, share = maps.steady(scene, frame_photo, shot)
-    # the maps blended: checked here, as the stages after it check only the maps they replace
-    scene = scene.validate(only=frozenset({"albedo", "specular", "roughness", "normal", "depth"}))
-    return {"scene": scene, "steady_share": round(share, 4)}
+    steadied, share = maps.steady(scene, frame_photo, shot)
+    if steadied is not scene:  # the maps blended: checked here, as the stages after check only the maps they replace
+        steadied = steadied.validate(only=frozenset({"albedo", "specular", "roughness", "normal", "depth"}))
+    return {"scene": steadied, "steady_share": round(share, 4)}
 
 
 def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface, given_lights):
