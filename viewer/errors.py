@@ -8,6 +8,10 @@ def one_line(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+OUT_OF_MEMORY = ("out of memory (is the process's memory limited, ulimit -v?): give it more, or a smaller "
+                 "--max-size / --size")  # a MemoryError's one line: the limit below what the budget checks foresee
+
+
 class InputError(ValueError):
     """Bad user input (a file or a parameter). The message names the file and what is wrong, on one line."""
 

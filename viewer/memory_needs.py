@@ -96,12 +96,13 @@ def largest_frame_side(photo_pixels: int, aspect: float) -> int:
     return _largest_side(INFER_BASE + INFER_PER_PHOTO_PIXEL * photo_pixels, INFER_PER_FRAME_PIXEL, aspect)
 
 
-def resident_bytes() -> int | None:
-    """This process's resident memory now (Linux's /proc/self/statm), None where it cannot be read."""
+def resident_bytes(pid: int | str = "self") -> int | None:
+    """Process ``pid``'s resident memory now (Linux's /proc/PID/statm; this process's by default),
+    None where it cannot be read."""
     import os
 
     try:
-        return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+        return int(Path(f"/proc/{pid}/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):
         return None
 

@@ -8,7 +8,7 @@ import sys
 
 from viewer.cli.parser import build_parser, command_plugins
 from viewer.cores import allowed_cores, size_pools, work_threads
-from viewer.errors import InputError, one_line_warning
+from viewer.errors import OUT_OF_MEMORY, InputError, one_line_warning
 
 
 def main(argv=None) -> int:
@@ -50,8 +50,7 @@ def _main(argv: list) -> int:
         print(_interrupted(exc), file=sys.stderr)
         return 130
     except MemoryError:  # a limit on the process (ulimit -v) below what the budget checks foresee
-        print("relight: error: out of memory (is the process's memory limited, ulimit -v?): give it more, or a smaller "
-              "--max-size / --size", file=sys.stderr)
+        print(f"relight: error: {OUT_OF_MEMORY}", file=sys.stderr)
         return 2
     except Exception as exc:
         if type(exc).__module__.startswith(("moderngl", "_moderngl")):  # the GL driver refused (memory, limits)

@@ -22,7 +22,7 @@ from __future__ import annotations
 import multiprocessing
 from pathlib import Path
 
-from viewer.errors import InputError, task_error
+from viewer.errors import OUT_OF_MEMORY, InputError, task_error
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, absolute_pan, frame_name, load_clip_bundle, read_frame_entry, read_record
 
 RELIGHT_NICE = 10  # the parent's lower priority once its child infers (for the rest of the process's life)
@@ -55,8 +55,7 @@ def _infer(conn, parent: int, threads: int, clip: str, target: str, options: dic
     except InputError as exc:
         conn.send(("refused", exc.path, exc.problem))
     except MemoryError:
-        conn.send(("refused", None, "out of memory (is the process's memory limited, ulimit -v?): give it more, or a smaller "
-                                    "--max-size / --size"))
+        conn.send(("refused", None, OUT_OF_MEMORY))
     except OSError as exc:  # the system refused a read or a write the checks could not foresee
         conn.send(("refused", exc.filename, exc.strerror or str(exc)))
     except Exception as exc:  # noqa: BLE001 - a fault of the program's: its trace here, the parent stops on it
@@ -71,7 +70,7 @@ class FollowedInference:
     """The clip bundle of ``clip`` being inferred into ``target`` by a child process (``options``:
     :func:`viewer.photo.clip_inference.infer_clip`'s); call it with a frame's index (:meth:`__call__`)
     to wait for that frame. ``progress(done, total)`` as frames are finished; :attr:`record` once
-    the inference has ended. Use as a context manager: leaving it ends the child."""
+    the inference has ended. :meth:`close` ends the child."""
 
     def __init__(self, clip, target, options: dict, threads: int, progress=None):
         import os
@@ -81,6 +80,7 @@ class FollowedInference:
         self.record: dict | None = None
         self._known = 0  # frames final: inferred in this run, in order
         self._entries: list = []
+        self._record: dict | None = None  # the bundle's record as the child wrote it before its first frame
         self._people = 0  # of them, frames with a person
         self._bundle: ClipBundle | None = None
         self._whole: ClipBundle | None = None
@@ -93,12 +93,6 @@ class FollowedInference:
             os.nice(RELIGHT_NICE)
         except OSError:
             pass
-
-    def __enter__(self) -> FollowedInference:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
 
     def close(self) -> None:
         if self._child.is_alive():
@@ -155,10 +149,11 @@ class FollowedInference:
 
     def _grow(self, known: int) -> None:
         """Frames up to ``known`` (excluded) read: each finished in this run, its record written before it was said."""
-        record = read_record(self.target)
+        if self._record is None:  # (rewritten only once the inference has ended)
+            self._record = read_record(self.target)
         for i in range(self._known, known):
-            entry = absolute_pan(read_frame_entry(self.target / FRAMES / f"{frame_name(i)}.json"), record, self.target)
+            entry = absolute_pan(read_frame_entry(self.target / FRAMES / f"{frame_name(i)}.json"), self._record, self.target)
             self._entries.append(entry)
             self._people += entry.state == "person"
         self._known = known
-        self._bundle = ClipBundle(self.target, record, tuple(self._entries))
+        self._bundle = ClipBundle(self.target, self._record, tuple(self._entries))

@@ -39,13 +39,12 @@ def tree_resident(pid: int) -> int:
         except (OSError, IndexError):
             continue
         children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    from viewer.memory_needs import resident_bytes
+
     total, todo = 0, [pid]
     while todo:
         p = todo.pop()
-        try:
-            total += int(Path(f"/proc/{p}/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-        except (OSError, ValueError, IndexError):
-            pass
+        total += resident_bytes(p) or 0  # (one gone meanwhile holds nothing)
         todo += children.get(p, [])
     return total
 
