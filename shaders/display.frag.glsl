@@ -12,6 +12,7 @@ uniform sampler2D environment;        // equirectangular, linear RGB
 uniform int background_mode;          // BACKGROUND_*
 uniform vec3 background_color;        // linear
 uniform mat3 environment_rotation;    // camera-space view direction -> map direction
+uniform float ground_squash;          // the map\'s ground seen from the camera\'s height (envmap.glsl: 1, as taken)
 uniform vec2 focal_center_px;         // principal point (pixels)
 uniform float focal_px;
 uniform float exposure;               // stops
@@ -29,7 +30,7 @@ void main() {
     } else if (background_mode == BACKGROUND_PHOTO) {
         bg = texelFetch(background_image, px, 0).rgb;
     } else if (background_mode == BACKGROUND_ENVIRONMENT) {
-        bg = environment_seen(environment, environment_rotation, vec2(px) + 0.5, focal_center_px, focal_px);
+        bg = environment_seen(environment, environment_rotation, ground_squash, vec2(px) + 0.5, focal_center_px, focal_px);
     }
     if (ground && c.a < 1.0) {
         bg *= clamp(1.0 - texture(ground_occlusion, (vec2(px) + 0.5) / vec2(textureSize(hdr, 0))).rgb, 0.0, 1.0);

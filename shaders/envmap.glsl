@@ -26,12 +26,30 @@ vec3 bicubic(sampler2D image, vec2 uv) {
          + g1.y * (g0.x * textureLod(image, vec2(t0.x, t1.y), 0.0).rgb + g1.x * textureLod(image, vec2(t1.x, t1.y), 0.0).rgb);
 }
 
+// The map's ground seen from a camera that stands higher or lower than the map was taken from: a ray
+// below the horizon meets the ground plane (the camera h metres above it) at the point the map's own
+// camera (h_map above it) sees along the direction with its height scaled by squash = h_map / h. The
+// horizon stays; the ground's paving, grass and shadows take the size they have at the person's feet.
+// 1: the map as it was taken. Also returns how many times finer the map's rows are looked up there
+// (the mipmap level follows the squashed footprint, no aliasing where the ground is compressed).
+vec3 ground_projected(vec3 d, float squash, out float finer) {
+    finer = 1.0;
+    if (d.y >= 0.0 || squash == 1.0) return d;
+    float c2 = dot(d.xz, d.xz), s = -d.y;
+    vec3 e = normalize(vec3(d.x, d.y * squash, d.z));
+    // d(latitude')/d(latitude) for latitude' = atan(squash tan latitude)
+    finer = squash * (c2 + s * s) / max(c2 + squash * squash * s * s, 1e-12);
+    return e;
+}
+
 // The environment as a perspective camera sees it at pixel position q (pixels, row 0 at the top),
-// turned by rotation (camera-space view direction -> map direction): bicubic where a pixel is
-// smaller than a texel, else the mipmap level of the pixel's footprint (no aliasing of a large map).
-vec3 environment_seen(sampler2D environment, mat3 rotation, vec2 q, vec2 center, float focal) {
+// turned by rotation (camera-space view direction -> map direction), its ground seen from the camera's
+// height (ground_projected's squash): bicubic where a pixel is smaller than a texel, else the mipmap
+// level of the pixel's footprint (no aliasing of a large map).
+vec3 environment_seen(sampler2D environment, mat3 rotation, float squash, vec2 q, vec2 center, float focal) {
     vec3 view = normalize(vec3((q.x - center.x) / focal, -(q.y - center.y) / focal, -1.0));
-    vec2 uv = direction_to_equirect(rotation * view);
-    float texels_per_pixel = float(textureSize(environment, 0).x) / (2.0 * PI * focal);
+    float finer;
+    vec2 uv = direction_to_equirect(ground_projected(rotation * view, squash, finer));
+    float texels_per_pixel = float(textureSize(environment, 0).x) / (2.0 * PI * focal) * max(finer, 1.0);
     return texels_per_pixel <= 1.0 ? bicubic(environment, uv) : textureLod(environment, uv, log2(texels_per_pixel)).rgb;
 }

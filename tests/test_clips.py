@@ -1056,11 +1056,12 @@ def test_the_person_chosen_is_followed_and_their_absence_said_once(tmp_path, cap
     assert not (tmp_path / "b3").exists()
 
 
-def test_the_new_ground_is_where_the_clips_camera_sees_its_own(tmp_path):
+def test_the_new_ground_is_where_the_clips_camera_sees_its_own_and_as_high(tmp_path):
     """A clip filmed by a camera looking 10 degrees down on a city square: the camera's pitch is read
     from the square's converging verticals (the person's own edges left out), and the map behind the
     relit person is tilted by as much, so its horizon lies where the square's did (within 3 % of the
-    frame's height), not across the middle."""
+    frame's height), not across the middle; the camera's height above the square is read from the person
+    standing on it, as the camera the map is seen through sees them."""
     from viewer.files.imageio import linear_to_srgb
     from viewer.lighting.envmap import LUMINANCE, load_envmap
     from viewer.output.clip_frames import ClipFrames
@@ -1083,12 +1084,22 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own(tmp_path):
     photo = read_photo(SHARED_DATA / "photos" / "unsplash-1507274733827.jpg", [])
     mask = read_png(SHARED_DATA / "photos" / "unsplash-1507274733827.mask.png")
     mask = mask[..., 0] if mask.ndim == 3 else mask
-    tall = 300
+    rows, cols = np.flatnonzero(mask.max(axis=1) > 0.5), np.flatnonzero(mask.max(axis=0) > 0.5)
+    photo, mask = photo[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1], mask[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+    # a person of 1.7 m standing on the square 3 m below the camera, their feet at row 400: their head where
+    # the camera sees it (the rays down the middle column, 10 degrees down and the lens's angle)
+    focal, feet, up = camera.focal_px, 400, 3.0
+
+    def row(down: float) -> float:  # the row whose ray is ``down`` (a tangent) below the horizon
+        return 213.0 + focal * np.tan(np.arctan(down) - np.radians(10.0))
+
+    down = np.tan(np.radians(10.0) + np.arctan((feet - 213.0) / focal))
+    tall = int(round(feet - row(down * (up - 1.7) / up)))
     size = (photo.shape[1] * tall // photo.shape[0], tall)
     person, alpha = resize(photo, size), resize(mask.astype(np.float32), size)[..., None]
     x0 = 320 - size[0] // 2
     frame = background.copy()
-    frame[426 - tall:, x0:x0 + size[0]] = (alpha * person + (1 - alpha) * frame[426 - tall:, x0:x0 + size[0]]).astype(np.uint8)
+    frame[feet - tall:feet, x0:x0 + size[0]] = (alpha * person + (1 - alpha) * frame[feet - tall:feet, x0:x0 + size[0]]).astype(np.uint8)
     clip = write_clip(tmp_path / "square.mp4", [frame, frame], audio=None)
     infer_clip(clip, tmp_path / "bundle")
     frames = ClipFrames(load_clip_bundle(tmp_path / "bundle"))
@@ -1100,6 +1111,15 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own(tmp_path):
     back = frames.background_camera(0)
     directions = Camera(640, 426, focal_mm=back.focal_mm, sensor_mm=back.sensor_mm).view_directions() @ rotation_matrix(0.0, tilt)
     assert np.argmin(np.abs(directions[:, 320, 1])) / 426.0 == pytest.approx(truth, abs=0.03)
+    # the camera's height read from the person standing there, through the camera the map is seen through
+    # (the shot's lens, wider than the clip's: the map's ground drawn at the feet at the size it has there):
+    # its ray through their feet meets the ground where its ray through the top of their head passes 1.7 m up
+    height = frames.camera_height(1)
+    tilted = Camera(640, 426, focal_mm=back.focal_mm, sensor_mm=back.sensor_mm).view_directions() @ rotation_matrix(0.0, tilt)
+    down = -tilted[:, 320, 1] / np.hypot(tilted[:, 320, 0], tilted[:, 320, 2])
+    distance = height / down[feet - 1]
+    assert height - distance * down[feet - tall] == pytest.approx(1.7, rel=0.05), (height, tall)
+    assert 1.7 < height < up  # above the person's head (it is below the horizon), and the lens wider than the clip's
 
 
 def test_the_windows_relit_frames_are_what_it_shows_live(clip_bundle, ctx):

@@ -14,7 +14,7 @@ from conftest import render_by_units
 
 from viewer.gl import Engine, EngineOptions
 from viewer.resources import sample_scene_dir
-from viewer.scene.area_lights import AreaLights
+from viewer.scene.area_lights import AreaLights, rotation_matrix
 from viewer.scene.bundle import FrameLayer, Scene, load_scene
 from viewer.scene.camera import Camera
 from viewer.scene.ground import MAX_TILT, contacts, ground_plane
@@ -406,3 +406,36 @@ def test_a_map_with_no_ground_gets_a_floor_behind_the_feet(ctx, person, tmp_path
     assert res.returncode == 0, res.stderr
     assert "the map shows no ground" in res.stdout and "grey floor" in res.stdout
     assert (load_envmap(tmp_path / "sky_only.exr").pixels[40:] == 0).all()  # the file as it was
+
+
+def test_the_maps_ground_is_seen_from_the_cameras_height(ctx, person):
+    """A camera 4 m above the ground (Look.camera_height, a clip's, viewer/output/clip_frames.py) sees the
+    map's ground as the map's own camera (MAP_CAMERA_HEIGHT_M up) sees the same points of the ground plane:
+    below the horizon each ray's height is scaled by their ratio, above it nothing changes; the display
+    shader draws what EnvMap.seen_through computes (a map whose rows ramp from the zenith to the nadir)."""
+    from viewer.files.imageio import srgb_to_linear
+    from viewer.lighting.envmap import EnvMap
+    from viewer.scene.look import MAP_CAMERA_HEIGHT_M
+
+    ramp = np.repeat(((np.arange(64) + 0.5) / 64.0)[:, None, None], 128, axis=1) * np.ones(3)
+    env = EnvMap(ramp.astype(np.float32))
+    eng = Engine(ctx, person, EngineOptions(shadow_resolution=256))
+    eng.set_lights(sun_and_sky())
+    eng.set_environment(env.pixels)
+    away = ~np.asarray(person.mask)  # the backdrop, where no person covers it
+    shown = {}
+    for height in (0.0, 4.0):
+        look = Look(background="environment", exposure=0.0, tonemap="clamp", ground=False, tilt=8.0, camera_height=height)
+        eng.set_look(look)
+        eng.render()
+        shown[height] = srgb_to_linear(eng.output.read_display().astype(np.float64) / 255.0)
+        expected = env.seen_through(person.camera, 0.0, 8.0, look.ground_squash)
+        assert np.abs(shown[height] - expected)[away].max() < 0.03, height
+    assert Look(camera_height=4.0).ground_squash == pytest.approx(MAP_CAMERA_HEIGHT_M / 4.0)
+    rows = person.camera.view_directions() @ rotation_matrix(0.0, 8.0)
+    sky, ground = (rows[..., 1] > 0.02) & away, (rows[..., 1] < -0.2) & away
+    assert sky.any() and ground.any()
+    assert np.abs(shown[4.0] - shown[0.0])[sky].max() < 0.01  # the sky as it was
+    # seen from higher up, the ground near the feet is the map's ground farther off: nearer the horizon, darker
+    assert (shown[0.0] - shown[4.0])[ground].mean() > 0.05
+    eng.release()

@@ -258,7 +258,7 @@ class ViewerApp:
             self.timeline = self.relit = None
         if self.plate is not None:  # the new person is placed by their own frame, not the clip's first one
             self.plate.unanchor()
-        self.session.camera_turn = (0.0, 0.0)
+        self.session.camera_turn, self.session.camera_height = (0.0, 0.0), 0.0
 
     def picture(self, eng) -> np.ndarray:
         """(H, W, 3) uint8: the frame ``eng`` shows, as recorded (a clip's frame without the person: the background

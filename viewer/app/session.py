@@ -44,6 +44,7 @@ class Session:
         # a clip's frame: (yaw, tilt) degrees its camera turned since its shot began; the map turns by as much
         # on top of the look's (viewer.output.clip_frames), so the new background moves as the old one did
         self.camera_turn = (0.0, 0.0)
+        self.camera_height = 0.0  # metres: a clip shot's camera above the ground (ClipFrames.camera_height; 0: not read)
         # the final engine is to get the map in a render call of its own (set_scene): None, or "made"
         # (the engine was made since the last render call) or "next" (the next call gives it)
         self._map_pending: str | None = None
@@ -74,14 +75,19 @@ class Session:
 
     @property
     def rendered_look(self) -> Look:
-        """The look the engines render: the user's, its map turned on by a clip frame's :attr:`camera_turn`."""
-        return self.turned_look(self.camera_turn)
+        """The look the engines render: the user's, its map turned on by a clip frame's :attr:`camera_turn`
+        and seen from its :attr:`camera_height`."""
+        return self.turned_look(self.camera_turn, self.camera_height)
 
-    def turned_look(self, turn: tuple[float, float]) -> Look:
-        """The user's look, its map turned on by ``turn`` (yaw, tilt) degrees: a clip frame's, whether it is
-        the frame the session shows or one prepared ahead (:mod:`viewer.app.relit_frames`)."""
+    def turned_look(self, turn: tuple[float, float], height: float = 0.0) -> Look:
+        """The user's look, its map turned on by ``turn`` (yaw, tilt) degrees and its ground seen from
+        ``height`` metres (unless the look sets its own): a clip frame's, whether it is the frame the
+        session shows or one prepared ahead (:mod:`viewer.app.relit_frames`)."""
         yaw, tilt = turn
-        return replace(self.look, yaw=self.look.yaw + yaw, tilt=self.look.tilt + tilt) if yaw or tilt else self.look
+        height = self.look.camera_height or height
+        if not (yaw or tilt or height != self.look.camera_height):
+            return self.look
+        return replace(self.look, yaw=self.look.yaw + yaw, tilt=self.look.tilt + tilt, camera_height=height)
 
     def rotated_lights(self) -> AreaLights:
         look = self.rendered_look
@@ -176,11 +182,11 @@ class Session:
 
     def state_key(self) -> bytes:
         """What a frame shows, as bytes: the look, the map's lights and sigmas, the placed lights, the clip
-        frame's camera turn."""
-        return self.lighting_key() + repr(self.camera_turn).encode()
+        frame's camera turn and height."""
+        return self.lighting_key() + repr((self.camera_turn, self.camera_height)).encode()
 
     def lighting_key(self) -> bytes:
-        """:meth:`state_key` but the camera turn: what every frame of a clip is lit by alike."""
+        """:meth:`state_key` but the camera turn and height: what every frame of a clip is lit by alike."""
         return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
 
     @property

@@ -73,7 +73,7 @@ class StateFile:
                 "rate": app.timeline.rate, "played": len(app.timeline.shown_at), "every_frame": app.timeline.every_frame,
                 "on_screen": app.timeline.on_screen, "slider_and_words": list(app.panel.clip_shown),
                 "relit": app.relit.count if app.relit is not None else 0,
-                "camera_turn": list(app.session.camera_turn)},  # a clip's timeline
+                "camera_turn": list(app.session.camera_turn), "camera_height": app.session.camera_height},  # a clip's timeline
         }
         text = json.dumps(state)
         now = time.monotonic()

@@ -11,8 +11,8 @@ keeps the lighting, the user's lights and the look from frame to frame (one expo
 from its first frame when the window opens, the user's after: what the window shows of a frame is what R
 records of it, and ``relight render --look`` of the state saved with S); a frame brings its person
 (:meth:`Session.set_scene`, with its shot's lens for the map behind) and how far its camera turned
-(:attr:`Session.camera_turn`). A frame without the person shows the new background alone, as the nearest
-frame with the person sees it (:meth:`ClipTimeline.texture`), as the relit MP4 does
+(:attr:`Session.camera_turn`) and how high it stood (:attr:`Session.camera_height`). A frame without the
+person shows the new background alone, as the nearest frame with the person sees it (:meth:`ClipTimeline.texture`), as the relit MP4 does
 (:mod:`viewer.output.clip_render`).
 """
 
@@ -55,7 +55,7 @@ class ClipTimeline:
     def began(self, session):
         """The window's first frame: the session was made with frame 0's person's scene and lens."""
         index, person = self.current = self.frames.shown(0)
-        session.camera_turn = self.frames.camera_turn(index, person)
+        session.camera_turn, session.camera_height = self.frames.camera_turn(index, person), self.frames.camera_height(person)
 
     # ------------------------------------------------------------------ the clock
     @property
@@ -177,7 +177,7 @@ class ClipTimeline:
                 return None
             session.set_scene(scene, self.frames.background_camera(person))
             change = "person"
-        session.camera_turn = self.frames.camera_turn(index, person)
+        session.camera_turn, session.camera_height = self.frames.camera_turn(index, person), self.frames.camera_height(person)
         self.current = (index, person)
         if self.playing:
             self._read_ahead()

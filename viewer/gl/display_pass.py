@@ -20,10 +20,11 @@ INSPECT_VIEWS = MODES["INSPECT"]
 
 def set_background(prog, look: Look, background: str, camera: Camera):
     """The background's uniforms (shaders/envmap.glsl and the background modes) for ``look``: its
-    mode, colour, the map's turn and the camera the map is seen through."""
+    mode, colour, the map's turn, the camera the map is seen through and its height above the ground."""
     prog["background_mode"] = code("BACKGROUND", background)
     prog["background_color"] = look.background_color
     prog["environment_rotation"].write(np.asarray(look.environment_rotation, dtype="f4").T.tobytes())
+    prog["ground_squash"] = look.ground_squash
     prog["focal_center_px"] = camera.center
     prog["focal_px"] = camera.focal_px
 

@@ -19,8 +19,8 @@ from viewer.scene.bundle import Scene
 from viewer.scene.look import AUTO, EXPOSURE_LIMIT, Look
 
 SHADING_VIEWS = ("diffuse_shading", "specular_shading")  # one term of the composite, shown alone
-DISPLAY_FIELDS = ("yaw", "tilt", "exposure", "tonemap", "background", "background_color", "compare")
-BACKGROUND_FIELDS = ("yaw", "tilt", "background", "background_color")  # what the frame background shows
+DISPLAY_FIELDS = ("yaw", "tilt", "camera_height", "exposure", "tonemap", "background", "background_color", "compare")
+BACKGROUND_FIELDS = ("yaw", "tilt", "camera_height", "background", "background_color")  # what the frame background shows
 LIGHT_FIELDS = ("yaw", "tilt", "intensity", "placed_intensity")  # what turns or scales the lights
 
 

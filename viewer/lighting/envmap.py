@@ -131,11 +131,15 @@ class EnvMap:
         src = pixel_directions(h, w) @ r  # row-vector form of R^T d
         return EnvMap(_bilinear(self.pixels, direction_to_uv(src)), self.source)
 
-    def seen_through(self, camera, yaw_deg: float = 0.0, tilt_deg: float = 0.0) -> np.ndarray:
-        """(H, W, 3) float32: the map turned by (yaw, tilt) as the camera sees it behind the person
-        (bilinear; the display shader's environment background, ``shaders/display.frag.glsl``)."""
-        r = rotation_matrix(yaw_deg, tilt_deg)
-        return _bilinear(self.pixels, direction_to_uv(camera.view_directions() @ r))
+    def seen_through(self, camera, yaw_deg: float = 0.0, tilt_deg: float = 0.0, ground_squash: float = 1.0) -> np.ndarray:
+        """(H, W, 3) float32: the map turned by (yaw, tilt) as the camera sees it behind the person, its
+        ground seen from the camera's height (``Look.ground_squash``: 1, as taken) (bilinear; the display
+        shader's environment background, ``shaders/display.frag.glsl``, ``envmap.glsl: ground_projected``)."""
+        d = camera.view_directions() @ rotation_matrix(yaw_deg, tilt_deg)
+        if ground_squash != 1.0:
+            d[..., 1] = np.where(d[..., 1] < 0.0, d[..., 1] * ground_squash, d[..., 1])
+            d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        return _bilinear(self.pixels, direction_to_uv(d))
 
     def downsampled(self, max_width: int) -> EnvMap:
         """The map area-averaged to width ``2 * (max_width // 2)`` (unchanged if already no wider).

@@ -22,13 +22,48 @@ def shows_filmed_frame(engine) -> bool:
     return engine.looks.resolved(engine.look).background == "photo"
 
 
+MIN_BELOW = 0.02  # the feet's tangent down from the horizon below which a camera's height is not read (at the horizon)
+MAX_CAMERA_HEIGHT_M = 50.0  # a camera read higher than this (a person at the horizon): not read
+
+
+def person_seen_from(mask, pitch: float, focal_px: float) -> float:
+    """Metres above the ground a camera tilted ``pitch`` degrees (down: positive, as ``Look.tilt``) with focal length
+    ``focal_px`` (pixels of ``mask``, centred) stood to see a person of ``PERSON_HEIGHT_M`` as ``mask``
+    (H, W) bool shows them standing (:meth:`ClipFrames.camera_height`); 0 when their feet are not in
+    it (:func:`viewer.scene.ground.contacts`) or the reading is out of reach."""
+    import numpy as np
+
+    from viewer.plate.placement import PERSON_HEIGHT_M
+    from viewer.scene.area_lights import rotation_matrix
+    from viewer.scene.ground import contacts
+
+    feet = contacts(mask)
+    if not feet:
+        return 0.0
+    h, w = mask.shape
+    x = float(np.mean([f[0] for f in feet])) + 0.5
+    turn = rotation_matrix(0.0, pitch)
+
+    def down(row: float) -> float:  # the tangent of the angle below the horizon of the ray through (x, row)
+        d = np.array([(x - 0.5 * w) / focal_px, -(row - 0.5 * h) / focal_px, -1.0]) @ turn
+        return float(-d[1] / np.hypot(d[0], d[2]))
+
+    top = float(np.flatnonzero(mask.any(axis=1))[0])
+    f, t = down(max(f[1] for f in feet) + 1.0), down(top)
+    if f < MIN_BELOW or f <= t:
+        return 0.0
+    height = PERSON_HEIGHT_M * f / (f - t)
+    return float(height) if height <= MAX_CAMERA_HEIGHT_M else 0.0
+
+
 class ClipFrames:
     def __init__(self, bundle: ClipBundle):
         self.bundle = bundle
         source = bundle.source  # the bundle's frame, before --max-size at render: what the pans are measured in
         self.bundle_size = output_frame((source["width"], source["height"]), int(bundle.record["options"]["max_size"]))
         self._cameras: dict[int, object] = {}  # frame -> the camera its background is seen through
-        self._pitches: dict[int, tuple[float, str]] = {}  # shot -> (degrees the map is tilted by, how it was read)
+        self._pitches: dict[int, tuple[float, str, float]] = {}  # shot -> (degrees the map is tilted by, how it
+        # was read, metres the camera stood above the ground)
         self.people = [e.index for e in bundle.frames if e.state == "person"]
         self._shot_starts: dict[int, int] = {}  # shot -> its first frame with a person
         for k in self.people:
@@ -95,6 +130,21 @@ class ClipFrames:
         the person's own edges left out), as a plate's horizon is read. A camera looking down sees the
         new ground under the person's feet, not the map's horizon across the middle of the frame. 0 frame
         by frame (each frame relit exactly as a photo, which has no such reading)."""
+        pitch, how, _ = self._shot_camera(person)
+        return pitch, how
+
+    def camera_height(self, person: int) -> float:
+        """Metres above the ground the clip's camera stood in the shot of frame ``person`` (``Look.camera_height``:
+        the map's ground seen from there), read on the shot's first frame with a person once its horizon
+        was read (:meth:`pitch`): a person of ``PERSON_HEIGHT_M`` standing with their feet ``f`` and the top
+        of their head ``t`` below the horizon (the tangents of the angles down, through the camera the map
+        is seen through, tilted by the pitch) is seen from ``PERSON_HEIGHT_M f / (f - t)`` metres, as a
+        plate's people give its camera's height. 0 (the map as taken) when the horizon was not read, the
+        feet are not in the frame, or they stand at the horizon (:data:`MIN_BELOW`)."""
+        return self._shot_camera(person)[2]
+
+    def _shot_camera(self, person: int) -> tuple[float, str, float]:
+        """(pitch, how it was read, camera height) of the shot of frame ``person``, read once."""
         import cv2
         import numpy as np
 
@@ -103,7 +153,7 @@ class ClipFrames:
         from viewer.plate.plate_file import DEFAULT_FOCAL_35
 
         if not self.bundle.temporal:
-            return 0.0, "frame by frame: the camera taken as level"
+            return 0.0, "frame by frame: the camera taken as level", 0.0
         shot = self.bundle.frames[person].shot
         if shot not in self._pitches:
             first = self.shot_start(shot)
@@ -116,7 +166,11 @@ class ClipFrames:
             below, how = vertical_horizon(srgb, lens, person_px)
             camera = self.background_camera(first)
             seen_through = camera.focal_mm / camera.sensor_mm * max(srgb.shape[:2])
-            self._pitches[shot] = (0.0 if below is None else -float(np.degrees(np.arctan(below * lens / seen_through))), how)
+            if below is None:
+                self._pitches[shot] = (0.0, how, 0.0)
+            else:
+                pitch = -float(np.degrees(np.arctan(below * lens / seen_through)))
+                self._pitches[shot] = (pitch, how, person_seen_from(frame.alpha > 0.5, pitch, seen_through))
         return self._pitches[shot]
 
     def camera_turn(self, index: int, person: int) -> tuple[float, float]:

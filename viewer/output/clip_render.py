@@ -70,14 +70,15 @@ class ClipPictures:
         """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
         the shot of frame ``person`` (a person's), resolved once on that shot's first frame with a person."""
         yaw, tilt = self.turn_of(index, person)
-        look = replace(self.look, yaw=yaw, tilt=tilt)
+        look = replace(self.look, yaw=yaw, tilt=tilt, camera_height=self.look.camera_height or self.frames.camera_height(person))
         if self.look.exposure != AUTO or not self.bundle.temporal:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
             first = self.frames.shot_start(shot)
             yaw, tilt = self.turn_of(first, first)
-            self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt))[1].exposure
+            height = self.look.camera_height or self.frames.camera_height(first)
+            self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt, camera_height=height))[1].exposure
         return replace(look, exposure=self._exposures[shot])
 
     def _render(self, index: int, look: Look):
@@ -450,7 +451,11 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
         return {"parts": [p.name for p, _ in parts], "reused": reused}
     note = join_relit(bundle, parts, path)
     take_away(folder)
-    pitch, how = pictures.frames.pitch(pictures.frames.people[0])
+    first = pictures.frames.people[0]
+    pitch, how = pictures.frames.pitch(first)
+    height = pictures.frames.camera_height(first)
     return {"frames": len(bundle.frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
             "layers": sequence, "pitch": f"the clip's horizon ({how}): the new map's horizon put there"
-            + (f" (the map tilted {pitch:.1f} degrees)" if pitch else "")}
+            + (f" (the map tilted {pitch:.1f} degrees)" if pitch else "")
+            + (f"; the camera {height:.1f} m above the ground (from the person's height in the frame): the map's ground"
+               " seen from there" if height and not look.camera_height else "")}

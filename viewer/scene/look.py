@@ -31,6 +31,8 @@ VISIBILITY_MODES = MODES["VISIBILITY"]
 VIEWS = ("final", "diffuse_shading", "specular_shading", "albedo", "normal", "depth", "specular", "roughness", "shadow")
 PRESET_NAMES = ("interactive", "balanced", "final")  # viewer.gl.presets.PRESETS (tested equal)
 MAX_INTENSITY = 1e6
+MAP_CAMERA_HEIGHT_M = 1.6  # metres: an HDR map is taken from a tripod at about eye height
+MAX_CAMERA_HEIGHT_M = 1000.0
 
 
 def _choice(name: str, value, choices) -> None:
@@ -66,6 +68,9 @@ class Look:
     # catcher); "auto": shown when the feet are in the frame and the map is behind the person (ground_shown)
     backdrop_blur: float | str = AUTO  # degrees: the map behind the person blurred like a defocused background;
     # "auto": as much as the photo's own background is (viewer.scene.backdrop), 0 for a scene without a photo
+    camera_height: float = 0.0  # metres above the ground the map behind is seen from (a clip's camera, read from
+    # its person: viewer.output.clip_frames); the map's ground projected on a plane that far below (envmap.glsl);
+    # 0: the map as it was taken
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
@@ -92,6 +97,7 @@ class Look:
             raise InputError(None, f"ground must be true or false (or auto), got {self.ground!r}")
         if self.backdrop_blur != AUTO:
             _finite("backdrop blur", self.backdrop_blur, 0.0, MAX_BACKDROP_BLUR, " degrees (or auto)")
+        _finite("camera height", self.camera_height, 0.0, MAX_CAMERA_HEIGHT_M, " metres (0: the map as it was taken)")
         _choice("view", self.view, VIEWS)
         if isinstance(self.light, bool) or not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
@@ -104,6 +110,12 @@ class Look:
     def environment_rotation(self) -> np.ndarray:
         """3x3: camera directions to the turned map's directions (the background's lookup)."""
         return rotation_matrix(self.yaw, self.tilt).T
+
+    @property
+    def ground_squash(self) -> float:
+        """How the map's ground is seen from :attr:`camera_height` (``shaders/envmap.glsl: ground_projected``):
+        the map's camera height over it; 1 (the map as taken) at 0."""
+        return MAP_CAMERA_HEIGHT_M / float(self.camera_height) if self.camera_height > 0 else 1.0
 
     def ground_shown(self, feet: bool, background: str) -> bool:
         """Whether the ground shadow shows: as set, or ("auto") when the person's ``feet`` are in
