@@ -1120,6 +1120,17 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own_and_as_high(tmp_p
     distance = height / down[feet - 1]
     assert height - distance * down[feet - tall] == pytest.approx(1.7, rel=0.05), (height, tall)
     assert 1.7 < height < up  # above the person's head (it is below the horizon), and the lens wider than the clip's
+    # standing on the new ground: the map behind their feet is the map's ground in every frame (relight bench video)
+    from viewer.lab.bench.video import feet_over_the_sky
+
+    assert feet_over_the_sky(load_clip_bundle(tmp_path / "bundle"))["over_the_sky"] == 0
+    # seen frame by frame (a level camera) with their feet above the middle of the frame, they float over the sky
+    high = background.copy()
+    top = 200 - tall
+    high[top:200, x0:x0 + size[0]] = (alpha * person + (1 - alpha) * high[top:200, x0:x0 + size[0]]).astype(np.uint8)
+    infer_clip(write_clip(tmp_path / "high.mp4", [high, high], audio=None), tmp_path / "high", temporal="off")
+    floating = feet_over_the_sky(load_clip_bundle(tmp_path / "high"))
+    assert floating["frames_with_feet"] == floating["over_the_sky"] == 2, floating
 
 
 def test_the_windows_relit_frames_are_what_it_shows_live(clip_bundle, ctx):

@@ -16,6 +16,8 @@ clip bundle and relit under each map, as ``relight render CLIP`` does, in a chil
   photo is; on: the photo's lighting and the exposure estimated once per shot);
 - throughput end to end (decode to relit MP4), frames a minute, with the stages' shares (each
   frame's inference stages from its bundle's record; the render);
+- **feet over the map's sky** (:func:`feet_over_the_sky`): frames whose person's feet stand where the
+  relit frame shows the map's sky, not its ground (a person floating), and the camera height read;
 - **pieces of matte that come and go** between consecutive frames, not explained by the motion
   (:class:`MattePieces`): a piece of the old background kept in one frame and not the next, or of the
   person lost in one, both ways;
@@ -204,6 +206,38 @@ def infer_mode(clip: Path, out_dir: Path, name: str, mode: str, ctx, **options) 
     return bundle_dir, record, time.perf_counter() - t0
 
 
+def feet_over_the_sky(bundle) -> dict:
+    """Whether the person stands on the new ground: of the frames with the person whose feet are in the
+    picture (:func:`viewer.scene.ground.contacts` on the frame's matte), those where the map behind their
+    lowest foot, as the relit frame shows it (the shot's lens, horizon and camera turn,
+    :class:`viewer.output.clip_frames.ClipFrames`; the look's own tilt 0), is sky: a person floating."""
+    from viewer.files.imageio import read_png
+    from viewer.output.clip_frames import ClipFrames
+    from viewer.scene.area_lights import rotation_matrix
+    from viewer.scene.ground import contacts
+
+    frames = ClipFrames(bundle)
+    feet, over = 0, []
+    for entry in bundle.frames:
+        if entry.state != "person":
+            continue
+        matte = read_png(bundle.scene_path(entry.index) / "frame_alpha.png")
+        found = contacts((matte[..., 0] if matte.ndim == 3 else matte) > 0.5)
+        if not found:
+            continue
+        feet += 1
+        x, y = max(found, key=lambda c: c[1])
+        h, w = matte.shape[:2]
+        camera = frames.background_camera(entry.index)
+        focal = camera.focal_mm / camera.sensor_mm * max(h, w)
+        yaw, tilt = frames.camera_turn(entry.index, entry.index)
+        seen = np.array([(x + 0.5 - 0.5 * w) / focal, -(y + 1.0 - 0.5 * h) / focal, -1.0]) @ rotation_matrix(yaw, tilt)
+        if seen[1] >= 0.0:
+            over.append(entry.index)
+    return {"frames_with_feet": feet, "over_the_sky": len(over), "frames_over_the_sky": over[:50],
+            "camera_height_m": round(frames.camera_height(frames.people[0]), 2) if frames.people else 0.0}
+
+
 def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end: float, max_size: int) -> dict:
     """One clip inferred both ways (``--temporal off`` and on) and relit under every map."""
     from viewer.files.imageio import read_png
@@ -258,6 +292,7 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
         return alpha
 
     mattes = {mode: matte_of(b) for mode, b in bundles.items()}
+    figures["feet"] = {mode: feet_over_the_sky(b) for mode, b in bundles.items()}
     # the regions: each frame's own matte (frame by frame); the pieces: each mode's
     errors = clip_warping_errors(clip, start, end, relit, mattes["off"], mattes)
     figures["matte_pieces"] = errors["pieces"]
@@ -371,9 +406,11 @@ def _line(f: dict) -> str:
     pieces = ", ".join(f"{mode} {p['pieces']} in {len(p['frames_with_pieces'])} of {p['pairs']} frame pairs"
                        for mode, p in f.get("matte_pieces", {}).items())
     similar = ", ".join(f"{k} {v:.3f}" for k, v in f.get("warp_ssim", {}).get("all", {}).items())
+    feet = ", ".join(f"{mode} {v['over_the_sky']} of {v['frames_with_feet']}" for mode, v in f.get("feet", {}).items())
     return (f"{f['clip']}: {f['frames']} frames {f['size'][0]}x{f['size'][1]}; "
             f"warping error input {f['warping_error']['input']:.5f}, relit {ratios} of it; Warp-SSIM {similar}; "
-            f"matte pieces coming and going: {pieces}; frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
+            f"matte pieces coming and going: {pieces}; feet over the map's sky: {feet}; "
+            f"frames a minute {rates or '(bundles reused)'}; peak {f['peak_rss_gb']:.2f} GB")
 
 
 def video_table(result: dict) -> str:
