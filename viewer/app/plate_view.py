@@ -19,7 +19,7 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.output.plate_render import composite_frame, read_person
-from viewer.plate.placement import Placement, camera_mismatch, enlarged, person_lens_mismatch, plate_transform
+from viewer.plate.placement import Placement, camera_mismatch, enlarged, off_the_plate, person_lens_mismatch, plate_transform
 from viewer.plate.plate_file import Plate
 from viewer.plate.plate_match import feet_blur
 from viewer.scene.look import Look
@@ -113,9 +113,8 @@ class PlateView:
         (:func:`camera_mismatch`), its distance (:func:`person_lens_mismatch`, ``scene``'s photo's lens)
         and their frame's pixels enlarged (:func:`enlarged`)."""
         scale = None if self._frame is None else self._frame[0].scale * self.plate.size[0] / self.size[0]
-        off = ("the feet are off the plate: where they stand, and their shadow there, are not seen"
-               if not (0.0 <= self.place.x <= 1.0 and 0.0 <= self.place.y <= 1.0) else "")
-        return [line for line in (off, camera_mismatch(self.place, self.horizon), person_lens_mismatch(scene.frame, self.place, self.plate),
+        return [line for line in (off_the_plate(self.place), camera_mismatch(self.place, self.horizon),
+                                  person_lens_mismatch(scene.frame, self.place, self.plate),
                                   enlarged(scale)) if line]
 
     def blur(self, settled: bool) -> float:

@@ -53,6 +53,16 @@ def placement(at: tuple[float, float] | None = None, height: float | None = None
     return Placement(x, y, float(height))
 
 
+def off_the_plate(place: Placement) -> str | None:
+    """A line when ``--at`` puts the feet outside the plate (``AT_REACH`` allows it: a person cut by its
+    edge): where they stand, and their shadow there, are not seen. None when the feet are on it."""
+    if 0.0 <= place.x <= 1.0 and 0.0 <= place.y <= 1.0:
+        return None
+    return (f"the feet are off the plate (--at {place.x:g},{place.y:g}: "
+            f"{'below its bottom edge' if place.y > 1.0 else 'above its top edge' if place.y < 0.0 else 'beyond its side'}):"
+            " where they stand, and their shadow there, are not seen")
+
+
 MISMATCH = 2.0  # the plate's camera this many times higher or lower than eye height, where the person stands: warned
 
 
@@ -199,8 +209,8 @@ def place_on_plate(plate, at: tuple[float, float] | None, height: float | None, 
     """Where the person stands on ``plate`` (:func:`placement`) on ``horizon`` or the plate's own
     (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``), as tall as the people standing in
     it would have them without ``height`` (:func:`viewer.plate.plate_people.plate_camera_height`: the
-    plate camera's height; eye height without anyone); (the placement, the horizon). A placement
-    whose camera stands far from eye height is warned in one line."""
+    plate camera's height; eye height without anyone); (the placement, the horizon). Feet off the plate,
+    and a placement whose camera stands far from eye height, are warned in one line each."""
     import warnings
 
     from viewer.plate.horizon import plate_horizon
@@ -217,7 +227,7 @@ def place_on_plate(plate, at: tuple[float, float] | None, height: float | None, 
             notes.append(f"the plate's camera {camera:.2f} m above the ground, from {people} "
                          f"{'person' if people == 1 else 'people'} standing in it: the person sized for it")
     place = placement(at, height, horizon, camera)
-    mismatch = camera_mismatch(place, horizon)
-    if mismatch:
-        warnings.warn(f"{plate.source}: {mismatch}", stacklevel=2)
+    for mismatch in (off_the_plate(place), camera_mismatch(place, horizon)):
+        if mismatch:
+            warnings.warn(f"{plate.source}: {mismatch}", stacklevel=2)
     return place, float(horizon)
