@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import time
@@ -184,6 +185,12 @@ def test_plate_light_writes_a_map_to_use_as_any(tmp_path):
     sunny = run_cli("plate-light", str(tmp_path / "park.png"), "-o", str(tmp_path / "park.exr"))
     assert sunny.returncode == 0 and "note: a sun read from the clear sky" in sunny.stdout
     assert "to the left of ahead, behind the camera" in sunny.stdout, sunny.stdout
+    # where the light comes from, as a render's lights of it: the overcast square has no dominant light; the sun
+    # 120 degrees to the left, 15 up, does
+    assert "note: no dominant light" in done.stdout and json.loads(done.stdout.splitlines()[-1])["dominant_light"] is None
+    said = re.search(r"the dominant light \((\d+) % of the light\) comes from (\d+) degrees to the left of where the camera "
+                     r"looks \(behind the camera\), (\d+) degrees above the horizon", sunny.stdout)
+    assert said and int(said[1]) >= 30 and abs(int(said[2]) - 120) <= 10 and abs(int(said[3]) - 15) <= 10, sunny.stdout
     env = load_envmap(tmp_path / "light.exr")
     assert env.pixels.shape == (256, 512, 3)
     again = run_cli("plate-light", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "light.exr"), "--height", "64")

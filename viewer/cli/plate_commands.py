@@ -20,7 +20,9 @@ MIN_MAP_HEIGHT, MAX_MAP_HEIGHT = 8, 4096  # plate-light's --height: a map of 16x
 
 
 def cmd_plate_light(args) -> int:
+    from viewer.lighting.dominant import dominant_light, dominant_light_line
     from viewer.lighting.envmap import save_envmap
+    from viewer.lighting.lightfit import lights_for_map
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
 
@@ -36,9 +38,14 @@ def cmd_plate_light(args) -> int:
     start = time.perf_counter()
     plate = read_plate(args.plate, notes)
     env, record = plate_light(plate, args.height)
+    # where the light comes from, as the lights a render fits to it (cached: a render of this plate reuses them)
+    lights, _ = lights_for_map(env)
     seconds = time.perf_counter() - start
     save_envmap(out, env)
     notes.append(record["sun"])
+    notes.append(dominant_light_line(lights))
+    found = dominant_light(lights)
+    record["dominant_light"] = None if found is None else dict(zip(("azimuth_deg", "elevation_deg", "share"), found))
     for note in notes:
         print(f"note: {note}")
     print(f"{out}: the light of {args.plate} ({plate.size[0]}x{plate.size[1]}, {record['focal_35mm']:g} mm from "

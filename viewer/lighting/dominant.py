@@ -1,6 +1,6 @@
 """The dominant light of a set of area lights: the strongest with those near it, since a fit splits a
 sun over several lights (the contact shadow's sky share, :mod:`viewer.plate.contact`; the plates
-bench's dominant direction)."""
+bench's dominant direction; what ``relight plate-light`` says of the light it read)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from viewer.lighting.envmap import LUMINANCE
 from viewer.scene.area_lights import AreaLights
 
 CLUSTER_DEG = 20.0  # lights this near the strongest are one light with it (a fit splits a sun over several)
+DOMINANT_SHARE = 0.3  # of the lights' summed luminance: a light this strong is a dominant one (a sun, a lamp)
 
 
 def strongest_group(lights: AreaLights, weights: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -24,3 +25,29 @@ def strongest_group(lights: AreaLights, weights: np.ndarray | None = None) -> tu
     near = dirs @ dirs[int(np.argmax(w))] >= np.cos(np.radians(CLUSTER_DEG))
     direction = (dirs[near] * w[near, None]).sum(axis=0)
     return direction / max(float(np.linalg.norm(direction)), 1e-30), float(w[near].sum() / float(w.sum()))
+
+
+def dominant_light(lights: AreaLights) -> tuple[float, float, float] | None:
+    """(azimuth, elevation, share) of the lights' dominant light (:func:`strongest_group` holding
+    ``DOMINANT_SHARE`` or more of their luminance), in degrees: the azimuth from where a camera-framed
+    map's camera looks (-z), to the right positive, the elevation above the horizon; None without one."""
+    direction, share = strongest_group(lights)
+    if share < DOMINANT_SHARE:
+        return None
+    x, y, z = (float(v) for v in direction)
+    return float(np.degrees(np.arctan2(x, -z))), float(np.degrees(np.arcsin(np.clip(y, -1.0, 1.0)))), share
+
+
+def dominant_light_line(lights: AreaLights) -> str:
+    """One line on where the light comes from (:func:`dominant_light`): its direction as the camera sees it
+    and its share, or that there is none and how much the strongest holds."""
+    found = dominant_light(lights)
+    if found is None:
+        share = strongest_group(lights)[1]
+        return (f"no dominant light: the strongest, with those within {CLUSTER_DEG:g} degrees of it, holds {100 * share:.0f} % "
+                f"of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): the person is lit evenly")
+    azimuth, elevation, share = found
+    side = "straight ahead of" if abs(azimuth) < 0.5 else f"{abs(azimuth):.0f} degrees to the {'right' if azimuth > 0 else 'left'} of"
+    behind = " (behind the camera)" if abs(azimuth) > 90 else ""
+    return (f"the dominant light ({100 * share:.0f} % of the light) comes from {side} where the camera looks{behind}, "
+            f"{abs(elevation):.0f} degrees {'above' if elevation >= 0 else 'below'} the horizon")

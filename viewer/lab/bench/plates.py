@@ -19,8 +19,8 @@ linear units:
 
 Per plate: the RMSE of each against the truth over the person's pixels (the scene's mask at the
 maps' resolution), and where the true map has a dominant light (its strongest fitted light, with
-those within ``viewer.lighting.dominant.CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more), the
-angle between it and the estimate's strongest light (grouped the same way). The JSON's ``summary``
+those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more; both
+:mod:`viewer.lighting.dominant`'s), the angle between it and the estimate's strongest light (grouped the same way). The JSON's ``summary``
 holds the means over all plates (``estimate``, ``uniform``, ``sh``) and ``direction_deg_median``.
 """
 
@@ -42,7 +42,6 @@ PLATE_SIZE = (960, 640)  # pixels, landscape 3:2
 PLATE_FOCAL_35 = 35.0  # mm, 35-mm equivalent (written in the plate's EXIF)
 YAWS = (0.0, 120.0, 240.0)
 JPEG_QUALITY = 90
-DOMINANT_SHARE = 0.3  # of the lights' summed luminance: a light this strong is a dominant one (a sun, a lamp)
 LIGHTS = 16
 
 
@@ -109,7 +108,7 @@ def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3,
     from viewer.gl import Engine, create_headless_context
     from viewer.lab.bench.video import map_and_lights
     from viewer.lighting import sh
-    from viewer.lighting.dominant import strongest_group
+    from viewer.lighting.dominant import DOMINANT_SHARE, strongest_group
     from viewer.lighting.envmap import SUFFIXES, EnvMap
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
     from viewer.plate.plate_file import read_plate
