@@ -228,3 +228,25 @@ def test_the_outline_is_decided_around_the_person():
     assert not cropped[0][outside].any()
     tall = resize(photo, (round(photo.shape[1] * 900 / photo.shape[0]), 900))
     assert matting.solve_window(find_person(tall, "tall person").segmentation) is None
+
+
+def test_dark_hair_against_a_dark_background_is_kept():
+    """A man's black hair against a dark sign (a frame of the shared taiji clip): the colour cut called it
+    background and the relit man was bald. The crown, the ellipse of the head above the eyes the pose's
+    face gives (matting.head_mask), is the person for sure within the segmentation: the matte's top at the
+    head is the segmentation's, not 15 px under it. A face without a mouth gives no crown."""
+    import av
+
+    with av.open(str(SHARED_DATA / "videos" / "hybrik_taiji.mp4")) as clip:
+        photo = next(f.to_ndarray(format="rgb24") for i, f in enumerate(clip.decode(video=0)) if i == 6)
+    person = find_person(photo, "taiji")
+    alpha = matting.automatic_matte(photo, person).alpha
+    h, w = alpha.shape
+    eyes = 0.5 * (np.array(person.landmarks[2]) + np.array(person.landmarks[5])) * (w, h)
+    columns = slice(int(eyes[0]) - 15, int(eyes[0]) + 15)
+    top_seg = np.flatnonzero((person.segmentation[:, columns] > 0.5).any(axis=1))[0]
+    top_matte = np.flatnonzero((alpha[:, columns] > 0.5).any(axis=1))[0]
+    assert top_matte <= top_seg + 5, (top_matte, top_seg)
+    crown = matting.head_mask(person.landmarks, (w, h))
+    assert crown is not None and crown.any() and not crown[int(eyes[1]) + 8:].any()  # above the eyes (the face a little tilted)
+    assert matting.head_mask({k: v for k, v in person.landmarks.items() if k not in (9, 10)}, (w, h)) is None

@@ -91,3 +91,21 @@ def test_no_person_is_one_clear_line():
     with pytest.raises(InputError, match="no person found") as info:
         find_person(room, "room.jpg")
     assert info.value.path == "room.jpg"
+
+
+def test_shoes_split_from_the_legs_are_the_persons_feet():
+    """Dark shoes on a dark floor come out of the selfie model as parts of their own under the legs: they
+    are the person's (their box reaches the soles, the box the pose model is shown), while a small part
+    farther off, or above the person, stays a part of its own."""
+    from viewer.photo.segmentation import _people
+
+    mask = np.zeros((500, 700), bool)
+    mask[100:400, 100:200] = True  # the person down to the trouser hems
+    mask[415:450, 100:140] = mask[420:450, 160:200] = True  # their shoes
+    mask[420:450, 500:530] = True  # someone small, far to the side
+    mask[40:60, 140:165] = True  # a piece above the head
+    parts = _people(mask, everyone=True)
+    (x, y, w, h), pixels = parts[0]
+    assert (x, y, w, h) == (100, 100, 100, 350) and pixels[440, 120] and pixels[440, 180]
+    assert not pixels[440, 510] and not pixels[50, 150]
+    assert sorted(p[0] for p in parts[1:]) == [(140, 40, 25, 20), (500, 420, 30, 30)]

@@ -170,6 +170,42 @@ def face_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
     return out > 0
 
 
+HEAD_TOP = 1.75  # eye-to-mouth lengths above the eyes: the top of the head (about 1.9), a little inside it
+HEAD_CHIN = 0.8  # eye-to-mouth lengths below the mouth: the chin
+HEAD_WIDE = 0.65  # of the distance between the ears: the head's half-width (1.2 eye-to-mouth lengths without both ears)
+
+
+def head_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
+    """(H, W) bool at ``size`` = (w, h): the crown, the ellipse of the head the pose's face landmarks
+    give (from ``HEAD_CHIN`` below the mouth to ``HEAD_TOP`` above the eyes, along the face's own up,
+    ``HEAD_WIDE`` of the ears' distance to each side) above the eyes; None without both eyes and the mouth. Within the segmentation
+    it is the person for sure (:func:`trimap`): dark hair against a dark background has the
+    background's colours, and the band's colour cut took the top of a head off (a man relit bald)."""
+    import cv2
+
+    w, h = size
+    pts = {i: np.array([x * w, y * h]) for i, (x, y) in landmarks.items()}
+    if not all(i in pts for i in (2, 5, 9, 10)):
+        return None
+    eyes, mouth = 0.5 * (pts[2] + pts[5]), 0.5 * (pts[9] + pts[10])
+    up = eyes - mouth
+    length = float(np.linalg.norm(up))
+    if length < 1.0:
+        return None
+    up /= length
+    top, chin = eyes + HEAD_TOP * length * up, mouth - HEAD_CHIN * length * up
+    wide = HEAD_WIDE * float(np.linalg.norm(pts[7] - pts[8])) if 7 in pts and 8 in pts else 1.2 * length
+    centre, tall = 0.5 * (top + chin), 0.5 * float(np.linalg.norm(top - chin))
+    out = np.zeros((h, w), np.uint8)
+    angle = float(np.degrees(np.arctan2(up[0], -up[1])))  # the face's up from the image's
+    cv2.ellipse(out, (int(round(centre[0])), int(round(centre[1]))), (max(int(round(wide)), 1), max(int(round(tall)), 1)),
+                angle, 0, 360, 1, -1)
+    # above the eyes only: the crown and its hair; beside the face (a turned head's far side, its ears) the
+    # segmentation spills over the background, and the band decides there
+    xs, ys = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    return (out > 0) & ((xs - eyes[0]) * up[0] + (ys - eyes[1]) * up[1] > 0.0)
+
+
 def gaps_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray:
     """(H, W) bool: the ``GAPS`` polygons at ``size`` = (w, h) whose landmarks are all seen."""
     import cv2
@@ -374,6 +410,9 @@ def trimap(segmentation: np.ndarray, landmarks: dict) -> Trimap:
     height = person_height(seg)
     inside, outside = distances(seg)
     sure_person = (inside > CORE * height) & ~gaps_mask(landmarks, (w, h))
+    head = head_mask(landmarks, (w, h))
+    if head is not None:  # the head within the segmentation: its hair kept against a background of its colour
+        sure_person |= head & seg
     # the person's colours also come from its bones (a thin limb has no deep pixels)
     samples = sure_person | (bones_mask(landmarks, (w, h), int(round(BONE * height))) & seg)
     return Trimap(sure_person, samples, outside > OUTER * height, inside, outside, height)

@@ -313,16 +313,48 @@ def box_iou(a: tuple, b: tuple) -> float:
 def _people(mask: np.ndarray, everyone: bool = False) -> list[tuple[tuple[int, int, int, int], np.ndarray]]:
     """The mask's parts at least OTHER_PERSON_FRACTION of the largest (``everyone``: at least
     ``LEAST_PART`` of the frame, however small beside the largest: a clip's person far behind a
-    bystander), largest first: each its box (x, y, w, h) and its pixels (bool, the mask's shape)."""
+    bystander), largest first: each its box (x, y, w, h) and its pixels (bool, the mask's shape). A
+    small part just under a larger one (:func:`_their_feet`) is the larger's: their shoes."""
     import cv2
 
     count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     if count <= 1:
         return []
-    areas = stats[1:, cv2.CC_STAT_AREA]
-    order = np.argsort(-areas)
+    owner = _their_feet(stats[1:])
+    areas = np.bincount(owner, weights=stats[1:, cv2.CC_STAT_AREA], minlength=count - 1)
+    order = [i for i in np.argsort(-areas) if owner[i] == i]
     least = LEAST_PART * mask.size if everyone else OTHER_PERSON_FRACTION * areas[order[0]]
-    return [(tuple(int(v) for v in stats[1 + i, :4]), labels == 1 + i) for i in order if areas[i] >= least]
+    found = []
+    for i in order:
+        if areas[i] < least:
+            continue
+        pixels = np.isin(labels, 1 + np.flatnonzero(owner == i))
+        ys, xs = np.nonzero(pixels)
+        found.append(((int(xs.min()), int(ys.min()), int(xs.max() - xs.min() + 1), int(ys.max() - ys.min() + 1)), pixels))
+    return found
+
+
+FEET_PART = 0.15  # of a part's area: a part at most this large just under it may be its feet
+FEET_GAP = 0.2  # of a part's height: how far from its bottom (above or under) such a part's top may be
+
+
+def _their_feet(stats: np.ndarray) -> np.ndarray:
+    """For each part (OpenCV's stats rows: x, y, w, h, area), the part it belongs to: itself, or the
+    largest part it lies just under (its top within ``FEET_GAP`` of that one's height of its bottom,
+    within its width and no wider, its area at most ``FEET_PART`` of that one's): dark shoes on a dark floor, split from
+    the legs by the selfie model, are the person's feet and no one else. Shown the person's own part, the
+    pose model was given a box that ended above the shoes, and the relit person stood without them."""
+    x, y, w, h, area = (stats[:, k].astype(np.float64) for k in range(5))
+    owner = np.arange(len(stats))
+    for i in np.argsort(-area):
+        if owner[i] != i:
+            continue
+        bottom = y[i] + h[i]
+        under = ((owner == np.arange(len(stats))) & (area <= FEET_PART * area[i]) & (y >= bottom - FEET_GAP * h[i])
+                 & (y <= bottom + FEET_GAP * h[i]) & (x < x[i] + w[i]) & (x + w > x[i]) & (w <= w[i]))
+        under[i] = False
+        owner[under] = i
+    return owner
 
 
 def keep_person(matte: np.ndarray, landmarks: list, notes: list) -> np.ndarray:
