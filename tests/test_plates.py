@@ -238,6 +238,8 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
     result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1)
     assert json.loads((tmp_path / "plates.json").read_text())["summary"] == result["summary"]
     assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median"}
+    ratios = sorted(r["estimate"] / r["uniform"] for r in result["plates"])
+    assert result["summary"]["estimate_over_uniform_median"] == pytest.approx(ratios[1])  # the middle plate's of three
     for row in result["plates"]:
         assert set(row["people"]) == {"sample scene", "bundled photo"}
         assert all(np.isfinite(v) and v > 0 for p in row["people"].values() for v in p.values())

@@ -208,7 +208,9 @@ def cmd_bench(args) -> int:
         photos = None if args.procedural else plate_photos([shared_folder(args.photos, "photos", "--photos"), *(args.set or [])])
         summary = run_plates_benchmark(maps, out, photos=photos)["summary"]
         print(f"person RMSE (means): estimate {summary['estimate']:.4f}, uniform {summary['uniform']:.4f} "
-              f"({summary['estimate_over_uniform']:.2f} x), sh {summary['sh']:.4f} ({summary['estimate_over_sh']:.2f} x); "
+              f"({summary['estimate_over_uniform']:.2f} x), sh {summary['sh']:.4f} ({summary['estimate_over_sh']:.2f} x); per plate, "
+              f"the median of its ratio to uniform {summary['estimate_over_uniform_median']:.3f} x, to sh "
+              f"{summary['estimate_over_sh_median']:.3f} x; "
               f"dominant light off by {summary['direction_deg_median']} degrees (median)"
               + (f"; a person put back into their own photo {summary['identity_median_stops']:+.2f} stops, RMSE "
                  f"{summary['identity_median_rmse_levels']:.1f} levels (medians)" if photos else "") + f"; wrote {out}")

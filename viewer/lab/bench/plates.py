@@ -21,7 +21,8 @@ Per plate: the RMSE of each against the truth over the person's pixels (the scen
 maps' resolution), and where the true map has a dominant light (its strongest fitted light, with
 those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more; both
 :mod:`viewer.lighting.dominant`'s), the angle between it and the estimate's strongest light (grouped the same way). The JSON's ``summary``
-holds the means over all plates (``estimate``, ``uniform``, ``sh``) and ``direction_deg_median``.
+holds the means over all plates (``estimate``, ``uniform``, ``sh``), ``direction_deg_median``, and the medians over
+plates of each plate's ratio (``estimate_over_uniform_median``, ``estimate_over_sh_median``).
 """
 
 from __future__ import annotations
@@ -170,6 +171,9 @@ def run_plates_benchmark(maps_dir, output, progress=print, timing_runs: int = 3,
     summary["direction_deg_median"] = float(np.median(directions)) if directions else None
     summary["estimate_over_uniform"] = summary["estimate"] / summary["uniform"]
     summary["estimate_over_sh"] = summary["estimate"] / summary["sh"]
+    # the issue's targets are medians over plates of each plate's ratio (a hidden studio softbox swamps a mean)
+    summary["estimate_over_uniform_median"] = float(np.median([r["estimate"] / r["uniform"] for r in rows]))
+    summary["estimate_over_sh_median"] = float(np.median([r["estimate"] / r["sh"] for r in rows]))
     result = {"summary": summary, "plates": rows, "maps": [p.name for p in maps], "yaws": list(YAWS),
               "plate": {"size": list(PLATE_SIZE), "focal_35mm": PLATE_FOCAL_35, "jpeg_quality": JPEG_QUALITY},
               "seconds": round(time.perf_counter() - t_start, 1)}
