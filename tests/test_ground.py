@@ -432,6 +432,11 @@ def test_the_maps_ground_is_seen_from_the_cameras_height(ctx, person):
         expected = env.seen_through(person.camera, 0.0, 8.0, look.ground_squash)
         assert np.abs(shown[height] - expected)[away].max() < 0.03, height
     assert Look(camera_height=4.0).ground_squash == pytest.approx(MAP_CAMERA_HEIGHT_M / 4.0)
+    from viewer.errors import InputError
+
+    for bad in (1e-20, -1.0, float("nan")):  # a ground squashed past a float, below the camera, no number
+        with pytest.raises(InputError, match="camera height"):
+            Look(camera_height=bad)
     rows = person.camera.view_directions() @ rotation_matrix(0.0, 8.0)
     sky, ground = (rows[..., 1] > 0.02) & away, (rows[..., 1] < -0.2) & away
     assert sky.any() and ground.any()

@@ -232,7 +232,7 @@ def test_the_outline_is_decided_around_the_person():
 
 def test_dark_hair_against_a_dark_background_is_kept():
     """A man's black hair against a dark sign (a frame of the shared taiji clip): the colour cut called it
-    background and the relit man was bald. The crown, the ellipse of the head above the eyes the pose's
+    background and the relit man was bald. The crown, the ellipse of the head above the brows the pose's
     face gives (matting.head_mask), is the person for sure within the segmentation: the matte's top at the
     head is the segmentation's, not 15 px under it. A face without a mouth gives no crown."""
     import av

@@ -506,7 +506,7 @@ def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
     below = run_cli("render", str(bundle), "--plate", str(tmp_path / "plate.jpg"), "-o", str(tmp_path / "below.png"), "--at",
                     "0.5,1.15", "--height", "0.6")  # cut by the plate's bottom edge: made, and said once
     assert below.returncode == 0, below.stderr
-    assert below.stderr.count("the feet are off the plate (--at 0.5,1.15: below its bottom edge)") == 1, below.stderr
+    assert below.stderr.count("the feet are off the plate (at 0.50,1.15 of it: below its bottom edge)") == 1, below.stderr
     alone = run_cli("render", str(bundle), "--env", str(rooitou), "-o", str(tmp_path / "x.png"), "--at", "0.5,0.9")
     assert alone.returncode == 2 and "give --plate" in alone.stderr
 

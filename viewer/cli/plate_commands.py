@@ -6,6 +6,7 @@ plate, standing on its ground with their shadow: :mod:`viewer.output.plate_compo
 from __future__ import annotations
 
 import json
+import math
 import time
 import warnings
 from pathlib import Path
@@ -23,6 +24,7 @@ def cmd_plate_light(args) -> int:
     from viewer.lighting.dominant import dominant_light, dominant_light_line
     from viewer.lighting.envmap import save_envmap
     from viewer.lighting.lightfit import lights_for_map
+    from viewer.plate.horizon import plate_horizon
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
 
@@ -37,14 +39,17 @@ def cmd_plate_light(args) -> int:
     notes: list = []
     start = time.perf_counter()
     plate = read_plate(args.plate, notes)
-    env, record = plate_light(plate, args.height)
-    # where the light comes from, as the lights a render fits to it (cached: a render of this plate reuses them)
+    horizon = plate_horizon(plate)[0]
+    env, record = plate_light(plate, args.height, horizon=horizon)
+    # where the light comes from, as the 16 lights a render fits to it by default (cached: such a render reuses them),
+    # levelled by the camera's tilt its horizon gives
     lights, _ = lights_for_map(env)
+    pitch = math.degrees(math.atan((horizon - 0.5) * plate.size[1] / plate.focal_px))
     seconds = time.perf_counter() - start
     save_envmap(out, env)
     notes.append(record["sun"])
-    notes.append(dominant_light_line(lights))
-    found = dominant_light(lights)
+    notes.append(dominant_light_line(lights, pitch))
+    found = dominant_light(lights, pitch)
     record["dominant_light"] = None if found is None else dict(zip(("azimuth_deg", "elevation_deg", "share"), found))
     for note in notes:
         print(f"note: {note}")

@@ -27,25 +27,28 @@ def strongest_group(lights: AreaLights, weights: np.ndarray | None = None) -> tu
     return direction / max(float(np.linalg.norm(direction)), 1e-30), float(w[near].sum() / float(w.sum()))
 
 
-def dominant_light(lights: AreaLights) -> tuple[float, float, float] | None:
+def dominant_light(lights: AreaLights, pitch: float = 0.0) -> tuple[float, float, float] | None:
     """(azimuth, elevation, share) of the lights' dominant light (:func:`strongest_group` holding
-    ``DOMINANT_SHARE`` or more of their luminance), in degrees: the azimuth from where a camera-framed
-    map's camera looks (-z), to the right positive, the elevation above the horizon; None without one."""
+    ``DOMINANT_SHARE`` or more of their luminance), in degrees, for lights in a camera's frame whose camera
+    looks ``pitch`` degrees up (a plate's, read from its horizon): the azimuth from where the camera looks
+    (-z), to the right positive, the elevation above the horizon; None without one."""
+    from viewer.scene.area_lights import rotation_matrix
+
     direction, share = strongest_group(lights)
     if share < DOMINANT_SHARE:
         return None
-    x, y, z = (float(v) for v in direction)
+    x, y, z = (float(v) for v in rotation_matrix(0.0, pitch) @ direction)  # levelled: the camera's tilt undone
     return float(np.degrees(np.arctan2(x, -z))), float(np.degrees(np.arcsin(np.clip(y, -1.0, 1.0)))), share
 
 
-def dominant_light_line(lights: AreaLights) -> str:
+def dominant_light_line(lights: AreaLights, pitch: float = 0.0) -> str:
     """One line on where the light comes from (:func:`dominant_light`): its direction as the camera sees it
     and its share, or that there is none and how much the strongest holds."""
-    found = dominant_light(lights)
+    found = dominant_light(lights, pitch)
     if found is None:
         share = strongest_group(lights)[1]
         return (f"no dominant light: the strongest, with those within {CLUSTER_DEG:g} degrees of it, holds {100 * share:.0f} % "
-                f"of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): the person is lit evenly")
+                f"of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): no one direction leads")
     azimuth, elevation, share = found
     side = "straight ahead of" if abs(azimuth) < 0.5 else f"{abs(azimuth):.0f} degrees to the {'right' if azimuth > 0 else 'left'} of"
     behind = " (behind the camera)" if abs(azimuth) > 90 else ""

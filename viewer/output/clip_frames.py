@@ -26,11 +26,13 @@ MIN_BELOW = 0.02  # the feet's tangent down from the horizon below which a camer
 MAX_CAMERA_HEIGHT_M = 50.0  # a camera read higher than this (a person at the horizon): not read
 
 
-def person_seen_from(mask, pitch: float, focal_px: float) -> float:
+def person_seen_from(mask, pitch: float, focal_px: float, face_box: tuple | None = None) -> float:
     """Metres above the ground a camera tilted ``pitch`` degrees (down: positive, as ``Look.tilt``) with focal length
     ``focal_px`` (pixels of ``mask``, centred) stood to see a person of ``PERSON_HEIGHT_M`` as ``mask``
-    (H, W) bool shows them standing (:meth:`ClipFrames.camera_height`); 0 when their feet are not in
-    it (:func:`viewer.scene.ground.contacts`) or the reading is out of reach."""
+    (H, W) bool shows them standing (:meth:`ClipFrames.camera_height`): their top is the mask's over their face
+    (``face_box``, fractions of the frame: hands raised above the shoulders do not make them taller), else the
+    mask's. 0 when their feet are not in it (:func:`viewer.scene.ground.contacts`), the frame's top edge cuts
+    them, or the reading is out of reach. A child, or someone sitting, reads a camera too high."""
     import numpy as np
 
     from viewer.plate.placement import PERSON_HEIGHT_M
@@ -48,7 +50,15 @@ def person_seen_from(mask, pitch: float, focal_px: float) -> float:
         d = np.array([(x - 0.5 * w) / focal_px, -(row - 0.5 * h) / focal_px, -1.0]) @ turn
         return float(-d[1] / np.hypot(d[0], d[2]))
 
-    top = float(np.flatnonzero(mask.any(axis=1))[0])
+    over = mask
+    if face_box is not None:  # the columns of their face: their head's top, not a hand raised beside it
+        x0, x1 = int(face_box[0] * w), int(np.ceil((face_box[0] + face_box[2]) * w))
+        if mask[:, max(x0, 0):min(x1, w)].any():
+            over = mask[:, max(x0, 0):min(x1, w)]
+    rows = np.flatnonzero(over.any(axis=1))
+    if rows[0] == 0:  # the frame's top edge cuts them: their height is not seen
+        return 0.0
+    top = float(rows[0])
     f, t = down(max(f[1] for f in feet) + 1.0), down(top)
     if f < MIN_BELOW or f <= t:
         return 0.0
@@ -170,7 +180,7 @@ class ClipFrames:
                 self._pitches[shot] = (0.0, how, 0.0)
             else:
                 pitch = -float(np.degrees(np.arctan(below * lens / seen_through)))
-                self._pitches[shot] = (pitch, how, person_seen_from(frame.alpha > 0.5, pitch, seen_through))
+                self._pitches[shot] = (pitch, how, person_seen_from(frame.alpha > 0.5, pitch, seen_through, frame.face_box))
         return self._pitches[shot]
 
     def camera_turn(self, index: int, person: int) -> tuple[float, float]:

@@ -458,4 +458,4 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
             "layers": sequence, "pitch": f"the clip's horizon ({how}): the new map's horizon put there"
             + (f" (the map tilted {pitch:.1f} degrees)" if pitch else "")
             + (f"; the camera {height:.1f} m above the ground (from the person's height in the frame): the map's ground"
-               " seen from there" if height and not look.camera_height else "")}
+               " seen from there" if height and not look.camera_height and look.background == "environment" else "")}

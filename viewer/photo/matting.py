@@ -172,14 +172,15 @@ def face_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
 
 HEAD_TOP = 1.75  # eye-to-mouth lengths above the eyes: the top of the head (about 1.9), a little inside it
 HEAD_CHIN = 0.8  # eye-to-mouth lengths below the mouth: the chin
+HEAD_BROWS = 0.4  # eye-to-mouth lengths above the eyes: where the crown begins (the brows; the temples left to the band)
 HEAD_WIDE = 0.65  # of the distance between the ears: the head's half-width (1.2 eye-to-mouth lengths without both ears)
 
 
 def head_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
     """(H, W) bool at ``size`` = (w, h): the crown, the ellipse of the head the pose's face landmarks
     give (from ``HEAD_CHIN`` below the mouth to ``HEAD_TOP`` above the eyes, along the face's own up,
-    ``HEAD_WIDE`` of the ears' distance to each side) above the eyes; None without both eyes and the mouth. Within the segmentation
-    it is the person for sure (:func:`trimap`): dark hair against a dark background has the
+    ``HEAD_WIDE`` of the ears' distance to each side) above the brows (``HEAD_BROWS``); None without both
+    eyes and the mouth. Within the segmentation it is the person for sure (:func:`trimap`): dark hair against a dark background has the
     background's colours, and the band's colour cut took the top of a head off (a man relit bald)."""
     import cv2
 
@@ -200,10 +201,10 @@ def head_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray | None:
     angle = float(np.degrees(np.arctan2(up[0], -up[1])))  # the face's up from the image's
     cv2.ellipse(out, (int(round(centre[0])), int(round(centre[1]))), (max(int(round(wide)), 1), max(int(round(tall)), 1)),
                 angle, 0, 360, 1, -1)
-    # above the eyes only: the crown and its hair; beside the face (a turned head's far side, its ears) the
-    # segmentation spills over the background, and the band decides there
+    # above the brows only: the crown and its hair; beside the face and the temples (a turned head's far side,
+    # its ears) the segmentation spills over the background, and the band decides there
     xs, ys = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
-    return (out > 0) & ((xs - eyes[0]) * up[0] + (ys - eyes[1]) * up[1] > 0.0)
+    return (out > 0) & ((xs - eyes[0]) * up[0] + (ys - eyes[1]) * up[1] > HEAD_BROWS * length)
 
 
 def gaps_mask(landmarks: dict, size: tuple[int, int]) -> np.ndarray:

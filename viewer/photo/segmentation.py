@@ -341,7 +341,7 @@ FEET_GAP = 0.2  # of a part's height: how far from its bottom (above or under) s
 def _their_feet(stats: np.ndarray) -> np.ndarray:
     """For each part (OpenCV's stats rows: x, y, w, h, area), the part it belongs to: itself, or the
     largest part it lies just under (its top within ``FEET_GAP`` of that one's height of its bottom,
-    within its width and no wider, its area at most ``FEET_PART`` of that one's): dark shoes on a dark floor, split from
+    overlapping its columns and no wider, its area at most ``FEET_PART`` of that one's): dark shoes on a dark floor, split from
     the legs by the selfie model, are the person's feet and no one else. Shown the person's own part, the
     pose model was given a box that ended above the shoes, and the relit person stood without them."""
     x, y, w, h, area = (stats[:, k].astype(np.float64) for k in range(5))

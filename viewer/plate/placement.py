@@ -54,11 +54,11 @@ def placement(at: tuple[float, float] | None = None, height: float | None = None
 
 
 def off_the_plate(place: Placement) -> str | None:
-    """A line when ``--at`` puts the feet outside the plate (``AT_REACH`` allows it: a person cut by its
-    edge): where they stand, and their shadow there, are not seen. None when the feet are on it."""
+    """A line when the feet are placed outside the plate (``--at``, or dragged in the window; ``AT_REACH`` allows it:
+    a person cut by its edge): where they stand, and their shadow there, are not seen. None when they are on it."""
     if 0.0 <= place.x <= 1.0 and 0.0 <= place.y <= 1.0:
         return None
-    return (f"the feet are off the plate (--at {place.x:g},{place.y:g}: "
+    return (f"the feet are off the plate (at {place.x:.2f},{place.y:.2f} of it: "
             f"{'below its bottom edge' if place.y > 1.0 else 'above its top edge' if place.y < 0.0 else 'beyond its side'}):"
             " where they stand, and their shadow there, are not seen")
 

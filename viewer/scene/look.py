@@ -33,6 +33,7 @@ PRESET_NAMES = ("interactive", "balanced", "final")  # viewer.gl.presets.PRESETS
 MAX_INTENSITY = 1e6
 MAP_CAMERA_HEIGHT_M = 1.6  # metres: an HDR map is taken from a tripod at about eye height
 MAX_CAMERA_HEIGHT_M = 1000.0
+MIN_CAMERA_HEIGHT_M = 0.05  # a camera lower than this sees the ground squashed past what a float holds
 
 
 def _choice(name: str, value, choices) -> None:
@@ -68,9 +69,9 @@ class Look:
     # catcher); "auto": shown when the feet are in the frame and the map is behind the person (ground_shown)
     backdrop_blur: float | str = AUTO  # degrees: the map behind the person blurred like a defocused background;
     # "auto": as much as the photo's own background is (viewer.scene.backdrop), 0 for a scene without a photo
-    camera_height: float = 0.0  # metres above the ground the map behind is seen from (a clip's camera, read from
-    # its person: viewer.output.clip_frames); the map's ground projected on a plane that far below (envmap.glsl);
-    # 0: the map as it was taken
+    camera_height: float = 0.0  # metres above the ground the map behind is seen from; the map's ground projected
+    # on a plane that far below (envmap.glsl); 0: a clip's camera as read from its person (viewer.output.clip_frames),
+    # else the map as it was taken (MAP_CAMERA_HEIGHT_M gives that on a clip too)
 
     def __post_init__(self):
         _finite("yaw", self.yaw, -1e6, 1e6, " degrees")
@@ -97,7 +98,10 @@ class Look:
             raise InputError(None, f"ground must be true or false (or auto), got {self.ground!r}")
         if self.backdrop_blur != AUTO:
             _finite("backdrop blur", self.backdrop_blur, 0.0, MAX_BACKDROP_BLUR, " degrees (or auto)")
-        _finite("camera height", self.camera_height, 0.0, MAX_CAMERA_HEIGHT_M, " metres (0: the map as it was taken)")
+        _finite("camera height", self.camera_height, 0.0, MAX_CAMERA_HEIGHT_M, " metres (0: a clip's own, else the map's)")
+        if 0.0 < self.camera_height < MIN_CAMERA_HEIGHT_M:
+            raise InputError(None, f"camera height must be 0 (a clip's own, else the map's) or at least "
+                                   f"{MIN_CAMERA_HEIGHT_M:g} metres, got {self.camera_height!r}")
         _choice("view", self.view, VIEWS)
         if isinstance(self.light, bool) or not (isinstance(self.light, (int, np.integer)) and self.light >= 0):
             raise InputError(None, f"light must be an index >= 0 (the selected light), got {self.light!r}")
