@@ -84,7 +84,7 @@ class Session:
         ``height`` metres (unless the look sets its own): a clip frame's, whether it is the frame the
         session shows or one prepared ahead (:mod:`viewer.app.relit_frames`)."""
         yaw, tilt = turn
-        height = self.look.camera_height or height
+        height = self.look.seen_from(height)
         if not (yaw or tilt or height != self.look.camera_height):
             return self.look
         return replace(self.look, yaw=self.look.yaw + yaw, tilt=self.look.tilt + tilt, camera_height=height)

@@ -24,7 +24,7 @@ def cmd_plate_light(args) -> int:
     from viewer.lighting.dominant import dominant_light, dominant_light_line
     from viewer.lighting.envmap import save_envmap
     from viewer.lighting.lightfit import lights_for_map
-    from viewer.plate.horizon import plate_horizon
+    from viewer.plate.horizon import horizon_tilt, plate_horizon
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
 
@@ -44,7 +44,7 @@ def cmd_plate_light(args) -> int:
     # where the light comes from, as the 16 lights a render fits to it by default (cached: such a render reuses them),
     # levelled by the camera's tilt its horizon gives
     lights, _ = lights_for_map(env)
-    pitch = math.degrees(math.atan((horizon - 0.5) * plate.size[1] / plate.focal_px))
+    pitch = math.degrees(horizon_tilt(horizon, plate.size[1], plate.focal_px))
     seconds = time.perf_counter() - start
     save_envmap(out, env)
     notes.append(record["sun"])

@@ -23,7 +23,19 @@ def shows_filmed_frame(engine) -> bool:
 
 
 MIN_BELOW = 0.02  # the feet's tangent down from the horizon below which a camera's height is not read (at the horizon)
-MAX_CAMERA_HEIGHT_M = 50.0  # a camera read higher than this (a person at the horizon): not read
+
+
+def below_horizon(x: float, row: float, size: tuple[int, int], tilt: float, focal_px: float) -> float:
+    """The tangent of the angle below the horizon (negative: above it) of the ray through pixel position
+    (``x``, ``row``) of a frame of ``size`` (w, h), seen through a lens of ``focal_px`` tilted ``tilt`` degrees
+    down (as ``Look.tilt`` turns the map behind)."""
+    import numpy as np
+
+    from viewer.scene.area_lights import rotation_matrix
+
+    w, h = size
+    d = np.array([(x - 0.5 * w) / focal_px, -(row - 0.5 * h) / focal_px, -1.0]) @ rotation_matrix(0.0, tilt)
+    return float(-d[1] / np.hypot(d[0], d[2]))
 
 
 def person_seen_from(mask, pitch: float, focal_px: float, face_box: tuple | None = None) -> float:
@@ -32,11 +44,12 @@ def person_seen_from(mask, pitch: float, focal_px: float, face_box: tuple | None
     (H, W) bool shows them standing (:meth:`ClipFrames.camera_height`): their top is the mask's over their face
     (``face_box``, fractions of the frame: hands raised above the shoulders do not make them taller), else the
     mask's. 0 when their feet are not in it (:func:`viewer.scene.ground.contacts`), the frame's top edge cuts
-    them, or the reading is out of reach. A child, or someone sitting, reads a camera too high."""
+    them, or the reading is out of the range a plate's people are believed in
+    (:data:`viewer.plate.plate_people.CAMERA_RANGE`). A child, or someone sitting, reads a camera too high."""
     import numpy as np
 
     from viewer.plate.placement import PERSON_HEIGHT_M
-    from viewer.scene.area_lights import rotation_matrix
+    from viewer.plate.plate_people import CAMERA_RANGE
     from viewer.scene.ground import contacts
 
     feet = contacts(mask)
@@ -44,26 +57,20 @@ def person_seen_from(mask, pitch: float, focal_px: float, face_box: tuple | None
         return 0.0
     h, w = mask.shape
     x = float(np.mean([f[0] for f in feet])) + 0.5
-    turn = rotation_matrix(0.0, pitch)
-
-    def down(row: float) -> float:  # the tangent of the angle below the horizon of the ray through (x, row)
-        d = np.array([(x - 0.5 * w) / focal_px, -(row - 0.5 * h) / focal_px, -1.0]) @ turn
-        return float(-d[1] / np.hypot(d[0], d[2]))
-
     over = mask
     if face_box is not None:  # the columns of their face: their head's top, not a hand raised beside it
-        x0, x1 = int(face_box[0] * w), int(np.ceil((face_box[0] + face_box[2]) * w))
-        if mask[:, max(x0, 0):min(x1, w)].any():
-            over = mask[:, max(x0, 0):min(x1, w)]
+        face = mask[:, max(int(face_box[0] * w), 0):min(int(np.ceil((face_box[0] + face_box[2]) * w)), w)]
+        if face.any():
+            over = face
     rows = np.flatnonzero(over.any(axis=1))
     if rows[0] == 0:  # the frame's top edge cuts them: their height is not seen
         return 0.0
-    top = float(rows[0])
-    f, t = down(max(f[1] for f in feet) + 1.0), down(top)
+    f = below_horizon(x, max(f[1] for f in feet) + 1.0, (w, h), pitch, focal_px)
+    t = below_horizon(x, float(rows[0]), (w, h), pitch, focal_px)
     if f < MIN_BELOW or f <= t:
         return 0.0
     height = PERSON_HEIGHT_M * f / (f - t)
-    return float(height) if height <= MAX_CAMERA_HEIGHT_M else 0.0
+    return float(height) if CAMERA_RANGE[0] <= height <= CAMERA_RANGE[1] else 0.0
 
 
 class ClipFrames:
@@ -175,7 +182,7 @@ class ClipFrames:
             lens = (frame.focal_35mm or DEFAULT_FOCAL_35) / 36.0 * max(srgb.shape[:2])
             below, how = vertical_horizon(srgb, lens, person_px)
             camera = self.background_camera(first)
-            seen_through = camera.focal_mm / camera.sensor_mm * max(srgb.shape[:2])
+            seen_through = camera.focal_at(srgb.shape[1::-1])
             if below is None:
                 self._pitches[shot] = (0.0, how, 0.0)
             else:
@@ -194,5 +201,5 @@ class ClipFrames:
         background's motion), seen through the background camera of frame ``person``: the map turns
         by as much, so the new background moves as the old one did."""
         camera = self.background_camera(person)
-        focal = camera.focal_mm / camera.sensor_mm * max(self.bundle_size)  # at the bundle's frame, as the pan
+        focal = camera.focal_at(self.bundle_size)  # at the bundle's frame, as the pan
         return turned(self.bundle.frames[index].pan, focal)

@@ -70,14 +70,14 @@ class ClipPictures:
         """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
         the shot of frame ``person`` (a person's), resolved once on that shot's first frame with a person."""
         yaw, tilt = self.turn_of(index, person)
-        look = replace(self.look, yaw=yaw, tilt=tilt, camera_height=self.look.camera_height or self.frames.camera_height(person))
+        look = replace(self.look, yaw=yaw, tilt=tilt, camera_height=self.look.seen_from(self.frames.camera_height(person)))
         if self.look.exposure != AUTO or not self.bundle.temporal:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
             first = self.frames.shot_start(shot)
             yaw, tilt = self.turn_of(first, first)
-            height = self.look.camera_height or self.frames.camera_height(first)
+            height = self.look.seen_from(self.frames.camera_height(first))
             self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt, camera_height=height))[1].exposure
         return replace(look, exposure=self._exposures[shot])
 

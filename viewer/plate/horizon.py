@@ -34,6 +34,13 @@ def plate_horizon(plate: Plate) -> tuple[float, str]:
     return (0.5, how) if below is None else (float(np.clip(0.5 + below * plate.focal_px / h, 0.0, 1.0)), how)
 
 
+def horizon_tilt(horizon: float, height: float, focal_px: float) -> float:
+    """The camera's upward tilt in radians (down: negative) whose horizon lies ``horizon`` of a picture
+    ``height`` pixels high from its top, through a lens of ``focal_px`` (the inverse of :func:`plate_horizon`'s
+    row): the horizon below the middle, the camera tilted up."""
+    return math.atan((horizon - 0.5) * height / focal_px)
+
+
 def vertical_horizon(srgb: np.ndarray, focal_px: float, away: np.ndarray | None = None) -> tuple[float | None, str]:
     """(how far below the middle of ``srgb`` (H, W, 3) uint8 the horizon is, in focal lengths (the
     tangent of the camera's upward tilt; None: a level camera assumed), how it was found) from its

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
+from viewer.plate.horizon import horizon_tilt
 from viewer.plate.plate_file import CLIP
 
 SKY_WIDTH = 240  # pixels: the plate's width its sky is read at
@@ -121,7 +122,7 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     linear = cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA)
     clipped = cv2.resize(plate.srgb, size, interpolation=cv2.INTER_AREA) >= CLIP
     focal = plate.focal_px * size[0] / w
-    pitch = math.atan((horizon - 0.5) * size[1] / focal)  # the horizon below the middle: the camera tilted up
+    pitch = horizon_tilt(horizon, size[1], focal)
     world = _world_directions(size, focal, pitch)
     sky, below = _sky_pixels(linear, clipped, world)
     share = float(sky.mean())

@@ -25,7 +25,11 @@ class Camera:
 
     @property
     def focal_px(self) -> float:
-        return self.focal_mm / self.sensor_mm * max(self.width, self.height)
+        return self.focal_at((self.width, self.height))
+
+    def focal_at(self, size: tuple[int, int]) -> float:
+        """The focal length in pixels of a frame of ``size`` (w, h) this lens spans (its longer side)."""
+        return self.focal_mm / self.sensor_mm * max(size)
 
     @property
     def center(self) -> tuple[float, float]:

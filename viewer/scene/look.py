@@ -115,6 +115,11 @@ class Look:
         """3x3: camera directions to the turned map's directions (the background's lookup)."""
         return rotation_matrix(self.yaw, self.tilt).T
 
+    def seen_from(self, height: float) -> float:
+        """The camera height the map's ground is seen from with a clip's ``height`` read (0: none): this
+        look's own when it sets one (a ``--look`` file), else the clip's."""
+        return self.camera_height or height
+
     @property
     def ground_squash(self) -> float:
         """How the map's ground is seen from :attr:`camera_height` (``shaders/envmap.glsl: ground_projected``):

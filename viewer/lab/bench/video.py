@@ -212,8 +212,7 @@ def feet_over_the_sky(bundle) -> dict:
     lowest foot, as the relit frame shows it (the shot's lens, horizon and camera turn,
     :class:`viewer.output.clip_frames.ClipFrames`; the look's own tilt 0), is sky: a person floating."""
     from viewer.files.imageio import read_png
-    from viewer.output.clip_frames import ClipFrames
-    from viewer.scene.area_lights import rotation_matrix
+    from viewer.output.clip_frames import ClipFrames, below_horizon
     from viewer.scene.ground import contacts
 
     frames = ClipFrames(bundle)
@@ -227,12 +226,9 @@ def feet_over_the_sky(bundle) -> dict:
             continue
         feet += 1
         x, y = max(found, key=lambda c: c[1])
-        h, w = matte.shape[:2]
-        camera = frames.background_camera(entry.index)
-        focal = camera.focal_mm / camera.sensor_mm * max(h, w)
-        yaw, tilt = frames.camera_turn(entry.index, entry.index)
-        seen = np.array([(x + 0.5 - 0.5 * w) / focal, -(y + 1.0 - 0.5 * h) / focal, -1.0]) @ rotation_matrix(yaw, tilt)
-        if seen[1] >= 0.0:
+        size = matte.shape[1::-1]
+        tilt = frames.camera_turn(entry.index, entry.index)[1]  # (the yaw turns no ray up or down)
+        if below_horizon(x + 0.5, y + 1.0, size, tilt, frames.background_camera(entry.index).focal_at(size)) <= 0.0:
             over.append(entry.index)
     return {"frames_with_feet": feet, "over_the_sky": len(over), "frames_over_the_sky": over[:50],
             "camera_height_m": round(frames.camera_height(frames.people[0]), 2) if frames.people else 0.0}
