@@ -626,3 +626,80 @@ def test_the_users_own_lights_on_a_plate_stay_where_placed(tmp_path):
             pictures[yaw] = read_png(tmp_path / f"{name}_{yaw}.png")
         np.testing.assert_array_equal(pictures["none"], pictures["zero"], err_msg=name)
         assert np.abs(pictures["turned"] - pictures["zero"]).max() > 0.05, name
+
+
+def _barbell_plate(folder) -> tuple:
+    """A real photo as the plate (the barbell lunge, brought to 534x800) and a hand's mask of its left barbell
+    plate (an ellipse over the iron disc, a little off its outline as a hand's is)."""
+    from PIL import ImageDraw
+
+    photo = Image.open(SHARED_DATA / "eval-photos" / "4dhumans_pexels-anete-lusina-4793258_barbell_lunge.jpg").convert("RGB")
+    plate = folder / "gym.png"
+    photo.resize((534, 800), Image.LANCZOS).save(plate)
+    mask = Image.new("L", (534, 800), 0)
+    ImageDraw.Draw(mask).ellipse([80, 390, 156, 506], fill=255)
+    front = folder / "front.png"
+    mask.save(front)
+    return plate, front
+
+
+def test_what_the_user_marks_in_front_hides_the_person_behind_it(tmp_path):
+    """``--front MASK.png`` on a real photo: the bundled photo's person placed behind the barbell's plate is
+    hidden by it (the composite is the plate there, their layer empty), shows beside it, and the hand's
+    hard outline is refined along the photo's edges; without the mask the person covers the disc."""
+    import cv2
+    import OpenEXR
+
+    from viewer.photo.inference import cached_bundle
+
+    plate, front = _barbell_plate(tmp_path)
+    bundle, _ = cached_bundle(asset_dir() / "photos" / "underpass.jpg")
+    place = ("--at", "0.22,0.64", "--height", "0.3")
+    done = run_cli("render", str(bundle), "--plate", str(plate), "--front", str(front), *place, "-o", str(tmp_path / "in.png"))
+    assert done.returncode == 0, done.stderr
+    assert "the front mask's edge follows the plate's edges" in done.stdout
+    layers = OpenEXR.File(str(tmp_path / "in.exr")).channels()
+    image, alpha = layers["RGB"].pixels.astype(np.float32), np.asarray(Image.open(tmp_path / "in.png"))
+    marked = np.asarray(Image.open(front)) > 0
+    inside = cv2.erode(marked.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0  # away from the refined edge (3 px here)
+    linear = read_plate(plate, []).linear
+    np.testing.assert_allclose(image[inside], linear[inside], atol=2e-3)  # the plate: the disc over the person
+    without = run_cli("render", str(bundle), "--plate", str(plate), *place, "-o", str(tmp_path / "over.png"))
+    assert without.returncode == 0, without.stderr
+    over = OpenEXR.File(str(tmp_path / "over.exr")).channels()["RGB"].pixels.astype(np.float32)
+    behind = np.abs(over - linear).max(axis=-1) > 0.05  # where the person is, without the mask
+    assert (behind & inside).sum() > 500  # they stood over the disc
+    beside = behind & (cv2.dilate(marked.astype(np.uint8), np.ones((9, 9), np.uint8)) == 0)
+    assert beside.sum() > 2000 and np.abs(image - over)[beside].max() < 2e-3  # beside it, alike
+    assert alpha.shape == (800, 534, 3)
+    from viewer.plate.front_mask import read_front
+
+    refined = read_front(front, np.asarray(Image.open(plate)), [])
+    edge = (refined > 0.05) & (refined < 0.95)
+    assert edge.sum() > 50  # a soft edge, not the hand's hard one
+    assert np.abs(refined - marked).max() > 0.5  # moved towards the disc's own outline somewhere
+
+
+def test_a_front_mask_that_cannot_be_used_is_one_line(tmp_path):
+    from PIL import ImageDraw
+
+    from viewer.plate.front_mask import read_front
+
+    srgb = np.full((300, 400, 3), 120, np.uint8)
+    cases = {"wide.png": ((500, 300), None), "empty.png": ((400, 300), None), "full.png": ((400, 300), (0, 0, 400, 300))}
+    for name, (size, box) in cases.items():
+        mask = Image.new("L", size, 0)
+        if box:
+            ImageDraw.Draw(mask).rectangle(box, fill=255)
+        mask.save(tmp_path / name)
+    for name, words in (("wide.png", "is 500x300, the plate 400x300"), ("empty.png", "marks nothing"), ("full.png", "marks 100 %")):
+        with pytest.raises(InputError, match=re.escape(words)) as err:
+            read_front(tmp_path / name, srgb, [])
+        assert name in str(err.value)
+    rgba = np.zeros((150, 200, 4), np.uint8)  # half the plate's size, its alpha opaque where in front
+    rgba[50:100, 20:60, 3] = 255
+    Image.fromarray(rgba).save(tmp_path / "alpha.png")
+    soft = read_front(tmp_path / "alpha.png", srgb, [])
+    assert soft.shape == (300, 400) and soft[150, 80] == pytest.approx(1.0) and soft[10, 10] == 0.0
+    done = run_cli("render", str(asset_dir() / "sample_scene"), "--front", str(tmp_path / "alpha.png"), "-o", str(tmp_path / "x.png"))
+    assert done.returncode == 2 and "--front marks what stands in front of the person on a plate: give --plate" in done.stderr

@@ -980,3 +980,27 @@ def test_a_person_moved_and_scaled_on_a_plate_and_saved_as_render_makes_it(viewe
     s = v.click("remove the plate", until=lambda s: s["plate"] is None)
     assert s["look"]["background"] != "transparent"  # the person in their frame again
     assert v.quit() == 0
+
+
+def test_what_the_user_marks_in_front_hides_the_person_in_the_window_too(viewer_factory, tmp_path):
+    """``relight view --plate P --front MASK``: the window's composite hides the person behind what the mask
+    marks (a thin post over where they stand by default), as ``relight render --plate`` does; the saved
+    composite is the plate there and shows the person beside it."""
+    from PIL import Image
+
+    plate = street_plate(tmp_path / "street.png")
+    mask = np.zeros((320, 480), np.uint8)
+    mask[:, 236:245] = 255  # a post through the middle, over the person's default place
+    Image.fromarray(mask).save(tmp_path / "post.png")
+    v = viewer_factory("--plate", str(plate), "--horizon", "0.5", "--front", str(tmp_path / "post.png"))
+    s = v.wait_for(lambda s: s["plate_box"] is not None)
+    x0, _, x1, _ = s["plate_box"]
+    assert x0 < 236 / 480 and x1 > 245 / 480  # the person stands behind the post
+    saved, shown = read_png(v.save()), read_png(plate)
+    post = np.zeros((320, 480), bool)
+    post[:, 239:242] = True  # (its refined edge, 2 px, left out)
+    assert np.abs(saved - shown)[post].max() <= 1.5 / 255  # the plate where the post is
+    beside = np.zeros((320, 480), bool)
+    beside[:, 248:int(x1 * 480)] = True
+    assert (np.abs(saved - shown).max(axis=-1)[beside] > 0.1).sum() > 20  # the person beside it
+    assert v.quit() == 0

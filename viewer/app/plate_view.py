@@ -36,19 +36,20 @@ def srgb8(linear: np.ndarray) -> np.ndarray:
 
 
 def plate_setting(path, at: tuple[float, float] | None, height: float | None, horizon: float | None, own_light,
-                  notes: list, anchor=None) -> tuple[tuple, Path | None]:
+                  notes: list, anchor=None, front=None) -> tuple[tuple, Path | None]:
     """A photo opened as a plate: (the plate, where the person stands on it, its horizon, what lights the
     person: "plate" or the name of ``own_light``, the plate's light as a map file, ``anchor`` (a clip's
     first person's matte, which places every frame): :class:`PlateView`'s arguments), and that map file
     to open as any map's, None where ``own_light`` (a map or a light file) lights the person. One line
     when it cannot be a plate (:func:`viewer.plate.plate_file.read_plate`) or the person cannot stand
-    where asked (:func:`viewer.plate.placement.plate_transform`)."""
+    where asked (:func:`viewer.plate.placement.plate_transform`). ``front``: the user's mask of what stands in
+    front of the person (``--front``, :mod:`viewer.plate.front_mask`)."""
     from viewer.lighting.lightfit.cache import cache_dir
     from viewer.plate.placement import place_on_plate
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light_file
 
-    plate = read_plate(path, notes)
+    plate = read_plate(path, notes, front)
     place, horizon = place_on_plate(plate, at, height, horizon, notes)
     if anchor is not None:  # a clip's person placed once: one line before the window if they cannot stand there
         plate_transform(anchor, place, plate.within(VIEW_LONGER).size, cut_allowed=True)

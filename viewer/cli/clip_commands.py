@@ -319,7 +319,7 @@ def clip_plate(args) -> tuple:
     from viewer.plate.plate_file import read_plate
 
     notes: list = []
-    whole = read_plate(args.plate, notes)
+    whole = read_plate(args.plate, notes, getattr(args, "front", None))
     place, horizon = plate_place(whole, args, notes)  # on the whole plate, as a batch places it
     plate = whole.within(args.max_size or MAX_SIZE)  # every frame is the plate's size: a video's frame, not a 12-MP still
     if plate is not whole:

@@ -98,11 +98,12 @@ def cmd_demo(args) -> int:
 
 
 def plate_options_need_a_plate(args):
-    """One line for --at, --height or --horizon given without --plate."""
+    """One line for --at, --height, --horizon or --front given without --plate."""
     if not args.plate:
-        for option in ("at", "height", "horizon"):
-            if getattr(args, option) is not None:
-                raise InputError(None, f"--{option} places the person on a plate: give --plate PHOTO")
+        for option in ("at", "height", "horizon", "front"):
+            if getattr(args, option, None) is not None:
+                what = "marks what stands in front of the person on a plate" if option == "front" else "places the person on a plate"
+                raise InputError(None, f"--{option} {what}: give --plate PHOTO")
 
 
 def cmd_render(args) -> int:

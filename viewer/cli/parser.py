@@ -27,6 +27,9 @@ def add_plate_args(p, what: str):
                                                 "read from the people standing in it, else eye height)")
     p.add_argument("--horizon", type=float, help="with --plate: the horizon's height, a fraction of the plate's from its top "
                                                  "(default: read from the plate's vertical edges; 0.5 when it has none)")
+    p.add_argument("--front", metavar="MASK.png", help="with --plate: what of the plate stands in front of the person (a barbell, "
+                                                   "a post), white on black at the plate's shape: drawn over them (the plate's "
+                                                   "own people in front are found without it)")
 
 
 def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:

@@ -100,12 +100,12 @@ def cmd_render_plate(args, look) -> int:
         raise InputError(out, "a composite onto a plate is a picture: give a .png output path (its EXR goes beside it)")
     writable(out)
     outputs = [out, out.with_suffix(".exr")]
-    not_an_input(outputs, [args.scene, args.plate, args.envmap, args.lights])
+    not_an_input(outputs, [args.scene, args.plate, args.envmap, args.lights, args.front])
     refuse_foreign(outputs, args.force)
     at_option(args.at)  # a malformed --at is one line before any work
     notes: list = []
     start = time.perf_counter()  # the plate read, its light, the render and the composite: process start excluded
-    plate = read_plate(args.plate, notes)
+    plate = read_plate(args.plate, notes, args.front)
     place, horizon = plate_place(plate, args, notes)
     place = Placement(*place)
     own = args.envmap or args.lights
@@ -155,4 +155,5 @@ def view_plate(args, notes: list) -> tuple[tuple, Path | None]:
     """``relight view ... --plate PLATE``: :func:`viewer.app.plate_view.plate_setting` of the options."""
     from viewer.app.plate_view import plate_setting
 
-    return plate_setting(args.plate, at_option(args.at), args.height, args.horizon, args.envmap or args.lights, notes)
+    return plate_setting(args.plate, at_option(args.at), args.height, args.horizon, args.envmap or args.lights, notes,
+                         front=args.front)

@@ -33,12 +33,14 @@ SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0)  # the 256 levels' linea
 @dataclass(frozen=True)
 class Plate:
     """A plate: ``srgb`` (H, W, 3) uint8, upright; ``focal_35`` the 35-mm-equivalent focal length (mm)
-    and where it came from (``focal_source``: "exif" or "default"); ``source`` the file."""
+    and where it came from (``focal_source``: "exif" or "default"); ``source`` the file; ``front`` (H, W)
+    float32, what of it the user marked as standing in front of the person (:mod:`viewer.plate.front_mask`), or None."""
 
     srgb: np.ndarray
     focal_35: float
     focal_source: str
     source: str | None = None
+    front: np.ndarray | None = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -57,7 +59,8 @@ class Plate:
         if max(self.size) <= longest:
             return self
         size = scaled_size(self.size, longest)
-        smaller = Plate(resize(self.srgb, size), self.focal_35, self.focal_source, self.source)
+        front = None if self.front is None else np.clip(resize(self.front, size), 0.0, 1.0).astype(np.float32)
+        smaller = Plate(resize(self.srgb, size), self.focal_35, self.focal_source, self.source, front)
         if "people" in self.__dict__:  # found on the whole plate: the same people (their landmarks are fractions)
             from viewer.photo.segmentation import Person
 
@@ -80,9 +83,10 @@ class Plate:
         return SRGB_TO_LINEAR[self.srgb]
 
 
-def read_plate(path, notes: list) -> Plate:
+def read_plate(path, notes: list, front=None) -> Plate:
     """The plate at ``path``; one line naming the file for what cannot be a plate (not an image, a video,
-    fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: exactly 2:1, or longer than ``PANORAMA_ASPECT``)."""
+    fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: exactly 2:1, or longer than ``PANORAMA_ASPECT``).
+    ``front``: the user's mask of what stands in front of the person (:func:`viewer.plate.front_mask.read_front`)."""
     from viewer.photo.photo_frame import read_image_u8
 
     wrong = wrong_kind(path, "a plate (a photo to put the person into)")
@@ -108,4 +112,8 @@ def read_plate(path, notes: list) -> Plate:
     if abs(aspect - 2.0) < 0.01 or aspect > PANORAMA_ASPECT:
         raise InputError(path, f"is {image.shape[1]}x{image.shape[0]}: " + ("an equirectangular panorama (2:1)" if aspect < 2.1 else
                                "a panorama") + ", not a plate; give a panorama as the map (--env) and a photo as the plate")
+    if front is not None:
+        from viewer.plate.front_mask import read_front
+
+        return Plate(image, focal, source, str(path), read_front(front, image, notes))
     return Plate(image, focal, source, str(path))

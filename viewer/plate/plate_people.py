@@ -78,7 +78,8 @@ def in_front(plate: Plate, feet: float, box: tuple[float, float, float, float], 
     than feet at ``feet`` (a fraction of its height) and overlap ``box`` (x0, y0, x1, y1, the plate's
     pixels): they hide the person put behind them. Their mattes are the photo pipeline's
     (:func:`viewer.photo.matting.automatic_matte`: the colour cut and the closed-form edge; kept in
-    ``mattes`` by the person's index when given, for the next placement); None when no one stands in front."""
+    ``mattes`` by the person's index when given, for the next placement), and what the user marked as standing
+    in front (the plate's ``front``, :mod:`viewer.plate.front_mask`); None when nothing stands in front."""
     from viewer.photo.matting import automatic_matte
 
     out = None
@@ -93,5 +94,7 @@ def in_front(plate: Plate, feet: float, box: tuple[float, float, float, float], 
         if k not in mattes:
             mattes[k] = automatic_matte(plate.srgb, person).alpha
         out = mattes[k] if out is None else np.maximum(out, mattes[k])
+    if plate.front is not None:
+        out = plate.front if out is None else np.maximum(out, plate.front)
     return None if out is None else out.astype(np.float32)
 
