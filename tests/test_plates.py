@@ -237,7 +237,8 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
     (maps / "venice.hdr").write_bytes((asset_dir() / "envmaps" / "venice_sunset_256.hdr").read_bytes())
     result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1)
     assert json.loads((tmp_path / "plates.json").read_text())["summary"] == result["summary"]
-    assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median"}
+    assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median",
+                                                                       "brightest_deg_median"}
     ratios = sorted(r["estimate"] / r["uniform"] for r in result["plates"])
     assert result["summary"]["estimate_over_uniform_median"] == pytest.approx(ratios[1])  # the middle plate's of three
     for row in result["plates"]:
@@ -529,6 +530,17 @@ def test_the_plates_grain_and_defocus_are_measured_and_given_to_the_person():
     assert feet_blur(sharp, place) < 1.0
     soft = cv2.GaussianBlur(sharp, (0, 0), 3.0)
     assert feet_blur(soft, place) == pytest.approx(3.0, abs=1.0)
+    plain = sharp.copy()
+    plain[320:, 150:450] = 120  # a plain floor at the feet: the rows at their depth across the plate tell
+    assert feet_blur(cv2.GaussianBlur(plain, (0, 0), 3.0), place) == pytest.approx(3.0, abs=1.0)
+    # a real photo (the barbell lunge at 534x800) blurred as a soft plate is: its softness read wherever the feet go
+    # (read as 0.0 before the edges were taken across the edge; measured 2.8-3.3 for 3 px, 4.7-5.0 for 5)
+    gym = np.asarray(Image.open(SHARED_DATA / "eval-photos" / "4dhumans_pexels-anete-lusina-4793258_barbell_lunge.jpg")
+                     .convert("RGB").resize((534, 800), Image.LANCZOS))
+    for at in ((0.5, 0.88), (0.3, 0.95), (0.7, 0.7)):
+        assert feet_blur(gym, placement(at, 0.3)) < 1.2
+        for sigma in (3.0, 5.0):
+            assert feet_blur(cv2.GaussianBlur(gym, (0, 0), sigma), placement(at, 0.3)) == pytest.approx(sigma, abs=0.8), (at, sigma)
     coverage = np.zeros((400, 600), np.float32)
     coverage[100:300, 200:400] = 1.0
     flat = np.full((400, 600, 3), 0.5, np.float32)
@@ -703,3 +715,18 @@ def test_a_front_mask_that_cannot_be_used_is_one_line(tmp_path):
     assert soft.shape == (300, 400) and soft[150, 80] == pytest.approx(1.0) and soft[10, 10] == 0.0
     done = run_cli("render", str(asset_dir() / "sample_scene"), "--front", str(tmp_path / "alpha.png"), "-o", str(tmp_path / "x.png"))
     assert done.returncode == 2 and "--front marks what stands in front of the person on a plate: give --plate" in done.stderr
+
+
+def test_the_brightest_direction_is_where_a_maps_sun_is_however_small():
+    """The bench's measure of issue 61: a map's brightest direction after a 5-degree blur; a small sun (a texel
+    of a 512-row map) brighter than a wide bright patch of sky in total per texel wins, wherever it is."""
+    from viewer.lab.bench.plates import angle_deg, brightest_direction
+    from viewer.lighting.envmap import pixel_directions
+
+    dirs = pixel_directions(256, 512)
+    for sun in (np.array([0.6, 0.3, -0.74]), np.array([-0.2, 0.9, 0.39]), np.array([0.0, -0.5, 0.866])):
+        sun = sun / np.linalg.norm(sun)
+        pixels = np.full((256, 512, 3), 0.2, np.float32)
+        pixels[dirs[..., 1] > 0.5] = 0.6  # a bright sky high up, its light spread wide
+        pixels[np.unravel_index(int(np.argmax(dirs.reshape(-1, 3) @ sun)), (256, 512))] = 5000.0
+        assert angle_deg(brightest_direction(pixels), sun) < 3.5  # (128 rows: 1.4 degrees a texel)

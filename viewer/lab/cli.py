@@ -211,7 +211,9 @@ def cmd_bench(args) -> int:
               f"({summary['estimate_over_uniform']:.2f} x), sh {summary['sh']:.4f} ({summary['estimate_over_sh']:.2f} x); per plate, "
               f"the median of its ratio to uniform {summary['estimate_over_uniform_median']:.3f} x, to sh "
               f"{summary['estimate_over_sh_median']:.3f} x; "
-              f"dominant light off by {summary['direction_deg_median']} degrees (median)"
+              + ("no plate with a dominant light" if summary["direction_deg_median"] is None else
+                 f"dominant light off by {summary['direction_deg_median']:.1f} degrees, the brightest direction (5-degree blur) "
+                 f"by {summary['brightest_deg_median']:.1f} (medians)")
               + (f"; a person put back into their own photo {summary['identity_median_stops']:+.2f} stops, RMSE "
                  f"{summary['identity_median_rmse_levels']:.1f} levels (medians)" if photos else "") + f"; wrote {out}")
     elif args.what == "video" and args.truth:

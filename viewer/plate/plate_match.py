@@ -6,7 +6,11 @@ not. Two measures of the plate, each from a well-known estimator:
 - **defocus at the feet** (:func:`feet_blur`): the re-blur estimate of Zhuo and Sim (2011)
   (:func:`viewer.scene.backdrop.edge_blur`, the backdrop's own) over the plate around where the feet
   stand (as wide as the person is tall, from a quarter of their height above the feet to a twentieth
-  below): the ground there is at the person's depth. The person's layer is blurred by that sigma.
+  below): the ground there is at the person's depth. Where that ground is too plain to tell (fewer
+  than 50 edges: a smooth floor), the same rows across the whole plate (a level ground's depth is its
+  row). The person's layer is blurred by that sigma. (Edges are the gradient's maxima across the edge,
+  as Canny's: a maximum over all eight neighbours had found 10 points on a plate blurred by 3 pixels,
+  and read it as sharp: a soft plate kept a crisp person, issue 61.)
 - **grain** (:func:`grain_levels`): Immerkaer's (1996) fast noise estimate, the mean absolute response
   of the Laplacian difference kernel (which cancels any plane and most smooth shading), over the
   plate's flatter half (its gradients below their median, so edges are not taken for noise), per
@@ -53,7 +57,11 @@ def feet_blur(srgb: np.ndarray, place: Placement) -> float:
     rows = slice(int(np.clip(y - 0.25 * tall, 0, h)), int(np.clip(y + 0.05 * tall, 0, h)))
     cols = slice(int(np.clip(x - 0.5 * tall, 0, w)), int(np.clip(x + 0.5 * tall, 0, w)))
     region[rows, cols] = True
-    return edge_blur(srgb, region)
+    blur = edge_blur(srgb, region, unknown=None)
+    if blur is None:  # the ground at the feet too plain to tell: the rows at their depth, the plate's whole width
+        region[rows, :] = True
+        blur = edge_blur(srgb, region, unknown=None)
+    return 0.0 if blur is None else blur
 
 
 def with_grain(srgb: np.ndarray, coverage: np.ndarray, levels: np.ndarray) -> np.ndarray:

@@ -41,28 +41,49 @@ def photo_blur(photo: np.ndarray, alpha: np.ndarray) -> float:
     return edge_blur(photo, far)
 
 
-def edge_blur(photo: np.ndarray, region: np.ndarray) -> float:
+def edge_blur(photo: np.ndarray, region: np.ndarray, unknown: float | None = 0.0) -> float | None:
     """The Gaussian sigma (pixels) of the defocus of ``photo`` (H, W, 3) uint8 over ``region`` (H, W)
-    bool: the median over the region's strongest edges of the re-blur estimate (Zhuo and Sim 2011);
-    0 when the region has too few edges to tell."""
+    bool: the median over the region's strongest edges (maxima across the edge) of the re-blur estimate
+    (Zhuo and Sim 2011); ``unknown`` when the region has too few edges to tell."""
     import cv2
 
     if not region.any():
-        return 0.0
+        return unknown
 
     def gradient(x):
-        return np.hypot(cv2.Sobel(x, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(x, cv2.CV_32F, 0, 1, ksize=3))
+        return cv2.Sobel(x, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(x, cv2.CV_32F, 0, 1, ksize=3)
 
     grey = cv2.GaussianBlur(cv2.cvtColor(photo, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0, (0, 0), PRESMOOTH)
-    g1, g2 = gradient(grey), gradient(cv2.GaussianBlur(grey, (0, 0), REBLUR))
+    gx, gy = gradient(grey)
+    g1, g2 = np.hypot(gx, gy), np.hypot(*gradient(cv2.GaussianBlur(grey, (0, 0), REBLUR)))
     strong = g1 >= max(float(np.percentile(g1[region], EDGE_PERCENTILE)), 1e-3)
-    edges = region & strong & (g1 == cv2.dilate(g1, np.ones((3, 3), np.uint8))) & (g2 > 1e-4)
+    edges = region & strong & _across_edge_maxima(g1, gx, gy) & (g2 > 1e-4)
     ratio = g1[edges] / g2[edges]
     ratio = ratio[ratio > 1.0 + 1e-4]
     if ratio.size < MIN_EDGES:
-        return 0.0
+        return unknown
     total = REBLUR / np.sqrt(ratio ** 2 - 1.0)
     return float(np.median(np.sqrt(np.maximum(total ** 2 - PRESMOOTH ** 2, 0.0))))
+
+
+def _across_edge_maxima(g: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """(H, W) bool: where the gradient's magnitude ``g`` is a maximum across the edge (along the gradient's
+    direction, in four directions, as Canny's non-maximum suppression): an edge's centre line. (A maximum over
+    all eight neighbours keeps a sharp edge's corners and few points of a soft edge, whose ridge runs flat
+    along it: a plate blurred by 3 pixels gave 10 points where it has hundreds.)"""
+    angle = (np.degrees(np.arctan2(gy, gx)) + 180.0) % 180.0
+    padded = np.pad(g, 1, mode="edge")
+    h, w = g.shape
+
+    def at(dy, dx):
+        return padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+
+    out = np.zeros(g.shape, bool)
+    for lo, hi, (dy, dx) in ((-1, 22.5, (0, 1)), (157.5, 181, (0, 1)), (22.5, 67.5, (1, 1)), (67.5, 112.5, (1, 0)),
+                             (112.5, 157.5, (1, -1))):
+        sector = (angle >= lo) & (angle < hi)
+        out |= sector & (g >= at(dy, dx)) & (g >= at(-dy, -dx))
+    return out
 
 
 def blurred_map(pixels: np.ndarray, sigma: float) -> np.ndarray:
