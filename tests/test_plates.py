@@ -235,7 +235,7 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
     maps = tmp_path / "maps"
     maps.mkdir()
     (maps / "venice.hdr").write_bytes((asset_dir() / "envmaps" / "venice_sunset_256.hdr").read_bytes())
-    result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1)
+    result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1, people_plates=False)
     assert json.loads((tmp_path / "plates.json").read_text())["summary"] == result["summary"]
     assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median",
                                                                        "brightest_deg_median"}
@@ -730,3 +730,30 @@ def test_the_brightest_direction_is_where_a_maps_sun_is_however_small():
         pixels[dirs[..., 1] > 0.5] = 0.6  # a bright sky high up, its light spread wide
         pixels[np.unravel_index(int(np.argmax(dirs.reshape(-1, 3) @ sun)), (256, 512))] = 5000.0
         assert angle_deg(brightest_direction(pixels), sun) < 3.5  # (128 rows: 1.4 degrees a texel)
+
+
+def test_a_plate_that_shows_people_is_rendered_in_the_map_with_their_shadows(tmp_path):
+    """``relight bench plates``' plates with people (:mod:`viewer.lab.bench.people_plates`): the dataset's people
+    stand on a grey ground inside the map, seen by a level 60-degree camera at eye height (the horizon at the
+    middle), their shadows cast away from the map's sun (rooitou's, 36 degrees to the right and 10 up at yaw
+    0: towards the camera and to the left); the JPEG carries its focal length, and reads back as a plate."""
+    import cv2
+
+    from viewer.lab.bench.people_plates import FOCAL_35, GROUND_ALBEDO, make_people_plate
+
+    env = load_envmap(SHARED_DATA / "hdri" / "rooitou_park_1k.hdr")
+    path = tmp_path / "people.jpg"
+    scale = make_people_plate(env, 0.0, 5, path, size=(240, 160), spp=16)
+    plate = read_plate(path, [])
+    assert plate.size == (240, 160) and plate.focal_35 == FOCAL_35 and plate.focal_source == "exif" and scale > 0
+    grey = cv2.cvtColor(plate.srgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    ground = grey[84:, :]  # below the horizon (row 80): the grey plane, the people and their shadows
+    r, b = plate.linear[84:, :, 0], plate.linear[84:, :, 2]
+    assert np.median(np.abs(r - b) / (r + b + 1e-6)) < 0.3 and np.median(ground) > 40  # a grey ground (tinted by the light), lit
+    shadow = ground < 0.6 * np.median(ground)
+    people = np.abs(grey[40:120] - np.median(ground)) > 25  # the people stand out of the ground round rows 40-120
+    assert people.sum() > 40 and shadow.sum() > 20
+    rows, cols = np.nonzero(shadow)
+    person_cols = np.nonzero(people)[1]
+    assert cols.mean() < person_cols.mean()  # the shadows fall to the left of the people (the sun is to the right)
+    assert GROUND_ALBEDO == 0.25

@@ -216,6 +216,12 @@ def cmd_bench(args) -> int:
                  f"by {summary['brightest_deg_median']:.1f} (medians)")
               + (f"; a person put back into their own photo {summary['identity_median_stops']:+.2f} stops, RMSE "
                  f"{summary['identity_median_rmse_levels']:.1f} levels (medians)" if photos else "") + f"; wrote {out}")
+        shown = summary.get("people_plates")
+        if shown:
+            print(f"plates that show people: per plate, the median of the estimate's RMSE over uniform's "
+                  f"{shown['estimate_over_uniform_median']:.3f} x, over sh's {shown['estimate_over_sh_median']:.3f} x; "
+                  + ("no plate with a dominant light" if shown["brightest_deg_median"] is None else
+                     f"the brightest direction (5-degree blur) off by {shown['brightest_deg_median']:.1f} degrees (median)"))
     elif args.what == "video" and args.truth:
         from viewer.lab.bench.clip_truth import run_truth_benchmark, truth_table
 
