@@ -238,7 +238,7 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
     result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1, people_plates=False)
     assert json.loads((tmp_path / "plates.json").read_text())["summary"] == result["summary"]
     assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median",
-                                                                       "brightest_deg_median"}
+                                                                       "brightest_deg_median", "sky_cue", "shadows_cue"}
     ratios = sorted(r["estimate"] / r["uniform"] for r in result["plates"])
     assert result["summary"]["estimate_over_uniform_median"] == pytest.approx(ratios[1])  # the middle plate's of three
     for row in result["plates"]:
@@ -757,3 +757,31 @@ def test_a_plate_that_shows_people_is_rendered_in_the_map_with_their_shadows(tmp
     person_cols = np.nonzero(people)[1]
     assert cols.mean() < person_cols.mean()  # the shadows fall to the left of the people (the sun is to the right)
     assert GROUND_ALBEDO == 0.25
+
+
+def test_the_sun_is_read_from_the_shadows_of_the_plates_people_and_not_from_shade(tmp_path):
+    """A plate that shows people standing in a low sun (the bench's: rooitou at yaw 240, the sun 156 degrees to
+    the right and 10 up, behind the camera): the shadow of the person the models find says where it is, within
+    20 degrees (measured 7); real photos whose shade is a wall's or a fence's, or whose sun is soft, give none
+    (the barbell lunge's rear foot stands in a fence's shade; the overcast skier's skis); nor does a plate
+    with no one in it."""
+    from viewer.lab.bench.people_plates import make_people_plate
+    from viewer.lab.bench.plates import angle_deg, brightest_direction
+    from viewer.plate.horizon import plate_horizon
+    from viewer.plate.plate_shadows import sun_from_shadows
+    from viewer.scene.area_lights import rotation_matrix
+
+    rooitou = load_envmap(SHARED_DATA / "hdri" / "rooitou_park_1k.hdr")
+    make_people_plate(rooitou, 240.0, 5240, tmp_path / "people.jpg")
+    plate = read_plate(tmp_path / "people.jpg", [])
+    sun, said = sun_from_shadows(plate, plate_horizon(plate)[0])
+    assert sun is not None, said
+    truth = rotation_matrix(240.0, 0.0) @ brightest_direction(rooitou.pixels)  # the map's sun, turned as the plate's
+    assert angle_deg(sun.direction, truth) < 20.0, said
+    assert sun.ratio > 2.0 and "to the right of ahead, behind the camera" in said
+    for name in ("4dhumans_pexels-anete-lusina-4793258_barbell_lunge.jpg", "mmpose_coco_000000000785_skier.jpg"):
+        photo = read_plate(SHARED_DATA / "eval-photos" / name, []).within(2048)
+        assert sun_from_shadows(photo, plate_horizon(photo)[0])[0] is None, name
+    make_plate(rooitou, 240.0, tmp_path / "nobody.jpg")
+    nobody = read_plate(tmp_path / "nobody.jpg", [])
+    assert sun_from_shadows(nobody, 0.5) == (None, "no sun read from shadows: no one found standing in the plate")

@@ -216,6 +216,12 @@ def cmd_bench(args) -> int:
                  f"by {summary['brightest_deg_median']:.1f} (medians)")
               + (f"; a person put back into their own photo {summary['identity_median_stops']:+.2f} stops, RMSE "
                  f"{summary['identity_median_rmse_levels']:.1f} levels (medians)" if photos else "") + f"; wrote {out}")
+        for label, part in (("plates of maps", summary), ("plates that show people", summary.get("people_plates"))):
+            if part:
+                print(f"each cue alone on the {label} with a dominant light: " + "; ".join(
+                    f"the {name} read a sun on {part[key]['read']} of {part[key]['plates']}"
+                    + (f", {part[key]['deg_median']:.1f} degrees off (median)" if part[key]["deg_median"] is not None else "")
+                    for name, key in (("clear sky", "sky_cue"), ("people's shadows", "shadows_cue"))))
         shown = summary.get("people_plates")
         if shown:
             print(f"plates that show people: per plate, the median of the estimate's RMSE over uniform's "

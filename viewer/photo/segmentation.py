@@ -228,8 +228,11 @@ def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Perso
     pose, small, everyone = _everyone(photo, photo_path)
     sh, sw = small.shape[:2]
     found = []
-    for part, _ in (_people(np.asarray(everyone) > 0.5) if everyone is not None else [])[:most]:
-        box = grown(part, (sw, sh))
+    parts = _people(np.asarray(everyone) > 0.5) if everyone is not None else []
+    # no part the selfie model is sure of (a backlit figure, a small one): the pose model shown the whole picture,
+    # as find_person does (it finds one person at most; none on the bench's 27 plates of maps alone)
+    boxes = [grown(part, (sw, sh)) for part, _ in parts[:most]] or [(0, 0, sw, sh)]
+    for box in boxes:
         seen = _pose(pose, small, box)
         if seen is not None:  # its own parts only: a neighbour in the padded crop is left out, as find_person does
             landmarks = _landmarks(seen[0], box, (sw, sh))

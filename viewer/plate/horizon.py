@@ -7,7 +7,9 @@ length in pixels). The near-vertical segments of OpenCV's line segment detector 
 2012; within ``MAX_LEAN`` of vertical, at least ``MIN_LENGTH`` of the plate's height) vote for that
 point (the least-squares meeting point of their lines, weighted by length, in homogeneous
 coordinates so parallel lines meet at infinity: a level camera; twice the segments that miss it most,
-``TRIM``, are left out and it is found again). Fewer than ``MIN_SEGMENTS``
+``TRIM``, are left out and it is found again). The plate's people's edges do not vote (a limb leans as
+the person stands: the bench's plates of people standing on a level camera's ground read tilts of up to
+34 degrees from them, issue 61). Fewer than ``MIN_SEGMENTS``
 (a landscape with no verticals): the level camera's middle, said so.
 """
 
@@ -28,9 +30,12 @@ TRIM, TRIM_ROUNDS = 0.3, 2  # each round, the share of segments that miss the me
 
 
 def plate_horizon(plate: Plate) -> tuple[float, str]:
-    """(the horizon's height as a fraction of the plate's, from its top; how it was found)."""
+    """(the horizon's height as a fraction of the plate's, from its top; how it was found). The edges of the
+    plate's people (:attr:`Plate.people`: their limbs lean as they stand, not as the world's verticals do) do
+    not vote."""
     h = plate.size[1]
-    below, how = vertical_horizon(plate.srgb, plate.focal_px)
+    people = [p.segmentation > 0.3 for p in plate.people]
+    below, how = vertical_horizon(plate.srgb, plate.focal_px, np.any(people, axis=0) if people else None)
     return (0.5, how) if below is None else (float(np.clip(0.5 + below * plate.focal_px / h, 0.0, 1.0)), how)
 
 

@@ -48,10 +48,11 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer.lighting.envmap import EnvMap, pixel_directions, solid_angles
-from viewer.plate.horizon import plate_horizon
+from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
+from viewer.plate.horizon import horizon_tilt, plate_horizon
 from viewer.plate.plate_file import CLIP, Plate
-from viewer.plate.plate_sky import ClearSky, plate_sky
+from viewer.plate.plate_shadows import sun_from_shadows
+from viewer.plate.plate_sky import camera_direction, plate_sky
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
@@ -80,8 +81,20 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
     dirs = pixel_directions(height, 2 * height)
     seen, x, y = _projected(dirs, focal, size)
     pixels = np.where(seen[..., None], _sample(radiance, x, y), _sample(blurred, x, y))
-    sky, said = plate_sky(plate, plate_horizon(plate)[0] if horizon is None else horizon)
-    if sky is None:
+    horizon = plate_horizon(plate)[0] if horizon is None else horizon
+    sky, said = plate_sky(plate, horizon)
+    shadow = None
+    if sky is None:  # no clear sky: the shadows of the plate's people may show its sun
+        shadow, from_shadows = sun_from_shadows(plate, horizon)
+        if shadow is not None:
+            said = from_shadows
+    if sky is None and shadow is not None:  # the sun the shadows say, as strong as the lit ground over the shadowed says
+        normal = camera_direction(np.array([0.0, 1.0, 0.0]), horizon_tilt(horizon, h, plate.focal_px))  # the ground's
+        up = np.clip(dirs @ normal, 0.0, None) * solid_angles(height, 2 * height)[:, None]
+        sky_on_ground = float(np.sum((pixels @ LUMINANCE.astype(np.float32)) * up))  # the sky's light on the ground
+        strength = (shadow.ratio - 1.0) * sky_on_ground / max(math.sin(shadow.elevation), math.sin(math.radians(5.0)))
+        _draw_sun(pixels, dirs, shadow.direction, np.full(3, strength, np.float32))
+    elif sky is None:
         # the half behind the camera brighter by (BEHIND_GAIN - 1) times the plate's mean unclipped light, added
         # evenly (not the mirror scaled: a sun in view, mirrored, must not outshine itself)
         unclipped = clipped < 0.5
@@ -91,7 +104,7 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
         mask = cv2.GaussianBlur(cv2.resize(sky.mask, size, interpolation=cv2.INTER_AREA), (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
         share = np.where(seen, 0.0, _sample(mask, x, y))[..., None]
         pixels = (1.0 - share) * pixels + share * sky.radiance(dirs)
-        _draw_sun(pixels, dirs, sky)
+        _draw_sun(pixels, dirs, sky.direction, sky.irradiance)
     pixels = np.maximum(pixels, 0.0).astype(np.float32)
     record = {"focal_35mm": round(plate.focal_35, 2), "focal_from": plate.focal_source,
               "field_of_view_deg": round(math.degrees(across), 2), "clipped_share": round(float(clipped.mean()), 5),
@@ -99,17 +112,18 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
     return EnvMap(pixels, plate.source), record
 
 
-def _draw_sun(pixels: np.ndarray, dirs: np.ndarray, sun: ClearSky):
-    """``sun``'s sun added to the map as a disc of ``SUN_RADIUS_DEG`` (at least a texel) holding its irradiance."""
+def _draw_sun(pixels: np.ndarray, dirs: np.ndarray, direction: np.ndarray, irradiance: np.ndarray):
+    """A sun at ``direction`` (the map's frame) added to the map as a disc of ``SUN_RADIUS_DEG`` (at least a texel)
+    holding ``irradiance`` (RGB, on a surface facing it)."""
     h = pixels.shape[0]
     texel = math.pi / h
     radius = max(math.radians(SUN_RADIUS_DEG), texel)
-    disc = dirs @ sun.direction >= math.cos(radius)
+    disc = dirs @ direction >= math.cos(radius)
     if not disc.any():  # a disc narrower than the texels' spacing: the nearest texel
         disc = np.zeros(dirs.shape[:2], bool)
-        disc.flat[int(np.argmax(dirs.reshape(-1, 3) @ sun.direction))] = True
+        disc.flat[int(np.argmax(dirs.reshape(-1, 3) @ direction))] = True
     solid = np.broadcast_to(solid_angles(*pixels.shape[:2])[:, None], disc.shape)
-    pixels[disc] += sun.irradiance / float(solid[disc].sum())
+    pixels[disc] += irradiance / float(solid[disc].sum())
 
 
 def _projected(dirs: np.ndarray, focal: float, size: tuple[int, int]):
@@ -156,7 +170,7 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
     return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
 
 
-LIGHT_VERSION = 3  # bump when a change here changes the map a plate gives (its file is made again)
+LIGHT_VERSION = 4  # bump when a change here changes the map a plate gives (its file is made again)
 
 
 def plate_light_file(plate: Plate, directory, notes: list | None = None, horizon: float | None = None) -> Path:

@@ -78,11 +78,11 @@ class ClearSky:
     @property
     def direction(self) -> np.ndarray:
         """The sun's direction in the plate camera's frame (the map convention of :mod:`viewer.lighting.envmap`)."""
-        return _camera_direction(self.sun, self.pitch)
+        return camera_direction(self.sun, self.pitch)
 
     def radiance(self, dirs: np.ndarray) -> np.ndarray:
         """(..., 3) the sky's radiance at ``dirs`` (the camera's frame); below the horizon, the horizon's."""
-        world = _world(dirs, self.pitch)
+        world = world_direction(dirs, self.pitch)
         gamma = np.arccos(np.clip(world @ self.sun, -1.0, 1.0))
         lum = self.scale * perez(np.maximum(world[..., 1], 0.0), gamma, self.turbidity)
         return (lum[..., None] * self.colour).astype(np.float32)
@@ -148,7 +148,7 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
         accounted = max(100.0 * (1.0 - explained), 0.0)
         return None, (f"no sun read from the sky: no sun explains how it varies (the best accounts for {accounted:.0f} % "
                       f"of what a sky without one leaves; {100 * (1 - EXPLAINED):.0f} % is needed)")
-    seen = _in_view(_camera_direction(sun, pitch), focal, size)
+    seen = _in_view(camera_direction(sun, pitch), focal, size)
     if seen is not None and not clipped[seen[1], seen[0]].any():
         return None, "no sun read from the sky: the sun its glow points to is in view, and the plate is not bright there"
     diffuse = scale * _sky_irradiance(sun, turbidity)  # the open sky's luminance on the ground
@@ -178,18 +178,18 @@ def _world_directions(size: tuple[int, int], focal: float, pitch: float) -> np.n
     w, h = size
     v, u = np.mgrid[0:h, 0:w] + 0.5
     d = np.stack([(u - 0.5 * w) / focal, -(v - 0.5 * h) / focal, -np.ones((h, w))], axis=-1)
-    return _world(d / np.linalg.norm(d, axis=-1, keepdims=True), pitch)
+    return world_direction(d / np.linalg.norm(d, axis=-1, keepdims=True), pitch)
 
 
-def _world(dirs: np.ndarray, pitch: float) -> np.ndarray:
+def world_direction(dirs: np.ndarray, pitch: float) -> np.ndarray:
     """Directions in the camera's frame (tilted up by ``pitch``) in the level world's."""
     c, s = math.cos(pitch), math.sin(pitch)
     return np.stack([dirs[..., 0], dirs[..., 1] * c - dirs[..., 2] * s, dirs[..., 2] * c + dirs[..., 1] * s], axis=-1)
 
 
-def _camera_direction(world: np.ndarray, pitch: float) -> np.ndarray:
+def camera_direction(world: np.ndarray, pitch: float) -> np.ndarray:
     """A world direction (:func:`_world_directions`) in the camera's frame."""
-    return _world(np.asarray(world, np.float64), -pitch)
+    return world_direction(np.asarray(world, np.float64), -pitch)
 
 
 def _in_view(direction: np.ndarray, focal: float, size: tuple[int, int]) -> tuple[int, int] | None:

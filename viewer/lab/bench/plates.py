@@ -22,7 +22,8 @@ maps' resolution), and where the true map has a dominant light (its strongest fi
 those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more; both
 :mod:`viewer.lighting.dominant`'s), the angle between it and the estimate's strongest light (grouped the same way)
 (``direction_deg``), and the angle between the two maps' brightest directions after a 5-degree blur
-(``brightest_deg``: issue 61's measure, which no fit's split of a sun moves). The JSON's ``summary``
+(``brightest_deg``: issue 61's measure, which no fit's split of a sun moves), and each cue to a sun alone
+(``cues``: the clear sky's and the people's shadows', the degrees off where it reads one). The JSON's ``summary``
 holds the means over all plates (``estimate``, ``uniform``, ``sh``), ``direction_deg_median``,
 ``brightest_deg_median``, and the medians over
 plates of each plate's ratio (``estimate_over_uniform_median``, ``estimate_over_sh_median``).
@@ -162,11 +163,26 @@ def _measured(plate_path: Path, scale: float, map_name: str, yaw: float, truth: 
         row["dominant_share"] = round(share, 3)
         row["direction_deg"] = round(angle_deg(turned, strongest_group(est_lights)[0]), 2)
         row["brightest_deg"] = round(angle_deg(rotation_matrix(yaw, 0.0) @ true_brightest, brightest_direction(estimate.pixels)), 2)
+        row["cues"] = _cues(plate, rotation_matrix(yaw, 0.0) @ true_brightest)
     progress(f"{map_name} yaw {yaw:.0f}{' ' + what if what else ''}: person RMSE estimate {row['estimate']:.4f}, "
              f"uniform {row['uniform']:.4f}, sh {row['sh']:.4f}"
              + (f"; dominant light {row['direction_deg']:.0f} deg off, brightest {row['brightest_deg']:.0f}"
                 if "direction_deg" in row else ""))
     return row
+
+
+def _cues(plate, truth: np.ndarray) -> dict:
+    """Each cue to a sun alone, on ``plate``: the degrees between the sun it reads and ``truth`` (the true map's
+    brightest direction, turned as the plate), or None where it reads none: the clear sky's
+    (:mod:`viewer.plate.plate_sky`) and the plate's people's shadows' (:mod:`viewer.plate.plate_shadows`)."""
+    from viewer.plate.horizon import plate_horizon
+    from viewer.plate.plate_shadows import sun_from_shadows
+    from viewer.plate.plate_sky import plate_sky
+
+    horizon = plate_horizon(plate)[0]
+    sky, shadow = plate_sky(plate, horizon)[0], sun_from_shadows(plate, horizon)[0]
+    return {"sky": None if sky is None else round(angle_deg(sky.direction, truth), 2),
+            "shadows": None if shadow is None else round(angle_deg(shadow.direction, truth), 2)}
 
 
 def _summary(rows: list) -> dict:
@@ -176,6 +192,10 @@ def _summary(rows: list) -> dict:
     for key in ("direction_deg", "brightest_deg"):
         found = [r[key] for r in rows if key in r]
         summary[f"{key}_median"] = float(np.median(found)) if found else None
+    for cue in ("sky", "shadows"):  # each cue alone, over the plates with a dominant light: how often it reads a sun, how far off
+        read = [r["cues"][cue] for r in rows if "cues" in r and r["cues"][cue] is not None]
+        summary[f"{cue}_cue"] = {"plates": sum("cues" in r for r in rows), "read": len(read),
+                                 "deg_median": float(np.median(read)) if read else None}
     summary["estimate_over_uniform"] = summary["estimate"] / summary["uniform"]
     summary["estimate_over_sh"] = summary["estimate"] / summary["sh"]
     # the issue's targets are medians over plates of each plate's ratio (a hidden studio softbox swamps a mean)
