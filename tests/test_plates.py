@@ -238,7 +238,8 @@ def test_the_plates_bench_measures_the_estimate_against_the_truth(tmp_path):
     result = run_plates_benchmark(maps, tmp_path / "plates.json", progress=lambda line: None, timing_runs=1, people_plates=False)
     assert json.loads((tmp_path / "plates.json").read_text())["summary"] == result["summary"]
     assert len(result["plates"]) == 3 and set(result["summary"]) >= {"estimate", "uniform", "sh", "direction_deg_median",
-                                                                       "brightest_deg_median", "sky_cue", "shadows_cue"}
+                                                                       "brightest_deg_median", "sky_cue", "shadows_cue",
+                                                                       "shading_cue"}
     ratios = sorted(r["estimate"] / r["uniform"] for r in result["plates"])
     assert result["summary"]["estimate_over_uniform_median"] == pytest.approx(ratios[1])  # the middle plate's of three
     for row in result["plates"]:
@@ -762,12 +763,13 @@ def test_a_plate_that_shows_people_is_rendered_in_the_map_with_their_shadows(tmp
 def test_the_sun_is_read_from_the_shadows_of_the_plates_people_and_not_from_shade(tmp_path):
     """A plate that shows people standing in a low sun (the bench's: rooitou at yaw 240, the sun 156 degrees to
     the right and 10 up, behind the camera): the shadow of the person the models find says where it is, within
-    20 degrees (measured 7); real photos whose shade is a wall's or a fence's, or whose sun is soft, give none
+    20 degrees (measured 7), their shading on which side; real photos whose shade is a wall's or a fence's, or whose sun is soft, give none
     (the barbell lunge's rear foot stands in a fence's shade; the overcast skier's skis); nor does a plate
     with no one in it."""
     from viewer.lab.bench.people_plates import make_people_plate
     from viewer.lab.bench.plates import angle_deg, brightest_direction
     from viewer.plate.horizon import plate_horizon
+    from viewer.plate.people_shading import sun_from_shading
     from viewer.plate.plate_shadows import sun_from_shadows
     from viewer.scene.area_lights import rotation_matrix
 
@@ -779,9 +781,27 @@ def test_the_sun_is_read_from_the_shadows_of_the_plates_people_and_not_from_shad
     truth = rotation_matrix(240.0, 0.0) @ brightest_direction(rooitou.pixels)  # the map's sun, turned as the plate's
     assert angle_deg(sun.direction, truth) < 20.0, said
     assert sun.ratio > 2.0 and "to the right of ahead, behind the camera" in said
-    for name in ("4dhumans_pexels-anete-lusina-4793258_barbell_lunge.jpg", "mmpose_coco_000000000785_skier.jpg"):
+    shading, said = sun_from_shading(plate)  # the same person's shading: lit from the right, behind the camera
+    assert shading is not None and 100.0 < np.degrees(shading.azimuth) < 175.0, said  # (156; measured 125)
+    for name in ("4dhumans_pexels-anete-lusina-4793258_barbell_lunge.jpg", "mmpose_coco_000000000785_skier.jpg",
+                 "econ_1f7c9214_woman_blackdress_outdoor_stairs.jpg"):
         photo = read_plate(SHARED_DATA / "eval-photos" / name, []).within(2048)
         assert sun_from_shadows(photo, plate_horizon(photo)[0])[0] is None, name
+        assert sun_from_shading(photo)[0] is None, name  # real clothes' folds and patterns: no one side lit (2-16 %)
     make_plate(rooitou, 240.0, tmp_path / "nobody.jpg")
     nobody = read_plate(tmp_path / "nobody.jpg", [])
     assert sun_from_shadows(nobody, 0.5) == (None, "no sun read from shadows: no one found standing in the plate")
+
+
+def test_a_plate_without_a_clear_sky_gets_the_sun_its_people_say(tmp_path):
+    """The bench's plate of immenstadter at yaw 120 (a white sky: no sun from it; the sun 84 degrees to the left, 36
+    up): the shading of the people found puts the sun to the left (measured 31 degrees off in azimuth), drawn into
+    the plate's light as its brightest light there, and said."""
+    from viewer.lab.bench.people_plates import make_people_plate
+    from viewer.lab.bench.plates import brightest_direction
+
+    make_people_plate(load_envmap(SHARED_DATA / "hdri" / "immenstadter_horn_1k.hdr"), 120.0, 2120, tmp_path / "hill.jpg")
+    env, record = plate_light(read_plate(tmp_path / "hill.jpg", []))
+    assert "a sun read from the shading of" in record["sun"] and "to the left of ahead" in record["sun"], record["sun"]
+    sun = brightest_direction(env.pixels)
+    assert sun[0] < -0.5 and sun[1] > 0.2  # to the left, up (the map's frame is the camera's)

@@ -221,7 +221,8 @@ def cmd_bench(args) -> int:
                 print(f"each cue alone on the {label} with a dominant light: " + "; ".join(
                     f"the {name} read a sun on {part[key]['read']} of {part[key]['plates']}"
                     + (f", {part[key]['deg_median']:.1f} degrees off (median)" if part[key]["deg_median"] is not None else "")
-                    for name, key in (("clear sky", "sky_cue"), ("people's shadows", "shadows_cue"))))
+                    for name, key in (("clear sky", "sky_cue"), ("people's shadows", "shadows_cue"),
+                                      ("people's shading", "shading_cue"))))
         shown = summary.get("people_plates")
         if shown:
             print(f"plates that show people: per plate, the median of the estimate's RMSE over uniform's "

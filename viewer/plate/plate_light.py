@@ -35,6 +35,12 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    windows, lamps and bright clouds for suns and made the estimate worse on every plate where it
    fired: not taken.)
 
+6. **A sun from the plate's people**, where no clear sky gave one: the shadows they cast on the ground
+   (:mod:`viewer.plate.plate_shadows`: its direction and elevation, its strength the lit ground over the
+   shadowed times the estimate's sky on the ground), else how they are shaded
+   (:mod:`viewer.plate.people_shading`: its azimuth, its strength over the even light on a surface facing the
+   camera, 30 degrees up taken), drawn as step 5's sun; the light behind the camera is then not raised (step 3).
+
 The map's units are the plate's linear values (a plate's exposure is the person's:
 :mod:`viewer.plate` composites in them). Measured against the true maps in ``relight bench plates``
 (docs/plates.md).
@@ -51,7 +57,6 @@ import numpy as np
 from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from viewer.plate.horizon import horizon_tilt, plate_horizon
 from viewer.plate.plate_file import CLIP, Plate
-from viewer.plate.plate_shadows import sun_from_shadows
 from viewer.plate.plate_sky import camera_direction, plate_sky
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
@@ -83,17 +88,10 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
     pixels = np.where(seen[..., None], _sample(radiance, x, y), _sample(blurred, x, y))
     horizon = plate_horizon(plate)[0] if horizon is None else horizon
     sky, said = plate_sky(plate, horizon)
-    shadow = None
-    if sky is None:  # no clear sky: the shadows of the plate's people may show its sun
-        shadow, from_shadows = sun_from_shadows(plate, horizon)
-        if shadow is not None:
-            said = from_shadows
-    if sky is None and shadow is not None:  # the sun the shadows say, as strong as the lit ground over the shadowed says
-        normal = camera_direction(np.array([0.0, 1.0, 0.0]), horizon_tilt(horizon, h, plate.focal_px))  # the ground's
-        up = np.clip(dirs @ normal, 0.0, None) * solid_angles(height, 2 * height)[:, None]
-        sky_on_ground = float(np.sum((pixels @ LUMINANCE.astype(np.float32)) * up))  # the sky's light on the ground
-        strength = (shadow.ratio - 1.0) * sky_on_ground / max(math.sin(shadow.elevation), math.sin(math.radians(5.0)))
-        _draw_sun(pixels, dirs, shadow.direction, np.full(3, strength, np.float32))
+    sun = None if sky is not None else _people_sun(plate, horizon, pixels, dirs)  # no clear sky: the plate's people
+    if sun is not None:
+        direction, irradiance, said = sun
+        _draw_sun(pixels, dirs, direction, irradiance)
     elif sky is None:
         # the half behind the camera brighter by (BEHIND_GAIN - 1) times the plate's mean unclipped light, added
         # evenly (not the mirror scaled: a sun in view, mirrored, must not outshine itself)
@@ -110,6 +108,37 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
               "field_of_view_deg": round(math.degrees(across), 2), "clipped_share": round(float(clipped.mean()), 5),
               "sun": said, "seconds": round(time.perf_counter() - t0, 3)}
     return EnvMap(pixels, plate.source), record
+
+
+def _people_sun(plate: Plate, horizon: float, pixels: np.ndarray, dirs: np.ndarray) -> tuple | None:
+    """(direction (the map's frame), RGB irradiance, what was said) of the sun the plate's people say, or None: the
+    shadows they cast (:mod:`viewer.plate.plate_shadows`: its direction, and its strength from the lit ground over the
+    shadowed times the estimate's sky on the ground), else their shading (:mod:`viewer.plate.people_shading`: its
+    azimuth and its strength over the even light, the estimate's on a surface facing the camera; the shadows'
+    ``TYPICAL_ELEVATION`` taken), white (the plate's white balance is its sun's)."""
+    from viewer.plate.people_shading import sun_from_shading
+    from viewer.plate.plate_shadows import TYPICAL_ELEVATION, sun_from_shadows
+
+    pitch = horizon_tilt(horizon, plate.size[1], plate.focal_px)
+    solid = solid_angles(*pixels.shape[:2])[:, None]
+    lum = pixels @ LUMINANCE.astype(np.float32)
+
+    def irradiance(normal: np.ndarray) -> float:  # the estimate's light on a surface facing ``normal``
+        return float(np.sum(lum * np.clip(dirs @ normal, 0.0, None) * solid))
+
+    shadow, said = sun_from_shadows(plate, horizon)
+    if shadow is not None:  # the lit ground over the shadowed: the sun's light on the ground over the sky's
+        on_ground = (shadow.ratio - 1.0) * irradiance(camera_direction(np.array([0.0, 1.0, 0.0]), pitch))
+        strength = on_ground / max(math.sin(shadow.elevation), math.sin(math.radians(5.0)))
+        return shadow.direction, np.full(3, strength, np.float32), said
+    shading, said = sun_from_shading(plate)
+    if shading is None:
+        return None
+    el, az = TYPICAL_ELEVATION, shading.azimuth
+    world = np.array([math.cos(el) * math.sin(az), math.sin(el), -math.cos(el) * math.cos(az)])
+    strength = shading.strength * irradiance(np.array([0.0, 0.0, 1.0])) / math.cos(el)  # over the even light on the front
+    return (camera_direction(world, pitch), np.full(3, strength, np.float32),
+            f"{said}; its elevation not read: {math.degrees(el):.0f} degrees up taken")
 
 
 def _draw_sun(pixels: np.ndarray, dirs: np.ndarray, direction: np.ndarray, irradiance: np.ndarray):
@@ -170,7 +199,7 @@ def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, flo
     return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
 
 
-LIGHT_VERSION = 4  # bump when a change here changes the map a plate gives (its file is made again)
+LIGHT_VERSION = 5  # bump when a change here changes the map a plate gives (its file is made again)
 
 
 def plate_light_file(plate: Plate, directory, notes: list | None = None, horizon: float | None = None) -> Path:

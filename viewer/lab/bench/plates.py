@@ -23,7 +23,7 @@ those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' lumi
 :mod:`viewer.lighting.dominant`'s), the angle between it and the estimate's strongest light (grouped the same way)
 (``direction_deg``), and the angle between the two maps' brightest directions after a 5-degree blur
 (``brightest_deg``: issue 61's measure, which no fit's split of a sun moves), and each cue to a sun alone
-(``cues``: the clear sky's and the people's shadows', the degrees off where it reads one). The JSON's ``summary``
+(``cues``: the clear sky's, the people's shadows' and their shading's, the degrees off where it reads one). The JSON's ``summary``
 holds the means over all plates (``estimate``, ``uniform``, ``sh``), ``direction_deg_median``,
 ``brightest_deg_median``, and the medians over
 plates of each plate's ratio (``estimate_over_uniform_median``, ``estimate_over_sh_median``).
@@ -174,15 +174,22 @@ def _measured(plate_path: Path, scale: float, map_name: str, yaw: float, truth: 
 def _cues(plate, truth: np.ndarray) -> dict:
     """Each cue to a sun alone, on ``plate``: the degrees between the sun it reads and ``truth`` (the true map's
     brightest direction, turned as the plate), or None where it reads none: the clear sky's
-    (:mod:`viewer.plate.plate_sky`) and the plate's people's shadows' (:mod:`viewer.plate.plate_shadows`)."""
-    from viewer.plate.horizon import plate_horizon
-    from viewer.plate.plate_shadows import sun_from_shadows
-    from viewer.plate.plate_sky import plate_sky
+    (:mod:`viewer.plate.plate_sky`), the plate's people's shadows' (:mod:`viewer.plate.plate_shadows`) and their
+    shading's (:mod:`viewer.plate.people_shading`, at the elevation the product takes)."""
+    from viewer.plate.horizon import horizon_tilt, plate_horizon
+    from viewer.plate.people_shading import sun_from_shading
+    from viewer.plate.plate_shadows import TYPICAL_ELEVATION, sun_from_shadows
+    from viewer.plate.plate_sky import camera_direction, plate_sky
 
     horizon = plate_horizon(plate)[0]
-    sky, shadow = plate_sky(plate, horizon)[0], sun_from_shadows(plate, horizon)[0]
+    sky, shadow, shading = plate_sky(plate, horizon)[0], sun_from_shadows(plate, horizon)[0], sun_from_shading(plate)[0]
+    if shading is not None:  # its azimuth, at the elevation the product takes
+        el, az = TYPICAL_ELEVATION, shading.azimuth
+        pitch = horizon_tilt(horizon, plate.size[1], plate.focal_px)
+        shading = camera_direction(np.array([math.cos(el) * math.sin(az), math.sin(el), -math.cos(el) * math.cos(az)]), pitch)
     return {"sky": None if sky is None else round(angle_deg(sky.direction, truth), 2),
-            "shadows": None if shadow is None else round(angle_deg(shadow.direction, truth), 2)}
+            "shadows": None if shadow is None else round(angle_deg(shadow.direction, truth), 2),
+            "shading": None if shading is None else round(angle_deg(shading, truth), 2)}
 
 
 def _summary(rows: list) -> dict:
@@ -192,7 +199,7 @@ def _summary(rows: list) -> dict:
     for key in ("direction_deg", "brightest_deg"):
         found = [r[key] for r in rows if key in r]
         summary[f"{key}_median"] = float(np.median(found)) if found else None
-    for cue in ("sky", "shadows"):  # each cue alone, over the plates with a dominant light: how often it reads a sun, how far off
+    for cue in ("sky", "shadows", "shading"):  # each cue alone, on the plates with a dominant light: how often it reads one, how far off
         read = [r["cues"][cue] for r in rows if "cues" in r and r["cues"][cue] is not None]
         summary[f"{cue}_cue"] = {"plates": sum("cues" in r for r in rows), "read": len(read),
                                  "deg_median": float(np.median(read)) if read else None}
