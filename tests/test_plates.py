@@ -721,7 +721,8 @@ def test_a_front_mask_that_cannot_be_used_is_one_line(tmp_path):
 def test_the_brightest_direction_is_where_a_maps_sun_is_however_small():
     """The bench's measure of issue 61: a map's brightest direction after a 5-degree blur; a small sun (a texel
     of a 512-row map) brighter than a wide bright patch of sky in total per texel wins, wherever it is."""
-    from viewer.lab.bench.plates import angle_deg, brightest_direction
+    from viewer.lab.bench.plates import angle_deg
+    from viewer.lighting.dominant import brightest_direction
     from viewer.lighting.envmap import pixel_directions
 
     dirs = pixel_directions(256, 512)
@@ -767,7 +768,8 @@ def test_the_sun_is_read_from_the_shadows_of_the_plates_people_and_not_from_shad
     (the barbell lunge's rear foot stands in a fence's shade; the overcast skier's skis); nor does a plate
     with no one in it."""
     from viewer.lab.bench.people_plates import make_people_plate
-    from viewer.lab.bench.plates import angle_deg, brightest_direction
+    from viewer.lab.bench.plates import angle_deg
+    from viewer.lighting.dominant import brightest_direction
     from viewer.plate.horizon import plate_horizon
     from viewer.plate.people_shading import sun_from_shading
     from viewer.plate.plate_shadows import sun_from_shadows
@@ -798,7 +800,7 @@ def test_a_plate_without_a_clear_sky_gets_the_sun_its_people_say(tmp_path):
     up): the shading of the people found puts the sun to the left (measured 31 degrees off in azimuth), drawn into
     the plate's light as its brightest light there, and said."""
     from viewer.lab.bench.people_plates import make_people_plate
-    from viewer.lab.bench.plates import brightest_direction
+    from viewer.lighting.dominant import brightest_direction
 
     make_people_plate(load_envmap(SHARED_DATA / "hdri" / "immenstadter_horn_1k.hdr"), 120.0, 2120, tmp_path / "hill.jpg")
     env, record = plate_light(read_plate(tmp_path / "hill.jpg", []))

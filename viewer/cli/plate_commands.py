@@ -21,9 +21,8 @@ MIN_MAP_HEIGHT, MAX_MAP_HEIGHT = 8, 4096  # plate-light's --height: a map of 16x
 
 
 def cmd_plate_light(args) -> int:
-    from viewer.lighting.dominant import dominant_light, dominant_light_line
+    from viewer.lighting.dominant import map_dominant_light, map_dominant_light_line
     from viewer.lighting.envmap import save_envmap
-    from viewer.lighting.lightfit import lights_for_map
     from viewer.plate.horizon import horizon_tilt, plate_horizon
     from viewer.plate.plate_file import read_plate
     from viewer.plate.plate_light import plate_light
@@ -41,15 +40,13 @@ def cmd_plate_light(args) -> int:
     plate = read_plate(args.plate, notes)
     horizon = plate_horizon(plate)[0]
     env, record = plate_light(plate, args.height, horizon=horizon)
-    # where the light comes from, as the 16 lights a render fits to it by default (cached: such a render reuses them),
+    # where the light comes from: the map's brightest direction and the share near it (no fit to wait for),
     # levelled by the camera's tilt its horizon gives
-    lights, _ = lights_for_map(env)
     pitch = math.degrees(horizon_tilt(horizon, plate.size[1], plate.focal_px))
+    notes += [record["sun"], map_dominant_light_line(env.pixels, pitch)]
+    found = map_dominant_light(env.pixels, pitch)
     seconds = time.perf_counter() - start
     save_envmap(out, env)
-    notes.append(record["sun"])
-    notes.append(dominant_light_line(lights, pitch))
-    found = dominant_light(lights, pitch)
     record["dominant_light"] = None if found is None else dict(zip(("azimuth_deg", "elevation_deg", "share"), found))
     for note in notes:
         print(f"note: {note}")

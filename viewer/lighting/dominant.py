@@ -1,6 +1,8 @@
 """The dominant light of a set of area lights: the strongest with those near it, since a fit splits a
 sun over several lights (the contact shadow's sky share, :mod:`viewer.plate.contact`; the plates
-bench's dominant direction; what ``relight plate-light`` says of the light it read)."""
+bench's dominant direction); and of a map itself (:func:`map_dominant_light`: its brightest direction after a
+``BRIGHTEST_BLUR_DEG`` blur and the share of its light within ``CLUSTER_DEG`` of it: what ``relight plate-light``
+says of the light it read, with no fit to wait for; issue 61's bench measures directions so)."""
 
 from __future__ import annotations
 
@@ -11,6 +13,8 @@ from viewer.scene.area_lights import AreaLights
 
 CLUSTER_DEG = 20.0  # lights this near the strongest are one light with it (a fit splits a sun over several)
 DOMINANT_SHARE = 0.3  # of the lights' summed luminance: a light this strong is a dominant one (a sun, a lamp)
+BRIGHTEST_BLUR_DEG = 5.0  # a map is blurred by this before its brightest direction is taken
+BRIGHTEST_HEIGHT = 128  # rows a map is brought to (by area) before that blur
 
 
 def strongest_group(lights: AreaLights, weights: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -27,30 +31,62 @@ def strongest_group(lights: AreaLights, weights: np.ndarray | None = None) -> tu
     return direction / max(float(np.linalg.norm(direction)), 1e-30), float(w[near].sum() / float(w.sum()))
 
 
-def dominant_light(lights: AreaLights, pitch: float = 0.0) -> tuple[float, float, float] | None:
-    """(azimuth, elevation, share) of the lights' dominant light (:func:`strongest_group` holding
-    ``DOMINANT_SHARE`` or more of their luminance), in degrees, for lights in a camera's frame whose camera
-    looks ``pitch`` degrees up (a plate's, read from its horizon): the azimuth from where the camera looks
-    (-z), to the right positive, the elevation above the horizon; None without one."""
-    from viewer.scene.area_lights import rotation_matrix
+def brightest_direction(pixels: np.ndarray) -> np.ndarray:
+    """The unit direction (the map's frame) of an equirectangular map's brightest luminance after a
+    ``BRIGHTEST_BLUR_DEG`` Gaussian blur on the sphere: where its dominant light is, however a fit would split it."""
+    return _brightest(pixels)[0]
 
-    direction, share = strongest_group(lights)
+
+def _brightest(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(the brightest direction, the map's luminance at ``BRIGHTEST_HEIGHT`` rows, its texels' directions)."""
+    import cv2
+
+    from viewer.lighting.envmap import pixel_directions
+    from viewer.scene.backdrop import blurred_map
+
+    small = cv2.resize(np.ascontiguousarray(pixels, np.float32), (2 * BRIGHTEST_HEIGHT, BRIGHTEST_HEIGHT), interpolation=cv2.INTER_AREA)
+    dirs = pixel_directions(BRIGHTEST_HEIGHT, 2 * BRIGHTEST_HEIGHT)
+    lum = blurred_map(small, np.radians(BRIGHTEST_BLUR_DEG)) @ LUMINANCE.astype(np.float32)
+    return dirs[np.unravel_index(int(np.argmax(lum)), lum.shape)], small @ LUMINANCE.astype(np.float32), dirs
+
+
+def _map_share(pixels: np.ndarray) -> tuple[np.ndarray, float]:
+    """(a map's brightest direction, the share of its light (luminance over solid angle) within ``CLUSTER_DEG`` of it)."""
+    from viewer.lighting.envmap import solid_angles
+
+    direction, lum, dirs = _brightest(pixels)
+    flux = lum * solid_angles(*lum.shape)[:, None]
+    total = float(flux.sum())
+    return direction, float(flux[dirs @ direction >= np.cos(np.radians(CLUSTER_DEG))].sum()) / total if total > 0.0 else 0.0
+
+
+def map_dominant_light(pixels: np.ndarray, pitch: float = 0.0) -> tuple[float, float, float] | None:
+    """(azimuth, elevation, share) in degrees of an equirectangular map's dominant light: its brightest direction
+    (:func:`brightest_direction`) when the texels within ``CLUSTER_DEG`` of it hold ``DOMINANT_SHARE`` or more of its
+    light, in the frame of a camera looking ``pitch`` degrees up (the azimuth from where it looks, to the right
+    positive; the elevation above the horizon, its tilt undone); None without one."""
+    direction, share = _map_share(pixels)
+    return _levelled(direction, pitch, share) if share >= DOMINANT_SHARE else None
+
+
+def map_dominant_light_line(pixels: np.ndarray, pitch: float = 0.0) -> str:
+    """One line on where a map's light comes from (:func:`map_dominant_light`): its direction as the camera sees it
+    and its share, or that there is none and how much the brightest direction holds."""
+    direction, share = _map_share(pixels)
     if share < DOMINANT_SHARE:
-        return None
-    x, y, z = (float(v) for v in rotation_matrix(0.0, pitch) @ direction)  # levelled: the camera's tilt undone
-    return float(np.degrees(np.arctan2(x, -z))), float(np.degrees(np.arcsin(np.clip(y, -1.0, 1.0)))), share
-
-
-def dominant_light_line(lights: AreaLights, pitch: float = 0.0) -> str:
-    """One line on where the light comes from (:func:`dominant_light`): its direction as the camera sees it
-    and its share, or that there is none and how much the strongest holds."""
-    found = dominant_light(lights, pitch)
-    if found is None:
-        share = strongest_group(lights)[1]
-        return (f"no dominant light: the strongest, with those within {CLUSTER_DEG:g} degrees of it, holds {100 * share:.0f} % "
-                f"of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): no one direction leads")
-    azimuth, elevation, share = found
+        return (f"no dominant light: the brightest direction, with what is within {CLUSTER_DEG:g} degrees of it, holds "
+                f"{100 * share:.0f} % of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): no one "
+                "direction leads")
+    azimuth, elevation, share = _levelled(direction, pitch, share)
     side = "straight ahead of" if abs(azimuth) < 0.5 else f"{abs(azimuth):.0f} degrees to the {'right' if azimuth > 0 else 'left'} of"
     behind = " (behind the camera)" if abs(azimuth) > 90 else ""
     return (f"the dominant light ({100 * share:.0f} % of the light) comes from {side} where the camera looks{behind}, "
             f"{abs(elevation):.0f} degrees {'above' if elevation >= 0 else 'below'} the horizon")
+
+
+def _levelled(direction: np.ndarray, pitch: float, share: float) -> tuple[float, float, float]:
+    """(azimuth, elevation, share) of ``direction`` in a camera's frame, the camera's tilt ``pitch`` undone."""
+    from viewer.scene.area_lights import rotation_matrix
+
+    x, y, z = (float(v) for v in rotation_matrix(0.0, pitch) @ direction)
+    return float(np.degrees(np.arctan2(x, -z))), float(np.degrees(np.arcsin(np.clip(y, -1.0, 1.0)))), share

@@ -42,6 +42,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.imageio import atomic_path, linear_to_srgb, write_text
+from viewer.lighting.dominant import brightest_direction
 
 PLATE_SIZE = (960, 640)  # pixels, landscape 3:2
 PLATE_FOCAL_35 = 35.0  # mm, 35-mm equivalent (written in the plate's EXIF)
@@ -70,23 +71,6 @@ def make_plate(env, yaw: float, path: Path, size: tuple[int, int] = PLATE_SIZE) 
     with atomic_path(path) as tmp:
         tmp.write_bytes(buffer.getvalue())
     return scale
-
-
-BRIGHTEST_BLUR_DEG = 5.0  # the maps are blurred by this before their brightest direction is taken (issue 61's measure)
-BRIGHTEST_HEIGHT = 128  # rows the maps are brought to (by area) before that blur
-
-
-def brightest_direction(pixels: np.ndarray) -> np.ndarray:
-    """The unit direction (the map's frame) of an equirectangular map's brightest luminance after a
-    ``BRIGHTEST_BLUR_DEG`` Gaussian blur on the sphere: where its dominant light is, however a fit splits it."""
-    import cv2
-
-    from viewer.lighting.envmap import LUMINANCE, pixel_directions
-    from viewer.scene.backdrop import blurred_map
-
-    small = cv2.resize(np.ascontiguousarray(pixels, np.float32), (2 * BRIGHTEST_HEIGHT, BRIGHTEST_HEIGHT), interpolation=cv2.INTER_AREA)
-    lum = blurred_map(small, math.radians(BRIGHTEST_BLUR_DEG)) @ LUMINANCE.astype(np.float32)
-    return pixel_directions(BRIGHTEST_HEIGHT, 2 * BRIGHTEST_HEIGHT)[np.unravel_index(int(np.argmax(lum)), lum.shape)]
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
