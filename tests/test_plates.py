@@ -824,3 +824,35 @@ def test_a_sun_in_view_is_not_mirrored_behind_the_camera(tmp_path):
         assert "no sun read from the sky" in record["sun"]  # not the clear sky's fit
         found = brightest_direction(estimate.pixels)
         assert found[2] < 0.0 and angle_deg(found, rotation_matrix(yaw, 0.0) @ brightest_direction(env.pixels)) < within, name
+
+
+def test_a_hard_front_mask_follows_a_thin_object_on_a_large_plate_and_a_coloured_stroke_marks(tmp_path):
+    """On a 4000x3000 plate (the refined band 16 px), a hand's mask 20 px wide round a 12-px dark pole: the pole
+    stays opaque (it came out a third opaque when the guided filter took a float guide as none), the plate far
+    beside it untouched; a red stroke on black marks as a white one."""
+    from viewer.plate.front_mask import read_front
+
+    srgb = np.full((3000, 4000, 3), 200, np.uint8)
+    srgb[:, 1994:2006] = 30
+    mask = np.zeros((3000, 4000, 3), np.uint8)
+    mask[500:2500, 1990:2010, 0] = 255  # red
+    Image.fromarray(mask).save(tmp_path / "pole.png")
+    front = read_front(tmp_path / "pole.png", srgb, [])
+    assert front[1500, 1995:2005].min() > 0.95 and front[1500, 1960] == 0.0 and front[100, 2000] == 0.0
+
+
+def test_people_crushed_to_black_say_nothing_of_the_light():
+    """A plate whose one person is a black silhouette (a backlit figure clipped to 0) and one with an evenly lit
+    person: no sun from their shading, and no error."""
+    from viewer.photo.segmentation import Person
+    from viewer.plate.people_shading import sun_from_shading
+
+    for level in (0, 128):
+        srgb = np.full((400, 600, 3), 180, np.uint8)
+        segmentation = np.zeros((400, 600), np.float32)
+        segmentation[80:360, 270:330] = 1.0
+        srgb[segmentation > 0] = level
+        plate = Plate(srgb, 35.0, "exif", "silhouette.png")
+        plate.__dict__["people"] = [Person(segmentation, {})]
+        sun, said = sun_from_shading(plate)
+        assert sun is None and said.startswith("no sun read from the people's shading"), said

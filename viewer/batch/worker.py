@@ -106,7 +106,7 @@ class Worker:
             from viewer.plate.plate_file import read_plate
 
             pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, turn, sizes,
-                                     plate=read_plate(task["plate"], []).within(task.get("plate_size") or sizes[1]),
+                                     plate=read_plate(task["plate"], [], task.get("front")).within(task.get("plate_size") or sizes[1]),
                                      place=Placement(*task["place"]),
                                      horizon=task["horizon"], cut_allowed=task["cut_allowed"])
         return {"bundle": bundle, "lights": lights, "look": look, "environment": env, "fixed": fixed, "options": options,

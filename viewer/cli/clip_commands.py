@@ -306,7 +306,8 @@ def parts_task(bundle, out: Path, args, lights, look, rig, turn: float, plate: t
     if plate is not None:
         place = plate[1]
         task.update(plate=str(Path(args.plate).resolve()), place=[place.x, place.y, place.height], horizon=plate[2],
-                    cut_allowed=args.height is not None, plate_size=args.max_size or MAX_SIZE)
+                    cut_allowed=args.height is not None, plate_size=args.max_size or MAX_SIZE,
+                    front=str(Path(args.front).resolve()) if getattr(args, "front", None) else None)
     return task
 
 

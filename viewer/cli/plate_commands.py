@@ -21,7 +21,7 @@ MIN_MAP_HEIGHT, MAX_MAP_HEIGHT = 8, 4096  # plate-light's --height: a map of 16x
 
 
 def cmd_plate_light(args) -> int:
-    from viewer.lighting.dominant import map_dominant_light, map_dominant_light_line
+    from viewer.lighting.dominant import map_dominant_light
     from viewer.lighting.envmap import save_envmap
     from viewer.plate.horizon import horizon_tilt, plate_horizon
     from viewer.plate.plate_file import read_plate
@@ -43,8 +43,8 @@ def cmd_plate_light(args) -> int:
     # where the light comes from: the map's brightest direction and the share near it (no fit to wait for),
     # levelled by the camera's tilt its horizon gives
     pitch = math.degrees(horizon_tilt(horizon, plate.size[1], plate.focal_px))
-    notes += [record["sun"], map_dominant_light_line(env.pixels, pitch)]
-    found = map_dominant_light(env.pixels, pitch)
+    found, said = map_dominant_light(env.pixels, pitch)
+    notes += [record["sun"], said]
     seconds = time.perf_counter() - start
     save_envmap(out, env)
     record["dominant_light"] = None if found is None else dict(zip(("azimuth_deg", "elevation_deg", "share"), found))

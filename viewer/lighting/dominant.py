@@ -60,28 +60,22 @@ def _map_share(pixels: np.ndarray) -> tuple[np.ndarray, float]:
     return direction, float(flux[dirs @ direction >= np.cos(np.radians(CLUSTER_DEG))].sum()) / total if total > 0.0 else 0.0
 
 
-def map_dominant_light(pixels: np.ndarray, pitch: float = 0.0) -> tuple[float, float, float] | None:
-    """(azimuth, elevation, share) in degrees of an equirectangular map's dominant light: its brightest direction
-    (:func:`brightest_direction`) when the texels within ``CLUSTER_DEG`` of it hold ``DOMINANT_SHARE`` or more of its
-    light, in the frame of a camera looking ``pitch`` degrees up (the azimuth from where it looks, to the right
-    positive; the elevation above the horizon, its tilt undone); None without one."""
-    direction, share = _map_share(pixels)
-    return _levelled(direction, pitch, share) if share >= DOMINANT_SHARE else None
-
-
-def map_dominant_light_line(pixels: np.ndarray, pitch: float = 0.0) -> str:
-    """One line on where a map's light comes from (:func:`map_dominant_light`): its direction as the camera sees it
-    and its share, or that there is none and how much the brightest direction holds."""
+def map_dominant_light(pixels: np.ndarray, pitch: float = 0.0) -> tuple[tuple[float, float, float] | None, str]:
+    """(azimuth, elevation, share) in degrees of an equirectangular map's dominant light, or None without one, and
+    one line saying it: its brightest direction (:func:`brightest_direction`) when the texels within ``CLUSTER_DEG``
+    of it hold ``DOMINANT_SHARE`` or more of its light, in the frame of a camera looking ``pitch`` degrees up (the
+    azimuth from where it looks, to the right positive; the elevation above the horizon, its tilt undone); else
+    how much the brightest direction holds."""
     direction, share = _map_share(pixels)
     if share < DOMINANT_SHARE:
-        return (f"no dominant light: the brightest direction, with what is within {CLUSTER_DEG:g} degrees of it, holds "
-                f"{100 * share:.0f} % of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): no one "
-                "direction leads")
-    azimuth, elevation, share = _levelled(direction, pitch, share)
+        return None, (f"no dominant light: the brightest direction, with what is within {CLUSTER_DEG:g} degrees of it, "
+                      f"holds {100 * share:.0f} % of the light (a sun or a lamp holds {100 * DOMINANT_SHARE:.0f} % or more): "
+                      "no one direction leads")
+    azimuth, elevation, share = found = _levelled(direction, pitch, share)
     side = "straight ahead of" if abs(azimuth) < 0.5 else f"{abs(azimuth):.0f} degrees to the {'right' if azimuth > 0 else 'left'} of"
     behind = " (behind the camera)" if abs(azimuth) > 90 else ""
-    return (f"the dominant light ({100 * share:.0f} % of the light) comes from {side} where the camera looks{behind}, "
-            f"{abs(elevation):.0f} degrees {'above' if elevation >= 0 else 'below'} the horizon")
+    return found, (f"the dominant light ({100 * share:.0f} % of the light) comes from {side} where the camera looks{behind}, "
+                   f"{abs(elevation):.0f} degrees {'above' if elevation >= 0 else 'below'} the horizon")
 
 
 def _levelled(direction: np.ndarray, pitch: float, share: float) -> tuple[float, float, float]:

@@ -220,7 +220,8 @@ def _followed(pose, small: np.ndarray, everyone, people: list, follow, photo_pat
 
 def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Person]:
     """Everyone in ``photo`` (H, W, 3) uint8 sRGB the models find (the selfie model's parts, largest
-    first, at most ``most``; the pose model shown each): their segmentation at the photo's size and
+    first, at most ``most``; the pose model shown each; where the selfie model is sure of no part, the pose
+    model shown the whole photo, which finds one person at most): their segmentation at the photo's size and
     their landmarks, as :func:`find_person` gives one. An empty list when there is no one."""
     from viewer.resize import resize
 
@@ -234,7 +235,7 @@ def find_people(photo: np.ndarray, photo_path=None, most: int = 8) -> list[Perso
     boxes = [grown(part, (sw, sh)) for part, _ in parts[:most]] or [(0, 0, sw, sh)]
     for box in boxes:
         seen = _pose(pose, small, box)
-        if seen is not None:  # its own parts only: a neighbour in the padded crop is left out, as find_person does
+        if seen is not None and (seen[1] > 0.5).any():  # its own parts only: a neighbour in the padded crop is left out
             landmarks = _landmarks(seen[0], box, (sw, sh))
             segmentation = keep_person(np.clip(resize(seen[1], (w, h)), 0.0, 1.0), list(landmarks.values()), [])
             found.append(Person(segmentation.astype(np.float32), landmarks))

@@ -14,7 +14,7 @@ in front, white on black (or opaque on transparent), at the plate's shape, in an
   refined by OpenCV's guided filter (He et al. 2013, ``cv2.ximgproc.guidedFilter``, the plate as its
   guide) so that it hugs the object's own outline and blends over a pixel or two as a photo's edges
   do; inside and outside that band the mask is kept. A soft mask (a matte from a compositor) is taken
-  as given.
+  as given. (A mask of two values is taken as that: a red stroke on black, a grey one, mark alike.)
 
 The composite hides the person, and their shadow, where the mask is
 (:func:`viewer.output.plate_composite.composite_on_plate`), in the command, a clip on the plate and the
@@ -46,15 +46,16 @@ def read_front(path, srgb: np.ndarray, notes: list) -> np.ndarray:
     if image.ndim == 3 and image.shape[-1] in (2, 4) and int(image[..., -1].min()) < 255:
         values = image[..., -1]  # its alpha: opaque where something stands in front
     elif image.ndim == 3:
-        values = image[..., :3].mean(axis=-1) if image.shape[-1] >= 3 else image[..., 0]
+        values = image[..., :3].max(axis=-1) if image.shape[-1] >= 3 else image[..., 0]  # (a red stroke marks too)
     else:
         values = image
     mh, mw = values.shape[:2]
     if abs((mw / mh) / (w / h) - 1.0) > ASPECT_SLACK:
         raise InputError(path, f"is {mw}x{mh}, the plate {w}x{h}: a front mask is the plate's shape (white where something "
                                "stands in front of the person)")
-    hard = bool(np.isin(np.unique(values), (values.min(), values.max())).all()) and values.min() != values.max()
-    mask = np.asarray(values, np.float32) / 255.0
+    levels = np.flatnonzero(np.bincount(values.ravel(), minlength=256))
+    hard = len(levels) == 2  # two values (a brush without softness, a polygon): the lower nothing, the higher in front
+    mask = ((values >= levels[1]) if hard else values / 255.0).astype(np.float32)
     if (mw, mh) != (w, h):
         mask = cv2.resize(mask, (w, h), interpolation=cv2.INTER_AREA if mw > w else cv2.INTER_LINEAR)
     share = float((mask > 0.5).mean())
@@ -86,8 +87,10 @@ def _along_edges(mask: np.ndarray, srgb: np.ndarray) -> np.ndarray:
     box = hard[y0:y1, x0:x1]
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
     band = cv2.dilate(box, kernel) > cv2.erode(box, kernel)
-    guide = np.ascontiguousarray(srgb[y0:y1, x0:x1], np.float32) / 255.0
-    soft = cv2.ximgproc.guidedFilter(guide, box.astype(np.float32), radius, GUIDE_EPS)
+    # the guide in 8 bits, its regularization in those units (a float guide is taken as no guide by this build:
+    # the filter then only blurs, and a thin pole on a 12-MP plate came out a third opaque)
+    guide = np.ascontiguousarray(srgb[y0:y1, x0:x1])
+    soft = cv2.ximgproc.guidedFilter(guide, box.astype(np.float32), radius, GUIDE_EPS * 255.0 ** 2)
     out = hard.astype(np.float32)
     out[y0:y1, x0:x1] = np.where(band, np.clip(soft, 0.0, 1.0), box)
     return out

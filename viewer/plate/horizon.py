@@ -26,6 +26,7 @@ MIN_LENGTH = 0.04  # of the plate's height
 MIN_SEGMENTS = 8
 MAX_TILT = 35.0  # degrees: a tilt read beyond this is not believed (the level camera's middle instead)
 SIDE = 1024  # pixels: the plate's longer side the segments are found at
+AWAY_GROW = 0.005  # of the plate's height: the people's segmentation grown by this before their edges are left out
 TRIM, TRIM_ROUNDS = 0.3, 2  # each round, the share of segments that miss the meeting point most is left out
 
 
@@ -33,9 +34,15 @@ def plate_horizon(plate: Plate) -> tuple[float, str]:
     """(the horizon's height as a fraction of the plate's, from its top; how it was found). The edges of the
     plate's people (:attr:`Plate.people`: their limbs lean as they stand, not as the world's verticals do) do
     not vote."""
+    import cv2
+
     h = plate.size[1]
     people = [p.segmentation > 0.3 for p in plate.people]
-    below, how = vertical_horizon(plate.srgb, plate.focal_px, np.any(people, axis=0) if people else None)
+    away = None
+    if people:  # grown a little: a limb's edge lies on the outline, a segment along it just outside
+        grow = max(int(round(AWAY_GROW * h)), 1)
+        away = cv2.dilate(np.any(people, axis=0).astype(np.uint8), np.ones((2 * grow + 1, 2 * grow + 1), np.uint8)) > 0
+    below, how = vertical_horizon(plate.srgb, plate.focal_px, away)
     return (0.5, how) if below is None else (float(np.clip(0.5 + below * plate.focal_px / h, 0.0, 1.0)), how)
 
 

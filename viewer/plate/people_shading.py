@@ -36,6 +36,7 @@ STRENGTHS = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # the sun's light over the even lig
 EXPLAINED = 0.8  # the best fit leaves at most this share of the even light's error: a sun is read
 DARKEST = 1e-4  # linear luminance: darker pixels (black clothes, clipped to 0) say nothing of the light
 MOST_SAMPLES = 6000  # a person's pixels read at most (whole rows, every n-th): the fit's time
+MIN_SAMPLES, MIN_RUNS = 200, 10  # fewer pixels or runs left (not black) and a person says nothing of the light
 
 
 @dataclass(frozen=True)
@@ -61,8 +62,10 @@ def sun_from_shading(plate) -> tuple[ShadingSun | None, str]:
         e, f = _errors(luminance, normals, runs, azimuths)
         errors += e
         flat += f
+    if flat <= 1e-9:  # every run even: nothing for a light from one side to explain
+        return None, "no sun read from the people's shading: they are evenly lit across their limbs"
     i, j = np.unravel_index(int(np.argmin(errors)), errors.shape)
-    explained = float(errors[i, j] / max(flat, 1e-12))
+    explained = float(errors[i, j] / flat)
     if explained > EXPLAINED:
         return None, (f"no sun read from the people's shading: a light from one side explains {100 * (1 - explained):.0f} % of "
                       f"how {len(samples)} of them vary across their limbs ({100 * (1 - EXPLAINED):.0f} % is needed)")
@@ -110,7 +113,10 @@ def _samples(plate, person) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         return None
     luminance, normals, runs = np.concatenate(values), np.concatenate(normals), np.concatenate(runs)
     keep = luminance > DARKEST
-    return luminance[keep], normals[keep], runs[keep]
+    if keep.sum() < MIN_SAMPLES or len(np.unique(runs[keep])) < MIN_RUNS:  # a silhouette crushed to black says nothing
+        return None
+    _, runs = np.unique(runs[keep], return_inverse=True)  # the runs left, numbered from 0
+    return luminance[keep], normals[keep], runs
 
 
 def _errors(luminance: np.ndarray, normals: np.ndarray, runs: np.ndarray, azimuths: np.ndarray) -> tuple[np.ndarray, float]:

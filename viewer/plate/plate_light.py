@@ -133,7 +133,8 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
 def _filled_from_below(values: np.ndarray, solid: np.ndarray, added: np.ndarray) -> np.ndarray:
     """``values`` (N, 3) over texels of ``solid`` angles with light of ``added`` (RGB radiance, were it even) more
     in all, given to the darkest first: every texel raised to at least the level ``m`` (in luminance) at which the
-    light added is as much; the brightest are left as they are."""
+    light added is as much; those brighter than ``m`` are left as they are (when the light added would raise every
+    texel past the brightest, all are raised to ``m``: even)."""
     lum = values @ LUMINANCE.astype(np.float32)
     extra = float(added @ LUMINANCE) * float(solid.sum())  # the light to add (luminance over solid angle)
     if extra <= 0.0 or not len(lum):
@@ -146,7 +147,7 @@ def _filled_from_below(values: np.ndarray, solid: np.ndarray, added: np.ndarray)
     k = min(max(k, 1), len(v))
     level = (extra + weighted[k - 1]) / weight[k - 1]
     colour = added / max(float(added @ LUMINANCE), 1e-12)
-    return values + np.maximum(level - lum, 0.0)[:, None] * colour[None, :]
+    return (values + np.maximum(level - lum, 0.0)[:, None] * colour[None, :]).astype(np.float32)
 
 
 def _people_sun(plate: Plate, horizon: float) -> tuple | None:

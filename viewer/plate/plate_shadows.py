@@ -26,8 +26,8 @@ their segmentation and landmarks) whose feet are seen below the horizon is read 
    ``MIN_RATIO`` times as bright as the shadow (a skylight's or a window's soft shadow is not a sun's).
 4. **The sun**: opposite the shadow, its elevation the arctangent of the person's height over the
    shadow's length (where the shadow runs off the plate or behind someone, the length seen says the sun is
-   at most that high: it is taken at ``TYPICAL_ELEVATION`` if that is lower); its strength the lit
-   ground's median over the shadow's, less one, times the sky's light on the ground (:func:`viewer.plate.plate_light.plate_light` draws it).
+   at most that high: it is taken at ``TYPICAL_ELEVATION`` if that is lower). The lit ground's median over
+   the shadow's is said (``ratio``); :func:`viewer.plate.plate_light.plate_light` takes the direction only.
 People's readings are combined weighted by their shadows' lengths (the azimuth's circular mean, the
 median elevation and ratio). A sun straight behind the camera casts the shadow behind the person, where
 they hide it: none is read.
@@ -159,7 +159,7 @@ def _person_shadow(person, mask, everyone, lum, focal, pitch) -> tuple[float, fl
     if runs[best] < MIN_RUN * tall or runs[(best + DIRECTIONS // 2) % DIRECTIONS] > OPPOSITE * runs[best]:
         return None
     near = runs >= 0.5 * runs[best]
-    offsets = (np.arange(DIRECTIONS) - best + DIRECTIONS // 2) % DIRECTIONS - DIRECTIONS // 2  # from the best, -36..35
+    offsets = (np.arange(DIRECTIONS) - best + DIRECTIONS // 2) % DIRECTIONS - DIRECTIONS // 2  # steps from the best, both ways
     if np.ptp(offsets[near]) * (360.0 / DIRECTIONS) > MAX_SPREAD:
         return None
     weights = np.where(near, runs, 0.0)
