@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
+from viewer.plate.plate_sky import bearing, camera_direction, world_at
 
 SAMPLE_WIDTH = 640  # pixels: the plate's longer side the people are read at
 MIN_TALL = 0.12  # of the plate's height: a smaller person's rows are too few pixels across
@@ -50,10 +51,23 @@ class ShadingSun:
     explained: float
     people: int
 
+    def direction_at(self, pitch: float) -> np.ndarray:
+        """Its direction in the frame of the plate's camera tilted up by ``pitch`` (radians): the azimuth read, the
+        elevation not (:data:`viewer.plate.plate_shadows.TYPICAL_ELEVATION` taken)."""
+        from viewer.plate.plate_shadows import TYPICAL_ELEVATION
+
+        return camera_direction(world_at(self.azimuth, TYPICAL_ELEVATION), pitch)
+
 
 def sun_from_shading(plate) -> tuple[ShadingSun | None, str]:
     """(the sun the shading of ``plate``'s people says, or None; why, in words)."""
-    samples = [s for s in (_samples(plate, person) for person in plate.people) if s is not None]
+    import cv2
+
+    w, h = plate.size
+    scale = min(SAMPLE_WIDTH / max(w, h), 1.0)
+    size = (max(round(w * scale), 1), max(round(h * scale), 1))
+    lum = cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA) @ LUMINANCE.astype(np.float32)  # once for everyone
+    samples = [s for s in (_samples(lum, person) for person in plate.people) if s is not None]
     if not samples:
         return None, "no sun read from the people's shading: no one found tall enough in the plate"
     azimuths = np.radians(np.arange(0.0, 360.0, STEP_DEG))
@@ -71,22 +85,17 @@ def sun_from_shading(plate) -> tuple[ShadingSun | None, str]:
                       f"how {len(samples)} of them vary across their limbs ({100 * (1 - EXPLAINED):.0f} % is needed)")
     # the fit's azimuth is from the camera (+z); the plate's from where it looks (-z)
     azimuth = math.remainder(math.pi - float(azimuths[i]), 2.0 * math.pi)
-    side = "ahead" if abs(math.degrees(azimuth)) < 1.0 else (
-        f"{abs(math.degrees(azimuth)):.0f} degrees to the {'right' if azimuth > 0 else 'left'} of ahead"
-        + (", behind the camera" if abs(azimuth) > math.pi / 2 else ""))
     return (ShadingSun(azimuth, float(STRENGTHS[j]), round(explained, 3), len(samples)),
-            f"a sun read from the shading of {len(samples)} of the plate's people: {side} (it explains "
+            f"a sun read from the shading of {len(samples)} of the plate's people: {bearing(world_at(azimuth, 0.0))} (it explains "
             f"{100 * (1 - explained):.0f} % of how they vary across their limbs beyond an even light)")
 
 
-def _samples(plate, person) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """(luminance, the cylinders' normals (N, 3) in the camera's frame, each sample's run) of ``person``, or None
-    when they are too small."""
+def _samples(plate_lum: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(luminance, the cylinders' normals (N, 3) in the camera's frame, each sample's run) of ``person`` in the
+    plate's luminance ``plate_lum`` (at ``SAMPLE_WIDTH``), or None when they are too small."""
     import cv2
 
-    w, h = plate.size
-    scale = min(SAMPLE_WIDTH / max(w, h), 1.0)
-    size = (max(round(w * scale), 1), max(round(h * scale), 1))
+    size = plate_lum.shape[1::-1]
     mask = cv2.resize(person.segmentation, size, interpolation=cv2.INTER_AREA) > 0.5
     mask = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0  # the matte's edge mixes the background in
     rows = np.flatnonzero(mask.any(axis=1))
@@ -94,8 +103,7 @@ def _samples(plate, person) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         return None
     x0, x1 = np.flatnonzero(mask.any(axis=0))[[0, -1]]
     y0, y1 = rows[0], rows[-1] + 1
-    linear = cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA)[y0:y1, x0:x1 + 1]
-    lum = linear @ LUMINANCE.astype(np.float32)
+    lum = plate_lum[y0:y1, x0:x1 + 1]
     values, normals, runs = [], [], []
     every = max(int(mask[y0:y1].sum()) // MOST_SAMPLES, 1)
     for y, row in enumerate(mask[y0:y1, x0:x1 + 1]):

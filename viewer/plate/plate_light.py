@@ -72,7 +72,7 @@ from viewer.lighting.dominant import DOMINANT_SHARE
 from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from viewer.plate.horizon import horizon_tilt, plate_horizon
 from viewer.plate.plate_file import CLIP, Plate
-from viewer.plate.plate_sky import camera_direction, plate_sky
+from viewer.plate.plate_sky import plate_sky
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
@@ -161,10 +161,8 @@ def _people_sun(plate: Plate, horizon: float) -> tuple | None:
     shading, said = sun_from_shading(plate)
     if shading is None:
         return None
-    el, az = TYPICAL_ELEVATION, shading.azimuth
-    world = np.array([math.cos(el) * math.sin(az), math.sin(el), -math.cos(el) * math.cos(az)])
-    return (camera_direction(world, horizon_tilt(horizon, plate.size[1], plate.focal_px)),
-            f"{said}; its elevation not read: {math.degrees(el):.0f} degrees up taken")
+    return (shading.direction_at(horizon_tilt(horizon, plate.size[1], plate.focal_px)),
+            f"{said}; its elevation not read: {math.degrees(TYPICAL_ELEVATION):.0f} degrees up taken")
 
 
 def _gathered(pixels: np.ndarray, dirs: np.ndarray, direction: np.ndarray, share: float) -> np.ndarray:

@@ -42,7 +42,7 @@ import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
 from viewer.plate.horizon import horizon_tilt
-from viewer.plate.plate_sky import camera_direction, world_direction
+from viewer.plate.plate_sky import bearing, camera_direction, world_at, world_direction
 
 SAMPLE_WIDTH = 640  # pixels: the longer side the plate's luminance is read at
 DIRECTIONS = 120  # round the feet, 3 degrees apart
@@ -99,14 +99,11 @@ def sun_from_shadows(plate, horizon: float) -> tuple[ShadowSun | None, str]:
     azimuth = math.atan2(float(np.sum(runs * np.sin([r[0] for r in readings]))), float(np.sum(runs * np.cos([r[0] for r in readings]))))
     elevation = float(np.median([r[1] for r in readings]))
     ratio = float(np.median([r[2] for r in readings]))
-    world = np.array([math.cos(elevation) * math.sin(azimuth), math.sin(elevation), -math.cos(elevation) * math.cos(azimuth)])
+    world = world_at(azimuth, elevation)
     direction = camera_direction(world, pitch)
-    side = "ahead" if abs(math.degrees(azimuth)) < 1.0 else (
-        f"{abs(math.degrees(azimuth)):.0f} degrees to the {'right' if azimuth > 0 else 'left'} of ahead"
-        + (", behind the camera" if abs(azimuth) > math.pi / 2 else ""))
     return (ShadowSun(direction / np.linalg.norm(direction), elevation, ratio, len(readings)),
             f"a sun read from the shadows of {len(readings)} of the plate's people: {math.degrees(elevation):.0f} degrees up, "
-            f"{side} (the lit ground {ratio:.1f} x the shadowed)")
+            f"{bearing(world)} (the lit ground {ratio:.1f} x the shadowed)")
 
 
 def _person_shadow(person, mask, everyone, lum, focal, pitch) -> tuple[float, float, float, float] | None:
@@ -136,12 +133,8 @@ def _person_shadow(person, mask, everyone, lum, focal, pitch) -> tuple[float, fl
     blocked = cv2.dilate(np.any(everyone, axis=0).astype(np.uint8), np.ones((2 * grow + 1, 2 * grow + 1), np.uint8)) > 0
     phi = np.arange(DIRECTIONS) * (2.0 * math.pi / DIRECTIONS)
     radii = tall * np.linspace(START, REACH, STEPS)
-    points = ground[None, None, :] + radii[None, :, None] * np.stack([np.sin(phi), np.zeros_like(phi), -np.cos(phi)], -1)[:, None, :]
-    u, v, ahead = _projected(points, (wid, hgt), focal, pitch)
-    inside = ahead & (u >= 0) & (u < wid) & (v >= 0) & (v < hgt)
-    ui, vi = np.clip(u, 0, wid - 1).astype(int), np.clip(v, 0, hgt - 1).astype(int)
-    seen = inside & ~blocked[vi, ui]
-    values = lum[vi, ui]
+    points = ground[None, None, :] + radii[None, :, None] * world_at(phi, 0.0)[:, None, :]
+    seen, values = _ground_read(points, lum, blocked, focal, pitch)
     if seen.sum() < 0.2 * seen.size:
         return None
     level = float(np.median(values[seen]))
@@ -183,18 +176,22 @@ def _narrow(ground, shadow: float, radii: np.ndarray, tall: float, lum, blocked,
     """Whether the ground ``BESIDE`` of the person's height to either side of the shadow (direction ``shadow``,
     along ``radii``) is lit where it is seen, on each side at ``BESIDE_LIT`` of its samples or more: a person's
     shadow is about their width, a wall's or a tree's shade runs on beside it."""
-    hgt, wid = lum.shape
-    along = np.array([math.sin(shadow), 0.0, -math.cos(shadow)])
-    across = np.array([math.cos(shadow), 0.0, math.sin(shadow)])
+    along, across = world_at(shadow, 0.0), world_at(shadow + 0.5 * math.pi, 0.0)
     for side in (-1.0, 1.0):
         points = ground[None, :] + radii[:, None] * along[None, :] + side * BESIDE * tall * across[None, :]
-        u, v, ahead = _projected(points, (wid, hgt), focal, pitch)
-        inside = ahead & (u >= 0) & (u < wid) & (v >= 0) & (v < hgt)
-        ui, vi = np.clip(u, 0, wid - 1).astype(int), np.clip(v, 0, hgt - 1).astype(int)
-        seen = inside & ~blocked[vi, ui]
-        if seen.sum() < 3 or (lum[vi, ui][seen] >= DARK * level).mean() < BESIDE_LIT:
+        seen, values = _ground_read(points, lum, blocked, focal, pitch)
+        if seen.sum() < 3 or (values[seen] >= DARK * level).mean() < BESIDE_LIT:
             return False
     return True
+
+
+def _ground_read(points: np.ndarray, lum: np.ndarray, blocked: np.ndarray, focal: float, pitch: float):
+    """(where the ground is seen at ``points`` (..., 3, the level world's frame): in front of the camera, on the
+    plate and not ``blocked`` by anyone; the luminance ``lum`` there (nearest pixel))."""
+    hgt, wid = lum.shape
+    u, v, ahead = _projected(points, (wid, hgt), focal, pitch)
+    ui, vi = np.clip(u, 0, wid - 1).astype(int), np.clip(v, 0, hgt - 1).astype(int)
+    return ahead & (u >= 0) & (u < wid) & (v >= 0) & (v < hgt) & ~blocked[vi, ui], lum[vi, ui]
 
 
 def _run(seen: np.ndarray, dark: np.ndarray, radii: np.ndarray, tall: float) -> tuple[float, bool]:

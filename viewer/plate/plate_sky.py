@@ -159,12 +159,12 @@ def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     # beside them (the glow about the sun), not only those the fit read
     fill = _joined_to_top(sky | (clipped.any(axis=-1) & (world[..., 1] > 0.0)))
     return (ClearSky(sun, turbidity, scale, colour, irradiance, pitch, round(explained, 3), fill.astype(np.float32)),
-            f"a sun read from the clear sky: {math.degrees(elevation):.0f} degrees up, {_bearing(sun)} (its glow accounts for "
+            f"a sun read from the clear sky: {math.degrees(elevation):.0f} degrees up, {bearing(sun)} (its glow accounts for "
             f"{100 * (1 - explained):.0f} % of how the sky varies beyond a sky without a sun)")
 
 
-def _bearing(sun: np.ndarray) -> str:
-    """Where ``sun`` (world) is round the camera, in words."""
+def bearing(sun: np.ndarray) -> str:
+    """Where ``sun`` (world; only its horizontal part counts) is round the camera, in words."""
     azimuth = math.degrees(math.atan2(float(sun[0]), -float(sun[2])))
     if abs(azimuth) < 1.0:
         return "ahead"
@@ -236,11 +236,17 @@ def _flat_error(dirs: np.ndarray, lum: np.ndarray, r2: np.ndarray) -> float:
     return float(np.mean((basis @ coeffs - np.log(lum)) ** 2))
 
 
+def world_at(azimuth, elevation) -> np.ndarray:
+    """(..., 3) unit directions in the level world's frame of ``azimuth`` (radians from the camera's heading, -z,
+    towards +x: the right) and ``elevation`` (radians above the horizon)."""
+    az, el = np.broadcast_arrays(np.asarray(azimuth, np.float64), np.asarray(elevation, np.float64))
+    return np.stack([np.cos(el) * np.sin(az), np.sin(el), -np.cos(el) * np.cos(az)], axis=-1)
+
+
 def _suns(elevations: np.ndarray, azimuths: np.ndarray) -> np.ndarray:
     """(N, 3) unit directions of every (elevation, azimuth) pair (radians; azimuth from -z towards +x)."""
     el, az = np.meshgrid(elevations, azimuths, indexing="ij")
-    el, az = el.ravel(), az.ravel()
-    return np.stack([np.cos(el) * np.sin(az), np.sin(el), -np.cos(el) * np.cos(az)], axis=-1)
+    return world_at(az.ravel(), el.ravel())
 
 
 def _errors(dirs: np.ndarray, log_lum: np.ndarray, suns: np.ndarray, turbidity: float) -> tuple[np.ndarray, np.ndarray]:

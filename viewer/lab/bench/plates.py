@@ -162,15 +162,13 @@ def _cues(plate, truth: np.ndarray) -> dict:
     shading's (:mod:`viewer.plate.people_shading`, at the elevation the product takes)."""
     from viewer.plate.horizon import horizon_tilt, plate_horizon
     from viewer.plate.people_shading import sun_from_shading
-    from viewer.plate.plate_shadows import TYPICAL_ELEVATION, sun_from_shadows
-    from viewer.plate.plate_sky import camera_direction, plate_sky
+    from viewer.plate.plate_shadows import sun_from_shadows
+    from viewer.plate.plate_sky import plate_sky
 
     horizon = plate_horizon(plate)[0]
     sky, shadow, shading = plate_sky(plate, horizon)[0], sun_from_shadows(plate, horizon)[0], sun_from_shading(plate)[0]
     if shading is not None:  # its azimuth, at the elevation the product takes
-        el, az = TYPICAL_ELEVATION, shading.azimuth
-        pitch = horizon_tilt(horizon, plate.size[1], plate.focal_px)
-        shading = camera_direction(np.array([math.cos(el) * math.sin(az), math.sin(el), -math.cos(el) * math.cos(az)]), pitch)
+        shading = shading.direction_at(horizon_tilt(horizon, plate.size[1], plate.focal_px))
     return {"sky": None if sky is None else round(angle_deg(sky.direction, truth), 2),
             "shadows": None if shadow is None else round(angle_deg(shadow.direction, truth), 2),
             "shading": None if shading is None else round(angle_deg(shading, truth), 2)}
