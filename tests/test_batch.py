@@ -153,11 +153,11 @@ def test_a_bad_map_fails_its_own_looks(tmp_path):
 
 
 def test_two_batches_on_one_folder(tmp_path):
-    from viewer.batch.manifest import OutputLock
+    from viewer.batch.manifest import batch_lock
 
-    with OutputLock(tmp_path / "out"):
+    with batch_lock(tmp_path / "out"):
         res = batch(tmp_path, PHOTO, "--env", MAPS[0], "-o", tmp_path / "out")
-    assert res.returncode == 2 and "another relight batch is writing here" in res.stderr
+    assert res.returncode == 2 and f"is being written by another relight (process {os.getpid()}" in res.stderr
     assert res.stderr.count("\n") == 1 and not (tmp_path / "out" / "manifest.jsonl").exists()
 
 

@@ -30,7 +30,7 @@ class SplitClip:
         try:
             digest = file_sha256(clip)
             bundle = open_ranges(clip, cache_path(clip, settings["bundles"], settings["max_size"], digest), workers,
-                                 max_size=settings["max_size"], digest=digest)
+                                 max_size=settings["max_size"], digest=digest, cached=True)
         except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
             return cls(clip, None, {"ok": False, "error": task_error(exc)})
         split = cls(clip, bundle)

@@ -6,49 +6,28 @@ it will write), ``done`` or ``failed`` (its outputs with their SHA-256, the seco
 the one-line error), ``sheet`` (the contact sheet written). A batch killed at any moment leaves whole
 lines but perhaps the last; that line is ignored.
 A rerun skips the items whose last ``done`` has the same key and whose outputs are still the files
-it wrote. The lock (``.relight-batch.lock``, an flock the kernel drops when the process dies, even
-by SIGKILL) keeps a second batch out of the folder."""
+it wrote. The lock (``.relight-batch.lock``, :mod:`viewer.files.output_lock`: an flock the kernel drops when the
+process dies, even by SIGKILL) keeps a second batch out of the folder."""
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
 import time
 from pathlib import Path
 
-from viewer.errors import InputError
 from viewer.files.ownership import file_sha256
 
 MANIFEST = "manifest.jsonl"
 LOCK = ".relight-batch.lock"
 
 
-class OutputLock:
-    """Holds the batch folder for one batch at a time."""
+def batch_lock(folder):
+    """The batch folder held for one batch at a time (:class:`viewer.files.output_lock.ExclusiveLock` on its
+    ``LOCK``, which stays, as the manifest does)."""
+    from viewer.files.output_lock import ExclusiveLock
 
-    def __init__(self, folder: Path):
-        self.path = Path(folder) / LOCK
-        self._fd = None
-
-    def __enter__(self):
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 200).decode(errors="replace").strip()
-            os.close(fd)
-            raise InputError(self.path.parent, f"another relight batch is writing here ({holder or 'its process is unknown'}); "
-                                               "wait for it, or give another -o") from None
-        os.ftruncate(fd, 0)
-        os.write(fd, f"process {os.getpid()}, since {time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
-        self._fd = fd
-        return self
-
-    def __exit__(self, *exc):
-        fcntl.flock(self._fd, fcntl.LOCK_UN)
-        os.close(self._fd)
+    return ExclusiveLock(folder, path=Path(folder) / LOCK, remove=False, busy="wait for it, or give another -o")
 
 
 class Manifest:

@@ -18,7 +18,7 @@ import numpy as np
 
 from viewer.batch.clip_split import SplitClip
 from viewer.batch.contact_sheet import SHEET, contact_sheet
-from viewer.batch.manifest import LOCK, MANIFEST, Manifest, OutputLock, Ownership, stamp, still_done
+from viewer.batch.manifest import LOCK, MANIFEST, Manifest, Ownership, batch_lock, stamp, still_done
 from viewer.batch.plan import Item, LookSpec, clip_bundle_key, item_key, photo_names
 from viewer.batch.spread_clip import part_tasks
 from viewer.files.clip_reader import is_clip
@@ -130,7 +130,7 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
     folder = Path(folder)
     start = time.perf_counter()
     summary = Summary()
-    with OutputLock(folder), Manifest(folder) as manifest:
+    with batch_lock(folder), Manifest(folder) as manifest:
         finished = manifest.finished()
         ownership = Ownership(manifest)
         items, photo_errors = plan_items(photos, looks, settings)

@@ -73,7 +73,7 @@ class Worker:
         digest = file_sha256(task["photo"])
         bundle = cache_path(task["photo"], task["bundles"], task["max_size"], digest)
         record = infer_clip(task["photo"], bundle, max_size=task["max_size"], device=task.get("device", "cpu"), ctx=self.ctx,
-                            digest=digest)
+                            digest=digest, cached=True)
         return {"bundle": str(bundle), "cached": record["frames_kept_from_earlier_run"] == record["frames"]}
 
     def infer_range(self, task: dict) -> dict:

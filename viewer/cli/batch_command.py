@@ -99,11 +99,11 @@ def cmd_batch(args) -> int:
             return RayPool(args.ray, args.workers, args.threads or 1, gpus=args.gpus_per_worker)
         return LocalPool(workers, threads)
 
-    from viewer.lighting.lightfit.cache import cache_dir
+    from viewer.lighting.lightfit.cache import bundles_dir
 
     # the bundles' folder as this process sees it: workers on other machines need it shared (docs/batch.md)
     settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device,
-                "bundles": str(cache_dir().with_name("bundles").resolve()),
+                "bundles": str(bundles_dir().resolve()),
                 **({"cut_allowed": args.height is not None} if args.plates else {})}
     summary = run_batch(photos, looks, folder, make_pool, settings)
     for item, error in summary.failures:

@@ -29,19 +29,22 @@ def _bundle_options(clip, args, out=None) -> tuple[Path, dict]:
     """(where the clip bundle of ``clip`` goes: ``out``, or the cache's when None; the options it is
     inferred with, :func:`viewer.photo.clip_inference.infer_clip`'s) from ``args`` (--start, --end,
     --size, --max-size, --device, --temporal, --person, --people)."""
-    from viewer.lighting.lightfit.cache import cache_dir
-    from viewer.photo.clip_inference import cached_clip_path
+    from viewer.files.clip_reader import probe_clip
+    from viewer.lighting.lightfit.cache import bundles_dir
+    from viewer.photo.clip_inference import cached_clip_path, check_frame_size
     from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 
     size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
     max_size = getattr(args, "max_size", None) or MAX_SIZE
     temporal = args.temporal or "on"
     person, people = getattr(args, "person", None), getattr(args, "people", None) or "one"
+    check_frame_size(clip, probe_clip(clip), max_size)  # (a clip that cannot be read, or is too small: one line before any bar)
     digest = file_sha256(clip)  # read once: the cache's path and the bundle's key
-    target = Path(out) if out is not None else cached_clip_path(clip, cache_dir().with_name("bundles"), args.start, args.end,
+    target = Path(out) if out is not None else cached_clip_path(clip, bundles_dir(), args.start, args.end,
                                                                 size, max_size, temporal, digest, person, people)
     return target, {"start": args.start, "end": args.end, "size": size, "max_size": max_size, "temporal": temporal,
-                    "digest": digest, "person": person, "people": people, "device": getattr(args, "device", "cpu")}
+                    "digest": digest, "person": person, "people": people, "device": getattr(args, "device", "cpu"),
+                    "cached": out is None}
 
 
 def _said(clip, target: Path, record: dict, seconds: float, pool=None) -> None:
@@ -87,7 +90,7 @@ def clip_bundle(clip, args, out=None, window=None, pool=None, planned: tuple | N
 
             record = infer_spread(pool, clip, target, args.start, args.end, options["size"], options["max_size"],
                                   options["temporal"], options["digest"], options["person"], options["people"],
-                                  device=options["device"], progress=progress)
+                                  device=options["device"], progress=progress, cached=options["cached"])
         else:
             record = infer_clip(clip, target, progress=progress, ctx=window.ctx if window is not None else None, **options)
     _said(clip, target, record, time.perf_counter() - t0, pool)
@@ -261,6 +264,12 @@ def cmd_render_clip(args, look) -> int:
     print(f"note: {result['pitch']} (the first shot's; each shot's read on its first frame with the person)")
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
+    sw, sh = bundle.source["width"], bundle.source["height"]
+    if max(sw, sh) > max(w, h) + 1 and plate is None:
+        from viewer.photo.photo_frame import MAX_SIZE
+
+        print(f"note: the clip is {sw}x{sh}: relit at {w}x{h} (--max-size {args.max_size or MAX_SIZE} on the longer side; "
+              "a larger --max-size keeps more, at more time and memory)")
     return 0
 
 

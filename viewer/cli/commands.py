@@ -107,6 +107,15 @@ def plate_options_need_a_plate(args):
 
 
 def cmd_render(args) -> int:
+    """``relight render``: one run at a time writes an output (:mod:`viewer.files.output_lock`), held from before
+    the first check of what is there to the last file written."""
+    from viewer.files.output_lock import ExclusiveLock
+
+    with ExclusiveLock(writable(args.output)):
+        return _render(args)
+
+
+def _render(args) -> int:
     from viewer.files.clip_reader import is_clip
     from viewer.scene.clip_bundle import is_clip_bundle
 

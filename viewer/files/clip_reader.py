@@ -11,6 +11,8 @@ own time.
 - **Damage**: a packet the decoder cannot read (a cut or corrupt file) is one warning line naming
   the clip and the time, and its frame is reported lost (``ClipFrame.rgb`` None), so the frame
   count and the timing are kept; a file cut short ends the clip there, with a warning.
+- **Scripts**: an FFmpeg concat script or a playlist (``READS_OTHER_FILES``) is refused: its frames are other
+  files', which change without it changing (a clip bundle is cached by the clip's bytes).
 - **Bounds**: at most ``MAX_CLIP_FRAMES`` frames in one run (``--start`` / ``--end`` choose a part);
   frames are read as they are needed, so memory does not grow with the clip's length.
 """
@@ -31,6 +33,7 @@ from viewer.files.imageio import ffmpeg_file
 
 VIDEO_SUFFIXES = (".mp4", ".mov", ".m4v", ".webm", ".avi", ".mkv")
 MAX_CLIP_FRAMES = 36_000  # 20 minutes at 30 fps: a clip bundle of ~3 MB a frame would need 100 GB beyond this
+READS_OTHER_FILES = {"concat", "hls", "applehttp", "dash", "webm_dash_manifest", "image2"}  # FFmpeg demuxers whose frames are other files'
 REORDER = 16  # frames held to put the decoder's output and lost packets in time order
 
 
@@ -39,7 +42,8 @@ class ClipInfo:
     """What a clip holds, from its header: the size frames are shown at (``width`` x ``height``,
     the display matrix applied), its ``rotation`` (degrees a player turns the stored frames,
     counter-clockwise), the average frame rate, the frame count (the container's, else estimated
-    from the duration), the duration in seconds and the first audio stream's codec (None: silent)."""
+    from the duration), the duration in seconds, the first audio stream's codec (None: silent) and the stored pixels'
+    aspect (``sar``: width over height; frames come out with square pixels, as a player shows them)."""
 
     path: Path
     width: int
@@ -49,6 +53,7 @@ class ClipInfo:
     frames: int
     duration: float
     audio: str | None
+    sar: float = 1.0
 
     def to_json(self) -> dict:
         return {"path": str(self.path), "width": self.width, "height": self.height, "rotation": self.rotation,
@@ -80,6 +85,11 @@ def _open(path):
         container = av.open(ffmpeg_file(path))
     except av.FFmpegError as exc:
         raise InputError(path, f"is not a video this program can read ({_reason(exc)})") from None
+    if set(container.format.name.split(",")) & READS_OTHER_FILES:
+        name = container.format.name
+        container.close()  # its frames would be other files' (cached by this file's bytes, not theirs)
+        raise InputError(path, f"is a script or playlist that names other files ({name}), not a video: give the video "
+                               "file itself")
     if not container.streams.video:
         container.close()
         raise InputError(path, "holds no video stream (audio only, or not a video): give a clip with a picture")
@@ -107,10 +117,27 @@ def _rotation(stream, first) -> int:
     return int(round(float(angle) / 90.0)) * 90 % 360
 
 
-def upright(rgb: np.ndarray, rotation: int) -> np.ndarray:
-    """The stored frame turned as a player shows it (``rotation`` counter-clockwise degrees)."""
+def upright(rgb: np.ndarray, rotation: int, sar: float = 1.0) -> np.ndarray:
+    """The stored frame as a player shows it: its pixels ``sar`` times as wide as tall made square (the width
+    scaled, OpenCV's area or linear resampling), then turned ``rotation`` counter-clockwise degrees."""
+    if sar != 1.0:
+        import cv2
+
+        h, w = rgb.shape[:2]
+        shown = max(int(round(w * sar)), 1)
+        rgb = cv2.resize(rgb, (shown, h), interpolation=cv2.INTER_AREA if shown < w else cv2.INTER_LINEAR)
     turns = (rotation // 90) % 4
     return np.ascontiguousarray(np.rot90(rgb, turns)) if turns else rgb
+
+
+SAR_RANGE = (0.125, 8.0)  # a pixel's width over its height: a header's outside this is not believed (square taken)
+
+
+def _sar(stream) -> float:
+    """The stream's sample aspect ratio (its pixels' width over height; 1 when the header has none or an absurd one)."""
+    ratio = stream.sample_aspect_ratio
+    value = float(ratio) if ratio else 1.0
+    return value if SAR_RANGE[0] <= value <= SAR_RANGE[1] else 1.0
 
 
 def probe_clip(path) -> ClipInfo:
@@ -130,7 +157,8 @@ def probe_clip(path) -> ClipInfo:
         if first is None:
             raise InputError(path, "holds no frame (an empty or cut video stream)")
         rotation = _rotation(stream, first)
-        w, h = first.width, first.height
+        sar = _sar(stream)
+        w, h = max(int(round(first.width * sar)), 1), first.height
         if rotation in (90, 270):
             w, h = h, w
         fps = float(stream.average_rate or stream.guessed_rate or 0.0) or 30.0
@@ -138,7 +166,7 @@ def probe_clip(path) -> ClipInfo:
             float(container.duration) / 1e6 if container.duration else 0.0)
         frames = int(stream.frames or 0) or int(round(duration * fps))
         audio = codec_name(container.streams.audio[0]) if container.streams.audio else None
-    return ClipInfo(Path(path), int(w), int(h), rotation, fps, frames, duration, audio)
+    return ClipInfo(Path(path), int(w), int(h), rotation, fps, frames, duration, audio, sar)
 
 
 def check_range(path, start: float, end: float | None) -> None:
@@ -176,16 +204,31 @@ def clip_frames(path, start: float = 0.0, end: float | None = None, limit: int =
         if start > 0:
             container.seek(int((start + origin) / base), stream=stream, backward=True)
         pending: list = []  # (time, tie, rgb or None): a heap, the decoder's output put in time order
-        first = None
+        first = last = None
         count = 0
         tie = 0
+        stored = None  # the first frame's stored size: a clip whose size changes is refused when it does
+
+        def shown(frame) -> np.ndarray:
+            nonlocal stored
+            if stored is None:
+                stored = (frame.width, frame.height)
+            elif (frame.width, frame.height) != stored:
+                raise InputError(path, f"its frames change size at {float(frame.pts or 0) * base - origin:.2f} s (from "
+                                       f"{stored[0]}x{stored[1]} to {frame.width}x{frame.height}): a clip is relit at one size; "
+                                       "cut it there (--end) or convert it to one size first")
+            return upright(frame.to_ndarray(format="rgb24"), info.rotation, info.sar)
 
         def ready(force: bool):
-            nonlocal first, count
+            nonlocal first, last, count
             while pending and (force or len(pending) > REORDER):
                 t, _, rgb = heapq.heappop(pending)
                 if t < start - 1e-6 or (end is not None and t >= end - 1e-9):
                     continue
+                if last is not None and t <= last + 1e-6:  # two frames at one time (a muxer's repeated timestamp)
+                    warnings.warn(f"{path}: two frames at {t:.6f} s: the second left out", stacklevel=2)
+                    continue
+                last = t
                 if first is None:
                     first = t
                 if count >= limit:
@@ -214,12 +257,12 @@ def clip_frames(path, start: float = 0.0, end: float | None = None, limit: int =
                     continue
                 for frame in frames:
                     ft = (float(frame.pts) * base - origin) if frame.pts is not None else (t or 0.0)
-                    heapq.heappush(pending, (ft, tie, upright(frame.to_ndarray(format="rgb24"), info.rotation)))
+                    heapq.heappush(pending, (ft, tie, shown(frame)))
                     tie += 1
                 yield from ready(False)
             for frame in stream.decode(None):  # the decoder's delayed frames
                 ft = float(frame.pts) * base - origin if frame.pts is not None else 0.0
-                heapq.heappush(pending, (ft, tie, upright(frame.to_ndarray(format="rgb24"), info.rotation)))
+                heapq.heappush(pending, (ft, tie, shown(frame)))
                 tie += 1
         except av.FFmpegError as exc:
             warnings.warn(f"{path}: the file ends early ({_reason(exc)}): the clip ends at its last whole frame", stacklevel=2)

@@ -103,6 +103,45 @@ def take_away(path, tag: str = "old") -> None:
     shutil.rmtree(aside, ignore_errors=True)
 
 
+def names_ours(folder) -> bool:
+    """Whether ``folder`` holds only files this program wrote there, by name (their bytes may have changed since:
+    a file cut short, one deleted): a real folder whose marker is intact and lists every regular file in it."""
+    folder = Path(folder)
+    marker = folder / MARKER
+    if folder.is_symlink() or not folder.is_dir() or marker.is_symlink() or not marker.is_file():
+        return False
+    try:
+        data = json.loads(marker.read_text())
+        files = data["files"]
+        if data.get("format") != FORMAT or not isinstance(files, dict) or data.get("hash") != _list_hash(files):
+            return False
+        return all(e.name == MARKER or (e.is_file(follow_symlinks=False) and e.name in files) for e in os.scandir(folder))
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return False
+
+
+def discard_entry(path, ours: bool) -> Path | None:
+    """A cache's entry that does not check out, out of the way so that it is made again: removed (:func:`take_away`)
+    when it holds only what this program wrote there (``ours``, the caller's judgement by name: a file of it cut
+    short or deleted), else moved aside (:func:`set_aside`: a user's file or a link in it is never removed).
+    Returns where it was moved, None when removed."""
+    if ours:
+        take_away(path, "damaged")
+        return None
+    return set_aside(path)
+
+
+def set_aside(path) -> Path:
+    """Move ``path`` (a cache's entry that does not check out) aside, renamed beside it as ``.NAME.damaged-TIME-PID``:
+    nothing in it is removed (a user's file put there included); returns where it went."""
+    import time
+
+    path = Path(path)
+    aside = path.with_name(f".{path.name}.damaged-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}-{secrets.token_hex(2)}")
+    path.rename(aside)
+    return aside
+
+
 @contextlib.contextmanager
 def folder_lock(folder, busy: str | None = None):
     """An exclusive lock on ``folder`` (flock on its descriptor) for the duration: writers into it

@@ -235,11 +235,16 @@ def _rgbe_header(path: Path) -> tuple[int, int, bytes]:
         raise InputError(path, "not a Radiance HDR image (no resolution line after the header)") from None
 
 
+NEGATIVE_SHARE = 0.01  # of a map's pixels: negative values on at most this many are a filter's ringing, set to 0
+
+
 def load_envmap(path, repair: bool = False) -> EnvMap:
     """Read a ``.hdr`` or ``.exr`` equirectangular map and validate it (see :class:`EnvMap`).
 
     NaN/Inf pixels are an error unless ``repair`` is set: then they become 0 and a warning names the
-    file and the number of pixels replaced. A one-channel EXR is taken as grey; alpha is dropped."""
+    file and the number of pixels replaced. Negative values on at most ``NEGATIVE_SHARE`` of the pixels (the ringing
+    that resampling filters leave round a sun) become 0, with a warning; more are refused (not a map of light).
+    A one-channel EXR is taken as grey; alpha is dropped."""
     path = Path(path)
     if path.suffix.lower() not in SUFFIXES:
         raise InputError(path, f"unsupported environment map format {path.suffix!r} (use .hdr or .exr)")
@@ -270,6 +275,12 @@ def load_envmap(path, repair: bool = False) -> EnvMap:
         if count:
             px[bad] = 0.0
             warnings.warn(f"{path}: replaced {count} NaN/Inf pixel(s) with 0", stacklevel=2)
+    with np.errstate(invalid="ignore"):
+        negative = (px < 0).any(axis=2)
+    count = int(negative.sum())
+    if 0 < count <= NEGATIVE_SHARE * negative.size:  # a resampling filter's ringing (Lanczos, bicubic) round bright spots
+        np.maximum(px, 0.0, out=px, where=np.isfinite(px))
+        warnings.warn(f"{path}: {count} pixel(s) had negative values (a resampling filter's ringing): set to 0", stacklevel=2)
     return EnvMap(px, str(path))
 
 

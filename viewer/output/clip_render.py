@@ -34,7 +34,7 @@ from viewer.files.ownership import file_is_ours, file_sha256, take_away
 from viewer.memory_needs import frames_freed
 from viewer.output.clip_frames import ClipFrames, shows_filmed_frame
 from viewer.output.render import render_look, warn_if_unseen
-from viewer.output.video import VideoWriter, join_clip
+from viewer.output.video import VideoWriter, encoded_size, join_clip
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.clip_bundle import FRAMES, ClipBundle, frame_name
 from viewer.scene.look import AUTO, Look
@@ -454,7 +454,7 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     first = pictures.frames.people[0]
     pitch, how = pictures.frames.pitch(first)
     height = pictures.frames.camera_height(first)
-    return {"frames": len(bundle.frames), "size": pictures.size, "parts_reused": reused, "audio_note": note,
+    return {"frames": len(bundle.frames), "size": encoded_size(pictures.size), "parts_reused": reused, "audio_note": note,
             "layers": sequence, "pitch": f"the clip's horizon ({how}): the new map's horizon put there"
             + (f" (the map tilted {pitch:.1f} degrees)" if pitch else "")
             + (f"; the camera {height:.1f} m above the ground (from the person's height in the frame): the map's ground"

@@ -20,6 +20,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.imageio import MARK_TEXT, ffmpeg_file
+from viewer.files.output_lock import claim_partial
 
 TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
 FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
@@ -36,6 +37,12 @@ def partial_taken(path) -> InputError:
     the file is created)."""
     return InputError(partial_path(path), "exists (a recording cut short, or a file of yours): move it or give "
                                           "another output name; nothing was written")
+
+
+def encoded_size(size: tuple[int, int]) -> tuple[int, int]:
+    """The size a video of frames of ``size`` (w, h) is written at: 4:2:0 needs even sides, so an odd last row or
+    column is left out (never padded)."""
+    return tuple(max(int(v) - int(v) % 2, 2) for v in size)
 
 
 class VideoWriter:
@@ -62,9 +69,10 @@ class VideoWriter:
             raise partial_taken(self.path) from None
         except OSError as exc:
             raise InputError(self.path, f"cannot write the video ({exc.strerror or exc})") from None
+        claim_partial(self.partial, self.path)  # killed, the next run under a lock removes it (viewer.files.output_lock)
         self.size = (int(width), int(height))
         # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
-        self.encoded_size = tuple(max(v - v % 2, 2) for v in self.size)
+        self.encoded_size = encoded_size(self.size)
         self.fps = float(fps)
         self.frames = 0
         self._last_pts = -1
@@ -267,6 +275,7 @@ def join_clip(parts: list[tuple[Path, float]], path, audio_source=None, audio_at
         os.close(os.open(partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
     except FileExistsError:
         raise partial_taken(path) from None
+    claim_partial(partial, path)  # killed mid-join, the next run removes it (viewer.files.output_lock)
     note = None
     try:
         with contextlib.ExitStack() as stack:

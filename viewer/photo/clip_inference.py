@@ -38,7 +38,16 @@ from pathlib import Path
 from viewer.errors import InputError, NoPersonError
 from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
-from viewer.files.ownership import file_is_ours, file_sha256, folder_lock, take_away, written_here
+from viewer.files.ownership import (
+    discard_entry,
+    file_is_ours,
+    file_sha256,
+    folder_lock,
+    names_ours,
+    set_aside,
+    take_away,
+    written_here,
+)
 from viewer.memory_needs import frames_freed
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
@@ -149,6 +158,20 @@ def _finished(frames: Path, index: int) -> ClipFrameEntry | None:
     return entry
 
 
+MIN_FRAME_SIDE = 32  # pixels: a frame's shorter side at the bundle's size; a person in fewer is not relit
+MAX_ASPECT = 8.0  # a frame's longer side over its shorter: past it the optical flow's frames (640 px long) are too thin
+
+
+def check_frame_size(path, info: ClipInfo, max_size: int) -> None:
+    """One line, before any frame is inferred, for a clip whose frames are too small or too thin to relight."""
+    fw, fh = output_frame((info.width, info.height), max_size)
+    if min(fw, fh) < MIN_FRAME_SIDE or max(fw, fh) > MAX_ASPECT * min(fw, fh):
+        shown = f" ({fw}x{fh} at --max-size)" if (fw, fh) != (info.width, info.height) else ""
+        raise InputError(path, f"its frames are {info.width}x{info.height} pixels{shown}"
+                         f": too small or too thin to relight (at least {MIN_FRAME_SIDE} pixels on each side, at most "
+                         f"{MAX_ASPECT:g} times as long as wide)")
+
+
 def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int) -> None:
     """Refuse, in one line, a clip whose bundle would not fit on the disk."""
     fw, fh = output_frame((info.width, info.height), max_size)
@@ -162,10 +185,92 @@ def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int)
 BUSY = "another relight is making this clip bundle now: run again when it is done"
 
 
-def locked_bundle(clip_path, out_dir, start: float, end: float | None) -> tuple[Path, contextlib.AbstractContextManager]:
+def entry_problem(out_dir: Path) -> str | None:
+    """What does not check out in the cache's clip bundle ``out_dir`` (None: whole so far, or absent): a link, a
+    file this program did not write there, a record that does not parse or is not its own, a frame's record or
+    files that are not as it wrote them."""
+    if out_dir.is_symlink():
+        return "it is a link"
+    if not out_dir.exists():
+        return None
+    if not out_dir.is_dir():
+        return "it is not a folder"
+    names = {p.name for p in out_dir.iterdir()}
+    if not names:
+        return None
+    if not names <= {RECORD, FRAMES, PREVIEW}:
+        return f"it holds {sorted(names - {RECORD, FRAMES, PREVIEW})[0]!r}, which relight does not write there"
+    if (out_dir / RECORD).is_symlink() or not file_is_ours(out_dir / RECORD):
+        return f"its {RECORD} is not one relight wrote"
+    try:
+        read_record(out_dir)
+    except InputError as exc:
+        return f"its record does not check out ({exc.problem})"
+    frames = out_dir / FRAMES
+    if frames.is_symlink() or (frames.exists() and not frames.is_dir()):
+        return f"its {FRAMES} is a link or not a folder"
+    if frames.is_dir():
+        if not _frames_ours(frames):
+            return "a frame's files are not as relight wrote them"
+        for p in frames.glob("*.json"):
+            try:
+                read_frame_entry(p)
+            except InputError as exc:
+                return f"frame {p.stem}'s record does not check out ({exc.problem})"
+    return None
+
+
+def _names_ours(out_dir: Path) -> bool:
+    """Whether the clip bundle ``out_dir`` holds only what this program writes there, by name (its files' bytes may
+    have changed: a frame's map cut short): no link anywhere, no name it does not write."""
+    if out_dir.is_symlink() or not out_dir.is_dir() or not {p.name for p in out_dir.iterdir()} <= {RECORD, FRAMES, PREVIEW}:
+        return False
+    if any(p.is_symlink() for p in (out_dir / RECORD, out_dir / PREVIEW)) or (out_dir / FRAMES).is_symlink():
+        return False
+    frames = out_dir / FRAMES
+    for p in frames.iterdir() if frames.is_dir() else ():
+        if p.name.startswith("."):  # a frame being written when a run stopped (fresh_sibling's names)
+            continue
+        if p.is_symlink() or not (p.name.isdigit() and names_ours(p) or p.stem.isdigit() and p.suffix in (".json", ".png")
+                                  and p.is_file()):
+            return False
+    return True
+
+
+def set_aside_if_damaged(out_dir: Path) -> str | None:
+    """The cache's clip bundle ``out_dir`` out of the way when something in it does not check out
+    (:func:`entry_problem`), so that it is made again: removed when it holds only what this program wrote there, else
+    moved aside, renamed beside it (``.NAME.damaged-TIME-...``: a user's file or a link in it is never removed,
+    :func:`viewer.files.ownership.discard_entry`); the note that says so (None: nothing done). A bundle another run
+    is making now (its lock held) is left to that run."""
+    problem = entry_problem(out_dir)
+    if problem is None:
+        return None
+    if not out_dir.is_symlink() and out_dir.is_dir():
+        try:
+            with folder_lock(out_dir, busy=BUSY):
+                aside = discard_entry(out_dir, _names_ours(out_dir))
+        except InputError:
+            return None
+    else:
+        aside = set_aside(out_dir)
+    where = f"moved aside to {aside.name}" if aside is not None else "removed"
+    return f"{out_dir}: the cached clip bundle did not check out ({problem}): {where}, the clip is inferred again"
+
+
+def locked_bundle(clip_path, out_dir, start: float, end: float | None,
+                  cached: bool = False) -> tuple[Path, contextlib.AbstractContextManager]:
     """(``out_dir`` checked as a place for a clip bundle and made, the lock its maker holds: one run
-    at a time makes a clip bundle; another is refused in one line, :data:`BUSY`)."""
+    at a time makes a clip bundle; another is refused in one line, :data:`BUSY`). ``cached``: ``out_dir`` is the
+    cache's (:func:`cached_clip_path`): damaged, it is made again (:func:`set_aside_if_damaged`, warned) instead of
+    refused."""
     check_range(clip_path, start, end)
+    if cached:
+        note = set_aside_if_damaged(Path(out_dir).absolute())
+        if note is not None:
+            import warnings
+
+            warnings.warn(note, stacklevel=2)
     out_dir = clip_target(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     return out_dir, folder_lock(out_dir, busy=BUSY)
@@ -183,6 +288,7 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
     for the clip (:func:`choose_person`), with its preview."""
     out_dir = Path(out_dir)
     info = probe_clip(clip_path)
+    check_frame_size(clip_path, info, max_size)
     options = clip_options(start, end, size, max_size, temporal, person, people)
     digest = digest or file_sha256(clip_path)
     key = clip_key(digest, options, inference_version())
@@ -211,14 +317,17 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
 
 def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
                max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
-               temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one") -> dict:
+               temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one",
+               cached: bool = False) -> dict:
     """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
     ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
     the header's estimate). Frames already finished by an earlier run of the same clip and options
     are kept. ``digest``: the clip's SHA-256 when the caller has just read it; ``person``, ``people``:
-    :func:`clip_options`."""
-    out_dir, lock = locked_bundle(clip_path, out_dir, start, end)
-    with lock:
+    :func:`clip_options`; ``cached``: ``out_dir`` is the cache's (:func:`locked_bundle`)."""
+    made = not Path(out_dir).exists()
+    out_dir, lock = locked_bundle(clip_path, out_dir, start, end, cached)
+    with lock, _left_empty_removed(out_dir if made else None):
+        before = source_state(clip_path)
         out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest, person,
                                                     people)
         if earlier is not None:
@@ -227,9 +336,47 @@ def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None,
             ranges = [ClipRange(*r) for r in record["ranges"]]
             done = [infer_frames(clip_path, out_dir, record, r.first, r.last, r.warm, record.get("shot_starts"), device=device,
                                  networks=networks, progress=progress, ctx=ctx) for r in ranges]
-            return finish_ranges(clip_path, out_dir, ranges, done)
-        done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
-        return finish_record(clip_path, out_dir, record, [done])
+            record = finish_ranges(clip_path, out_dir, ranges, done)
+        else:
+            done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
+            record = finish_record(clip_path, out_dir, record, [done])
+        unchanged(clip_path, before, out_dir)
+        return record
+
+
+@contextlib.contextmanager
+def _left_empty_removed(folder: Path | None):
+    """``folder`` (made by this run; None: not) removed again when the run fails and leaves it empty (a clip refused
+    after its bundle's folder was made: no empty folder in the cache)."""
+    try:
+        yield
+    except BaseException:
+        if folder is not None:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when empty
+        raise
+
+
+def source_state(path) -> tuple:
+    """What says a file changed: its device, inode, size and times (a file written over and put back has a new
+    change time, even with its old bytes and modification time)."""
+    st = Path(path).stat()
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
+
+
+def unchanged(clip_path, before: tuple, out_dir: Path) -> None:
+    """The clip bundle in ``out_dir``, made from ``clip_path`` while it was as ``before`` (:func:`source_state`),
+    taken away and one line when the clip changed meanwhile: frames decoded from a clip being written over would
+    be served as the clip's (issue 62)."""
+    try:
+        now = source_state(clip_path)
+    except OSError:
+        now = None
+    if now != before:
+        _start_over(out_dir)
+        (out_dir / PREVIEW).unlink(missing_ok=True)
+        raise InputError(clip_path, "changed while it was being inferred (written over, moved or touched): its bundle was "
+                                    "not kept; run again once it is in place")
 
 
 PREVIEW = "person.png"  # the clip's first frame with anyone, the person chosen outlined, the others dimmed

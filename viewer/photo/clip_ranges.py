@@ -75,12 +75,12 @@ class RangedBundle:
 
 def open_ranges(clip_path, out_dir, workers: int, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
                 max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, overlap: int = OVERLAP,
-                person: tuple | None = None, people: str = "one") -> RangedBundle:
+                person: tuple | None = None, people: str = "one", cached: bool = False) -> RangedBundle:
     """Make ``out_dir`` ready for the clip bundle of ``clip_path`` inferred in ranges (as
     :func:`viewer.photo.clip_inference.open_clip_bundle`, with the shots found, the person chosen and
     the ranges in its record; an unfinished bundle of the same clip and options keeps the ranges it
-    was begun in)."""
-    out_dir, lock = locked_bundle(clip_path, out_dir, start, end)
+    was begun in). ``cached``: ``out_dir`` is the cache's (:func:`viewer.photo.clip_inference.locked_bundle`)."""
+    out_dir, lock = locked_bundle(clip_path, out_dir, start, end, cached)
     held = contextlib.ExitStack()
     held.enter_context(lock)
     try:

@@ -37,7 +37,7 @@ import numpy as np
 from viewer.errors import InputError, NoPersonError
 from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import read_json
-from viewer.files.ownership import folder_lock, fresh_sibling, mark_written, take_away, written_here
+from viewer.files.ownership import discard_entry, folder_lock, fresh_sibling, mark_written, names_ours, written_here
 from viewer.photo import detail as detail_mod, gloss
 from viewer.photo.face import find_faces, light_fit_weight, with_face
 from viewer.photo.matting import automatic_matte, mask_matte
@@ -263,15 +263,20 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
     this program wrote it, :func:`viewer.files.ownership.written_here`) and was made from the very bytes
     the key was (its record's ``inputs_sha256``); a damaged one is inferred again. A photo or mask
     that changes while it is inferred is one line (run again), and its bundle is not kept."""
-    from viewer.lighting.lightfit.cache import cache_dir
+    from viewer.lighting.lightfit.cache import bundles_dir
 
     expected: dict[str, str] = {}  # the SHA-256 of the photo's and mask's bytes, as the key read them
     key = bundle_key(photo_path, mask_path, size, max_size, networks_dir, digests=expected)
-    out = Path(bundles or cache_dir().with_name("bundles")) / f"{Path(photo_path).stem}-{key[:16]}"
+    out = Path(bundles or bundles_dir()) / f"{Path(photo_path).stem}-{key[:16]}"
     if out.exists() or out.is_symlink():
         if _made_from(out, expected):
             return out, True
-        take_away(out, "damaged")  # the cache's own entry, damaged or of other bytes
+        import warnings
+
+        aside = discard_entry(out, names_ours(out))  # the cache's own entry, damaged or of other bytes
+        warnings.warn(f"{out}: the cached bundle did not check out (a file changed, missing or added, or made from other "
+                      f"bytes): {'moved aside to ' + aside.name if aside else 'removed'}, the photo is inferred again",
+                      stacklevel=2)
     networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
     infer(photo_path, mask_path, out, size=size, max_size=max_size, device=device,
           networks=load_networks(device, networks_dir), progress=progress, ctx=ctx)

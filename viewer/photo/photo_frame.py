@@ -85,14 +85,16 @@ def exif_focal_35(exif) -> float | None:
 
 
 def read_image_u8(path, what: str, notes: list, digests: dict | None = None, colours: bool = True,
-                  lens: dict | None = None) -> np.ndarray:
+                  lens: dict | None = None, max_pixels: int = MAX_PIXELS) -> np.ndarray:
     """An image file as uint8 (H, W[, C]), upright: the EXIF orientation applied (with a note),
     16-bit images reduced to 8 bits (with a note), palette and other modes converted, colours in an
     embedded ICC profile other than sRGB (Adobe RGB, Display P3, ProPhoto) converted to sRGB by
     LittleCMS (Pillow's ImageCms; with a note; ``colours`` False: values, not colours, as a mask's,
     never converted). The file is read once: ``digests[what]`` (when given)
     is the SHA-256 of the very bytes decoded (a file replaced meanwhile cannot pass for another), and
-    ``lens["focal_35mm"]`` (when given) its EXIF's 35-mm-equivalent focal length, or None."""
+    ``lens["focal_35mm"]`` (when given) its EXIF's 35-mm-equivalent focal length, or None. Larger than
+    ``max_pixels`` is refused from its header, before any pixel is decoded; an animated image (a GIF, an APNG) is
+    read as its first frame, with a note."""
     import hashlib
     import io
 
@@ -111,7 +113,11 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             opened = Image.open(io.BytesIO(data))
         with opened as im:
-            check_pixels(path, im.width, im.height, MAX_PIXELS)  # Pillow itself only refuses twice its limit
+            check_pixels(path, im.width, im.height, min(max_pixels, MAX_PIXELS))  # Pillow itself only refuses twice its limit
+            frames = getattr(im, "n_frames", 1)
+            if isinstance(frames, int) and frames > 1:
+                notes.append(f"the {what} is animated ({frames} frames): its first frame is used (a clip is read as a video: "
+                             "convert it to MP4)")
             exif = im.getexif()
             orientation = exif.get(0x0112, 1)
             if lens is not None:

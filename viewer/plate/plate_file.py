@@ -5,7 +5,7 @@ orientation, ICC colours converted, 16-bit reduced to 8 with a note). The field 
 the EXIF 35-mm-equivalent focal length (tag 0xA405, which phones and most cameras write), else
 ``DEFAULT_FOCAL_35`` (with a note), a standard lens's. It is taken to span the frame's longer side as
 36 mm would (the standard defines it by the diagonal, 43.3 mm: a 4:3 photo's field of view comes out
-about 2 degrees wider than its own). A plate over ``MAX_PLATE_PIXELS`` is refused in one line (its
+about 2 degrees wider than its own). A plate over ``MAX_PLATE_PIXELS`` is refused in one line from its header, before it is decoded (its
 linear copies alone would take gigabytes).
 """
 
@@ -85,7 +85,7 @@ class Plate:
 
 def read_plate(path, notes: list, front=None) -> Plate:
     """The plate at ``path``; one line naming the file for what cannot be a plate (not an image, a video,
-    fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: exactly 2:1, or longer than ``PANORAMA_ASPECT``).
+    fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: landscape, exactly 2:1 or wider than ``PANORAMA_ASPECT``).
     ``front``: the user's mask of what stands in front of the person (:func:`viewer.plate.front_mask.read_front`)."""
     from viewer.photo.photo_frame import read_image_u8
 
@@ -93,12 +93,9 @@ def read_plate(path, notes: list, front=None) -> Plate:
     if wrong is not None:
         raise wrong
     lens: dict = {}
-    image = read_image_u8(path, "plate", notes, lens=lens)
+    image = read_image_u8(path, "plate", notes, lens=lens, max_pixels=MAX_PLATE_PIXELS)
     if image.shape[0] < MIN_PLATE_PX or image.shape[1] < MIN_PLATE_PX:
         raise InputError(path, f"is {image.shape[1]}x{image.shape[0]} pixels: a plate needs at least {MIN_PLATE_PX} a side")
-    if image.shape[0] * image.shape[1] > MAX_PLATE_PIXELS:
-        raise InputError(path, f"is {image.shape[1]}x{image.shape[0]}: more than the {MAX_PLATE_PIXELS // 1_000_000} megapixels "
-                               "a plate may have; give a smaller copy")
     if image.ndim == 2:
         image = np.repeat(image[..., None], 3, axis=-1)
     elif image.shape[-1] == 4:
@@ -108,7 +105,7 @@ def read_plate(path, notes: list, front=None) -> Plate:
     if focal is None:
         focal, source = DEFAULT_FOCAL_35, "default"
         notes.append(f"the plate's EXIF gives no focal length: taken as {DEFAULT_FOCAL_35:g} mm (35-mm equivalent)")
-    aspect = max(image.shape[:2]) / min(image.shape[:2])
+    aspect = image.shape[1] / image.shape[0]  # a panorama is landscape: a portrait photo twice as tall is a plate
     if abs(aspect - 2.0) < 0.01 or aspect > PANORAMA_ASPECT:
         raise InputError(path, f"is {image.shape[1]}x{image.shape[0]}: " + ("an equirectangular panorama (2:1)" if aspect < 2.1 else
                                "a panorama") + ", not a plate; give a panorama as the map (--env) and a photo as the plate")

@@ -310,6 +310,11 @@ def load_scene(path) -> Scene:
         raise wrong if wrong is not None else InputError(path, "scene bundle directory not found")
     meta_path = bundle_file(path, "scene.json", path / "scene.json")
     if not meta_path.is_file():
+        images = sum(1 for p in path.iterdir() if p.suffix.lower() in PHOTO_SUFFIXES) if not meta_path.exists() else 0
+        if images > 1:  # a clip saved as frames
+            raise InputError(path, f"is a folder of {images} images, not a scene bundle: image sequences are not read as "
+                                   "clips; make a video of them (ffmpeg -framerate 30 -pattern_type glob -i '*.png' clip.mp4) "
+                                   "or give one photo")
         raise InputError(meta_path, "missing: a scene bundle needs scene.json")
     meta = read_json(meta_path, "scene bundle description")
     if not isinstance(meta, dict):

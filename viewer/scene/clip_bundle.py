@@ -98,17 +98,90 @@ def is_clip_bundle(path) -> bool:
     return (Path(path) / RECORD).is_file()
 
 
+MAX_SECONDS = 1e6  # a clip's times past this (11 days) are no clip's
+ROTATIONS = (0, 90, 180, 270)
+
+
 def read_record(path) -> dict:
-    """``clip.json`` of the clip bundle at ``path``, checked."""
-    record_path = Path(path) / RECORD
+    """``clip.json`` of the clip bundle at ``path``, checked field by field before any work (:func:`check_record`)."""
+    path = Path(path)
+    if path.is_symlink():
+        raise InputError(path, "is a link: a clip bundle is read only where it is (give the folder itself)")
+    record_path = path / RECORD
+    if record_path.is_symlink():
+        raise InputError(record_path, "is a link: a clip bundle's files are read only inside it")
     record = read_json(record_path, "clip bundle record")
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise InputError(record_path, f"not a clip bundle record (format {FORMAT!r} expected)")
-    if not isinstance(record.get("version"), int) or record["version"] > VERSION:
-        raise InputError(record_path, f"version {record.get('version')!r} is not one this program reads (up to {VERSION})")
-    if not isinstance(record.get("source"), dict):
-        raise InputError(record_path, "has no source clip")
+    check_record(record, record_path)
     return record
+
+
+def _number(value, lo: float = -MAX_SECONDS, hi: float = MAX_SECONDS, whole: bool = False) -> bool:
+    """Whether ``value`` is a JSON number (not a boolean) in [lo, hi] (``whole``: an integer)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (whole and not isinstance(value, int)):
+        return False
+    return bool(np.isfinite(value)) and lo <= value <= hi
+
+
+def check_record(record: dict, where: Path) -> None:
+    """Every field of a clip bundle's record for its type, range and consistency (issue 62): one line naming
+    ``where`` and the field for the first that does not check out."""
+    def bad(field: str, want: str):
+        raise InputError(where, f"{field} must be {want}, got {str(record_get(field))[:60]!r}")
+
+    def record_get(field: str):
+        value = record
+        for part in field.split("."):
+            value = value.get(part) if isinstance(value, dict) else None
+        return value
+
+    version = record.get("version")
+    if not _number(version, 1, VERSION, whole=True):
+        raise InputError(where, f"version {str(version)[:20]!r} is not one this program reads (1 to {VERSION})")
+    source = record.get("source")
+    if not isinstance(source, dict):
+        raise InputError(where, "has no source clip")
+    if not isinstance(source.get("path"), str) or not source["path"]:
+        bad("source.path", "the clip's path")
+    if not (isinstance(source.get("sha256"), str) and len(source["sha256"]) == 64):
+        bad("source.sha256", "the clip's SHA-256 (64 hex digits)")
+    for field in ("width", "height"):
+        if not _number(source.get(field), 1, 1 << 16, whole=True):
+            bad(f"source.{field}", "a whole number of pixels from 1 to 65536")
+    if not _number(source.get("fps"), 1e-3, 1e4):
+        bad("source.fps", "frames a second, a positive number up to 10000")
+    if source.get("rotation", 0) not in ROTATIONS:
+        bad("source.rotation", "0, 90, 180 or 270")
+    if not _number(source.get("duration", 0.0), 0.0):
+        bad("source.duration", "seconds, 0 or more")
+    if not _number(source.get("frames", 0), 0, 1 << 31, whole=True):
+        bad("source.frames", "a whole number of frames")
+    if source.get("audio") is not None and not isinstance(source["audio"], str):
+        bad("source.audio", "a codec's name or null")
+    options = record.get("options")
+    if not isinstance(options, dict):
+        raise InputError(where, "has no options (the part of the clip and the sizes it was inferred with)")
+    if not _number(options.get("start", 0.0), 0.0):
+        bad("options.start", "seconds, 0 or more")
+    if options.get("end") is not None and not (_number(options["end"], 0.0) and options["end"] > options.get("start", 0.0)):
+        bad("options.end", "null or seconds after options.start")
+    for field in ("size", "max_size"):
+        if field in options and not _number(options[field], 1, 1 << 16, whole=True):
+            bad(f"options.{field}", "a whole number of pixels")
+    if record.get("temporal", "off") not in ("on", "off"):
+        bad("temporal", "on or off")
+    if not isinstance(record.get("complete", False), bool):
+        bad("complete", "true or false")
+    if record.get("complete"):
+        if not _number(record.get("frames"), 1, 1 << 31, whole=True):
+            bad("frames", "the count of frames, 1 or more")
+        if not _number(record.get("first_frame_at", 0.0)):
+            bad("first_frame_at", f"the first frame's time on the clip's clock, within {MAX_SECONDS:g} s of its origin")
+        states = record.get("states")
+        if states is not None and not (isinstance(states, dict) and all(_number(v, 0, record["frames"], whole=True)
+                                                                          for v in states.values())):
+            bad("states", "frames per state")
 
 
 def read_frame_entry(path: Path) -> ClipFrameEntry:
@@ -146,13 +219,31 @@ def load_clip_bundle(path) -> ClipBundle:
     if not record.get("complete"):
         raise InputError(path, "is a clip bundle not finished yet (its inference stopped): run the same `relight infer` "
                                "again to go on from its last frame")
-    count = int(record.get("frames", 0))
-    frames = tuple(absolute_pan(read_frame_entry(path / FRAMES / f"{frame_name(i)}.json"), record, path) for i in range(count))
-    for i, entry in enumerate(frames):
+    count = record["frames"]
+    folder = path / FRAMES
+    if folder.is_symlink() or not folder.is_dir():
+        raise InputError(folder, "is a link or missing: a clip bundle's frames are read only inside it")
+    on_disk = sum(1 for p in folder.iterdir() if p.suffix == ".json" and p.stem.isdigit())
+    if on_disk != count:
+        raise InputError(path / RECORD, f"frames says {count}, the bundle holds {on_disk} frame records: its record and "
+                                        "its frames do not agree (infer the clip again)")
+    frames, before = [], None
+    for i in range(count):
+        entry_path = folder / f"{frame_name(i)}.json"
+        if entry_path.is_symlink() or (folder / frame_name(i)).is_symlink():
+            raise InputError(entry_path, "is a link: a clip bundle's files are read only inside it")
+        entry = absolute_pan(read_frame_entry(entry_path), record, path)
         if entry.index != i:
-            raise InputError(path / FRAMES / f"{frame_name(i)}.json", f"holds frame {entry.index}, expected {i}")
-        if entry.state == "person" and not (path / FRAMES / frame_name(i) / "scene.json").is_file():
-            raise InputError(path / FRAMES / frame_name(i), "missing: the frame's scene bundle")
+            raise InputError(entry_path, f"holds frame {entry.index}, expected {i}")
+        if not 0.0 <= entry.seconds <= MAX_SECONDS or (before is not None and entry.seconds <= before.seconds):
+            raise InputError(entry_path, f"its time {entry.seconds:g} s does not come after frame {i - 1}'s"
+                             if before is not None and entry.seconds <= before.seconds else
+                             f"its time {entry.seconds:g} s is not a clip's (0 to {MAX_SECONDS:g} s from the first frame)")
+        if entry.state == "person" and not (folder / frame_name(i) / "scene.json").is_file():
+            raise InputError(folder / frame_name(i), "missing: the frame's scene bundle")
+        frames.append(entry)
+        before = entry
+    frames = tuple(frames)
     if not any(e.state == "person" for e in frames):
         raise InputError(path, "no frame of the clip shows a person to relight")
     return ClipBundle(path, record, frames)

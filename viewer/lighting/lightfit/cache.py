@@ -38,10 +38,20 @@ def fit_record(source, method: str, n: int, env: EnvMap | None = None, **more) -
 
 
 def cache_dir() -> Path:
+    """The lights' cache folder (absolute: ``RELIGHT_CACHE=.`` is the working folder); the file system's root is
+    refused in one line (the bundles' cache goes beside it, :func:`bundles_dir`, and a root has no beside)."""
     if os.environ.get("RELIGHT_CACHE"):
-        return Path(os.environ["RELIGHT_CACHE"])
+        path = Path(os.environ["RELIGHT_CACHE"]).expanduser().absolute()
+        if path.parent == path:
+            raise InputError(path, "RELIGHT_CACHE names the file system's root: give relight's cache a folder of its own")
+        return path
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "relight" / "lights"
+    return Path(base).absolute() / "relight" / "lights"
+
+
+def bundles_dir() -> Path:
+    """Where inferred bundles are cached: ``bundles`` beside the lights' cache folder (:func:`cache_dir`)."""
+    return cache_dir().with_name("bundles")
 
 
 def map_hash(env: EnvMap) -> str:

@@ -27,6 +27,7 @@ from pathlib import Path
 from viewer.files.imageio import write_text
 from viewer.lab.bench.robustness.case import Case, Scenario, run_case, run_scenario
 from viewer.lab.bench.robustness.first_campaign import Campaign, first_campaign
+from viewer.lab.bench.robustness.fourth_campaign import fourth_campaign
 from viewer.lab.bench.robustness.scenarios import scenarios
 from viewer.lab.bench.robustness.second_campaign import second_campaign
 from viewer.lab.bench.robustness.third_campaign import third_campaign
@@ -47,7 +48,8 @@ def make_cases(work: Path, seed: int = 17) -> list[Case | Scenario]:
         raise RuntimeError(f"the campaign's photo bundle could not be inferred: {err[-300:]}")
     second_campaign(kit, photo_bundle)
     third_campaign(kit)
-    return kit.cases + scenarios(seed + 16)  # (33 for the default seed, as before)
+    fourth = fourth_campaign(kit)
+    return kit.cases + scenarios(seed + 16) + fourth  # (33 for the default seed, as before)
 
 
 def run_robustness_benchmark(work=None, output="out/bench_robustness.json", jobs: int = 2, progress=None, seed: int = 17) -> dict:

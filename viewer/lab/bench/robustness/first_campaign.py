@@ -131,8 +131,12 @@ def environment_maps(kit: Campaign) -> None:
     neg = px.copy()
     neg[3, 5] = -1.0
     write_exr(kit.work / "files" / "negative.exr", neg)
-    kit.render("environment map", "negative pixels", kit.sample, "--env", kit.work / "files" / "negative.exr", "-n", "4", "--method",
-               "median-cut")
+    kit.render("environment map", "a negative pixel (a filter's ringing): set to 0, said", kit.sample, "--env",
+               kit.work / "files" / "negative.exr", "-n", "4", "--method", "median-cut", expect="warned")
+    write_exr(kit.work / "files" / "negatives.exr", np.where((np.arange(64) % 2)[None, :, None] > 0, -1.0, 1.0).astype(np.float32)
+              * np.ones((32, 64, 3), np.float32))  # half the map
+    kit.render("environment map", "negative pixels on half the map", kit.sample, "--env", kit.work / "files" / "negatives.exr",
+               "-n", "4", "--method", "median-cut")
     save_envmap(kit.work / "files" / "black.hdr", EnvMap(np.zeros((32, 64, 3), np.float32)))
     kit.render("environment map", "an all-black map", kit.sample, "--env", kit.work / "files" / "black.hdr", "-n", "4",
            "--method", "median-cut", expect="black")
