@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from viewer.errors import InputError
-from viewer.files.output_lock import ExclusiveLock, claim_partial, lock_path
+from viewer.files.output_lock import ExclusiveLock, create_partial, lock_path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -31,15 +31,17 @@ def test_one_writer_holds_an_output_and_a_dead_ones_partial_is_taken_up(tmp_path
         res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
         assert res.returncode != 0 and f"is being written by another relight (process {os.getpid()}, since" in res.stderr
         partial = out.with_name("out.partial.mp4")
-        partial.write_bytes(b"\x00" * 48)  # a join cut short
-        claim_partial(partial, out)
-    assert not lock_path(out).exists() and partial.exists()  # released: the lock gone, the partial (claimed) not touched
+        create_partial(partial, out)  # a join's, made and recorded
+        with pytest.raises(FileExistsError):
+            create_partial(partial, out)  # exclusive
+        assert sorted(p.name for p in out.parent.iterdir()) == [lock_path(out).name, "out.partial.mp4"]
+    assert not lock_path(out).exists() and partial.exists()  # released: the lock gone, the partial (recorded) not touched
 
     # a run killed outright leaves its lock (flock dropped by the kernel) and its claimed partial: the next takes both
-    killer = ("import os, sys; from pathlib import Path; from viewer.files.output_lock import ExclusiveLock, claim_partial\n"
+    killer = ("import os, sys; from pathlib import Path; from viewer.files.output_lock import ExclusiveLock, create_partial\n"
               f"out = Path({str(out)!r}); lock = ExclusiveLock(out).__enter__()\n"
-              "partial = out.with_name('out.partial.mp4'); partial.unlink(); partial.write_bytes(b'x' * 48)\n"
-              "claim_partial(partial, out); os.kill(os.getpid(), 9)")
+              "partial = out.with_name('out.partial.mp4'); partial.unlink(); create_partial(partial, out)\n"
+              "partial.write_bytes(b'x' * 48); os.kill(os.getpid(), 9)")
     subprocess.run([sys.executable, "-c", killer], cwd=ROOT)
     assert lock_path(out).exists() and partial.exists()
     with ExclusiveLock(out):

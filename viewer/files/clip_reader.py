@@ -119,13 +119,12 @@ def _rotation(stream, first) -> int:
 
 def upright(rgb: np.ndarray, rotation: int, sar: float = 1.0) -> np.ndarray:
     """The stored frame as a player shows it: its pixels ``sar`` times as wide as tall made square (the width
-    scaled, OpenCV's area or linear resampling), then turned ``rotation`` counter-clockwise degrees."""
+    scaled, :func:`viewer.resize.resize`), then turned ``rotation`` counter-clockwise degrees."""
     if sar != 1.0:
-        import cv2
+        from viewer.resize import resize
 
         h, w = rgb.shape[:2]
-        shown = max(int(round(w * sar)), 1)
-        rgb = cv2.resize(rgb, (shown, h), interpolation=cv2.INTER_AREA if shown < w else cv2.INTER_LINEAR)
+        rgb = resize(rgb, (max(int(round(w * sar)), 1), h))
     turns = (rotation // 90) % 4
     return np.ascontiguousarray(np.rot90(rgb, turns)) if turns else rgb
 

@@ -1,13 +1,15 @@
 """One writer per output: an exclusive lock held for a whole run (issue 62).
 
-A render, a recording or a batch takes :class:`ExclusiveLock` on what it writes before any work: a hidden lock file
+``relight render`` and a batch take :class:`ExclusiveLock` on what they write before any work: a hidden lock file
 beside the output (:func:`lock_path`: ``.out.mp4.relight-lock``; a batch's is its folder's ``.relight-batch.lock``),
 held with ``flock``, which the kernel drops when the process ends however it ends (SIGKILL too), so a lock left by a
 dead run is taken over by the next. A second run on the same output is refused at once in one line that names the
-holder (its process, since when; the lock file records its command too), never left to mix its frames or parts with the first's.
+holder (its process, since when; the lock file records its command too), never left to mix its frames or parts
+with the first's. (A window's recordings take no lock: their names are new each time, their partial file made
+exclusively.)
 
 The lock file records the run (JSON: ``relight-lock``, the process, the command, when) and the partial files it has
-made (:func:`claim_partial`: a video's ``name.partial.mp4``, by device and inode). A run that takes over from a
+made (:func:`create_partial`: a video's ``name.partial.mp4``, by device and inode). A run that takes over from a
 dead one removes the partial files that run recorded, where the same file is still there (its inode unchanged): they
 are this program's, cut short, and the run makes them again; any other file at a partial's name is the user's and is
 refused as before. The lock file is removed when the run ends (an output's; a batch folder's stays, as its
@@ -151,30 +153,62 @@ class ExclusiveLock:
         self._made = []
 
 
-def claim_partial(partial, output) -> None:
-    """Record ``partial`` (a file this process has just made for ``output``, by device and inode) in ``output``'s
-    lock, where this process holds it: a run after a crash removes it (:class:`ExclusiveLock`). Without a lock of
-    this process's (a writer used on its own), nothing is recorded."""
+def create_partial(partial, output) -> None:
+    """Create the empty file ``partial`` (a video's ``NAME.partial.mp4``, written for ``output``) exclusively
+    (``FileExistsError`` when anything is there), recorded in ``output``'s lock where this process holds it, so that
+    a run after a crash removes it (:class:`ExclusiveLock`). With no lock of this process's (a writer used on its
+    own) it is only created.
+
+    There is no moment at which the file exists and is not recorded: it is made under a name of its own, recorded
+    under both names by its inode, then linked to ``partial`` (a link fails when the name is taken, as an exclusive
+    create does) and its own name removed; killed at any step, what is left is recorded."""
+    import secrets
+
+    partial = Path(partial)
+    held = _held(output)
+    if held is None:
+        os.close(os.open(partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        return
+    fd, record = held
+    try:
+        own = partial.with_name(f".{partial.name}.{os.getpid()}.{secrets.token_hex(4)}")
+        os.close(os.open(own, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        st = os.stat(own, follow_symlinks=False)
+        partials = record.setdefault("partials", {})
+        for name in (own, partial):
+            partials[str(name.absolute())] = [st.st_dev, st.st_ino]
+        _write(fd, record)
+        try:
+            os.link(own, partial)
+        except FileExistsError:
+            raise
+        except OSError:  # a file system without hard links: the name checked, then taken by a rename
+            if partial.exists() or partial.is_symlink():
+                raise FileExistsError(partial) from None
+            os.rename(own, partial)
+        finally:
+            own.unlink(missing_ok=True)
+    finally:
+        os.close(fd)
+
+
+def _held(output) -> tuple[int, dict] | None:
+    """(a descriptor of ``output``'s lock file, its record) when this process holds that lock, else None."""
     try:
         fd = os.open(lock_path(output), os.O_RDWR | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:
-        return
-    try:
-        record = _read(fd)
-        if not record or record.get("process") != os.getpid():
-            return
-        st = os.stat(partial, follow_symlinks=False)
-        record.setdefault("partials", {})[str(Path(partial).absolute())] = [st.st_dev, st.st_ino]
-        _write(fd, record)
-    finally:
+        return None
+    record = _read(fd)
+    if not record or record.get("process") != os.getpid():
         os.close(fd)
+        return None
+    return fd, record
 
 
 def _write(fd: int, record: dict) -> None:
     data = json.dumps(record).encode()
     os.ftruncate(fd, 0)
     os.pwrite(fd, data, 0)
-    os.fsync(fd)
 
 
 def _same_file(fd: int, path: Path) -> bool:

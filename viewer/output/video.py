@@ -20,7 +20,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.files.imageio import MARK_TEXT, ffmpeg_file
-from viewer.files.output_lock import claim_partial
+from viewer.files.output_lock import create_partial
 
 TICKS_PER_FRAME = 1000  # time base = 1 / (1000 fps): frame i at exactly i / fps, wall-clock times to 1/1000 frame
 FRAGMENT_FLAGS = "frag_keyframe+empty_moov+default_base_moof"
@@ -64,12 +64,11 @@ class VideoWriter:
             raise InputError(self.path, "is a folder: give a .mp4 file path")
         self.partial = partial_path(self.path)
         try:  # created here, exclusively: a file already under that name (a recording cut short, the user's) is kept
-            os.close(os.open(self.partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+            create_partial(self.partial, self.path)  # killed, the next run under a lock removes it (viewer.files.output_lock)
         except FileExistsError:
             raise partial_taken(self.path) from None
         except OSError as exc:
             raise InputError(self.path, f"cannot write the video ({exc.strerror or exc})") from None
-        claim_partial(self.partial, self.path)  # killed, the next run under a lock removes it (viewer.files.output_lock)
         self.size = (int(width), int(height))
         # 4:2:0 needs even sides: an odd last row or column is left out (never padded)
         self.encoded_size = encoded_size(self.size)
@@ -272,10 +271,9 @@ def join_clip(parts: list[tuple[Path, float]], path, audio_source=None, audio_at
     path = Path(path)
     partial = partial_path(path)
     try:
-        os.close(os.open(partial, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        create_partial(partial, path)  # killed mid-join, the next run removes it (viewer.files.output_lock)
     except FileExistsError:
         raise partial_taken(path) from None
-    claim_partial(partial, path)  # killed mid-join, the next run removes it (viewer.files.output_lock)
     note = None
     try:
         with contextlib.ExitStack() as stack:
