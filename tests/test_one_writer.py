@@ -41,16 +41,29 @@ def test_one_writer_holds_an_output_and_a_dead_ones_partial_is_taken_up(tmp_path
     killer = ("import os, sys; from pathlib import Path; from viewer.files.output_lock import ExclusiveLock, create_partial\n"
               f"out = Path({str(out)!r}); lock = ExclusiveLock(out).__enter__()\n"
               "partial = out.with_name('out.partial.mp4'); partial.unlink(); create_partial(partial, out)\n"
-              "partial.write_bytes(b'x' * 48); os.kill(os.getpid(), 9)")
+              "partial.write_bytes(b'\\0\\0\\0\\x18ftypisom' + bytes(36)); (out.parent / f'.out.exr.{os.getpid()}.tmp').write_bytes(b'e')\n"
+              "os.kill(os.getpid(), 9)")
     subprocess.run([sys.executable, "-c", killer], cwd=ROOT)
-    assert lock_path(out).exists() and partial.exists()
+    assert lock_path(out).exists() and partial.exists() and len(list(out.parent.glob(".out.exr.*.tmp"))) == 1
     with ExclusiveLock(out):
         assert not partial.exists()  # this program's, cut short: removed, made again by the run
+        assert not list(out.parent.glob(".out.exr.*.tmp"))  # the dead run's temporary file too
     user = out.with_name("out.partial.mp4")
-    user.write_bytes(b"the user's")  # never claimed: left as it is (the writer refuses it in one line)
+    user.write_bytes(b"the user's")  # never recorded: left as it is (the writer refuses it in one line)
     with ExclusiveLock(out):
         pass
     assert user.read_bytes() == b"the user's"
+
+    # a dead run's record names the user's files: an inode freed and taken by their new file (no MP4), a file
+    # elsewhere: neither is touched
+    elsewhere = tmp_path / "victim.txt"
+    elsewhere.write_text("mine")
+    st, su = elsewhere.stat(), user.stat()
+    lock_path(out).write_text(json.dumps({"format": "relight-lock", "process": 999999999, "partials": {
+        str(elsewhere): [st.st_dev, st.st_ino], str(user): [su.st_dev, su.st_ino]}}))
+    with ExclusiveLock(out):
+        pass
+    assert elsewhere.read_text() == "mine" and user.read_bytes() == b"the user's"
 
     # a missing folder made for the lock goes again when nothing was written; a link or a stranger's file at the
     # lock's name is refused, kept
@@ -66,6 +79,19 @@ def test_one_writer_holds_an_output_and_a_dead_ones_partial_is_taken_up(tmp_path
     with pytest.raises(InputError, match="not a lock file relight wrote"):
         ExclusiveLock(out).__enter__()
     assert lock_path(out).read_text() == "my notes"
+
+
+def test_a_render_holds_every_file_it_writes(tmp_path):
+    """Another run's -o that is one of a render's files (its passes sheet, a video's partial) is held too."""
+    from viewer.resources import asset_dir, sample_scene_dir
+
+    lights = str(asset_dir() / "envmaps" / "venice_sunset_256.lights.json")
+    for held, out, more in (("x_passes.png", "x.png", []), ("v.partial.mp4", "v.mp4", ["--frames", "2"])):
+        with ExclusiveLock(tmp_path / held):
+            res = subprocess.run([sys.executable, "-m", "viewer.cli.main", "render", str(sample_scene_dir()), lights, "--size", "64",
+                                  *more, "-o", str(tmp_path / out)], capture_output=True, text=True, cwd=ROOT)
+        assert res.returncode == 2 and f"{held}: is being written by another relight (process {os.getpid()}" in res.stderr
+        assert res.stderr.count("\n") == 1 and not (tmp_path / out).exists()
 
 
 def test_the_cache_place_is_absolute_and_never_the_root(monkeypatch, tmp_path):
@@ -186,6 +212,23 @@ def test_records_and_maps_checked_on_reading(tmp_path):
             check_record({**good, field: value}, tmp_path / "clip.json")
     with pytest.raises(InputError, match="source.fps"):
         check_record({**good, "source": {**good["source"], "fps": 0}}, tmp_path / "clip.json")
+    with pytest.raises(InputError, match="person.frame"):
+        check_record({**good, "person": {"box": [0.1, 0.1, 0.5, 0.8], "frame": 50}}, tmp_path / "clip.json")
+
+    from viewer.scene.clip_bundle import read_frame_entry
+
+    frame = {"index": 2, "seconds": 0.2, "state": "person", "shot": 0, "pan": [1.5, -2.0]}
+    path = tmp_path / "000002.json"
+    path.write_text(json.dumps(frame))
+    assert read_frame_entry(path).pan == (1.5, -2.0)
+    for data, words in (([1, 2], "not a clip frame record"), ("hello", "not a clip frame record"),
+                        ({**frame, "seconds": True}, "seconds must be"), ({**frame, "index": True}, "index must be"),
+                        ({**frame, "pan": [1e300, 0]}, "pan must be"), ({**frame, "pan": [1, 2, 3]}, "pan must be"),
+                        ({**frame, "shot": -1}, "shot must be"), ({**frame, "shot": 99}, "shot must be")):
+        path.write_text(json.dumps(data))
+        with pytest.raises(InputError, match=words) as info:
+            read_frame_entry(path)
+        assert str(path) in str(info.value)
 
     ringing = np.ones((32, 64, 3), np.float32)
     ringing[5, 7] = [-0.02, 0.5, 0.5]  # a Lanczos filter's ringing beside a sun

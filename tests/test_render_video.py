@@ -129,8 +129,11 @@ def test_drag_and_wheel_mapping():
 
 
 def test_video_writer_reports_an_encoder_failure(tmp_path):
-    """A failing encoder makes close() raise (it neither hangs nor reports success)."""
+    """A failing encoder makes close() raise (it neither hangs nor reports success); a disk's failure is one line
+    naming the video (issue 62: a traceback before)."""
     import threading
+
+    from viewer.errors import InputError
 
     v = VideoWriter(tmp_path / "fail.mp4", 16, 16)
     v.write(np.zeros((16, 16, 3), np.uint8))
@@ -148,13 +151,13 @@ def test_video_writer_reports_an_encoder_failure(tmp_path):
     def close():
         try:
             v.close()
-        except RuntimeError as exc:
+        except InputError as exc:
             errors.append(str(exc))
 
     t = threading.Thread(target=close, daemon=True)
     t.start()
     t.join(20)
-    assert not t.is_alive() and errors and "disk full" in errors[0]
+    assert not t.is_alive() and errors and errors[0] == f"{tmp_path / 'fail.mp4'}: cannot write the video (disk full)"
 
 
 def test_passes_sheet_without_shadows(tmp_path):

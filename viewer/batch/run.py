@@ -22,6 +22,7 @@ from viewer.batch.manifest import LOCK, MANIFEST, Manifest, Ownership, batch_loc
 from viewer.batch.plan import Item, LookSpec, clip_bundle_key, item_key, photo_names
 from viewer.batch.spread_clip import part_tasks
 from viewer.files.clip_reader import is_clip
+from viewer.files.output_lock import held_now
 from viewer.files.ownership import file_sha256
 
 
@@ -117,7 +118,7 @@ def remove_leftovers(folder: Path, items: list[Item]) -> None:
             continue
         for tmp in parent.iterdir():
             m = LEFTOVER.match(tmp.name)
-            if m and m.group(1) in names and tmp.is_file():
+            if m and m.group(1) in names and tmp.is_file() and not held_now(parent / m.group(1)):  # (a render writing it now)
                 tmp.unlink()
 
 

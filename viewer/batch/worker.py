@@ -147,8 +147,21 @@ class Worker:
                            only=task["parts"], **self._clip_render(task))
 
     def render(self, task: dict) -> dict:
-        if task.get("clip"):
-            return self.render_clip(task)
+        """An item: its outputs held for the item's run (:mod:`viewer.files.output_lock`: a render writing one of
+        them now is said in the item's line, not mixed with), then rendered."""
+        import contextlib
+
+        from viewer.files.output_lock import ExclusiveLock
+        from viewer.output.video import partial_path
+
+        folder = Path(task["folder"])
+        paths = [folder / rel for rel in task["outputs"]]
+        with contextlib.ExitStack() as held:
+            for p in paths + [partial_path(p) for p in paths if p.suffix == ".mp4"]:
+                held.enter_context(ExclusiveLock(p))
+            return self.render_clip(task) if task.get("clip") else self._render_photo(task)
+
+    def _render_photo(self, task: dict) -> dict:
         from viewer.files.ownership import file_sha256
         from viewer.gl import Engine
         from viewer.gl.options import EngineOptions

@@ -237,9 +237,15 @@ def cmd_render_clip(args, look) -> int:
 
                 share = parts_sharer(pool, parts_task(bundle, out, args, lights, look, rig, turn, plate, engine_options(args, look)),
                                      parts_folder(out), progress)
-            result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
-                                 engine_options(args, look), turn, progress=progress, sizes=(args.size, args.max_size),
-                                 layers=args.layers, per_light=args.per_light, pictures=pictures, share=share, follow=follow)
+            try:
+                result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
+                                     engine_options(args, look), turn, progress=progress, sizes=(args.size, args.max_size),
+                                     layers=args.layers, per_light=args.per_light, pictures=pictures, share=share, follow=follow)
+            except (InputError, OSError):
+                said = follow.refusal() if follow is not None else None  # (the clip changed: its frames taken away)
+                if said is not None:
+                    raise said from None
+                raise
         if follow is not None:
             infer_bar.close()
             record = follow.wait()

@@ -3,6 +3,7 @@ up its work (:mod:`viewer.cli.command_setup`) and calls the module that does it.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 
@@ -108,11 +109,22 @@ def plate_options_need_a_plate(args):
 
 def cmd_render(args) -> int:
     """``relight render``: one run at a time writes an output (:mod:`viewer.files.output_lock`), held from before
-    the first check of what is there to the last file written."""
+    the first check of what is there to the last file written: every file it writes, so that another render's
+    ``-o`` that is one of them (``x_passes.png`` beside ``x.png``, a video's ``x.partial.mp4``) is refused too."""
     from viewer.files.output_lock import ExclusiveLock
 
-    with ExclusiveLock(writable(args.output)):
+    out = writable(args.output)
+    with contextlib.ExitStack() as held:
+        for path in rendered_files(out):
+            held.enter_context(ExclusiveLock(path))
         return _render(args)
+
+
+def rendered_files(out: Path) -> list[Path]:
+    """The files ``relight render -o out`` writes: a frame's PNG, its EXR and passes sheet; a video and its partial."""
+    if out.suffix.lower() == ".mp4":
+        return [out, video_partial(out)]
+    return [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
 
 
 def _render(args) -> int:
@@ -141,7 +153,7 @@ def _render(args) -> int:
     if suffix not in (".png", ".mp4"):
         raise InputError(out, "give a .png path for one frame (the EXR goes beside it) or a .mp4 path for a turntable video")
     writable(out)
-    outputs = [out] if suffix == ".mp4" else [out, out.with_suffix(".exr"), out.with_name(f"{out.stem}_passes.png")]
+    outputs = [out] if suffix == ".mp4" else rendered_files(out)
     not_an_input(outputs + ([video_partial(out)] if suffix == ".mp4" else []), [args.scene, args.lights, args.envmap, args.look,
                                                                                 getattr(args, "rig", None)])
     refuse_foreign(outputs, args.force)

@@ -21,6 +21,14 @@ MIN_MAP_HEIGHT, MAX_MAP_HEIGHT = 8, 4096  # plate-light's --height: a map of 16x
 
 
 def cmd_plate_light(args) -> int:
+    """``relight plate-light``: one run at a time writes an output (:mod:`viewer.files.output_lock`)."""
+    from viewer.files.output_lock import ExclusiveLock
+
+    with ExclusiveLock(writable(Path(args.output))):
+        return _plate_light(args)
+
+
+def _plate_light(args) -> int:
     from viewer.lighting.dominant import map_dominant_light
     from viewer.lighting.envmap import save_envmap
     from viewer.plate.horizon import horizon_tilt, plate_horizon

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from viewer.errors import InputError
 
-PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp")
+PHOTO_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".gif")
 MAP_SUFFIXES = (".hdr", ".exr")
 VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv", ".avi", ".webm")
 TEXT_SUFFIXES = (".txt", ".md", ".rst", ".csv", ".py", ".toml", ".yaml", ".yml", ".log")

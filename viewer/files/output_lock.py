@@ -25,6 +25,8 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
+import stat
 import sys
 import time
 from pathlib import Path
@@ -71,6 +73,10 @@ class ExclusiveLock:
             except OSError as exc:  # a link, a folder, a name the system refuses
                 self._unmake_folders()
                 raise InputError(self.path, f"cannot hold the lock of {self.output.name} here ({exc.strerror or exc})") from None
+            if not stat.S_ISREG(os.fstat(fd).st_mode):  # a pipe or a device at the lock's name
+                os.close(fd)
+                self._unmake_folders()
+                raise InputError(self.path, f"is not a file (a pipe or a device): cannot hold the lock of {self.output.name} here")
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -105,15 +111,35 @@ class ExclusiveLock:
         self._release(self.remove)
 
     def _take_over(self, earlier: dict) -> None:
-        """Remove the partial files a dead run recorded, where each is still the file it made."""
+        """What a dead run left beside the output removed: the partial files it recorded, where each is still the
+        file it made (the same inode, beside the output and named after it, empty or an MP4: an inode freed and
+        taken by a user's new file is no MP4), and its temporary files and folders (named after the output, with
+        its process number: :func:`viewer.files.imageio.atomic_paths`' ``.NAME.PID.tmp``,
+        :func:`viewer.files.ownership.fresh_sibling`'s ``.NAME.TAG.PID.HEX``)."""
+        import shutil
+
+        folder, stem = self.output.absolute().parent, self.output.stem
+        named = re.compile(rf"^\.?{re.escape(stem)}[._]")
         for name, ident in (earlier.get("partials") or {}).items():
             p = Path(name)
+            if not (isinstance(ident, list) and p.parent == folder and named.match(p.name)):
+                continue
             try:
                 st = os.stat(p, follow_symlinks=False)
+                if [st.st_dev, st.st_ino] == ident and stat.S_ISREG(st.st_mode) and _empty_or_mp4(p, st):
+                    p.unlink()
             except OSError:
                 continue
-            if isinstance(ident, list) and [st.st_dev, st.st_ino] == ident and p.is_file() and not p.is_symlink():
-                p.unlink(missing_ok=True)
+        process = earlier.get("process")
+        if not isinstance(process, int) or isinstance(process, bool):
+            return
+        temporary = re.compile(rf"^\.+{re.escape(stem)}[._].*\.{process}\.(tmp|[0-9a-f]{{8}})$")
+        for entry in os.scandir(folder):
+            if temporary.match(entry.name):
+                if entry.is_dir(follow_symlinks=False):
+                    shutil.rmtree(entry.path, ignore_errors=True)
+                elif entry.is_file(follow_symlinks=False):
+                    os.unlink(entry.path)
 
     def _release(self, remove: bool) -> None:
         if self._fd is None:
@@ -151,6 +177,25 @@ class ExclusiveLock:
             except OSError:
                 break
         self._made = []
+
+
+def held_now(output) -> bool:
+    """Whether a run holds ``output``'s lock now (a batch leaves that output's temporary files alone)."""
+    import fcntl
+
+    try:
+        fd = os.open(lock_path(output), os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC | os.O_NONBLOCK)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return False
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # (a shared lock taken here is dropped with it)
 
 
 def create_partial(partial, output) -> None:
@@ -209,6 +254,14 @@ def _write(fd: int, record: dict) -> None:
     data = json.dumps(record).encode()
     os.ftruncate(fd, 0)
     os.pwrite(fd, data, 0)
+
+
+def _empty_or_mp4(path: Path, st) -> bool:
+    """Whether a file is empty or begins as an MP4 does (its first box an ``ftyp``)."""
+    if st.st_size == 0:
+        return True
+    with open(path, "rb") as f:
+        return f.read(8)[4:8] == b"ftyp"
 
 
 def _same_file(fd: int, path: Path) -> bool:

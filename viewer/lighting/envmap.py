@@ -98,7 +98,7 @@ class EnvMap:
             raise InputError(self.source, f"an equirectangular map must have a 2:1 aspect (W = 2 H), got {w}x{h}")
         bad = int((~np.isfinite(px)).any(axis=2).sum())
         if bad:
-            raise InputError(self.source, f"{bad} pixel(s) are NaN or Inf (load with repair=True to replace them with 0)")
+            raise InputError(self.source, f"{bad} pixel(s) are NaN or Inf (--repair sets them to 0)")
         if (px < 0).any():
             raise InputError(self.source, f"{int((px < 0).any(axis=2).sum())} pixel(s) have negative values")
         if (px > MAX_RADIANCE).any():

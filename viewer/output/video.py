@@ -148,6 +148,9 @@ class VideoWriter:
                 self._error = self._error or exc
 
     def _raise_pending(self):
+        if isinstance(self._error, OSError):  # the disk or the folder (full, removed meanwhile): one line
+            reason = getattr(self._error, "strerror", None) or str(self._error)
+            raise InputError(self.path, f"cannot write the video ({reason})") from None
         if self._error is not None:
             raise RuntimeError(f"encoding {self.path} failed: {self._error}") from self._error
 

@@ -27,6 +27,7 @@ from viewer.scene.clip_bundle import FRAMES, ClipBundle, absolute_pan, frame_nam
 
 RELIGHT_NICE = 10  # the parent's lower priority once its child infers (for the rest of the process's life)
 POLL_SECONDS = 0.25  # the longest a wait on the child lasts before a stop is seen
+REFUSAL_WAIT = 5.0  # seconds a relighting that failed waits for the child's own word on why
 
 
 def _infer(conn, parent: int, threads: int, clip: str, target: str, options: dict) -> None:
@@ -146,6 +147,27 @@ class FollowedInference:
             raise InputError(message[1], message[2])
         else:
             raise RuntimeError(f"the clip's inference (a child process) failed: {message[1]} (its trace is above)")
+
+    def refusal(self, wait: float = REFUSAL_WAIT) -> InputError | None:
+        """What the child says went wrong, waited for up to ``wait`` seconds, or None: a relighting that failed on a
+        frame the child has just taken away (the clip changed while it was inferred) says the child's reason,
+        not a missing file's."""
+        import time
+
+        deadline = time.monotonic() + wait
+        try:
+            while time.monotonic() < deadline:
+                if self._conn.poll(0.05):
+                    message = self._conn.recv()  # (frames said meanwhile are not read: they may be gone)
+                    if message[0] == "refused":
+                        return InputError(message[1], message[2])
+                    if message[0] != "frame":
+                        return None
+                elif not self._child.is_alive():
+                    return None
+        except (EOFError, OSError):
+            return None
+        return None
 
     def _grow(self, known: int) -> None:
         """Frames up to ``known`` (excluded) read: each finished in this run, its record written before it was said."""

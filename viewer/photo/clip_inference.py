@@ -373,6 +373,7 @@ def unchanged(clip_path, before: tuple, out_dir: Path) -> None:
     except OSError:
         now = None
     if now != before:
+        (out_dir / RECORD).unlink(missing_ok=True)  # first: stopped while the frames go, nothing claims to be whole
         _start_over(out_dir)
         (out_dir / PREVIEW).unlink(missing_ok=True)
         raise InputError(clip_path, "changed while it was being inferred (written over, moved or touched): its bundle was "

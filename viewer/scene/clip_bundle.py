@@ -182,22 +182,53 @@ def check_record(record: dict, where: Path) -> None:
         if states is not None and not (isinstance(states, dict) and all(_number(v, 0, record["frames"], whole=True)
                                                                           for v in states.values())):
             bad("states", "frames per state")
+        if record.get("shots") is not None and not _number(record["shots"], 0, record["frames"], whole=True):
+            bad("shots", "null or the count of shots")
+        if not (isinstance(record.get("gaps", []), list) and all(isinstance(g, str) for g in record.get("gaps", []))):
+            bad("gaps", "a list of lines")
+    if not _number(record.get("expected_frames", 0), 0, 1 << 31, whole=True):
+        bad("expected_frames", "a whole number of frames")
+    person = record.get("person")
+    if person is not None:
+        box = person.get("box") if isinstance(person, dict) else None
+        if not (isinstance(box, list) and len(box) == 4 and all(_number(v, -1.0, 2.0) for v in box)):
+            bad("person.box", "the person's box: four numbers, fractions of the frame")
+        last = record["frames"] - 1 if record.get("complete") else 1 << 31
+        if not _number(person.get("frame"), 0, last, whole=True):
+            bad("person.frame", "the frame the person was chosen on, one of the clip's")
+
+
+MAX_PAN = 1e6  # output pixels: a camera's turn past this is no clip's
 
 
 def read_frame_entry(path: Path) -> ClipFrameEntry:
+    """A frame's record (``frames/NNNNNN.json``), every field checked for its type and range: one line naming the
+    file and the field."""
     data = read_json(path, "clip frame record")
-    try:
-        pan = data.get("pan", [0.0, 0.0])
-        pan_from = data.get("pan_from")
-        entry = ClipFrameEntry(int(data["index"]), float(data["seconds"]), str(data["state"]), str(data.get("note", "")),
-                               int(data.get("shot", 0)), (float(pan[0]), float(pan[1])), None if pan_from is None else int(pan_from))
-    except (KeyError, TypeError, ValueError, IndexError):
-        raise InputError(path, "is not a clip frame record (index, seconds, state)") from None
-    if not all(np.isfinite(entry.pan)) or not np.isfinite(entry.seconds):
-        raise InputError(path, "holds a time or pan that is not a finite number")
-    if entry.state not in STATES:
-        raise InputError(path, f"state must be one of {', '.join(STATES)}, got {entry.state!r}")
-    return entry
+    if not isinstance(data, dict) or not all(k in data for k in ("index", "seconds", "state")):
+        raise InputError(path, "is not a clip frame record (an object with index, seconds, state)")
+
+    def bad(field: str, want: str):
+        raise InputError(path, f"{field} must be {want}, got {str(data.get(field))[:40]!r}")
+
+    if not _number(data["index"], 0, 1 << 31, whole=True):
+        bad("index", "the frame's number, 0 or more")
+    if not _number(data["seconds"]):
+        bad("seconds", f"the frame's time, a number within {MAX_SECONDS:g} s")
+    if data["state"] not in STATES:
+        bad("state", f"one of {', '.join(STATES)}")
+    if not isinstance(data.get("note", ""), str):
+        bad("note", "text")
+    if not _number(data.get("shot", 0), 0, data["index"], whole=True):
+        bad("shot", "the shot's number, from 0 to the frame's")
+    pan = data.get("pan", [0.0, 0.0])
+    if not (isinstance(pan, list) and len(pan) == 2 and all(_number(v, -MAX_PAN, MAX_PAN) for v in pan)):
+        bad("pan", f"two numbers of pixels within {MAX_PAN:g}")
+    pan_from = data.get("pan_from")
+    if pan_from is not None and not _number(pan_from, 0, data["index"], whole=True):
+        bad("pan_from", "null or a frame before this one")
+    return ClipFrameEntry(data["index"], float(data["seconds"]), data["state"], data.get("note", ""), data.get("shot", 0),
+                          (float(pan[0]), float(pan[1])), pan_from)
 
 
 def absolute_pan(entry: ClipFrameEntry, record: dict, path: Path) -> ClipFrameEntry:
@@ -230,8 +261,9 @@ def load_clip_bundle(path) -> ClipBundle:
     frames, before = [], None
     for i in range(count):
         entry_path = folder / f"{frame_name(i)}.json"
-        if entry_path.is_symlink() or (folder / frame_name(i)).is_symlink():
-            raise InputError(entry_path, "is a link: a clip bundle's files are read only inside it")
+        for linked in (entry_path, folder / frame_name(i)):
+            if linked.is_symlink():
+                raise InputError(linked, "is a link: a clip bundle's files are read only inside it")
         entry = absolute_pan(read_frame_entry(entry_path), record, path)
         if entry.index != i:
             raise InputError(entry_path, f"holds frame {entry.index}, expected {i}")

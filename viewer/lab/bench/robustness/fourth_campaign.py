@@ -126,6 +126,15 @@ def clip_records(kit: Campaign, clip: Path, entry: Path) -> None:
         frame["seconds"] = before if seconds is None else seconds
         path.write_text(json.dumps(frame))
         _render_clip(kit, group, f"frame {i}'s time {what}", b)
+    frame_edits = [("the record [1, 2]", [1, 2]), ("the record null", None), ("seconds true", {"seconds": True}),
+                   ("index true", {"index": True}), ("pan [1e300, 0]", {"pan": [1e300, 0]}), ("pan of three", {"pan": [1, 2, 3]}),
+                   ("shot -1", {"shot": -1}), ("shot 99", {"shot": 99}), ("state 'asleep'", {"state": "asleep"})]
+    for k, i in enumerate(kit.rng.permutation(len(frame_edits))[:5]):
+        what, edit = frame_edits[i]
+        b = _bundle_copy(kit, entry, f"frame_{k}")
+        path = b / "frames" / f"{int(kit.rng.integers(1, CLIP_FRAMES)):06d}.json"
+        path.write_text(json.dumps({**json.loads(path.read_text()), **edit} if isinstance(edit, dict) else edit))
+        _render_clip(kit, group, f"{path.name}: {what}", b)
     elsewhere = _bundle_copy(kit, entry, "elsewhere")
     for k, what in enumerate(("the frames folder", "a frame's bundle", "a frame's record", "clip.json")):
         b = _bundle_copy(kit, entry, f"link_{k}")
