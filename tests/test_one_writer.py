@@ -171,6 +171,25 @@ def test_a_clip_changed_while_it_is_inferred_is_not_kept(tmp_path):
     assert not (out / RECORD).exists() and not (out / "frames").exists()
 
 
+def test_a_clip_changed_while_its_ranges_are_inferred_is_not_kept(tmp_path):
+    """The same on the workers' path (a batch's or --ray's ranges, finished by their driver)."""
+    from test_clips import person_frames, write_clip
+
+    from viewer.photo.clip_ranges import infer_range, open_ranges
+    from viewer.scene.clip_bundle import RECORD
+
+    clip = write_clip(tmp_path / "walk.mp4", person_frames(4, 160, 240), audio=None)
+    bundle = open_ranges(clip, tmp_path / "ranges", 2, overlap=1)
+    try:
+        results = [infer_range(clip, bundle.path, r, bundle.key) for r in bundle.ranges]
+        os.utime(clip)
+        with pytest.raises(InputError, match="changed while it was being inferred"):
+            bundle.finish(clip, results)
+    finally:
+        bundle.close()
+    assert not (bundle.path / RECORD).exists() and not (bundle.path / "frames").exists()
+
+
 def test_a_damaged_cached_clip_bundle_is_moved_aside_and_made_again(tmp_path):
     from test_clips import person_frames, write_clip
 

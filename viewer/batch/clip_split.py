@@ -50,8 +50,6 @@ class SplitClip:
     def take(self, index: int, result: dict) -> dict | None:
         """Range ``index``'s result; when it is the last, the clip's inference result (the bundle
         finished when every range went well, else the first failure's line)."""
-        from viewer.photo.clip_inference import finish_ranges
-
         self.results[index] = result
         if any(r is None for r in self.results):
             return None
@@ -60,7 +58,7 @@ class SplitClip:
             if failed is not None:
                 self.done = {"ok": False, "error": failed["error"]}
                 return self.done
-            record = finish_ranges(self.clip, self.bundle.path, self.bundle.ranges, [r["range_result"] for r in self.results])
+            record = self.bundle.finish(self.clip, [r["range_result"] for r in self.results])
         except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
             self.done = {"ok": False, "error": task_error(exc)}
             return self.done

@@ -54,7 +54,6 @@ def infer_spread(pool, clip, target: Path, start: float, end: float | None, size
     """The clip bundle of ``clip`` made in ``target`` by ``pool``'s workers, a range each (one range
     for a short clip); its record (as :func:`viewer.photo.clip_inference.infer_clip` returns it).
     ``progress(done, total, None)`` as frames are finished."""
-    from viewer.photo.clip_inference import finish_ranges
     from viewer.photo.clip_ranges import open_ranges
     from viewer.scene.clip_bundle import FRAMES
 
@@ -72,7 +71,7 @@ def infer_spread(pool, clip, target: Path, start: float, end: float | None, size
         tasks = [{"kind": "infer_range", "photo": str(Path(clip).resolve()), "bundle": str(bundle.path.resolve()),
                   "range": r.to_json(), "key": bundle.key, "device": device} for r in bundle.ranges]
         results = run_tasks(pool, tasks, poll)
-        return finish_ranges(clip, bundle.path, bundle.ranges, [r["range_result"] for r in results])
+        return bundle.finish(clip, [r["range_result"] for r in results])
     finally:
         bundle.close()
 

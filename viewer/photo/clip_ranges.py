@@ -24,7 +24,7 @@ from pathlib import Path
 from viewer.errors import InputError
 from viewer.files.clip_reader import clip_frames
 from viewer.files.imageio import write_text
-from viewer.photo.clip_inference import ClipRange, infer_frames, locked_bundle, open_clip_bundle
+from viewer.photo.clip_inference import ClipRange, finish_ranges, infer_frames, locked_bundle, open_clip_bundle, source_state, unchanged
 from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
 from viewer.photo.shots import ShotCuts
 from viewer.scene.clip_bundle import RECORD, read_record
@@ -68,6 +68,15 @@ class RangedBundle:
     earlier: dict | None
     lock: contextlib.ExitStack
     key: str  # the bundle's (what its clip, options and the inference hash to)
+    source: tuple  # the clip's file as it was when the bundle was made ready (clip_inference.source_state)
+
+    def finish(self, clip_path, results: list[dict]) -> dict:
+        """Every range done (``results`` in the order of the ranges): the record made complete
+        (:func:`viewer.photo.clip_inference.finish_ranges`), and the bundle not kept, one line, when the clip changed
+        while its ranges were inferred (:func:`viewer.photo.clip_inference.unchanged`)."""
+        record = finish_ranges(clip_path, self.path, self.ranges, results)
+        unchanged(clip_path, self.source, self.path)
+        return record
 
     def close(self) -> None:
         self.lock.close()
@@ -84,15 +93,16 @@ def open_ranges(clip_path, out_dir, workers: int, start: float = 0.0, end: float
     held = contextlib.ExitStack()
     held.enter_context(lock)
     try:
+        source = source_state(clip_path)
         out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest,
                                                        person, people)
         if earlier is not None:
-            return RangedBundle(out_dir, [], earlier, held, record["key"])
+            return RangedBundle(out_dir, [], earlier, held, record["key"], source)
         if not record.get("ranges") or not record.get("shot_starts"):
             starts, count = shot_starts(clip_path, start, end)  # (the frames counted: each range's end known)
             record.update(expected_frames=count, shot_starts=starts, ranges=[r.to_json() for r in split(count, workers, temporal, overlap)])
             write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
-        return RangedBundle(out_dir, [ClipRange(*r) for r in record["ranges"]], None, held, record["key"])
+        return RangedBundle(out_dir, [ClipRange(*r) for r in record["ranges"]], None, held, record["key"], source)
     except BaseException:
         held.close()
         raise
