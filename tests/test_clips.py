@@ -40,9 +40,10 @@ def blank_frame(width: int = 320, height: int = 480) -> np.ndarray:
     return np.clip(150 + rng.normal(0, 6, (height, width, 3)), 0, 255).astype(np.uint8)
 
 
-def write_clip(path, frames, times=None, rotation=0, audio="aac", video="libx264", container=None, gop=None):
+def write_clip(path, frames, times=None, rotation=0, audio="aac", video="libx264", container=None, gop=None, sar=None):
     """A clip of ``frames`` (RGB uint8) at ``times`` (seconds; default 1 / FPS apart), the display
-    matrix turned ``rotation`` degrees, and one second of a 440 Hz tone in ``audio`` (None: silent)."""
+    matrix turned ``rotation`` degrees, and one second of a 440 Hz tone in ``audio`` (None: silent);
+    ``sar``: its pixels' aspect (a Fraction: width over height)."""
     import av
 
     with av.open(str(path), "w", format=container) as c:
@@ -52,6 +53,8 @@ def write_clip(path, frames, times=None, rotation=0, audio="aac", video="libx264
         stream.codec_context.time_base = Fraction(1, 1000)
         if gop is not None:
             stream.codec_context.gop_size = gop
+        if sar is not None:
+            stream.codec_context.sample_aspect_ratio = sar
         if rotation:
             stream.set_display_rotation(rotation)
         sound = None

@@ -106,22 +106,9 @@ def test_the_cache_place_is_absolute_and_never_the_root(monkeypatch, tmp_path):
 
 
 def _clip(path, frames, sar=None):
-    import av
+    from test_clips import write_clip
 
-    with av.open(str(path), "w") as c:
-        stream = c.add_stream("libx264", rate=10)
-        stream.height, stream.width = frames[0].shape[:2]
-        stream.pix_fmt = "yuv420p"
-        if sar is not None:
-            stream.codec_context.sample_aspect_ratio = sar
-        for i, rgb in enumerate(frames):
-            frame = av.VideoFrame.from_ndarray(rgb, format="rgb24")
-            frame.pts, frame.time_base = i * 100, Fraction(1, 1000)
-            for packet in stream.encode(frame):
-                c.mux(packet)
-        for packet in stream.encode():
-            c.mux(packet)
-    return path
+    return write_clip(path, frames, audio=None, sar=sar)
 
 
 def test_non_square_pixels_come_out_as_a_player_shows_them(tmp_path):

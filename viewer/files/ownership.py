@@ -64,19 +64,27 @@ def mark_written(folder) -> None:
     (folder / MARKER).write_text(json.dumps(data, indent=1) + "\n")
 
 
-def written_here(folder) -> bool:
-    """Whether ``folder`` is a folder this program wrote, exactly as it wrote it."""
-    folder = Path(folder)
+def _marked(folder: Path) -> dict | None:
+    """The files ``folder``'s marker lists (name -> SHA-256), when it is a real folder with an intact marker; else None."""
     marker = folder / MARKER
     if folder.is_symlink() or not folder.is_dir() or marker.is_symlink() or not marker.is_file():
-        return False
+        return None
     try:
         data = json.loads(marker.read_text())
         files = data["files"]
-        if data.get("format") != FORMAT or not isinstance(files, dict) or data.get("hash") != _list_hash(files):
-            return False
-        return _contents(folder) == files
     except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return None
+    if data.get("format") != FORMAT or not isinstance(files, dict) or data.get("hash") != _list_hash(files):
+        return None
+    return files
+
+
+def written_here(folder) -> bool:
+    """Whether ``folder`` is a folder this program wrote, exactly as it wrote it."""
+    files = _marked(Path(folder))
+    try:
+        return files is not None and _contents(Path(folder)) == files
+    except OSError:
         return False
 
 
@@ -106,17 +114,11 @@ def take_away(path, tag: str = "old") -> None:
 def names_ours(folder) -> bool:
     """Whether ``folder`` holds only files this program wrote there, by name (their bytes may have changed since:
     a file cut short, one deleted): a real folder whose marker is intact and lists every regular file in it."""
-    folder = Path(folder)
-    marker = folder / MARKER
-    if folder.is_symlink() or not folder.is_dir() or marker.is_symlink() or not marker.is_file():
-        return False
+    files = _marked(Path(folder))
     try:
-        data = json.loads(marker.read_text())
-        files = data["files"]
-        if data.get("format") != FORMAT or not isinstance(files, dict) or data.get("hash") != _list_hash(files):
-            return False
-        return all(e.name == MARKER or (e.is_file(follow_symlinks=False) and e.name in files) for e in os.scandir(folder))
-    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return files is not None and all(e.name == MARKER or (e.is_file(follow_symlinks=False) and e.name in files)
+                                         for e in os.scandir(folder))
+    except OSError:
         return False
 
 
