@@ -115,21 +115,24 @@ def clip_target(out_dir) -> Path:
         raise InputError(out_dir, "exists and is not a folder: give a folder for the clip bundle")
     if out_dir.is_dir() and any(out_dir.iterdir()):
         names = {p.name for p in out_dir.iterdir()}
-        if not file_is_ours(out_dir / RECORD) or not names <= {RECORD, FRAMES, PREVIEW}:
+        if not file_is_ours(out_dir / RECORD) or not names <= WRITTEN_NAMES:
             raise InputError(out_dir, "is a folder with files relight did not write there: give a new or empty folder for "
                                       "the clip bundle (nothing was written)")
     return out_dir
 
 
-def _frames_ours(frames: Path) -> bool:
-    """Whether everything in a clip bundle's ``frames`` folder is what this program wrote there."""
+def _frames_ours(frames: Path, exactly: bool = True) -> bool:
+    """Whether everything in a clip bundle's ``frames`` folder is what this program wrote there: ``exactly`` as it
+    wrote it (each record's mark, each frame's bundle as its marker lists it), else by name only (a frame's file cut
+    short still counts: :func:`viewer.files.ownership.names_ours`). No link counts."""
     for p in frames.iterdir():
         if p.name.startswith("."):  # a frame's bundle being written when a run stopped (fresh_sibling's names)
             continue
         if p.suffix in (".json", ".png") and p.stem.isdigit():
-            if not file_is_ours(p):
-                return False
-        elif not (p.name.isdigit() and written_here(p)):
+            ours = file_is_ours(p) if exactly else p.is_file() and not p.is_symlink()
+        else:
+            ours = p.name.isdigit() and (written_here(p) if exactly else names_ours(p))
+        if not ours:
             return False
     return True
 
@@ -198,8 +201,8 @@ def entry_problem(out_dir: Path) -> str | None:
     names = {p.name for p in out_dir.iterdir()}
     if not names:
         return None
-    if not names <= {RECORD, FRAMES, PREVIEW}:
-        return f"it holds {sorted(names - {RECORD, FRAMES, PREVIEW})[0]!r}, which relight does not write there"
+    if not names <= WRITTEN_NAMES:
+        return f"it holds {sorted(names - WRITTEN_NAMES)[0]!r}, which relight does not write there"
     if (out_dir / RECORD).is_symlink() or not file_is_ours(out_dir / RECORD):
         return f"its {RECORD} is not one relight wrote"
     try:
@@ -223,18 +226,11 @@ def entry_problem(out_dir: Path) -> str | None:
 def _names_ours(out_dir: Path) -> bool:
     """Whether the clip bundle ``out_dir`` holds only what this program writes there, by name (its files' bytes may
     have changed: a frame's map cut short): no link anywhere, no name it does not write."""
-    if out_dir.is_symlink() or not out_dir.is_dir() or not {p.name for p in out_dir.iterdir()} <= {RECORD, FRAMES, PREVIEW}:
+    if out_dir.is_symlink() or not out_dir.is_dir() or not {p.name for p in out_dir.iterdir()} <= WRITTEN_NAMES:
         return False
     if any(p.is_symlink() for p in (out_dir / RECORD, out_dir / PREVIEW)) or (out_dir / FRAMES).is_symlink():
         return False
-    frames = out_dir / FRAMES
-    for p in frames.iterdir() if frames.is_dir() else ():
-        if p.name.startswith("."):  # a frame being written when a run stopped (fresh_sibling's names)
-            continue
-        if p.is_symlink() or not (p.name.isdigit() and names_ours(p) or p.stem.isdigit() and p.suffix in (".json", ".png")
-                                  and p.is_file()):
-            return False
-    return True
+    return not (out_dir / FRAMES).is_dir() or _frames_ours(out_dir / FRAMES, exactly=False)
 
 
 def set_aside_if_damaged(out_dir: Path) -> str | None:
@@ -381,6 +377,7 @@ def unchanged(clip_path, before: tuple, out_dir: Path) -> None:
 
 
 PREVIEW = "person.png"  # the clip's first frame with anyone, the person chosen outlined, the others dimmed
+WRITTEN_NAMES = frozenset({RECORD, FRAMES, PREVIEW})  # all a clip bundle's folder holds
 CHOOSE_WITHIN = 300  # frames: how far into the clip the person to relight is looked for
 
 

@@ -267,10 +267,10 @@ def load_clip_bundle(path) -> ClipBundle:
         entry = absolute_pan(read_frame_entry(entry_path), record, path)
         if entry.index != i:
             raise InputError(entry_path, f"holds frame {entry.index}, expected {i}")
-        if not 0.0 <= entry.seconds <= MAX_SECONDS or (before is not None and entry.seconds <= before.seconds):
-            raise InputError(entry_path, f"its time {entry.seconds:g} s does not come after frame {i - 1}'s"
-                             if before is not None and entry.seconds <= before.seconds else
-                             f"its time {entry.seconds:g} s is not a clip's (0 to {MAX_SECONDS:g} s from the first frame)")
+        if before is not None and entry.seconds <= before.seconds:
+            raise InputError(entry_path, f"its time {entry.seconds:g} s does not come after frame {i - 1}'s")
+        if not 0.0 <= entry.seconds <= MAX_SECONDS:
+            raise InputError(entry_path, f"its time {entry.seconds:g} s is not a clip's (0 to {MAX_SECONDS:g} s from the first frame)")
         if entry.state == "person" and not (folder / frame_name(i) / "scene.json").is_file():
             raise InputError(folder / frame_name(i), "missing: the frame's scene bundle")
         frames.append(entry)
