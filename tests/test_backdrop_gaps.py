@@ -13,7 +13,7 @@ from test_matting import _frame
 
 from viewer.lab.bench.metrics import MATTE_MARGIN, backdrop_coloured, enclosed_gaps, on_backdrop, on_studio, outline, spill_cut
 from viewer.photo import matting
-from viewer.photo.photo_frame import output_frame, read_photo
+from viewer.photo.frames import output_frame, read_photo
 from viewer.photo.segmentation import find_person
 from viewer.resize import resize
 

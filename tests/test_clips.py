@@ -24,7 +24,7 @@ FPS = 10
 
 def person_frames(count: int, width: int = 320, height: int = 480) -> list[np.ndarray]:
     """The bundled photo's person, a window moved 3 pixels a frame (a real person, small and fast)."""
-    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.frames import read_photo
     from viewer.resize import resize
 
     photo = read_photo(asset_dir() / "photos/underpass.jpg", [])
@@ -989,7 +989,7 @@ def test_a_bystander_who_comes_nearer_stays_out_of_the_matte(tmp_path):
     import cv2
 
     from viewer.photo.clip_inference import infer_clip
-    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.frames import read_photo
     from viewer.resize import resize
     from viewer.scene.bundle import load_scene
     from viewer.scene.clip_bundle import load_clip_bundle
@@ -1069,8 +1069,8 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own_and_as_high(tmp_p
     from viewer.lighting.envmap import LUMINANCE, load_envmap
     from viewer.output.clip_frames import ClipFrames
     from viewer.photo.clip_inference import infer_clip
-    from viewer.photo.photo_frame import read_photo
-    from viewer.plate.plate_file import DEFAULT_FOCAL_35
+    from viewer.photo.frames import read_photo
+    from viewer.plate.loader import DEFAULT_FOCAL_35
     from viewer.resize import resize
     from viewer.scene.area_lights import rotation_matrix
     from viewer.scene.camera import Camera

@@ -16,7 +16,7 @@ from conftest import SHARED_DATA
 from PIL import Image, ImageCms
 
 from viewer.lab.icc_profiles import ADOBE_RGB, DISPLAY_P3, matrix_trc_profile
-from viewer.photo.photo_frame import read_mask, read_photo
+from viewer.photo.frames import read_mask, read_photo
 from viewer.resources import asset_dir
 
 PHOTO = asset_dir() / "photos" / "underpass.jpg"

@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from viewer.photo import face
-from viewer.photo.photo_frame import read_photo
+from viewer.photo.frames import read_photo
 from viewer.scene.bundle import Scene
 from viewer.scene.camera import Camera
 
@@ -192,7 +192,7 @@ def test_the_face_counts_its_share_in_the_fit_of_the_photos_lights(ctx):
     unweighted, and the weights give the patch ``FIT_SHARE`` of the fit."""
     from viewer.gl import Engine, EngineOptions
     from viewer.lab.scenes import sphere
-    from viewer.photo.photo_lighting import fit_photo_lights
+    from viewer.photo.own_lighting import fit_photo_lights
     from viewer.scene.area_lights import AreaLights
 
     scene = sphere(64, albedo=0.6, specular=0.0)

@@ -8,7 +8,7 @@ from conftest import SHARED_DATA
 
 from viewer.files.imageio import srgb_to_linear
 from viewer.photo import gloss
-from viewer.photo.photo_frame import read_photo
+from viewer.photo.frames import read_photo
 from viewer.photo.segmentation import find_person
 from viewer.resize import resize
 

@@ -106,7 +106,7 @@ SKIER = SHARED_DATA / "eval-photos" / "mmpose_coco_000000000785_skier.jpg"
 def test_the_skiers_poles_stay_with_her():
     """On the real photo (640x425): points along both poles (from the hands to the baskets) are
     the person's in the automatic matte; the segmentation alone cut them away."""
-    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.frames import read_photo
     from viewer.photo.segmentation import find_person
 
     photo = read_photo(SKIER, [])
@@ -146,7 +146,7 @@ def test_in_a_clip_an_object_is_kept_from_its_second_frame_in_a_row():
     assert not matting.confirmed(np.zeros((H, W), bool), found).any()
     assert not matting.confirmed(board, _line((H, W), (90, 330), (215, 330), 6)).any()  # 32 px away: another
 
-    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.frames import read_photo
     from viewer.photo.segmentation import find_person
 
     photo = read_photo(SKIER, [])

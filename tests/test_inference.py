@@ -17,6 +17,7 @@ from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
 from viewer.photo import matting
 from viewer.photo.detail import detail_albedo
+from viewer.photo.frames import frame_sizes
 from viewer.photo.inference import (
     FILL,
     NETWORK_RES,
@@ -31,7 +32,6 @@ from viewer.photo.inference import (
     to_work_frame,
     write_bundle,
 )
-from viewer.photo.photo_frame import frame_sizes
 from viewer.resize import resize
 from viewer.scene.area_lights import load_lights
 from viewer.scene.bundle import load_scene
@@ -262,8 +262,8 @@ def test_bad_inputs_name_the_file_and_the_problem(tiny_networks, tmp_path, ctx):
 
 
 def test_photos_over_the_pixel_limit_are_refused_in_one_line(tmp_path, monkeypatch):
-    import viewer.photo.photo_frame as photo_frame
-    from viewer.photo.photo_frame import read_photo
+    import viewer.photo.frames as photo_frame
+    from viewer.photo.frames import read_photo
 
     Image.fromarray(np.zeros((300, 400, 3), np.uint8)).save(tmp_path / "big.png")
     monkeypatch.setattr(photo_frame, "MAX_PIXELS", 100_000)
@@ -442,7 +442,7 @@ def test_a_cached_bundle_is_tied_to_the_code_that_made_it():
 
     names = {f"{f.parent.name}/{f.name}" for f in code_files()}
     assert {"photo/matting.py", "photo/held_objects.py", "gl/engine.py", "scene/bundle.py", "lighting/light_size.py",
-            "photo/photo_lighting.py"} <= names
+            "photo/own_lighting.py"} <= names
     assert any(n.endswith(".glsl") for n in names) and not any(n.startswith(("app/", "cli/", "lab/")) for n in names)
     assert code_digest() == code_digest()
 

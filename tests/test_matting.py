@@ -12,7 +12,7 @@ from conftest import SHARED_DATA
 from viewer.files.imageio import srgb_to_linear
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
 from viewer.photo import matting
-from viewer.photo.photo_frame import output_frame, read_mask, read_photo
+from viewer.photo.frames import output_frame, read_mask, read_photo
 from viewer.photo.segmentation import find_person
 from viewer.resize import resize
 

@@ -252,7 +252,7 @@ def test_plates_a_portrait_is_a_plate_and_a_huge_one_is_refused_from_its_header(
     from PIL import Image
 
     from viewer.lab.bench.robustness.fourth_campaign import _png_header
-    from viewer.plate.plate_file import read_plate
+    from viewer.plate.loader import read_plate
 
     Image.fromarray(np.full((400, 200, 3), 120, np.uint8)).save(tmp_path / "portrait.png")
     assert read_plate(tmp_path / "portrait.png", []).size == (200, 400)

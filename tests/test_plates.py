@@ -19,8 +19,8 @@ from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.lab.bench.plates import make_plate
 from viewer.lighting.envmap import LUMINANCE, direction_to_uv, load_envmap
-from viewer.plate.plate_file import DEFAULT_FOCAL_35, Plate, read_plate
-from viewer.plate.plate_light import plate_light
+from viewer.plate.environment import plate_light
+from viewer.plate.loader import DEFAULT_FOCAL_35, Plate, read_plate
 from viewer.resources import asset_dir
 
 MAP = SHARED_DATA / "hdri" / "potsdamer_platz_1k.hdr"
@@ -51,7 +51,7 @@ def test_a_plates_light_keeps_what_it_shows_and_mirrors_it_behind_the_camera(tmp
     # darkest parts first: as much light in all, the darkest raised most (the front read here is the plate as seen,
     # sharp and with its clipped highlights' gain; behind, its blurred mirror)
     from viewer.lighting.envmap import pixel_directions, solid_angles
-    from viewer.plate.plate_light import BEHIND_GAIN, CLIP
+    from viewer.plate.environment import BEHIND_GAIN, CLIP
 
     unclipped = (plate.srgb < CLIP).all(axis=-1)
     added = (BEHIND_GAIN - 1.0) * float((plate.linear[unclipped] @ LUMINANCE).mean())
@@ -72,7 +72,7 @@ def _sky_plate(sun_azimuth_deg: float, sun_elevation_deg: float, colour=(0.5, 0.
     """A 960x640 plate (35 mm; level, or tilted up by ``tilt_deg``) of a Perez clear sky (turbidity 3, ``level`` x
     the model) with its sun at the azimuth (degrees from the view's centre towards the right) and elevation given,
     over a grey textured ground; the corners darkened by ``vignetting`` (a share, as a lens does)."""
-    from viewer.plate.plate_sky import perez
+    from viewer.plate.sky import perez
 
     w, h = 960, 640
     f = 35.0 * w / 36.0
@@ -94,7 +94,7 @@ def _sky_plate(sun_azimuth_deg: float, sun_elevation_deg: float, colour=(0.5, 0.
 @pytest.mark.parametrize("azimuth,elevation,tilt", [(40.0, 10.0, 0.0), (-90.0, 20.0, 0.0), (150.0, 15.0, 0.0), (10.0, 30.0, 0.0),
                                                    (-120.0, 15.0, 0.0), (-60.0, 12.0, 10.0), (60.0, 25.0, -8.0)])
 def test_a_sun_is_read_from_a_clear_sky_in_view_or_not(azimuth, elevation, tilt):
-    from viewer.plate.plate_sky import plate_sky
+    from viewer.plate.sky import plate_sky
 
     # the camera's tilt from the horizon: tilted up by t, it is f tan(t) below the middle
     horizon = 0.5 + 35.0 * 960 / 36.0 * np.tan(np.radians(tilt)) / 640
@@ -108,7 +108,7 @@ def test_a_sun_is_read_from_a_clear_sky_in_view_or_not(azimuth, elevation, tilt)
     # its strength: the open sky's diffuse light on the ground (the plate's sky: 0.12 x Perez in its colour;
     # integrated here on a fine grid of its own) times a clear day's direct-to-diffuse ratio at that elevation
     # (Meinel's direct normal irradiance over Haurwitz's global less the direct, Kasten-Young's air mass)
-    from viewer.plate.plate_sky import perez
+    from viewer.plate.sky import perez
 
     el, az = np.meshgrid((np.arange(400) + 0.5) * np.pi / 800, (np.arange(1600) + 0.5) * np.pi / 800, indexing="ij")
     dirs = np.stack([np.cos(el) * np.sin(az), np.sin(el), -np.cos(el) * np.cos(az)], axis=-1)
@@ -143,7 +143,7 @@ def test_a_sun_is_read_from_a_clear_sky_in_view_or_not(azimuth, elevation, tilt)
 
 
 def test_no_sun_is_read_from_a_grey_sky_a_sky_the_same_all_round_a_wall_or_no_sky():
-    from viewer.plate.plate_sky import plate_sky
+    from viewer.plate.sky import plate_sky
 
     assert "not a clear blue sky" in plate_sky(_sky_plate(40.0, 10.0, colour=(0.8, 0.8, 0.8)), 0.5)[1]
     assert "no sun explains" in plate_sky(_sky_plate(40.0, 10.0, sunless=True), 0.5)[1]
@@ -212,7 +212,7 @@ def test_plate_light_writes_a_map_to_use_as_any(tmp_path):
 
 
 def test_the_plates_light_file_is_made_once_with_its_record(tmp_path):
-    from viewer.plate.plate_light import plate_light_file
+    from viewer.plate.environment import plate_light_file
 
     plate = _sky_plate(60.0, 20.0)
     notes = []
@@ -381,7 +381,7 @@ def test_a_person_lit_by_their_own_map_is_exposed_to_the_plates_light():
     within 10 % of their map's."""
     from viewer.cli.command_setup import fitted_lights
     from viewer.lighting.envmap import EnvMap
-    from viewer.plate.plate_exposure import matched_exposure, mean_irradiance
+    from viewer.plate.exposure import matched_exposure, mean_irradiance
     from viewer.resources import sample_scene_dir
     from viewer.scene.bundle import load_scene
 
@@ -403,8 +403,8 @@ def test_the_persons_lens_is_kept_and_compared_with_the_plates(tmp_path):
     bad one one line), and a plate seeing the person from much farther than their photo did is warned."""
     from dataclasses import replace
 
+    from viewer.photo.frames import read_photo
     from viewer.photo.inference import cached_bundle
-    from viewer.photo.photo_frame import read_photo
     from viewer.plate.placement import Placement, lens_mismatch
     from viewer.scene.bundle import load_scene, save_scene
 
@@ -436,8 +436,8 @@ def test_the_plate_cameras_height_is_read_from_the_people_standing_in_it(tmp_pat
     its camera about 1.3 m up (lower than eye height), and the default person is sized for that, as
     tall as she would be there; a plate with no one in it keeps eye height."""
     from viewer.plate.horizon import plate_horizon
+    from viewer.plate.people import plate_camera_height
     from viewer.plate.placement import CAMERA_HEIGHT_M, PERSON_HEIGHT_M, place_on_plate
-    from viewer.plate.plate_people import plate_camera_height
 
     street = read_plate(SHARED_DATA / "photos" / "unsplash-1535323700481.jpg", [])
     horizon, _ = plate_horizon(street)
@@ -458,8 +458,8 @@ def test_the_plates_own_people_in_front_hide_the_person():
     overlap, with her own matte; not one whose feet are lower (nearer), nor one beside her; where she
     hides them the composite is the plate, their layer empty and no shadow on her."""
     from viewer.output.plate_composite import composite_on_plate
+    from viewer.plate.people import feet_row, in_front
     from viewer.plate.placement import Placement, plate_transform
-    from viewer.plate.plate_people import feet_row, in_front
 
     street = read_plate(SHARED_DATA / "photos" / "unsplash-1535323700481.jpg", [])
     woman, = street.people
@@ -524,8 +524,8 @@ def test_render_on_a_plate_writes_the_composite_and_its_layers(tmp_path):
 def test_the_plates_grain_and_defocus_are_measured_and_given_to_the_person():
     import cv2
 
+    from viewer.plate.match import feet_blur, grain_levels, with_grain
     from viewer.plate.placement import placement
-    from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
 
     rng = np.random.default_rng(9)
     yy, xx = np.mgrid[:400, :600]
@@ -780,7 +780,7 @@ def test_the_sun_is_read_from_the_shadows_of_the_plates_people_and_not_from_shad
     from viewer.lighting.dominant import brightest_direction
     from viewer.plate.horizon import plate_horizon
     from viewer.plate.people_shading import sun_from_shading
-    from viewer.plate.plate_shadows import sun_from_shadows
+    from viewer.plate.shadows import sun_from_shadows
     from viewer.scene.area_lights import rotation_matrix
 
     rooitou = load_envmap(SHARED_DATA / "hdri" / "rooitou_park_1k.hdr")

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from viewer.errors import InputError
 from viewer.files.imageio import read_json
 from viewer.lighting.envmap import load_envmap
-from viewer.photo.photo_frame import read_mask
+from viewer.photo.frames import read_mask
 from viewer.scene.area_lights import load_lights
 from viewer.scene.look import Look
 

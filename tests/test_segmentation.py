@@ -12,7 +12,7 @@ from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.lab.bench.photos import mask_iou, read_reference_mask
 from viewer.lighting.envmap import load_envmap
-from viewer.photo.photo_frame import read_photo
+from viewer.photo.frames import read_photo
 from viewer.photo.segmentation import find_person
 from viewer.resize import resize
 

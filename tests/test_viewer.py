@@ -406,7 +406,7 @@ DROP_SCRIPT = r"""
 import json, sys, threading, time
 from pathlib import Path
 from viewer.app import ViewerConfig
-from viewer.app.app import ViewerApp
+from viewer.app.viewer_app import ViewerApp
 from viewer.lighting.envmap import load_envmap
 from viewer.scene.area_lights import load_lights
 from viewer.resources import asset_dir, sample_scene_dir

@@ -69,7 +69,7 @@ def figure(groups: list, out: Path, tile: int = 300, parts=PARTS) -> Path:
     """Rows of (photo, {label: image}): per photo and part, the crop of each render side by side."""
     from viewer.files.imageio import read_png, write_jpeg
     from viewer.output.render import _label
-    from viewer.photo.photo_frame import output_frame, read_photo
+    from viewer.photo.frames import output_frame, read_photo
     from viewer.resize import resize
 
     rows = []

@@ -1,5 +1,5 @@
 """The interactive viewer (``relight view``): window, input, panel, recording. Needs a display."""
 
-from viewer.app.app import ViewerApp, ViewerConfig, run_viewer
+from viewer.app.viewer_app import ViewerApp, ViewerConfig, run_viewer
 
 __all__ = ["ViewerApp", "ViewerConfig", "run_viewer"]

@@ -1,6 +1,6 @@
 """What the viewer does when the user asks: save the frame or the rig, record, open a map, a
 person or a rig, aim a placed light, compare before / after, change the quality preset. Each
-action reads and changes the window's state (:class:`viewer.app.app.ViewerApp`) and says what it
+action reads and changes the window's state (:class:`viewer.app.viewer_app.ViewerApp`) and says what it
 did in its message line; the frame loop and the panel call them."""
 
 from __future__ import annotations
@@ -220,7 +220,7 @@ class Actions:
         what the window opens."""
         from viewer.app.files import is_bundle
         from viewer.errors import InputError
-        from viewer.files.file_kinds import kind_of, wrong_kind
+        from viewer.files.kinds import kind_of, wrong_kind
         from viewer.lighting.placed_lights import load_rig
 
         suffix = path.suffix.lower()

@@ -19,9 +19,9 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import linear_to_srgb
 from viewer.output.plate_render import composite_frame, read_person
+from viewer.plate.loader import Plate
+from viewer.plate.match import feet_blur
 from viewer.plate.placement import Placement, camera_mismatch, enlarged, off_the_plate, person_lens_mismatch, plate_transform
-from viewer.plate.plate_file import Plate
-from viewer.plate.plate_match import feet_blur
 from viewer.scene.look import Look
 
 VIEW_LONGER = 1600  # the plate's copy the window composites on: its longer side at most (S writes the whole plate)
@@ -41,13 +41,13 @@ def plate_setting(path, at: tuple[float, float] | None, height: float | None, ho
     person: "plate" or the name of ``own_light``, the plate's light as a map file, ``anchor`` (a clip's
     first person's matte, which places every frame): :class:`PlateView`'s arguments), and that map file
     to open as any map's, None where ``own_light`` (a map or a light file) lights the person. One line
-    when it cannot be a plate (:func:`viewer.plate.plate_file.read_plate`) or the person cannot stand
+    when it cannot be a plate (:func:`viewer.plate.loader.read_plate`) or the person cannot stand
     where asked (:func:`viewer.plate.placement.plate_transform`). ``front``: the user's mask of what stands in
     front of the person (``--front``, :mod:`viewer.plate.front_mask`)."""
     from viewer.lighting.lightfit.cache import cache_dir
+    from viewer.plate.environment import plate_light_file
+    from viewer.plate.loader import read_plate
     from viewer.plate.placement import place_on_plate
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import plate_light_file
 
     plate = read_plate(path, notes, front)
     place, horizon = place_on_plate(plate, at, height, horizon, notes)
@@ -77,7 +77,7 @@ class PlateView:
         # the plate as across their frame, :mod:`viewer.output.plate_clip`); a photo's own frame places it
         self.anchor = anchor
         self.light = light  # "plate": lit by the plate's own light; else the name of the map that lights the person
-        self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.plate_light.plate_light_file)
+        self.light_map = Path(light_map)  # the plate's light as a map file (viewer.plate.environment.plate_light_file)
         self._light_env = None  # that map, read when a map of the user's is to be exposed to it
         self.shown = plate.within(VIEW_LONGER)  # the copy composited on
         self.size, self.linear = self.shown.size, self.shown.linear
@@ -99,9 +99,9 @@ class PlateView:
     def exposure(self, light, scene, look) -> float:
         """The person's exposure on this plate under ``light`` (a map, or a light file's lights) turned by
         ``look``: 0 (the plate's units) under the plate's own light, else the stops that give them the
-        plate's light's diffuse level (:func:`viewer.plate.plate_exposure.person_exposure`)."""
+        plate's light's diffuse level (:func:`viewer.plate.exposure.person_exposure`)."""
         from viewer.lighting.envmap import load_envmap
-        from viewer.plate.plate_exposure import person_exposure
+        from viewer.plate.exposure import person_exposure
 
         if self.light == "plate":
             return 0.0

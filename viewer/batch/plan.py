@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import PHOTO_SUFFIXES
+from viewer.files.kinds import PHOTO_SUFFIXES
 
 KEY_VERSION = "batch-1"  # outputs of an older batch code are made again
 
@@ -147,7 +147,7 @@ def clip_bundle_key(digest: str, max_size: int, version: str) -> str:
     """What a batch's clip bundle is made from: the clip's bytes (``digest``), the whole clip inferred
     as one (temporal on) at ``max_size``, the inference ``version``."""
     from viewer.photo.clip_inference import clip_key, clip_options
-    from viewer.photo.photo_frame import WORK_PERSON
+    from viewer.photo.frames import WORK_PERSON
 
     return clip_key(digest, clip_options(0.0, None, WORK_PERSON, max_size), version)
 
@@ -156,7 +156,7 @@ def cache_path(clip: Path, bundles, max_size: int, digest: str) -> Path:
     """Where a batch keeps the bundle of ``clip`` (in the cache's ``bundles`` folder): the one
     ``relight render CLIP`` makes with the same options (:func:`clip_bundle_key`)."""
     from viewer.photo.clip_inference import cached_clip_path
-    from viewer.photo.photo_frame import WORK_PERSON
+    from viewer.photo.frames import WORK_PERSON
 
     return cached_clip_path(clip, bundles, 0.0, None, WORK_PERSON, max_size, digest=digest)
 

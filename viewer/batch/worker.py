@@ -102,8 +102,8 @@ class Worker:
         pictures = None
         if task.get("plate"):  # the clip's person put into a plate, frame by frame
             from viewer.output.plate_clip import PlatePictures
+            from viewer.plate.loader import read_plate
             from viewer.plate.placement import Placement
-            from viewer.plate.plate_file import read_plate
 
             pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, turn, sizes,
                                      plate=read_plate(task["plate"], [], task.get("front")).within(task.get("plate_size") or sizes[1]),
@@ -194,8 +194,8 @@ class Worker:
         look = Look.from_json(task["look"])
         if task.get("plate"):  # the person put into a plate (its layers written with it)
             from viewer.output.plate_render import render_on_plate
+            from viewer.plate.loader import read_plate
             from viewer.plate.placement import Placement
-            from viewer.plate.plate_file import read_plate
 
             render_on_plate(self._engine, self._scene, lights, look, read_plate(task["plate"], []), Placement(*task["place"]),
                             png, folder / task["outputs"][1], folder / task["outputs"][2] if task.get("layers") else None,

@@ -148,8 +148,8 @@ def resolve_looks(specs, args) -> list:
     from viewer.lighting.map_lights import lights_source, start_yaw
     from viewer.lighting.placed_lights import load_rig, to_area_lights
     from viewer.output.plate_render import plate_look
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import plate_light
+    from viewer.plate.environment import plate_light
+    from viewer.plate.loader import read_plate
 
     base = command_look(args)
     found: dict = {}  # (source, n) -> (lights, sha) or the error line

@@ -32,7 +32,7 @@ def _bundle_options(clip, args, out=None) -> tuple[Path, dict]:
     from viewer.files.clip_reader import probe_clip
     from viewer.lighting.lightfit.cache import bundles_dir
     from viewer.photo.clip_inference import cached_clip_path, check_frame_size
-    from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
+    from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 
     size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
     max_size = getattr(args, "max_size", None) or MAX_SIZE
@@ -185,7 +185,7 @@ def cmd_render_clip(args, look) -> int:
     env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None  # before hours of inference
     plate = clip_plate(args) if args.plate else None  # read and placed before hours of inference: one line if it cannot be
     if plate is not None and args.lights is None and env is None:  # the plate's light, in its camera's frame
-        from viewer.plate.plate_light import plate_light
+        from viewer.plate.environment import plate_light
 
         lights, _ = fitted_lights(plate_light(plate[0], horizon=plate[2])[0], lights_count(args, look), args.method)
         source = PLATE
@@ -197,7 +197,7 @@ def cmd_render_clip(args, look) -> int:
     rig = rig_lights(args)
     if args.layers and is_clip(args.scene):  # the disk's room for them, before hours of inference
         from viewer.files.clip_reader import expected_frames, probe_clip
-        from viewer.photo.photo_frame import MAX_SIZE, output_frame
+        from viewer.photo.frames import MAX_SIZE, output_frame
 
         info = probe_clip(args.scene)
         check_layers_room(out, expected_frames(info, args.start, args.end),
@@ -272,7 +272,7 @@ def cmd_render_clip(args, look) -> int:
         print(f"note: {result['audio_note']}")
     sw, sh = bundle.source["width"], bundle.source["height"]
     if max(sw, sh) > max(w, h) + 1 and plate is None:
-        from viewer.photo.photo_frame import MAX_SIZE
+        from viewer.photo.frames import MAX_SIZE
 
         print(f"note: the clip is {sw}x{sh}: relit at {w}x{h} (--max-size {args.max_size or MAX_SIZE} on the longer side; "
               "a larger --max-size keeps more, at more time and memory)")
@@ -312,7 +312,7 @@ def parts_task(bundle, out: Path, args, lights, look, rig, turn: float, plate: t
     the render's arguments as plain data, paths absolute (a worker on another node reads the same)."""
     from dataclasses import asdict
 
-    from viewer.photo.photo_frame import MAX_SIZE
+    from viewer.photo.frames import MAX_SIZE
 
     task = {"bundle": str(Path(bundle.path).resolve()), "output": str(out.resolve()), "lights": lights.to_array().tolist(),
             "envmap": str(Path(args.envmap).resolve()) if args.envmap else None, "repair": bool(getattr(args, "repair", False)),
@@ -330,9 +330,9 @@ def clip_plate(args) -> tuple:
     """``--plate`` for a clip: (the plate, no longer on its longer side than ``--max-size``, where the
     person stands on it, its horizon); its notes said."""
     from viewer.cli.plate_commands import plate_place
-    from viewer.photo.photo_frame import MAX_SIZE
+    from viewer.photo.frames import MAX_SIZE
+    from viewer.plate.loader import read_plate
     from viewer.plate.placement import Placement
-    from viewer.plate.plate_file import read_plate
 
     notes: list = []
     whole = read_plate(args.plate, notes, getattr(args, "front", None))
@@ -359,7 +359,7 @@ def plate_pictures(ctx, bundle, plate: tuple, lights, look, env, rig, args, turn
 
         frames = ClipFrames(bundle)
         scene = frames.scene(frames.people[0], (args.size, args.max_size))
-        from viewer.plate.plate_light import plate_light
+        from viewer.plate.environment import plate_light
 
         auto = own_light_exposure(plate_light(plate[0], horizon=plate[2])[0], scene, lights, env.pixels if env is not None else None, look)
     look = plate_look(look, auto)

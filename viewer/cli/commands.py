@@ -59,8 +59,8 @@ def cmd_demo(args) -> int:
     from viewer.gl import Engine, create_headless_context
     from viewer.lighting.envmap import load_envmap
     from viewer.output.render import render_to_files
+    from viewer.photo.frames import read_photo
     from viewer.photo.inference import infer
-    from viewer.photo.photo_frame import read_photo
     from viewer.resize import resize
 
     assets = asset_dir()

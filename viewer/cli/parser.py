@@ -10,7 +10,7 @@ from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, c
 from viewer.cli.plate_commands import cmd_plate_light
 from viewer.cli.shared_options import add_clip_range_args, add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
-from viewer.plate.plate_light import MAP_HEIGHT
+from viewer.plate.environment import MAP_HEIGHT
 from viewer.scene.look import BACKGROUNDS
 
 COMMAND_GROUP = "relight.commands"

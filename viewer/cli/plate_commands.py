@@ -1,5 +1,5 @@
 """The plate commands: ``relight plate-light PLATE -o MAP.exr`` (the light read from a background photo,
-as an HDR map, :mod:`viewer.plate.plate_light`, to inspect, edit and use as any map) and ``relight
+as an HDR map, :mod:`viewer.plate.environment`, to inspect, edit and use as any map) and ``relight
 render BUNDLE --plate PLATE -o OUT.png`` (the person relit by that light and composited into the
 plate, standing on its ground with their shadow: :mod:`viewer.output.plate_composite`)."""
 
@@ -31,9 +31,9 @@ def cmd_plate_light(args) -> int:
 def _plate_light(args) -> int:
     from viewer.lighting.dominant import map_dominant_light
     from viewer.lighting.envmap import save_envmap
+    from viewer.plate.environment import plate_light
     from viewer.plate.horizon import horizon_tilt, plate_horizon
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import plate_light
+    from viewer.plate.loader import read_plate
 
     out = Path(args.output)
     if out.suffix.lower() != ".exr":
@@ -94,9 +94,9 @@ def cmd_render_plate(args, look) -> int:
     from viewer.gl import Engine, create_headless_context
     from viewer.lighting.map_lights import PLATE
     from viewer.output.plate_render import plate_look, render_on_plate
+    from viewer.plate.environment import plate_light
+    from viewer.plate.loader import read_plate
     from viewer.plate.placement import Placement, person_lens_mismatch
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import plate_light
     from viewer.scene.look import AUTO
     from viewer.scene.resampling import load_sized_scene
 
@@ -149,9 +149,9 @@ def cmd_render_plate(args, look) -> int:
 
 def own_light_exposure(plate_env, scene, lights, pixels, look) -> float:
     """The stops that give a person lit by the user's map (``pixels``, else ``lights``, a light file's)
-    the diffuse light the plate's own light (``plate_env``) gives them (:mod:`viewer.plate.plate_exposure`)."""
+    the diffuse light the plate's own light (``plate_env``) gives them (:mod:`viewer.plate.exposure`)."""
     from viewer.lighting.envmap import EnvMap
-    from viewer.plate.plate_exposure import person_exposure
+    from viewer.plate.exposure import person_exposure
 
     return person_exposure(plate_env, EnvMap(pixels) if pixels is not None else lights, scene, look)
 

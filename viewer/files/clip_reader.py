@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import ffmpeg_file
+from viewer.files.kinds import regular_file
 
 VIDEO_SUFFIXES = (".mp4", ".mov", ".m4v", ".webm", ".avi", ".mkv")
 MAX_CLIP_FRAMES = 36_000  # 20 minutes at 30 fps: a clip bundle of ~3 MB a frame would need 100 GB beyond this

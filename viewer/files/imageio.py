@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import regular_file
+from viewer.files.kinds import regular_file
 from viewer.stop_signals import held
 
 MARK = ("written_by", "relight")  # (key, value) inside every file this program writes (viewer.files.ownership)

@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import atomic_path, check_pixels, read_exr, write_exr
+from viewer.files.kinds import regular_file
 from viewer.scene.area_lights import rotation_matrix
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 weights of linear RGB

@@ -11,7 +11,7 @@ import copy
 from viewer.errors import InputError
 from viewer.files.imageio import read_json
 from viewer.photo.camera_motion import turned
-from viewer.photo.photo_frame import output_frame
+from viewer.photo.frames import output_frame
 from viewer.scene.clip_bundle import ClipBundle
 
 
@@ -45,11 +45,11 @@ def person_seen_from(mask, pitch: float, focal_px: float, face_box: tuple | None
     (``face_box``, fractions of the frame: hands raised above the shoulders do not make them taller), else the
     mask's. 0 when their feet are not in it (:func:`viewer.scene.ground.contacts`), the frame's top edge cuts
     them, or the reading is out of the range a plate's people are believed in
-    (:data:`viewer.plate.plate_people.CAMERA_RANGE`). A child, or someone sitting, reads a camera too high."""
+    (:data:`viewer.plate.people.CAMERA_RANGE`). A child, or someone sitting, reads a camera too high."""
     import numpy as np
 
+    from viewer.plate.people import CAMERA_RANGE
     from viewer.plate.placement import PERSON_HEIGHT_M
-    from viewer.plate.plate_people import CAMERA_RANGE
     from viewer.scene.ground import contacts
 
     feet = contacts(mask)
@@ -167,7 +167,7 @@ class ClipFrames:
 
         from viewer.files.imageio import linear_to_srgb
         from viewer.plate.horizon import vertical_horizon
-        from viewer.plate.plate_file import DEFAULT_FOCAL_35
+        from viewer.plate.loader import DEFAULT_FOCAL_35
 
         if not self.bundle.temporal:
             return 0.0, "frame by frame: the camera taken as level", 0.0

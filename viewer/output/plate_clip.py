@@ -17,9 +17,9 @@ import numpy as np
 
 from viewer.output.clip_render import ClipPictures
 from viewer.output.plate_render import composite_frame, read_person
+from viewer.plate.loader import Plate
+from viewer.plate.match import feet_blur, grain_levels, with_grain
 from viewer.plate.placement import Placement, plate_transform
-from viewer.plate.plate_file import Plate
-from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
 
 COMPOSITE_VERSION = 2  # bump when the composite changes what a part shows (2: the plate's people in front hide the person)
 

@@ -60,12 +60,12 @@ def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow
                        horizon: float | None = None, front: np.ndarray | None = None) -> PlateComposite:
     """The person (premultiplied RGBA, the frame's size) and the ground's shadow share (any size over
     the same frame; None: no shadow) composited into ``plate_linear`` (H, W, 3); the person's layer
-    blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.plate_match`);
+    blurred by ``blur`` pixels (the plate's defocus where they stand, :mod:`viewer.plate.match`);
     with ``sky`` > 0 (the share of the ground's light a contact shadow hides) the ground around the
     feet darkened too (:func:`viewer.plate.contact.contact_shadow`, the plate's focal length ``focal_px``
     in its pixels, its ``horizon`` a fraction of its height), in the shadow layer; ``front`` (H, W), the
     matte of what of the plate stands in front of the person (its people nearer the camera,
-    :func:`viewer.plate.plate_people.in_front`), hides the person and their shadow there."""
+    :func:`viewer.plate.people.in_front`), hides the person and their shadow there."""
     import cv2
 
     from viewer.plate.contact import REACH, contact_shadow

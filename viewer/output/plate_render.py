@@ -11,17 +11,17 @@ from pathlib import Path
 import numpy as np
 
 from viewer.output.plate_composite import composite_on_plate
+from viewer.plate.loader import Plate
+from viewer.plate.match import feet_blur, grain_levels, with_grain
+from viewer.plate.people import in_front
 from viewer.plate.placement import Placement, enlarged, landing_box, plate_transform
-from viewer.plate.plate_file import Plate
-from viewer.plate.plate_match import feet_blur, grain_levels, with_grain
-from viewer.plate.plate_people import in_front
 from viewer.scene.look import Look
 
 
 def plate_look(look: Look, auto: float = 0.0) -> Look:
     """``look`` as a plate needs it: no background (the plate is), the ground's shadow unless turned off,
     and the exposure: the stops given, else ``auto``: 0 (the plate's units) lit by the plate's own
-    light, the matched exposure lit by the user's (:func:`viewer.plate.plate_exposure.matched_exposure`)."""
+    light, the matched exposure lit by the user's (:func:`viewer.plate.exposure.matched_exposure`)."""
     from viewer.scene.look import AUTO
 
     exposure = float(auto) if look.exposure == AUTO else look.exposure

@@ -25,7 +25,7 @@ from viewer.errors import InputError
 from viewer.files.clip_reader import clip_frames
 from viewer.files.imageio import write_text
 from viewer.photo.clip_inference import ClipRange, finish_ranges, infer_frames, locked_bundle, open_clip_bundle, source_state, unchanged
-from viewer.photo.photo_frame import MAX_SIZE, WORK_PERSON
+from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 from viewer.photo.shots import ShotCuts
 from viewer.scene.clip_bundle import RECORD, read_record
 

@@ -9,7 +9,7 @@ photo's detail comes in through ``A_frame``, made once at inference by one of:
 - ``highpass``: the network's albedo times the photo's high-frequency ratio, photo over its
   low-pass (a mask-normalized Gaussian of about one network pixel);
 - ``quotient``: the photo divided by its own shading: ``Q = (photo - S_old) / D_old`` with D_old,
-  S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo.photo_lighting`:
+  S_old the shading sums under the photo's estimated lights (:mod:`viewer.photo.own_lighting`:
   colourless, so Q keeps the photo's colours), upsampled exactly as the frame composite upsamples
   the new ones. Under new lights the output is then the photo times D_new / D_old, the quotient
   image, with the old highlights taken out.

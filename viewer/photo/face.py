@@ -202,7 +202,7 @@ def find_faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
 def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
     import cv2
 
-    from viewer.photo.photo_frame import square
+    from viewer.photo.frames import square
     from viewer.photo.segmentation import quiet_native_stderr
     from viewer.resize import resize, scaled_size
 
@@ -384,7 +384,7 @@ def with_face(scene, faces: list[FaceLandmarks], scale: float):
 
 
 def light_fit_weight(surface: FaceSurface | None, valid: np.ndarray) -> np.ndarray | None:
-    """Per-pixel weights for fitting the photo's lights (:func:`viewer.photo.photo_lighting.fit_photo_lights`):
+    """Per-pixel weights for fitting the photo's lights (:func:`viewer.photo.own_lighting.fit_photo_lights`):
     the face, whose form is known best, counts ``FIT_SHARE`` of the fit over ``valid`` however small
     it is in the frame (the networks' flat normals elsewhere cannot tell a light from above from one
     in front). A face pixel of blend weight w weighs 1 + k w, k chosen for that share (never below 1)."""

@@ -4,7 +4,7 @@ photo's own lighting and the detail layer.
 ``infer(photo, mask=None)``:
 
 1. reads the photo upright (EXIF orientation applied) and caps it to the output frame
-   (``max_size`` on the longer side, :mod:`viewer.photo.photo_frame`); the person's matte and
+   (``max_size`` on the longer side, :mod:`viewer.photo.frames`); the person's matte and
    foreground colours come from the mask file, or from the automatic person segmentation
    (:mod:`viewer.photo.segmentation`), matted from the photo (:mod:`viewer.photo.matting`);
 2. frames the person the way the training images frame them (a square around the matte, the
@@ -15,7 +15,7 @@ photo's own lighting and the detail layer.
    pixels: the resolution of the shadow work), extended a few pixels past the mask first, so that
    resampling never mixes in what the networks say about the background; the face, fitted at its
    own resolution (:mod:`viewer.photo.face`), replaces their normals and depth where it is;
-4. fits the photo's own lights to the photo (:mod:`viewer.photo.photo_lighting`) with the GL engine;
+4. fits the photo's own lights to the photo (:mod:`viewer.photo.own_lighting`) with the GL engine;
 5. makes the detail albedo at the frame's resolution (:mod:`viewer.photo.detail`) from the photo and its
    shading under those lights, upsampled by the same frame composite that draws every relit frame;
 6. writes the scene bundle (the maps at the work frame, the frame layer, the photo's lights
@@ -35,13 +35,12 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError, NoPersonError
-from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import read_json
+from viewer.files.kinds import regular_file
 from viewer.files.ownership import discard_entry, folder_lock, fresh_sibling, mark_written, names_ours, written_here
 from viewer.photo import detail as detail_mod, gloss
 from viewer.photo.face import find_faces, light_fit_weight, with_face
-from viewer.photo.matting import automatic_matte, mask_matte
-from viewer.photo.photo_frame import (
+from viewer.photo.frames import (
     MAX_SIZE,
     WORK_PERSON,
     check_person,
@@ -52,6 +51,7 @@ from viewer.photo.photo_frame import (
     read_photo,
     square,
 )
+from viewer.photo.matting import automatic_matte, mask_matte
 from viewer.resize import mask_normalized_resize, resize
 from viewer.resources import network_dir
 from viewer.scene.backdrop import photo_blur
@@ -553,7 +553,7 @@ def _steady(scene, frame_photo, steady):
 
 
 def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface, given_lights):
-    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights
+    from viewer.photo.own_lighting import fit_mask, fit_photo_lights
 
     # the photo at the maps' level of detail: one network pixel of low-pass
     target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, side_work / NETWORK_RES)
@@ -745,7 +745,7 @@ def write_bundle(result: dict, out_dir) -> Path:
     try:
         save_scene(result["scene"], tmp)
         result["lights"].save(tmp / "lights.json", fit={"source": Path(result["record"]["photo"]).name,
-                                                          "method": "fitted to the photo (viewer.photo.photo_lighting)"})
+                                                          "method": "fitted to the photo (viewer.photo.own_lighting)"})
         result["network_lights"].save(tmp / "lights_network.json",
                                       fit={"source": Path(result["record"]["photo"]).name, "method": "inverse-rendering network"})
         record = result["record"]

@@ -83,7 +83,7 @@ def signature(photo: np.ndarray, mask: np.ndarray, box: tuple) -> np.ndarray:
 
 def box_of(person: np.ndarray) -> tuple[float, float, float, float]:
     """The box (x, y, width, height) of ``person``'s pixels (bool (H, W)) as fractions of its frame."""
-    from viewer.photo.photo_frame import person_box
+    from viewer.photo.frames import person_box
 
     h, w = person.shape
     top, left, tall, wide = person_box(person)

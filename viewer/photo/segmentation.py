@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.errors import InputError, NoPersonError
-from viewer.photo.photo_frame import person_box
+from viewer.photo.frames import person_box
 
 DETECT_SIZE = 1024  # longer side the photo is scaled to for the models (they work at 256 anyway)
 OTHER_PERSON_FRACTION = 0.1  # a detached part this large (of the person's area) counts as another person

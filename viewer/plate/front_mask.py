@@ -1,11 +1,11 @@
 """What of the plate stands in front of the person, as the user marks it: ``--front MASK.png``.
 
 The plate's own people nearer the camera are found and matted by themselves
-(:func:`viewer.plate.plate_people.in_front`); an object is not (a barbell held over the person, a
+(:func:`viewer.plate.people.in_front`); an object is not (a barbell held over the person, a
 post, a table): no model this product ships segments arbitrary objects. The user paints what stands
 in front, white on black (or opaque on transparent), at the plate's shape, in any image editor.
 
-- **Read** as a mask is (:func:`viewer.photo.photo_frame.read_image_u8`: values, not colours): its
+- **Read** as a mask is (:func:`viewer.photo.frames.read_image_u8`: values, not colours): its
   alpha where it has one that is not wholly opaque, else its grey level; brought to the plate's size.
   A mask of another shape than the plate (its aspect off by more than ``ASPECT_SLACK``), a mask that
   marks nothing or the whole plate is one line naming the file.
@@ -18,7 +18,7 @@ in front, white on black (or opaque on transparent), at the plate's shape, in an
 
 The composite hides the person, and their shadow, where the mask is
 (:func:`viewer.output.plate_composite.composite_on_plate`), in the command, a clip on the plate and the
-window alike (the mask rides on the :class:`viewer.plate.plate_file.Plate`).
+window alike (the mask rides on the :class:`viewer.plate.loader.Plate`).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def read_front(path, srgb: np.ndarray, notes: list) -> np.ndarray:
     as the module says; one line naming the file when it cannot be used."""
     import cv2
 
-    from viewer.photo.photo_frame import read_image_u8
+    from viewer.photo.frames import read_image_u8
 
     image = read_image_u8(path, "front mask", notes, colours=False)
     h, w = srgb.shape[:2]

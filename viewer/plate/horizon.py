@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from viewer.plate.plate_file import Plate
+from viewer.plate.loader import Plate
 
 MAX_LEAN = 15.0  # degrees from vertical: a segment leaning more is not a vertical edge
 MIN_LENGTH = 0.04  # of the plate's height

@@ -2,7 +2,7 @@
 
 A person standing in a sun is bright on the side that faces it and, across each limb and the torso, brightest
 where the surface turns to it; under a sky alone they are shaded evenly. The plate's people
-(:attr:`viewer.plate.plate_file.Plate.people`: their segmentation) are read as upright cylinders, row by row:
+(:attr:`viewer.plate.loader.Plate.people`: their segmentation) are read as upright cylinders, row by row:
 each run of a row across the segmentation (a leg, an arm, the torso, the head) is a cylinder's cross-section,
 whose normal at ``x`` is ``((x - c) / r, 0, sqrt(1 - ((x - c) / r)^2))`` in the camera's frame (``c`` the run's
 middle, ``r`` half its width), the shape from the silhouette of the image-based material editing of Khan et
@@ -11,7 +11,7 @@ trouser leg): its log luminance is fitted up to an offset by ``log(1 + k max(0, 
 horizontal direction ``l`` ``k`` times the even light, over every azimuth (``STEP_DEG`` apart) and ``k`` of
 ``STRENGTHS``, all the people at once (their errors summed). The sun is believed where the best fit leaves at
 most ``EXPLAINED`` of the error of even light. The cylinders have no slope: the elevation is not read here
-(the shadows' where they say it, else ``viewer.plate.plate_shadows.TYPICAL_ELEVATION``).
+(the shadows' where they say it, else ``viewer.plate.shadows.TYPICAL_ELEVATION``).
 
 What it cannot do: a figure in front of a bright sun is read as rim-lit from either side; a garment's pattern
 across a limb (a stripe down a sleeve) looks like shading; a crouching or lying person is no set of upright
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
-from viewer.plate.plate_sky import bearing, camera_direction, world_at
+from viewer.plate.sky import bearing, camera_direction, world_at
 
 SAMPLE_WIDTH = 640  # pixels: the plate's longer side the people are read at
 MIN_TALL = 0.12  # of the plate's height: a smaller person's rows are too few pixels across
@@ -53,8 +53,8 @@ class ShadingSun:
 
     def direction_at(self, pitch: float) -> np.ndarray:
         """Its direction in the frame of the plate's camera tilted up by ``pitch`` (radians): the azimuth read, the
-        elevation not (:data:`viewer.plate.plate_shadows.TYPICAL_ELEVATION` taken)."""
-        from viewer.plate.plate_shadows import TYPICAL_ELEVATION
+        elevation not (:data:`viewer.plate.shadows.TYPICAL_ELEVATION` taken)."""
+        from viewer.plate.shadows import TYPICAL_ELEVATION
 
         return camera_direction(world_at(self.azimuth, TYPICAL_ELEVATION), pitch)
 

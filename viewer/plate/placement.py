@@ -5,7 +5,7 @@ The default follows the plate's camera. A camera ``c`` metres above the ground s
 horizon; a person of ``PERSON_HEIGHT_M`` standing with their feet ``d`` below the horizon in the
 picture (a fraction of its height) is ``d * PERSON_HEIGHT_M / c`` of it tall, whatever the lens or
 the distance (both scale alike). ``c`` is what the people standing in the plate say
-(:mod:`viewer.plate.plate_people`), else eye height, ``CAMERA_HEIGHT_M``. The horizon is
+(:mod:`viewer.plate.people`), else eye height, ``CAMERA_HEIGHT_M``. The horizon is
 ``--horizon Y``, else the plate's own (:mod:`viewer.plate.horizon`). Without ``--at``, the feet
 stand at ``DEFAULT_FEET`` of the plate's height, centred.
 """
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.photo.photo_frame import person_box
+from viewer.photo.frames import person_box
 
 PERSON_HEIGHT_M = 1.7
 CAMERA_HEIGHT_M = 1.6  # a plate taken at eye height
@@ -208,13 +208,13 @@ def place_on_plate(plate, at: tuple[float, float] | None, height: float | None, 
                    notes: list | None = None) -> tuple[Placement, float]:
     """Where the person stands on ``plate`` (:func:`placement`) on ``horizon`` or the plate's own
     (:func:`viewer.plate.horizon.plate_horizon`, said in ``notes``), as tall as the people standing in
-    it would have them without ``height`` (:func:`viewer.plate.plate_people.plate_camera_height`: the
+    it would have them without ``height`` (:func:`viewer.plate.people.plate_camera_height`: the
     plate camera's height; eye height without anyone); (the placement, the horizon). Feet off the plate,
     and a placement whose camera stands far from eye height, are warned in one line each."""
     import warnings
 
     from viewer.plate.horizon import plate_horizon
-    from viewer.plate.plate_people import plate_camera_height
+    from viewer.plate.people import plate_camera_height
 
     if horizon is None:
         horizon, how = plate_horizon(plate)

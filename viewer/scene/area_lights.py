@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import regular_file
 from viewer.files.imageio import MARK, read_json, write_text
+from viewer.files.kinds import regular_file
 
 FORMAT = "relight-lights"
 VERSION = 1

@@ -22,7 +22,7 @@ frame_skin.png     optional in a frame: how much each frame pixel is skin (8-bit
 Only pixels inside the mask carry data; loading zeroes everything outside it. The three
 ``frame_*`` files form the :class:`FrameLayer`: the photo's own frame (its aspect, the person where
 the photo had them) at the output resolution, over the same field of view as the maps (see
-:mod:`viewer.photo.photo_frame`). A bundle made from a photo has one; a synthetic scene need not.
+:mod:`viewer.photo.frames`). A bundle made from a photo has one; a synthetic scene need not.
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import PHOTO_SUFFIXES, wrong_kind
 from viewer.files.imageio import linear_to_srgb, read_exr, read_json, read_png, srgb_to_linear, write_exr, write_png, write_text
+from viewer.files.kinds import PHOTO_SUFFIXES, wrong_kind
 from viewer.scene.camera import Camera
 
 FORMAT = "relight-scene"

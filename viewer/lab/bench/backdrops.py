@@ -32,8 +32,8 @@ from viewer.files.imageio import srgb_to_linear, write_text
 from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.lab.bench.metrics import bleed, gaps_found, kept_backdrop, on_backdrop, on_studio, spill_cut
 from viewer.lab.bench.photo_set import collect, lights_loader, relit_person
+from viewer.photo.frames import output_frame, read_mask, read_photo
 from viewer.photo.inference import infer_scene, load_networks
-from viewer.photo.photo_frame import output_frame, read_mask, read_photo
 from viewer.resize import resize
 
 BACKDROPS = {"pink": (236, 150, 190), "navy": (30, 40, 80), "white": (242, 242, 240), "grey": (128, 128, 128)}

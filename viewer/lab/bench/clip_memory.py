@@ -76,7 +76,7 @@ def panning_clip(path: Path, seconds: float, fps: float = FPS, size: tuple = SIZ
     frame back and forth over up to 40 px (what the photo's width leaves)."""
     import av
 
-    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.frames import read_photo
     from viewer.resize import resize
     from viewer.resources import asset_dir
 

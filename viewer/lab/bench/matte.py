@@ -27,7 +27,7 @@ import numpy as np
 from viewer.files.imageio import srgb_to_linear, write_text
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
 from viewer.photo import matting
-from viewer.photo.photo_frame import output_frame, read_mask, read_photo
+from viewer.photo.frames import output_frame, read_mask, read_photo
 from viewer.resize import resize
 
 SOLVERS = ("cf", "knn", "lkm", "rw", "lbdm")

@@ -151,12 +151,12 @@ def _own_lights_error(ctx, pred: Scene, truth: Scene, photo: np.ndarray, shading
                       surface=None) -> dict:
     """How well the input photo's own lights are known (what relighting divides out): its shadowed
     diffuse shading rebuilt on the TRUE geometry under the lights the product fits to the photo on
-    the predicted maps (viewer.photo.photo_lighting, as ``relight infer`` does), under the inverse
+    the predicted maps (viewer.photo.own_lighting, as ``relight infer`` does), under the inverse
     network's own guess, and under the same fit made on the true maps (the fit's own floor: what
     is left when the networks are perfect), against the ray-traced shading of the photo's lighting.
     ``surface``: the face blended into ``pred`` (weighted in its fit as inference weighs it)."""
     from viewer.photo.face import light_fit_weight
-    from viewer.photo.photo_lighting import fit_mask, fit_photo_lights
+    from viewer.photo.own_lighting import fit_mask, fit_photo_lights
 
     def fit(scene, face=None):
         eng = Engine(ctx, scene, EngineOptions())

@@ -76,8 +76,8 @@ def follow_clip(clip: Path, out_dir: Path, max_size: int, progress=print) -> dic
     state and the relit mask at the bundle's frame size (kept only for the strip and the truth)."""
     from viewer.files.clip_reader import clip_frames
     from viewer.photo.clip_inference import choose_person
+    from viewer.photo.frames import output_frame
     from viewer.photo.person_track import PersonTrack
-    from viewer.photo.photo_frame import output_frame
     from viewer.photo.segmentation import find_person
     from viewer.resize import resize
 
@@ -107,7 +107,7 @@ def follow_clip(clip: Path, out_dir: Path, max_size: int, progress=print) -> dic
 
 def _jumps(frames: list[dict]) -> list[int]:
     """Frames whose relit box's centre moved more than half its height from the frame before's."""
-    from viewer.photo.photo_frame import person_box
+    from viewer.photo.frames import person_box
 
     jumps, before = [], None
     for f in frames:

@@ -46,8 +46,8 @@ from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.output.render import render_look
 from viewer.photo import detail as detail_mod
+from viewer.photo.frames import read_photo
 from viewer.photo.inference import infer_scene, load_networks, with_detail
-from viewer.photo.photo_frame import read_photo
 from viewer.resize import resize
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.look import Look
@@ -231,7 +231,7 @@ def _matte_in_output(path: Path, photo: np.ndarray, frame_size, ctx, nets, resul
     """Spill, cut and bleed of the output's matte and colours; kept on a pink backdrop."""
     from viewer.files.imageio import srgb_to_linear
     from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
-    from viewer.photo.photo_frame import read_mask
+    from viewer.photo.frames import read_mask
 
     rgba = transparent_render(ctx, result["scene"])
     linear_photo = srgb_to_linear(resize(photo, frame_size).astype(np.float32) / 255.0)

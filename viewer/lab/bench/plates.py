@@ -5,7 +5,7 @@ For each HDR map of a folder, three plates are made from the map itself: the pla
 degrees, linear radiance scaled so the plate's median luminance is 0.18, sRGB-encoded, clipped and
 written as an 8-bit JPEG with the focal length in its EXIF (as a camera writes it). Each plate is
 read back as the product reads any plate, and its light estimated
-(:func:`viewer.plate.plate_light.plate_light`, then 16 area lights fitted to that map as to any map).
+(:func:`viewer.plate.environment.plate_light`, then 16 area lights fitted to that map as to any map).
 The person (the sample scene, and the bundled photo's bundle) is relit four ways, in the plate's
 linear units:
 
@@ -116,8 +116,8 @@ def _measured(plate_path: Path, scale: float, map_name: str, yaw: float, truth: 
     from viewer.lighting.dominant import DOMINANT_SHARE, strongest_group
     from viewer.lighting.envmap import EnvMap
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import placed_plate, plate_light
+    from viewer.plate.environment import placed_plate, plate_light
+    from viewer.plate.loader import read_plate
     from viewer.scene.area_lights import AreaLights, rotation_matrix
 
     true_lights, true_brightest = truth
@@ -158,12 +158,12 @@ def _measured(plate_path: Path, scale: float, map_name: str, yaw: float, truth: 
 def _cues(plate, truth: np.ndarray) -> dict:
     """Each cue to a sun alone, on ``plate``: the degrees between the sun it reads and ``truth`` (the true map's
     brightest direction, turned as the plate), or None where it reads none: the clear sky's
-    (:mod:`viewer.plate.plate_sky`), the plate's people's shadows' (:mod:`viewer.plate.plate_shadows`) and their
+    (:mod:`viewer.plate.sky`), the plate's people's shadows' (:mod:`viewer.plate.shadows`) and their
     shading's (:mod:`viewer.plate.people_shading`, at the elevation the product takes)."""
     from viewer.plate.horizon import horizon_tilt, plate_horizon
     from viewer.plate.people_shading import sun_from_shading
-    from viewer.plate.plate_shadows import sun_from_shadows
-    from viewer.plate.plate_sky import plate_sky
+    from viewer.plate.shadows import sun_from_shadows
+    from viewer.plate.sky import plate_sky
 
     horizon = plate_horizon(plate)[0]
     sky, shadow, shading = plate_sky(plate, horizon)[0], sun_from_shadows(plate, horizon)[0], sun_from_shading(plate)[0]
@@ -303,8 +303,8 @@ def figure(result: dict, maps_dir, plates_dir, path: Path) -> Path | None:
 
     from viewer.files.imageio import write_jpeg
     from viewer.lighting.envmap import EnvMap, load_envmap
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import plate_light
+    from viewer.plate.environment import plate_light
+    from viewer.plate.loader import read_plate
 
     rows = []
     for name, yaw in FIGURE_PLATES:
@@ -350,7 +350,7 @@ def without_person(plate, alpha: np.ndarray):
     background a plate of that place would show, so that the light read from it does not see the person."""
     import cv2
 
-    from viewer.plate.plate_file import Plate
+    from viewer.plate.loader import Plate
 
     w, h = plate.size
     hole = cv2.resize(np.asarray(alpha, np.float32), (w, h), interpolation=cv2.INTER_LINEAR) > 0.1
@@ -379,9 +379,9 @@ def identity(photos: list[Path], folder: Path, progress=print) -> dict:
     from viewer.lighting.lightfit.methods import DEFAULT_METHOD
     from viewer.output.plate_render import plate_look, render_on_plate
     from viewer.photo.inference import cached_bundle
+    from viewer.plate.environment import plate_light
+    from viewer.plate.loader import read_plate
     from viewer.plate.placement import Placement, feet
-    from viewer.plate.plate_file import read_plate
-    from viewer.plate.plate_light import plate_light
     from viewer.scene.bundle import load_scene
     from viewer.scene.look import Look
 

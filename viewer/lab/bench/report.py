@@ -333,7 +333,7 @@ def _soft_shadow_comparison(ctx, cases, maps: MapStore, lights, config, balanced
     method's absolute error (linear, after the report's exposure): the sample scene and the first
     held-out person (else the last case), each under its lowest sun."""
     from viewer.lab.bench.metrics import srgb
-    from viewer.photo.photo_frame import person_box
+    from viewer.photo.frames import person_box
 
     held = [c for c in cases if c.group == "held-out"] or cases[-1:]
     picks = [(case, _low_sun(case, lights, balanced.lights)) for case in (cases[0], held[0])]

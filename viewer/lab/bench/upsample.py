@@ -31,8 +31,8 @@ from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.lighting.placed_lights import PlacedLight, to_area_lights
 from viewer.output.render import render_look
+from viewer.photo.frames import WORK_PERSON
 from viewer.photo.inference import infer_scene, load_networks
-from viewer.photo.photo_frame import WORK_PERSON
 from viewer.resources import asset_dir
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.look import Look

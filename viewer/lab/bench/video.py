@@ -239,7 +239,7 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
     from viewer.files.imageio import read_png
     from viewer.gl import EngineOptions, create_headless_context
     from viewer.output.clip_render import render_clip
-    from viewer.photo.photo_frame import WORK_PERSON, output_frame
+    from viewer.photo.frames import WORK_PERSON, output_frame
     from viewer.scene.area_lights import facing_yaw
     from viewer.scene.clip_bundle import load_clip_bundle
     from viewer.scene.look import AUTO, Look

@@ -50,7 +50,7 @@ def fourth_campaign(kit: Campaign) -> list[Scenario]:
 def _person_clip(path: Path) -> Path:
     """``CLIP_FRAMES`` frames of the bundled photo's person (H.264, ``FPS``), a window moved 3 pixels a frame."""
 
-    from viewer.photo.photo_frame import read_photo
+    from viewer.photo.frames import read_photo
     from viewer.resize import resize
     from viewer.resources import asset_dir
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.plate.plate_file import Plate
+from viewer.plate.loader import Plate
 
 MIN_TALL = 0.05  # of the plate's height: people smaller are too few pixels to measure
 MIN_ASPECT = 1.8  # a standing person's height over their width at least

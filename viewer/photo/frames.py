@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.errors import InputError, NoPersonError
-from viewer.files.file_kinds import regular_file, wrong_kind
 from viewer.files.imageio import MAX_IMAGE_PIXELS, check_pixels
+from viewer.files.kinds import regular_file, wrong_kind
 from viewer.resize import scaled_size
 
 MAX_SIZE = 2048  # default longer side of every output

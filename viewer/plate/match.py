@@ -49,7 +49,7 @@ def grain_levels(srgb: np.ndarray) -> np.ndarray:
 
 
 def feet_blur(srgb: np.ndarray, place: Placement) -> float:
-    """The plate's defocus sigma (pixels) around where the feet stand (:mod:`viewer.plate.plate_match`)."""
+    """The plate's defocus sigma (pixels) around where the feet stand (:mod:`viewer.plate.match`)."""
     h, w = srgb.shape[:2]
     tall = place.height * h
     x, y = place.x * w, place.y * h

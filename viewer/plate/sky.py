@@ -41,7 +41,7 @@ import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
 from viewer.plate.horizon import horizon_tilt
-from viewer.plate.plate_file import CLIP
+from viewer.plate.loader import CLIP
 
 SKY_WIDTH = 240  # pixels: the plate's width its sky is read at
 MIN_ELEVATION = 3.0  # degrees above the horizon: the lowest sky pixel, and the lowest sun

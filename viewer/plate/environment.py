@@ -1,6 +1,6 @@
 """The plate's light as an HDR environment map: what lights a person standing in the plate.
 
-A plate shows a narrow cone of the sphere (its camera's field of view, :class:`viewer.plate.plate_file.Plate`),
+A plate shows a narrow cone of the sphere (its camera's field of view, :class:`viewer.plate.loader.Plate`),
 in 8 bits, with its brightest parts clipped. The map is built in the plate camera's frame (the map
 convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera looks at):
 
@@ -35,7 +35,7 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    levels); on the maps' plates the person RMSE went from 0.99 to 0.98 x the uniform light's.
 4. **Clipped highlights** (a channel at ``CLIP`` of 255 or above) are at least that bright and
    likely brighter: their radiance is multiplied by ``CLIP_GAIN``.
-5. **A clear sky and its sun** read from a clear blue sky (:mod:`viewer.plate.plate_sky`: the Perez
+5. **A clear sky and its sun** read from a clear blue sky (:mod:`viewer.plate.sky`: the Perez
    sky fitted to it, its sun where its glow says, in view or not): the sun drawn as a disc of radius
    ``SUN_RADIUS_DEG``; the unseen sky (where the plate's edge it is filled from is sky) the fitted
    sky, not the mirror. A sun in a sky that is not clear and blue (a sunset, haze, a sky clipped
@@ -46,7 +46,7 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    fired: not taken.)
 
 6. **A sun from the plate's people**, where no clear sky gave one: the shadows they cast on the ground
-   (:mod:`viewer.plate.plate_shadows`: its direction and elevation), else how they are shaded
+   (:mod:`viewer.plate.shadows`: its direction and elevation), else how they are shaded
    (:mod:`viewer.plate.people_shading`: its azimuth, 30 degrees up taken). They say where the sun is, not how
    strong: ``DOMINANT_SHARE`` of the estimate's light (the least a dominant light holds,
    :mod:`viewer.lighting.dominant`) is gathered into a sun there, drawn as step 5's; the estimate's level stays
@@ -71,8 +71,8 @@ import numpy as np
 from viewer.lighting.dominant import DOMINANT_SHARE
 from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_angles
 from viewer.plate.horizon import horizon_tilt, plate_horizon
-from viewer.plate.plate_file import CLIP, Plate
-from viewer.plate.plate_sky import plate_sky
+from viewer.plate.loader import CLIP, Plate
+from viewer.plate.sky import plate_sky
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
@@ -150,10 +150,10 @@ def _added_below_the_brightest(values: np.ndarray, solid: np.ndarray, added: np.
 
 def _people_sun(plate: Plate, horizon: float) -> tuple | None:
     """(direction (the plate camera's frame), what was said) of the sun the plate's people say, or None: the
-    shadows they cast (:mod:`viewer.plate.plate_shadows`), else their shading (:mod:`viewer.plate.people_shading`:
+    shadows they cast (:mod:`viewer.plate.shadows`), else their shading (:mod:`viewer.plate.people_shading`:
     its azimuth, ``TYPICAL_ELEVATION`` taken)."""
     from viewer.plate.people_shading import sun_from_shading
-    from viewer.plate.plate_shadows import TYPICAL_ELEVATION, sun_from_shadows
+    from viewer.plate.shadows import TYPICAL_ELEVATION, sun_from_shadows
 
     shadow, said = sun_from_shadows(plate, horizon)
     if shadow is not None:
@@ -192,7 +192,7 @@ def _draw_sun(pixels: np.ndarray, dirs: np.ndarray, direction: np.ndarray, irrad
 def _projected(dirs: np.ndarray, focal: float, size: tuple[int, int]):
     """(seen (H, W) bool, plate x, plate y (pixel coordinates, centres at +0.5)) of every map direction:
     a direction behind the camera is mirrored through the image plane first; one outside the view is
-    brought back to the frame's edge along the line from its centre (:mod:`viewer.plate.plate_light`)."""
+    brought back to the frame's edge along the line from its centre (:mod:`viewer.plate.environment`)."""
     w, h = size
     x, y, z = dirs[..., 0], dirs[..., 1], dirs[..., 2]
     depth = np.abs(z)  # mirrored: behind the camera (z > 0) looks like the front

@@ -1,6 +1,6 @@
 """A plate file: the photo the person is put into, upright, in sRGB, and its camera's field of view.
 
-The photo is read as every photo is (:func:`viewer.photo.photo_frame.read_image_u8`: EXIF
+The photo is read as every photo is (:func:`viewer.photo.frames.read_image_u8`: EXIF
 orientation, ICC colours converted, 16-bit reduced to 8 with a note). The field of view comes from
 the EXIF 35-mm-equivalent focal length (tag 0xA405, which phones and most cameras write), else
 ``DEFAULT_FOCAL_35`` (with a note), a standard lens's. It is taken to span the frame's longer side as
@@ -17,8 +17,8 @@ from functools import cached_property
 import numpy as np
 
 from viewer.errors import InputError
-from viewer.files.file_kinds import wrong_kind
 from viewer.files.imageio import srgb_to_linear
+from viewer.files.kinds import wrong_kind
 
 DEFAULT_FOCAL_35 = 35.0  # mm, 35-mm equivalent: what a plate without a focal length in its EXIF is taken as
 MIN_PLATE_PX = 16  # a plate smaller than this a side holds no light to read
@@ -87,7 +87,7 @@ def read_plate(path, notes: list, front=None) -> Plate:
     """The plate at ``path``; one line naming the file for what cannot be a plate (not an image, a video,
     fewer than ``MIN_PLATE_PX`` pixels a side, a panorama: landscape, exactly 2:1 or wider than ``PANORAMA_ASPECT``).
     ``front``: the user's mask of what stands in front of the person (:func:`viewer.plate.front_mask.read_front`)."""
-    from viewer.photo.photo_frame import read_image_u8
+    from viewer.photo.frames import read_image_u8
 
     wrong = wrong_kind(path, "a plate (a photo to put the person into)")
     if wrong is not None:

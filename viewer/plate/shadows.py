@@ -3,7 +3,7 @@
 A person standing in sunlight casts a shadow on the ground from their feet, away from the sun, as long
 as their height over the tangent of the sun's elevation; the ground beside it is lit by the sun and the
 sky, the shadow by the sky alone, so their ratio gives the sun's strength against the sky's whatever the
-ground's colour. Each person the plate's models find (:attr:`viewer.plate.plate_file.Plate.people`:
+ground's colour. Each person the plate's models find (:attr:`viewer.plate.loader.Plate.people`:
 their segmentation and landmarks) whose feet are seen below the horizon is read so:
 
 1. **The ground's geometry**: the camera's tilt from the plate's horizon, its focal length from its
@@ -27,7 +27,7 @@ their segmentation and landmarks) whose feet are seen below the horizon is read 
 4. **The sun**: opposite the shadow, its elevation the arctangent of the person's height over the
    shadow's length (where the shadow runs off the plate or behind someone, the length seen says the sun is
    at most that high: it is taken at ``TYPICAL_ELEVATION`` if that is lower). The lit ground's median over
-   the shadow's is said (``ratio``); :func:`viewer.plate.plate_light.plate_light` takes the direction only.
+   the shadow's is said (``ratio``); :func:`viewer.plate.environment.plate_light` takes the direction only.
 People's readings are combined weighted by their shadows' lengths (the azimuth's circular mean, the
 median elevation and ratio). A sun straight behind the camera casts the shadow behind the person, where
 they hide it: none is read.
@@ -42,7 +42,7 @@ import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
 from viewer.plate.horizon import horizon_tilt
-from viewer.plate.plate_sky import bearing, camera_direction, world_at, world_direction
+from viewer.plate.sky import bearing, camera_direction, world_at, world_direction
 
 SAMPLE_WIDTH = 640  # pixels: the longer side the plate's luminance is read at
 DIRECTIONS = 120  # round the feet, 3 degrees apart
