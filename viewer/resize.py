@@ -21,19 +21,23 @@ def height_capped(size: tuple[int, int], height: float, at_most: int) -> tuple[i
     return (w, h) if height <= at_most else scaled_size((w, h), int(round(max(w, h) * at_most / height)))
 
 
-def resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """``image`` (H, W[, C]) resized to ``size`` = (w, h): area average when shrinking, bilinear
-    when enlarging (OpenCV; float32 or uint8 kept)."""
+def resize(image: np.ndarray, size: tuple[int, int], method: str = "auto") -> np.ndarray:
+    """``image`` (H, W[, C]) resized to ``size`` = (w, h) (OpenCV; float32 or uint8 kept, any number
+    of channels). ``method``: ``"auto"`` (an area average when shrinking, bilinear when enlarging),
+    or one of them always (``"area"``, ``"linear"``, ``"cubic"``: sharper when enlarging), or
+    ``"nearest"`` (labels and masks kept two-valued). At the same size ``image`` itself comes back (not a copy)."""
     import cv2
 
     h, w = image.shape[:2]
     if (w, h) == tuple(size):
         return image
-    shrink = size[0] <= w and size[1] <= h
+    if method == "auto":
+        method = "area" if size[0] <= w and size[1] <= h else "linear"
     channels = image.shape[2] if image.ndim == 3 else 0
     if channels > 4:  # OpenCV resizes up to 4 channels at a time
-        return np.concatenate([resize(image[..., i:i + 4], size) for i in range(0, channels, 4)], axis=-1)
-    out = cv2.resize(image, tuple(int(v) for v in size), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        return np.concatenate([resize(image[..., i:i + 4], size, method) for i in range(0, channels, 4)], axis=-1)
+    flag = {"area": cv2.INTER_AREA, "linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC, "nearest": cv2.INTER_NEAREST}[method]
+    out = cv2.resize(image, tuple(int(v) for v in size), interpolation=flag)
     return out[..., None] if channels == 1 else out
 
 

@@ -159,7 +159,7 @@ class PlateView:
             try:
                 result, transform, self.box = composite_frame(frame, self.shown, self.place, blur, self.horizon, self.anchor,
                                                               cut_allowed=True, mattes=self._mattes,
-                                                              focal_px=self.plate.focal_px * self.size[0] / self.plate.size[0])
+                                                              focal_px=self.plate.focal_at(self.size))
             except InputError as exc:  # wholly off the plate, too small: the placement before stays
                 self.error = str(exc)
                 return self._srgb

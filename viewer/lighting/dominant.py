@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
+from viewer.resize import resize
 from viewer.scene.area_lights import AreaLights
 
 CLUSTER_DEG = 20.0  # lights this near the strongest are one light with it (a fit splits a sun over several)
@@ -39,12 +40,11 @@ def brightest_direction(pixels: np.ndarray) -> np.ndarray:
 
 def _brightest(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(the brightest direction, the map's luminance at ``BRIGHTEST_HEIGHT`` rows, its texels' directions)."""
-    import cv2
 
     from viewer.lighting.envmap import pixel_directions
     from viewer.scene.backdrop import blurred_map
 
-    small = cv2.resize(np.ascontiguousarray(pixels, np.float32), (2 * BRIGHTEST_HEIGHT, BRIGHTEST_HEIGHT), interpolation=cv2.INTER_AREA)
+    small = resize(np.ascontiguousarray(pixels, np.float32), (2 * BRIGHTEST_HEIGHT, BRIGHTEST_HEIGHT), "area")
     dirs = pixel_directions(BRIGHTEST_HEIGHT, 2 * BRIGHTEST_HEIGHT)
     lum = blurred_map(small, np.radians(BRIGHTEST_BLUR_DEG)) @ LUMINANCE.astype(np.float32)
     return dirs[np.unravel_index(int(np.argmax(lum)), lum.shape)], small @ LUMINANCE.astype(np.float32), dirs

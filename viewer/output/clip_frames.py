@@ -12,6 +12,7 @@ from viewer.errors import InputError
 from viewer.files.imageio import read_json
 from viewer.photo.camera_motion import turned
 from viewer.photo.frames import output_frame
+from viewer.scene.camera import focal_pixels
 from viewer.scene.clip_bundle import ClipBundle
 
 
@@ -179,7 +180,7 @@ class ClipFrames:
             person_px = cv2.dilate((frame.alpha > 0.05).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
             # the lens the clip was filmed with (its EXIF, else a phone's, as a plate's) finds the horizon's row;
             # the map is seen through the background camera, whose tilt puts its horizon on that row
-            lens = (frame.focal_35mm or DEFAULT_FOCAL_35) / 36.0 * max(srgb.shape[:2])
+            lens = focal_pixels(frame.focal_35mm or DEFAULT_FOCAL_35, srgb.shape[1::-1])
             below, how = vertical_horizon(srgb, lens, person_px)
             camera = self.background_camera(first)
             seen_through = camera.focal_at(srgb.shape[1::-1])

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.plate.placement import PlateTransform
+from viewer.resize import resize
 
 MAX_HALF = 65504.0  # the largest value a half-float EXR holds: a highlight brighter is clipped there
 
@@ -44,7 +45,7 @@ def into_plate(image: np.ndarray, transform: PlateTransform, plate_size: tuple[i
     if scale < 1.0:  # area first, so a person made smaller keeps its edges without aliasing
         h, w = src.shape[:2]
         size = (max(int(round(w * scale)), 1), max(int(round(h * scale)), 1))
-        src = cv2.resize(src, size, interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
+        src = resize(src, size, "area").reshape(size[1], size[0], -1)
         sx, sy = scale * w / size[0], scale * h / size[1]  # the shrunk frame's pixels into the plate's
     matrix = np.array([[sx, 0.0, ox + 0.5 * (sx - 1.0)], [0.0, sy, oy + 0.5 * (sy - 1.0)]])
     out = []
@@ -88,7 +89,7 @@ def composite_on_plate(plate_linear: np.ndarray, person_rgba: np.ndarray, shadow
     person[..., 3] = np.clip(person[..., 3], 0.0, 1.0)
     shadow = out_shadow[y0:y1, x0:x1]
     if shadow_share is not None:
-        share = cv2.resize(np.ascontiguousarray(shadow_share, np.float32), (fw, fh), interpolation=cv2.INTER_LINEAR)
+        share = resize(np.ascontiguousarray(shadow_share, np.float32), (fw, fh), "linear")
         shadow[:] = np.clip(1.0 - np.nan_to_num(into_plate(share.reshape(fh, fw, -1), local, size), nan=0.0), 0.0, 1.0)
     horizon_px = None if horizon is None else horizon * h - y0  # in the region's rows
     contact = contact_shadow(person[..., 3], focal_px, sky, horizon_px) if sky > 0.0 and focal_px > 0.0 else None

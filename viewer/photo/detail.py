@@ -35,6 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.resize import resize
+
 METHODS = ("quotient", "highpass", "network")
 DEFAULT = "quotient"
 DARK = 0.1  # D_old below this fraction of its mean over the person: the quotient fades out
@@ -67,15 +69,15 @@ def masked_lowpass(image: np.ndarray, weight: np.ndarray, sigma: float) -> np.nd
     factor = max(1, int(sigma / LOWPASS_SHRINK))
     if factor > 1:
         size = (max(w // factor, 1), max(h // factor, 1))
-        num = cv2.resize(num, size, interpolation=cv2.INTER_AREA)
-        w32 = cv2.resize(w32, size, interpolation=cv2.INTER_AREA)
+        num = resize(num, size, "area")
+        w32 = resize(w32, size, "area")
         sigma = sigma * size[0] / w
     k = 2 * int(np.ceil(3 * sigma)) + 1
     num = cv2.GaussianBlur(num, (k, k), sigma, borderType=cv2.BORDER_REFLECT)
     den = np.maximum(cv2.GaussianBlur(w32, (k, k), sigma, borderType=cv2.BORDER_REFLECT), 1e-6)
     out = num / (den[..., None] if num.ndim == 3 else den)
     if factor > 1:
-        out = cv2.resize(out, (w, h), interpolation=cv2.INTER_LINEAR)
+        out = resize(out, (w, h), "linear")
     return out.reshape(image.shape).astype(np.float32, copy=False)
 
 

@@ -200,7 +200,6 @@ def find_faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
 
 
 def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
-    import cv2
 
     from viewer.photo.frames import square
     from viewer.photo.segmentation import quiet_native_stderr
@@ -227,8 +226,8 @@ def _faces(photo: np.ndarray, alpha: np.ndarray) -> list[FaceLandmarks]:
     faces = []
     with quiet_native_stderr(), face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1) as model:
         for box, score, x0, y0, side in crops:
-            crop = cv2.resize(np.ascontiguousarray(square(photo, y0, x0, side, "edge")), (MESH_INPUT, MESH_INPUT),
-                              interpolation=cv2.INTER_AREA if side > MESH_INPUT else cv2.INTER_CUBIC)
+            crop = resize(np.ascontiguousarray(square(photo, y0, x0, side, "edge")), (MESH_INPUT, MESH_INPUT),
+                          "area" if side > MESH_INPUT else "cubic")
             result = model.process(crop)
             if not result.multi_face_landmarks:
                 continue

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.resize import resize
+
 CONSISTENT = 1.0  # pixels: a forward-backward mismatch beyond this (plus the share below) fails the check
 CONSISTENT_SCALE = 0.05  # of the two flows' length
 
@@ -60,10 +62,9 @@ def backward_flow(engine, current: np.ndarray, previous: np.ndarray) -> tuple[np
 
 def resized_flow(flow: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """A flow field brought to ``size`` = (w, h), its vectors scaled with it."""
-    import cv2
 
     h, w = flow.shape[:2]
-    out = cv2.resize(flow, size, interpolation=cv2.INTER_LINEAR)
+    out = resize(flow, size, "linear")
     out[..., 0] *= size[0] / w
     out[..., 1] *= size[1] / h
     return out

@@ -475,14 +475,14 @@ def _inverse_rendering(photo_path, mask_path, alpha, sizes, framing, small, smal
     import torch
 
     from viewer.nets import inverse as inverse_net
-    from viewer.scene.camera import Camera
+    from viewer.scene.camera import FULL_FRAME_MM, Camera
 
     work_mask = resize(alpha, sizes.work) > 0.5
     if not work_mask.any():
         raise NoPersonError(mask_path or photo_path, "the person vanishes at the work resolution; give a larger --size")
     side_work = framing.side * sizes.work_scale
     # the framing's square sees what the training camera sees: 50 mm on 36 mm across the square
-    camera = Camera(sizes.work[0], sizes.work[1], sensor_mm=36.0 * max(sizes.work) / side_work)
+    camera = Camera(sizes.work[0], sizes.work[1], sensor_mm=FULL_FRAME_MM * max(sizes.work) / side_work)
     dev = torch.device(device)
     linear = torch.from_numpy(small).permute(2, 0, 1)[None].to(dev)
     m = torch.from_numpy(small_mask.astype(np.float32))[None, None].to(dev)

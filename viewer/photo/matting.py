@@ -48,6 +48,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from viewer.photo.held_objects import held_objects
+from viewer.resize import resize
 
 CORE = 0.02  # of the person's height: deeper than this inside the segmentation is the person for sure
 OUTER = 0.012  # of the person's height: farther than this outside it is the background for sure
@@ -245,13 +246,8 @@ def local_gaussians(image: np.ndarray, weight: np.ndarray, sigma: float, at: np.
     x = image.astype(np.float32)
     iu, ju = np.triu_indices(3)
     moments = np.concatenate([x, x[..., iu] * x[..., ju], np.ones((h, w, 1), np.float32)], axis=-1) * weight[..., None]
-    sums = []
-    for c in range(0, moments.shape[-1], 4):  # OpenCV resizes up to 4 channels at a time
-        part = cv2.resize(moments[..., c:c + 4], size, interpolation=cv2.INTER_AREA)
-        part = cv2.GaussianBlur(part, (k, k), s, borderType=cv2.BORDER_REFLECT)
-        part = cv2.resize(part, (w, h), interpolation=cv2.INTER_LINEAR)
-        sums.append(part.reshape(h, w, -1)[at])
-    sums = np.concatenate(sums, axis=-1)
+    small = cv2.GaussianBlur(resize(moments, size, "area"), (k, k), s, borderType=cv2.BORDER_REFLECT)
+    sums = resize(small.reshape(size[1], size[0], -1), (w, h), "linear")[at]
     total = np.maximum(sums[:, 9:10], 1e-6)
     mean = sums[:, :3] / total
     second = sums[:, 3:9] / total
@@ -486,7 +482,7 @@ class BackdropGaps:
             return out
         mh, mw = self.found.shape
         near = cv2.dilate(self.found.astype(np.uint8), np.ones((3, 3), np.uint8))
-        ys, xs = np.nonzero(person & (cv2.resize(near, (w, h), interpolation=cv2.INTER_NEAREST) > 0))
+        ys, xs = np.nonzero(person & (resize(near, (w, h), "nearest") > 0))
         rows = self.index[np.minimum((ys * mh) // h, mh - 1), np.minimum((xs * mw) // w, mw - 1)]
         ys, xs, rows = ys[rows >= 0], xs[rows >= 0], rows[rows >= 0]
         d = photo[ys, xs].astype(np.float32) - self.mean[rows]

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from viewer.resize import resize
+
 SIDE = 96  # pixels of the shrunk frame's longer side
 BINS = (24, 8)  # hue, saturation
 CUT = 0.45  # Bhattacharyya distance between consecutive frames beyond which a new shot starts
@@ -22,7 +24,7 @@ def histogram(rgb: np.ndarray) -> np.ndarray:
 
     h, w = rgb.shape[:2]
     scale = SIDE / max(h, w)
-    small = cv2.resize(rgb, (max(int(w * scale), 1), max(int(h * scale), 1)), interpolation=cv2.INTER_AREA)
+    small = resize(rgb, (max(int(w * scale), 1), max(int(h * scale), 1)), "area")
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
     hist = cv2.calcHist([hsv], [0, 1], None, list(BINS), [0, 180, 0, 256])
     return cv2.normalize(hist, None, 1.0, 0.0, cv2.NORM_L1)

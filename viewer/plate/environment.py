@@ -73,6 +73,7 @@ from viewer.lighting.envmap import LUMINANCE, EnvMap, pixel_directions, solid_an
 from viewer.plate.horizon import horizon_tilt, plate_horizon
 from viewer.plate.loader import CLIP, Plate
 from viewer.plate.sky import plate_sky
+from viewer.resize import resize
 
 MAP_HEIGHT = 256  # the estimated map is MAP_HEIGHT x 2 MAP_HEIGHT
 CLIP_GAIN = 2.0  # a clipped pixel's radiance is taken as this many times what it shows
@@ -94,7 +95,7 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
     texel = math.pi / height
     across = 2.0 * math.atan(max(w, h) / (2.0 * plate.focal_px))
     size, linear, focal = _shrunk(plate, int(np.clip(round(2.0 * across / texel), 16, max(w, h))))  # ~2 pixels a texel
-    clipped = cv2.resize((plate.srgb >= CLIP).any(axis=-1).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    clipped = resize((plate.srgb >= CLIP).any(axis=-1).astype(np.float32), size, "area")
     radiance = linear * (1.0 + (CLIP_GAIN - 1.0) * clipped[..., None])
     sigma = FILL_BLUR * max(size)
     blurred = cv2.GaussianBlur(radiance, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
@@ -121,7 +122,7 @@ def plate_light(plate: Plate, height: int = MAP_HEIGHT, horizon: float | None = 
         if sun is not None:  # where it is, not how strong: the least share a dominant light holds
             pixels, said = _gathered(pixels, dirs, sun[0], DOMINANT_SHARE), sun[1]
     else:  # the unseen sky the fitted clear sky, where the plate's edge it is filled from is sky; and its sun
-        mask = cv2.GaussianBlur(cv2.resize(sky.mask, size, interpolation=cv2.INTER_AREA), (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
+        mask = cv2.GaussianBlur(resize(sky.mask, size, "area"), (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
         share = np.where(seen, 0.0, _sample(mask, x, y))[..., None]
         pixels = (1.0 - share) * pixels + share * sky.radiance(dirs)
         _draw_sun(pixels, dirs, sky.direction, sky.irradiance)
@@ -225,12 +226,11 @@ def placed_plate(plate: Plate, height: int = 64) -> EnvMap:
 def _shrunk(plate: Plate, longer: int) -> tuple[tuple[int, int], np.ndarray, float]:
     """(its size (w, h), the plate's linear pixels shrunk by area to ``longer`` pixels on its longer side
     (never enlarged), the focal length in those pixels)."""
-    import cv2
 
     w, h = plate.size
     longer = min(longer, max(w, h))
     size = (max(round(w * longer / max(w, h)), 1), max(round(h * longer / max(w, h)), 1))
-    return size, cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA), plate.focal_px * size[0] / w
+    return size, resize(plate.linear, size, "area"), plate.focal_at(size)
 
 
 LIGHT_VERSION = 7  # bump when a change here changes the map a plate gives (its file is made again)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.errors import InputError
+from viewer.resize import resize
 
 ASPECT_SLACK = 0.01  # the mask's aspect may differ from the plate's by this share (a pixel's rounding)
 EDGE = 0.004  # of the plate's longer side: the band about a hard mask's edge the guided filter refines
@@ -37,7 +38,6 @@ MOST = 0.99  # of the plate: a mask marking more than this hides everything
 def read_front(path, srgb: np.ndarray, notes: list) -> np.ndarray:
     """(H, W) float32 in [0, 1] at the size of the plate ``srgb`` (H, W, 3 uint8): the mask at ``path``
     as the module says; one line naming the file when it cannot be used."""
-    import cv2
 
     from viewer.photo.frames import read_image_u8
 
@@ -57,7 +57,7 @@ def read_front(path, srgb: np.ndarray, notes: list) -> np.ndarray:
     hard = len(levels) == 2  # two values (a brush without softness, a polygon): the lower nothing, the higher in front
     mask = ((values >= levels[1]) if hard else values / 255.0).astype(np.float32)
     if (mw, mh) != (w, h):
-        mask = cv2.resize(mask, (w, h), interpolation=cv2.INTER_AREA if mw > w else cv2.INTER_LINEAR)
+        mask = resize(mask, (w, h), "area" if mw > w else "linear")
     share = float((mask > 0.5).mean())
     if share < LEAST:
         raise InputError(path, "marks nothing (a front mask is white where something of the plate stands in front of the person)")

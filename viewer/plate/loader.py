@@ -19,6 +19,7 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import srgb_to_linear
 from viewer.files.kinds import wrong_kind
+from viewer.scene.camera import focal_pixels
 
 DEFAULT_FOCAL_35 = 35.0  # mm, 35-mm equivalent: what a plate without a focal length in its EXIF is taken as
 MIN_PLATE_PX = 16  # a plate smaller than this a side holds no light to read
@@ -49,7 +50,11 @@ class Plate:
     @property
     def focal_px(self) -> float:
         """The focal length in the plate's pixels (its longer side spans 36 mm of a 35-mm frame)."""
-        return self.focal_35 * max(self.size) / 36.0
+        return focal_pixels(self.focal_35, self.size)
+
+    def focal_at(self, size: tuple[int, int]) -> float:
+        """The focal length in the pixels of the plate resized to ``size`` (w, h), by its width."""
+        return self.focal_px * size[0] / self.size[0]
 
     def within(self, longest: int) -> Plate:
         """The plate no longer than ``longest`` pixels on its longer side (shrunk by area; the same lens: its

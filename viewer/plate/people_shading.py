@@ -28,6 +28,7 @@ import numpy as np
 
 from viewer.lighting.envmap import LUMINANCE
 from viewer.plate.sky import bearing, camera_direction, world_at
+from viewer.resize import resize
 
 SAMPLE_WIDTH = 640  # pixels: the plate's longer side the people are read at
 MIN_TALL = 0.12  # of the plate's height: a smaller person's rows are too few pixels across
@@ -61,12 +62,11 @@ class ShadingSun:
 
 def sun_from_shading(plate) -> tuple[ShadingSun | None, str]:
     """(the sun the shading of ``plate``'s people says, or None; why, in words)."""
-    import cv2
 
     w, h = plate.size
     scale = min(SAMPLE_WIDTH / max(w, h), 1.0)
     size = (max(round(w * scale), 1), max(round(h * scale), 1))
-    lum = cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA) @ LUMINANCE.astype(np.float32)  # once for everyone
+    lum = resize(plate.linear, size, "area") @ LUMINANCE.astype(np.float32)  # once for everyone
     samples = [s for s in (_samples(lum, person) for person in plate.people) if s is not None]
     if not samples:
         return None, "no sun read from the people's shading: no one found tall enough in the plate"
@@ -96,7 +96,7 @@ def _samples(plate_lum: np.ndarray, person) -> tuple[np.ndarray, np.ndarray, np.
     import cv2
 
     size = plate_lum.shape[1::-1]
-    mask = cv2.resize(person.segmentation, size, interpolation=cv2.INTER_AREA) > 0.5
+    mask = resize(person.segmentation, size, "area") > 0.5
     mask = cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0  # the matte's edge mixes the background in
     rows = np.flatnonzero(mask.any(axis=1))
     if not len(rows) or rows[-1] - rows[0] < MIN_TALL * size[1]:

@@ -18,6 +18,7 @@ import numpy as np
 
 from viewer.errors import InputError
 from viewer.photo.frames import person_box
+from viewer.scene.camera import focal_pixels
 
 PERSON_HEIGHT_M = 1.7
 CAMERA_HEIGHT_M = 1.6  # a plate taken at eye height
@@ -101,7 +102,7 @@ def lens_mismatch(photo_focal_35: float, frame_size: tuple[int, int], person_px:
     None when the photo's lens is unknown (0) or they agree."""
     if not photo_focal_35 or person_px <= 0 or place.height <= 0:
         return None
-    photo_m = photo_focal_35 / 36.0 * max(frame_size) * PERSON_HEIGHT_M / person_px
+    photo_m = focal_pixels(photo_focal_35, frame_size) * PERSON_HEIGHT_M / person_px
     plate_m = plate_focal_px * PERSON_HEIGHT_M / (place.height * plate_size[1])
     if abs(BODY_DEPTH_M / photo_m - BODY_DEPTH_M / plate_m) <= PERSPECTIVE_TOLERANCE:
         return None

@@ -43,6 +43,7 @@ import numpy as np
 from viewer.lighting.envmap import LUMINANCE
 from viewer.plate.horizon import horizon_tilt
 from viewer.plate.sky import bearing, camera_direction, world_at, world_direction
+from viewer.resize import resize
 
 SAMPLE_WIDTH = 640  # pixels: the longer side the plate's luminance is read at
 DIRECTIONS = 120  # round the feet, 3 degrees apart
@@ -76,7 +77,6 @@ class ShadowSun:
 def sun_from_shadows(plate, horizon: float) -> tuple[ShadowSun | None, str]:
     """(the sun the shadows of ``plate``'s people say, or None; why, in words). ``horizon``: the plate's (a
     fraction of its height from its top)."""
-    import cv2
 
     people = plate.people
     if not people:
@@ -84,10 +84,10 @@ def sun_from_shadows(plate, horizon: float) -> tuple[ShadowSun | None, str]:
     w, h = plate.size
     scale = min(SAMPLE_WIDTH / max(w, h), 1.0)
     size = (max(round(w * scale), 1), max(round(h * scale), 1))
-    lum = cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA) @ LUMINANCE.astype(np.float32)
-    focal = plate.focal_px * size[0] / w
+    lum = resize(plate.linear, size, "area") @ LUMINANCE.astype(np.float32)
+    focal = plate.focal_at(size)
     pitch = horizon_tilt(horizon, size[1], focal)
-    segmentations = [cv2.resize(p.segmentation, size, interpolation=cv2.INTER_AREA) > 0.3 for p in people]
+    segmentations = [resize(p.segmentation, size, "area") > 0.3 for p in people]
     readings = []
     for person, mask in zip(people, segmentations):
         reading = _person_shadow(person, mask, segmentations, lum, focal, pitch)

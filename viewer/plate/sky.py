@@ -42,6 +42,8 @@ import numpy as np
 from viewer.lighting.envmap import LUMINANCE
 from viewer.plate.horizon import horizon_tilt
 from viewer.plate.loader import CLIP
+from viewer.resize import resize
+from viewer.scene.camera import pixel_rays
 
 SKY_WIDTH = 240  # pixels: the plate's width its sky is read at
 MIN_ELEVATION = 3.0  # degrees above the horizon: the lowest sky pixel, and the lowest sun
@@ -114,14 +116,13 @@ def direct_to_diffuse(elevation: float) -> float:
 def plate_sky(plate, horizon: float) -> tuple[ClearSky | None, str]:
     """(the clear sky and its sun read from ``plate``'s sky, or None; why, in words). ``horizon``: the
     horizon's height as a fraction of the plate's, from its top (the camera's tilt)."""
-    import cv2
 
     w, h = plate.size
     width = min(SKY_WIDTH, w)
     size = (width, max(round(h * width / w), 1))
-    linear = cv2.resize(plate.linear, size, interpolation=cv2.INTER_AREA)
-    clipped = cv2.resize(plate.srgb, size, interpolation=cv2.INTER_AREA) >= CLIP
-    focal = plate.focal_px * size[0] / w
+    linear = resize(plate.linear, size, "area")
+    clipped = resize(plate.srgb, size, "area") >= CLIP
+    focal = plate.focal_at(size)
     pitch = horizon_tilt(horizon, size[1], focal)
     world = _world_directions(size, focal, pitch)
     sky, below = _sky_pixels(linear, clipped, world)
@@ -175,10 +176,7 @@ def bearing(sun: np.ndarray) -> str:
 def _world_directions(size: tuple[int, int], focal: float, pitch: float) -> np.ndarray:
     """(H, W, 3) unit directions of the pixel centres in the level world's frame (x right, y up, -z the
     camera's heading) of a camera tilted up by ``pitch`` radians."""
-    w, h = size
-    v, u = np.mgrid[0:h, 0:w] + 0.5
-    d = np.stack([(u - 0.5 * w) / focal, -(v - 0.5 * h) / focal, -np.ones((h, w))], axis=-1)
-    return world_direction(d / np.linalg.norm(d, axis=-1, keepdims=True), pitch)
+    return world_direction(pixel_rays(size, focal), pitch)
 
 
 def world_direction(dirs: np.ndarray, pitch: float) -> np.ndarray:

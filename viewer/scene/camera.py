@@ -14,13 +14,33 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+FULL_FRAME_MM = 36.0  # the longer side of a 35-mm frame: what a 35-mm-equivalent focal length is relative to
+
+
+def focal_pixels(focal_mm: float, size: tuple[int, int], sensor_mm: float = FULL_FRAME_MM) -> float:
+    """The focal length in pixels of a ``focal_mm`` lens on a frame of ``size`` (w, h) whose longer
+    side spans ``sensor_mm`` (default: a 35-mm-equivalent focal length). Every focal length in
+    pixels is this one."""
+    return focal_mm / sensor_mm * max(size)
+
+
+def pixel_rays(size: tuple[int, int], focal_px: float) -> np.ndarray:
+    """(H, W, 3) float64 unit camera-space directions through the pixel centres of a frame of
+    ``size`` (w, h) seen through ``focal_px`` (the principal point at its centre, towards -z)."""
+    w, h = size
+    u = (np.arange(w, dtype=np.float64) + 0.5 - w / 2.0) / focal_px
+    v = -(np.arange(h, dtype=np.float64) + 0.5 - h / 2.0) / focal_px
+    uu, vv = np.meshgrid(u, v)
+    d = np.stack([uu, vv, -np.ones_like(uu)], axis=-1)
+    return d / np.linalg.norm(d, axis=-1, keepdims=True)
+
 
 @dataclass(frozen=True)
 class Camera:
     width: int
     height: int
     focal_mm: float = 50.0
-    sensor_mm: float = 36.0
+    sensor_mm: float = FULL_FRAME_MM
     distance: float = 4.0  # metres from the camera to the subject's centre (depth-network median)
 
     @property
@@ -29,7 +49,7 @@ class Camera:
 
     def focal_at(self, size: tuple[int, int]) -> float:
         """The focal length in pixels of a frame of ``size`` (w, h) this lens spans (its longer side)."""
-        return self.focal_mm / self.sensor_mm * max(size)
+        return focal_pixels(self.focal_mm, size, self.sensor_mm)
 
     @property
     def center(self) -> tuple[float, float]:
@@ -52,7 +72,7 @@ class Camera:
             width=int(d["width"]),
             height=int(d["height"]),
             focal_mm=float(d.get("focal_mm", 50.0)),
-            sensor_mm=float(d.get("sensor_mm", 36.0)),
+            sensor_mm=float(d.get("sensor_mm", FULL_FRAME_MM)),
             distance=float(d.get("distance", 4.0)),
         )
         for name, (low, high) in (("focal_mm", (0.1, 1e5)), ("sensor_mm", (0.1, 1e4)), ("distance", (1e-3, 1e5))):
@@ -78,13 +98,7 @@ class Camera:
     def view_directions(self) -> np.ndarray:
         """(H, W, 3) float64 unit camera-space direction through every pixel centre (the rays of
         :meth:`unproject`, towards -z)."""
-        f = self.focal_px
-        cx, cy = self.center
-        u = (np.arange(self.width, dtype=np.float64) + 0.5 - cx) / f
-        v = -(np.arange(self.height, dtype=np.float64) + 0.5 - cy) / f
-        uu, vv = np.meshgrid(u, v)
-        d = np.stack([uu, vv, -np.ones_like(uu)], axis=-1)
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+        return pixel_rays((self.width, self.height), self.focal_px)
 
     def projection_matrix(self, near: float, far: float) -> np.ndarray:
         """OpenGL clip-from-camera matrix (4x4, row-major numpy) matching :meth:`unproject`."""

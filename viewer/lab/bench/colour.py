@@ -42,6 +42,7 @@ from viewer.lighting.envmap import EnvMap, load_envmap
 from viewer.lighting.lightfit import lights_for_map
 from viewer.output.render import render_look
 from viewer.photo.inference import infer_scene, load_networks
+from viewer.resize import resize
 from viewer.scene.area_lights import AreaLights, facing_yaw
 from viewer.scene.look import AUTO, Look
 
@@ -77,7 +78,7 @@ def studio(photo8: np.ndarray) -> bool:
     from viewer.lab.bench.metrics import border, cielab
 
     s = 600.0 / max(photo8.shape[:2])
-    small = cv2.resize(photo8, None, fx=s, fy=s, interpolation=cv2.INTER_AREA) if s < 1 else photo8
+    small = resize(photo8, (round(photo8.shape[1] * s), round(photo8.shape[0] * s)), "area") if s < 1 else photo8
     lab = cielab(np.ascontiguousarray(small))
     edge = border(lab)
     lap = np.abs(cv2.Laplacian(cv2.GaussianBlur(lab[..., 0], (0, 0), 1.0), cv2.CV_32F))

@@ -22,6 +22,7 @@ from viewer.files.imageio import write_text
 from viewer.gl import Engine, EngineOptions
 from viewer.lab.bench.contact import gaussian_light
 from viewer.lighting.envmap import EnvMap, load_envmap
+from viewer.resize import resize
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene.area_lights import AreaLights, load_lights
 from viewer.scene.bundle import load_scene
@@ -81,7 +82,6 @@ def contact_region(scene, plane: GroundPlane, radius: float) -> np.ndarray:
 def engine_ratio(ctx, scene, lights: AreaLights, method: str, repeats: int) -> tuple[np.ndarray, float]:
     """(the engine's share of the ground's light left (H, W) at the work resolution, ground pass
     ms median)."""
-    import cv2
 
     eng = Engine(ctx, scene, EngineOptions(soft="csm" if method == "hard" else method, profile=True))
     try:
@@ -100,7 +100,7 @@ def engine_ratio(ctx, scene, lights: AreaLights, method: str, repeats: int) -> t
             times.append(1000.0 * sum(eng.kit.timings["ground_shadow"]))
     finally:
         eng.release()
-    left = 1.0 - cv2.resize(occ, (scene.width, scene.height), interpolation=cv2.INTER_LINEAR)
+    left = 1.0 - resize(occ, (scene.width, scene.height), "linear")
     return left, float(np.median(times))
 
 

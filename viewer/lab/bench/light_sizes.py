@@ -23,6 +23,7 @@ from viewer.lab.bench.ground import IN_SHADOW, engine_ratio, plane_ratio
 from viewer.lighting.envmap import LUMINANCE as LUMA, load_envmap
 from viewer.lighting.light_size import region_sizes
 from viewer.lighting.lightfit.fit import fit_lights
+from viewer.resize import resize
 from viewer.resources import sample_scene_dir
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import load_scene
@@ -35,7 +36,6 @@ VARIANTS = ("product", "sizes x 0.5", "sizes x 1", "sizes x 2", "zero")
 
 def figure_diffuse(ctx, scene, lights: AreaLights) -> np.ndarray:
     """(H, W) the engine's shadowed diffuse luminance of a white figure, sum_l I_l S_l V_l, at the scene's size."""
-    import cv2
 
     eng = Engine(ctx, scene, EngineOptions())
     try:
@@ -48,7 +48,7 @@ def figure_diffuse(ctx, scene, lights: AreaLights) -> np.ndarray:
             total = total + float(lights.intensity[k] @ LUMA) * planes["diffuse"] * planes["visibility_soft"]
     finally:
         eng.release()
-    return cv2.resize(np.asarray(total, np.float32), (scene.width, scene.height), interpolation=cv2.INTER_LINEAR)
+    return resize(np.asarray(total, np.float32), (scene.width, scene.height), "linear")
 
 
 def variant_sigmas(lights: AreaLights, sizes: np.ndarray) -> dict[str, np.ndarray]:

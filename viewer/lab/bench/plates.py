@@ -43,6 +43,7 @@ import numpy as np
 from viewer.errors import InputError
 from viewer.files.imageio import atomic_path, linear_to_srgb, write_text
 from viewer.lighting.dominant import brightest_direction
+from viewer.resize import resize
 
 PLATE_SIZE = (960, 640)  # pixels, landscape 3:2
 PLATE_FOCAL_35 = 35.0  # mm, 35-mm equivalent (written in the plate's EXIF)
@@ -299,7 +300,6 @@ FIGURE_PLATES = (("kiara_1_dawn_1k.hdr", 120.0), ("potsdamer_platz_1k.hdr", 240.
 def figure(result: dict, maps_dir, plates_dir, path: Path) -> Path | None:
     """Rows of (the plate, the true map turned to its yaw, the map estimated from the plate), each map
     at the plate's exposure (the same scale), for the plates of ``FIGURE_PLATES`` measured in ``result``."""
-    import cv2
 
     from viewer.files.imageio import write_jpeg
     from viewer.lighting.envmap import EnvMap, load_envmap
@@ -314,8 +314,8 @@ def figure(result: dict, maps_dir, plates_dir, path: Path) -> Path | None:
         plate = read_plate(Path(plates_dir) / f"{Path(name).stem}_{int(yaw):03d}.jpg", [])
         truth = EnvMap(load_envmap(Path(maps_dir) / name).rotated(yaw).pixels * row["scale"]).downsampled(512).pixels
         estimate = plate_light(plate)[0].pixels
-        tiles = [cv2.resize(plate.srgb.astype(np.float32) / 255.0, (384, 256), interpolation=cv2.INTER_AREA)]
-        tiles += [np.clip(linear_to_srgb(cv2.resize(m, (512, 256), interpolation=cv2.INTER_AREA)), 0.0, 1.0) for m in (truth, estimate)]
+        tiles = [resize(plate.srgb.astype(np.float32) / 255.0, (384, 256), "area")]
+        tiles += [np.clip(linear_to_srgb(resize(m, (512, 256), "area")), 0.0, 1.0) for m in (truth, estimate)]
         rows.append(np.concatenate(tiles, axis=1))
     if not rows:
         return None
@@ -353,14 +353,14 @@ def without_person(plate, alpha: np.ndarray):
     from viewer.plate.loader import Plate
 
     w, h = plate.size
-    hole = cv2.resize(np.asarray(alpha, np.float32), (w, h), interpolation=cv2.INTER_LINEAR) > 0.1
+    hole = resize(np.asarray(alpha, np.float32), (w, h), "linear") > 0.1
     hole = cv2.dilate(hole.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
     k = min(1.0, 512.0 / max(w, h))
     small = (max(round(w * k), 1), max(round(h * k), 1))
-    filled = cv2.inpaint(cv2.resize(plate.srgb, small, interpolation=cv2.INTER_AREA),
-                         (cv2.resize(hole.astype(np.uint8), small, interpolation=cv2.INTER_NEAREST) > 0).astype(np.uint8),
+    filled = cv2.inpaint(resize(plate.srgb, small, "area"),
+                         (resize(hole.astype(np.uint8), small, "nearest") > 0).astype(np.uint8),
                          5, cv2.INPAINT_TELEA)
-    srgb = np.where(hole[..., None], cv2.resize(filled, (w, h), interpolation=cv2.INTER_LINEAR), plate.srgb)
+    srgb = np.where(hole[..., None], resize(filled, (w, h), "linear"), plate.srgb)
     return Plate(np.ascontiguousarray(srgb, np.uint8), plate.focal_35, plate.focal_source, plate.source)
 
 
@@ -370,7 +370,6 @@ def identity(photos: list[Path], folder: Path, progress=print) -> dict:
     photo is the truth. Per photo: the person's exposure error (log2 of the composite's mean luminance
     over the photo's, over the matte above ``IDENTITY_ALPHA``) and RMSE (sRGB levels); the median error
     and the median of its size."""
-    import cv2
 
     from viewer.cli.command_setup import fitted_lights
     from viewer.files.imageio import read_png, srgb_to_linear
@@ -407,7 +406,7 @@ def identity(photos: list[Path], folder: Path, progress=print) -> dict:
             finally:
                 engine.release()
             made = read_png(out)
-            person = cv2.resize(alpha, plate.size, interpolation=cv2.INTER_LINEAR) >= IDENTITY_ALPHA
+            person = resize(alpha, plate.size, "linear") >= IDENTITY_ALPHA
             mine = float((srgb_to_linear(made[person]) @ LUMINANCE).mean())
             truth = float((plate.linear[person] @ LUMINANCE).mean())
             row = {"photo": Path(photo).name, "stops": round(math.log2(max(mine, 1e-9) / max(truth, 1e-9)), 3),
