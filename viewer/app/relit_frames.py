@@ -101,7 +101,7 @@ class RelitFrames:
             return True
         engine = self._engine[1]
         engine.set_lights(session.map_lights, to_area_lights(session.placed))
-        engine.set_look(session.turned_look(frames.camera_turn(index, person), frames.camera_height(person)))
+        engine.set_look(session.look.on_frame(frames.camera_turn(index, person), frames.camera_height(person)))
         engine.render(budget)
         if engine.complete:
             self.pictures[k] = np.ascontiguousarray(self.timeline.picture_of(engine, index, person))

@@ -77,17 +77,7 @@ class Session:
     def rendered_look(self) -> Look:
         """The look the engines render: the user's, its map turned on by a clip frame's :attr:`camera_turn`
         and seen from its :attr:`camera_height`."""
-        return self.turned_look(self.camera_turn, self.camera_height)
-
-    def turned_look(self, turn: tuple[float, float], height: float = 0.0) -> Look:
-        """The user's look, its map turned on by ``turn`` (yaw, tilt) degrees and its ground seen from
-        ``height`` metres (unless the look sets its own): a clip frame's, whether it is the frame the
-        session shows or one prepared ahead (:mod:`viewer.app.relit_frames`)."""
-        yaw, tilt = turn
-        height = self.look.seen_from(height)
-        if not (yaw or tilt or height != self.look.camera_height):
-            return self.look
-        return replace(self.look, yaw=self.look.yaw + yaw, tilt=self.look.tilt + tilt, camera_height=height)
+        return self.look.on_frame(self.camera_turn, self.camera_height)
 
     def rotated_lights(self) -> AreaLights:
         look = self.rendered_look

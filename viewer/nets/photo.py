@@ -12,6 +12,7 @@ from __future__ import annotations
 import torch
 
 from viewer.nets.silhouette import CHANNELS as SILHOUETTE_CHANNELS, silhouette_input
+from viewer.twin.srgb import srgb_encode
 
 EXPOSED_PERCENTILE = 0.99
 EXPOSED_LEVEL = 0.9
@@ -29,10 +30,6 @@ def exposure_scale(image: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
             if top > 1e-8:
                 scale[i] = EXPOSED_LEVEL / top
     return scale
-
-
-def linear_to_srgb(x: torch.Tensor) -> torch.Tensor:
-    return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
 
 
 INPUTS = ("photo", "mask", "silhouette")  # what a network may read, in this order
@@ -55,7 +52,7 @@ def photo_input(image: torch.Tensor, mask: torch.Tensor, background: bool = True
     the mask's silhouette prior (B, 7, H, W; :mod:`viewer.nets.silhouette`); ``background=False``
     blacks out everything but the person (the depth network's input)."""
     scale = exposure_scale(image, mask)
-    srgb = linear_to_srgb((image * scale).clamp(0.0, 1.0))
+    srgb = srgb_encode((image * scale).clamp(0.0, 1.0))
     if not background:
         srgb = srgb * mask
     parts = [srgb, mask] + ([silhouette_input(mask)] if silhouette else [])

@@ -59,26 +59,26 @@ class ClipPictures:
         # each frame's size, and the pictures' (a plate's frames are the plate's: viewer.output.plate_clip)
         self.size = self.frame_size = self.frames.scene(self.frames.people[0], sizes).output_size
 
-    def turn_of(self, index: int, person: int) -> tuple[float, float]:
-        """The map's (yaw, tilt) at frame ``index``: the look's, turned ``turn`` degrees over the clip,
-        tilted as the shot's camera looks up or down and turned as the camera turned since its shot
-        began (``person``: the frame whose background camera is used, :meth:`ClipFrames.camera_turn`)."""
+    def frame_look(self, index: int, person: int) -> Look:
+        """The look frame ``index`` renders with (:meth:`Look.on_frame`): the map turned ``turn`` degrees
+        over the clip, tilted as the shot's camera looks up or down and turned as the camera turned
+        since its shot began, its ground seen from the camera's height (``person``: the frame whose
+        background camera is used, :meth:`ClipFrames.camera_turn`)."""
         yaw, tilt = self.frames.camera_turn(index, person)
-        return self.look.yaw + self.turn * self.bundle.frames[index].seconds / self.bundle.duration + yaw, self.look.tilt + tilt
+        turn = self.turn * self.bundle.frames[index].seconds / self.bundle.duration + yaw
+        return self.look.on_frame((turn, tilt), self.frames.camera_height(person))
 
     def _look(self, index: int, person: int) -> Look:
-        """The look of frame ``index``: its yaw; in a clip inferred as one (temporal), the exposure of
-        the shot of frame ``person`` (a person's), resolved once on that shot's first frame with a person."""
-        yaw, tilt = self.turn_of(index, person)
-        look = replace(self.look, yaw=yaw, tilt=tilt, camera_height=self.look.seen_from(self.frames.camera_height(person)))
+        """The look of frame ``index`` (:meth:`frame_look`); in a clip inferred as one (temporal), the
+        exposure of the shot of frame ``person`` (a person's), resolved once on that shot's first frame
+        with a person."""
+        look = self.frame_look(index, person)
         if self.look.exposure != AUTO or not self.bundle.temporal:
             return look
         shot = self.bundle.frames[person].shot
         if shot not in self._exposures:
             first = self.frames.shot_start(shot)
-            yaw, tilt = self.turn_of(first, first)
-            height = self.look.seen_from(self.frames.camera_height(first))
-            self._exposures[shot] = self._render(first, replace(self.look, yaw=yaw, tilt=tilt, camera_height=height))[1].exposure
+            self._exposures[shot] = self._render(first, self.frame_look(first, first))[1].exposure
         return replace(look, exposure=self._exposures[shot])
 
     def _render(self, index: int, look: Look):

@@ -143,6 +143,17 @@ class Look:
         out = lights.rotated(self.yaw, self.tilt).scaled(self.intensity)
         return out if placed is None else out.followed_by(placed.scaled(self.placed_intensity))
 
+    def on_frame(self, turn: tuple[float, float] = (0.0, 0.0), height: float = 0.0) -> Look:
+        """The look a frame renders with, the one rule for every frame (a clip's, the window's, a
+        frame prepared ahead): the map turned on by ``turn`` (yaw, tilt) degrees (the clip's turn and
+        its camera's; the placed lights are not turned, :meth:`turned`) and the ground seen from
+        ``height`` metres (unless the look sets its own, :meth:`seen_from`). Itself when nothing moves."""
+        yaw, tilt = turn
+        height = self.seen_from(height)
+        if not (yaw or tilt or height != self.camera_height):
+            return self
+        return replace(self, yaw=self.yaw + yaw, tilt=self.tilt + tilt, camera_height=height)
+
     def fitted(self, n_lights: int) -> Look:
         """This look for a set of ``n_lights`` lights: a selected light past the set (a look saved
         with more lights) becomes light 0, and its shadow view the relit image."""

@@ -54,6 +54,7 @@ from viewer.lighting.lightfit.methods import DEFAULT_METHOD, METHODS, check_ligh
 from viewer.lighting.lightfit.problem import FitSettings, Problem, VisibilityTable, build_problem, report, shadowed_views
 from viewer.lighting.median_cut import median_cut_lights
 from viewer.scene.area_lights import AreaLights
+from viewer.twin.srgb import srgb_encode
 
 DEFAULT_SETTINGS = FitSettings()  # frozen: one default shared by every call
 
@@ -119,16 +120,11 @@ def fibonacci_sphere(n: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- losses
-def srgb(x: torch.Tensor) -> torch.Tensor:
-    """The sRGB encoding of non-negative linear values, extended above 1 by the same power law."""
-    x = x.clamp(min=0.0)
-    return torch.where(x <= 0.0031308, 12.92 * x, 1.055 * x.clamp(min=0.0031308) ** (1.0 / 2.4) - 0.055)
-
-
 def step2_loss(problem: Problem, direction: torch.Tensor, intensity: torch.Tensor) -> torch.Tensor:
     """The paper's L_diff + L_spec: L1 in sRGB of the sphere's diffuse and specular shading."""
     diff, spec = problem.sphere_shading(direction, intensity)
-    return (srgb(diff) - srgb(problem.sphere_diffuse)).abs().mean() + (srgb(spec) - srgb(problem.sphere_specular)).abs().mean()
+    return ((srgb_encode(diff) - srgb_encode(problem.sphere_diffuse)).abs().mean()
+            + (srgb_encode(spec) - srgb_encode(problem.sphere_specular)).abs().mean())
 
 
 def repulsion(direction: torch.Tensor, tau: float = TAU) -> torch.Tensor:
@@ -173,12 +169,12 @@ class Step3Target:
     @staticmethod
     def of(problem: Problem) -> Step3Target:
         kernels = laplacian_kernels(problem.plane.resolution)
-        ref = srgb(_as_images(problem, problem.plane_shadowed))
+        ref = srgb_encode(_as_images(problem, problem.plane_shadowed))
         return Step3Target(kernels, tuple(laplacian(ref, k) for k in kernels))
 
     def loss(self, problem: Problem, shading: torch.Tensor) -> torch.Tensor:
         """Sum over kernels of the L1 between Laplacians of the sRGB shadowed diffuse shading (K, P, 3)."""
-        model = srgb(_as_images(problem, shading))
+        model = srgb_encode(_as_images(problem, shading))
         return sum((laplacian(model, k) - ref).abs().mean() for k, ref in zip(self.kernels, self.laplacians))
 
 
