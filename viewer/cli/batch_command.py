@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from viewer.cli.shared_options import add_engine_args, add_map_light_args, add_view_args, auto_or
+from viewer.cli.shared_options import add_device_arg, add_engine_args, add_map_light_args, add_view_args, auto_or
 from viewer.errors import InputError
 
 
@@ -42,7 +42,7 @@ def add_batch_parser(sub) -> None:
                         "nodes that have them, and their GL contexts render there (default 0: CPU nodes)")
     p.add_argument("--layers", action="store_true", help="also PHOTO/LOOK.layers.exr for compositors (docs/batch.md)")
     p.add_argument("--per-light", action="store_true", help="with --layers: each light's diffuse light as a layer")
-    p.add_argument("--device", default="cpu", help="device of the photos' inference (cpu or cuda)")
+    add_device_arg(p)
     add_engine_args(p, presets=True)
     add_view_args(p, yaws=False)
     p.set_defaults(func=cmd_batch)

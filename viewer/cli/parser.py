@@ -8,10 +8,15 @@ import argparse
 from viewer.cli.batch_command import add_batch_parser
 from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
 from viewer.cli.plate_commands import cmd_plate_light
-from viewer.cli.shared_options import add_clip_range_args, add_engine_args, add_ground_args, add_map_light_args, add_view_args, auto_or
+from viewer.cli.shared_options import (
+    add_clip_range_args,
+    add_device_arg,
+    add_engine_args,
+    add_map_light_args,
+    add_view_args,
+)
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 from viewer.plate.environment import MAP_HEIGHT
-from viewer.scene.look import BACKGROUNDS
 
 COMMAND_GROUP = "relight.commands"
 
@@ -60,6 +65,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--turn", type=float, help="degrees the lighting turns over the video (default 360 for a turntable, "
                                               "0 for a clip)")
     add_clip_range_args(p)
+    add_device_arg(p)
     p.add_argument("--size", type=int,
                    help="the maps at this many pixels on the longer side (default: the bundle's; the output keeps the frame's size)")
     p.add_argument("--rig", help="placed lights added to the map's, fixed to the camera: a rig saved from the viewer (JSON)")
@@ -81,33 +87,14 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo (its bundle is inferred once and cached; "
                    "default: the bundled sample), or a clip or its clip bundle, played with a timeline")
     p.add_argument("--mask", help="the photo's person mask (default: found automatically)")
-    p.add_argument("--device", default="cpu", help="device for a photo's inference (default cpu)")
+    add_device_arg(p)
     p.add_argument("--env", "--envmap", dest="envmap", help="environment map (.hdr/.exr; default: a bundled map)")
     p.add_argument("--lights", help="area-light file to use instead of fitting lights to the map")
     add_map_light_args(p)
     p.add_argument("--rig", help="placed lights to start with: a rig saved from the viewer's panel (JSON)")
     add_plate_args(p, "drag the person to move them, the wheel scales them, S saves the composite")
-    p.add_argument("--look", help="start from a saved look (a frame's JSON saved with S, or a state file); the "
-                   "options below override its values")
-    p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
-                   help="initial rotation of the lighting, degrees (default: a map's brightest light turned toward the "
-                        "camera, a light file of your own as written)")
-    p.add_argument("--tilt", type=float, help="initial tilt of the lighting, degrees (default 0)")
-    p.add_argument("--exposure", type=auto_or("stops"),
-                   help="initial exposure, stops, or auto (default): a photo keeps its own brightness")
-    add_ground_args(p)
-    skin = p.add_mutually_exclusive_group()
-    skin.add_argument("--skin", action="store_const", const=True, help="light scattered under a photo's skin (default)")
-    skin.add_argument("--no-skin", dest="skin", action="store_const", const=False,
-                      help="start with skin shaded as a surface (the panel's skin box turns it back on)")
-    p.add_argument("--backdrop-blur", type=auto_or("degrees"),
-                   help="the map behind the person blurred, degrees, or auto (default): as the photo's own background")
-    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"), help="initial shadow mode (default soft)")
-    p.add_argument("--background", choices=tuple(b for b in BACKGROUNDS if b != "transparent"),
-                   help="behind the person at first (the panel's 'behind'): the map (default), the photo's own "
-                        "background (shown as it is, whatever the exposure), or a grey")
+    add_view_args(p, window=True)
     p.add_argument("--size", type=int, help="the maps at this many pixels on the longer side (default: the bundle's)")
-    p.add_argument("--max-size", type=int, default=2048, help="longer side of saved frames and videos at most (default 2048)")
     p.add_argument("--out-dir", default="relight-captures", help="where S (frames) and R / L (videos) write (default relight-captures/)")
     p.add_argument("--record-frames", type=int, default=120, help="frames of a 360 degree recording (default 120)")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate of recordings (default 30)")
@@ -127,7 +114,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                    "work runs (default 512)")
     p.add_argument("--max-size", type=int, default=2048, help="longer side of the bundle's frame: the photo's own size up "
                    "to this (default 2048)")
-    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    add_device_arg(p)
     p.add_argument("--networks", help="folder of network weights (default: the shipped ones in assets/networks)")
     add_clip_range_args(p)
     p.set_defaults(func=cmd_infer)

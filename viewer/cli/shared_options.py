@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from viewer.scene.look import TONEMAPS
+from viewer.scene.look import BACKGROUNDS, TONEMAPS, VISIBILITY_MODES
 
 
 def add_engine_args(p, presets: bool = False):
@@ -57,41 +57,55 @@ def add_ground_args(p):
     ground.add_argument("--no-ground", dest="ground", action="store_const", const=False, help="no shadow on the ground")
 
 
-def add_view_args(p, yaw_default: float | None = None, yaws: bool = True):
-    """What the user sees; ``yaws`` False: no ``--yaw`` here (a batch takes several)."""
+def add_view_args(p, yaw_default: float | None = None, yaws: bool = True, window: bool = False):
+    """What the user sees, declared once for every command; ``yaws`` False: no ``--yaw`` here (a batch
+    takes several); ``window``: the viewer's (what it starts with; no transparent background, no tone
+    map: the panel sets them)."""
+    start = "initial " if window else ""
     p.add_argument("--look", help="a saved look: the JSON of a frame saved in the viewer (S), its state file, or a look "
-                   "object (docs/architecture.md); the options below override its values")
+                   f"object (docs/architecture.md){' to start from' if window else ''}; the options below override its values")
     if yaws:
         p.add_argument("--yaw", "--rotate", dest="yaw", type=float,
-                       help="rotate the lighting (and the map behind) about the vertical axis, degrees (default "
+                       help=f"{start}rotation of the lighting (and the map behind) about the vertical axis, degrees (default "
                             + (f"{yaw_default:g}" if yaw_default is not None else
                                "automatic: a map's brightest light on the camera's side, a light file of your own as "
-                               "written") + "); a video starts there")
-    p.add_argument("--tilt", type=float, help="tilt the lighting (degrees, default 0)")
+                               "written") + ")" + ("" if window else "; a video starts there"))
+    p.add_argument("--tilt", type=float, help=f"{start}tilt of the lighting (degrees, default 0)")
     p.add_argument("--exposure", type=auto_or("stops"),
-                   help="exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
+                   help=f"{start}exposure in stops, or auto (default): a photo's relit person keeps the photo's brightness "
                         "(0 stops for a scene without a photo)")
-    p.add_argument("--tonemap", choices=TONEMAPS, help="tone curve (default neutral: the photo's tones as they are up "
-                   "to a knee, highlights rolled off keeping their hue; aces: the filmic curve, per channel)")
-    p.add_argument("--background", choices=("environment", "photo", "color", "transparent"),
-                   help="behind the person: the environment map seen through the photo's camera (default), the "
-                        "photo's own background, a grey, or transparent (PNG and EXR with alpha)")
+    if not window:
+        p.add_argument("--tonemap", choices=TONEMAPS, help="tone curve (default neutral: the photo's tones as they are up "
+                       "to a knee, highlights rolled off keeping their hue; aces: the filmic curve, per channel)")
+    p.add_argument("--background", choices=tuple(b for b in BACKGROUNDS if not (window and b == "transparent")),
+                   help=f"behind the person{' at first' if window else ''}: the environment map seen through the photo's "
+                        "camera (default), the photo's own background, a grey"
+                        + ("" if window else ", or transparent (PNG and EXR with alpha)"))
     p.add_argument("--backdrop-blur", type=auto_or("degrees"),
                    help="the map behind the person blurred like a defocused background, degrees, or auto (default): "
                         "as much as the photo's own background is (0 for a scene without a photo)")
     p.add_argument("--max-size", type=int, default=2048,
-                   help="longer side of the output in pixels at most (default 2048; a photo's bundle renders at "
-                        "the photo's own size up to this)")
+                   help="longer side of the output (saved frames and videos) in pixels at most (default 2048; a photo's "
+                        "bundle renders at the photo's own size up to this)")
     add_ground_args(p)
     skin = p.add_mutually_exclusive_group()
     skin.add_argument("--skin", action="store_const", const=True,
                       help="light scattered under a photo's skin: soft, warm terminators and shadow edges on faces and "
                            "limbs (the default)")
     skin.add_argument("--no-skin", dest="skin", action="store_const", const=False,
-                      help="skin shaded as a surface, without the light scattered under it (to compare)")
-    p.add_argument("--visibility", choices=("soft", "refined", "hard", "none"),
-                   help="shadows (default soft): soft (contact-hardening, or --soft csm), the refinement network on them "
-                        "(refined), the shadow map (hard) or none")
+                      help="skin shaded as a surface, without the light scattered under it (to compare"
+                           + ("; the panel's skin box turns it back on)" if window else ")"))
+    p.add_argument("--visibility", choices=VISIBILITY_MODES,
+                   help="shadows (default soft): soft (contact-hardening, or --soft csm), the shadow map (hard), none, "
+                        "or the refinement network on the soft ones (refined)")
+
+
+def add_device_arg(p) -> None:
+    """``--device``: where a photo's or a clip's networks run (:mod:`viewer.nets.device`)."""
+    from viewer.nets.device import DEFAULT_DEVICE, DEVICES
+
+    p.add_argument("--device", default=DEFAULT_DEVICE, help=f"where a photo's networks run: {', '.join(DEVICES)} or cuda:N "
+                   f"(default {DEFAULT_DEVICE}: CUDA where torch has it, else the CPU)")
 
 
 def point_arg(text: str) -> tuple[float, float]:

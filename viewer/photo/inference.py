@@ -38,6 +38,7 @@ from viewer.errors import InputError, NoPersonError
 from viewer.files.imageio import read_json
 from viewer.files.kinds import regular_file
 from viewer.files.ownership import discard_entry, folder_lock, fresh_sibling, mark_written, names_ours, written_here
+from viewer.nets.device import DEFAULT_DEVICE, compute_device
 from viewer.photo import detail as detail_mod, gloss
 from viewer.photo.face import find_faces, light_fit_weight, with_face
 from viewer.photo.frames import (
@@ -172,27 +173,12 @@ def scene_maps(work: np.ndarray, mask: np.ndarray, distance: float) -> dict:
             "depth": np.where(mask, np.maximum(work[..., 8], 0.1), distance).astype(np.float32)}
 
 
-def check_device(device: str) -> str:
-    """``device`` as torch names it, when this machine has it; else one line naming the device (the
-    weights file was blamed for a missing CUDA before)."""
-    import torch
-
-    try:
-        dev = torch.device(device)
-    except (RuntimeError, TypeError) as exc:
-        raise InputError(None, f"--device {device!r} is not a device torch knows ({exc}); use cpu or cuda") from None
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise InputError(None, f"--device {device}: this machine has no CUDA device (torch {torch.__version__}); "
-                               "use --device cpu")
-    if dev.type not in ("cpu", "cuda"):
-        raise InputError(None, f"--device {device}: the networks run on cpu or cuda")
-    return device
-
-
-def load_networks(device="cpu", directory=None) -> dict:
+def load_networks(device=DEFAULT_DEVICE, directory=None) -> dict:
+    """The networks' weights on ``device`` (:func:`viewer.nets.device.compute_device`: ``auto`` is
+    CUDA where there is one)."""
     from viewer.nets.weights import load_network
 
-    check_device(device)
+    device = compute_device(device)
     directory = Path(directory) if directory is not None else network_dir()
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
 
@@ -255,7 +241,7 @@ def bundle_key(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: in
     return h.hexdigest()
 
 
-def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = DEFAULT_DEVICE,
                   networks_dir=None, progress=None, ctx=None, bundles=None) -> tuple[Path, bool]:
     """(bundle directory, whether it was cached): inference runs once per :func:`bundle_key`; the
     bundle is kept in ``bundles``, by default beside the light cache (``bundles/``; a batch on a
@@ -356,7 +342,7 @@ class _Stages:
             self.progress(name)
 
 
-def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+def infer(photo_path, mask_path, out_dir, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = DEFAULT_DEVICE,
           networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT) -> dict:
     """Write the scene bundle of ``photo_path`` into ``out_dir``; returns the record also written
     as ``inference.json``. ``mask_path`` None: the automatic person mask. ``size``: pixels of the
@@ -651,7 +637,7 @@ def run_stages(values: dict, stage, ctx=None) -> dict:
     return values
 
 
-def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = "cpu",
+def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = DEFAULT_DEVICE,
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
                 keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None, steady=None, follow=None,
                 everyone_too: bool = False) -> dict:
@@ -669,7 +655,8 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     from viewer.scene.area_lights import AreaLights
 
     stage = _Stages(progress)
-    v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size, "device": device,
+    v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size,
+                    "device": compute_device(device),
                     "networks": networks, "detail": detail, "picture": picture, "given_lights": lights,
                     "steady": steady, "follow": follow, "everyone_too": everyone_too}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
