@@ -12,8 +12,9 @@ from conftest import SHARED_DATA
 from test_matting import _frame
 
 from viewer.lab.bench.metrics import MATTE_MARGIN, backdrop_coloured, enclosed_gaps, on_backdrop, on_studio, outline, spill_cut
-from viewer.photo import matting
+from viewer.photo import backdrop_gaps, matting, trimap
 from viewer.photo.frames import output_frame, read_photo
+from viewer.photo.pose_masks import person_height
 from viewer.photo.segmentation import find_person
 from viewer.resize import resize
 
@@ -56,7 +57,7 @@ def test_the_gaps_take_nothing_of_the_person(underpass):
     assert gaps.sum() > 1000
     with_gaps = matting.edge_alpha(image, decided, half_width, holes, gaps=gaps)
     without = matting.edge_alpha(image, decided, half_width, holes)
-    inside = matting.distances(hand > 0.5)[0] > MATTE_MARGIN
+    inside = trimap.distances(hand > 0.5)[0] > MATTE_MARGIN
     taken = np.clip(without - with_gaps, 0, 1)[inside].sum() / outline(hand > 0.5).sum()
     assert taken < 0.005, taken
 
@@ -69,7 +70,7 @@ def test_a_clips_frame_finds_the_gaps_too(underpass):
     image = on_backdrop(photo, hand, (30, 40, 80))
     person = find_person(image)
     kept = (person.segmentation > 0.5).astype(np.float32)
-    matte = matting.automatic_matte(image, person, matting.Carried(kept, np.ones(kept.shape, np.float32)))
+    matte = matting.automatic_matte(image, person, trimap.Carried(kept, np.ones(kept.shape, np.float32)))
     found = _found(matte.alpha, hand)
     assert min(found) > 0.9, found
     assert matte.record["gaps_px"] > 1000
@@ -89,19 +90,19 @@ def test_a_gap_found_in_the_frame_before_stays_background(underpass):
     image = on_backdrop(photo, hand, (30, 40, 80))
     found = find_person(image)
     h, w = hand.shape
-    size = height_capped((w, h), matting.person_height(found.segmentation > 0.5), matting.SOLVE_HEIGHT)
+    size = height_capped((w, h), person_height(found.segmentation > 0.5), matting.SOLVE_HEIGHT)
     small = resize(image, size).astype(np.float32) / 255.0
     seg = resize(found.segmentation, size)
     kept = seg > 0.5
     sure = kept.astype(np.float32)
-    tri = matting.trimap(sure, found.landmarks)
+    tri = trimap.trimap(sure, found.landmarks)
     truth = resize(hand.astype(np.float32), size)
     enclosed = kept & (truth < 0.1)  # the backdrop the kept person encloses
     assert enclosed.sum() > 500
-    alone = matting.backdrop_gaps(small, kept, tri, sure, found.landmarks).found
-    before = matting.Carried(truth, np.ones(truth.shape, np.float32))
-    carried = matting.backdrop_gaps(small, kept, tri, sure, found.landmarks, before).found
-    hesitating = matting.backdrop_gaps(small, kept, matting.trimap(seg, found.landmarks), seg, found.landmarks).found
+    alone = backdrop_gaps.backdrop_gaps(small, kept, tri, sure, found.landmarks).found
+    before = trimap.Carried(truth, np.ones(truth.shape, np.float32))
+    carried = backdrop_gaps.backdrop_gaps(small, kept, tri, sure, found.landmarks, before).found
+    hesitating = backdrop_gaps.backdrop_gaps(small, kept, trimap.trimap(seg, found.landmarks), seg, found.landmarks).found
     assert not alone.any()
     assert carried[enclosed].mean() >= hesitating[enclosed].mean() > 0.3
     assert not (carried & (truth > 0.9)).any()

@@ -10,7 +10,8 @@ from dataclasses import replace
 import numpy as np
 from conftest import SHARED_DATA
 
-from viewer.photo import held_objects, matting
+from viewer.photo import held_objects, matting, trimap
+from viewer.photo.pose_masks import person_height
 
 H, W = 400, 300
 
@@ -50,7 +51,7 @@ def test_a_stick_from_the_hand_and_a_board_under_the_feet_are_kept():
     board = _line(person.shape, (90, 362), (215, 362), 6) & ~person  # a skateboard under both feet
     image[stick] = [0.05, 0.05, 0.06]
     image[board] = [0.95, 0.1, 0.05]
-    found = held_objects.find_objects(image, person, landmarks, matting.person_height(person))
+    found = held_objects.find_objects(image, person, landmarks, person_height(person))
     assert found[stick].mean() > 0.9 and found[board].mean() > 0.9
     assert not (found & person).any()
     assert (found & ~stick & ~board).sum() < 0.15 * (stick.sum() + board.sum())  # their closed gaps at most
@@ -63,7 +64,7 @@ def test_what_touches_no_hand_or_foot_and_what_runs_on_is_not_kept():
     stair = _line(person.shape, (0, 361), (W - 1, 361), 3) & ~person  # a kerb's edge under both feet, frame to frame
     image[apart] = [0.05, 0.05, 0.05]
     image[stair] = [0.1, 0.1, 0.1]
-    found = held_objects.find_objects(image, person, landmarks, matting.person_height(person))
+    found = held_objects.find_objects(image, person, landmarks, person_height(person))
     assert not found[apart].any()
     assert found[stair].mean() < 0.05
 
@@ -73,15 +74,15 @@ def test_a_patch_that_barely_stands_out_is_not_kept():
     image, person, landmarks = _picture(2)
     shadow = _line(person.shape, (95, 362), (205, 362), 10) & ~person
     image[shadow] *= 0.8
-    found = held_objects.find_objects(image, person, landmarks, matting.person_height(person))
+    found = held_objects.find_objects(image, person, landmarks, person_height(person))
     assert found[shadow].mean() < 0.05
 
 
 def test_nothing_held_adds_nothing():
     image, person, landmarks = _picture(3)
-    found = held_objects.find_objects(image, person, landmarks, matting.person_height(person))
+    found = held_objects.find_objects(image, person, landmarks, person_height(person))
     assert not found.any()
-    assert not held_objects.find_objects(image, person, {}, matting.person_height(person)).any()
+    assert not held_objects.find_objects(image, person, {}, person_height(person)).any()
     assert not held_objects.find_objects(image, np.zeros_like(person), landmarks, 1).any()
 
 
@@ -95,7 +96,7 @@ def test_the_held_objects_are_found_at_any_resolution():
     big = cv2.resize((image * 255).astype(np.uint8), (W * 4, H * 4), interpolation=cv2.INTER_LINEAR)
     big_person = cv2.resize(person.astype(np.uint8), (W * 4, H * 4), interpolation=cv2.INTER_NEAREST) > 0
     big_stick = cv2.resize(stick.astype(np.uint8), (W * 4, H * 4), interpolation=cv2.INTER_NEAREST) > 0
-    found = held_objects.held_objects(big, big_person, landmarks, matting.person_height(big_person))
+    found = held_objects.held_objects(big, big_person, landmarks, person_height(big_person))
     assert found.shape == big_person.shape
     assert found[big_stick].mean() > 0.8
 
@@ -153,7 +154,7 @@ def test_in_a_clip_an_object_is_kept_from_its_second_frame_in_a_row():
     person = find_person(photo, SKIER)
     alone = matting.automatic_matte(photo, person)  # a photo (or a shot's first frame): kept as found
     assert alone.held.any() and (alone.objects == alone.held).all()
-    before = matting.Carried(alone.alpha, np.ones(alone.alpha.shape, np.float32), np.zeros(alone.alpha.shape, bool))
+    before = trimap.Carried(alone.alpha, np.ones(alone.alpha.shape, np.float32), np.zeros(alone.alpha.shape, bool))
     first = matting.automatic_matte(photo, person, before)  # found now, not the frame before: not kept yet
     assert not first.held.any() and first.objects.any() and first.record["held_px"] == 0
     again = matting.automatic_matte(photo, person, replace(before, objects=first.objects))  # found in both

@@ -15,7 +15,7 @@ from PIL import Image
 
 from viewer.errors import InputError
 from viewer.gl import Engine, EngineOptions
-from viewer.photo import matting
+from viewer.photo import matting, trimap
 from viewer.photo.detail import detail_albedo
 from viewer.photo.frames import frame_sizes
 from viewer.photo.inference import (
@@ -32,6 +32,7 @@ from viewer.photo.inference import (
     to_work_frame,
     write_bundle,
 )
+from viewer.photo.pose_masks import person_height
 from viewer.resize import resize
 from viewer.scene.area_lights import load_lights
 from viewer.scene.bundle import load_scene
@@ -110,8 +111,8 @@ def _own_lights_error(ctx, scene, lights):
     photo = scene.frame.photo
     alpha = scene.frame.alpha
     # where the matte's colours are the photo's own: half a soft band inside the opaque person (viewer.photo.matting)
-    depth, _ = matting.distances(alpha >= matting.OPAQUE)
-    own = depth > max(matting.MIN_EDGE, matting.EDGE * matting.person_height(alpha > 0.5))
+    depth, _ = trimap.distances(alpha >= matting.OPAQUE)
+    own = depth > max(matting.MIN_EDGE, matting.EDGE * person_height(alpha > 0.5))
     solid = own & (scene.frame.albedo.max(axis=-1) < 0.99) & (photo.min(axis=-1) > 0.01)
     assert solid.sum() > 0.3 * (scene.frame.alpha > 0.5).sum()
     return float(np.abs(hdr[solid] - photo[solid]).mean() / photo[solid].mean())

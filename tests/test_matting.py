@@ -11,8 +11,9 @@ from conftest import SHARED_DATA
 
 from viewer.files.imageio import srgb_to_linear
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
-from viewer.photo import matting
+from viewer.photo import matting, trimap
 from viewer.photo.frames import output_frame, read_mask, read_photo
+from viewer.photo.pose_masks import head_mask, person_height
 from viewer.photo.segmentation import find_person
 from viewer.resize import resize
 
@@ -40,10 +41,10 @@ def test_the_trimaps_band_holds_the_gaps_between_limbs(matted):
     """Background the segmentation filled (between an arm and the body, between the legs) is never
     the person for sure: the colours decide it."""
     photo, hand, person, _ = matted
-    tri = matting.trimap(person.segmentation, person.landmarks)
+    tri = trimap.trimap(person.segmentation, person.landmarks)
     filled = (person.segmentation > 0.5) & (hand < 0.5)  # the segmentation's background mistaken for the person
-    inside, _ = matting.distances(hand > 0.5)
-    _, outside = matting.distances(hand > 0.5)
+    inside, _ = trimap.distances(hand > 0.5)
+    _, outside = trimap.distances(hand > 0.5)
     far = filled & (outside > 6)  # more than a soft edge away from the person's true outline
     assert far.sum() > 500  # the photos do have such gaps
     assert (tri.sure_person & far).sum() < 0.02 * far.sum()
@@ -67,8 +68,8 @@ def test_the_old_background_leaves_the_persons_colours(matted):
     soft = (matte.alpha > 0.05) & (matte.alpha < 0.95)
     assert soft.sum() > 1000  # a soft edge, not a cut
     assert np.isfinite(matte.foreground).all() and matte.foreground.min() >= 0
-    depth, _ = matting.distances(matte.alpha >= matting.OPAQUE)
-    deep = depth > max(matting.MIN_EDGE, matting.EDGE * matting.person_height(matte.alpha > 0.5))
+    depth, _ = trimap.distances(matte.alpha >= matting.OPAQUE)
+    deep = depth > max(matting.MIN_EDGE, matting.EDGE * person_height(matte.alpha > 0.5))
     assert np.array_equal(matte.foreground[deep], linear[deep])  # the photo's own, half a band inside
     assert np.array_equal(matte.foreground[matte.alpha <= 0], linear[matte.alpha <= 0])
     assert bleed(matte.foreground, matte.alpha, linear) <= 0.05
@@ -100,7 +101,7 @@ def test_foreground_colours_recover_a_known_composite():
     soft = (alpha > 0.2) & (alpha < 1)
     assert np.abs(out[soft] - fg[soft]).mean() < 0.05
     assert np.abs(image[soft] - fg[soft]).mean() > 0.15  # the image's colour there is mixed
-    deep = matting.distances(alpha >= matting.OPAQUE)[0] > 2.0  # half a band (half_width) inside
+    deep = trimap.distances(alpha >= matting.OPAQUE)[0] > 2.0  # half a band (half_width) inside
     assert np.array_equal(out[deep], image[deep].astype(np.float32))
     assert np.abs(out[alpha >= 1] - fg[alpha >= 1]).mean() < 0.02
 
@@ -151,8 +152,8 @@ def test_a_mask_file_wins():
     assert np.array_equal(soft.alpha, hand.astype(np.float32))
     binary = (hand > 0.5).astype(np.float32)
     hard = matting.mask_matte(photo, binary)  # a binary one is the core: its outline is softened
-    inside, outside = matting.distances(binary > 0.5)
-    half = matting.EDGE * matting.person_height(binary > 0.5)
+    inside, outside = trimap.distances(binary > 0.5)
+    half = matting.EDGE * person_height(binary > 0.5)
     assert (hard.alpha[inside > half + 1] == 1).all() and (hard.alpha[outside > half + 1] == 0).all()
     assert ((hard.alpha > 0.05) & (hard.alpha < 0.95)).sum() > 1000
     assert spill_cut(hard.alpha, hand)["spill"] < 0.05 and spill_cut(hard.alpha, hand)["cut"] < 0.05
@@ -175,7 +176,9 @@ def test_a_clips_frame_before_steadies_where_the_outline_is_decided():
     outline's smoothness drags along; before, by 0.74 px, a ring of the old background handed on)."""
     import cv2
 
-    from viewer.photo.matting import Carried, colour_models, decide_band, trimap
+    from viewer.photo.colour_models import colour_models
+    from viewer.photo.matting import decide_band
+    from viewer.photo.trimap import Carried, trimap
 
     h = w = 400
     seg = np.zeros((h, w), np.float32)
@@ -233,7 +236,7 @@ def test_the_outline_is_decided_around_the_person():
 def test_dark_hair_against_a_dark_background_is_kept():
     """A man's black hair against a dark sign (a frame of the shared taiji clip): the colour cut called it
     background and the relit man was bald. The crown, the ellipse of the head above the brows the pose's
-    face gives (matting.head_mask), is the person for sure within the segmentation: the matte's top at the
+    face gives (pose_masks.head_mask), is the person for sure within the segmentation: the matte's top at the
     head is the segmentation's, not 15 px under it. A face without a mouth gives no crown."""
     import av
 
@@ -247,6 +250,6 @@ def test_dark_hair_against_a_dark_background_is_kept():
     top_seg = np.flatnonzero((person.segmentation[:, columns] > 0.5).any(axis=1))[0]
     top_matte = np.flatnonzero((alpha[:, columns] > 0.5).any(axis=1))[0]
     assert top_matte <= top_seg + 5, (top_matte, top_seg)
-    crown = matting.head_mask(person.landmarks, (w, h))
+    crown = head_mask(person.landmarks, (w, h))
     assert crown is not None and crown.any() and not crown[int(eyes[1]) + 8:].any()  # above the eyes (the face a little tilted)
-    assert matting.head_mask({k: v for k, v in person.landmarks.items() if k not in (9, 10)}, (w, h)) is None
+    assert head_mask({k: v for k, v in person.landmarks.items() if k not in (9, 10)}, (w, h)) is None

@@ -26,7 +26,8 @@ def crop_boxes(photo: np.ndarray) -> dict:
     """name -> (top, left, side) of the four crops of ``photo`` (uint8 sRGB at its output frame)."""
     import cv2
 
-    from viewer.photo.matting import automatic_matte, person_height
+    from viewer.photo.matting import automatic_matte
+    from viewer.photo.pose_masks import person_height
     from viewer.photo.segmentation import find_person
 
     person = find_person(photo)

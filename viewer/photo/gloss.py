@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from viewer.photo.detail import luminance, masked_lowpass, sheen_room
-from viewer.photo.matting import face_mask
+from viewer.photo.pose_masks import face_mask
 from viewer.resize import mask_normalized_resize, resize
 
 MATTE_ROUGHNESS = 0.85  # the roughness floor of what is not skin (cotton and denim: 0.7 to 0.9)

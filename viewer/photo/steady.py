@@ -109,9 +109,9 @@ class SteadyMaps:
 
     def carried_matte(self, frame_photo: np.ndarray, shot: int | None = None):
         """The frame before's matte carried to this frame along the flow, and where the flow holds
-        (:class:`viewer.photo.matting.Carried`, at the frame's size), for deciding this frame's outline;
+        (:class:`viewer.photo.trimap.Carried`, at the frame's size), for deciding this frame's outline;
         None for a shot's first frame."""
-        from viewer.photo.matting import Carried
+        from viewer.photo.trimap import Carried
 
         previous = self._previous if shot == self.shot else None
         if previous is None or previous[1].frame is None:

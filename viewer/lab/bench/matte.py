@@ -28,6 +28,7 @@ from viewer.files.imageio import srgb_to_linear, write_text
 from viewer.lab.bench.metrics import bleed, kept_backdrop, on_backdrop, spill_cut
 from viewer.photo import matting
 from viewer.photo.frames import output_frame, read_mask, read_photo
+from viewer.photo.pose_masks import person_height
 from viewer.resize import resize
 
 SOLVERS = ("cf", "knn", "lkm", "rw", "lbdm")
@@ -65,7 +66,7 @@ def measure(photo: np.ndarray, hand: np.ndarray, backdrop: bool, solvers, edges,
     linear = srgb_to_linear(photo.astype(np.float32) / 255.0)
     person, t_find = _timed(lambda: find_person(photo), 1)
     h, w = photo.shape[:2]
-    height = matting.person_height(person.segmentation > 0.5)
+    height = person_height(person.segmentation > 0.5)
     row: dict = {"frame": [w, h], "person_height": height, "find_person_seconds": round(t_find, 3)}
     seg = (person.segmentation > 0.5).astype(np.float32)
     row["segmentation"] = _scores(seg, linear, linear, hand, photo, backdrop)

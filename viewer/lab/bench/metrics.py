@@ -132,7 +132,7 @@ def spill_cut(alpha: np.ndarray, hand: np.ndarray, margin: float = MATTE_MARGIN)
     """Against a hand-made mask: ``spill``, the alpha outside it farther than ``margin`` pixels
     from its outline, and ``cut``, the alpha missing inside it farther than that, each per pixel
     of its outline (pixels of error along the outline, on average)."""
-    from viewer.photo.matting import distances
+    from viewer.photo.trimap import distances
 
     hand = hand > 0.5
     length = max(int(outline(hand).sum()), 1)
@@ -165,7 +165,7 @@ def bleed(person: np.ndarray, alpha: np.ndarray, photo: np.ndarray) -> float:
     ``BLEED_CONTROL`` (what a person's own colours score); pixels darker than ``BLEED_DARKEST`` of
     the person's median have no chromaticity to judge and are left out. ``person``: the relit
     person's colour (not premultiplied), ``photo`` the photo, both linear at the same size."""
-    from viewer.photo.matting import distances
+    from viewer.photo.trimap import distances
 
     inside, outside = distances(alpha >= 0.5)
     cp, cb = _rg(person), _rg(photo)
@@ -223,7 +223,8 @@ def enclosed_gaps(truth: np.ndarray, fraction: float = 0.06) -> np.ndarray:
     the body, a hand and the head, the legs), farther than ``MATTE_MARGIN`` from its outline."""
     import cv2
 
-    from viewer.photo.matting import distances, person_height
+    from viewer.photo.pose_masks import person_height
+    from viewer.photo.trimap import distances
 
     person = truth > 0.5
     r = max(1, int(fraction * person_height(person)))
