@@ -18,20 +18,8 @@ from viewer.gl import Engine, EngineOptions
 from viewer.photo import matting, trimap
 from viewer.photo.detail import detail_albedo
 from viewer.photo.frames import frame_sizes
-from viewer.photo.inference import (
-    FILL,
-    NETWORK_RES,
-    Framing,
-    cached_bundle,
-    crop,
-    fill_rings,
-    framing,
-    infer,
-    infer_scene,
-    load_networks,
-    to_work_frame,
-    write_bundle,
-)
+from viewer.photo.inference import cached_bundle, infer, infer_scene, load_networks, write_bundle
+from viewer.photo.network_frame import FILL, NETWORK_RES, Framing, crop, fill_rings, framing, to_work_frame
 from viewer.photo.pose_masks import person_height
 from viewer.resize import resize
 from viewer.scene.area_lights import load_lights
@@ -425,7 +413,7 @@ def test_an_inverted_mask_is_refused_in_one_line(tmp_path):
                           "--max-size", "256", "-o", str(tmp_path / "b")], capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and "inverted.png: looks inverted" in res.stderr and res.stderr.count("\n") == 1
     assert not (tmp_path / "b").exists()
-    from viewer.photo.inference import check_not_inverted
+    from viewer.photo.person_checks import check_not_inverted
 
     check_not_inverted(mask / 255.0, {}, "m.png")
     check_not_inverted(np.ones((40, 30)), {}, "full.png")
@@ -439,7 +427,7 @@ def test_an_inverted_mask_is_refused_in_one_line(tmp_path):
 def test_a_cached_bundle_is_tied_to_the_code_that_made_it():
     """The bundle cache's key holds the photo path's code (photo, networks, scene, lighting, the
     engine and its shaders), not only a hand-kept version label: a change there infers again."""
-    from viewer.photo.inference import code_digest, code_files
+    from viewer.photo.bundle_version import code_digest, code_files
 
     names = {f"{f.parent.name}/{f.name}" for f in code_files()}
     assert {"photo/matting.py", "photo/held_objects.py", "gl/engine.py", "scene/bundle.py", "lighting/light_size.py",
@@ -474,7 +462,7 @@ def test_the_stages_declare_what_they_read_and_make():
 
 
 def test_a_person_lying_sideways_is_said_and_one_bent_over_on_their_feet_is_not():
-    from viewer.photo.inference import orientation_note
+    from viewer.photo.person_checks import orientation_note
 
     def pose(head, hips, ankles=None):
         points = {0: head, 11: head, 12: head, 23: hips, 24: hips}

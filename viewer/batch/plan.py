@@ -131,10 +131,10 @@ def photo_names(photos: list[Path], reserved: tuple = ()) -> dict[Path, str]:
 
 def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, settings: dict) -> str:
     """The content hash an item's outputs are made from: its photo's bundle key (the photo's bytes,
-    the networks, the pipeline: viewer.photo.inference.bundle_key), the map's or light file's bytes,
+    the networks, the pipeline: viewer.photo.bundle_version.bundle_key), the map's or light file's bytes,
     the rig's, the lights themselves (the fit's method and count), the look and the options, and
     this code's key version."""
-    from viewer.photo.inference import PIPELINE
+    from viewer.photo.bundle_version import PIPELINE
 
     h = hashlib.sha256()
     h.update(json.dumps({"photo": photo_key, "source": source_sha, "rig": rig_sha, "settings": settings,

@@ -71,9 +71,9 @@ KEYLESS = ("bundles",)  # settings that do not change an output (where the bundl
 
 def plan_items(photos: list[Path], looks: list[ResolvedLook], settings: dict) -> tuple[list[Item], dict[Path, str]]:
     """Every (photo, look) item with its outputs and key; the photos' bundle keys (what their bundles
-    are made from: viewer.photo.inference.bundle_key), or for a photo that cannot be read its line."""
+    are made from: viewer.photo.bundle_version.bundle_key), or for a photo that cannot be read its line."""
     from viewer.errors import InputError
-    from viewer.photo.inference import bundle_key, inference_version
+    from viewer.photo.bundle_version import bundle_key, inference_version
 
     names = photo_names(photos, reserved=(MANIFEST, SHEET, LOCK))
     version = inference_version()

@@ -49,9 +49,10 @@ from viewer.files.ownership import (
     written_here,
 )
 from viewer.memory_needs import frames_freed
+from viewer.photo.bundle_version import inference_version
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.frames import MAX_SIZE, WORK_PERSON, output_frame
-from viewer.photo.inference import infer_scene, inference_version, load_networks, write_bundle
+from viewer.photo.inference import infer_scene, load_networks, write_bundle
 from viewer.photo.person_track import PersonTrack
 from viewer.photo.shots import ShotCuts
 from viewer.photo.steady import SteadyMaps

@@ -40,7 +40,7 @@ from viewer.files.kinds import regular_file
 from viewer.files.ownership import discard_entry, folder_lock, fresh_sibling, mark_written, names_ours, written_here
 from viewer.nets.device import DEFAULT_DEVICE, compute_device
 from viewer.photo import detail as detail_mod, gloss
-from viewer.photo.face import find_faces, light_fit_weight, with_face
+from viewer.photo.bundle_version import NETWORKS, PIPELINE, bundle_key
 from viewer.photo.frames import (
     MAX_SIZE,
     WORK_PERSON,
@@ -50,127 +50,20 @@ from viewer.photo.frames import (
     person_box,
     read_mask,
     read_photo,
-    square,
 )
 from viewer.photo.matting import automatic_matte, mask_matte
+from viewer.photo.network_frame import NETWORK_RES, crop, extend, framing, map_stack, scene_maps, to_work_frame
+from viewer.photo.person_checks import check_not_inverted, orientation_note
+from viewer.photo.shading_stages import detail_stage, face_stage, fit_lights_stage, shading_stage, sheen_stage, steady_stage
 from viewer.resize import mask_normalized_resize, resize
 from viewer.resources import network_dir
 from viewer.scene.backdrop import photo_blur
 
-NETWORK_RES = 256
 # each stage's share of the time, for the time-left estimate (viewer.progress.TimeLeft): seconds measured
 # for assets/photos/underpass.jpg (681x1024) on the 2-core CPU machine, 2026-11-25
 STAGE_SHARES = {"read": 0.09, "mask": 2.66, "load networks": 0.01, "inverse rendering": 0.21, "depth": 0.07,
                 "maps to the work frame": 0.24, "face": 0.10, "steady along the clip": 0.05, "fit the photo's lights": 1.65,
                 "render the photo's shading": 0.45, "the photo's sheen": 0.05, "detail": 0.17, "write": 0.3}
-FILL = 0.86  # of the square the person's height spans (the middle of the dataset's range)
-NETWORKS = ("inverse", "depth")
-PIPELINE = "frame-8"  # bundles cached by an older pipeline are inferred again (frame-8: the photo's lens in the frame)
-
-
-@dataclass(frozen=True)
-class Framing:
-    """The square of the frame the networks see: top-left corner (may be negative) and side, pixels."""
-
-    top: int
-    left: int
-    side: int
-
-    def to_json(self) -> dict:
-        return {"top": self.top, "left": self.left, "side": self.side}
-
-
-def framing(mask: np.ndarray) -> Framing:
-    top, left, height, width = person_box(mask)
-    side = int(np.ceil(max(height / FILL, width / 0.95)))
-    cy, cx = top + height / 2.0, left + width / 2.0
-    return Framing(int(round(cy - side / 2.0)), int(round(cx - side / 2.0)), side)
-
-
-def crop(image: np.ndarray, f: Framing, mode: str) -> np.ndarray:
-    """The framing's square of ``image``; outside the photo: its edge repeated (``edge``) or zero."""
-    return square(image, f.top, f.left, f.side, mode)
-
-
-def extend(values, mask):
-    """Fill the pixels outside the mask, ring by ring, with the mean of their filled neighbours:
-    the whole square, so that what the person holds beyond the networks' view (the framing is the
-    body's, ``Matte.body``) has maps, those of the nearest part the networks saw. ``values`` (B, C,
-    H, W) and ``mask`` (B, 1, H, W) torch tensors; each image of the batch by :func:`fill_rings`."""
-    import torch
-
-    out = [torch.from_numpy(fill_rings(v.permute(1, 2, 0).cpu().numpy().astype(np.float32), k[0].cpu().numpy() > 0.5))
-           for v, k in zip(values, mask)]
-    return torch.stack(out).permute(0, 3, 1, 2).to(values.dtype).to(values.device)
-
-
-def fill_rings(values: np.ndarray, known: np.ndarray) -> np.ndarray:
-    """(H, W, C): ``values`` where ``known`` (H, W) bool, and each other pixel the mean of its
-    8-neighbours filled before it, ring by ring outwards (ring r: chessboard distance r from the
-    known pixels, OpenCV's ``distanceTransform``). Each ring's pixels only are touched, so the cost
-    is the unknown pixels', not the rings' count times the image's (a 3x3 mean over the whole image per
-    ring took 0.25 s a frame). Nothing known: zeros."""
-    import cv2
-
-    h, w, c = values.shape
-    if known.all() or not known.any():
-        return np.where(known[..., None], values, 0.0).astype(np.float32)
-    ring = cv2.distanceTransform((~known).astype(np.uint8), cv2.DIST_C, 3).astype(np.int32)
-    filled = np.zeros((h + 2, w + 2, c), np.float32)  # padded by one: a neighbour off the image is never filled
-    filled[1:-1, 1:-1] = np.where(known[..., None], values, 0.0)
-    rings = np.full((h + 2, w + 2), np.iinfo(np.int32).max, np.int32)
-    rings[1:-1, 1:-1] = ring
-    order = np.argsort(ring, axis=None, kind="stable")
-    last = int(ring.max())
-    starts = np.searchsorted(ring.ravel()[order], np.arange(1, last + 2))
-    for r in range(1, last + 1):
-        ys, xs = np.divmod(order[starts[r - 1]:starts[r]], w)
-        total = np.zeros((len(ys), c), np.float32)
-        count = np.zeros(len(ys), np.float32)
-        for dy in (0, 1, 2):
-            for dx in (0, 1, 2):
-                near = rings[ys + dy, xs + dx] < r
-                total += filled[ys + dy, xs + dx] * near[:, None]
-                count += near
-        filled[ys + 1, xs + 1] = total / count[:, None]
-    return filled[1:-1, 1:-1]
-
-
-def to_work_frame(stack, f: Framing, work_size: tuple[int, int], work_scale: float):
-    """The networks' maps (1, C, R, R) over the framing's square, resampled (bilinear) at the
-    centres of the work frame's pixels: (H, W, C) numpy. A work pixel (x, y) is the frame point
-    ((x + 0.5) / s, (y + 0.5) / s); outside the square the border is repeated (never in the mask)."""
-    import torch
-    from torch.nn import functional as F
-
-    w, h = work_size
-    xs = ((torch.arange(w, dtype=torch.float64) + 0.5) / work_scale - f.left) / f.side * 2.0 - 1.0
-    ys = ((torch.arange(h, dtype=torch.float64) + 0.5) / work_scale - f.top) / f.side * 2.0 - 1.0
-    gy, gx = torch.meshgrid(ys, xs, indexing="ij")
-    grid = torch.stack([gx, gy], dim=-1)[None].to(stack.dtype)
-    out = F.grid_sample(stack, grid, mode="bilinear", padding_mode="border", align_corners=False)
-    return out[0].permute(1, 2, 0).cpu().numpy()
-
-
-def map_stack(maps: dict, depth):
-    """(B, 9, H, W): the networks' maps (:func:`viewer.nets.inverse.maps`) and metric depth, in
-    the channel order :func:`scene_maps` reads."""
-    import torch
-
-    return torch.cat([maps["albedo"], maps["specular"], maps["roughness"], maps["normal"], depth], dim=1)
-
-
-def scene_maps(work: np.ndarray, mask: np.ndarray, distance: float) -> dict:
-    """A scene's albedo, specular, roughness, normal and depth from a resampled :func:`map_stack`
-    (H, W, 9): clipped to their ranges, normals made unit, zero outside ``mask`` (depth: the
-    camera's ``distance``, and at least 0.1 m inside)."""
-    normal = work[..., 5:8] / np.maximum(np.linalg.norm(work[..., 5:8], axis=-1, keepdims=True), 1e-6)
-    inside = mask[..., None]
-    return {"albedo": np.where(inside, np.clip(work[..., :3], 0, 1), 0).astype(np.float32),
-            "specular": np.where(mask, np.clip(work[..., 3], 0, 1), 0).astype(np.float32),
-            "roughness": np.where(mask, np.clip(work[..., 4], 0, 1), 0).astype(np.float32),
-            "normal": np.where(inside, normal, 0).astype(np.float32),
-            "depth": np.where(mask, np.maximum(work[..., 8], 0.1), distance).astype(np.float32)}
 
 
 def load_networks(device=DEFAULT_DEVICE, directory=None) -> dict:
@@ -181,64 +74,6 @@ def load_networks(device=DEFAULT_DEVICE, directory=None) -> dict:
     device = compute_device(device)
     directory = Path(directory) if directory is not None else network_dir()
     return {name: load_network(directory / f"{name}.safetensors", device) for name in NETWORKS}
-
-
-# the code a bundle's maps come from: the photo path, the networks, the scene types, the lighting and
-# the engine that renders the photo's own shading, and the shaders
-CODE = ("photo", "nets", "scene", "lighting", "gl", "twin", "files")
-
-
-def code_files() -> list[Path]:
-    """Every ``.py`` of ``CODE`` and of the package's root, and the shaders."""
-    from viewer.resources import shader_dir
-
-    package = Path(__file__).resolve().parents[1]
-    return (sorted(package.glob("*.py")) + sorted(f for part in CODE for f in (package / part).rglob("*.py"))
-            + sorted(shader_dir().glob("*.glsl")))
-
-
-def code_digest() -> str:
-    """The SHA-256 of :func:`code_files`: a bundle cached by other code is inferred again, whether
-    or not someone remembered to change ``PIPELINE``."""
-    import hashlib
-
-    h = hashlib.sha256()
-    for f in code_files():
-        h.update(f"{f.parent.name}/{f.name}".encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()
-
-
-def inference_version(networks_dir=None) -> str:
-    """The networks' weights, the pipeline's version and its code (:func:`code_digest`), hashed:
-    what every bundle is made with."""
-    import hashlib
-
-    h = hashlib.sha256(f"{PIPELINE} {detail_mod.DEFAULT} {code_digest()}".encode())
-    networks_dir = Path(networks_dir) if networks_dir is not None else network_dir()
-    for path in (networks_dir / f"{n}.safetensors" for n in NETWORKS):
-        if not path.is_file():
-            raise InputError(path, "not found")
-        h.update(path.read_bytes())
-    return h.hexdigest()
-
-
-def bundle_key(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, networks_dir=None,
-               version: str | None = None, digests: dict | None = None) -> str:
-    """What a photo's bundle is made from, hashed: the photo's and mask's bytes, the sizes and the
-    :func:`inference_version` (``version``: already computed, for many photos); a missing file is
-    one line naming it. ``digests`` (when given) gets the SHA-256 of each file's bytes as read here,
-    under "photo" and "mask" (each file is read once)."""
-    import hashlib
-
-    h = hashlib.sha256((version or inference_version(networks_dir)).encode())
-    for path, what in ((photo_path, "photo"), *([(mask_path, "mask")] if mask_path is not None else [])):
-        data = regular_file(path, what).read_bytes()
-        h.update(data)
-        if digests is not None:
-            digests[what] = hashlib.sha256(data).hexdigest()
-    h.update(f"{size} {max_size} {mask_path is None}".encode())
-    return h.hexdigest()
 
 
 def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = DEFAULT_DEVICE,
@@ -270,49 +105,6 @@ def cached_bundle(photo_path, mask_path=None, size: int = WORK_PERSON, max_size:
         shutil.rmtree(out, ignore_errors=True)
         raise InputError(photo_path, "changed while it was being inferred: run again once it is in place")
     return out, False
-
-
-def orientation_note(landmarks: dict) -> str | None:
-    """What to say when the pose lies sideways or upside down in the photo (its head beside or below
-    its hips, and its ankles not below them: a photo whose EXIF rotation was lost; someone bent over on
-    their feet is upright), else None. The ground and its shadow take the photo's bottom for the floor."""
-    needed = (0, 11, 12, 23, 24)  # nose, shoulders, hips
-    if not all(i in landmarks for i in needed):
-        return None
-    head = np.mean([landmarks[i] for i in (0, 11, 12)], axis=0)
-    hips = np.mean([landmarks[i] for i in (23, 24)], axis=0)
-    dx, dy = hips - head  # image coordinates: y down; upright, the hips are below the head
-    if dy > abs(dx):
-        return None
-    ankles = [landmarks[i] for i in (27, 28) if i in landmarks]
-    if ankles and -dy <= abs(dx):  # head beside the hips: lying down, or bent over on legs that stand (feet below the hips)
-        lx, ly = np.mean(ankles, axis=0) - hips
-        if ly > abs(lx):
-            return None
-    where = "upside down" if -dy > abs(dx) else f"sideways (head to the {'left' if dx > 0 else 'right'})"
-    return (f"the person is {where} in the photo: if the photo lost its rotation (EXIF), turn it upright; the ground "
-            "and its shadow take the photo's bottom for the floor")
-
-
-INVERTED_BORDER = 0.5  # a mask holding more of the image's border than this share is the background's
-INVERTED_POSE = 2 / 3  # or outside of which lie more than this share of the pose's landmarks
-
-
-def check_not_inverted(mask: np.ndarray, landmarks: dict, path) -> None:
-    """Refuse, in one line, a mask that is the background's (white where the person is not): most
-    of the image's border inside it (a mask of the whole photo is the user's choice: noted later),
-    or most of the pose's landmarks outside it."""
-    person = mask > 0.5
-    if person.all():
-        return
-    border = np.concatenate([person[0], person[-1], person[:, 0], person[:, -1]])
-    h, w = person.shape
-    inside = [person[min(int(y * h), h - 1), min(int(x * w), w - 1)] for x, y in landmarks.values() if 0 <= x < 1 and 0 <= y < 1]
-    if border.mean() > INVERTED_BORDER or (len(inside) >= 5 and 1 - np.mean(inside) > INVERTED_POSE):
-        why = (f"{border.mean():.0%} of the image's border is inside it" if border.mean() > INVERTED_BORDER
-               else f"{1 - np.mean(inside):.0%} of the person's pose lies outside it")
-        raise InputError(path, f"looks inverted: {why} (a person mask is white on the person, black elsewhere): "
-                               "invert it and give it again")
 
 
 def _made_from(bundle: Path, inputs: dict) -> bool:
@@ -508,69 +300,6 @@ def _maps_to_work_frame(frame_photo, alpha, person, matte, landmarks, sizes, fra
             "blur_px": blur_px, "skin": skin, "gloss_record": gloss_record}
 
 
-def _face(scene, frame_photo, alpha, sizes, skin, body, gloss_record, steady):
-    faces = find_faces(frame_photo, alpha)
-    if steady is not None:  # a clip's frame: the face's landmarks smoothed from frame to frame
-        faces = steady[0].steady_faces(faces, steady[1])
-    scene, face_record, face_surface = with_face(scene, faces, sizes.work_scale)
-    if faces:  # where the face is: what the automatic exposure meters (viewer.output.render.photo_exposure)
-        h, w = alpha.shape
-        (x0, y0), (x1, y1) = np.clip(faces[0].points[:, :2].min(axis=0), 0, None), faces[0].points[:, :2].max(axis=0)
-        x1, y1 = min(float(x1), w), min(float(y1), h)
-        if x1 > x0 and y1 > y0:
-            scene = replace(scene, frame=replace(scene.frame, face_box=(x0 / w, y0 / h, (x1 - x0) / w, (y1 - y0) / h)))
-    if skin is not None:  # where light scatters under the skin, and how many millimetres a frame pixel is
-        mm = gloss.skin_mm(faces[0].width if faces else None, person_box(body)[2])
-        scene = replace(scene, frame=replace(scene.frame, skin=skin, skin_mm=mm))  # validated with the detail's
-        gloss_record = {**gloss_record, "skin_mm_per_pixel": round(mm, 4)}
-    return {"scene": scene, "face_record": face_record, "face_surface": face_surface, "gloss_record": gloss_record}
-
-
-def _steady(scene, frame_photo, steady):
-    """A clip's frame: its maps blended with the frame before's along the flow (``steady``: the
-    clip's :class:`viewer.photo.steady.SteadyMaps` and the frame's shot; None for a photo)."""
-    if steady is None:
-        return {"scene": scene, "steady_share": None}
-    maps, shot = steady
-    steadied, share = maps.steady(scene, frame_photo, shot)
-    if steadied is not scene:  # the maps blended: checked here, as the stages after check only the maps they replace
-        steadied = steadied.validate(only=frozenset({"albedo", "specular", "roughness", "normal", "depth"}))
-    return {"scene": steadied, "steady_share": round(share, 4)}
-
-
-def _fit_photo_lights(engine, scene, frame_linear, sizes, work_mask, side_work, face_surface, given_lights):
-    from viewer.photo.own_lighting import fit_mask, fit_photo_lights
-
-    # the photo at the maps' level of detail: one network pixel of low-pass
-    target = detail_mod.masked_lowpass(resize(frame_linear, sizes.work), work_mask, side_work / NETWORK_RES)
-    valid = fit_mask(scene, resize(frame_linear, sizes.work))
-    if not valid.any():
-        valid = work_mask
-    if given_lights is not None:  # a clip's shot: the light its first frame was fitted to (viewer.photo.clip_inference)
-        return {"lights": given_lights, "fit": {"lights": len(given_lights), "given": "the shot's, fitted on its first frame"},
-                "target": target, "valid": valid}
-    lights, fit = fit_photo_lights(engine, target, valid, weight=light_fit_weight(face_surface, valid))
-    return {"lights": lights, "fit": fit, "target": target, "valid": valid}
-
-
-def _photo_shading(engine, lights, fit, target, valid):
-    engine.set_lights(lights)
-    explained = engine.render().output.read_work_hdr()
-    diffuse, specular = engine.output.read_frame_shading(sheen_detail=False)  # the photo's sheen as its lights make it
-    return {"explained": explained, "shading": (diffuse, specular), "fit": {**fit, "psnr_db": fit_psnr(explained, target, valid)}}
-
-
-def _sheen(scene, shading, framing, matte, gloss_record):
-    diffuse, specular = shading
-    scene, specular, lessened = gloss.bounded_sheen(scene, specular, matte.foreground, framing.side / NETWORK_RES)
-    return {"scene": scene, "shading": (diffuse, specular), "gloss_record": {**gloss_record, "sheen_lessened": round(lessened, 4)}}
-
-
-def _detail(scene, frame_network_albedo, shading, framing, matte, detail):
-    scene, detail_stats = with_detail(scene, frame_network_albedo, shading, framing.side, matte.foreground, detail)
-    return {"scene": scene, "detail_stats": detail_stats}
-
-
 # infer_scene's stages, in order: each declares the values it reads and makes (the engine's passes
 # do the same); ``engine`` is the GL engine over the scene the face stage left, made for the two
 # stages that read it. A new stage: its work in a module of viewer/photo/ (as face.py, detail.py),
@@ -589,16 +318,16 @@ STAGE_LIST = (
     Stage("maps to the work frame", _maps_to_work_frame,
           ("frame_photo", "alpha", "person", "matte", "landmarks", "sizes", "framing", "maps", "depth", "m", "camera", "work_mask"),
           ("scene", "frame_linear", "frame_network_albedo", "blur_px", "skin", "gloss_record")),
-    Stage("face", _face, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record", "steady"),
+    Stage("face", face_stage, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record", "steady"),
           ("scene", "face_record", "face_surface", "gloss_record")),
-    Stage("steady along the clip", _steady, ("scene", "frame_photo", "steady"), ("scene", "steady_share")),
-    Stage("fit the photo's lights", _fit_photo_lights, ("engine", "scene", "frame_linear", "sizes", "work_mask", "side_work",
+    Stage("steady along the clip", steady_stage, ("scene", "frame_photo", "steady"), ("scene", "steady_share")),
+    Stage("fit the photo's lights", fit_lights_stage, ("engine", "scene", "frame_linear", "sizes", "work_mask", "side_work",
                                                         "face_surface", "given_lights"), ("lights", "fit", "target", "valid")),
-    Stage("render the photo's shading", _photo_shading, ("engine", "lights", "fit", "target", "valid"),
+    Stage("render the photo's shading", shading_stage, ("engine", "lights", "fit", "target", "valid"),
           ("explained", "shading", "fit")),
-    Stage("the photo's sheen", _sheen, ("scene", "shading", "framing", "matte", "gloss_record"),
+    Stage("the photo's sheen", sheen_stage, ("scene", "shading", "framing", "matte", "gloss_record"),
           ("scene", "shading", "gloss_record")),
-    Stage("detail", _detail, ("scene", "frame_network_albedo", "shading", "framing", "matte", "detail"), ("scene", "detail_stats")),
+    Stage("detail", detail_stage, ("scene", "frame_network_albedo", "shading", "framing", "matte", "detail"), ("scene", "detail_stats")),
 )
 ENGINE_STAGES = ("fit the photo's lights", "render the photo's shading")  # the stages that read ``engine``
 STAGES = tuple(st.name for st in STAGE_LIST) + ("write",)  # what infer() reports to its progress callback, in order
@@ -677,30 +406,6 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
         result.update(network_albedo_frame=v["frame_network_albedo"], shading=v["shading"], target=v["target"],
                       valid=v["valid"], explained=v["explained"], foreground=v["matte"].foreground)
     return result
-
-
-def with_detail(scene, network_albedo_frame: np.ndarray, shading: tuple[np.ndarray, np.ndarray], framing_side: float,
-                foreground: np.ndarray, method: str = detail_mod.DEFAULT, shared_scale: float | None = None):
-    """(``scene`` with the detail albedo of ``method`` in its frame layer and, area-averaged over
-    the person, in its maps; the detail step's statistics). ``shading`` = (D_old, S_old) at the
-    frame, ``framing_side`` the networks' square in frame pixels, ``foreground`` the matte's
-    foreground colours (linear, the frame's size): the photo's colour wherever it enters the person."""
-
-    frame = scene.frame
-    albedo, stats = detail_mod.detail_albedo(method, foreground, frame.alpha, network_albedo_frame, shading,
-                                             lowpass_sigma=framing_side / NETWORK_RES, shared_scale=shared_scale)
-    work = mask_normalized_resize(albedo, frame.alpha, (scene.width, scene.height))
-    return replace(scene, albedo=np.where(scene.mask[..., None], np.clip(work, 0, 1), 0).astype(np.float32),
-                   frame=replace(frame, albedo=albedo)).validate(only=frozenset({"albedo", "frame"})), stats
-
-
-def fit_psnr(render: np.ndarray, target: np.ndarray, valid: np.ndarray) -> float:
-    """PSNR (dB) of a render against the photo's low-pass over ``valid``, in display sRGB."""
-    from viewer.files.imageio import linear_to_srgb
-
-    a, b = linear_to_srgb(render[valid]), linear_to_srgb(target[valid])
-    mse = float(np.mean((np.clip(a, 0, 1) - np.clip(b, 0, 1)) ** 2))
-    return float(10 * np.log10(1.0 / max(mse, 1e-12)))
 
 
 def bundle_target(out_dir) -> Path:

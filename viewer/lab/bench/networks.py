@@ -85,7 +85,7 @@ def _predict(nets, photo, mask, face: bool = True) -> tuple[Scene, dict]:
     from viewer.nets import depth as depth_net, inverse as inverse_net
     from viewer.nets.photo import exposure_scale
     from viewer.photo import face as face_mod
-    from viewer.photo.inference import NETWORK_RES, extend, map_stack, scene_maps
+    from viewer.photo.network_frame import NETWORK_RES, extend, map_stack, scene_maps
 
     h, w = mask.shape[-2:]
     cam = Camera(w, h)
@@ -180,7 +180,8 @@ def run_networks_benchmark(data, networks_dir=None, output="out/bench_networks.j
     from viewer.lab.data.loader import RelightDataset
     from viewer.lighting.sh import relight as sh_relight
     from viewer.nets.photo import exposure_scale
-    from viewer.photo.inference import NETWORK_RES, load_networks
+    from viewer.photo.inference import load_networks
+    from viewer.photo.network_frame import NETWORK_RES
     from viewer.photo.refinement import Refiner
     from viewer.resources import network_dir
 

@@ -47,7 +47,8 @@ from viewer.lighting.lightfit import lights_for_map
 from viewer.output.render import render_look
 from viewer.photo import detail as detail_mod
 from viewer.photo.frames import read_photo
-from viewer.photo.inference import infer_scene, load_networks, with_detail
+from viewer.photo.inference import infer_scene, load_networks
+from viewer.photo.shading_stages import with_detail
 from viewer.resize import resize
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.look import Look
