@@ -225,7 +225,8 @@ def clip_bundle(clip_with_everything, tmp_path_factory):
 
 
 def test_a_clip_bundle_holds_every_frame_and_resumes(clip_bundle, clip_with_everything):
-    from viewer.photo.clip_inference import clip_target, infer_clip
+    from viewer.photo.clip_cache import clip_target
+    from viewer.photo.clip_inference import infer_clip
     from viewer.scene.bundle import load_scene
     from viewer.scene.clip_bundle import load_clip_bundle
 
@@ -610,7 +611,7 @@ def test_a_warning_every_frame_gives_is_shown_once_and_counted():
     """A clip's frames warn as photos do; a long clip printed a line a frame: now the first, then the count."""
     import warnings
 
-    from viewer.photo.clip_inference import FrameWarnings
+    from viewer.photo.frame_writes import FrameWarnings
 
     shown = FrameWarnings("walk.mp4")
     with warnings.catch_warnings(record=True) as caught:

@@ -146,7 +146,7 @@ def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, 
 def clip_bundle_key(digest: str, max_size: int, version: str) -> str:
     """What a batch's clip bundle is made from: the clip's bytes (``digest``), the whole clip inferred
     as one (temporal on) at ``max_size``, the inference ``version``."""
-    from viewer.photo.clip_inference import clip_key, clip_options
+    from viewer.photo.clip_cache import clip_key, clip_options
     from viewer.photo.frames import WORK_PERSON
 
     return clip_key(digest, clip_options(0.0, None, WORK_PERSON, max_size), version)
@@ -155,7 +155,7 @@ def clip_bundle_key(digest: str, max_size: int, version: str) -> str:
 def cache_path(clip: Path, bundles, max_size: int, digest: str) -> Path:
     """Where a batch keeps the bundle of ``clip`` (in the cache's ``bundles`` folder): the one
     ``relight render CLIP`` makes with the same options (:func:`clip_bundle_key`)."""
-    from viewer.photo.clip_inference import cached_clip_path
+    from viewer.photo.clip_cache import cached_clip_path
     from viewer.photo.frames import WORK_PERSON
 
     return cached_clip_path(clip, bundles, 0.0, None, WORK_PERSON, max_size, digest=digest)

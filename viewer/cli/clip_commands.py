@@ -31,7 +31,8 @@ def _bundle_options(clip, args, out=None) -> tuple[Path, dict]:
     --size, --max-size, --device, --temporal, --person, --people)."""
     from viewer.files.clip_reader import probe_clip
     from viewer.lighting.lightfit.cache import bundles_dir
-    from viewer.photo.clip_inference import cached_clip_path, check_frame_size
+    from viewer.photo.clip_cache import cached_clip_path
+    from viewer.photo.clip_inference import check_frame_size
     from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 
     size = WORK_PERSON if out is None else (getattr(args, "size", None) or WORK_PERSON)  # render's --size is the maps' at render
@@ -49,7 +50,7 @@ def _bundle_options(clip, args, out=None) -> tuple[Path, dict]:
 
 def _said(clip, target: Path, record: dict, seconds: float, pool=None) -> None:
     """What a clip's inference did, said: whom it relit, where no one is, the bundle's frames and speed."""
-    from viewer.photo.clip_inference import person_said
+    from viewer.photo.clip_person import person_said
 
     kept, states = record["frames_kept_from_earlier_run"], record["states"]
     rate = f", {60 * (record['frames'] - kept) / max(seconds, 1e-9):.1f} frames a minute" if record["frames"] > kept else ""
@@ -126,7 +127,7 @@ def view_clip_bundle(args) -> ViewedClip:
 
 
 def cmd_infer_clip(args) -> int:
-    from viewer.photo.clip_inference import clip_target
+    from viewer.photo.clip_cache import clip_target
 
     if args.mask is not None:
         raise InputError(args.mask, "a mask is for a photo: a clip's person is found in every frame")

@@ -22,15 +22,11 @@ maps and exposure), for comparison.
 from __future__ import annotations
 
 import bisect
-import collections
 import contextlib
 import functools
-import hashlib
 import json
-import queue
 import shutil
 import sys
-import threading
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -39,18 +35,25 @@ from viewer.errors import InputError, NoPersonError
 from viewer.files.clip_reader import ClipInfo, check_range, clip_frames, expected_frames, probe_clip
 from viewer.files.imageio import MARK, write_png, write_text
 from viewer.files.ownership import (
-    discard_entry,
-    file_is_ours,
     file_sha256,
     folder_lock,
-    names_ours,
-    set_aside,
-    take_away,
-    written_here,
 )
 from viewer.memory_needs import frames_freed
 from viewer.photo.bundle_version import inference_version
 from viewer.photo.camera_motion import CameraMotion
+from viewer.photo.clip_cache import (
+    BUSY,
+    clip_key,
+    clip_options,
+    clip_target,
+    finished_frame,
+    set_aside_if_damaged,
+    source_state,
+    start_over,
+    unchanged,
+)
+from viewer.photo.clip_person import choose_person, person_gaps
+from viewer.photo.frame_writes import FrameWarnings, FrameWrites
 from viewer.photo.frames import MAX_SIZE, WORK_PERSON, output_frame
 from viewer.photo.inference import infer_scene, load_networks, write_bundle
 from viewer.photo.person_track import PersonTrack
@@ -72,94 +75,6 @@ from viewer.scene.clip_bundle import (
 )
 
 FRAME_MB = (1.5, 2.5)  # disk a frame's bundle takes: MB, plus MB per megapixel of its frame (measured 2.7 MB at 0.42 MP, 3.2 at 0.96)
-
-
-def clip_key(digest: str, options: dict, version: str) -> str:
-    """What a clip bundle is made from, hashed: the clip's bytes, the options, the inference version."""
-    return hashlib.sha256(f"{digest} {json.dumps(options, sort_keys=True)} {version}".encode()).hexdigest()
-
-
-TEMPORAL = ("on", "off")
-
-
-PEOPLE = ("one", "all")
-
-
-def clip_options(start: float, end: float | None, size: int, max_size: int, temporal: str = "on", person: tuple | None = None,
-                 people: str = "one") -> dict:
-    """A clip bundle's options as its record keeps them: the part of the clip, the sizes, ``temporal``,
-    ``person`` (x, y as fractions of the first frame with anyone: the person to relight; None: the
-    largest and most central) and ``people`` ("one": that person; "all": everyone)."""
-    if temporal not in TEMPORAL:
-        raise InputError(None, f"--temporal must be on or off, got {temporal!r}")
-    if people not in PEOPLE:
-        raise InputError(None, f"--people must be one or all, got {people!r}")
-    return {"start": float(start), "end": None if end is None else float(end), "size": int(size), "max_size": int(max_size),
-            "temporal": temporal, "person": None if person is None else [float(person[0]), float(person[1])], "people": people}
-
-
-def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int,
-                     temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one") -> Path:
-    """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``);
-    ``digest``: the clip's SHA-256 when already known."""
-    key = clip_key(digest or file_sha256(clip_path), clip_options(start, end, size, max_size, temporal, person, people),
-                   inference_version())
-    return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
-
-
-def clip_target(out_dir) -> Path:
-    """``out_dir`` as a place for a clip bundle: new, empty, or one this program wrote (its record
-    marked as ours, and nothing in it but the record and the frames' folder). Anything else is
-    refused in one line."""
-    out_dir = Path(out_dir).resolve()
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "exists and is not a folder: give a folder for the clip bundle")
-    if out_dir.is_dir() and any(out_dir.iterdir()):
-        names = {p.name for p in out_dir.iterdir()}
-        if not file_is_ours(out_dir / RECORD) or not names <= WRITTEN_NAMES:
-            raise InputError(out_dir, "is a folder with files relight did not write there: give a new or empty folder for "
-                                      "the clip bundle (nothing was written)")
-    return out_dir
-
-
-def _frames_ours(frames: Path, exactly: bool = True) -> bool:
-    """Whether everything in a clip bundle's ``frames`` folder is what this program wrote there: ``exactly`` as it
-    wrote it (each record's mark, each frame's bundle as its marker lists it), else by name only (a frame's file cut
-    short still counts: :func:`viewer.files.ownership.names_ours`). No link counts."""
-    for p in frames.iterdir():
-        if p.name.startswith("."):  # a frame's bundle being written when a run stopped (fresh_sibling's names)
-            continue
-        if p.suffix in (".json", ".png") and p.stem.isdigit():
-            ours = file_is_ours(p) if exactly else p.is_file() and not p.is_symlink()
-        else:
-            ours = p.name.isdigit() and (written_here(p) if exactly else names_ours(p))
-        if not ours:
-            return False
-    return True
-
-
-def _start_over(out_dir: Path) -> None:
-    """Take away an earlier clip bundle of this program's in ``out_dir`` (another clip or options)."""
-    frames = out_dir / FRAMES
-    if frames.is_dir():
-        if not _frames_ours(frames):
-            raise InputError(frames, "holds files relight did not write: give a new or empty folder for the clip bundle")
-        take_away(frames)
-    (out_dir / RECORD).unlink(missing_ok=True)
-
-
-def _finished(frames: Path, index: int) -> ClipFrameEntry | None:
-    """Frame ``index``'s record when the frame is whole (its record ours, its bundle whole), else None."""
-    record = frames / f"{frame_name(index)}.json"
-    if not file_is_ours(record):
-        return None
-    try:
-        entry = read_frame_entry(record)
-    except InputError:
-        return None
-    if entry.index != index or (entry.state == "person" and not written_here(frames / frame_name(index))):
-        return None
-    return entry
 
 
 MIN_FRAME_SIDE = 32  # pixels: a frame's shorter side at the bundle's size; a person in fewer is not relit
@@ -184,75 +99,6 @@ def _check_disk(path, info: ClipInfo, max_size: int, out_dir: Path, frames: int)
     if need > free:
         raise InputError(path, f"its clip bundle ({frames} frames at {fw}x{fh}) would need about {need / 1e9:.1f} GB of disk, "
                                f"{free / 1e9:.1f} GB is free: choose a part with --start and --end, or a smaller --max-size")
-
-
-BUSY = "another relight is making this clip bundle now: run again when it is done"
-
-
-def entry_problem(out_dir: Path) -> str | None:
-    """What does not check out in the cache's clip bundle ``out_dir`` (None: whole so far, or absent): a link, a
-    file this program did not write there, a record that does not parse or is not its own, a frame's record or
-    files that are not as it wrote them."""
-    if out_dir.is_symlink():
-        return "it is a link"
-    if not out_dir.exists():
-        return None
-    if not out_dir.is_dir():
-        return "it is not a folder"
-    names = {p.name for p in out_dir.iterdir()}
-    if not names:
-        return None
-    if not names <= WRITTEN_NAMES:
-        return f"it holds {sorted(names - WRITTEN_NAMES)[0]!r}, which relight does not write there"
-    if (out_dir / RECORD).is_symlink() or not file_is_ours(out_dir / RECORD):
-        return f"its {RECORD} is not one relight wrote"
-    try:
-        read_record(out_dir)
-    except InputError as exc:
-        return f"its record does not check out ({exc.problem})"
-    frames = out_dir / FRAMES
-    if frames.is_symlink() or (frames.exists() and not frames.is_dir()):
-        return f"its {FRAMES} is a link or not a folder"
-    if frames.is_dir():
-        if not _frames_ours(frames):
-            return "a frame's files are not as relight wrote them"
-        for p in frames.glob("*.json"):
-            try:
-                read_frame_entry(p)
-            except InputError as exc:
-                return f"frame {p.stem}'s record does not check out ({exc.problem})"
-    return None
-
-
-def _names_ours(out_dir: Path) -> bool:
-    """Whether the clip bundle ``out_dir`` holds only what this program writes there, by name (its files' bytes may
-    have changed: a frame's map cut short): no link anywhere, no name it does not write."""
-    if out_dir.is_symlink() or not out_dir.is_dir() or not {p.name for p in out_dir.iterdir()} <= WRITTEN_NAMES:
-        return False
-    if any(p.is_symlink() for p in (out_dir / RECORD, out_dir / PREVIEW)) or (out_dir / FRAMES).is_symlink():
-        return False
-    return not (out_dir / FRAMES).is_dir() or _frames_ours(out_dir / FRAMES, exactly=False)
-
-
-def set_aside_if_damaged(out_dir: Path) -> str | None:
-    """The cache's clip bundle ``out_dir`` out of the way when something in it does not check out
-    (:func:`entry_problem`), so that it is made again: removed when it holds only what this program wrote there, else
-    moved aside, renamed beside it (``.NAME.damaged-TIME-...``: a user's file or a link in it is never removed,
-    :func:`viewer.files.ownership.discard_entry`); the note that says so (None: nothing done). A bundle another run
-    is making now (its lock held) is left to that run."""
-    problem = entry_problem(out_dir)
-    if problem is None:
-        return None
-    if not out_dir.is_symlink() and out_dir.is_dir():
-        try:
-            with folder_lock(out_dir, busy=BUSY):
-                aside = discard_entry(out_dir, _names_ours(out_dir))
-        except InputError:
-            return None
-    else:
-        aside = set_aside(out_dir)
-    where = f"moved aside to {aside.name}" if aside is not None else "removed"
-    return f"{out_dir}: the cached clip bundle did not check out ({problem}): {where}, the clip is inferred again"
 
 
 def locked_bundle(clip_path, out_dir, start: float, end: float | None,
@@ -299,7 +145,7 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
         except InputError:
             earlier = {}
         if earlier.get("key") != key:
-            _start_over(out_dir)
+            start_over(out_dir)
         elif earlier.get("complete") and _whole(out_dir, earlier):
             return out_dir, record, earlier  # whole: nothing to do
         else:  # the same bundle, unfinished: split as it was begun, its person as chosen
@@ -354,99 +200,11 @@ def _left_empty_removed(folder: Path | None):
         raise
 
 
-def source_state(path) -> tuple:
-    """What says a file changed: its device, inode, size and times (a file written over and put back has a new
-    change time, even with its old bytes and modification time)."""
-    st = Path(path).stat()
-    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns
-
-
-def unchanged(clip_path, before: tuple, out_dir: Path) -> None:
-    """The clip bundle in ``out_dir``, made from ``clip_path`` while it was as ``before`` (:func:`source_state`),
-    taken away and one line when the clip changed meanwhile: frames decoded from a clip being written over would
-    be served as the clip's (issue 62)."""
-    try:
-        now = source_state(clip_path)
-    except OSError:
-        now = None
-    if now != before:
-        (out_dir / RECORD).unlink(missing_ok=True)  # first: stopped while the frames go, nothing claims to be whole
-        _start_over(out_dir)
-        (out_dir / PREVIEW).unlink(missing_ok=True)
-        raise InputError(clip_path, "changed while it was being inferred (written over, moved or touched): its bundle was "
-                                    "not kept; run again once it is in place")
-
-
-PREVIEW = "person.png"  # the clip's first frame with anyone, the person chosen outlined, the others dimmed
-WRITTEN_NAMES = frozenset({RECORD, FRAMES, PREVIEW})  # all a clip bundle's folder holds
-CHOOSE_WITHIN = 300  # frames: how far into the clip the person to relight is looked for
-
-
-def choose_person(clip_path, out_dir: Path, start: float, end: float | None, max_size: int, point: tuple | None) -> dict | None:
-    """The person the clip relights, chosen on its first frame with anyone in it (within
-    ``CHOOSE_WITHIN`` frames; :func:`viewer.photo.person_track.choose`, ``point`` given or not),
-    with the preview written into ``out_dir``: what the record keeps ("person"), or None when no
-    one is seen there (each frame then relights whom it finds)."""
-    from viewer.photo.person_track import choose, preview
-    from viewer.photo.segmentation import frame_people
-
-    for frame in clip_frames(clip_path, start, end):
-        if frame.index >= CHOOSE_WITHIN:
-            break
-        if frame.rgb is None:
-            continue
-        small, masks, parts = frame_people(resize(frame.rgb, output_frame((frame.rgb.shape[1], frame.rgb.shape[0]), max_size)),
-                                           clip_path)
-        pick = choose(parts, point)
-        if pick is None:
-            continue
-        write_png(out_dir / PREVIEW, preview(small, masks, pick))
-        box = parts[pick].box
-        return {"frame": frame.index, "seconds": round(frame.seconds, 6), "box": [round(float(v), 5) for v in box],
-                "signature": [round(float(v), 6) for v in parts[pick].signature], "others": len(parts) - 1,
-                "point": None if point is None else list(point)}
-    return None
-
-
-def person_said(clip_path, record: dict, out_dir: Path) -> str:
-    """One line: whom the clip relights (record's "person", :func:`choose_person`), and how to choose otherwise."""
-    chosen, options = record.get("person"), record["options"]
-    if chosen is None:
-        return f"{clip_path}: no one seen in its first {CHOOSE_WITHIN} frames; each frame relights the person it finds"
-    x, y, w, h = chosen["box"]
-    how = "under --person" if chosen.get("point") else "the largest and most central"
-    who = "everyone (--people all)" if options.get("people") == "all" else \
-        f"the person at {100 * (x + w / 2):.0f} % across, {100 * h:.0f} % of the frame's height tall ({how})"
-    others = chosen.get("others", 0)
-    rest = (f"; {others} other{'s' if others != 1 else ''} there left out (--person X,Y chooses another, --people all "
-            "relights everyone)") if others and options.get("people") != "all" else ""
-    at = chosen["seconds"] + float(options["start"])
-    return f"{clip_path}: relighting {who}, first seen at {at:.2f} s{rest}; preview: {Path(out_dir) / PREVIEW}"
-
-
-def person_gaps(clip_path, out_dir: Path, record: dict) -> list[str]:
-    """One line per run of frames without the person (the frame's state "no person") of a complete
-    ``record``, with its frames and times on the clip's clock: the relit clip shows the new
-    background alone there."""
-    gaps, run, count, start = [], None, int(record["frames"]), float(record["options"]["start"])
-    for i in range(count):
-        entry = read_frame_entry(Path(out_dir) / FRAMES / f"{frame_name(i)}.json")
-        if entry.state == "no person":
-            run = [entry, entry] if run is None else [run[0], entry]
-        if run is not None and (entry.state != "no person" or i == count - 1):
-            a, b = run
-            frames = f"frame {a.index}" if a.index == b.index else f"frames {a.index}-{b.index}"
-            gaps.append(f"{clip_path}: no one relit in {frames} ({a.seconds + start:.2f}-{b.seconds + start:.2f} s): {a.note}; "
-                        "the new background alone there")
-            run = None
-    return gaps
-
-
 def _whole(out_dir: Path, record: dict) -> bool:
     """Whether every frame of a complete record is finished and readable as recorded (a pan counted
     from a frame the record has no offset for is not)."""
     for i in range(int(record.get("frames", 0))):
-        entry = _finished(out_dir / FRAMES, i)
+        entry = finished_frame(out_dir / FRAMES, i)
         if entry is None:
             return False
         try:
@@ -576,7 +334,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                 counted_from = begin if mid_shot and shot == begin_shot else None
                 if follow is not None:
                     follow.at(frame.index)
-                entry = _finished(frames_dir, frame.index)
+                entry = finished_frame(frames_dir, frame.index)
                 alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
                 if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
                         (entry.pan_from == counted_from or not writing):  # (a pan counted elsewhere is made again)
@@ -649,95 +407,6 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
             "seconds": round(time.perf_counter() - t0, 3)}
 
 
-class FrameWrites:
-    """A clip's frames written in order on a thread of their own while the next frame is inferred (a
-    frame's bundle, then its record, each put after the one before it). Writing took 0.15 s of a
-    1280x720 frame's 2.1 s, the encoders (zlib, OpenEXR) outside the interpreter's lock. A write that
-    fails is raised by the next :meth:`put`, :meth:`deliver` or :meth:`close`, and what was put after
-    it is not written (a frame's record never without its bundle). At most ``AHEAD`` writes wait."""
-
-    AHEAD = 3
-
-    def __init__(self):
-        self._queue: queue.Queue = queue.Queue(maxsize=self.AHEAD)
-        self._error: BaseException | None = None  # the write that failed, until raised
-        self._failed = False  # a write failed: nothing after it is written (stays set once raised)
-        self._ready: collections.deque = collections.deque()  # calls whose writes are done, for the caller's thread
-        self._thread = threading.Thread(target=self._loop, name="frame-writes", daemon=True)
-        self._thread.start()
-
-    def put(self, write) -> None:
-        self.deliver()
-        self._queue.put(write)
-
-    def after(self, call) -> None:
-        """``call()`` on the caller's thread once every write put before it is done (a frame's progress:
-        the next frame's reader sees it whole), at the next :meth:`deliver`, :meth:`put` or :meth:`close`."""
-        self.put(functools.partial(self._ready.append, call))
-
-    def deliver(self) -> None:
-        """The calls whose writes are done, made; a write that failed, raised."""
-        self._raise_pending()
-        while self._ready:
-            self._ready.popleft()()
-
-    def close(self, quiet: bool = False) -> None:
-        """Wait for every write put; raise the first that failed (``quiet``: not, another exception is on
-        its way out); make the calls left."""
-        self._queue.put(None)
-        self._thread.join()
-        if quiet:
-            self._error = None
-        self.deliver()
-
-    def _loop(self) -> None:
-        while (write := self._queue.get()) is not None:
-            if not self._failed:
-                try:
-                    write()
-                except BaseException as exc:  # noqa: BLE001 - raised on the inference's thread
-                    self._error, self._failed = exc, True
-
-    def _raise_pending(self) -> None:
-        if self._error is not None:
-            error, self._error = self._error, None
-            raise error
-
-
-class FrameWarnings:
-    """A clip's frames warn as photos do, each naming its frame ("CLIP at 1.5 s: the person is
-    sideways ..."): a warning is shown for the first frame that gives it, and at the end one line says
-    how many more frames gave it (a long clip printed a line a frame)."""
-
-    def __init__(self, clip_path):
-        self.clip_path = clip_path
-        self.counts: dict[tuple, int] = {}
-
-    @contextlib.contextmanager
-    def frame(self, label: str):
-        import warnings
-
-        caught: list = []
-        try:
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                yield
-        finally:  # (a frame with no person raises, after its warnings)
-            for w in caught:
-                key = (w.category, str(w.message).replace(label, "", 1).lstrip(": "))
-                self.counts[key] = self.counts.get(key, 0) + 1
-                if self.counts[key] == 1:
-                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-
-    def close(self) -> None:
-        import warnings
-
-        for (category, text), count in self.counts.items():
-            if count > 1:
-                warnings.warn(f"{self.clip_path}: {count - 1} more frame{'s' if count > 2 else ''}: {text}", category, stacklevel=2)
-        self.counts.clear()
-
-
 def _shot_lights(clip_path, frames_dir: Path, record: dict, shot_start: int, begin: int, device: str, networks, ctx):
     """The photo's lights of the shot that began at frame ``shot_start``, for a range that begins at
     ``begin``, later in that shot: fitted on the shot's first frame with a person, as the run that
@@ -751,7 +420,7 @@ def _shot_lights(clip_path, frames_dir: Path, record: dict, shot_start: int, beg
             continue
         if frame.index >= begin:
             return None
-        entry = _finished(frames_dir, frame.index)
+        entry = finished_frame(frames_dir, frame.index)
         if entry is not None:
             if entry.state == "person":
                 return load_lights(frames_dir / frame_name(frame.index) / "lights.json")

@@ -24,7 +24,8 @@ from pathlib import Path
 from viewer.errors import InputError
 from viewer.files.clip_reader import clip_frames
 from viewer.files.imageio import write_text
-from viewer.photo.clip_inference import ClipRange, finish_ranges, infer_frames, locked_bundle, open_clip_bundle, source_state, unchanged
+from viewer.photo.clip_cache import source_state, unchanged
+from viewer.photo.clip_inference import ClipRange, finish_ranges, infer_frames, locked_bundle, open_clip_bundle
 from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 from viewer.photo.shots import ShotCuts
 from viewer.scene.clip_bundle import RECORD, read_record
@@ -68,12 +69,12 @@ class RangedBundle:
     earlier: dict | None
     lock: contextlib.ExitStack
     key: str  # the bundle's (what its clip, options and the inference hash to)
-    source: tuple  # the clip's file as it was when the bundle was made ready (clip_inference.source_state)
+    source: tuple  # the clip's file as it was when the bundle was made ready (clip_cache.source_state)
 
     def finish(self, clip_path, results: list[dict]) -> dict:
         """Every range done (``results`` in the order of the ranges): the record made complete
         (:func:`viewer.photo.clip_inference.finish_ranges`), and the bundle not kept, one line, when the clip changed
-        while its ranges were inferred (:func:`viewer.photo.clip_inference.unchanged`)."""
+        while its ranges were inferred (:func:`viewer.photo.clip_cache.unchanged`)."""
         record = finish_ranges(clip_path, self.path, self.ranges, results)
         unchanged(clip_path, self.source, self.path)
         return record

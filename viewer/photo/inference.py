@@ -383,9 +383,10 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
 
     from viewer.scene.area_lights import AreaLights
 
+    device = compute_device(device)  # "auto": the device this machine has
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size,
-                    "device": compute_device(device),
+                    "device": device,
                     "networks": networks, "detail": detail, "picture": picture, "given_lights": lights,
                     "steady": steady, "follow": follow, "everyone_too": everyone_too}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]

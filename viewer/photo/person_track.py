@@ -143,7 +143,7 @@ def preview(small: np.ndarray, masks: list, pick: int) -> np.ndarray:
 
 class PersonTrack:
     """The person a clip relights, followed from frame to frame (module docstring). Made from the
-    choice kept in the clip bundle's record (:func:`viewer.photo.clip_inference.choose_person`);
+    choice kept in the clip bundle's record (:func:`viewer.photo.clip_person.choose_person`);
     :meth:`pick` chooses among a frame's parts, :meth:`seen` tells it where the person was relit."""
 
     def __init__(self, chosen: dict):

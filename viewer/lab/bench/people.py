@@ -1,7 +1,7 @@
 """``relight bench people``: is the person a clip relights the same one in every frame?
 
 Each clip is read as ``relight infer CLIP`` reads it: its person chosen once
-(:func:`viewer.photo.clip_inference.choose_person`, the preview written beside the JSON), then
+(:func:`viewer.photo.clip_person.choose_person`, the preview written beside the JSON), then
 followed frame by frame through the product's own person finding
 (:func:`viewer.photo.segmentation.find_person` with the clip's
 :class:`viewer.photo.person_track.PersonTrack`), which is what decides whom every frame's matte
@@ -75,7 +75,7 @@ def follow_clip(clip: Path, out_dir: Path, max_size: int, progress=print) -> dic
     """The person ``clip`` relights in every frame, found as the product finds them: per frame the
     state and the relit mask at the bundle's frame size (kept only for the strip and the truth)."""
     from viewer.files.clip_reader import clip_frames
-    from viewer.photo.clip_inference import choose_person
+    from viewer.photo.clip_person import choose_person
     from viewer.photo.frames import output_frame
     from viewer.photo.person_track import PersonTrack
     from viewer.photo.segmentation import find_person
