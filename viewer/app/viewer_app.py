@@ -21,7 +21,7 @@ from viewer.app.frame_log import FrameLog
 from viewer.app.job_polling import JobPolling
 from viewer.app.jobs import ChildWorker, LightJob, SceneJob
 from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
-from viewer.app.panel import PanelState
+from viewer.app.panel_state import PanelState
 from viewer.app.preview import PreviewPace
 from viewer.app.recording import ClipRecording, InteractionRecording, TurntableRecording
 from viewer.app.session import Session
