@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from viewer.cli.batch_command import add_batch_parser
-from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render, cmd_view
+from viewer.cli.commands import DEMO_YAW, cmd_demo, cmd_fit_lights, cmd_infer, cmd_render
 from viewer.cli.plate_commands import cmd_plate_light
 from viewer.cli.shared_options import (
     add_clip_range_args,
@@ -15,6 +15,7 @@ from viewer.cli.shared_options import (
     add_map_light_args,
     add_view_args,
 )
+from viewer.cli.view_command import cmd_view
 from viewer.lighting.lightfit import DEFAULT_METHOD, METHODS
 from viewer.plate.environment import MAP_HEIGHT
 
