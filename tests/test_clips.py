@@ -225,7 +225,7 @@ def clip_bundle(clip_with_everything, tmp_path_factory):
 
 
 def test_a_clip_bundle_holds_every_frame_and_resumes(clip_bundle, clip_with_everything):
-    from viewer.photo.clip_cache import clip_target
+    from viewer.photo.clip_cache import ClipRequest, clip_target
     from viewer.photo.clip_inference import infer_clip
     from viewer.scene.bundle import load_scene
     from viewer.scene.clip_bundle import load_clip_bundle
@@ -261,7 +261,7 @@ def test_a_clip_bundle_holds_every_frame_and_resumes(clip_bundle, clip_with_ever
     again4 = json.loads((bundle.scene_path(4) / "inference.json").read_text())["steady_share"]
     assert again4 == share[4]  # steadied from frame 3's maps as written, as the unbroken run did
     # --temporal off: every frame its own estimates, as a photo
-    off = infer_clip(clip_with_everything, out.parent / "off", end=0.05, temporal="off")
+    off = infer_clip(clip_with_everything, out.parent / "off", request=ClipRequest(end=0.05, temporal="off"))
     assert off["temporal"] == "off" and off["frames"] == 1 and off["shots"] is None
     # a folder with the user's files in it is not a place for a clip bundle
     mine = out.parent / "mine"
@@ -1069,6 +1069,7 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own_and_as_high(tmp_p
     from viewer.files.imageio import linear_to_srgb
     from viewer.lighting.envmap import LUMINANCE, load_envmap
     from viewer.output.clip_frames import ClipFrames
+    from viewer.photo.clip_cache import ClipRequest
     from viewer.photo.clip_inference import infer_clip
     from viewer.photo.frames import read_photo
     from viewer.plate.loader import DEFAULT_FOCAL_35
@@ -1132,7 +1133,7 @@ def test_the_new_ground_is_where_the_clips_camera_sees_its_own_and_as_high(tmp_p
     high = background.copy()
     top = 200 - tall
     high[top:200, x0:x0 + size[0]] = (alpha * person + (1 - alpha) * high[top:200, x0:x0 + size[0]]).astype(np.uint8)
-    infer_clip(write_clip(tmp_path / "high.mp4", [high, high], audio=None), tmp_path / "high", temporal="off")
+    infer_clip(write_clip(tmp_path / "high.mp4", [high, high], audio=None), tmp_path / "high", request=ClipRequest(temporal="off"))
     floating = feet_over_the_sky(load_clip_bundle(tmp_path / "high"))
     assert floating["frames_with_feet"] == floating["over_the_sky"] == 2, floating
 

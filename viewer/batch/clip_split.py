@@ -25,12 +25,13 @@ class SplitClip:
         """The clip's bundle in the cache made ready for ``workers`` ranges; a clip that cannot be read
         (or a bundle already whole) is done at once."""
         from viewer.files.ownership import file_sha256
+        from viewer.photo.clip_cache import ClipRequest
         from viewer.photo.clip_ranges import open_ranges
 
         try:
             digest = file_sha256(clip)
             bundle = open_ranges(clip, cache_path(clip, settings["bundles"], settings["max_size"], digest), workers,
-                                 max_size=settings["max_size"], digest=digest, cached=True)
+                             ClipRequest(max_size=settings["max_size"]), digest, cached=True)
         except Exception as exc:  # noqa: BLE001 - the clip's items fail with its line; the batch goes on
             return cls(clip, None, {"ok": False, "error": task_error(exc)})
         split = cls(clip, bundle)

@@ -146,19 +146,17 @@ def item_key(photo_key: str, source_sha: str, rig_sha: str, lights: np.ndarray, 
 def clip_bundle_key(digest: str, max_size: int, version: str) -> str:
     """What a batch's clip bundle is made from: the clip's bytes (``digest``), the whole clip inferred
     as one (temporal on) at ``max_size``, the inference ``version``."""
-    from viewer.photo.clip_cache import clip_key, clip_options
-    from viewer.photo.frames import WORK_PERSON
+    from viewer.photo.clip_cache import ClipRequest, clip_key
 
-    return clip_key(digest, clip_options(0.0, None, WORK_PERSON, max_size), version)
+    return clip_key(digest, ClipRequest(max_size=max_size).options(), version)
 
 
 def cache_path(clip: Path, bundles, max_size: int, digest: str) -> Path:
     """Where a batch keeps the bundle of ``clip`` (in the cache's ``bundles`` folder): the one
     ``relight render CLIP`` makes with the same options (:func:`clip_bundle_key`)."""
-    from viewer.photo.clip_cache import cached_clip_path
-    from viewer.photo.frames import WORK_PERSON
+    from viewer.photo.clip_cache import ClipRequest, cached_clip_path
 
-    return cached_clip_path(clip, bundles, 0.0, None, WORK_PERSON, max_size, digest=digest)
+    return cached_clip_path(clip, bundles, ClipRequest(max_size=max_size), digest)
 
 
 def check_sources(looks: list[LookSpec]) -> None:

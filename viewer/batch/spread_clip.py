@@ -49,16 +49,14 @@ def run_tasks(pool, tasks: list[dict], poll=None) -> list[dict]:
     return results
 
 
-def infer_spread(pool, clip, target: Path, start: float, end: float | None, size: int, max_size: int, temporal: str,
-                 digest: str, person, people: str, device: str = "cpu", progress=None, cached: bool = False) -> dict:
+def infer_spread(pool, clip, target: Path, request, digest: str, device: str = "cpu", progress=None, cached: bool = False) -> dict:
     """The clip bundle of ``clip`` made in ``target`` by ``pool``'s workers, a range each (one range
     for a short clip); its record (as :func:`viewer.photo.clip_inference.infer_clip` returns it).
     ``progress(done, total, None)`` as frames are finished."""
     from viewer.photo.clip_ranges import open_ranges
     from viewer.scene.clip_bundle import FRAMES
 
-    bundle = open_ranges(clip, target, pool.size, start, end, size, max_size, temporal, digest, person=person, people=people,
-                         cached=cached)
+    bundle = open_ranges(clip, target, pool.size, request, digest, cached=cached)
     try:
         if bundle.earlier is not None:
             return {**bundle.earlier, "frames_kept_from_earlier_run": bundle.earlier["frames"]}

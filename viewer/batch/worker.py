@@ -68,12 +68,13 @@ class Worker:
         """A clip's bundle in the cache (the whole clip, temporal on), made or finished there."""
         from viewer.batch.plan import cache_path
         from viewer.files.ownership import file_sha256
+        from viewer.photo.clip_cache import ClipRequest
         from viewer.photo.clip_inference import infer_clip
 
         digest = file_sha256(task["photo"])
         bundle = cache_path(task["photo"], task["bundles"], task["max_size"], digest)
-        record = infer_clip(task["photo"], bundle, max_size=task["max_size"], device=task.get("device", "cpu"), ctx=self.ctx,
-                            digest=digest, cached=True)
+        record = infer_clip(task["photo"], bundle, ClipRequest(max_size=task["max_size"]), device=task.get("device", "cpu"),
+                            ctx=self.ctx, digest=digest, cached=True)
         return {"bundle": str(bundle), "cached": record["frames_kept_from_earlier_run"] == record["frames"]}
 
     def infer_range(self, task: dict) -> dict:

@@ -25,11 +25,12 @@ def progress_bar(total: int, what: str, position: int | None = None):
 
 def bundle_options(clip, args, out=None) -> tuple[Path, dict]:
     """(where the clip bundle of ``clip`` goes: ``out``, or the cache's when None; the options it is
-    inferred with, :func:`viewer.photo.clip_inference.infer_clip`'s) from ``args`` (--start, --end,
+    inferred with, :func:`viewer.photo.clip_inference.infer_clip`'s: its request, ...) from ``args`` (--start, --end,
     --size, --max-size, --device, --temporal, --person, --people)."""
     from viewer.files.clip_reader import probe_clip
     from viewer.lighting.lightfit.cache import bundles_dir
-    from viewer.photo.clip_cache import cached_clip_path
+    from viewer.nets.device import DEFAULT_DEVICE
+    from viewer.photo.clip_cache import ClipRequest, cached_clip_path
     from viewer.photo.clip_inference import check_frame_size
     from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 
@@ -39,11 +40,9 @@ def bundle_options(clip, args, out=None) -> tuple[Path, dict]:
     person, people = getattr(args, "person", None), getattr(args, "people", None) or "one"
     check_frame_size(clip, probe_clip(clip), max_size)  # (a clip that cannot be read, or is too small: one line before any bar)
     digest = file_sha256(clip)  # read once: the cache's path and the bundle's key
-    target = Path(out) if out is not None else cached_clip_path(clip, bundles_dir(), args.start, args.end,
-                                                                size, max_size, temporal, digest, person, people)
-    return target, {"start": args.start, "end": args.end, "size": size, "max_size": max_size, "temporal": temporal,
-                    "digest": digest, "person": person, "people": people, "device": getattr(args, "device", "cpu"),
-                    "cached": out is None}
+    request = ClipRequest(args.start, args.end, size, max_size, temporal, person, people)
+    target = Path(out) if out is not None else cached_clip_path(clip, bundles_dir(), request, digest)
+    return target, {"request": request, "digest": digest, "device": getattr(args, "device", DEFAULT_DEVICE), "cached": out is None}
 
 
 def say_bundle(clip, target: Path, record: dict, seconds: float, pool=None) -> None:
@@ -87,9 +86,7 @@ def clip_bundle(clip, args, out=None, window=None, pool=None, planned: tuple | N
         if pool is not None:
             from viewer.batch.spread_clip import infer_spread
 
-            record = infer_spread(pool, clip, target, args.start, args.end, options["size"], options["max_size"],
-                                  options["temporal"], options["digest"], options["person"], options["people"],
-                                  device=options["device"], progress=progress, cached=options["cached"])
+            record = infer_spread(pool, clip, target, progress=progress, **options)
         else:
             record = infer_clip(clip, target, progress=progress, ctx=window.ctx if window is not None else None, **options)
     say_bundle(clip, target, record, time.perf_counter() - t0, pool)

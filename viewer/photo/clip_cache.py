@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 from viewer.errors import InputError
@@ -21,6 +22,7 @@ from viewer.files.ownership import (
 )
 from viewer.photo.bundle_version import inference_version
 from viewer.photo.clip_person import PREVIEW
+from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 from viewer.scene.clip_bundle import (
     FRAMES,
     RECORD,
@@ -40,25 +42,37 @@ TEMPORAL = ("on", "off")
 PEOPLE = ("one", "all")
 
 
-def clip_options(start: float, end: float | None, size: int, max_size: int, temporal: str = "on", person: tuple | None = None,
-                 people: str = "one") -> dict:
-    """A clip bundle's options as its record keeps them: the part of the clip, the sizes, ``temporal``,
-    ``person`` (x, y as fractions of the first frame with anyone: the person to relight; None: the
-    largest and most central) and ``people`` ("one": that person; "all": everyone)."""
-    if temporal not in TEMPORAL:
-        raise InputError(None, f"--temporal must be on or off, got {temporal!r}")
-    if people not in PEOPLE:
-        raise InputError(None, f"--people must be one or all, got {people!r}")
-    return {"start": float(start), "end": None if end is None else float(end), "size": int(size), "max_size": int(max_size),
-            "temporal": temporal, "person": None if person is None else [float(person[0]), float(person[1])], "people": people}
+@dataclass(frozen=True)
+class ClipRequest:
+    """What a clip bundle is made with (its record's ``options``): the part of the clip (``start`` to
+    ``end`` seconds; None: its end), the sizes (the person's longer side in the maps, the frame's
+    longer side), ``temporal`` ("on": the lighting and exposure estimated once per shot; "off": every
+    frame as a photo), ``person`` (x, y as fractions of the first frame with anyone: the person to
+    relight; None: the largest and most central) and ``people`` ("one": that person; "all": everyone)."""
+
+    start: float = 0.0
+    end: float | None = None
+    size: int = WORK_PERSON
+    max_size: int = MAX_SIZE
+    temporal: str = "on"
+    person: tuple | None = None
+    people: str = "one"
+
+    def options(self) -> dict:
+        """The request as the record keeps it (checked: a bad ``temporal`` or ``people`` is one line)."""
+        if self.temporal not in TEMPORAL:
+            raise InputError(None, f"--temporal must be on or off, got {self.temporal!r}")
+        if self.people not in PEOPLE:
+            raise InputError(None, f"--people must be one or all, got {self.people!r}")
+        return {"start": float(self.start), "end": None if self.end is None else float(self.end), "size": int(self.size),
+                "max_size": int(self.max_size), "temporal": self.temporal,
+                "person": None if self.person is None else [float(self.person[0]), float(self.person[1])], "people": self.people}
 
 
-def cached_clip_path(clip_path, folder, start: float, end: float | None, size: int, max_size: int,
-                     temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one") -> Path:
-    """Where the cache keeps the clip bundle of ``clip_path`` with these options (in ``folder``);
+def cached_clip_path(clip_path, folder, request: ClipRequest, digest: str | None = None) -> Path:
+    """Where the cache keeps the clip bundle of ``clip_path`` made with ``request`` (in ``folder``);
     ``digest``: the clip's SHA-256 when already known."""
-    key = clip_key(digest or file_sha256(clip_path), clip_options(start, end, size, max_size, temporal, person, people),
-                   inference_version())
+    key = clip_key(digest or file_sha256(clip_path), request.options(), inference_version())
     return Path(folder) / f"{Path(clip_path).stem}-clip-{key[:16]}"
 
 

@@ -39,12 +39,13 @@ from viewer.files.ownership import (
     folder_lock,
 )
 from viewer.memory_needs import frames_freed
+from viewer.nets.device import DEFAULT_DEVICE
 from viewer.photo.bundle_version import inference_version
 from viewer.photo.camera_motion import CameraMotion
 from viewer.photo.clip_cache import (
     BUSY,
+    ClipRequest,
     clip_key,
-    clip_options,
     clip_target,
     finished_frame,
     set_aside_if_damaged,
@@ -54,7 +55,7 @@ from viewer.photo.clip_cache import (
 )
 from viewer.photo.clip_person import choose_person, person_gaps
 from viewer.photo.frame_writes import FrameWarnings, FrameWrites
-from viewer.photo.frames import MAX_SIZE, WORK_PERSON, output_frame
+from viewer.photo.frames import output_frame
 from viewer.photo.inference import infer_scene, load_networks, write_bundle
 from viewer.photo.person_track import PersonTrack
 from viewer.photo.shots import ShotCuts
@@ -119,10 +120,9 @@ def locked_bundle(clip_path, out_dir, start: float, end: float | None,
     return out_dir, folder_lock(out_dir, busy=BUSY)
 
 
-def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-                     max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, person: tuple | None = None,
-                     people: str = "one") -> tuple[Path, dict, dict | None]:
-    """Make ``out_dir`` ready for the clip bundle of ``clip_path`` with these options (its maker holding
+def open_clip_bundle(clip_path, out_dir, request: ClipRequest = ClipRequest(),
+                     digest: str | None = None) -> tuple[Path, dict, dict | None]:
+    """Make ``out_dir`` ready for the clip bundle of ``clip_path`` made with ``request`` (its maker holding
     :func:`locked_bundle`'s lock): (the folder, its record as written now (not complete), the earlier
     record when the bundle there is whole already). An earlier bundle of another clip or options
     there is taken away; one of the same is kept (its finished frames are not inferred again, and
@@ -131,14 +131,15 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
     for the clip (:func:`choose_person`), with its preview."""
     out_dir = Path(out_dir)
     info = probe_clip(clip_path)
+    start, end, max_size = request.start, request.end, request.max_size
     check_frame_size(clip_path, info, max_size)
-    options = clip_options(start, end, size, max_size, temporal, person, people)
+    options = request.options()
     digest = digest or file_sha256(clip_path)
     key = clip_key(digest, options, inference_version())
     total = expected_frames(info, start, end)
     record = {"format": FORMAT, "version": VERSION, "source": {**info.to_json(), "path": str(Path(clip_path).resolve()),
                                                                "sha256": digest},
-              "options": options, "key": key, "temporal": temporal, "complete": False, "expected_frames": total, MARK[0]: MARK[1]}
+              "options": options, "key": key, "temporal": request.temporal, "complete": False, "expected_frames": total, MARK[0]: MARK[1]}
     if (out_dir / RECORD).is_file():
         try:
             earlier = read_record(out_dir)
@@ -153,26 +154,23 @@ def open_clip_bundle(clip_path, out_dir, start: float = 0.0, end: float | None =
     (out_dir / FRAMES).mkdir(parents=True, exist_ok=True)
     _check_disk(clip_path, info, max_size, out_dir, total)
     if "person" not in record:
-        record["person"] = choose_person(clip_path, out_dir, start, end, max_size, person)
+        record["person"] = choose_person(clip_path, out_dir, start, end, max_size, request.person)
     write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
     return out_dir, record, None
 
 
-def infer_clip(clip_path, out_dir, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-               max_size: int = MAX_SIZE, device: str = "cpu", networks: dict | None = None, progress=None, ctx=None,
-               temporal: str = "on", digest: str | None = None, person: tuple | None = None, people: str = "one",
-               cached: bool = False) -> dict:
-    """Write (or finish) the clip bundle of ``clip_path`` from ``start`` to ``end`` seconds into
-    ``out_dir``; returns its record. ``progress(done, total, entry)`` after every frame (``total``
-    the header's estimate). Frames already finished by an earlier run of the same clip and options
-    are kept. ``digest``: the clip's SHA-256 when the caller has just read it; ``person``, ``people``:
-    :func:`clip_options`; ``cached``: ``out_dir`` is the cache's (:func:`locked_bundle`)."""
+def infer_clip(clip_path, out_dir, request: ClipRequest = ClipRequest(), device: str = DEFAULT_DEVICE,
+               networks: dict | None = None, progress=None, ctx=None, digest: str | None = None, cached: bool = False) -> dict:
+    """Write (or finish) the clip bundle of ``clip_path`` made with ``request`` (:class:`ClipRequest`:
+    the part of the clip, the sizes, ...) into ``out_dir``; returns its record. ``progress(done, total,
+    entry)`` after every frame (``total`` the header's estimate). Frames already finished by an earlier
+    run of the same clip and request are kept. ``digest``: the clip's SHA-256 when the caller has just
+    read it; ``cached``: ``out_dir`` is the cache's (:func:`locked_bundle`)."""
     made = not Path(out_dir).exists()
-    out_dir, lock = locked_bundle(clip_path, out_dir, start, end, cached)
+    out_dir, lock = locked_bundle(clip_path, out_dir, request.start, request.end, cached)
     with lock, _left_empty_removed(out_dir if made else None):
         before = source_state(clip_path)
-        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest, person,
-                                                    people)
+        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, request, digest)
         if earlier is not None:
             return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
         if record.get("ranges"):  # begun in ranges by a batch (viewer.photo.clip_ranges): finished range by range, as begun

@@ -24,9 +24,8 @@ from pathlib import Path
 from viewer.errors import InputError
 from viewer.files.clip_reader import clip_frames
 from viewer.files.imageio import write_text
-from viewer.photo.clip_cache import source_state, unchanged
+from viewer.photo.clip_cache import ClipRequest, source_state, unchanged
 from viewer.photo.clip_inference import ClipRange, finish_ranges, infer_frames, locked_bundle, open_clip_bundle
-from viewer.photo.frames import MAX_SIZE, WORK_PERSON
 from viewer.photo.shots import ShotCuts
 from viewer.scene.clip_bundle import RECORD, read_record
 
@@ -83,25 +82,25 @@ class RangedBundle:
         self.lock.close()
 
 
-def open_ranges(clip_path, out_dir, workers: int, start: float = 0.0, end: float | None = None, size: int = WORK_PERSON,
-                max_size: int = MAX_SIZE, temporal: str = "on", digest: str | None = None, overlap: int = OVERLAP,
-                person: tuple | None = None, people: str = "one", cached: bool = False) -> RangedBundle:
+def open_ranges(clip_path, out_dir, workers: int, request: ClipRequest = ClipRequest(), digest: str | None = None,
+                overlap: int = OVERLAP, cached: bool = False) -> RangedBundle:
     """Make ``out_dir`` ready for the clip bundle of ``clip_path`` inferred in ranges (as
     :func:`viewer.photo.clip_inference.open_clip_bundle`, with the shots found, the person chosen and
     the ranges in its record; an unfinished bundle of the same clip and options keeps the ranges it
     was begun in). ``cached``: ``out_dir`` is the cache's (:func:`viewer.photo.clip_inference.locked_bundle`)."""
+    start, end = request.start, request.end
     out_dir, lock = locked_bundle(clip_path, out_dir, start, end, cached)
     held = contextlib.ExitStack()
     held.enter_context(lock)
     try:
         source = source_state(clip_path)
-        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, start, end, size, max_size, temporal, digest,
-                                                       person, people)
+        out_dir, record, earlier = open_clip_bundle(clip_path, out_dir, request, digest)
         if earlier is not None:
             return RangedBundle(out_dir, [], earlier, held, record["key"], source)
         if not record.get("ranges") or not record.get("shot_starts"):
             starts, count = shot_starts(clip_path, start, end)  # (the frames counted: each range's end known)
-            record.update(expected_frames=count, shot_starts=starts, ranges=[r.to_json() for r in split(count, workers, temporal, overlap)])
+            ranges = split(count, workers, request.temporal, overlap)
+            record.update(expected_frames=count, shot_starts=starts, ranges=[r.to_json() for r in ranges])
             write_text(out_dir / RECORD, json.dumps(record, indent=1) + "\n")
         return RangedBundle(out_dir, [ClipRange(*r) for r in record["ranges"]], None, held, record["key"], source)
     except BaseException:

@@ -195,14 +195,15 @@ def map_and_lights(path: Path):
     return env, map_lights(env, path, 16, DEFAULT_METHOD, lambda e: fitted_lights(e, 16, DEFAULT_METHOD))[0]
 
 
-def infer_mode(clip: Path, out_dir: Path, name: str, mode: str, ctx, **options) -> tuple[Path, dict, float]:
-    """``clip`` inferred with ``--temporal mode`` into ``out_dir/bundles/<name>-<mode>`` (``options``: the
-    rest of :func:`viewer.photo.clip_inference.infer_clip`'s): (the bundle's folder, its record, seconds)."""
+def infer_mode(clip: Path, out_dir: Path, name: str, mode: str, ctx, **request) -> tuple[Path, dict, float]:
+    """``clip`` inferred with ``--temporal mode`` into ``out_dir/bundles/<name>-<mode>`` (``request``: the
+    rest of its :class:`viewer.photo.clip_cache.ClipRequest`): (the bundle's folder, its record, seconds)."""
+    from viewer.photo.clip_cache import ClipRequest
     from viewer.photo.clip_inference import infer_clip
 
     bundle_dir = out_dir / "bundles" / f"{name}-{mode}"
     t0 = time.perf_counter()
-    record = infer_clip(clip, bundle_dir, temporal=mode, ctx=ctx, **options)
+    record = infer_clip(clip, bundle_dir, ClipRequest(temporal=mode, **request), ctx=ctx)
     return bundle_dir, record, time.perf_counter() - t0
 
 
