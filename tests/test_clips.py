@@ -323,9 +323,10 @@ def test_the_relit_clip_keeps_frames_timing_and_sound(clip_bundle, clip_with_eve
     clip_render.PART_SECONDS = 0.2  # parts of two frames
     try:
         with pytest.raises(KeyboardInterrupt):
-            clip_render.render_clip(ctx, bundle, lights, look, out, env.pixels, None, EngineOptions(), progress=stop_once)
+            clip_render.render_clip(clip_render.ClipPictures(ctx, bundle, lights, look, env.pixels, None, EngineOptions()), out,
+                                    progress=stop_once)
         assert not out.exists() and (clip_render.parts_folder(out) / "000000.mp4").is_file()
-        result = clip_render.render_clip(ctx, bundle, lights, look, out, env.pixels, None, EngineOptions())
+        result = clip_render.render_clip(clip_render.ClipPictures(ctx, bundle, lights, look, env.pixels, None, EngineOptions()), out)
     finally:
         clip_render.PART_SECONDS = saved
     assert result["parts_reused"] == 1 and result["audio_note"] is None

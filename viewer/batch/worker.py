@@ -86,8 +86,9 @@ class Worker:
                              ctx=self.ctx)
         return {"range_result": result}
 
-    def _clip_render(self, task: dict) -> dict:
-        """What a clip's render takes, from ``task``: render_clip's arguments (the pictures a plate's)."""
+    def _clip_render(self, task: dict):
+        """What a clip's render takes, from ``task``: its pictures (:class:`viewer.output.clip_render.ClipPictures`,
+        or a plate's)."""
         from viewer.gl.options import EngineOptions
         from viewer.lighting.envmap import load_envmap
         from viewer.scene.area_lights import AreaLights
@@ -100,18 +101,17 @@ class Worker:
         fixed = AreaLights.from_array(task["rig"]) if task.get("rig") is not None else None
         lights, look, options = AreaLights.from_array(task["lights"]), Look.from_json(task["look"]), EngineOptions(**task["options"])
         sizes, turn = tuple(task.get("sizes") or (None, task["max_size"])), task.get("turn", 0.0)
-        pictures = None
-        if task.get("plate"):  # the clip's person put into a plate, frame by frame
-            from viewer.output.plate_clip import PlatePictures
-            from viewer.plate.loader import read_plate
-            from viewer.plate.placement import Placement
+        if not task.get("plate"):
+            from viewer.output.clip_render import ClipPictures
 
-            pictures = PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, turn, sizes,
-                                     plate=read_plate(task["plate"], [], task.get("front")).within(task.get("plate_size") or sizes[1]),
-                                     place=Placement(*task["place"]),
-                                     horizon=task["horizon"], cut_allowed=task["cut_allowed"])
-        return {"bundle": bundle, "lights": lights, "look": look, "environment": env, "fixed": fixed, "options": options,
-                "turn": turn, "sizes": sizes, "pictures": pictures}
+            return ClipPictures(self.ctx, bundle, lights, look, env, fixed, options, turn, sizes)
+        from viewer.output.plate_clip import PlatePictures  # the clip's person put into a plate, frame by frame
+        from viewer.plate.loader import read_plate
+        from viewer.plate.placement import Placement
+
+        return PlatePictures(self.ctx, bundle, lights, look, env, fixed, options, turn, sizes,
+                             plate=read_plate(task["plate"], [], task.get("front")).within(task.get("plate_size") or sizes[1]),
+                             place=Placement(*task["place"]), horizon=task["horizon"], cut_allowed=task["cut_allowed"])
 
     def render_clip(self, task: dict) -> dict:
         """A clip item: the relit clip (the map does not turn; the source's framing at --max-size) and
@@ -123,9 +123,9 @@ class Worker:
         t = time.perf_counter()
         folder = Path(task["folder"])
         png, mp4 = (folder / rel for rel in task["outputs"])
-        made = self._clip_render(task)
-        refuse_foreign([audio_sidecar(mp4, made["bundle"].source["path"])])  # where audio an MP4 cannot hold would go
-        result = render_clip(self.ctx, path=mp4, poster=png, **made)
+        pictures = self._clip_render(task)
+        refuse_foreign([audio_sidecar(mp4, pictures.bundle.source["path"])])  # where audio an MP4 cannot hold would go
+        result = render_clip(pictures, mp4, poster=png)
         times = {"render": round(time.perf_counter() - t, 3), "frames": result["frames"]}
         return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]},
                 **({"note": result["audio_note"]} if result["audio_note"] else {})}
@@ -135,17 +135,16 @@ class Worker:
         first, last]), which the batch hands out (:mod:`viewer.batch.clip_split`)."""
         from viewer.output.clip_render import open_render
 
-        made = self._clip_render(task)
-        return {"parts": [list(p) for p in open_render(self.ctx, path=task["output"], layers=task.get("layers", False),
-                                                       per_light=task.get("per_light", False), **made)]}
+        return {"parts": [list(p) for p in open_render(self._clip_render(task), task["output"], layers=task.get("layers", False),
+                                                       per_light=task.get("per_light", False))]}
 
     def render_parts(self, task: dict) -> dict:
         """Some parts of a relit clip (``relight render CLIP --ray``: :mod:`viewer.batch.spread_clip`),
         into the parts folder its driver made ready."""
         from viewer.output.clip_render import render_clip
 
-        return render_clip(self.ctx, path=task["output"], layers=task.get("layers", False), per_light=task.get("per_light", False),
-                           only=task["parts"], **self._clip_render(task))
+        return render_clip(self._clip_render(task), task["output"], layers=task.get("layers", False),
+                           per_light=task.get("per_light", False), only=task["parts"])
 
     def render(self, task: dict) -> dict:
         """An item: its outputs held for the item's run (:mod:`viewer.files.output_lock`: a render writing one of

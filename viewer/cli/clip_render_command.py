@@ -20,6 +20,7 @@ def cmd_render_clip(args, look) -> int:
     from viewer.lighting.envmap import load_envmap
     from viewer.lighting.map_lights import PLATE, lights_source
     from viewer.output.clip_render import (
+        ClipPictures,
         check_layers_folder,
         check_layers_room,
         layer_lights,
@@ -100,9 +101,11 @@ def cmd_render_clip(args, look) -> int:
             bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool, planned=planned) if planned else args.scene)
             t1 = time.perf_counter()
         ctx = create_headless_context()
-        pictures = None
         if plate is not None:
             look, pictures = plate_pictures(ctx, bundle, plate, lights, look, env, rig, args, turn)
+        else:
+            pictures = ClipPictures(ctx, bundle, lights, look, env.pixels if env is not None else None, rig,
+                                    engine_options(args, look), turn, (args.size, args.max_size))
         with progress_bar(len(bundle.frames), f"relighting {out.name}", position=1 if follow is not None else None) as bar:
             def progress(done, total):
                 bar.total = total
@@ -115,9 +118,8 @@ def cmd_render_clip(args, look) -> int:
                 share = parts_sharer(pool, parts_task(bundle, out, args, lights, look, rig, turn, plate, engine_options(args, look)),
                                      parts_folder(out), progress)
             try:
-                result = render_clip(ctx, bundle, lights, look, out, env.pixels if env is not None else None, rig,
-                                     engine_options(args, look), turn, progress=progress, sizes=(args.size, args.max_size),
-                                     layers=args.layers, per_light=args.per_light, pictures=pictures, share=share, follow=follow)
+                result = render_clip(pictures, out, progress=progress, layers=args.layers, per_light=args.per_light, share=share,
+                                     follow=follow)
             except (InputError, OSError):
                 said = follow.refusal() if follow is not None else None  # (the clip changed: its frames taken away)
                 if said is not None:

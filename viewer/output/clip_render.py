@@ -350,13 +350,11 @@ def _folders(pictures: ClipPictures, path: Path, layers: bool, per_light: bool, 
     return folder, sequence
 
 
-def open_render(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
-                fixed: AreaLights | None = None, options=None, turn: float = 0.0, sizes: tuple = (None, None),
-                layers: bool = False, per_light: bool = False, pictures: ClipPictures | None = None) -> list[Part]:
+def open_render(pictures: ClipPictures, path, layers: bool = False, per_light: bool = False) -> list[Part]:
     """What :func:`render_clip` does first, alone: the folders made ready for this render; returns the
     parts not made yet (a batch hands them to its workers, ``render_clip(only=...)``, before the item's
     own render joins them)."""
-    pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
+    bundle = pictures.bundle
     try:
         folder, _ = _folders(pictures, Path(path), layers, per_light)
     finally:
@@ -364,17 +362,16 @@ def open_render(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     return [p for p in clip_parts(bundle) if not file_is_ours(folder / p.name)]
 
 
-def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, environment: np.ndarray | None = None,
-                fixed: AreaLights | None = None, options=None, turn: float = 0.0, progress=None,
-                sizes: tuple = (None, None), poster=None, layers: bool = False, per_light: bool = False,
-                pictures: ClipPictures | None = None, share=None, only: list[int] | None = None, follow=None) -> dict:
-    """Relight ``bundle`` into the MP4 ``path``; ``progress(done, total)`` after every frame (parts
-    kept from an earlier run count at once). Returns what was done: frames, size, parts reused,
-    the audio's note. ``sizes``: (--size, --max-size) each frame's scene is loaded with; ``poster``:
-    a PNG path for the clip's middle frame, relit (a batch's contact sheet shows it); ``layers``:
-    also each frame's layers (:mod:`viewer.output.layers`, ``per_light``: each light's too) as
-    ``NAME.layers/NNNNNN.exr`` (the frame's index), kept beside the video; ``pictures``: the frames made
-    otherwise from the same arguments (a clip on a plate, :class:`viewer.output.plate_clip.PlatePictures`).
+def render_clip(pictures: ClipPictures, path, progress=None, poster=None, layers: bool = False, per_light: bool = False,
+                share=None, only: list[int] | None = None, follow=None) -> dict:
+    """Relight ``pictures``' clip bundle (:class:`ClipPictures`: the bundle, its lights, look, map and
+    engine options, the map's turn over the clip, the sizes each frame's scene is loaded with; a clip
+    on a plate, :class:`viewer.output.plate_clip.PlatePictures`) into the MP4 ``path``;
+    ``progress(done, total)`` after every frame (parts kept from an earlier run count at once). Returns
+    what was done: frames, size, parts reused, the audio's note. ``poster``: a PNG path for the clip's
+    middle frame, relit (a batch's contact sheet shows it); ``layers``: also each frame's layers
+    (:mod:`viewer.output.layers`, ``per_light``: each light's too) as ``NAME.layers/NNNNNN.exr`` (the
+    frame's index), kept beside the video.
 
     Spread over workers (``relight render CLIP --ray``, :mod:`viewer.batch.spread_clip`): ``share(parts)``
     is handed the parts not made yet (:class:`Part` each) once the folders are ready, and returns when
@@ -389,11 +386,11 @@ def render_clip(ctx, bundle: ClipBundle, lights: AreaLights, look: Look, path, e
     what the whole bundle would make of it."""
     from viewer.output.layers import write_layers
 
-    if follow is not None and (share is not None or only is not None or turn):
+    bundle, look = pictures.bundle, pictures.look
+    if follow is not None and (share is not None or only is not None or pictures.turn):
         raise ValueError("a relighting that follows the inference is one process's (no share, no only), "
                          "its map turned by no clip length (no turn)")
     path = Path(path)
-    pictures = pictures or ClipPictures(ctx, bundle, lights, look, environment, fixed, options, turn, sizes)
     folder, sequence = _folders(pictures, path, layers, per_light, ready=only is not None)
 
     def frame_layers(i: int) -> None:  # frame i's layers, unless the same render's are there

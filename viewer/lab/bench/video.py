@@ -239,7 +239,7 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
     """One clip inferred both ways (``--temporal off`` and on) and relit under every map."""
     from viewer.files.imageio import read_png
     from viewer.gl import EngineOptions, create_headless_context
-    from viewer.output.clip_render import render_clip
+    from viewer.output.clip_render import ClipPictures, render_clip
     from viewer.photo.frames import WORK_PERSON, output_frame
     from viewer.scene.area_lights import facing_yaw
     from viewer.scene.clip_bundle import load_clip_bundle
@@ -264,7 +264,8 @@ def _measure_clip(clip: Path, out_dir: Path, maps: list[Path], start: float, end
                 out = out_dir / f"{clip.stem}_{name}_{mode}.mp4"
                 out.unlink(missing_ok=True)
                 t1 = time.perf_counter()
-                render_clip(ctx, bundle, lights, Look(yaw=facing_yaw(lights), exposure=AUTO), out, env.pixels, None, EngineOptions())
+                look = Look(yaw=facing_yaw(lights), exposure=AUTO)
+                render_clip(ClipPictures(ctx, bundle, lights, look, env.pixels, None, EngineOptions()), out)
                 render_seconds[name] = round(time.perf_counter() - t1, 2)
                 relit[f"{mode} {name}"] = out
             n, kept = record["frames"], record["frames_kept_from_earlier_run"]
