@@ -354,9 +354,10 @@ class PlateSaveJob(SaveJob):
     def work(self) -> Path:
         from viewer.files.imageio import write_text
         from viewer.output.plate_render import write_on_plate
+        from viewer.plate.placement import PlateSpot
 
         png = self.stem.with_suffix(".png")
-        write_on_plate(self.frame, self.plate, self.place, png, self.stem.with_suffix(".exr"), layers_in_exr=True,
-                       cut_allowed=True, horizon=self.horizon, anchor=self.anchor)
+        spot = PlateSpot(self.plate, self.place, self.horizon, cut_allowed=True)
+        write_on_plate(self.frame, spot, png, self.stem.with_suffix(".exr"), layers_in_exr=True, anchor=self.anchor)
         write_text(self.stem.with_suffix(".json"), self.state_json)
         return png

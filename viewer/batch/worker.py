@@ -195,11 +195,12 @@ class Worker:
         if task.get("plate"):  # the person put into a plate (its layers written with it)
             from viewer.output.plate_render import render_on_plate
             from viewer.plate.loader import read_plate
-            from viewer.plate.placement import Placement
+            from viewer.plate.placement import Placement, PlateSpot
 
-            render_on_plate(self._engine, self._scene, lights, look, read_plate(task["plate"], []), Placement(*task["place"]),
-                            png, folder / task["outputs"][1], folder / task["outputs"][2] if task.get("layers") else None,
-                            fixed=fixed, source=task["bundle"], cut_allowed=task["cut_allowed"], horizon=task["horizon"])
+            spot = PlateSpot(read_plate(task["plate"], []), Placement(*task["place"]), task["horizon"], task["bundle"],
+                             task["cut_allowed"])
+            render_on_plate(self._engine, self._scene, lights, look, spot, png, folder / task["outputs"][1],
+                            folder / task["outputs"][2] if task.get("layers") else None, fixed=fixed)
             times["render"] = round(time.perf_counter() - t, 3)
             return {"times": times, "sha256": {rel: file_sha256(folder / rel) for rel in task["outputs"]}}
         render_to_files(self._engine, self._scene, lights, png.parent, png.stem, look, environment=env, passes=False,

@@ -96,7 +96,7 @@ def cmd_render_plate(args, look) -> int:
     from viewer.output.plate_render import plate_look, render_on_plate
     from viewer.plate.environment import plate_light
     from viewer.plate.loader import read_plate
-    from viewer.plate.placement import Placement, person_lens_mismatch
+    from viewer.plate.placement import Placement, PlateSpot, person_lens_mismatch
     from viewer.scene.look import AUTO
     from viewer.scene.resampling import load_sized_scene
 
@@ -132,9 +132,9 @@ def cmd_render_plate(args, look) -> int:
         warnings.warn(f"{plate.source}: {lens}", stacklevel=2)
     engine = Engine(create_headless_context(), scene, engine_options(args, look))
     try:
-        matched = render_on_plate(engine, scene, lights, plate_look(look, auto), plate, place, out, outputs[1],
-                                  layers_in_exr=args.layers, fixed=rig_lights(args), source=args.scene,
-                                  cut_allowed=args.height is not None, horizon=horizon)
+        spot = PlateSpot(plate, place, horizon, args.scene, cut_allowed=args.height is not None)
+        matched = render_on_plate(engine, scene, lights, plate_look(look, auto), spot, out, outputs[1],
+                                  layers_in_exr=args.layers, fixed=rig_lights(args))
     finally:
         engine.release()
     seconds = time.perf_counter() - start

@@ -14,7 +14,7 @@ from viewer.output.plate_composite import composite_on_plate
 from viewer.plate.loader import Plate
 from viewer.plate.match import feet_blur, grain_levels, with_grain
 from viewer.plate.people import in_front
-from viewer.plate.placement import Placement, enlarged, landing_box, plate_transform
+from viewer.plate.placement import Placement, PlateSpot, enlarged, landing_box, plate_transform
 from viewer.scene.look import Look
 
 
@@ -42,18 +42,17 @@ def read_person(engine) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, floa
     return person, shadow, alpha, sky_share(engine.lights) if engine.look.ground else 0.0
 
 
-def render_on_plate(engine, scene, lights, look: Look, plate: Plate, place: Placement, png, exr, layers=None,
-                    layers_in_exr: bool = False, fixed=None, source=None, cut_allowed: bool = False,
-                    horizon: float | None = None) -> dict:
+def render_on_plate(engine, scene, lights, look: Look, spot: PlateSpot, png, exr, layers=None, layers_in_exr: bool = False,
+                    fixed=None) -> dict:
     """Render ``scene`` (the engine's) under ``lights`` (and ``fixed``, a rig) and ``look`` (as
-    :func:`plate_look` made it), composite it into ``plate`` at ``place`` and write the files
-    (:func:`write_on_plate`). Returns what was matched: the defocus and the grain."""
+    :func:`plate_look` made it), composite it into the plate at its spot (:class:`PlateSpot`) and write
+    the files (:func:`write_on_plate`). Returns what was matched: the defocus and the grain."""
     from viewer.output.render import resolve_exposure
 
     engine.set_lights(lights, fixed)
     engine.set_look(resolve_exposure(engine, scene, look))
     engine.render()
-    return write_on_plate(read_person(engine), plate, place, png, exr, layers, layers_in_exr, source, cut_allowed, horizon)
+    return write_on_plate(read_person(engine), spot, png, exr, layers, layers_in_exr)
 
 
 def composite_frame(frame: tuple, plate: Plate, place: Placement, blur: float, horizon: float | None, anchor: np.ndarray | None = None,
@@ -76,22 +75,22 @@ def composite_frame(frame: tuple, plate: Plate, place: Placement, blur: float, h
     return result, transform, box
 
 
-def write_on_plate(frame: tuple, plate: Plate, place: Placement, png, exr, layers=None, layers_in_exr: bool = False,
-                   source=None, cut_allowed: bool = False, horizon: float | None = None, anchor: np.ndarray | None = None) -> dict:
-    """The person (``frame``: :func:`read_person`'s) composited into ``plate`` at ``place``, matched to
+def write_on_plate(frame: tuple, spot: PlateSpot, png, exr, layers=None, layers_in_exr: bool = False,
+                   anchor: np.ndarray | None = None) -> dict:
+    """The person (``frame``: :func:`read_person`'s) composited into the plate at its spot (:class:`PlateSpot`), matched to
     the plate's defocus and grain, and written: ``png`` (8-bit sRGB, the plate's grain on the person),
     ``exr`` (linear; with ``layers_in_exr`` also the layers: the person premultiplied, the shadow as a
     multiplier, the plate) and ``layers`` (those layers in a file of their own, a batch's), all
-    replaced together; ``horizon`` the plate's (a fraction of its height: the contact shadow's ground);
-    ``anchor`` the matte the person is placed by when not the frame's own (a clip's first person's: every
+    replaced together; ``anchor`` the matte the person is placed by when not the frame's own (a clip's first person's: every
     frame carried into the plate alike, :mod:`viewer.output.plate_clip`). No GL: a window's save writes it
     on a thread."""
     from viewer.files.imageio import atomic_paths, linear_to_srgb, write_png
     from viewer.output.layers import write_layers
 
+    plate, place = spot.plate, spot.place
     blur, grain = feet_blur(plate.srgb, place), grain_levels(plate.srgb)
     linear = plate.linear
-    result, transform, _ = composite_frame(frame, plate, place, blur, horizon, anchor, source, cut_allowed)
+    result, transform, _ = composite_frame(frame, plate, place, blur, spot.horizon, anchor, spot.source, spot.cut_allowed)
     soft = enlarged(transform.scale)
     if soft:
         warnings.warn(f"{plate.source}: {soft}", stacklevel=2)

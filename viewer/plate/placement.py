@@ -36,6 +36,20 @@ class Placement:
     height: float
 
 
+@dataclass(frozen=True)
+class PlateSpot:
+    """Where a person is put: the ``plate`` (:class:`viewer.plate.loader.Plate`), their ``place`` on it,
+    the plate's ``horizon`` (a fraction of its height from its top: the contact shadow's ground; None:
+    not known), their ``source`` (the photo or bundle named in messages) and whether their frame may
+    be cut by the plate's edge (``cut_allowed``: placed by hand)."""
+
+    plate: object
+    place: Placement
+    horizon: float | None = None
+    source: object = None
+    cut_allowed: bool = False
+
+
 def placement(at: tuple[float, float] | None = None, height: float | None = None, horizon: float | None = None,
               camera_height: float | None = None) -> Placement:
     """The person's place in the plate from the options given, the rest as the module says (the plate's

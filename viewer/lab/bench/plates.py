@@ -380,7 +380,7 @@ def identity(photos: list[Path], folder: Path, progress=print) -> dict:
     from viewer.photo.inference import cached_bundle
     from viewer.plate.environment import plate_light
     from viewer.plate.loader import read_plate
-    from viewer.plate.placement import Placement, feet
+    from viewer.plate.placement import Placement, PlateSpot, feet
     from viewer.scene.bundle import load_scene
     from viewer.scene.look import Look
 
@@ -401,8 +401,8 @@ def identity(photos: list[Path], folder: Path, progress=print) -> dict:
             engine = Engine(ctx, scene)
             out = folder / f"{Path(photo).stem}_in_itself.png"
             try:
-                render_on_plate(engine, scene, lights, plate_look(Look(yaw=0.0)), empty, place, out, out.with_suffix(".exr"),
-                                cut_allowed=True)
+                render_on_plate(engine, scene, lights, plate_look(Look(yaw=0.0)), PlateSpot(empty, place, cut_allowed=True), out,
+                                out.with_suffix(".exr"))
             finally:
                 engine.release()
             made = read_png(out)
