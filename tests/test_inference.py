@@ -48,7 +48,7 @@ def landscape(tmp_path_factory, ctx):
     """The landscape photo inferred with the shipped networks and its hand-made mask (evaluation
     use): (bundle folder, the inference in memory with its intermediate images)."""
     out = tmp_path_factory.mktemp("landscape") / "bundle"
-    result = infer_scene(PHOTOS / f"{LANDSCAPE}.jpg", PHOTOS / f"{LANDSCAPE}.mask.png", ctx=ctx, keep_intermediate=True)
+    result = infer_scene(PHOTOS / f"{LANDSCAPE}.jpg", PHOTOS / f"{LANDSCAPE}.mask.png", ctx=ctx)
     write_bundle(result, out)
     return out, result
 

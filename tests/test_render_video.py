@@ -80,7 +80,7 @@ def test_turntable_is_temporally_stable(ctx, tmp_path):
 
     eng = Engine(ctx, scene, EngineOptions())
     path = tmp_path / "t.mp4"
-    assert render_turntable(eng, scene, lights, path, Look(yaw=180.0, background="color"), 32) == (256, 256)
+    assert render_turntable(eng, lights, path, Look(yaw=180.0, background="color"), 32) == (256, 256)
     eng.release()
     video, _ = read_video(path)
     assert video.shape == (32, 256, 256, 3)

@@ -181,7 +181,7 @@ def _render(args) -> int:
     start = time.perf_counter()
     try:
         with tqdm(total=frames, unit="frame", desc=f"rendering {out.name}", leave=False) as bar:
-            width, height = render_turntable(engine, scene, lights, out, look, frames, fps=args.fps, turn=turn,
+            width, height = render_turntable(engine, lights, out, look, frames, fps=args.fps, turn=turn,
                                              environment=env, progress=lambda done, total: bar.update(1),
                                              fixed=rig_lights(args))
     finally:

@@ -82,7 +82,7 @@ class Engine:
         self.stale = Staleness((self.shadow_map_pass, self.csm_basis_pass, self.prefilter_pass, self.light_pass),
                                (self.composite_pass, self.ground_pass, *self.picture.passes))
         self.output = Readback(kit, self.picture, self.composite_pass, self.ground_pass, self.atlas, res, self.csm_basis_pass,
-                               o.terms, (scene.height, scene.width), lambda: self._lights, self._picture_inputs, self._soft_is_hard)
+                               lambda: self._lights, self._picture_inputs, self._soft_is_hard)
         self._unit_costs: dict[str, float] = {}  # seconds each kind of unit of work took last (WorkBudget)
         self._partial = {"ground": -1, "picture": -1}  # Staleness.changes when a budgeted render left each part-way
         self.complete = False  # the display holds a frame of the current state (render)

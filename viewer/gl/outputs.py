@@ -32,11 +32,12 @@ class Readback:
     the engine's lights, ``picture_inputs()`` what its picture draws from now, and
     ``soft_is_hard(light)`` whether a light's soft visibility is its hard one."""
 
-    def __init__(self, kit: PassKit, picture, composite_pass, ground_pass, atlas, resources, csm_basis_pass, terms: int,
-                 shape: tuple[int, int], lights, picture_inputs, soft_is_hard):
-        self.ctx, self.kit, self.picture, self.shape = kit.ctx, kit, picture, shape
+    def __init__(self, kit: PassKit, picture, composite_pass, ground_pass, atlas, resources, csm_basis_pass, lights,
+                 picture_inputs, soft_is_hard):
+        self.ctx, self.kit, self.picture = kit.ctx, kit, picture
+        self.shape = tuple(resources.positions.size[::-1])  # the maps' (H, W): the scene's textures are theirs
         self.composite_pass, self.ground_pass, self.atlas, self.resources = composite_pass, ground_pass, atlas, resources
-        self.csm_basis_pass, self.terms = csm_basis_pass, terms
+        self.csm_basis_pass, self.terms = csm_basis_pass, csm_basis_pass.terms
         self._lights, self._picture_inputs, self._soft_is_hard = lights, picture_inputs, soft_is_hard
 
     @in_context

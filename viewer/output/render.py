@@ -207,16 +207,16 @@ def turntable_yaws(start: float, turn: float, frames: int) -> np.ndarray:
     return start + turn * np.arange(frames) / frames if abs(turn) >= 360 else start + turn * np.arange(frames) / max(frames - 1, 1)
 
 
-def render_turntable(engine, scene: Scene, lights: AreaLights, path, settings: Look, frames: int,
-                     fps: float = 30.0, turn: float = 360.0, environment: np.ndarray | None = None,
-                     progress=None, fixed: AreaLights | None = None) -> tuple[int, int]:
-    """A relit video of the lighting turning about the vertical axis (``frames`` frames over
+def render_turntable(engine, lights: AreaLights, path, settings: Look, frames: int, fps: float = 30.0, turn: float = 360.0,
+                     environment: np.ndarray | None = None, progress=None, fixed: AreaLights | None = None) -> tuple[int, int]:
+    """A relit video of the engine's scene, the lighting turning about the vertical axis (``frames`` frames over
     ``turn`` degrees, starting at ``settings.yaw``) written to ``path`` (H.264 MP4).
     ``progress(done, total)`` is called after every frame. Returns the video's (width, height)."""
     from viewer.output.video import VideoWriter
 
     if frames < 1:
         raise InputError(path, f"a video needs at least one frame, got {frames}")
+    scene = engine.scene
     engine.set_environment(environment)
     refiner = None
     engine.set_lights(lights, fixed)

@@ -56,7 +56,7 @@ from viewer.photo.clip_cache import (
 from viewer.photo.clip_person import choose_person, person_gaps
 from viewer.photo.frame_writes import FrameWarnings, FrameWrites
 from viewer.photo.frames import output_frame
-from viewer.photo.inference import infer_scene, load_networks, write_bundle
+from viewer.photo.inference import ClipFrame, infer_scene, load_networks, write_bundle
 from viewer.photo.person_track import PersonTrack
 from viewer.photo.shots import ShotCuts
 from viewer.photo.steady import SteadyMaps
@@ -175,8 +175,8 @@ def infer_clip(clip_path, out_dir, request: ClipRequest = ClipRequest(), device:
             return {**earlier, "frames_kept_from_earlier_run": earlier["frames"]}
         if record.get("ranges"):  # begun in ranges by a batch (viewer.photo.clip_ranges): finished range by range, as begun
             ranges = [ClipRange(*r) for r in record["ranges"]]
-            done = [infer_frames(clip_path, out_dir, record, r.first, r.last, r.warm, record.get("shot_starts"), device=device,
-                                 networks=networks, progress=progress, ctx=ctx) for r in ranges]
+            done = [infer_frames(clip_path, out_dir, record, r, record.get("shot_starts"), device=device, networks=networks,
+                                 progress=progress, ctx=ctx) for r in ranges]
             record = finish_ranges(clip_path, out_dir, ranges, done)
         else:
             done = infer_frames(clip_path, out_dir, record, device=device, networks=networks, progress=progress, ctx=ctx)
@@ -265,10 +265,9 @@ def finish_record(clip_path, out_dir: Path, record: dict, runs: list[dict], **mo
     return record
 
 
-def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | None = None, warm: int = 0,
-                 shot_starts: list[int] | None = None, device: str = "cpu", networks: dict | None = None, progress=None,
-                 ctx=None) -> dict:
-    """Infer frames ``first`` to ``last`` (excluded; None: the clip's end) of the clip bundle in ``out_dir``
+def infer_frames(clip_path, out_dir, record: dict, frames: ClipRange | None = None, shot_starts: list[int] | None = None,
+                 device: str = DEFAULT_DEVICE, networks: dict | None = None, progress=None, ctx=None) -> dict:
+    """Infer ``frames`` (a :class:`ClipRange`, ``first`` to ``last`` excluded; None: the whole clip) of the clip bundle in ``out_dir``
     (made ready by :func:`open_clip_bundle`, ``record``), each written whole as it is done; a frame
     finished by an earlier run is read instead. The ``warm`` frames before ``first`` are inferred (or
     read, when another run finished them) only to carry what one frame hands the next (the steadied
@@ -277,6 +276,7 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
     beforehand (ranges); None: the cuts are found as the frames come. Returns what was done: the
     frames per state, those kept, the frames seen (the last index + 1), the first frame's time on
     the clip's clock, the shots, the seconds, and the pan the camera's motion gave frame ``first - 1``."""
+    first, last, warm = (frames.first, frames.last, frames.warm) if frames is not None else (0, None, 0)
     from viewer.gl import create_headless_context
 
     options, temporal = record["options"], record["temporal"]
@@ -360,10 +360,10 @@ def infer_frames(clip_path, out_dir, record: dict, first: int = 0, last: int | N
                     else:
                         try:
                             with warned.frame(label):
+                                given = ClipFrame(frame.rgb, shot_lights.get(shot), (steady, shot) if steady is not None else None,
+                                                  follow, everyone_too)
                                 result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
-                                                     ctx=ctx, picture=frame.rgb, lights=shot_lights.get(shot),
-                                                     steady=(steady, shot) if steady is not None else None, follow=follow,
-                                                     everyone_too=everyone_too)
+                                                     ctx=ctx, clip=given)
                         except NoPersonError as exc:  # the frame as it is: what a photo background shows there
                             if steady is not None:
                                 steady.restart()
@@ -426,9 +426,9 @@ def _shot_lights(clip_path, frames_dir: Path, record: dict, shot_start: int, beg
         if follow is not None:
             follow.at(frame.index)
         try:
+            given = ClipFrame(frame.rgb, follow=follow, everyone_too=options.get("people") == "all")
             return infer_scene(f"{clip_path} at {frame.seconds + start:.3f} s", None, size=size, max_size=max_size, device=device,
-                               networks=networks(), ctx=ctx, picture=frame.rgb, follow=follow,
-                               everyone_too=options.get("people") == "all")["lights"]
+                               networks=networks(), ctx=ctx, clip=given)["lights"]
         except NoPersonError:
             continue
     return None

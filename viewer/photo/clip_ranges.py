@@ -118,6 +118,5 @@ def infer_range(clip_path, out_dir, clip_range: ClipRange, key: str | None = Non
             (record["temporal"] == "on" and not record.get("shot_starts")):
         raise InputError(Path(out_dir) / RECORD, f"is not ready for frames {clip_range.first} to {clip_range.last - 1} "
                                                  "(made again by another run?): run the batch again")
-    return infer_frames(clip_path, out_dir, record, clip_range.first, clip_range.last, clip_range.warm,
-                        record.get("shot_starts") if record["temporal"] == "on" else None, device=device, networks=networks,
-                        progress=progress, ctx=ctx)
+    return infer_frames(clip_path, out_dir, record, clip_range, record.get("shot_starts") if record["temporal"] == "on" else None,
+                        device=device, networks=networks, progress=progress, ctx=ctx)

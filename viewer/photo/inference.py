@@ -183,23 +183,25 @@ class Stage:
     outputs: tuple[str, ...]
 
 
-def _read(photo_path, max_size, picture):
+def _read(photo_path, max_size, clip):
     notes: list[str] = []
     inputs: dict[str, str] = {}  # SHA-256 of the bytes decoded: what this bundle was made from
     lens: dict = {}  # the photo's EXIF focal length (a plate compares its perspective: viewer.plate.placement)
-    if picture is None:
+    if clip is None:
         _check_memory(photo_path, max_size)
         photo = read_photo(photo_path, notes, inputs, lens)
     else:  # a clip's frame, decoded and upright (viewer.photo.clip_inference): the clip's bytes are its input
-        photo = picture
+        photo = clip.picture
     h, w = photo.shape[:2]
     frame = output_frame((w, h), max_size)
     return {"photo": photo, "frame": frame, "frame_photo": resize(photo, frame), "notes": notes, "inputs": inputs,
             "focal_35mm": lens.get("focal_35mm")}
 
 
-def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size, steady, follow, everyone_too):
+def _mask(photo_path, mask_path, photo, frame, frame_photo, notes, inputs, size, max_size, clip):
     from viewer.photo.segmentation import find_person
+
+    steady, follow, everyone_too = (clip.steady, clip.follow, clip.everyone_too) if clip is not None else (None, None, False)
 
     h, w = photo.shape[:2]
     if mask_path is not None:
@@ -275,11 +277,12 @@ def _depth(nets, linear, m, camera):
     return {"depth": depth_net.predict(nets["depth"], linear, m, camera.distance)}
 
 
-def _maps_to_work_frame(frame_photo, alpha, person, matte, landmarks, sizes, framing, maps, depth, m, camera, work_mask):
+def _maps_to_work_frame(frame_photo, matte, landmarks, sizes, framing, maps, depth, m, camera, work_mask):
     from viewer.files.imageio import srgb_to_linear
     from viewer.scene.bundle import FrameLayer, Scene
 
-    s = sizes.work_scale
+    alpha, s = matte.alpha, sizes.work_scale
+    person = alpha > 0.5
     work = to_work_frame(extend(map_stack(maps, depth), m).cpu().double(), framing, sizes.work, s).astype(np.float32)
     frame_linear = srgb_to_linear(frame_photo.astype(np.float32) / 255.0)
     # upsampled from the maps extended past the mask, not from the zeroed ones: zeros mixed in at
@@ -305,9 +308,9 @@ def _maps_to_work_frame(frame_photo, alpha, person, matte, landmarks, sizes, fra
 # stages that read it. A new stage: its work in a module of viewer/photo/ (as face.py, detail.py),
 # and one line here.
 STAGE_LIST = (
-    Stage("read", _read, ("photo_path", "max_size", "picture"), ("photo", "frame", "frame_photo", "notes", "inputs", "focal_35mm")),
+    Stage("read", _read, ("photo_path", "max_size", "clip"), ("photo", "frame", "frame_photo", "notes", "inputs", "focal_35mm")),
     Stage("mask", _mask, ("photo_path", "mask_path", "photo", "frame", "frame_photo", "notes", "inputs", "size", "max_size",
-                          "steady", "follow", "everyone_too"),
+                          "clip"),
           ("matte", "landmarks", "mask_source", "alpha", "person", "body", "turned", "sizes")),
     Stage("load networks", _load_networks, ("photo_path", "mask_path", "frame_photo", "alpha", "body", "networks", "device"),
           ("framing", "small", "small_mask", "nets")),
@@ -316,7 +319,7 @@ STAGE_LIST = (
           ("work_mask", "side_work", "camera", "linear", "m", "maps", "network_lights", "exposure_scale")),
     Stage("depth", _depth, ("nets", "linear", "m", "camera"), ("depth",)),
     Stage("maps to the work frame", _maps_to_work_frame,
-          ("frame_photo", "alpha", "person", "matte", "landmarks", "sizes", "framing", "maps", "depth", "m", "camera", "work_mask"),
+          ("frame_photo", "matte", "landmarks", "sizes", "framing", "maps", "depth", "m", "camera", "work_mask"),
           ("scene", "frame_linear", "frame_network_albedo", "blur_px", "skin", "gloss_record")),
     Stage("face", face_stage, ("scene", "frame_photo", "alpha", "sizes", "skin", "body", "gloss_record", "steady"),
           ("scene", "face_record", "face_surface", "gloss_record")),
@@ -366,19 +369,31 @@ def run_stages(values: dict, stage, ctx=None) -> dict:
     return values
 
 
+@dataclass(frozen=True)
+class ClipFrame:
+    """What a clip gives one frame's inference beside its pixels' name: ``picture`` the frame decoded
+    (H, W, 3) uint8 sRGB upright; ``lights`` the photo's own lights already known (the shot's, fitted on
+    its first frame; None: fitted here); ``steady`` (the clip's :class:`viewer.photo.steady.SteadyMaps`,
+    the frame's shot): its maps made steady; ``follow`` the clip's
+    :class:`viewer.photo.person_track.PersonTrack`, the person it relights; ``everyone_too``: everyone
+    found is relit (:func:`viewer.photo.segmentation.find_person`)."""
+
+    picture: np.ndarray
+    lights: object = None
+    steady: tuple | None = None
+    follow: object = None
+    everyone_too: bool = False
+
+
 def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: int = MAX_SIZE, device: str = DEFAULT_DEVICE,
                 networks: dict | None = None, progress=None, ctx=None, detail: str = detail_mod.DEFAULT,
-                keep_intermediate: bool = False, picture: np.ndarray | None = None, lights=None, steady=None, follow=None,
-                everyone_too: bool = False) -> dict:
+                clip: ClipFrame | None = None) -> dict:
     """Everything :func:`infer` writes, in memory: ``scene`` (with its frame layer), ``lights``
-    (the photo's, fitted), ``network_lights``, ``record``; with ``keep_intermediate`` also the
-    network's maps and the photo's shading at the frame (for the benchmarks). The work is
-    :data:`STAGE_LIST`, run by :func:`run_stages`. ``picture``: the photo's pixels already decoded
-    (H, W, 3) uint8 sRGB upright (a clip's frame), ``photo_path`` then only names it in messages;
-    ``lights``: the photo's own lights already known (a clip's shot), not fitted again; ``steady``:
-    (a clip's :class:`viewer.photo.steady.SteadyMaps`, the frame's shot), its maps made steady;
-    ``follow``: a clip's :class:`viewer.photo.person_track.PersonTrack`, the person it relights;
-    ``everyone_too``: everyone found is relit (:func:`viewer.photo.segmentation.find_person`)."""
+    (the photo's, fitted), ``network_lights``, ``record``; for a photo also the network's maps and the
+    photo's shading at the frame (``network_albedo_frame``, ``shading``, ``target``, ``valid``,
+    ``explained``, ``foreground``: for the benchmarks; a clip's frames leave them out, their memory is the
+    clip's). The work is :data:`STAGE_LIST`, run by :func:`run_stages`. ``clip``: a clip's frame
+    (:class:`ClipFrame`: its pixels, ``photo_path`` then only names it in messages)."""
     import torch
 
     from viewer.scene.area_lights import AreaLights
@@ -387,8 +402,8 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size,
                     "device": device,
-                    "networks": networks, "detail": detail, "picture": picture, "given_lights": lights,
-                    "steady": steady, "follow": follow, "everyone_too": everyone_too}, stage, ctx)
+                    "networks": networks, "detail": detail, "clip": clip, "given_lights": clip and clip.lights,
+                    "steady": clip and clip.steady}, stage, ctx)
     scene, sizes, f = v["scene"], v["sizes"], v["framing"]
     if v["focal_35mm"]:  # the photo's lens, kept with its frame
         scene = replace(scene, frame=replace(scene.frame, focal_35mm=float(v["focal_35mm"])))
@@ -403,7 +418,7 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
               "photo_lighting": v["fit"], "detail": v["detail_stats"], "pipeline": PIPELINE,
               **({"steady_share": v["steady_share"]} if v["steady_share"] is not None else {})}
     result = {"scene": scene, "lights": v["lights"], "network_lights": network_lights, "record": record, "stages": stage}
-    if keep_intermediate:
+    if clip is None:
         result.update(network_albedo_frame=v["frame_network_albedo"], shading=v["shading"], target=v["target"],
                       valid=v["valid"], explained=v["explained"], foreground=v["matte"].foreground)
     return result

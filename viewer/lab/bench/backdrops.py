@@ -33,7 +33,7 @@ from viewer.gl import Engine, EngineOptions, create_headless_context
 from viewer.lab.bench.metrics import bleed, gaps_found, kept_backdrop, on_backdrop, on_studio, spill_cut
 from viewer.lab.bench.photo_set import collect, lights_loader, relit_person
 from viewer.photo.frames import output_frame, read_mask, read_photo
-from viewer.photo.inference import infer_scene, load_networks
+from viewer.photo.inference import ClipFrame, infer_scene, load_networks
 from viewer.resize import resize
 
 BACKDROPS = {"pink": (236, 150, 190), "navy": (30, 40, 80), "white": (242, 242, 240), "grey": (128, 128, 128)}
@@ -53,7 +53,7 @@ def measure_composite(image: np.ndarray, hand: np.ndarray, name: str, ctx, nets,
     """One composite's row (see the module's docstring): ``image`` uint8 sRGB at its output frame,
     ``hand`` the mask there."""
     t = time.perf_counter()
-    result = infer_scene(name, networks=nets, ctx=ctx, picture=image)
+    result = infer_scene(name, networks=nets, ctx=ctx, clip=ClipFrame(image))
     infer_s = time.perf_counter() - t
     scene = result["scene"]
     eng = Engine(ctx, scene, EngineOptions())

@@ -139,7 +139,7 @@ def _photo_row(path: Path, ctx, nets, maps, methods, progress) -> tuple[dict, di
     photo = read_photo(path, notes)
     reference = path.with_name(path.stem + ".mask.png")
     t0 = time.perf_counter()
-    result = infer_scene(path, None, networks=nets, ctx=ctx, keep_intermediate=True)
+    result = infer_scene(path, None, networks=nets, ctx=ctx)
     if reference.is_file():
         matte = result["scene"].frame.alpha
         hand = resize(read_reference_mask(reference).astype(np.float32), (matte.shape[1], matte.shape[0])) > 0.5
@@ -325,7 +325,7 @@ def _heldout(data: Path, ctx, nets, methods, limit, progress) -> dict:
             Image.fromarray((srgb * 255 + 0.5).astype(np.uint8)).save(photo)
             m = item["mask"][0].numpy() > 0.5
             Image.fromarray((m * 255).astype(np.uint8)).save(mask)
-            result = infer_scene(photo, mask, networks=nets, ctx=ctx, keep_intermediate=True)
+            result = infer_scene(photo, mask, networks=nets, ctx=ctx)
             lights = load_lights(sample / f"lighting_{k_tgt}" / "lights.json")
             s_t = float(exposure_scale(target["image"][None], target["mask"][None]))
             truth = s_t * target["image"].permute(1, 2, 0).numpy()
