@@ -190,7 +190,7 @@ class Actions:
             s.update(exposure=self.app.plate.exposure(EnvMap(s.environment) if s.environment is not None else s.lights, s.scene, s.look))
             self.app.message = f"exposure levelled to the plate: {s.look.exposure_stops:+.2f} stops"
             return
-        self.app._apply_auto_exposure()
+        self.app.frames.apply_auto_exposure()
         self.app.message = f"exposure levelled to the photo: {self.app.session.look.exposure_stops:+.2f} stops"
 
     def open_map(self, path: Path, n: int | None = None):
@@ -332,7 +332,7 @@ class Actions:
             self.app.session.update(background=plate.restore["background"], ground=plate.restore["ground"])
             self.app.auto_exposure = plate.restore["auto"]
             if self.app.auto_exposure:  # the photo's own brightness again
-                self.app._apply_auto_exposure()
+                self.app.frames.apply_auto_exposure()
             self.app.message = "the plate removed"
             if plate.restore["map"] is not None and plate.restore["map"] != self.app.env_path:  # the map before it, back
                 self.open_map(plate.restore["map"])

@@ -46,10 +46,10 @@ class JobPolling:
             return
         res = job.result
         self.app.hold_panel()
-        self.app.end_clip()  # a clip's frames give way to the person opened
+        self.app.clip.end()  # a clip's frames give way to the person opened
         self.app.session.set_scene(res.scene)  # the lighting stays as the user turned it: the same map, the same light
         self.app.view = ix.ViewState()
-        self.app.exposed_again()
+        self.app.frames.exposed_again()
         self.app.window.set_title(f"relight - {res.path.name}")
         how = {"inferred": "inferred now, cached for next time", "cached": "its bundle from the cache",
                "bundle": "a scene bundle"}[res.how]

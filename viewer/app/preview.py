@@ -50,6 +50,8 @@ PREVIEW_LEVELS = (
     PreviewLevel(128, 384, 256, 4, 6),
 )
 START_LEVEL = 2  # the first drag's level, before any frame was measured (one step from the coarsest, two from the finest)
+STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
+SWAP_BUDGET = 0.06  # seconds of engine work a frame gives a new map or person before the frame is shown
 FRAME_BUDGET_MS = 36.0  # a dragged frame's median, whole window frame: 24 fps (41.7 ms) with room for the slower ones
 SAMPLES = 3  # dragged frames measured at a level before it is judged
 FINER_ROOM = 0.55  # a drag starts one level finer when the last one's frames took under this share of the budget

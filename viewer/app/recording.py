@@ -169,7 +169,7 @@ class InteractionRecording:
 class ClipRecording(CountedRecording):
     """A clip relit in the window (R while a clip is open): every frame of the clip, one per pass of
     the loop, at full quality under the lighting the user set (the timeline brings each frame's
-    person and camera turn, :meth:`viewer.app.viewer_app.ViewerApp.record_clip_frame`), at the source's
+    person and camera turn, :meth:`viewer.app.clip_player.ClipPlayer.record_frame`), at the source's
     timing; then joined with the source's audio (:func:`viewer.output.clip_render.join_relit`).
     ``resume``: the frame the user was at, shown again afterwards. Stopped early, the video holds the
     frames so far and the audio as long."""

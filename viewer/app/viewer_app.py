@@ -16,25 +16,24 @@ import numpy as np
 
 from viewer.app import interaction as ix
 from viewer.app.actions import Actions
+from viewer.app.clip_player import ClipPlayer
 from viewer.app.controls import Controls
 from viewer.app.frame_log import FrameLog
+from viewer.app.frame_plan import FramePlan
 from viewer.app.job_polling import JobPolling
 from viewer.app.jobs import ChildWorker, LightJob, SceneJob
 from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
 from viewer.app.panel_state import PanelState
-from viewer.app.preview import PreviewPace
+from viewer.app.preview import STILL_SECONDS, PreviewPace
 from viewer.app.recording import ClipRecording, InteractionRecording, TurntableRecording
 from viewer.app.session import Session
 from viewer.app.state_file import StateFile
 from viewer.gl import Engine
 from viewer.lighting.lightfit.methods import DEFAULT_METHOD
-from viewer.output.render import photo_exposure
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import PHOTO_SUFFIXES, Scene
 from viewer.scene.look import AUTO, Look
 
-STILL_SECONDS = 0.25  # a drag that has not moved for this long renders at full quality
-SWAP_BUDGET = 0.06  # seconds of engine work a frame gives a new map or person before the frame is shown
 IDLE_WAIT = 0.25  # seconds the loop sleeps waiting for events when nothing is moving
 JOB_WAIT = 0.1  # ... while lights are fitted on their thread (the job wakes the loop when it is done)
 OPENS = (".hdr", ".exr", ".json", *PHOTO_SUFFIXES)  # what the window opens (and a bundle's folder)
@@ -83,6 +82,8 @@ class ViewerApp:
         from viewer.app.window import Window
 
         self.config = config
+        self.clip = ClipPlayer(self)  # a clip's frames in the window
+        self.frames = FramePlan(self)  # what is drawn next, and the automatic exposure
         sc = config.scene
         shown_size = sc.output_size if config.plate is None else config.plate[0].size
         area_w, area_h = image_area_size(shown_size)
@@ -93,7 +94,7 @@ class ViewerApp:
             self.window = Window(area_w + PANEL_WIDTH, max(area_h, 860), "relight")
         # "auto" exposure: the photo's own brightness, set from the first render (and again for each new map)
         self.auto_exposure = config.look.exposure == AUTO
-        self._auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
+        self.auto_value = 0.0  # the exposure auto set last: a user's change (wheel, slider) ends auto
         look = replace(config.look, exposure=0.0) if self.auto_exposure else config.look
         self.timeline = None  # a clip's (viewer/app/timeline.py): the frame shown, playing or paused
         self.relit = None  # its relit pictures, prepared while the window is idle (viewer/app/relit_frames.py)
@@ -117,9 +118,9 @@ class ViewerApp:
         self.moving_person = False  # the person being dragged on the plate
         if self.timeline is not None:
             self.timeline.began(self.session)
-        self._drawn = None  # the texture drawn last (what stays while a clip's next frame is drawn)
+        self.drawn = None  # the texture drawn last (what stays while a clip's next frame is drawn)
         self.pace = PreviewPace()  # the drag preview's level, from the dragged frames' times (viewer/app/preview.py)
-        self._previewed = False  # a preview frame shows: the next full frame comes coarse first (settle)
+        self.previewed = False  # a preview frame shows: the next full frame comes coarse first (settle)
         self.session.set_placed(config.rig, record=False)
         self.session.wake = self.window.wake
         self.env_path = config.env_path
@@ -127,7 +128,7 @@ class ViewerApp:
         self.preset = config.preset
         self.view = ix.ViewState()  # zoom and pan; the rotation and exposure are the session's look
         if self.auto_exposure:
-            self._apply_auto_exposure()
+            self.frames.apply_auto_exposure()
         self.dragging = False
         self.drag_applied = (0.0, 0.0)  # drag motion already turned into rotation (pixels)
         self.panning = False
@@ -146,9 +147,9 @@ class ViewerApp:
         self.held: HeldLighting | None = None  # what the panel shows meanwhile: the picture's lighting (hold_panel)
         self.switch_message = ""  # said when the switch shows
         self.settling: Engine | None = None  # the preview engine whose full-quality frame shows while the sharp one is drawn
-        self._settled = b""  # the session's state (Session.state_key) that frame shows
-        self._frame_start = time.perf_counter()
-        self._expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
+        self.settled_key = b""  # the session's state (Session.state_key) that frame shows
+        self.frame_start = time.perf_counter()
+        self.expose_pending = False  # auto exposure to set from the next complete frame (exposed_again)
         self.panel = PanelState()
         self.captures: list[str] = []
         self.saves: list = []  # SaveJob: frames saved with S whose files are being written
@@ -171,7 +172,7 @@ class ViewerApp:
             s = self.session
             self.held = HeldLighting(s.look, s.sigma.copy(), s.rotated_lights(), s.ground_shown)
 
-    def _show_switched(self):
+    def show_switched(self):
         """The frame that shows what a job loaded: the panel shows it too (issue 45), with its message."""
         self.shown = self._showing()
         self.held = None
@@ -183,14 +184,6 @@ class ViewerApp:
         """(map path, its pixels, the map's lights) of the state now: the panel draws the map's name,
         thumbnail and light dots from the picture's, so they change the frame the picture does."""
         return self.env_path, self.session.environment, self.session.lights
-
-    def _apply_auto_exposure(self):
-        """Exposure from the photo's own brightness under the current lights (a no-op, 0 stops,
-        for a scene without a photo)."""
-        s = self.session
-        eng = s.render(preview=False)
-        e = self._auto_value = photo_exposure(eng, s.scene, s.look.tonemap)
-        s.update(exposure=e)
 
     # ------------------------------------------------------------------ geometry
     def image_area(self) -> tuple[float, float, float, float]:
@@ -214,52 +207,6 @@ class ViewerApp:
         rec = self.recording
         return isinstance(rec, (TurntableRecording, ClipRecording)) or (isinstance(rec, InteractionRecording) and not rec.capturing)
 
-    # ------------------------------------------------------------------ a clip
-    def _advance_clip(self):
-        """A clip's frame due (playing) or asked for (the slider) brought to the session; a new person's
-        frame is drawn over budgeted frames as a new photo is, the frame before staying meanwhile."""
-        t = self.timeline
-        if t is None or self.recording is not None or self.switched or self.scene_job is not None:
-            return
-        t.tick()
-        if t.playing and self._from_relit():
-            return  # its picture is drawn (_texture): the session is brought to the frame where playing stops
-        try:
-            change = t.advance(self.session)
-        except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk): said, the clip pauses
-            self.actions.report(f"frame {t.index + 1} of the clip", exc)
-            t.forget(t.index)
-            t.play(False)
-            t.seek(t.current[0] if t.current is not None else 0)
-            return
-        if change == "person":
-            self.switched = True
-
-    def record_clip_frame(self, rec: ClipRecording) -> bool:
-        """The recording's next frame brought to the session, whole (its scene read now); False when
-        it could not be read (said; the recording ends there, its file removed)."""
-        self.timeline.seek(rec.done)
-        try:
-            self.timeline.advance(self.session, wait=True)
-        except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk)
-            self.timeline.forget(rec.done)
-            self.actions.recording_failed(rec, exc)
-            return False
-        return True
-
-    def end_clip(self):
-        """Another person opened: the clip's timeline goes (its frames no longer shown; a recording of
-        it ends with the frames recorded)."""
-        if isinstance(self.recording, ClipRecording):
-            self.actions.finish_recording(stopped=True)
-        if self.timeline is not None:
-            self.timeline.release()
-            self.relit.release()
-            self.timeline = self.relit = None
-        if self.plate is not None:  # the new person is placed by their own frame, not the clip's first one
-            self.plate.unanchor()
-        self.session.camera_turn, self.session.camera_height = (0.0, 0.0), 0.0
-
     def picture(self, eng) -> np.ndarray:
         """(H, W, 3) uint8: the frame ``eng`` shows, as recorded (a clip's frame without the person: the background
         alone; on a plate, the person in it at the window's copy's size)."""
@@ -271,48 +218,6 @@ class ViewerApp:
     def picture_hdr(self, eng) -> np.ndarray:
         """(H, W, 3) float32: :meth:`picture`'s linear HDR, as saved with S."""
         return self.timeline.picture_hdr(eng) if self.timeline is not None else eng.output.read_output_hdr()[..., :3]
-
-    def _from_relit(self) -> bool:
-        """Whether the clip's frame asked for has its relit picture ready under the lighting now (on a plate
-        none is: the person is composited into it live)."""
-        if self.relit is None or self.plate is not None:
-            return False
-        self.relit.follow(self.session)
-        return self.relit.ready(self.timeline.index)
-
-    def _texture(self, eng):
-        """What the window draws for ``eng``'s frame: its display, or a clip's frame (the timeline tells
-        which frame is on screen, :meth:`ClipTimeline.drew`). A clip's frame asked for and not in the
-        session yet (being read or drawn) shows its relit picture when ready; else what is on screen
-        stays (a relit picture, the timeline's picture of a frame with no one in it, the person before's
-        display) until the session's frame is drawn whole."""
-        t = self.timeline
-        if t is None:
-            return eng.display
-        outgoing = eng is self.session.outgoing
-        if outgoing or not t.in_session:
-            if self._from_relit():
-                t.drew(t.frames.shown(t.index)[0])
-                return self.relit.texture(t.index)
-            kept = self._drawn is not None and (self._drawn is self.relit.own_texture or outgoing and self._drawn is t.own_texture)
-            if kept or outgoing:
-                return self._drawn if kept else eng.display
-        t.drew(t.current[0])
-        return t.texture(eng, self.session.state_key())
-
-    def _prepare_relit(self) -> bool:
-        """An idle frame (nothing to draw, no one dragging, paused) relights a slice of the clip's next
-        frame not ready (:meth:`RelitFrames.prepare`); False when there was none to do."""
-        if (self.relit is None or self.plate is not None or self.timeline.playing or self.recording is not None
-                or self.dragging or time.perf_counter() - self.panel.adjusted < STILL_SECONDS):
-            return False
-        self.relit.follow(self.session)
-        return self.relit.prepare(self.session, max(SWAP_BUDGET - (time.perf_counter() - self._frame_start), 0.005))
-
-    def exposed_again(self):
-        """After new lights or a new person: auto exposure, unless the user has set one since, set
-        from the new state's first complete frame (:meth:`_render`), before it is shown."""
-        self._expose_pending = self.auto_exposure and self.session.look.exposure == self._auto_value
 
     def _write_state(self, force: bool = False):
         if self.state_file is not None:
@@ -326,89 +231,6 @@ class ViewerApp:
         screen = self.window.screen_height()
         if need > h and screen is not None:
             self.window.resize(w, min(need, max(screen - 40, h)))
-
-    # ------------------------------------------------------------------ frame
-    def _render(self) -> tuple[object, str]:
-        """Render the current state; returns the engine to show and what kind of frame it was."""
-        s = self.session
-        rec = self.recording
-        if isinstance(rec, TurntableRecording):
-            s.update(yaw=rec.next_yaw())
-        if isinstance(rec, ClipRecording) and not self.record_clip_frame(rec):
-            return s.final, "record"
-        if isinstance(rec, InteractionRecording):
-            if rec.capturing:
-                rec.capture(s.look, s.placed, s.sigma)
-            else:
-                self.actions.apply_moment(rec.moment(rec.done))
-        capturing = isinstance(rec, InteractionRecording) and rec.capturing
-        now = time.perf_counter()
-        moving = self.dragging and now - self.last_motion < STILL_SECONDS
-        adjusting = not moving and now - self.panel.adjusted < STILL_SECONDS  # a panel slider held: soft shadows kept
-        switching = self.switched and rec is None  # a new map or person: brought in over frames of SWAP_BUDGET
-        preview = (moving or adjusting) and (rec is None or capturing) and not switching
-        s.preview_level = self.pace.level
-        if self.settling is not None and self.settling not in s.previews.engines.values():
-            self.settling = None  # its engines were made again (a quality preset): the final frame comes whole
-        if preview or switching or rec is not None:
-            self.settling = None
-            self._previewed = self._previewed and preview  # a new map or person, or a recording, comes whole
-        elif self._previewed or (self.settling is not None and self._settled != s.state_key()):
-            # the lighting stopped (or changed again while the sharp frame was drawn: a key, the wheel):
-            # its full-quality frame at the preview's level first (the look's soft shadows and skin),
-            # then the final engine's over budgeted frames behind it ("sharpen")
-            self._previewed = False
-            self.settling = s.render_coarse()
-            self._settled = s.state_key()
-            return self.settling, "settle"
-        rendered = s.preview if preview else s.final
-        before = sum(rendered.kit.counters.values())
-        left = max(SWAP_BUDGET - (now - self._frame_start), 0.0)  # of the frame's budget for budgeted work
-        # a new map or person, or the sharp frame behind a coarse one, is drawn over budgeted frames
-        budget = left if switching or self.settling is not None else None
-        expose = switching and self._expose_pending  # auto exposure from the new HDR, before its frame is drawn
-        eng = s.render(preview=preview, hard=moving, budget=budget, display=not expose)
-        worked = sum(rendered.kit.counters.values()) != before
-        if expose and rendered.composited:
-            self._expose_pending = False
-            e = self._auto_value = photo_exposure(rendered, s.scene, s.look.tonemap)
-            s.update(exposure=e)
-            return eng, "load"  # the next pass draws the frame at that exposure
-        if switching and not rendered.complete:
-            return eng, "load"  # the last complete frame stays on screen while the rest is done
-        if self.settling is not None:
-            if not rendered.complete:
-                return self.settling, "sharpen"  # the coarse full-quality frame stays while the sharp one is drawn
-            self.settling = None
-            return eng, "update"
-        if rec is not None and not capturing:
-            if self.switched:  # a recording's frames are whole: what a job loaded shows in this one
-                self._show_switched()
-            try:
-                rec.add(self.picture(eng))
-            except Exception as exc:
-                self.actions.recording_failed(rec, exc)
-                return eng, "record"
-            if rec.finished:
-                self.actions.finish_recording()
-            return eng, "record"
-        if self.switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
-            self.switched = False
-            self._show_switched()
-            if self._expose_pending:  # switched while recording, at full quality: exposed from the next frame on
-                self._expose_pending = False
-                self._apply_auto_exposure()
-            return eng, "switch"
-        if not worked:  # "load": nothing to redraw while lights are fitted or a scene opened off this thread
-            if self.job is not None or self.scene_job is not None:
-                return eng, "load"
-            if preview:
-                return eng, "idle"  # a dragged frame with no motion: no preview engine is made mid-drag
-            # "warm": an idle frame makes the drag preview's engine, so the first dragged frame is a preview's
-            playing = self.timeline is not None and self.timeline.playing  # the next frame's scene soon replaces these
-            return eng, "warm" if not playing and s.warm_preview(left) else "idle"
-        self._previewed = preview
-        return eng, ("drag" if moving else "adjust") if preview else "update"
 
     def run(self) -> int:
         from viewer.app.panel import draw_panel, draw_progress
@@ -429,29 +251,29 @@ class ViewerApp:
                 if timeout is not None and due is not None:  # a clip playing: until its next frame is due (or read: wake)
                     timeout = min(timeout, max(due, 0.002))
                 w.wait(timeout)
-                start = self._frame_start = time.perf_counter()
+                start = self.frame_start = time.perf_counter()
                 w.begin_frame()
                 self.controls.handle()
                 for path in w.take_dropped():
                     self.actions.open_file(Path(path))
                 self.jobs.saves_written()
                 self.jobs.poll()
-                self._advance_clip()
+                self.clip.advance()
                 self.session.poll_refinement()
-                eng, kind = self._render()
-                if kind == "idle" and self._prepare_relit():
+                eng, kind = self.frames.next_frame()
+                if kind == "idle" and self.clip.prepare_relit():
                     kind = "prepare"  # (the loop goes on at once while there is more)
                 if self.plate is not None and self.timeline is not None and eng is self.session.outgoing:
-                    self._drawn = self.plate.texture  # a clip's next person still being drawn: what was drawn stays
+                    self.drawn = self.plate.texture  # a clip's next person still being drawn: what was drawn stays
                 elif self.plate is not None:  # the person in the plate, composited again when either changed
-                    self._drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
+                    self.drawn = self.plate.frame_texture(eng, (self.session.state_key(), eng.refined_current),
                                                            settled=not self.moving_person,
                                                            person=self.timeline is None or self.timeline.has_person)
                     if self.timeline is not None:
                         self.timeline.drew(self.timeline.current[0])
                 else:
-                    self._drawn = self._texture(eng)
-                w.draw_image(self._drawn, self.image_rect(eng), self.image_area())
+                    self.drawn = self.clip.texture(eng)
+                w.draw_image(self.drawn, self.image_rect(eng), self.image_area())
                 # the panel after the picture is drawn: what it says (a clip's frame, the lighting held while a new
                 # one comes in) is of that picture; what its widgets change (engines made again, a plate removed)
                 # is drawn from the next frame, never a texture it released in this one
