@@ -92,14 +92,14 @@ def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
     s = Session(ctx, scene, load_lights(MAPS / "venice_sunset_256.lights.json"), None, EngineOptions(shadow_resolution=256))
     woken = []
     s.wake = lambda: woken.append(1)
-    s._refiner = Refiner(tiny_networks / "refine.safetensors")
+    s.refined.refiner = Refiner(tiny_networks / "refine.safetensors")
     s.update(shadows="refined")
     soft_shown = s.render().output.read_hdr().copy()
     assert s.refining and not s.final.refined_current
     preview = s.render(preview=True)
     assert preview.kit.counters["csm_basis"] == 0  # hard shadows while dragging, no refinement
     deadline = time.time() + 60
-    while not s.refine_job.done and time.time() < deadline:
+    while not s.refined.job.done and time.time() < deadline:
         time.sleep(0.05)
     assert woken and s.poll_refinement() and s.final.refined_current
     refined = s.render().output.read_hdr()
@@ -107,15 +107,15 @@ def test_refined_shadows_arrive_when_the_lighting_stops(ctx, tiny_networks):
     # a job for a lighting that has since moved is dropped; the new lighting gets its own
     s.update(yaw=40.0)
     s.render()
-    old = s.refine_job
+    old = s.refined.job
     while not old.done:
         time.sleep(0.05)
     s.final.set_lights(s.lights.rotated(80.0))  # the lights moved on before the result was polled
     assert not s.poll_refinement() and not s.final.refined_current
     s.render()
-    assert s.refining and s.refine_job is not old
+    assert s.refining and s.refined.job is not old
     s.release()  # stops the running job at its next batch: a thread left inside torch aborts the exit
-    assert s.refine_job.done
+    assert s.refined.job.done
 
 
 def test_the_preview_is_the_final_picture_coarser(ctx, tmp_path):

@@ -45,7 +45,7 @@ class ClipPlayer:
             self.app.timeline.advance(self.app.session, wait=True)
         except Exception as exc:  # a frame's maps unreadable (the bundle changed on disk)
             self.app.timeline.forget(rec.done)
-            self.app.actions.recording_failed(rec, exc)
+            self.app.recorder.recording_failed(rec, exc)
             return False
         return True
 
@@ -53,7 +53,7 @@ class ClipPlayer:
         """Another person opened: the clip's timeline goes (its frames no longer shown; a recording of
         it ends with the frames recorded)."""
         if isinstance(self.app.recording, ClipRecording):
-            self.app.actions.finish_recording(stopped=True)
+            self.app.recorder.finish_recording(stopped=True)
         if self.app.timeline is not None:
             self.app.timeline.release()
             self.app.relit.release()

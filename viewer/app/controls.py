@@ -88,11 +88,11 @@ class Controls:
         if io.want_capture_keyboard:
             return
         if imgui.is_key_pressed(imgui.Key.s, False):
-            self.app.actions.save_frame()
+            self.app.recorder.save_frame()
         if imgui.is_key_pressed(imgui.Key.r, False):
-            self.app.actions.toggle_recording("live")
+            self.app.recorder.toggle_recording("live")
         if imgui.is_key_pressed(imgui.Key.t, False):
-            self.app.actions.toggle_recording("turntable")
+            self.app.recorder.toggle_recording("turntable")
         t = self.app.timeline
         if t is not None and self.app.recording is None:
             if imgui.is_key_pressed(imgui.Key.space, False):

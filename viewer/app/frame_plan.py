@@ -45,7 +45,7 @@ class FramePlan:
             if rec.capturing:
                 rec.capture(s.look, s.placed, s.sigma)
             else:
-                self.app.actions.apply_moment(rec.moment(rec.done))
+                self.app.recorder.apply_moment(rec.moment(rec.done))
         capturing = isinstance(rec, InteractionRecording) and rec.capturing
         now = time.perf_counter()
         moving = self.app.dragging and now - self.app.last_motion < STILL_SECONDS
@@ -92,10 +92,10 @@ class FramePlan:
             try:
                 rec.add(self.app.picture(eng))
             except Exception as exc:
-                self.app.actions.recording_failed(rec, exc)
+                self.app.recorder.recording_failed(rec, exc)
                 return eng, "record"
             if rec.finished:
-                self.app.actions.finish_recording()
+                self.app.recorder.finish_recording()
             return eng, "record"
         if self.app.switched:  # "switch": the frame that shows what a job loaded (its work may be done before _render)
             self.app.switched = False

@@ -24,7 +24,7 @@ class JobPolling:
         "saved" also has the panel's button for the folder)."""
         for job in [j for j in self.app.saves if j.done]:
             self.app.saves.remove(job)
-            self.app.actions.saved(job)
+            self.app.recorder.saved(job)
 
     def _finished(self, attr: str):
         """The job in ``app.<attr>`` once it has ended (the attribute emptied): its result, or None

@@ -327,29 +327,29 @@ def _record(app):
     rec = app.recording
     if rec is None:
         if imgui.button("Record clip (R)" if app.timeline is not None else "Record (R)"):
-            app.actions.toggle_recording("live")
+            app.recorder.toggle_recording("live")
         remember(app, "record")
         imgui.same_line()
         if imgui.button("360 turn (T)"):
-            app.actions.toggle_recording("turntable")
+            app.recorder.toggle_recording("turntable")
         remember(app, "record turn")
         imgui.same_line()
         if imgui.button("Save frame (S)"):
-            app.actions.save_frame()
+            app.recorder.save_frame()
         imgui.set_next_item_width(120)
-        changed, frames = imgui.slider_int("turn frames", app.actions.turn_frames, 12, 720)
+        changed, frames = imgui.slider_int("turn frames", app.recorder.turn_frames, 12, 720)
         if changed:
-            app.actions.set_turn_frames(frames)
+            app.recorder.set_turn_frames(frames)
     elif isinstance(rec, InteractionRecording) and rec.capturing:
         imgui.text(f"recording what you do: {rec.seconds:.1f} s")
         if imgui.button("Stop and render (R)"):
-            app.actions.toggle_recording(rec.kind)
+            app.recorder.toggle_recording(rec.kind)
         remember(app, "record")
     else:
         left = rec.time_left.words()
         imgui.progress_bar(rec.fraction, imgui.ImVec2(-1, 0), f"{rec.done} / {rec.total} frames" + (f", {left}" if left else ""))
         if imgui.button("Stop"):
-            app.actions.toggle_recording(rec.kind)
+            app.recorder.toggle_recording(rec.kind)
         remember(app, "record")
     imgui.text_disabled(f"to {app.config.out_dir}/")
 

@@ -157,6 +157,22 @@ class PreviewEngines:
             self._has[level] = self._version
         return eng
 
+    def warm(self, level: int, draw) -> bool:
+        """One step towards the engines the next drag may need from ``level`` (its own and its
+        neighbours', :meth:`cold`; a first frame would otherwise pay ~0.1-0.6 s in a dragged frame):
+        make one, give it the map, or draw its first frame (``draw(engine)``: True once complete, the rest
+        at the next call), one per call (an idle frame each); True when there was one to take."""
+        level = self.cold(level)
+        if level is None:
+            return False
+        if level not in self.engines:
+            self.make(level)  # the maps resampled and the engine made (~40-60 ms at 2 MP)
+        elif not self.has_map(level):
+            self.engine(level)  # the map blurred and uploaded (~15-20 ms for a 1k map)
+        elif draw(self.engine(level)):
+            self.drawn.add(level)
+        return True
+
     def set_environment(self, environment: np.ndarray | None):
         self.environment = environment
         self._version += 1

@@ -208,7 +208,7 @@ class ClipRecording(CountedRecording):
         try:
             self.note = join_relit(self.bundle, [(video, self.times[0])], self.path, end - self.times[0])
         except Exception as exc:  # the frames are kept: a video without its audio, said
-            os.replace(video, self.path)  # the window's own file onto a name no file had (Actions._capture_stem)
+            os.replace(video, self.path)  # the window's own file onto a name no file had (Recorder.capture_stem)
             self.note = f"without its audio ({exc})"
         video.unlink(missing_ok=True)  # the window's own file, joined into the video
         return self.path

@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from viewer.app.preview import START_LEVEL, PreviewEngines
+from viewer.app.refined_shadows import RefinedShadows
 from viewer.gl import Engine, EngineOptions
 from viewer.lighting.placed_lights import History, PlacedLight, level, rescaled, to_area_lights
 from viewer.scene.area_lights import AreaLights
@@ -50,7 +51,7 @@ class Session:
         self._map_pending: str | None = None
         self._make_engines()
         self.preview_level = START_LEVEL  # the drag preview's level (viewer.app.preview.PREVIEW_LEVELS; the window's pace sets it)
-        self._outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete
+        self.outgoing: Engine | None = None  # the person before, shown until the new one's first frame is complete (set_scene)
         self.base_lights = lights
         self.sigma = lights.sigma.copy()  # the user's sigma per light (sliders)
         self.placed: tuple[PlacedLight, ...] = ()  # the user's own lights, fixed to the camera (viewer.lighting.placed_lights)
@@ -58,9 +59,7 @@ class Session:
         self.keep_absolute = False  # placed lights keep their absolute intensities when the map changes
         self.look = (look or Look()).fitted(len(lights))
         self.wake = lambda: None  # called when background work finishes (the window's wake)
-        self._refiner = None
-        self.refine_job = None
-        self.refine_error = ""
+        self.refined = RefinedShadows(lambda: self.wake())
 
     # ------------------------------------------------------------------ state
     @property
@@ -100,16 +99,16 @@ class Session:
         self.look = self.look.fitted(len(self.base_lights) + len(placed))
 
     def undo(self) -> bool:
-        before = self.history.undo(self.placed)
-        if before is not None:
-            self.set_placed(before, record=False)
-        return before is not None
+        return self._placed_again(self.history.undo(self.placed))
 
     def redo(self) -> bool:
-        after = self.history.redo(self.placed)
-        if after is not None:
-            self.set_placed(after, record=False)
-        return after is not None
+        return self._placed_again(self.history.redo(self.placed))
+
+    def _placed_again(self, placed) -> bool:
+        """The placed lights undo or redo brings back (None: none to bring), set without recording."""
+        if placed is not None:
+            self.set_placed(placed, record=False)
+        return placed is not None
 
     def set_lights(self, lights: AreaLights, environment: np.ndarray | None = None, new_map: bool = False):
         """New lights (a refit, or another map with its pixels): the sliders start from their sigmas.
@@ -133,16 +132,14 @@ class Session:
         the lights, placed lights and look stay (a scene without a photo has no before / after). The old
         final engine stays (:meth:`render` shows it) until the new one has a complete frame.
         ``background_camera``: the lens the map behind is seen through, when not the scene's own."""
-        if self.refine_job is not None:
-            self.refine_job.stop()
+        self.refined.forget()
         self.previews.release()
-        if self._outgoing is not None:
-            self._outgoing.release()
-        self._outgoing = self.final
+        if self.outgoing is not None:
+            self.outgoing.release()
+        self.outgoing = self.final
         self.scene = scene
         self.background_camera = background_camera
         self._make_engines(map_later=True)
-        self.refine_job = None
         if scene.frame is None:
             self.look = replace(self.look, compare=0.0)
 
@@ -152,9 +149,9 @@ class Session:
         if options == self.options:
             return
         self.release()
+        self.refined.forget()  # a running refinement was for the old engine's shadow maps
         self.options = options
         self._make_engines()
-        self.refine_job = None  # a running refinement was for the old engine's shadow maps
 
     def set_sigma(self, index: int, sigma: float):
         self.sigma[index] = max(float(sigma), 0.0)
@@ -179,11 +176,6 @@ class Session:
         """:meth:`state_key` but the camera turn and height: what every frame of a clip is lit by alike."""
         return repr((self.look, self.placed)).encode() + self.sigma.tobytes() + self.base_lights.direction.tobytes()
 
-    @property
-    def outgoing(self) -> Engine | None:
-        """The person before, shown until the new one's first frame is complete (:meth:`set_scene`)."""
-        return self._outgoing
-
     # ------------------------------------------------------------------ engines
     def _make_engines(self, map_later: bool = False):
         """The final engine and the preview's for the scene and options, given the map (``map_later``:
@@ -203,22 +195,9 @@ class Session:
         return self.previews.engine(self.preview_level)
 
     def warm_preview(self, budget: float | None = None) -> bool:
-        """One step towards the preview engines the next drag may need (the current level's and its
-        neighbours'; a first frame would otherwise pay ~0.1-0.6 s in a dragged frame): make one, give
-        it the map, or draw its first frame (with ``budget``, seconds: as much of it as fits, the rest at the next
-        call), one per call (an idle frame each); True when there was one to take."""
-        level = self.previews.cold(self.preview_level)
-        if level is None:
-            return False
-        if level not in self.previews.engines:
-            self.previews.make(level)  # the maps resampled and the engine made (~40-60 ms at 2 MP)
-            return True
-        if not self.previews.has_map(level):
-            self.previews.engine(level)  # the map blurred and uploaded (~15-20 ms for a 1k map)
-            return True
-        if self._render_preview(self.previews.engine(level), True, budget, True).complete:
-            self.previews.drawn.add(level)
-        return True
+        """One step towards the preview engines the next drag may need (:meth:`PreviewEngines.warm`; a
+        first frame drawn with ``budget`` seconds, as much of it as fits); False when there was none."""
+        return self.previews.warm(self.preview_level, lambda eng: self._render_preview(eng, True, budget, True).complete)
 
     def render_coarse(self) -> Engine:
         """The full-quality frame at the preview's level (the look's soft shadows, refined ones as soft, and
@@ -242,7 +221,7 @@ class Session:
             return self._render_preview(self.preview, hard, budget, display)
         eng = self.final
         if self._map_pending:  # "made": a budgeted call of a frame that made the engine does nothing more
-            shown = self._outgoing if self._outgoing is not None else eng
+            shown = self.outgoing if self.outgoing is not None else eng
             if budget is not None and self._map_pending == "made":
                 self._map_pending = "next"
                 return shown
@@ -256,12 +235,13 @@ class Session:
         eng.set_look(lk)
         eng.render(budget, display)
         if not eng.complete:
-            return self._outgoing if self._outgoing is not None else eng
-        if self._outgoing is not None:
-            self._outgoing.release()  # the new person's first frame is complete
-            self._outgoing = None
+            return self.outgoing if self.outgoing is not None else eng
+        if self.outgoing is not None:
+            self.outgoing.release()  # the new person's first frame is complete
+            self.outgoing = None
         if lk.shadows == "refined" and not eng.refined_current:
-            self._start_refinement(eng)
+            if not self.refined.start(eng, self.scene):
+                self.look = replace(self.look, shadows="soft")
         return eng
 
     def _render_preview(self, eng: Engine, hard: bool, budget: float | None, display: bool, full: bool = False) -> Engine:
@@ -275,55 +255,22 @@ class Session:
         return eng
 
     # ------------------------------------------------------------------ refined shadows
-    def _lights_key(self, eng: Engine) -> bytes:
-        lights = eng.lights
-        return lights.direction.tobytes() + lights.sigma.tobytes()
-
-    def _start_refinement(self, eng: Engine):
-        """Run the refinement network for the final engine's current lights on a thread (the soft
-        visibility is shown meanwhile); :meth:`poll_refinement` hands its result to the engine."""
-        from viewer.app.jobs import RefineJob
-        from viewer.photo.refinement import Refiner, light_visibility
-
-        key = self._lights_key(eng)
-        if self.refine_job is not None and (self.refine_job.key == key or not self.refine_job.done):
-            return  # this lighting's job is running, or another one is: its poll starts the next
-        if self._refiner is None:
-            try:
-                self._refiner = Refiner()
-            except Exception as exc:
-                self.refine_error = str(exc)
-                self.look = replace(self.look, shadows="soft")
-                return
-        hard, soft = light_visibility(eng)
-        self.refine_job = RefineJob(self._refiner, hard, soft, eng.lights.sigma, self.scene.depth, self.scene.mask, key,
-                                    wake=self.wake)
-
     @property
     def refining(self) -> bool:
-        return self.refine_job is not None
+        return self.refined.running
+
+    @property
+    def refine_error(self) -> str:
+        return self.refined.error
 
     def poll_refinement(self) -> bool:
-        """Apply a finished refinement if its lighting is still the final engine's; True when the
-        frame changed."""
-        job = self.refine_job
-        if job is None or not job.done:
-            return False
-        self.refine_job = None
-        if job.error:
-            self.refine_error = job.error
-            return False
-        if job.key != self._lights_key(self.final) or self.look.shadows != "refined":
-            return False  # the lights moved on: the next final render starts a new job
-        self.final.set_refined_visibility(job.result)
-        self.refine_error = ""
-        return True
+        """A finished refinement handed to the final engine (:meth:`RefinedShadows.poll`); True when the frame changed."""
+        return self.refined.poll(self.final, self.look.shadows == "refined")
 
     def release(self):
-        if self.refine_job is not None:
-            self.refine_job.stop()
+        self.refined.stop()
         self.final.release()
         self.previews.release()
-        if self._outgoing is not None:
-            self._outgoing.release()
-        self._outgoing = None
+        if self.outgoing is not None:
+            self.outgoing.release()
+        self.outgoing = None

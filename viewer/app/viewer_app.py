@@ -25,6 +25,7 @@ from viewer.app.jobs import ChildWorker, LightJob, SceneJob
 from viewer.app.layout import PANEL_WIDTH, image_area_size, panel_width
 from viewer.app.panel_state import PanelState
 from viewer.app.preview import STILL_SECONDS, PreviewPace
+from viewer.app.recorder import Recorder
 from viewer.app.recording import ClipRecording, InteractionRecording, TurntableRecording
 from viewer.app.session import Session
 from viewer.app.state_file import StateFile
@@ -161,6 +162,7 @@ class ViewerApp:
                  else config.env_path.parent if config.env_path else Path.cwd())
         self.browser = FileBrowser(start, OPENS)
         self.actions = Actions(self)
+        self.recorder = Recorder(self)  # frames saved with S and recordings
         self.jobs = JobPolling(self)
         self.controls = Controls(self)
 
@@ -289,7 +291,7 @@ class ViewerApp:
         finally:
             try:
                 if self.recording is not None:
-                    self.actions.finish_recording(stopped=True)
+                    self.recorder.finish_recording(stopped=True)
                 self._write_state(force=True)
             finally:
                 for job in self.saves:
