@@ -43,6 +43,28 @@ def test_product_file_names_are_unique_and_the_root_is_small():
     assert len([m for m in product if m.count(".") == 1 and m not in LAYERS]) <= 10
 
 
+def test_the_house_rules_hold():
+    """Files, app classes, cli files and the engine within their lines, no function over ten parameters,
+    one resize, no module named after its folder, no run file tracked, every docs file named
+    (viewer.lab.house_rules)."""
+    from viewer.lab.house_rules import problems
+
+    assert problems() == []
+
+
+def test_house_rule_breaches_are_found():
+    from viewer.lab.house_rules import _parameters, repository_problems
+
+    tracked = ["README.md", "docs/architecture.md", "docs/orphan.png", "render.pid", "out/.x.mp4.relight-lock"]
+    found = repository_problems(tracked)
+    assert found == ["render.pid: a run file, tracked", "out/.x.mp4.relight-lock: a run file, tracked",
+                     "docs/orphan.png: no page names it"]
+    import ast
+
+    fn = ast.parse("def f(self, a, b, c, d, e, f, g, h, i, j, *k, **m): pass").body[0]
+    assert _parameters(fn) == 12
+
+
 def test_cycles_are_found():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
 
