@@ -11,11 +11,6 @@
 // as the light or the share of the sky it stands for (contact_spread), whichever is wider.
 #include "ground_plane.glsl"
 #include "shadow_test.glsl"
-#ifdef SOFT_PCSS
-#include "pcss.glsl"
-#else
-#include "csm.glsl"
-#endif
 #include "light_visibility.glsl"
 
 uniform sampler2D shadow_map0, shadow_map1, shadow_map2, shadow_map3;

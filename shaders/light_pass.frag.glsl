@@ -1,5 +1,5 @@
 // Four area lights per pass, at every camera pixel of the mask's bounding box: soft visibility
-// (contact-hardening soft shadows with SOFT_PCSS, else the paper's CSM), hard visibility (shadow map) and Lambert / Disney shading per unit intensity, written as
+// (the engine's soft-shadow method, viewer/gl/soft/), hard visibility (shadow map) and Lambert / Disney shading per unit intensity, written as
 // (V_soft, V_hard, S_diff, S_spec) to the four planes of the light atlas (light i: plane i % 4, in
 // the tile of group i / 4). The composite multiplies by the light's RGB intensity and the albedo.
 // Where a light is below the surface's horizon (n.l <= 0) both shading terms vanish, so the shadow
@@ -8,11 +8,6 @@
 // and drawing a quarter as often is what the batching buys.
 #include "brdf.glsl"
 #include "shadow_test.glsl"
-#ifdef SOFT_PCSS
-#include "pcss.glsl"
-#else
-#include "csm.glsl"
-#endif
 #include "light_visibility.glsl"
 
 uniform sampler2D positions;   // camera-space points (xyz) and roughness (w)

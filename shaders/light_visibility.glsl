@@ -1,17 +1,17 @@
 // The visibility of a point from each of the four lights of a pass: hard (shadow-map test) and
-// soft (contact-hardening soft shadows with SOFT_PCSS, else the paper's CSM), and the per-light
-// uniforms they read. Included by the light pass (the person's pixels) and the ground shadow pass
-// (a ground plane at the feet). Needs shadow_test.glsl and pcss.glsl or csm.glsl.
+// soft (the engine's soft-shadow method, viewer/gl/soft/: its soft_visibility, included here as
+// soft_method.glsl), and the per-light uniforms they read. Included by the light pass (the person's
+// pixels) and the ground shadow pass (a ground plane at the feet). Needs shadow_test.glsl.
 
 uniform mat4 light_frame[4];
 uniform vec3 light_dir[4];
 uniform float depth_scale[4];
 uniform int light_mode[4];     // PASS_OFF: no light in this slot; PASS_HARD: hard only (sigma ~ 0, or
                                // soft not shown); PASS_SOFT: hard and soft; PASS_UNSHADOWED: visibility 1
-uniform float csm_offset;
-uniform float csm_clamp;
 uniform float light_alpha[4];  // each light's angular sigma (radians): contact-hardening penumbrae, specular widening
 uniform float shadow_window;   // metres a shadow map spans (the same for every light)
+
+#include "soft_method.glsl"
 
 // (soft, hard) visibility of light j at p, a receiver with unit normal n facing the light
 // (n.l > 0); 1 in mode 3.
@@ -24,12 +24,6 @@ vec2 light_visibility(int j, sampler2D shadow_map, sampler2D filtered_basis, vec
     uvd.z = min(uvd.z, empty_depth);
     float bias = receiver_bias(n, l, depth_scale[j]);
     float v_hard = hard_visibility(shadow_map, uvd, bias);
-#ifdef SOFT_PCSS
-    float v_soft = light_mode[j] == PASS_HARD ? v_hard
-        : pcss_visibility(shadow_map, uvd, receiver_gradient(light_frame[j], n, l, max_slope), bias,
-                          light_alpha[j], shadow_window, depth_scale[j]);
-#else
-    float v_soft = light_mode[j] == PASS_HARD ? v_hard : csm_visibility(filtered_basis, uvd.xy, uvd.z, csm_offset, csm_clamp);
-#endif
+    float v_soft = light_mode[j] == PASS_HARD ? v_hard : soft_visibility(j, shadow_map, filtered_basis, uvd, n, l, bias);
     return vec2(v_soft, v_hard);
 }

@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from viewer.gl import Engine, EngineOptions
+from viewer.gl.soft import soft_method
 from viewer.lab.bench.engine import bench_lights
 from viewer.resources import sample_scene_dir
 from viewer.scene.bundle import load_scene
@@ -32,7 +33,7 @@ def both(ctx):
     eng.release()
     with torch.no_grad():
         tw = twin_render(scene, lights, shadow_resolution=opts.shadow_resolution, shadow_step=step, terms=opts.terms,
-                         soft=opts.soft)
+                         soft=soft_method(opts.soft).twin)
     return scene, lights, gl, tw
 
 
@@ -79,7 +80,7 @@ def test_contact_hardening_parity(ctx):
     step = eng.shadow_step
     eng.release()
     with torch.no_grad():
-        tw = twin_render(scene, lights, shadow_step=step, soft="pcss").soft_visibility.numpy()
+        tw = twin_render(scene, lights, shadow_step=step, soft=soft_method("pcss").twin).soft_visibility.numpy()
     lit = np.stack([scene.mask & ((scene.normal @ l) > 0) for l in lights.direction])
     diff = np.abs(gl - tw)[lit]
     assert diff.mean() < 1e-3 and (diff > 0.07).mean() < 1e-3

@@ -112,3 +112,45 @@ def test_the_blur_pass_is_the_clamped_gaussian_with_taps_bounded_by_the_tile(ctx
     for r in (vao, fbo, out, src):
         r.release()
     assert np.abs(got - want).max() < 2e-5  # measured 2e-7 to 7e-6
+
+
+def test_a_soft_shadow_method_defined_only_here_is_found_and_rendered(ctx):
+    """A soft-shadow method is one registered module of viewer/gl/soft/ (its GLSL and its twin): one defined
+    only in this test, whose soft visibility is half the shadow map's, becomes an engine option and a
+    --soft choice, renders through the light and ground passes, and its twin matches its shader."""
+    import torch
+
+    from viewer.cli.parser import build_parser
+    from viewer.gl.soft import METHODS, SoftMethod, register_soft_method, soft_method
+    from viewer.twin import csm, render as twin_render
+
+    @register_soft_method
+    class HalfHard(SoftMethod):
+        name = "half-hard"
+
+        def glsl(self) -> str:
+            return ("float soft_visibility(int j, sampler2D shadow_map, sampler2D filtered_basis, vec3 uvd, vec3 n, "
+                    "vec3 l, float bias) { return 0.5 * hard_visibility(shadow_map, uvd, bias); }")
+
+        def twin(self, depth, sigma, frames, u, v, d, bias, normal, terms):
+            return 0.5 * csm.hard_visibility(depth, u, v, d, bias)
+
+    try:
+        assert soft_method("half-hard").reads == ("sigma",)
+        args = build_parser().parse_args(["render", "scene", "--soft", "half-hard", "-o", "x.png"])
+        assert args.soft == "half-hard"
+        scene = plane_and_box(48)
+        lights = AreaLights(np.array([LIGHT], np.float32), [2.0], np.ones((1, 3), np.float32))
+        eng = Engine(ctx, scene, EngineOptions(soft="half-hard", shadow_step=1, shadow_resolution=128))
+        eng.set_lights(lights)
+        eng.render()
+        out = eng.output.read_light(0)
+        assert eng.kit.counters["csm_basis"] == 0  # not pre-filtered: no CSM basis made
+        assert np.allclose(out["visibility_soft"], 0.5 * out["visibility_hard"])
+        assert (out["visibility_hard"] == 0).any() and (out["visibility_hard"] == 1).any()
+        eng.release()
+        with torch.no_grad():
+            twin = twin_render(scene, lights, shadow_resolution=128, shadow_step=1, soft=soft_method("half-hard").twin)
+        assert np.allclose(twin.soft_visibility.numpy()[0], 0.5 * twin.hard_visibility.numpy()[0])
+    finally:
+        del METHODS["half-hard"]

@@ -11,12 +11,12 @@ from viewer.scene.look import BACKGROUNDS, TONEMAPS, VISIBILITY_MODES
 def add_engine_args(p, presets: bool = False):
     """The engine's options; ``presets``: several presets (``--preset A B``, dest ``presets``: a batch's looks)."""
     from viewer.gl.presets import DEFAULT_PRESET, PRESETS
-    from viewer.scene.shadow_space import SOFT_METHODS
+    from viewer.gl.soft import soft_method_names
 
     p.add_argument("--preset", dest="presets" if presets else "preset", choices=tuple(PRESETS), nargs="+" if presets else None,
                    help=f"quality preset{'s (each look once with each)' if presets else ''}: lights and engine options from "
                         f"docs/results.md (default {DEFAULT_PRESET}); the options below override its values")
-    p.add_argument("--soft", choices=SOFT_METHODS,
+    p.add_argument("--soft", choices=soft_method_names(),
                    help="soft shadows: contact-hardening (pcss, the presets') or the paper's convolutional shadow maps (csm)")
     p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")
     p.add_argument("--shadow-step", type=int, help="depth-mesh decimation for shadow maps (0 = auto, the presets' choice)")

@@ -265,8 +265,8 @@ class Engine:
                     return self
                 self.shadow_map_pass.run(l)
                 self.stale.ran(self.shadow_map_pass, [l])
-        # CSM's basis and pre-filter; contact-hardening soft shadows read the shadow map itself
-        to_filter = [l for l in active if "csm_basis" in l.stale and need[id(l)] == PASS_SOFT and self.options.soft == "csm"]
+        # the CSM's basis and pre-filter, for a soft-shadow method that reads them (contact-hardening reads the shadow map)
+        to_filter = [l for l in active if "csm_basis" in l.stale and need[id(l)] == PASS_SOFT and self.light_pass.soft.prefiltered]
         if to_filter:
             for l in to_filter:
                 self.csm_basis_pass.run(l)

@@ -74,7 +74,7 @@ class GroundShadowPass:
                 self._next = None
                 return True
             share = np.where(e0 > 0.0, intensity * up[:, None] / np.where(e0 > 0.0, e0, 1.0), 0.0).astype("f4")
-            prog = kit.programs.get("fullscreen.vert.glsl", "ground_shadow.frag.glsl", **self.light_pass.defines,
+            prog = kit.programs.get("fullscreen.vert.glsl", "ground_shadow.frag.glsl", self.light_pass.sources, **self.light_pass.defines,
                                     MAX_CONTACT_POINTS=MAX_CONTACT_POINTS)
             prog["ground_normal"] = tuple(float(v) for v in self.plane.normal)
             prog["ground_offset"] = self.plane.offset

@@ -11,6 +11,7 @@ from viewer.errors import InputError
 from viewer.gl.kit import PassKit, band_box
 from viewer.gl.light import PASS_HARD, PASS_OFF, PASS_SOFT, Light
 from viewer.gl.scene_resources import SceneResources
+from viewer.gl.soft import soft_method
 from viewer.gl.work_budget import draw_bands
 from viewer.scene import shadow_space as ss
 
@@ -103,14 +104,14 @@ class LightShadingPass:
     def __init__(self, kit: PassKit, scene: SceneResources, atlas: LightAtlas, resolution: int, terms: int, specular: bool,
                  soft: str = "csm", pcss_min_texels: float = ss.PCSS_MIN_TEXELS):
         self.kit, self.scene, self.atlas = kit, scene, atlas
-        self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft
+        self.resolution, self.terms, self.specular, self.soft = resolution, terms, specular, soft_method(soft)
         self.pcss_min_texels = pcss_min_texels
         self._next = None  # (the group's state, band): a budgeted pass left part-way
         self.csm_offset, self.csm_clamp = ss.csm_constants(terms)
         # and the mode the shown visibility needs (Engine._needed_pass); sigma reaches it through
         # the CSM's pre-filtered basis, or directly: the contact-hardening penumbrae and, with
         # specular, the light's angular size widening its lobe (brdf.glsl's widened_alpha)
-        self.inputs = ("direction", "shadow_map", "prefilter") if soft == "csm" else ("direction", "shadow_map", "sigma")
+        self.inputs = ("direction", "shadow_map", *self.soft.reads)
         if specular and "sigma" not in self.inputs:
             self.inputs += ("sigma",)
         # the contact-hardening taps (unit Gaussian offsets), the same for every pass
@@ -126,9 +127,13 @@ class LightShadingPass:
 
     @property
     def defines(self) -> dict:
-        """The shader defines of the visibility this engine uses (shared with the ground shadow pass)."""
-        return ({"SOFT_PCSS": None, "PCSS_TAPS": ss.PCSS_TAPS, "PCSS_SEARCH_TAPS": ss.PCSS_SEARCH_TAPS}
-                if self.soft == "pcss" else {"TERMS": self.terms})
+        """The shader defines of the soft-shadow method this engine uses (shared with the ground shadow pass)."""
+        return self.soft.defines(self)
+
+    @property
+    def sources(self) -> dict:
+        """The soft-shadow method's GLSL, as the ``soft_method.glsl`` light_visibility.glsl includes."""
+        return {"soft_method.glsl": self.soft.glsl()}
 
     def bind_lights(self, prog, group: list[Light], modes: list[int]):
         """light_visibility.glsl's uniforms and textures for a group of up to four lights (shadow
@@ -143,7 +148,7 @@ class LightShadingPass:
             (l.shadow_map if used else self.stand_in_shadow_map).use(2 + j)
             prog[f"shadow_map{j}"] = 2 + j
             soft = used and modes[j] == PASS_SOFT
-            if self.soft == "csm":
+            if self.soft.prefiltered:
                 (l.filtered if soft else self.stand_in_filtered).use(6 + j)
                 prog[f"filtered_basis{j}"] = 6 + j
             if used:
@@ -164,15 +169,7 @@ class LightShadingPass:
         prog["empty_depth"] = group[0].frame.empty_depth
         if "light_alpha" in prog:  # absent when neither PCSS nor the specular code reads it
             prog["light_alpha"].write(alphas.tobytes())
-        if self.soft == "pcss":
-            prog["shadow_window"] = group[0].frame.texel_world(self.resolution) * self.resolution
-            prog["pcss_taps"].write(self.pcss_taps)
-            prog["pcss_search_taps"].write(self.pcss_search_taps)
-            prog["pcss_search"] = ss.PCSS_SEARCH
-            prog["pcss_min_texels"] = self.pcss_min_texels
-        else:
-            prog["csm_offset"] = self.csm_offset
-            prog["csm_clamp"] = self.csm_clamp
+        self.soft.bind(self, prog, group)
 
     def run(self, group: list[Light], modes: list[int], work=None) -> bool:
         """Shade the group's lights into its atlas tile. With ``work`` (a budgeted render,
@@ -189,7 +186,7 @@ class LightShadingPass:
         defines = self.defines
         if self.specular:
             defines["SPECULAR"] = None
-        prog = kit.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", **defines)
+        prog = kit.programs.get("fullscreen.vert.glsl", "light_pass.frag.glsl", self.sources, **defines)
         with kit.timed(self.name):
             sc.positions.use(0)
             sc.normals.use(1)

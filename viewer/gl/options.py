@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 from viewer.errors import InputError
 from viewer.gl.prefilter import METHODS
-from viewer.scene.shadow_space import PCSS_MIN_TEXELS, SOFT_METHODS
+from viewer.gl.soft import soft_method_names
+from viewer.scene.shadow_space import PCSS_MIN_TEXELS
 
 
 @dataclass(frozen=True)
@@ -16,7 +17,7 @@ class EngineOptions:
     # 3 per 512 image pixels: ~1.5 cm triangles on the sample, 1.8 % error, see docs/engine.md)
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
-    soft: str = "pcss"  # soft shadows: "pcss" (contact-hardening: the penumbra grows with the blocker-receiver
+    soft: str = "pcss"  # soft shadows, a method of viewer/gl/soft/: "pcss" (contact-hardening: the penumbra grows with the blocker-receiver
     # distance, shaders/pcss.glsl; lower error than CSM and hard shadows, docs/results.md) or "csm" (the paper's
     # convolutional shadow maps with ``terms`` and ``prefilter``)
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
@@ -38,8 +39,8 @@ class EngineOptions:
             raise InputError(None, f"CSM terms must be in [2, 16], got {self.terms}")
         if self.shadow_step < 0:
             raise InputError(None, f"shadow step must be >= 0 (0 = auto), got {self.shadow_step}")
-        if self.soft not in SOFT_METHODS:
-            raise InputError(None, f"soft shadows must be one of {', '.join(SOFT_METHODS)}, got {self.soft!r}")
+        if self.soft not in soft_method_names():
+            raise InputError(None, f"soft shadows must be one of {', '.join(soft_method_names())}, got {self.soft!r}")
         if self.prefilter not in METHODS:
             raise InputError(None, f"prefilter must be one of {', '.join(METHODS)}, got {self.prefilter!r}")
         if not (self.hard_sigma >= 0 and 0 <= self.skip_threshold < 1):

@@ -16,12 +16,13 @@ _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
 
 
 def shader_source(name: str, defines: dict | None = None, directory: Path | None = None,
-                  files: list[str] | None = None) -> str:
+                  files: list[str] | None = None, sources: dict | None = None) -> str:
     """The text of ``shaders/name`` with includes expanded (each file once), the shared constants
     (:mod:`viewer.constants`), the modes' names (:mod:`viewer.shader_modes`) and ``defines`` prepended.
     Each file's text starts with ``#line 1 k`` and the text after an include with the line it came
     from, so the GLSL compiler reports (source string k, line) of the ``.glsl`` file itself;
-    ``files``, when given, receives the file names by k (:func:`explain_errors`)."""
+    ``files``, when given, receives the file names by k (:func:`explain_errors`); ``sources``: files given
+    as text, by name, before the folder's (the soft-shadow method's ``soft_method.glsl``, :mod:`viewer.gl.soft`)."""
     directory = directory or shader_dir()
     seen: set[str] = set()
     files = files if files is not None else []
@@ -31,12 +32,13 @@ def shader_source(name: str, defines: dict | None = None, directory: Path | None
             return ""
         seen.add(fname)
         path = directory / fname
-        if not path.is_file():
+        if fname not in (sources or {}) and not path.is_file():
             raise FileNotFoundError(f"shader file not found: {path}")
         index = len(files)
         files.append(fname)
         out, last = [f"#line 1 {index}"], 0
-        text = path.read_text()
+        text = sources[fname] if fname in (sources or {}) else path.read_text()
+        text = text if text.endswith("\n") else text + "\n"  # what follows an include starts on a line of its own
         for m in _INCLUDE.finditer(text):
             out.append(text[last:m.start()])
             out.append(expand(m.group(1)))
@@ -75,21 +77,22 @@ class ProgramCache:
         self.directory = directory or shader_dir()
         self._programs: dict = {}
 
-    def get(self, vertex: str, fragment: str, **defines) -> moderngl.Program:
-        key = (vertex, fragment, tuple(sorted(defines.items())))
+    def get(self, vertex: str, fragment: str, sources: dict | None = None, **defines) -> moderngl.Program:
+        """The program of these files and ``defines``; ``sources``: files given as text (:func:`shader_source`)."""
+        key = (vertex, fragment, tuple(sorted(defines.items())), tuple(sorted((sources or {}).items())))
         prog = self._programs.get(key)
         if prog is None:
-            sources = {}
+            texts = {}
             for stage, name in (("vertex_shader", vertex), ("fragment_shader", fragment)):
                 files: list[str] = []
-                sources[stage] = (shader_source(name, defines, self.directory, files), files)
+                texts[stage] = (shader_source(name, defines, self.directory, files, sources), files)
             try:
-                prog = self.ctx.program(**{stage: text for stage, (text, _) in sources.items()})
+                prog = self.ctx.program(**{stage: text for stage, (text, _) in texts.items()})
             except moderngl.Error as exc:
                 # moderngl names the stage that failed; its log's places are that stage's files
                 failed = "fragment_shader" if "fragment_shader" in str(exc) else "vertex_shader"
                 raise RuntimeError(f"compiling {vertex} + {fragment}: "
-                                   f"{explain_errors(str(exc), sources[failed][1], self.directory)}") from None
+                                   f"{explain_errors(str(exc), texts[failed][1], self.directory)}") from None
             self._programs[key] = prog
         return prog
 

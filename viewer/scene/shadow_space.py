@@ -42,7 +42,6 @@ MAX_SLOPE = 20.0  # tan of the angle is clamped here (grazing light)
 ANGULAR_SIGMA = 1.5 / 51.2
 PCSS_TAPS = 16  # the penumbra filter's taps
 PCSS_SEARCH_TAPS = 8  # the blocker search's (every lit receiver takes them: half the filter's, docs/engine.md)
-SOFT_METHODS = ("csm", "pcss")  # the soft shadows: the paper's convolutional shadow maps, or contact-hardening
 PCSS_SEARCH = 0.25  # the blocker search covers blocker-receiver distances up to this many shadow-map windows
 # The penumbra's sigma is at least this many shadow-map texels: a sharp shadow's edge is filtered over
 # about two texels instead of stepping from texel to texel (a staircase that the output frame, several

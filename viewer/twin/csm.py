@@ -148,3 +148,9 @@ def hard_visibility(depth: torch.Tensor, u: torch.Tensor, v: torch.Tensor, d: to
     """Hard shadow-map visibility (N, P), 1 lit / 0 shadowed: the texel containing (u, v) (clamped
     to the map) is compared with the receiver, lit when d - bias <= z."""
     return (d - bias <= shadow_depth(depth, u, v)).to(depth.dtype)
+
+
+def twin_visibility(depth, sigma, frames, u, v, d, bias, normal, terms: int):
+    """:func:`soft_visibility` with the arguments every soft-shadow method's twin takes
+    (:meth:`viewer.gl.soft.SoftMethod.twin`)."""
+    return soft_visibility(depth, sigma, u, v, d, terms)

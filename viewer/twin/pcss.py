@@ -62,3 +62,9 @@ def soft_visibility(depth: torch.Tensor, sigma: torch.Tensor, frames: LightFrame
         z = shadow_depth(depth, u + du, v + dv)
         lit = lit + ((receiver <= z) | (z >= frames.empty_depth)).to(d.dtype)
     return torch.where(blockers == 0, torch.ones_like(d), lit / len(taps))
+
+
+def twin_visibility(depth, sigma, frames, u, v, d, bias, normal, terms: int):
+    """:func:`soft_visibility` with the arguments every soft-shadow method's twin takes
+    (:meth:`viewer.gl.soft.SoftMethod.twin`)."""
+    return soft_visibility(depth, sigma, frames, u, v, d, bias, receiver_gradient(frames, normal))

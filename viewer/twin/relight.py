@@ -27,7 +27,7 @@ from viewer.scene import shadow_space as rule
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.bundle import Scene
 from viewer.scene.depth_mesh import DepthMesh, caster_points, depth_mesh, resolve_step
-from viewer.twin import csm, pcss
+from viewer.twin import csm
 from viewer.twin.brdf import diffuse_shading, specular_shading
 from viewer.twin.shadow_geometry import light_frames, receiver_coordinates
 from viewer.twin.shadow_map import shadow_maps
@@ -132,13 +132,14 @@ def _default_device(scene, lights) -> torch.device:
 
 
 def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, shadow_step: int = 0,
-           terms: int = 4, device=None, soft: str = "csm") -> Rendering:
+           terms: int = 4, device=None, soft=None) -> Rendering:
     """Relight ``scene`` under area ``lights`` (see :func:`as_light_tensors` for the accepted forms).
 
     ``shadow_resolution`` R of the per-light shadow maps, ``shadow_step`` decimation of the depth
     mesh they rasterize (ignored for a prepared :class:`SceneTensors`), ``terms`` Fourier terms M of
-    the convolutional shadow map; ``soft`` the soft shadows ("csm", or "pcss": contact-hardening,
-    :mod:`viewer.twin.pcss`). ``device`` defaults to the prepared scene's, else to the light
+    the convolutional shadow map; ``soft`` the soft shadows: a soft-shadow method's twin
+    (:meth:`viewer.gl.soft.SoftMethod.twin`, its signature), by default the paper's CSM
+    (:func:`viewer.twin.csm.twin_visibility`). ``device`` defaults to the prepared scene's, else to the light
     tensors', else torch's default device (a prepared scene stays on its own device). Directions
     need not be unit: they are normalised here.
     """
@@ -152,12 +153,7 @@ def render(scene: Scene | SceneTensors, lights, shadow_resolution: int = 512, sh
     depth = shadow_maps(st.mesh, frames, shadow_resolution)
     u, v, d, bias = receiver_coordinates(st.points, st.normal, frames, shadow_resolution)
     hard = csm.hard_visibility(depth, u, v, d, bias)
-    if soft not in rule.SOFT_METHODS:
-        raise ValueError(f"soft shadows must be one of {', '.join(rule.SOFT_METHODS)}, got {soft!r}")
-    if soft == "pcss":
-        visibility = pcss.soft_visibility(depth, lt.sigma, frames, u, v, d, bias, pcss.receiver_gradient(frames, st.normal))
-    else:
-        visibility = csm.soft_visibility(depth, lt.sigma, u, v, d, terms)
+    visibility = (soft or csm.twin_visibility)(depth, lt.sigma, frames, u, v, d, bias, st.normal, terms)
 
     diffuse = diffuse_shading(st.normal, direction)  # (N, P)
     specular = specular_shading(st.normal, direction, st.specular, st.roughness, lt.sigma * rule.ANGULAR_SIGMA)

@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from viewer.files.imageio import write_text
+from viewer.gl.soft import soft_method
 from viewer.resources import asset_dir, sample_scene_dir
 from viewer.scene.area_lights import AreaLights
 from viewer.scene.depth_mesh import resolve_step
@@ -237,7 +238,7 @@ def _time_twin(scene, lights: AreaLights, options, repeats: int = 2, device: str
 
     def frame():
         twin_render(scene, lights, shadow_resolution=options.shadow_resolution, shadow_step=options.shadow_step,
-                    terms=options.terms, soft=options.soft, device=device)
+                    terms=options.terms, soft=soft_method(options.soft).twin, device=device)
         if device.startswith("cuda"):
             torch.cuda.synchronize(device)
 

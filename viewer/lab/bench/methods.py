@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from viewer.gl import Engine, EngineOptions
+from viewer.gl.soft import soft_method
 from viewer.lab.bench.engine import frame_seconds
 from viewer.scene.area_lights import AreaLights
 
@@ -122,7 +123,7 @@ class Renderer:
 
             with torch.no_grad():
                 out = twin_render(self._twin_scene, self._lights(lights), shadow_resolution=self.method.shadow_resolution,
-                                  terms=self.method.terms, soft=self.method.soft)
+                                  terms=self.method.terms, soft=soft_method(self.method.soft).twin)
             return out.image.numpy().astype(np.float32)
         self.engine.set_lights(self._lights(lights))
         self.engine.render()
