@@ -48,9 +48,10 @@ def light_count_option(n: int, method: str) -> int:
     return n
 
 
-def fitted_lights(env, n, method, refit=False):
+def fitted_lights(env, n, method, refit=False, timing: dict | None = None):
     """Lights of ``env`` from the cache, or fitted now with a progress bar (a black map is reported
-    by the caller on every run, cached or not: the fitter's own warning is left out)."""
+    by the caller on every run, cached or not: the fitter's own warning is left out); ``timing``:
+    :func:`viewer.lighting.lightfit.cache.lights_for_map`'s."""
     import warnings
 
     from viewer.lighting.lightfit import lights_for_map
@@ -61,7 +62,7 @@ def fitted_lights(env, n, method, refit=False):
     with StageBars(prefix=f"fitting {n} lights to {name}: ",
                    shares=STAGE_SHARES.get(method)) as bars, warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*the map is black")
-        lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit)
+        lights, cached = lights_for_map(env, n, method, progress=bars, refit=refit, timing=timing)
     return lights, cached
 
 

@@ -250,10 +250,11 @@ def cmd_fit_lights(args) -> int:
     refuse_foreign([p for p in (out, args.plot) if p], args.force)
     n = light_count_option(args.n, args.method)
     env = load_envmap(args.map, repair=args.repair)
-    start = time.perf_counter()
-    lights, cached = fitted_lights(env, n, args.method, refit=args.refit)
+    start, timing = time.perf_counter(), {}
+    lights, cached = fitted_lights(env, n, args.method, refit=args.refit, timing=timing)
     seconds = time.perf_counter() - start
-    how = "from the cache" if cached else f"fitted in {seconds:.1f} s"
+    how = "from the cache" if cached else (f"fitted in {timing.get('fit', seconds):.1f} s, {seconds:.1f} s with loading torch"
+                                           if seconds - timing.get("fit", seconds) >= 0.05 else f"fitted in {seconds:.1f} s")
     if out is None:
         why = (f"{mine} is not a file relight wrote: kept; -o writes a light file, --force replaces it" if mine
                else "the map's folder is not writable; -o writes a light file")

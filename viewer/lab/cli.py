@@ -143,6 +143,12 @@ def cmd_bench(args) -> int:
     if args.what == "engine":
         run_engine_benchmark(sizes=args.sizes, light_counts=args.lights, repeats=args.repeats,
                              output=output, twin=not args.no_twin, twin_device=args.twin_device)
+    elif args.what == "timings":
+        from viewer.lab.bench.timings import run_timings_benchmark, table
+
+        print(table(run_timings_benchmark(shared_folder(args.maps, "hdri", "--maps"), output,
+                                          last_path=args.last or Path(__file__).resolve().parents[2] / "docs" / "bench_timings.json",
+                                          repeats=args.repeats)))
     elif args.what == "contention":
         from viewer.lab.bench.contention import run_contention_benchmark, table
 
@@ -427,8 +433,11 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
     p.add_argument("what", choices=("report", "engine", "shadows", "lights", "viewer", "contention", "temporal", "networks", "photos",
                                     "robustness",
                                     "bodyfit", "ground", "light-sizes", "matte", "upsample", "batch", "video", "clip-memory", "plates",
-                                    "colour", "people", "spread"),
-                   help="engine: per-pass times; shadows: error against ray-traced ground truth vs time per knob; "
+                                    "colour", "people", "spread", "timings"),
+                   help="timings: the headline timings (torch's import, the instant fit in-process and as a "
+                        "command, a balanced frame, a photo's inference) against the last recorded ones (--last, default "
+                        "docs/bench_timings.json), saying which moved; engine: per-pass times; "
+                        "shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
                         "networks: the networks on a held-out dataset (--data); report: error against time of the "
@@ -455,6 +464,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "each clip of --clips relit end to end (--end seconds, --repeats runs each way) inferred then relit, "
                         "by relight render CLIP (the relighting following the inference) and with --ray local: the time, "
                         "the warping error at the joins against elsewhere")
+    p.add_argument("--last", help="timings: the run to compare with (default docs/bench_timings.json)")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--ways", nargs="+", choices=("then", "one", "ray"),
                    help="spread: the ways each clip is relit: inferred then relit, one process (always), --ray local "
