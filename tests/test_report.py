@@ -135,3 +135,14 @@ def test_report_refuses_a_folder_that_is_not_a_dataset(tmp_path):
                            "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
     assert proc.returncode != 0 and "Traceback" not in proc.stderr
     assert str(tmp_path) in proc.stderr and "dataset" in proc.stderr
+
+
+def test_the_timings_bench_names_the_timings_that_moved():
+    """relight bench timings compares each headline timing with the last run: a timing 15 % slower or
+    faster is named, one within it is not, a new one is not compared."""
+    from viewer.lab.bench.timings import compare, table
+
+    rows = compare({"fit": 2.0, "render": 0.1, "import": 1.0, "new": 3.0}, {"fit": 1.2, "render": 0.2, "import": 1.05})
+    assert [rows[k]["moved"] for k in ("fit", "render", "import", "new")] == ["slower", "faster", "", None]
+    text = table({"repeats": 3, "load": [0.5, 0.5, 0.5], "cpus": 2, "last": "docs/bench_timings.json", "compared": rows})
+    assert text.endswith("moved by more than 15 %: fit, render") and "x1.67: slower" in text
