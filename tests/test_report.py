@@ -144,5 +144,5 @@ def test_the_timings_bench_names_the_timings_that_moved():
 
     rows = compare({"fit": 2.0, "render": 0.1, "import": 1.0, "new": 3.0}, {"fit": 1.2, "render": 0.2, "import": 1.05})
     assert [rows[k]["moved"] for k in ("fit", "render", "import", "new")] == ["slower", "faster", "", None]
-    text = table({"repeats": 3, "load": [0.5, 0.5, 0.5], "cpus": 2, "last": "docs/bench_timings.json", "compared": rows})
+    text = table({"repeats": 3, "load": [0.5, 0.5, 0.5], "cpus": 2, "last": "docs/results/bench_timings.json", "compared": rows})
     assert text.endswith("moved by more than 15 %: fit, render") and "x1.67: slower" in text

@@ -1,8 +1,8 @@
 """Ship trained networks: copy ``<net>.safetensors`` and their JSON cards from a training folder into
 ``assets/networks/`` and write the model card ``docs/model-card.md`` from those cards and the
-held-out evaluation (``docs/bench_networks.json``, from ``relight bench networks``).
+held-out evaluation (``docs/results/bench_networks.json``, from ``relight bench networks``).
 
-    .venv/bin/python tools/ship_networks.py RUN_DIR [--bench docs/bench_networks.json]
+    .venv/bin/python tools/ship_networks.py RUN_DIR [--bench docs/results/bench_networks.json]
 
 The cards keep what the training wrote (configuration, data folders, epochs, time, per-epoch
 losses); the model card summarizes them for a reader.
@@ -30,7 +30,7 @@ WHAT = {
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", help="training output folder (relight train --out)")
-    parser.add_argument("--bench", default=str(ROOT / "docs" / "bench_networks.json"))
+    parser.add_argument("--bench", default=str(ROOT / "docs" / "results" / "bench_networks.json"))
     args = parser.parse_args()
     run, dest = Path(args.run), ROOT / "assets" / "networks"
     dest.mkdir(parents=True, exist_ok=True)
@@ -65,7 +65,7 @@ def model_card(cards: dict, total_mb: float, bench: dict | None) -> str:
 
     lines = ["# Model card: the shipped networks", "",
              "Written by `tools/ship_networks.py` from the training cards in `assets/networks/*.json` and the held-out",
-             "evaluation `docs/bench_networks.json`. Method and losses: [networks.md](networks.md).", "",
+             "evaluation `docs/results/bench_networks.json`. Method and losses: [networks.md](networks.md).", "",
              "| network | what | parameters | size | resolution | epochs | batch | training time | device | final validation loss |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for net, c in cards.items():

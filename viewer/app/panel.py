@@ -180,7 +180,7 @@ def _shading(app):
     remember(app, "quality")
     if imgui.is_item_hovered() and app.preset in PRESETS:
         p = PRESETS[app.preset]
-        imgui.set_tooltip(f"{p.summary}\nchosen as {p.rule} (docs/results.md)")
+        imgui.set_tooltip(f"{p.summary}\nchosen as {p.rule} (docs/results/results.md)")
     if changed:
         app.actions.set_preset(presets[i])
     names = list(SHADOW_MODES)

@@ -15,7 +15,7 @@ def add_engine_args(p, presets: bool = False):
 
     p.add_argument("--preset", dest="presets" if presets else "preset", choices=tuple(PRESETS), nargs="+" if presets else None,
                    help=f"quality preset{'s (each look once with each)' if presets else ''}: lights and engine options from "
-                        f"docs/results.md (default {DEFAULT_PRESET}); the options below override its values")
+                        f"docs/results/results.md (default {DEFAULT_PRESET}); the options below override its values")
     p.add_argument("--soft", choices=soft_method_names(),
                    help="soft shadows: contact-hardening (pcss, the presets') or the paper's convolutional shadow maps (csm)")
     p.add_argument("--shadow-resolution", type=int, help="texels of each shadow map (preset's; balanced 512)")

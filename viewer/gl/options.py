@@ -18,7 +18,7 @@ class EngineOptions:
     terms: int = 4  # CSM Fourier terms M (2M basis maps)
     prefilter: str = "pyramid"  # "pyramid" (cost independent of sigma) or "exact"
     soft: str = "pcss"  # soft shadows, a method of viewer/gl/soft/: "pcss" (contact-hardening: the penumbra grows with the blocker-receiver
-    # distance, shaders/pcss.glsl; lower error than CSM and hard shadows, docs/results.md) or "csm" (the paper's
+    # distance, shaders/pcss.glsl; lower error than CSM and hard shadows, docs/results/results.md) or "csm" (the paper's
     # convolutional shadow maps with ``terms`` and ``prefilter``)
     hard_sigma: float = 0.05  # sigma (256-px units) below which soft visibility = hard visibility
     pcss_min_texels: float = PCSS_MIN_TEXELS  # with soft "pcss": the penumbra's smallest sigma, shadow-map texels

@@ -1,5 +1,5 @@
 """Quality presets: the number of area lights and the engine's options, chosen from the measured
-error-versus-time Pareto front of ``relight bench report`` (docs/results.md says which points
+error-versus-time Pareto front of ``relight bench report`` (docs/results/results.md says which points
 and why). ``balanced`` is the default of the engine (``EngineOptions()``), the viewer and
 ``relight render``; ``interactive`` renders every frame of a drag at full quality (>= 10 frames a
 second at 512^2 on llvmpipe); ``final`` is for saved frames and videos.
@@ -24,7 +24,7 @@ class Preset:
         return f"{self.lights} lights, shadow maps {self.options.shadow_resolution}, M = {self.options.terms}"
 
 
-# The 2026-11-24 report (docs/results.md, contact-hardening soft shadows the default) picked, by
+# The 2026-11-24 report (docs/results/results.md, contact-hardening soft shadows the default) picked, by
 # these rules: final = 64 lights with shadow maps of 1024 (416 ms, RMSE 0.0530), shipped as such;
 # interactive = 16 lights with mesh step 4 (88 ms, 0.0565), and balanced = 32 lights (156 ms, 0.0543,
 # +2.4 % over 64 lights). Interactive ships 16 lights with shadow maps of 256 (80 ms, 0.0570): the

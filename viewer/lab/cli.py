@@ -146,9 +146,8 @@ def cmd_bench(args) -> int:
     elif args.what == "timings":
         from viewer.lab.bench.timings import run_timings_benchmark, table
 
-        print(table(run_timings_benchmark(shared_folder(args.maps, "hdri", "--maps"), output,
-                                          last_path=args.last or Path(__file__).resolve().parents[2] / "docs" / "bench_timings.json",
-                                          repeats=args.repeats)))
+        last = args.last or Path(__file__).resolve().parents[2] / "docs" / "results" / "bench_timings.json"
+        print(table(run_timings_benchmark(shared_folder(args.maps, "hdri", "--maps"), output, last_path=last, repeats=args.repeats)))
     elif args.what == "contention":
         from viewer.lab.bench.contention import run_contention_benchmark, table
 
@@ -436,12 +435,12 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                                     "colour", "people", "spread", "timings"),
                    help="timings: the headline timings (torch's import, the instant fit in-process and as a "
                         "command, a balanced frame, a photo's inference) against the last recorded ones (--last, default "
-                        "docs/bench_timings.json), saying which moved; engine: per-pass times; "
+                        "docs/results/bench_timings.json), saying which moved; engine: per-pass times; "
                         "shadows: error against ray-traced ground truth vs time per knob; "
                         "lights: light fitting error vs time on the shared maps; viewer: frame times of the real "
                         "window (drag, stop, sigma slider); temporal: dRMSE and flicker of turntables; "
                         "networks: the networks on a held-out dataset (--data); report: error against time of the "
-                        "whole pipeline, temporal stability and the presets -> docs/results.md (--quick: a small check); "
+                        "whole pipeline, temporal stability and the presets -> docs/results/results.md (--quick: a small check); "
                         "photos: real photos relit at their own size (detail kept, light moved, the photo's lighting, "
                         "mask IoU, times; --data adds held-out pairs); robustness: the bad-input campaign (hostile files and options "
                         "against the real CLI: how many cases end cleanly); bodyfit: anny fitted to MediaPipe's landmarks on "
@@ -464,7 +463,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                         "each clip of --clips relit end to end (--end seconds, --repeats runs each way) inferred then relit, "
                         "by relight render CLIP (the relighting following the inference) and with --ray local: the time, "
                         "the warping error at the joins against elsewhere")
-    p.add_argument("--last", help="timings: the run to compare with (default docs/bench_timings.json)")
+    p.add_argument("--last", help="timings: the run to compare with (default docs/results/bench_timings.json)")
     p.add_argument("--clips", nargs="+", help="video: clips, or folders of them (default $RELIGHT_DATA/videos)")
     p.add_argument("--ways", nargs="+", choices=("then", "one", "ray"),
                    help="spread: the ways each clip is relit: inferred then relit, one process (always), --ray local "
@@ -516,7 +515,7 @@ def build_parsers() -> dict[str, argparse.ArgumentParser]:
                    "bodyfit: people (default 12)")
     p.add_argument("-o", "--output", help="JSON path (default out/bench_<what>.json; figures go beside it); report, "
                    "photos: the folder (default out/report/, with --quick out/report-quick/; out/bench-photos/). "
-                   "The committed figures are refreshed only when asked: -o docs/bench_<what>.json, or -o docs")
+                   "The committed figures are refreshed only when asked: -o docs/results/bench_<what>.json, or -o docs/results")
     p.set_defaults(func=cmd_bench)
     return commands
 

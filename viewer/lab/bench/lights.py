@@ -8,7 +8,7 @@ each method that uses it) and the relative L1 shading errors of :mod:`viewer.lab
 
 Writes ``bench_lights.json`` (every row), ``bench_lights.md`` (tables of medians over the maps, and
 per map at N = 16) and ``bench_lights.png`` (error against seconds) into ``out/`` (or beside the
-``-o`` path; ``-o docs/bench_lights.json`` refreshes the committed ones).
+``-o`` path; ``-o docs/results/bench_lights.json`` refreshes the committed ones).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ pipeline, temporal stability, and the quality presets chosen from the Pareto fro
 
 Writes ``results.json``, ``results.md`` and two PNG figures into the output folder (``out/report/``,
 or ``out/report-quick/`` for ``--quick``, the small configuration CI runs to catch a broken harness;
-``-o docs`` refreshes the committed report).
+``-o docs/results`` refreshes the committed report).
 """
 
 from __future__ import annotations

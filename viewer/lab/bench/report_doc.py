@@ -229,7 +229,7 @@ def write_markdown(result: dict, path: Path):
     ]
     if result["quick"]:
         lines += ["**Quick configuration** (CI's harness check): a small sample, few maps and frames. Its numbers are "
-                  "not the report's; `relight bench report` makes the full one in `docs/results.md`.", ""]
+                  "not the report's; `relight bench report` makes the full one in `docs/results/results.md`.", ""]
     lines += [
         "## What is measured",
         "",

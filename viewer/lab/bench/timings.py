@@ -1,5 +1,5 @@
 """``relight bench timings``: the headline timings, each compared with the last recorded one (the
-committed ``docs/bench_timings.json``, or ``--last``), saying which moved.
+committed ``docs/results/bench_timings.json``, or ``--last``), saying which moved.
 
 Measured on this machine, medians of ``repeats`` runs, with the load average beside them (a busy
 machine moves every timing: compare runs at the same load):
