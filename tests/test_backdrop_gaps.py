@@ -1,4 +1,4 @@
-"""The plain backdrop the person encloses (viewer/photo/matting.py: backdrop_gaps), on real people:
+"""The plain backdrop the person encloses (viewer/photo/backdrop_gaps.py), on real people:
 the underpass photo's person composited by her hand-made mask on plain backdrops (the gap between
 her hair and her neck was kept whole before), and two women in white tops on white studios (the
 white of their tops must stay theirs)."""
@@ -131,7 +131,7 @@ def test_a_white_top_on_a_white_studio_is_not_taken(name, monkeypatch):
     own = _torso_of_the_backdrops_colour(photo, person.landmarks)
     assert own.sum() > 5000
     assert (matting.automatic_matte(photo, person).alpha[own] > 0.9).mean() > 0.995
-    monkeypatch.setattr(matting, "is_gap", lambda figures: figures is not None)
+    monkeypatch.setattr(backdrop_gaps, "is_gap", lambda figures: figures is not None)
     assert (matting.automatic_matte(photo, person).alpha[own] > 0.9).mean() < 0.9
 
 
