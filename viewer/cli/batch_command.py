@@ -100,9 +100,11 @@ def cmd_batch(args) -> int:
         return LocalPool(workers, threads)
 
     from viewer.lighting.lightfit.cache import bundles_dir
+    from viewer.nets.device import compute_device
 
     # the bundles' folder as this process sees it: workers on other machines need it shared (docs/batch.md)
-    settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": args.device,
+    # the device resolved here ("auto": this machine's), as the items' keys hold it
+    settings = {"max_size": args.max_size, "layers": args.layers, "per_light": args.per_light, "device": compute_device(args.device),
                 "bundles": str(bundles_dir().resolve()),
                 **({"cut_allowed": args.height is not None} if args.plates else {})}
     summary = run_batch(photos, looks, folder, make_pool, settings)

@@ -398,7 +398,8 @@ def infer_scene(photo_path, mask_path=None, size: int = WORK_PERSON, max_size: i
 
     from viewer.scene.area_lights import AreaLights
 
-    device = compute_device(device)  # "auto": the device this machine has
+    # the networks' own device when they are given (loaded for many photos), else "auto" resolved here
+    device = str(next(networks["inverse"].parameters()).device) if networks is not None else compute_device(device)
     stage = _Stages(progress)
     v = run_stages({"photo_path": photo_path, "mask_path": mask_path, "size": size, "max_size": max_size,
                     "device": device,

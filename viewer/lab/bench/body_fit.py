@@ -34,8 +34,9 @@ def run_body_fit_benchmark(data, limit: int = 12, output="out/bench_bodyfit.json
     from viewer.lab.data.geometry import vertex_normals
     from viewer.lab.data.humans import rasterize
     from viewer.lab.data.loader import RelightDataset
-    from viewer.nets.photo import exposure_scale, linear_to_srgb
+    from viewer.nets.photo import exposure_scale
     from viewer.scene.bundle import load_scene
+    from viewer.twin.srgb import srgb_encode
 
     ds = RelightDataset(data, fields=("image", "background", "mask"))
     people = []
@@ -51,7 +52,7 @@ def run_body_fit_benchmark(data, limit: int = 12, output="out/bench_bodyfit.json
         item = ds[i]
         photo = item["image"] + (1 - item["mask"]) * item["background"]
         scale = exposure_scale(photo[None], item["mask"][None])
-        srgb = (linear_to_srgb((photo[None] * scale).clamp(0, 1))[0].permute(1, 2, 0).numpy() * 255 + 0.5).astype(np.uint8)
+        srgb = (srgb_encode((photo[None] * scale).clamp(0, 1))[0].permute(1, 2, 0).numpy() * 255 + 0.5).astype(np.uint8)
         truth = load_scene(sample)
         h, w = truth.mask.shape
         cam = Camera(w, h)
