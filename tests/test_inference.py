@@ -444,8 +444,7 @@ def test_the_stages_declare_what_they_read_and_make():
 
     from viewer.photo import inference
 
-    known = {"photo_path", "mask_path", "size", "max_size", "device", "networks", "detail", "picture", "given_lights", "steady", "follow",
-             "everyone_too", "engine"}
+    known = {"photo_path", "mask_path", "size", "max_size", "device", "networks", "detail", "clip", "given_lights", "steady", "engine"}
     for st in inference.STAGE_LIST:
         assert set(st.inputs) <= known, (st.name, set(st.inputs) - known)
         known |= set(st.outputs)
