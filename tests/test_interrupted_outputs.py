@@ -24,10 +24,18 @@ def relight(*args) -> list[str]:
     return [sys.executable, "-m", "viewer.cli.main", *map(str, args)]
 
 
-def _default_sigint():
-    """In the child: Ctrl-C interrupts (a test run may have inherited SIGINT ignored, and a Python
-    started with SIGINT ignored never raises KeyboardInterrupt)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+# the child started with a limit or a signal's default set in a one-threaded Python that then becomes
+# it (a preexec_fn in the test run's threaded process can deadlock the fork)
+PREPARED = ("import os, resource, signal, sys; limit = int(sys.argv[1]); "
+            "limit and resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit)); "
+            "signal.signal(signal.SIGINT, signal.SIG_DFL); os.execv(sys.executable, [sys.executable, *sys.argv[2:]])")
+
+
+def prepared(command: list[str], file_size_limit: int = 0) -> list[str]:
+    """``command`` with Ctrl-C interrupting (a test run may have inherited SIGINT ignored, and a Python
+    started with SIGINT ignored never raises KeyboardInterrupt) and files limited to ``file_size_limit``
+    bytes (0: no limit)."""
+    return [sys.executable, "-c", PREPARED, str(file_size_limit), *command[1:]]
 
 
 def wait_for(condition, timeout=120.0):
@@ -51,8 +59,8 @@ def test_an_interrupted_video_leaves_the_earlier_one_whole(earlier_video, sig, a
     path, before = earlier_video
     partial = partial_path(path)
     partial.unlink(missing_ok=True)
-    proc = subprocess.Popen(relight("render", SCENE, LIGHTS, "--size", "96", "--frames", "2000", "--yaw", "40", "-o", path),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
+    proc = subprocess.Popen(prepared(relight("render", SCENE, LIGHTS, "--size", "96", "--frames", "2000", "--yaw", "40", "-o", path)),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_for(lambda: partial.exists())
         if after_frames:  # a fragment holds one second (30 frames); wait until the file has grown past its header
@@ -142,7 +150,8 @@ def test_sigterm_and_sighup_end_a_render_like_ctrl_c(tmp_path, sig):
 @pytest.fixture
 def small_disk(tmp_path):
     """A folder on a 400 KB file system (a tmpfs, mounted as root; otherwise the children may write
-    at most 400 KB to any file, RLIMIT_FSIZE: the same failed write, EFBIG instead of ENOSPC)."""
+    at most 100 KB to any file, RLIMIT_FSIZE: the same failed write, EFBIG instead of ENOSPC), and that
+    limit (None as root)."""
     folder = tmp_path / "small"
     folder.mkdir()
     if os.geteuid() == 0:
@@ -152,9 +161,7 @@ def small_disk(tmp_path):
         finally:
             subprocess.run(["umount", str(folder)], check=True)
     else:
-        import resource
-
-        yield folder, lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
+        yield folder, 100_000  # bytes
 
 
 def test_a_full_disk_ends_in_one_line_naming_the_file_and_keeps_the_old_outputs(small_disk):
@@ -167,7 +174,7 @@ def test_a_full_disk_ends_in_one_line_naming_the_file_and_keeps_the_old_outputs(
         free = os.statvfs(folder).f_bavail * os.statvfs(folder).f_frsize
         (folder / "filler").write_bytes(os.urandom(max(free - 40_000, 0)))
         old["filler"] = (folder / "filler").read_bytes()
-    proc = subprocess.run(relight(*args, "--size", "512", "--yaw", "90"), capture_output=True, text=True, preexec_fn=limit)
+    proc = subprocess.run(prepared(relight(*args, "--size", "512", "--yaw", "90"), limit or 0), capture_output=True, text=True)
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
     assert lines[0].startswith(f"relight: error: {folder}/x.") and ("No space left" in lines[0] or "too large" in lines[0])

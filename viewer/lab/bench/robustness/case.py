@@ -78,10 +78,19 @@ def truncations(data: bytes, name: str, write):
 # the parent's high-water mark through fork and exec); forked from this small process it does not.
 # Signals sent to it are passed on; the child's exit code, or its signal, is its own.
 PEAK_WRAPPER = """
-import os, signal, sys
+import json, os, resource, signal, sys
 pid = os.fork()
 if pid == 0:
-    os.execv(sys.executable, [sys.executable, "-m", "viewer.cli.main", *sys.argv[2:]])
+    setup = json.loads(sys.argv[2])  # (ChildSetup: done here, in one thread, not in a threaded parent's preexec_fn)
+    for name, value in setup["rlimits"].items():
+        resource.setrlimit(getattr(resource, name), (value, value))
+    if setup["full_stdout"]:
+        full = os.open("/dev/full", os.O_WRONLY)
+        os.dup2(full, 1)
+        os.close(full)
+    for fd in setup["close"]:
+        os.close(fd)
+    os.execv(sys.executable, [sys.executable, "-m", "viewer.cli.main", *sys.argv[3:]])
 def forward(n, f):
     try:
         os.kill(pid, n)
@@ -105,11 +114,26 @@ os._exit(os.WEXITSTATUS(status))
 """
 
 
-def start_command(args: list, peak_file: Path, env: dict | None = None, preexec=None, **popen) -> subprocess.Popen:
-    """``relight ARGS`` started under :data:`PEAK_WRAPPER` (its peak goes to ``peak_file``)."""
-    return subprocess.Popen([sys.executable, "-c", PEAK_WRAPPER, str(peak_file), *map(os.fsdecode, args)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, preexec_fn=preexec,
-                            start_new_session=True, **popen)
+@dataclass(frozen=True)
+class ChildSetup:
+    """What the command's process is given before it starts (by :data:`PEAK_WRAPPER`, single-threaded:
+    a ``preexec_fn`` in the campaign's threaded process can deadlock the fork, and did): resource
+    limits (``RLIMIT_AS``: bytes), its stdout a full device, descriptors closed."""
+
+    rlimits: dict = field(default_factory=dict)
+    full_stdout: bool = False
+    close: tuple = ()
+
+    def to_json(self) -> str:
+        return json.dumps({"rlimits": self.rlimits, "full_stdout": self.full_stdout, "close": list(self.close)})
+
+
+def start_command(args: list, peak_file: Path, env: dict | None = None, setup: ChildSetup = ChildSetup(),
+                  **popen) -> subprocess.Popen:
+    """``relight ARGS`` started under :data:`PEAK_WRAPPER` (its peak goes to ``peak_file``; ``setup``
+    done in the command's process before it starts)."""
+    return subprocess.Popen([sys.executable, "-c", PEAK_WRAPPER, str(peak_file), setup.to_json(), *map(os.fsdecode, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True, **popen)
 
 
 def peak_of(peak_file: Path) -> int:
@@ -119,7 +143,7 @@ def peak_of(peak_file: Path) -> int:
         return 0
 
 
-def run_command(args: list, env: dict | None = None, timeout: float = TIMEOUT, preexec=None):
+def run_command(args: list, env: dict | None = None, timeout: float = TIMEOUT, setup: ChildSetup = ChildSetup()):
     """``relight ARGS`` in its own process: (exit code or None on a timeout, stdout, stderr, seconds,
     peak resident KB of that one process)."""
     import signal
@@ -128,7 +152,7 @@ def run_command(args: list, env: dict | None = None, timeout: float = TIMEOUT, p
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="relight-peak-") as tmp:
         peak_file = Path(tmp) / "peak"
-        proc = start_command(args, peak_file, env, preexec)
+        proc = start_command(args, peak_file, env, setup)
         try:
             out, err = proc.communicate(timeout=timeout)
             code = proc.returncode

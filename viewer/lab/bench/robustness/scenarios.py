@@ -13,7 +13,7 @@ import time
 from functools import partial
 from pathlib import Path
 
-from viewer.lab.bench.robustness.case import Scenario, peak_of, run_command, start_command
+from viewer.lab.bench.robustness.case import ChildSetup, Scenario, peak_of, run_command, start_command
 from viewer.resources import asset_dir, sample_scene_dir
 
 SCENE = sample_scene_dir()
@@ -182,19 +182,9 @@ def _streams(how: str, work: Path):
     folder = work / "scenarios" / f"streams_{how.replace(' ', '_')}"
     folder.mkdir(parents=True)
 
-    def rearrange():
-        if how in ("stdout closed", "every stream closed"):
-            os.close(1)
-        if how in ("stderr closed", "every stream closed"):
-            os.close(2)
-        if how in ("stdin closed", "every stream closed"):
-            os.close(0)
-        if how == "stdout a full device":
-            full = os.open("/dev/full", os.O_WRONLY)
-            os.dup2(full, 1)
-            os.close(full)
-
-    code, _, err, _, peak = run_command(["render", SCENE, LIGHTS, "--size", "64", "-o", folder / "x.png"], preexec=rearrange)
+    closed = {"stdout closed": (1,), "stderr closed": (2,), "stdin closed": (0,), "every stream closed": (1, 2, 0)}
+    setup = ChildSetup(full_stdout=how == "stdout a full device", close=closed.get(how, ()))
+    code, _, err, _, peak = run_command(["render", SCENE, LIGHTS, "--size", "64", "-o", folder / "x.png"], setup=setup)
     problems = [] if code == 0 and "Traceback" not in err and (folder / "x.png").is_file() else [f"exit {code}: {err[-200:]!r}"]
     return problems, peak, code
 
@@ -248,19 +238,16 @@ def _surroundings(what: str, value: str, k: int, work: Path):
     return ([] if ok else [f"exit {code}: {err[-200:]!r}"]), peak, code
 
 
+FILE_SIZE_LIMIT = 100_000  # bytes a file may grow to where no small file system can be mounted (not root)
+
+
 def _memory_limit(limit_mb: int, k: int, work: Path):
     """A render under an address-space limit (``ulimit -v``): done, or one line (numpy's MemoryError
     and OpenGL's refusals were tracebacks)."""
-    import resource
-
     folder = work / "scenarios" / f"ulimit_{limit_mb}_{k}"
     folder.mkdir(parents=True)
-
-    def limit():
-        resource.setrlimit(resource.RLIMIT_AS, (limit_mb << 20, limit_mb << 20))
-
     code, _, err, _, peak = run_command(["render", SCENE, "--env", asset_dir() / "envmaps" / "venice_sunset_256.hdr", "--size", "128",
-                                         "-o", folder / "x.png"], preexec=limit)
+                                         "-o", folder / "x.png"], setup=ChildSetup(rlimits={"RLIMIT_AS": limit_mb << 20}))
     lines = [line for line in err.strip().splitlines() if not line.startswith(("  ", "fitting "))]
     ok = "Traceback" not in err and (code == 0 or (code == 2 and len(lines) == 1 and lines[0].startswith("relight: error:")))
     return ([] if ok else [f"exit {code}: {err[-300:]!r}"]), peak, code
@@ -283,8 +270,8 @@ def _full_disk(work: Path):
             stat = os.statvfs(folder)
             (folder / "filler").write_bytes(os.urandom(max(stat.f_bavail * stat.f_frsize - 40_000, 0)))
         old = {p.name: p.read_bytes() for p in folder.iterdir()}
-        limit = None if root else _file_size_limit
-        code, _, err, _, peak2 = run_command([*args, "--size", "512", "--yaw", "90"], preexec=limit)
+        setup = ChildSetup() if root else ChildSetup(rlimits={"RLIMIT_FSIZE": FILE_SIZE_LIMIT})
+        code, _, err, _, peak2 = run_command([*args, "--size", "512", "--yaw", "90"], setup=setup)
         lines = err.strip().splitlines()
         problems = []
         if code != 2 or len(lines) != 1 or not lines[0].startswith(f"relight: error: {folder}/x."):
@@ -295,12 +282,6 @@ def _full_disk(work: Path):
     finally:
         if root:
             subprocess.run(["umount", str(folder)], check=True)
-
-
-def _file_size_limit():
-    import resource
-
-    resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
 
 
 def _bundle_left_whole(out: Path, folder: Path) -> list[str]:
