@@ -22,14 +22,16 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from abc import ABC, abstractmethod
 
 from viewer.resources import shader_dir
 
 METHODS: dict[str, SoftMethod] = {}  # name -> the method, in the order the files are found (by name)
 
 
-class SoftMethod:
-    """One way to soften each light's shadow (the module docstring says what a method gives)."""
+class SoftMethod(ABC):
+    """One way to soften each light's shadow (the module docstring says what a method gives); a method
+    without its torch twin cannot be made (registered)."""
 
     name = ""
     shader = ""  # its GLSL file in shaders/ (a method may give its text otherwise: glsl())
@@ -47,12 +49,14 @@ class SoftMethod:
         return {}
 
     def bind(self, light_pass, prog, group) -> None:
-        """Its uniforms for a group of up to four lights (the shadow maps are bound already)."""
+        """Its uniforms for a group of up to four lights (the shadow maps are bound already); a method
+        that reads none of its own sets none."""
+        return None
 
+    @abstractmethod
     def twin(self, depth, sigma, frames, u, v, d, bias, normal, terms):
         """(N, P) soft visibility in torch: shadow maps ``depth``, the lights' ``sigma`` and ``frames``,
         the receivers' shadow-map coordinates (``u``, ``v``, ``d``), ``bias`` and ``normal`` (P, 3)."""
-        raise NotImplementedError(f"the soft-shadow method {self.name!r} has no torch twin")
 
 
 def register_soft_method(cls):
