@@ -234,7 +234,8 @@ def test_bundled_environment_carries_its_fitted_lights(horn):
     import json
 
     from viewer.lab.bench.lightfit_evaluate import shading_errors
-    from viewer.lighting.lightfit.problem import FitSettings, build_problem
+    from viewer.lighting.lightfit.problem import build_problem
+    from viewer.lighting.lightfit.settings import FitSettings
 
     env = load_envmap(BUNDLED.with_suffix(".hdr"))
     assert env.pixels.shape == (128, 256, 3)

@@ -12,10 +12,12 @@ from viewer.lab.bench.lightfit_evaluate import held_out, relative_l1, shading_er
 from viewer.lighting.envmap import EnvMap, load_envmap, pixel_directions, save_envmap
 from viewer.lighting.lightfit import cache_path, lights_for_map, map_hash
 from viewer.lighting.lightfit.fit import fit_lights
-from viewer.lighting.lightfit.problem import FitSettings, VisibilityTable, build_problem, shadowed_views
-from viewer.lighting.lightfit.reference import plane_reference, sphere_reference
+from viewer.lighting.lightfit.problem import VisibilityTable, build_problem, shadowed_views
+from viewer.lighting.lightfit.reference import plane_reference
 from viewer.lighting.lightfit.samples import all_texels, map_samples
-from viewer.lighting.lightfit.views import PlaneView, SphereView, plane_view, sphere_view
+from viewer.lighting.lightfit.settings import FitSettings
+from viewer.lighting.lightfit.sphere_lobes import SphereView, sphere_reference, sphere_view
+from viewer.lighting.lightfit.views import PlaneView, plane_view
 from viewer.scene.area_lights import PAPER_TO_CAMERA, load_lights
 
 HDRI = SHARED_DATA / "hdri"
@@ -94,8 +96,8 @@ def test_reference_matches_the_brute_force_sum_over_every_texel():
     sphere = _subset_sphere(sphere_view(64), 61)
     plane = _subset_plane(plane_view("sphere", 96), 149)
     full, sampled = all_texels(env), map_samples(env, 1024)
-    bd, bs = sphere_reference(full, sphere)
-    sd, ss = sphere_reference(sampled, sphere)
+    bd, bs = (torch.as_tensor(a) for a in sphere_reference(full, sphere.normal))
+    sd, ss = (torch.as_tensor(a) for a in sphere_reference(sampled, sphere.normal))
     bp, sp = plane_reference(full, plane), plane_reference(sampled, plane)
     assert relative_l1(sd, bd) < 0.003
     assert relative_l1(ss, bs) < 0.01
@@ -262,18 +264,90 @@ def test_corrupt_cache_entry_is_refitted(tmp_path):
 def test_cosine_adam_matches_torch_optim_step_for_step(t_max, eta_min, steps):
     from viewer.lighting.lightfit.adam import CosineAdam
 
-    start = torch.randn(7, 3, generator=torch.Generator().manual_seed(1))
-    target = torch.randn(7, 3, generator=torch.Generator().manual_seed(2))
-    ours, theirs = start.clone().requires_grad_(True), start.clone().requires_grad_(True)
+    start = torch.randn(7, 3, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
+    target = torch.randn(7, 3, generator=torch.Generator().manual_seed(2), dtype=torch.float64)
+    ours = start.numpy().copy()
+    theirs = start.clone().requires_grad_(True)
     opt = CosineAdam([ours], lr=0.3, betas=(0.5, 0.999), t_max=t_max, eta_min=eta_min)
     ref = torch.optim.Adam([theirs], lr=0.3, betas=(0.5, 0.999))
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(ref, T_max=t_max, eta_min=eta_min)
     for _ in range(steps):
-        for p, o in ((ours, opt), (theirs, ref)):
-            o.zero_grad()
-            ((p - target) ** 4).sum().backward()
-            o.step()
+        opt.step([4.0 * (ours - target.numpy()) ** 3])  # the gradient of sum((p - target)^4)
+        ref.zero_grad()
+        ((theirs - target) ** 4).sum().backward()
+        ref.step()
         sched.step()
         assert opt.lr == pytest.approx(ref.param_groups[0]["lr"], rel=1e-9, abs=1e-12)
-    assert torch.allclose(ours, theirs, atol=1e-5)
-    assert not torch.allclose(ours, start, atol=1e-2)  # it moved
+    np.testing.assert_allclose(ours, theirs.detach().numpy(), atol=1e-9)
+    assert not np.allclose(ours, start.numpy(), atol=1e-2)  # it moved
+
+
+def _random_lights(n, seed):
+    rng = np.random.default_rng(seed)
+    direction = rng.normal(size=(n, 3))
+    direction[0] = [0.0, 0.0, -1.0]  # straight from behind: the half vector's floor
+    direction[1] = [1.0, 0.0, 1e-4]  # grazing
+    return direction / np.linalg.norm(direction, axis=1, keepdims=True), rng.uniform(0.1, 3.0, size=(n, 3))
+
+
+def test_sphere_lobes_are_the_twins_in_values_and_slopes():
+    """The default fits' numpy shading of the sphere equals the twin's (viewer.twin.brdf), and its
+    slopes equal torch's autograd through the twin, lights from behind and grazing ones included."""
+    from viewer.lighting.lightfit.sphere_lobes import STEP2_MATERIAL, SphereLobes
+    from viewer.twin.brdf import diffuse_shading, specular_shading
+
+    normal = sphere_view(24).normal
+    direction, _ = _random_lights(40, 3)
+    lobes = SphereLobes(normal, dtype=np.float64)
+    diff, spec, ds_dc, ds_dlz = lobes.shading_and_slopes(direction)
+    np.testing.assert_allclose(lobes.shading(direction)[1], spec)
+    n = torch.as_tensor(normal)
+    material = torch.full((len(normal),), STEP2_MATERIAL, dtype=torch.float64)
+    light = torch.tensor(direction, requires_grad=True)
+    twin_spec = specular_shading(n, light, material, material)
+    np.testing.assert_allclose(diff, diffuse_shading(n, light).detach().numpy(), atol=1e-12)
+    np.testing.assert_allclose(spec, twin_spec.detach().numpy(), rtol=1e-9, atol=1e-12)
+    weights = torch.as_tensor(np.random.default_rng(4).random(spec.shape))
+    (twin_spec * weights).sum().backward()
+    ours = (weights.numpy() * ds_dc) @ normal
+    ours[:, 2] += (weights.numpy() * ds_dlz).sum(axis=1)
+
+    def tangent(g):  # the slopes along the unit sphere of directions (what a fit of unit directions moves)
+        return g - direction * (g * direction).sum(axis=1, keepdims=True)
+
+    np.testing.assert_allclose(tangent(ours), tangent(light.grad.numpy()), rtol=1e-6, atol=1e-9)
+
+
+def test_sphere_fit_loss_and_gradient_are_torchs_autograd(rooitou):
+    """The instant fit's hand-written gradient of the paper's sRGB L1 loss against torch's autograd of
+    the torch loss (the paper's method's) on the same references."""
+    from viewer.lighting.lightfit.paper import step2_loss
+
+    problem = build_problem(rooitou, FitSettings(sphere_resolution=24, samples=256), shadows=False)
+    direction, intensity = _random_lights(6, 5)
+    loss, g_dir, g_int = problem.target.loss_and_gradient(direction, intensity)
+    d = torch.tensor(direction, dtype=torch.float32, requires_grad=True)
+    i = torch.tensor(intensity, dtype=torch.float32, requires_grad=True)
+    ref = step2_loss(problem, d, i)
+    ref.backward()
+    assert loss == pytest.approx(float(ref.detach()), rel=1e-4)
+    np.testing.assert_allclose(g_int, i.grad.numpy(), rtol=2e-3, atol=1e-6)
+    def tangent(g):
+        return g - direction * (g * direction).sum(axis=1, keepdims=True)
+
+    np.testing.assert_allclose(tangent(g_dir), tangent(d.grad.numpy()), rtol=2e-3, atol=1e-5)
+
+
+def test_the_default_fits_do_not_import_torch(tmp_path):
+    """``relight fit-lights`` with the default method runs without torch (importing it alone costs about
+    2 s here: docs/lights.md)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from viewer.lighting.envmap import EnvMap; import numpy as np; "
+            "from viewer.lighting.lightfit.fit import fit_lights; "
+            "px = np.full((16, 32, 3), 0.2, np.float32); px[4, 9] = 500.0; "
+            "lights = fit_lights(EnvMap(px, 'sun'), 4, 'instant'); lights = fit_lights(EnvMap(px, 'sun'), 4, 'fast'); "
+            "print('torch' in sys.modules, len(lights))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+    assert out.stdout.split() == ["False", "4"]

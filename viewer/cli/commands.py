@@ -253,7 +253,7 @@ def cmd_fit_lights(args) -> int:
     start, timing = time.perf_counter(), {}
     lights, cached = fitted_lights(env, n, args.method, refit=args.refit, timing=timing)
     seconds = time.perf_counter() - start
-    how = "from the cache" if cached else (f"fitted in {timing.get('fit', seconds):.1f} s, {seconds:.1f} s with loading torch"
+    how = "from the cache" if cached else (f"fitted in {timing.get('fit', seconds):.1f} s, {seconds:.1f} s with loading the fitter"
                                            if seconds - timing.get("fit", seconds) >= 0.05 else f"fitted in {seconds:.1f} s")
     if out is None:
         why = (f"{mine} is not a file relight wrote: kept; -o writes a light file, --force replaces it" if mine

@@ -25,7 +25,8 @@ from viewer.files.imageio import atomic_path, write_text
 from viewer.lab.bench.lightfit_evaluate import held_out, shading_errors
 from viewer.lighting.envmap import load_envmap
 from viewer.lighting.lightfit.fit import METHODS, fit_lights
-from viewer.lighting.lightfit.problem import FitSettings, build_problem
+from viewer.lighting.lightfit.problem import build_problem
+from viewer.lighting.lightfit.settings import FitSettings
 
 COUNTS = (4, 8, 16, 32)
 VIEWS = ("sphere", "plane", "heldout")

@@ -5,7 +5,7 @@ Measured on this machine, medians of ``repeats`` runs, with the load average bes
 machine moves every timing: compare runs at the same load):
 
 - ``torch_import``: a fresh Python importing torch (what every command that fits or infers pays once);
-- ``fit_instant_1k``: the instant light fit of a 1k map, 16 lights, in-process (torch loaded);
+- ``fit_instant_1k``: the instant light fit of a 1k map, 16 lights, in-process;
 - ``fit_lights_command``: ``relight fit-lights MAP -n 16`` end to end, a fresh cache;
 - ``render_balanced``: one frame of the bundled sample at the balanced preset, the lights moved each time;
 - ``infer_photo``: the bundled photo inferred (``relight infer``, its own size up to 768 px), one run.

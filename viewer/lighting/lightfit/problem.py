@@ -17,15 +17,18 @@ numeric range). :class:`Problem` then renders any light set on the same views, d
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
 
 from viewer.lighting.envmap import EnvMap
-from viewer.lighting.lightfit.reference import ROTATIONS, STEP2_MATERIAL, plane_reference, rotation_matrices, sphere_reference
+from viewer.lighting.lightfit.reference import plane_reference
 from viewer.lighting.lightfit.samples import MapSamples, map_samples
-from viewer.lighting.lightfit.views import PlaneView, SphereView, plane_view, sphere_view
-from viewer.lighting.median_cut import LUMINANCE
+from viewer.lighting.lightfit.settings import DEFAULT_SETTINGS, FitSettings, report
+from viewer.lighting.lightfit.sphere_fit import SphereTarget, sphere_target
+from viewer.lighting.lightfit.sphere_lobes import ROTATIONS, STEP2_MATERIAL, SphereView, rotation_matrices
+from viewer.lighting.lightfit.views import PlaneView, plane_view
 from viewer.scene import shadow_space as rule
 from viewer.twin import csm
 from viewer.twin.brdf import diffuse_shading, specular_shading
@@ -35,25 +38,27 @@ from viewer.twin.shadow_map import shadow_maps
 
 
 @dataclass(frozen=True)
-class FitSettings:
-    sphere_resolution: int = 64  # sphere view (smooth shading: 64 px resolve it)
-    plane_resolution: int = 96  # plane views (shadows)
-    shadow_resolution: int = 128  # shadow maps of the fitted lights on the plane views
-    samples: int = 1024  # map samples of the reference (accuracy in docs/lights.md)
-    terms: int = 4  # CSM Fourier terms
-
-
-@dataclass(frozen=True)
 class Problem:
     settings: FitSettings
     samples: MapSamples
     scale: float  # reference / scale is what is fitted; fitted intensities are multiplied back
-    sphere: SphereView
-    sphere_diffuse: torch.Tensor  # (K, P, 3) normalized
-    sphere_specular: torch.Tensor
+    target: SphereTarget  # the sphere view and its normalized references (numpy)
     plane: PlaneView | None  # None: built without the shadowed plane (build_problem's ``shadows``)
     plane_shadowed: torch.Tensor | None  # (K, P, 3) normalized
     rotations: tuple = ROTATIONS
+
+    @property
+    def sphere(self) -> SphereView:
+        return self.target.view
+
+    @cached_property
+    def sphere_diffuse(self) -> torch.Tensor:
+        """(K, P, 3) normalized reference diffuse of the sphere view, for torch."""
+        return torch.as_tensor(self.target.diffuse, dtype=torch.float32)
+
+    @cached_property
+    def sphere_specular(self) -> torch.Tensor:
+        return torch.as_tensor(self.target.specular, dtype=torch.float32)
 
     def sphere_shading(self, direction: torch.Tensor, intensity: torch.Tensor):
         """Normalized (diffuse, specular) (K, P, 3) of the sphere view under the lights (unit directions)."""
@@ -66,33 +71,25 @@ class Problem:
         return torch.einsum("knp,nc->kpc", diff, intensity), torch.einsum("knp,nc->kpc", spec, intensity)
 
 
-def build_problem(env: EnvMap, settings: FitSettings = FitSettings(), progress=None, shadows: bool = True) -> Problem:
+def build_problem(env: EnvMap, settings: FitSettings = DEFAULT_SETTINGS, progress=None, shadows: bool = True) -> Problem:
     """References of ``env`` on the fitting views (raises nothing for a black map: scale is then 0);
     ``shadows`` False leaves out the shadowed plane (``plane`` and ``plane_shadowed`` None: only the
     paper's Step 3 and the benchmark's errors read them)."""
     report(progress, "reference", 0, 2)
     samples = map_samples(env, settings.samples)
-    sphere = sphere_view(settings.sphere_resolution)
-    diff, spec = sphere_reference(samples, sphere)
+    target, scale = sphere_target(samples, settings.sphere_resolution)
     report(progress, "reference", 1, 2)
     plane = plane_view("sphere", settings.plane_resolution) if shadows else None
     shadowed = plane_reference(samples, plane) if shadows else None
     report(progress, "reference", 2, 2)
-    scale = float((diff.double() @ torch.as_tensor(LUMINANCE)).mean())
     inv = 1.0 / scale if scale > 0 else 0.0
-    return Problem(settings, samples, scale, sphere, diff * inv, spec * inv, plane, None if shadowed is None else shadowed * inv)
+    return Problem(settings, samples, scale, target, plane, None if shadowed is None else shadowed * inv)
 
 
 def rotated_directions(direction: torch.Tensor, rotations=ROTATIONS) -> torch.Tensor:
     """(K, N, 3) light directions (N, 3) under each of the K rotations of the map."""
     mats = torch.as_tensor(np.stack(rotation_matrices(rotations)), dtype=direction.dtype)
     return torch.einsum("kij,nj->kni", mats, direction)
-
-
-def report(progress, stage, done, total):
-    """Tell an optional ``progress(stage, done, total)`` callback how far a stage is."""
-    if progress is not None:
-        progress(stage, done, total)
 
 
 @dataclass(frozen=True)

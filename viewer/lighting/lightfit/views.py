@@ -1,8 +1,6 @@
 """The simple scenes lights are fitted on and measured with, and their analytic visibility.
 
-- **Sphere view** (the paper's Step 2): a unit sphere seen orthographically along -z, so the view
-  vector is exactly the shading convention's (0, 0, 1); only its normals matter (a lone convex
-  sphere shadows nothing but its own back, which n.l already removes).
+- **Sphere view** (the paper's Step 2): in :mod:`.sphere_lobes`, with its shading.
 - **Plane views** (Step 3 and the error measurements): a camera (the paper's 50 mm lens on a 36 mm
   sensor) looks down at ``ELEVATION`` degrees onto an infinite plane carrying one object: the
   fitting scene has a unit sphere resting on the plane (the paper's "sphere on a plane"); the
@@ -30,30 +28,6 @@ from viewer.scene.camera import Camera
 
 ELEVATION = 35.0  # degrees between the view direction and the plane
 SPHERE_DISTANCE = 7.0  # camera to sphere-centre distance, in sphere radii (the plane views)
-
-
-@dataclass(frozen=True)
-class SphereView:
-    """Orthographic view of the unit sphere: ``normal`` (P, 3) of the P pixels inside its disk."""
-
-    resolution: int
-    normal: np.ndarray
-    pixel_index: np.ndarray  # (P,) flat index into resolution x resolution
-
-    def to_image(self, values: np.ndarray) -> np.ndarray:
-        """Scatter (..., P) values into (..., R, R) images, zero off the sphere."""
-        out = np.zeros(values.shape[:-1] + (self.resolution * self.resolution,), dtype=values.dtype)
-        out[..., self.pixel_index] = values
-        return out.reshape(values.shape[:-1] + (self.resolution, self.resolution))
-
-
-def sphere_view(resolution: int) -> SphereView:
-    t = (np.arange(resolution) + 0.5) / resolution * 2.0 - 1.0
-    x, y = np.meshgrid(t, -t)
-    r2 = x * x + y * y
-    inside = r2 < 1.0
-    normal = np.stack([x[inside], y[inside], np.sqrt(1.0 - r2[inside])], axis=1)
-    return SphereView(resolution, normal, np.flatnonzero(inside.reshape(-1)))
 
 
 @dataclass(frozen=True)
