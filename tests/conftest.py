@@ -1,4 +1,9 @@
+import os
+import shutil
+import signal
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -7,6 +12,41 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+CAMPAIGN_TEST = "test_the_bad_input_campaign_ends_cleanly"
+CAMPAIGN = pytest.StashKey[dict]()
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """When the bad-input campaign's test is to run, start the campaign at once, in a fresh Python
+    with one job, beside the other tests (which keep one core busy; the campaign alone takes 6
+    minutes of two cores): its test, later in the run, waits for it and reads its report."""
+    if not any(item.name == CAMPAIGN_TEST for item in items):
+        return
+    folder = Path(tempfile.mkdtemp(prefix="relight-campaign-"))
+    code = ("import sys; from viewer.lab.bench.robustness import run_robustness_benchmark as run; "
+            "run(work=sys.argv[1], output=sys.argv[2], jobs=1)")
+    with open(folder / "campaign.log", "wb") as log:
+        proc = subprocess.Popen([sys.executable, "-c", code, str(folder / "work"), str(folder / "robustness.json")],
+                                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    config.stash[CAMPAIGN] = {"process": proc, "folder": folder}
+
+
+def pytest_unconfigure(config):
+    campaign = config.stash.get(CAMPAIGN, None)
+    if campaign is None:
+        return
+    if campaign["process"].poll() is None:  # the run ended before the campaign's test: the campaign goes with it
+        os.killpg(campaign["process"].pid, signal.SIGKILL)
+        campaign["process"].wait()
+    shutil.rmtree(campaign["folder"], ignore_errors=True)
+
+
+@pytest.fixture
+def campaign(request):
+    """The bad-input campaign started with the run: (its exit status, its report's path, its log's text)."""
+    started = request.config.stash[CAMPAIGN]
+    code = started["process"].wait(timeout=1800)
+    return code, started["folder"] / "robustness.json", (started["folder"] / "campaign.log").read_text(errors="replace")
 
 
 @pytest.fixture(scope="session")
