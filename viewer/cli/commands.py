@@ -194,14 +194,20 @@ def _render(args) -> int:
 
 def cmd_infer(args) -> int:
     from viewer.files.clip_reader import is_clip
-    from viewer.photo.inference import STAGE_SHARES, bundle_target, infer, load_networks
-    from viewer.progress import TimeLeft
+    from viewer.files.kinds import regular_file
+    from viewer.photo.frames import check_photo_file
 
     if is_clip(args.photo):
         from viewer.cli.clip_commands import cmd_infer_clip
 
         return cmd_infer_clip(args)
     not_a_clip_range(args, args.photo)
+    check_photo_file(args.photo)  # before torch is loaded: a wrong file is one line at once
+    if args.mask is not None:
+        regular_file(args.mask, "mask")
+    from viewer.photo.inference import STAGE_SHARES, bundle_target, infer, load_networks
+    from viewer.progress import TimeLeft
+
     target = bundle_target(args.output)
     writable(target.parent, folder=True)
     for given in (args.photo, args.mask, args.networks):

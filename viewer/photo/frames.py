@@ -183,6 +183,27 @@ def to_srgb(image, icc: bytes, path, what: str, notes: list):
     return rgb
 
 
+def check_photo_file(path) -> None:
+    """The photo's checks that decode no pixel, each one line: a file of another kind (a map, a light
+    file) given as a photo, not a regular file, more pixels than the limit by its header. A command
+    runs them before it loads the networks (torch alone takes about 2 s), so a wrong file is said at
+    once; a file the header reader cannot open is left to :func:`read_photo`, which says why."""
+    from PIL import Image, UnidentifiedImageError
+
+    wrong = wrong_kind(path, "a photo")
+    if wrong is not None:
+        raise wrong
+    path = regular_file(path, "photo")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as im:
+                size = im.size
+    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError):
+        return
+    check_pixels(path, *size, MAX_PIXELS)
+
+
 def read_photo(path, notes: list, digests: dict | None = None, lens: dict | None = None) -> np.ndarray:
     """The photo as (H, W, 3) uint8 sRGB, upright. Grayscale becomes RGB and alpha is dropped,
     each with a note. ``digests``, ``lens``: see :func:`read_image_u8`."""
