@@ -170,108 +170,131 @@ def run_batch(photos: list[Path], looks: list[ResolvedLook], folder, make_pool, 
 
 
 def _run(pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest: Manifest, summary: Summary, quiet, tqdm):
-    waiting: dict[Path, list[Item]] = {}
-    for item in todo:
-        waiting.setdefault(item.photo, []).append(item)
-    tasks: dict[int, tuple[str, object]] = {}
-    spread: dict[str, dict] = {}  # clip items whose relit parts are out: their render task, their parts' tasks' fields, left, an error
-    ids = itertools.count()
     bar = tqdm(total=len(todo), unit="item", desc="relighting", disable=quiet, file=sys.stderr, leave=False)
+    try:
+        _Dispatch(pool, todo, by_look, folder, settings, manifest, summary, bar).run()
+    finally:
+        bar.close()
 
-    def submit(kind: str, what, task: dict) -> None:
-        task_id = next(ids)
-        tasks[task_id] = (kind, what)
-        pool.submit({**task, "id": task_id})
 
-    def inferred(photo: Path, r: dict) -> None:
+class _Dispatch:
+    """The batch's tasks handed to the pool's workers and their results taken in: each photo (or clip)
+    inferred once (a clip in ranges over the workers), then its items rendered (a clip's relit parts
+    spread over the workers, then joined)."""
+
+    def __init__(self, pool, todo: list[Item], by_look, folder: Path, settings: dict, manifest: Manifest, summary: Summary,
+                 bar):
+        self.pool, self.by_look, self.folder, self.settings = pool, by_look, folder, settings
+        self.manifest, self.summary, self.bar = manifest, summary, bar
+        self.waiting: dict[Path, list[Item]] = {}
+        for item in todo:
+            self.waiting.setdefault(item.photo, []).append(item)
+        self.tasks: dict[int, tuple[str, object]] = {}
+        # clip items whose relit parts are out: their render task, their parts' tasks' fields, left, an error
+        self.spread: dict[str, dict] = {}
+        self.splits: dict[Path, SplitClip] = {}
+        self.ids = itertools.count()
+
+    def submit(self, kind: str, what, task: dict) -> None:
+        task_id = next(self.ids)
+        self.tasks[task_id] = (kind, what)
+        self.pool.submit({**task, "id": task_id})
+
+    def run(self) -> None:
+        to_split = []  # clips whose frames go in ranges, one a worker
+        for photo in self.waiting:
+            if is_clip(photo) and self.pool.size > 1:
+                to_split.append(photo)
+            else:
+                self.submit("infer", photo, {"kind": "infer", "photo": str(photo), "max_size": self.settings["max_size"],
+                                             "device": self.settings.get("device", "cpu"), "bundles": self.settings["bundles"],
+                                             "clip": is_clip(photo)})
+        try:
+            while self.tasks or to_split:
+                while to_split and len(self.tasks) < self.pool.size:  # opened one at a time (its shots are found here)
+                    self.split(to_split.pop(0))
+                for r in self.pool.results(timeout=0.5):
+                    kind, what = self.tasks.pop(r["id"], (None, None))
+                    if kind == "infer":
+                        self.inferred(what, r)
+                    elif kind == "range":
+                        done = self.splits[what[0]].take(what[1], r)
+                        if done is not None:
+                            self.inferred(what[0], done)
+                    elif kind == "open":
+                        self.opened(what, r)
+                    elif kind == "part":
+                        self.part_done(what, r)
+                    elif kind == "render":
+                        self.rendered(what, r)
+        finally:
+            for split in self.splits.values():
+                split.close()
+
+    def split(self, photo: Path) -> None:
+        """A clip's frames handed out in ranges, one a worker."""
+        self.splits[photo] = split = SplitClip.open(photo, self.settings, self.pool.size)
+        if split.done is not None:
+            self.inferred(photo, split.done)
+        for k, task in enumerate(split.tasks(self.settings)):
+            self.submit("range", (photo, k), task)
+
+    def inferred(self, photo: Path, r: dict) -> None:
         """The photo's (or clip's) bundle is there, or could not be made: its items rendered, or failed."""
         if r["ok"]:
-            manifest.add("inferred", item=str(photo), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
-                         pid=r.get("pid"), **({"ranges": r["ranges"]} if "ranges" in r else {}))
-        for item in waiting.pop(photo):
+            self.manifest.add("inferred", item=str(photo), bundle=r["bundle"], cached=r["cached"], seconds=r["seconds"],
+                              pid=r.get("pid"), **({"ranges": r["ranges"]} if "ranges" in r else {}))
+        for item in self.waiting.pop(photo):
             if not r["ok"]:
-                _failed(manifest, summary, item, r["error"])
-                bar.update(1)
+                _failed(self.manifest, self.summary, item, r["error"])
+                self.bar.update(1)
                 continue
-            manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
-            task = _render_task(item, by_look[item.look], r["bundle"], folder, settings)
-            if task["clip"] and pool.size > 1:  # its relit parts spread over the workers, then joined by its render
-                parts = {**task, "output": str(folder / item.outputs[1]), "layers": False}  # (a batch's clip has no layers)
-                spread[item.name] = {"task": task, "parts": parts, "left": 0, "error": None}
-                submit("open", item, {**parts, "kind": "open_parts"})
+            self.manifest.add("start", item=item.name, outputs=list(item.outputs))  # before any of it is written
+            task = _render_task(item, self.by_look[item.look], r["bundle"], self.folder, self.settings)
+            if task["clip"] and self.pool.size > 1:  # its relit parts spread over the workers, then joined by its render
+                parts = {**task, "output": str(self.folder / item.outputs[1]), "layers": False}  # (a batch's clip has no layers)
+                self.spread[item.name] = {"task": task, "parts": parts, "left": 0, "error": None}
+                self.submit("open", item, {**parts, "kind": "open_parts"})
             else:
-                submit("render", item, task)
+                self.submit("render", item, task)
 
-    def opened(item: Item, r: dict) -> None:
+    def opened(self, item: Item, r: dict) -> None:
         """A clip item's folders made ready: its relit parts not made yet handed out."""
         if not r["ok"]:
-            return joined(item, r["error"])
-        state = spread[item.name]
+            return self.joined(item, r["error"])
+        state = self.spread[item.name]
         for part in part_tasks(state["parts"], [index for index, _, _ in r["parts"]]):
             state["left"] += 1
-            submit("part", item, part)
+            self.submit("part", item, part)
         if not state["left"]:
-            joined(item, None)
+            self.joined(item, None)
 
-    def part_done(item: Item, r: dict) -> None:
-        state = spread[item.name]
+    def part_done(self, item: Item, r: dict) -> None:
+        state = self.spread[item.name]
         state["left"] -= 1
         state["error"] = state["error"] or (None if r["ok"] else r["error"])
         if not state["left"]:
-            joined(item, state["error"])
+            self.joined(item, state["error"])
 
-    def joined(item: Item, error: str | None) -> None:
+    def joined(self, item: Item, error: str | None) -> None:
         """A clip item's parts all in: its render joins them (and writes its poster), or it failed."""
-        state = spread.pop(item.name)
+        state = self.spread.pop(item.name)
         if error is not None:
-            _failed(manifest, summary, item, error, folder)
-            bar.update(1)
+            _failed(self.manifest, self.summary, item, error, self.folder)
+            self.bar.update(1)
         else:
-            submit("render", item, state["task"])
+            self.submit("render", item, state["task"])
 
-    splits: dict[Path, SplitClip] = {}
-    to_split = []  # clips whose frames go in ranges, one a worker
-    for photo in waiting:
-        if is_clip(photo) and pool.size > 1:
-            to_split.append(photo)
+    def rendered(self, item: Item, r: dict) -> None:
+        if r["ok"]:
+            self.manifest.add("done", item=item.name, key=item.key, photo=str(item.photo), look=item.look.name,
+                              settings=item.settings, outputs=list(item.outputs), sha256=r["sha256"],
+                              stamps={rel: stamp(self.folder / rel) for rel in item.outputs},
+                              times={**r.get("times", {}), "total": r.get("seconds")}, pid=r.get("pid"))
+            self.summary.done += 1
         else:
-            submit("infer", photo, {"kind": "infer", "photo": str(photo), "max_size": settings["max_size"],
-                                    "device": settings.get("device", "cpu"), "bundles": settings["bundles"], "clip": is_clip(photo)})
-    try:
-        while tasks or to_split:
-            while to_split and len(tasks) < pool.size:  # opened one at a time (its shots are found here) while workers wait
-                photo = to_split.pop(0)
-                splits[photo] = split = SplitClip.open(photo, settings, pool.size)
-                if split.done is not None:
-                    inferred(photo, split.done)
-                for k, task in enumerate(split.tasks(settings)):
-                    submit("range", (photo, k), task)
-            for r in pool.results(timeout=0.5):
-                kind, what = tasks.pop(r["id"], (None, None))
-                if kind == "infer":
-                    inferred(what, r)
-                elif kind == "range":
-                    done = splits[what[0]].take(what[1], r)
-                    if done is not None:
-                        inferred(what[0], done)
-                elif kind == "open":
-                    opened(what, r)
-                elif kind == "part":
-                    part_done(what, r)
-                elif kind == "render":
-                    if r["ok"]:
-                        manifest.add("done", item=what.name, key=what.key, photo=str(what.photo), look=what.look.name,
-                                     settings=what.settings, outputs=list(what.outputs), sha256=r["sha256"],
-                                     stamps={rel: stamp(folder / rel) for rel in what.outputs},
-                                     times={**r.get("times", {}), "total": r.get("seconds")}, pid=r.get("pid"))
-                        summary.done += 1
-                    else:
-                        _failed(manifest, summary, what, r["error"], folder)
-                    bar.update(1)
-    finally:
-        bar.close()
-        for split in splits.values():
-            split.close()
+            _failed(self.manifest, self.summary, item, r["error"], self.folder)
+        self.bar.update(1)
 
 
 def _render_task(item: Item, look: ResolvedLook, bundle: str, folder: Path, settings: dict) -> dict:

@@ -4,6 +4,7 @@ inferred), on this machine or in parts over a Ray cluster, on a plate or not."""
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from viewer.cli.clip_commands import bundle_options, clip_bundle, progress_bar, say_bundle
@@ -15,21 +16,30 @@ from viewer.files.ownership import refuse_foreign
 from viewer.output.video import audio_sidecar, partial_path, partial_taken
 
 
+@dataclass(frozen=True)
+class ClipJob:
+    """A clip's render as the command's checks leave it: where it goes, its light, look and plate."""
+
+    out: Path
+    turn: float
+    env: object  # the EnvMap of --env, or None
+    plate: tuple | None  # clip_plate's (plate, placement, horizon)
+    lights: object  # AreaLights
+    look: object  # Look
+    rig: object  # the user's placed lights, or None
+
+
 def cmd_render_clip(args, look) -> int:
-    from viewer.gl import create_headless_context
-    from viewer.lighting.envmap import load_envmap
-    from viewer.lighting.map_lights import PLATE, lights_source
-    from viewer.output.clip_render import (
-        ClipPictures,
-        check_layers_folder,
-        check_layers_room,
-        layer_lights,
-        layer_name,
-        layers_folder,
-        parts_folder,
-        render_clip,
-    )
-    from viewer.scene.clip_bundle import load_clip_bundle, read_record
+    job = _checked_job(args, look)
+    pool = _ray_pool(args)
+    result, bundle, seconds, followed = _relight(args, job, pool)
+    _say_result(args, job, result, bundle, seconds, followed)
+    return 0
+
+
+def _check_output(args, look) -> Path:
+    """The checks on the output and the options that need nothing read: one line each, before anything runs."""
+    from viewer.output.clip_render import check_layers_folder, layers_folder, parts_folder
 
     out = Path(args.output)
     if out.suffix.lower() != ".mp4":
@@ -37,7 +47,6 @@ def cmd_render_clip(args, look) -> int:
     if args.frames is not None:
         raise InputError(None, "--frames sets a turntable's length: a clip keeps its own frames (choose a part with "
                                "--start and --end)")
-    turn = 0.0 if args.turn is None else args.turn
     check_range(args.scene, args.start, args.end)
     if look.background == "transparent" and not args.plate:  # (on a plate the plate is the background: a window's state on one
         # says transparent)
@@ -50,6 +59,10 @@ def cmd_render_clip(args, look) -> int:
         raise InputError(None, "--per-light adds layers: give --layers too")
     if args.plate and args.layers:
         raise InputError(None, "--layers with --plate writes a photo's layers: a clip on a plate has none yet")
+    if args.ray is None and args.workers is not None:
+        raise InputError(None, "--workers: the workers of a Ray cluster: give --ray too")
+    from viewer.scene.clip_bundle import read_record
+
     source = args.scene if is_clip(args.scene) else read_record(args.scene)["source"]["path"]
     sidecar = audio_sidecar(out, source)
     not_an_input([out, partial_path(out), sidecar], [args.scene, args.lights, args.envmap, args.look, getattr(args, "rig", None),
@@ -60,8 +73,19 @@ def cmd_render_clip(args, look) -> int:
         check_layers_folder(out)
     if partial_path(out).exists():
         raise partial_taken(out)
-    env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None  # before hours of inference
-    plate = clip_plate(args) if args.plate else None  # read and placed before hours of inference: one line if it cannot be
+    return out
+
+
+def _checked_job(args, look) -> ClipJob:
+    """The output checked, the map, plate and lights read and the layers' room measured: all before
+    hours of inference."""
+    from viewer.lighting.envmap import load_envmap
+    from viewer.lighting.map_lights import PLATE, lights_source
+    from viewer.output.clip_render import check_layers_room, layer_lights
+
+    out = _check_output(args, look)
+    env = load_envmap(args.envmap, repair=args.repair) if args.envmap else None
+    plate = clip_plate(args) if args.plate else None  # one line if it cannot be placed
     if plate is not None and args.lights is None and env is None:  # the plate's light, in its camera's frame
         from viewer.plate.environment import plate_light
 
@@ -73,27 +97,42 @@ def cmd_render_clip(args, look) -> int:
         lights, source = command_lights(args, look, args.lights, env, args.envmap), lights_source(args.lights)
     look = first_look(args, look, lights, source)
     rig = rig_lights(args)
-    if args.layers and is_clip(args.scene):  # the disk's room for them, before hours of inference
+    if args.layers and is_clip(args.scene):  # the disk's room for them
         from viewer.files.clip_reader import expected_frames, probe_clip
         from viewer.photo.frames import MAX_SIZE, output_frame
 
         info = probe_clip(args.scene)
         check_layers_room(out, expected_frames(info, args.start, args.end),
                           output_frame((info.width, info.height), args.max_size or MAX_SIZE), layer_lights(lights, rig, args.per_light))
-    t0 = time.perf_counter()
-    pool = None
-    if args.ray:
-        from viewer.batch.spread_clip import open_pool
+    return ClipJob(out, 0.0 if args.turn is None else args.turn, env, plate, lights, look, rig)
 
-        pool = open_pool(args.ray, args.workers)
-        print(f"{pool.size} Ray worker{'s' if pool.size != 1 else ''} started in {time.perf_counter() - t0:.1f} s")
-    elif args.workers is not None:
-        raise InputError(None, "--workers: the workers of a Ray cluster: give --ray too")
+
+def _ray_pool(args):
+    """The Ray workers of ``--ray``, started and counted; None without it."""
+    if not args.ray:
+        return None
+    from viewer.batch.spread_clip import open_pool
+
+    t0 = time.perf_counter()
+    pool = open_pool(args.ray, args.workers)
+    print(f"{pool.size} Ray worker{'s' if pool.size != 1 else ''} started in {time.perf_counter() - t0:.1f} s")
+    return pool
+
+
+def _relight(args, job: ClipJob, pool):
+    """The clip's bundle inferred (or followed while a child infers it) and relit: (render_clip's
+    result, the bundle, the seconds since the relighting could begin, whether it followed the inference)."""
+    from viewer.gl import create_headless_context
+    from viewer.output.clip_render import ClipPictures, parts_folder, render_clip
+    from viewer.scene.clip_bundle import load_clip_bundle
+
+    look, out = job.look, job.out
+    env_pixels = job.env.pixels if job.env is not None else None
     ctx = follow = infer_bar = None
     try:
         t1 = time.perf_counter()
         planned = bundle_options(args.scene, args) if is_clip(args.scene) else None  # (the clip's bytes read once)
-        if planned is not None and pool is None and not turn and _followable(planned[0]):
+        if planned is not None and pool is None and not job.turn and _followable(planned[0]):
             infer_bar = progress_bar(0, f"inferring {Path(args.scene).name}", position=0)
             follow = _followed(args.scene, planned, infer_bar)  # inferred in a child, each frame relit here as soon as it is final
             bundle = follow(0)
@@ -101,11 +140,11 @@ def cmd_render_clip(args, look) -> int:
             bundle = load_clip_bundle(clip_bundle(args.scene, args, pool=pool, planned=planned) if planned else args.scene)
             t1 = time.perf_counter()
         ctx = create_headless_context()
-        if plate is not None:
-            look, pictures = plate_pictures(ctx, bundle, plate, lights, look, env, rig, args, turn)
+        if job.plate is not None:
+            look, pictures = plate_pictures(ctx, bundle, job.plate, job.lights, look, job.env, job.rig, args, job.turn)
         else:
-            pictures = ClipPictures(ctx, bundle, lights, look, env.pixels if env is not None else None, rig,
-                                    engine_options(args, look), turn, (args.size, args.max_size))
+            pictures = ClipPictures(ctx, bundle, job.lights, look, env_pixels, job.rig, engine_options(args, look), job.turn,
+                                    (args.size, args.max_size))
         with progress_bar(len(bundle.frames), f"relighting {out.name}", position=1 if follow is not None else None) as bar:
             def progress(done, total):
                 bar.total = total
@@ -115,8 +154,8 @@ def cmd_render_clip(args, look) -> int:
             if pool is not None:
                 from viewer.batch.spread_clip import parts_sharer
 
-                share = parts_sharer(pool, parts_task(bundle, out, args, lights, look, rig, turn, plate, engine_options(args, look)),
-                                     parts_folder(out), progress)
+                task = parts_task(bundle, out, args, job.lights, look, job.rig, job.turn, job.plate, engine_options(args, look))
+                share = parts_sharer(pool, task, parts_folder(out), progress)
             try:
                 result = render_clip(pictures, out, progress=progress, layers=args.layers, per_light=args.per_light, share=share,
                                      follow=follow)
@@ -138,11 +177,16 @@ def cmd_render_clip(args, look) -> int:
             follow.close()
         if infer_bar is not None:
             infer_bar.close()
-    seconds = time.perf_counter() - t1
+    return result, bundle, time.perf_counter() - t1, follow is not None
+
+
+def _say_result(args, job: ClipJob, result: dict, bundle, seconds: float, followed: bool) -> None:
+    from viewer.output.clip_render import layer_name
+
     w, h = result["size"]
-    print(f"wrote {out} ({result['frames']} frames, {w}x{h}, the source's timing; {seconds:.1f} s, "
+    print(f"wrote {job.out} ({result['frames']} frames, {w}x{h}, the source's timing; {seconds:.1f} s, "
           f"{60 * result['frames'] / max(seconds, 1e-9):.1f} frames a minute"
-          + (", inferred and relit together" if follow is not None else "")
+          + (", inferred and relit together" if followed else "")
           + (f"; {result['parts_reused']} parts kept from an earlier run" if result["parts_reused"] else "") + ")")
     if result["layers"] is not None:
         print(f"wrote {result['layers']}/ ({result['frames']} frames' layers, {layer_name(0)} ...)")
@@ -150,12 +194,11 @@ def cmd_render_clip(args, look) -> int:
     if result["audio_note"]:
         print(f"note: {result['audio_note']}")
     sw, sh = bundle.source["width"], bundle.source["height"]
-    if max(sw, sh) > max(w, h) + 1 and plate is None:
+    if max(sw, sh) > max(w, h) + 1 and job.plate is None:
         from viewer.photo.frames import MAX_SIZE
 
         print(f"note: the clip is {sw}x{sh}: relit at {w}x{h} (--max-size {args.max_size or MAX_SIZE} on the longer side; "
               "a larger --max-size keeps more, at more time and memory)")
-    return 0
 
 
 def _followable(target: Path) -> bool:

@@ -41,7 +41,21 @@ def add_plate_args(p, what: str):
 def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="relight", description="Relight full-body photos of people under HDR environment maps.")
     sub = parser.add_subparsers(dest="command", required=True)
+    _add_demo(sub)
+    _add_render(sub)
+    _add_view(sub)
+    _add_infer(sub)
+    _add_fit_lights(sub)
+    _add_plate_light(sub)
+    add_batch_parser(sub)
 
+    for name in sorted(plugins or {}):  # listed for --help; main() runs them with their own parser
+        sub.add_parser(name, help=f"offline work (the lab, viewer/lab): see relight {name} --help")
+    return parser
+
+
+def _add_demo(sub) -> None:
+    """``relight demo``: the whole path on the bundled sample."""
     p = sub.add_parser("demo", help="the whole path: the sample scene, then the bundled photo inferred and relit under "
                                     "the bundled maps")
     p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
@@ -50,6 +64,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     add_view_args(p, yaw_default=DEMO_YAW)
     p.set_defaults(func=cmd_demo)
 
+
+def _add_render(sub) -> None:
+    """``relight render``: headless renders: a bundle or a clip to PNG + EXR or MP4."""
     p = sub.add_parser("render", help="headless: a scene bundle under an environment map (or a light file) to "
                        "PNG + EXR, or a turntable video to MP4")
     p.add_argument("scene", help="scene bundle directory; or a clip (mp4, mov, webm, avi, mkv) or its clip bundle, "
@@ -84,6 +101,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     add_view_args(p)
     p.set_defaults(func=cmd_render)
 
+
+def _add_view(sub) -> None:
+    """``relight view``: the interactive viewer."""
     p = sub.add_parser("view", help="the interactive viewer: drag to turn the lighting, tune each light, record video")
     p.add_argument("scene", nargs="?", help="scene bundle directory, or a photo (its bundle is inferred once and cached; "
                    "default: the bundled sample), or a clip or its clip bundle, played with a timeline")
@@ -105,6 +125,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     add_engine_args(p)
     p.set_defaults(func=cmd_view, window=True)
 
+
+def _add_infer(sub) -> None:
+    """``relight infer``: photo or clip -> scene bundle."""
     p = sub.add_parser("infer", help="photo -> scene bundle (the networks' maps, the photo's own lighting, its detail)")
     p.add_argument("photo", help="photo (PNG/JPEG, sRGB; EXIF rotation applied), or a clip (mp4, mov, webm, avi, mkv; "
                                  "its rotation applied): a clip bundle, one scene bundle per frame, resumable")
@@ -120,6 +143,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     add_clip_range_args(p)
     p.set_defaults(func=cmd_infer)
 
+
+def _add_fit_lights(sub) -> None:
+    """``relight fit-lights``: an environment map -> N area lights."""
     p = sub.add_parser("fit-lights", help="fit N area lights to an environment map (cached by map content)")
     p.add_argument("map", help="equirectangular environment map (.hdr or .exr)")
     p.add_argument("-n", type=int, default=16, help="number of area lights (default 16)")
@@ -127,7 +153,7 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
                                           "reads for that map; the fitting cache only where the map's folder is read-only)")
     p.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD,
                    help="instant (the default, ~1 s): median cut + short refinement on small views; fast: the same on "
-                        "the full views (~17 s); paper: the paper's optimization; "
+                        "the full views (~5 s); paper: the paper's optimization; "
                         "median-cut: initialization only")
     p.add_argument("--plot", help="also draw the lights on the map into this PNG")
     p.add_argument("--refit", action="store_true", help="ignore the cache and fit again")
@@ -135,6 +161,9 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--repair", action="store_true", help="replace NaN/Inf map pixels with 0 (with a warning) instead of failing")
     p.set_defaults(func=cmd_fit_lights)
 
+
+def _add_plate_light(sub) -> None:
+    """``relight plate-light``: a plate's light as an environment map."""
     p = sub.add_parser("plate-light", help="the light of a background photo (a plate) as an HDR environment map (.exr), "
                                            "to inspect, edit and give as --env")
     p.add_argument("plate", help="the plate: a photo (JPEG, PNG, TIFF; 8 or 16 bit); its EXIF focal length gives its field of view")
@@ -144,12 +173,6 @@ def build_parser(plugins: dict | None = None) -> argparse.ArgumentParser:
     p.add_argument("--record", action="store_true", help="also print how the map was made (JSON)")
     p.add_argument("--force", action="store_true", help="replace a file at -o that relight did not write")
     p.set_defaults(func=cmd_plate_light)
-
-    add_batch_parser(sub)
-
-    for name in sorted(plugins or {}):  # listed for --help; main() runs them with their own parser
-        sub.add_parser(name, help=f"offline work (the lab, viewer/lab): see relight {name} --help")
-    return parser
 
 
 def command_plugins() -> dict:

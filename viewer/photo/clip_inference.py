@@ -276,133 +276,166 @@ def infer_frames(clip_path, out_dir, record: dict, frames: ClipRange | None = No
     beforehand (ranges); None: the cuts are found as the frames come. Returns what was done: the
     frames per state, those kept, the frames seen (the last index + 1), the first frame's time on
     the clip's clock, the shots, the seconds, and the pan the camera's motion gave frame ``first - 1``."""
-    first, last, warm = (frames.first, frames.last, frames.warm) if frames is not None else (0, None, 0)
     from viewer.gl import create_headless_context
 
-    options, temporal = record["options"], record["temporal"]
-    start, end, size, max_size = options["start"], options["end"], options["size"], options["max_size"]
-    frames_dir = Path(out_dir) / FRAMES
-    total = int(record.get("expected_frames", 0))
-    info = probe_clip(clip_path)
     own_ctx = ctx is None
     ctx = create_headless_context() if own_ctx else ctx
-    nets = None
-    counts = {"person": 0, "no person": 0, "lost": 0}
-    first_at = 0.0
-    cuts = ShotCuts()
-    shot_of = (lambda index, rgb: bisect.bisect_right(shot_starts, index) - 1) if shot_starts else \
-        (lambda index, rgb: cuts.shot_of(rgb))
-    steady = SteadyMaps() if temporal == "on" else None
-    motion = CameraMotion() if temporal == "on" else None
-    follow = PersonTrack(record["person"]) if record.get("person") else None  # the person chosen once for the clip
-    everyone_too = options.get("people") == "all"
-    frame_size = output_frame((info.width, info.height), max_size)  # the bundle's frame
-    to_output = frame_size[0] / info.width  # source pixels -> the bundle's frame
-    shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
-    kept, count, warm_pan = 0, 0, None
-    begin = max(first - warm, 0)
-    # a range begun within a shot (clip_ranges) counts that shot's pan from ``begin``, and
-    # is given the shot's light as fitted on the shot's first frame with a person
-    begin_shot = shot_of(begin, None) if temporal == "on" and shot_starts else None
-    mid_shot = begin_shot is not None and begin > shot_starts[begin_shot]
-    warned = FrameWarnings(clip_path)
-    writes = FrameWrites()
-    t0 = time.perf_counter()
+    try:
+        return _FramesRun(clip_path, Path(out_dir) / FRAMES, record, frames or ClipRange(0, None, 0), shot_starts, device,
+                          networks, ctx).all(progress)
+    finally:
+        if own_ctx:
+            ctx.release()
 
-    def networks_now():
-        nonlocal nets
-        nets = nets if nets is not None else (networks or load_networks(device))
-        return nets
 
-    with frames_freed() as after_frame:
-        try:
-            if mid_shot:
-                lights = _shot_lights(clip_path, frames_dir, record, shot_starts[begin_shot], begin, device, networks_now, ctx)
-                if lights is not None:
-                    shot_lights[begin_shot] = lights
-            for frame in clip_frames(clip_path, start, end):
-                writes.deliver()
-                if frame.index < begin:
-                    continue
-                if last is not None and frame.index >= last:
-                    break
-                count, first_at = frame.index + 1, frame.at
-                writing = frame.index >= first
-                shot = shot_of(frame.index, frame.rgb) if temporal == "on" else frame.index
-                counted_from = begin if mid_shot and shot == begin_shot else None
-                if follow is not None:
-                    follow.at(frame.index)
-                entry = finished_frame(frames_dir, frame.index)
-                alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
-                if entry is not None and abs(entry.seconds - frame.seconds) < 1e-4 and entry.shot == shot and \
-                        (entry.pan_from == counted_from or not writing):  # (a pan counted elsewhere is made again)
-                    kept += writing
-                    if entry.state == "person" and shot not in shot_lights:  # the lights the shot's later frames were given
-                        shot_lights[shot] = load_lights(frames_dir / frame_name(frame.index) / "lights.json")
-                    if entry.state == "person" and (temporal == "on" or follow is not None):
-                        scene = load_scene(frames_dir / frame_name(frame.index))
-                        alpha = scene.frame.alpha
-                        if follow is not None:  # the person followed from where this frame relit them
-                            follow.seen_in(alpha > 0.5)
-                        if steady is not None:  # the next frame steadied from this one's maps as written
-                            steady.carry(scene, resize(frame.rgb, frame_size), shot)
-                    elif steady is not None:
-                        steady.restart()
-                else:
-                    entry = None
-                fresh = entry is None
-                if fresh:
-                    label = f"{clip_path} at {frame.seconds + start:.3f} s"
-                    if frame.rgb is None:
-                        entry = ClipFrameEntry(frame.index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot)
-                        if steady is not None:
-                            steady.restart()
-                    else:
-                        try:
-                            with warned.frame(label):
-                                given = ClipFrame(frame.rgb, shot_lights.get(shot), (steady, shot) if steady is not None else None,
-                                                  follow, everyone_too)
-                                result = infer_scene(label, None, size=size, max_size=max_size, device=device, networks=networks_now(),
-                                                     ctx=ctx, clip=given)
-                        except NoPersonError as exc:  # the frame as it is: what a photo background shows there
-                            if steady is not None:
-                                steady.restart()
-                            if writing:
-                                writes.put(functools.partial(write_png, frames_dir / f"{frame_name(frame.index)}.png",
-                                                             resize(frame.rgb, frame_size) / 255.0))
-                            entry = ClipFrameEntry(frame.index, frame.seconds, "no person", exc.problem, shot)
-                        else:
-                            result["record"]["clip"] = {"index": frame.index, "seconds": round(frame.seconds, 6), "key": record["key"],
-                                                        "shot": shot}
-                            if writing:
-                                writes.put(functools.partial(write_bundle, result, frames_dir / frame_name(frame.index)))
-                            entry = ClipFrameEntry(frame.index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot)
-                            shot_lights.setdefault(shot, result["lights"])
-                            alpha = result["scene"].frame.alpha
-                if motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
-                    pan = tuple(to_output * v for v in motion.shift_of(frame.rgb, alpha, shot))
-                    if frame.index == first - 1:
-                        warm_pan = list(pan)
-                    if fresh:
-                        entry = replace(entry, pan=pan, pan_from=counted_from)
-                if fresh and writing:
-                    writes.put(functools.partial(write_text, frames_dir / f"{frame_name(frame.index)}.json",
-                                                 json.dumps(entry.to_json()) + "\n"))
-                after_frame()
-                if writing:
-                    counts[entry.state] += 1
-                    if progress is not None:  # once the frame is written (on this thread: a window's progress draws)
-                        writes.after(functools.partial(progress, count - first, max(total - first, count - first), entry))
-        finally:
+class _FramesRun:
+    """One :func:`infer_frames`: what a frame hands the next (the steadied maps, the camera's motion,
+    the person followed, each shot's lights), the frames counted and their writes."""
+
+    def __init__(self, clip_path, frames_dir: Path, record: dict, frames: ClipRange, shot_starts, device, networks, ctx):
+        self.clip_path, self.frames_dir, self.record, self.range = clip_path, frames_dir, record, frames
+        self.shot_starts, self.device, self.networks, self.ctx = shot_starts, device, networks, ctx
+        options = record["options"]
+        self.temporal = record["temporal"]
+        info = probe_clip(clip_path)
+        self.frame_size = output_frame((info.width, info.height), options["max_size"])  # the bundle's frame
+        self.to_output = self.frame_size[0] / info.width  # source pixels -> the bundle's frame
+        self.cuts = ShotCuts()
+        on = self.temporal == "on"
+        self.steady = SteadyMaps() if on else None
+        self.motion = CameraMotion() if on else None
+        self.follow = PersonTrack(record["person"]) if record.get("person") else None  # chosen once for the clip
+        self.shot_lights: dict = {}  # shot -> the photo's lights fitted on its first frame with a person (temporal on)
+        self.counts = {"person": 0, "no person": 0, "lost": 0}
+        self.kept = 0
+        self.begin = max(frames.first - frames.warm, 0)
+        # a range begun within a shot (clip_ranges) counts that shot's pan from ``begin``, and
+        # is given the shot's light as fitted on the shot's first frame with a person
+        self.begin_shot = self.shot_of(self.begin, None) if on and shot_starts else None
+        self.mid_shot = self.begin_shot is not None and self.begin > shot_starts[self.begin_shot]
+        self.warned = FrameWarnings(clip_path)
+        self.writes = FrameWrites()
+        self._nets = None
+
+    def networks_now(self) -> dict:
+        self._nets = self._nets if self._nets is not None else (self.networks or load_networks(self.device))
+        return self._nets
+
+    def shot_of(self, index: int, rgb) -> int:
+        if self.shot_starts:
+            return bisect.bisect_right(self.shot_starts, index) - 1
+        return self.cuts.shot_of(rgb)
+
+    def all(self, progress) -> dict:
+        first, last = self.range.first, self.range.last
+        options = self.record["options"]
+        total = int(self.record.get("expected_frames", 0))
+        count, first_at, warm_pan = 0, 0.0, None
+        t0 = time.perf_counter()
+        with frames_freed() as after_frame:
             try:
-                writes.close(quiet=sys.exc_info()[0] is not None)  # (an error on its way out is the one said)
+                if self.mid_shot:
+                    lights = _shot_lights(self.clip_path, self.frames_dir, self.record, self.shot_starts[self.begin_shot],
+                                          self.begin, self.device, self.networks_now, self.ctx)
+                    if lights is not None:
+                        self.shot_lights[self.begin_shot] = lights
+                for frame in clip_frames(self.clip_path, options["start"], options["end"]):
+                    self.writes.deliver()
+                    if frame.index < self.begin:
+                        continue
+                    if last is not None and frame.index >= last:
+                        break
+                    count, first_at = frame.index + 1, frame.at
+                    entry, pan = self.one(frame)
+                    if pan is not None and frame.index == first - 1:
+                        warm_pan = list(pan)
+                    after_frame()
+                    if frame.index >= first:
+                        self.counts[entry.state] += 1
+                        if progress is not None:  # once the frame is written (on this thread: a window's progress draws)
+                            self.writes.after(functools.partial(progress, count - first, max(total - first, count - first), entry))
             finally:
-                warned.close()
-                if own_ctx:
-                    ctx.release()
-    return {"counts": counts, "kept": kept, "frames": count, "first_at": round(first_at, 6), "warm_pan": warm_pan,
-            "shots": (len(shot_starts) if shot_starts else cuts.shot + 1) if temporal == "on" else None,
-            "seconds": round(time.perf_counter() - t0, 3)}
+                try:
+                    self.writes.close(quiet=sys.exc_info()[0] is not None)  # (an error on its way out is the one said)
+                finally:
+                    self.warned.close()
+        return {"counts": self.counts, "kept": self.kept, "frames": count, "first_at": round(first_at, 6), "warm_pan": warm_pan,
+                "shots": (len(self.shot_starts) if self.shot_starts else self.cuts.shot + 1) if self.temporal == "on" else None,
+                "seconds": round(time.perf_counter() - t0, 3)}
+
+    def one(self, frame):
+        """One frame read (when an earlier run finished it) or inferred, and written when in the range:
+        (its entry, the camera's pan on it or None)."""
+        writing = frame.index >= self.range.first
+        shot = self.shot_of(frame.index, frame.rgb) if self.temporal == "on" else frame.index
+        counted_from = self.begin if self.mid_shot and shot == self.begin_shot else None
+        if self.follow is not None:
+            self.follow.at(frame.index)
+        entry, alpha = self.finished(frame, shot, counted_from, writing)
+        fresh = entry is None
+        if fresh:
+            entry, alpha = self.inferred(frame, shot, writing)
+        pan = None
+        if self.motion is not None:  # in the bundle's output pixels (the frame the pans are read on is the source's)
+            pan = tuple(self.to_output * v for v in self.motion.shift_of(frame.rgb, alpha, shot))
+            if fresh:
+                entry = replace(entry, pan=pan, pan_from=counted_from)
+        if fresh and writing:
+            self.writes.put(functools.partial(write_text, self.frames_dir / f"{frame_name(frame.index)}.json",
+                                              json.dumps(entry.to_json()) + "\n"))
+        return entry, pan
+
+    def finished(self, frame, shot: int, counted_from, writing: bool):
+        """(the entry, the person's matte) of the frame as an earlier run finished it, what it hands the
+        next frame carried on; (None, None) when it is to be inferred."""
+        entry = finished_frame(self.frames_dir, frame.index)
+        if entry is None or abs(entry.seconds - frame.seconds) >= 1e-4 or entry.shot != shot or \
+                (entry.pan_from != counted_from and writing):  # (a pan counted elsewhere is made again)
+            return None, None
+        self.kept += writing
+        alpha = None  # the person's matte at the frame's size (what the camera's motion leaves out)
+        folder = self.frames_dir / frame_name(frame.index)
+        if entry.state == "person" and shot not in self.shot_lights:  # the lights the shot's later frames were given
+            self.shot_lights[shot] = load_lights(folder / "lights.json")
+        if entry.state == "person" and (self.temporal == "on" or self.follow is not None):
+            scene = load_scene(folder)
+            alpha = scene.frame.alpha
+            if self.follow is not None:  # the person followed from where this frame relit them
+                self.follow.seen_in(alpha > 0.5)
+            if self.steady is not None:  # the next frame steadied from this one's maps as written
+                self.steady.carry(scene, resize(frame.rgb, self.frame_size), shot)
+        elif self.steady is not None:
+            self.steady.restart()
+        return entry, alpha
+
+    def inferred(self, frame, shot: int, writing: bool):
+        """(the entry, the person's matte or None) of the frame inferred now, its bundle (or the frame as
+        it is, without a person) written when in the range."""
+        options = self.record["options"]
+        index = frame.index
+        if frame.rgb is None:
+            if self.steady is not None:
+                self.steady.restart()
+            return ClipFrameEntry(index, frame.seconds, "lost", "a damaged packet: the frame before is shown", shot), None
+        label = f"{self.clip_path} at {frame.seconds + options['start']:.3f} s"
+        try:
+            with self.warned.frame(label):
+                given = ClipFrame(frame.rgb, self.shot_lights.get(shot), (self.steady, shot) if self.steady is not None else None,
+                                  self.follow, options.get("people") == "all")
+                result = infer_scene(label, None, size=options["size"], max_size=options["max_size"], device=self.device,
+                                     networks=self.networks_now(), ctx=self.ctx, clip=given)
+        except NoPersonError as exc:  # the frame as it is: what a photo background shows there
+            if self.steady is not None:
+                self.steady.restart()
+            if writing:
+                self.writes.put(functools.partial(write_png, self.frames_dir / f"{frame_name(index)}.png",
+                                                  resize(frame.rgb, self.frame_size) / 255.0))
+            return ClipFrameEntry(index, frame.seconds, "no person", exc.problem, shot), None
+        result["record"]["clip"] = {"index": index, "seconds": round(frame.seconds, 6), "key": self.record["key"], "shot": shot}
+        if writing:
+            self.writes.put(functools.partial(write_bundle, result, self.frames_dir / frame_name(index)))
+        self.shot_lights.setdefault(shot, result["lights"])
+        return ClipFrameEntry(index, frame.seconds, "person", "; ".join(result["record"]["notes"]), shot), result["scene"].frame.alpha
 
 
 def _shot_lights(clip_path, frames_dir: Path, record: dict, shot_start: int, begin: int, device: str, networks, ctx):
