@@ -77,5 +77,5 @@ class JobPolling:
         self.app.env_path = job.path
         self.app.n_lights = len(res.lights)
         # the exposure stays (chosen when the photo opened): a night map looks like night, a bright
-        # one bright (issue 45); the panel's "level" button exposes for the new light
+        # one bright; the panel's "level" button exposes for the new light
         self.app.switch_message = f"{len(res.lights)} lights ({res.how}) for {job.path.name}"

@@ -246,7 +246,7 @@ def _map(app):
 
 
 def _plate(app):
-    """The plate the person is put into (issue 47), when there is one: where they stand, the camera's
+    """The plate the person is put into, when there is one: where they stand, the camera's
     warning, its light, and its removal (a plate is opened by --plate, or by the browser's "the next
     photo opened is the plate")."""
     plate = app.plate

@@ -32,7 +32,7 @@ class PanelState:
 def remember(app, name: str):
     """Where the widget just drawn is (the state file's ``widgets``), and whether its imgui ID is
     another widget's this frame: two widgets with one ID take each other's clicks (the map chooser
-    never opened beside the "map" intensity slider, issue 45); the state file lists them."""
+    would never open beside the "map" intensity slider); the state file lists them."""
     lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
     app.panel.widgets[name] = [lo.x, lo.y, hi.x, hi.y]
     item = imgui.get_item_id()

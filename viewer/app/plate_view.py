@@ -1,4 +1,4 @@
-"""The plate in the window (issue 47): the person composited into a background photo as ``relight
+"""The plate in the window: the person composited into a background photo as ``relight
 render --plate`` composites them (:func:`viewer.output.plate_composite.composite_on_plate`: the same
 code), on a copy of the plate at most ``VIEW_LONGER`` pixels long; dragging the person moves where
 their feet stand, the wheel on them scales them about their feet. The plate's own pixels, its defocus where

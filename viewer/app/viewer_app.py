@@ -168,14 +168,14 @@ class ViewerApp:
 
     def hold_panel(self):
         """Before a job's result changes the session: the panel keeps showing the lighting the picture
-        on screen was made under (its controls disabled) until the new frame shows (issue 45: the
-        longitude and the lights' list changed half a second before the picture)."""
+        on screen was made under (its controls disabled) until the new frame shows (else the
+        longitude and the lights' list would change half a second before the picture)."""
         if self.held is None:
             s = self.session
             self.held = HeldLighting(s.look, s.sigma.copy(), s.rotated_lights(), s.ground_shown)
 
     def show_switched(self):
-        """The frame that shows what a job loaded: the panel shows it too (issue 45), with its message."""
+        """The frame that shows what a job loaded: the panel shows it too, with its message."""
         self.shown = self._showing()
         self.held = None
         if self.switch_message:

@@ -1,4 +1,4 @@
-"""One writer per output: an exclusive lock held for a whole run (issue 62).
+"""One writer per output: an exclusive lock held for a whole run.
 
 ``relight render`` and a batch take :class:`ExclusiveLock` on what they write before any work: a hidden lock file
 beside the output (:func:`lock_path`: ``.out.mp4.relight-lock``; a batch's is its folder's ``.relight-batch.lock``),

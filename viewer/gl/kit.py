@@ -58,7 +58,7 @@ class PassKit:
         """A texture and its framebuffer made for one draw and read (RGBA32F of ``size``), released
         after it; the framebuffer bound before is bound again first: moderngl binds its idea of the
         current one again whenever it makes a framebuffer, and a deleted one there is an invalid
-        operation that the window's imgui backend then raises, frames later (issue 45)."""
+        operation that the window's imgui backend then raises, frames later."""
         before = self.ctx.fbo
         tex = self.texture(size, 4)
         fbo = self.ctx.framebuffer(color_attachments=[tex])

@@ -2,7 +2,7 @@
 sun over several lights (the contact shadow's sky share, :mod:`viewer.plate.contact`; the plates
 bench's dominant direction); and of a map itself (:func:`map_dominant_light`: its brightest direction after a
 ``BRIGHTEST_BLUR_DEG`` blur and the share of its light within ``CLUSTER_DEG`` of it: what ``relight plate-light``
-says of the light it read, with no fit to wait for; issue 61's bench measures directions so)."""
+says of the light it read, with no fit to wait for; ``relight bench plates`` measures directions so)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""A floor laid under a map that shows none (issue 60, part 2: "a map with no ground under the feet
-says so, or lays a floor").
+"""A floor laid under a map that shows none: a map with no ground under the feet gets a floor, and the
+user is told so (:func:`floor_note`).
 
 A sky-only map (its lower half black) or a studio's black curtain leaves the person standing over
 darkness: the backdrop behind the feet is the map below its horizon, and there is nothing there to

@@ -1,4 +1,4 @@
-"""Lights the user places (issue 20): key, fill and rim lights in front of, beside and behind the
+"""Lights the user places: key, fill and rim lights in front of, beside and behind the
 person, added to the environment map's area lights.
 
 A placed light is fixed to the camera, as a studio light is: turning the map does not move it.

@@ -38,7 +38,7 @@ from viewer.twin.brdf import diffuse_shading, specular_shading
 N_LIGHTS = 16
 PERCEPTUAL_WEIGHT = 0.1  # the paper's lambda_vgg, for the Laplacian-pyramid replacement
 SIGMA_WEIGHT = 0.01  # the paper's lambda_sigma
-CHROMA_WEIGHT = 1.0  # the albedo's chromaticity L1 (issue 18: plain L1 let clothes come out grey)
+CHROMA_WEIGHT = 1.0  # the albedo's chromaticity L1 (plain L1 lets clothes come out grey)
 LAPLACIAN_LEVELS = 4
 SIGMA_SHADOW_RESOLUTION = 128  # shadow maps of the sigma loss (sigma is in 256-texel units anyway)
 OUTPUTS = {"normal": 3, "material": 5}

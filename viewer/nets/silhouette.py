@@ -1,4 +1,4 @@
-"""The mask's silhouette as a geometry prior the networks can read (issue 18).
+"""The mask's silhouette as a geometry prior the networks can read.
 
 A mask says more than where the person is: at its outline the surface turns away from the camera,
 so the normal there is known exactly (in the image plane, pointing out of the mask), and a pixel's

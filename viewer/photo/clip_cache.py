@@ -210,7 +210,7 @@ def source_state(path) -> tuple:
 def unchanged(clip_path, before: tuple, out_dir: Path) -> None:
     """The clip bundle in ``out_dir``, made from ``clip_path`` while it was as ``before`` (:func:`source_state`),
     taken away and one line when the clip changed meanwhile: frames decoded from a clip being written over would
-    be served as the clip's (issue 62)."""
+    be served as the clip's."""
     try:
         now = source_state(clip_path)
     except OSError:

@@ -1,5 +1,5 @@
 """A clip's face landmarks smoothed from frame to frame: the One Euro filter (Casiez, Roussel and
-Vogel, CHI 2012), the filter the issue names and MediaPipe's own landmark smoothing uses.
+Vogel, CHI 2012), the filter MediaPipe's own landmark smoothing uses.
 
 The face landmark model sees every frame afresh: on a still face its 468 points wander by a few
 tenths of a pixel to a pixel from frame to frame, and the face's surface (its normals, blended into

@@ -4,7 +4,7 @@ can be told from the background.
 The pose model's segmentation is the person's body alone; a ski pole leaving the hand or a ski
 under the boot is cut away with the background, and the relit person floats. An object is found
 as what touches the person at a hand or a foot and stands out of the background around it, step
-by step (issue 42; docs/photos.md shows the skier before and after):
+by step (docs/photos.md shows the skier before and after):
 
 1. **The background's own statistics** (robust, so thin objects do not pull them): the per-channel
    median and median absolute deviation of the photo in windows of ``WINDOW`` of the person's

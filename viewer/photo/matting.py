@@ -28,8 +28,8 @@ So the matte is decided from the photo, in three steps (docs/photos.md measures 
    inside it, the opaque person's own colour nearby (a normalized Gaussian from deeper inside),
    the alpha carrying the edge's shape; ``pymatting``'s multilevel foreground estimation (Germer
    et al. 2020, ``I = a F + (1 - a) B``) where no opaque person is near. Solved in the photo's
-   sRGB values, as the alpha is. No old background colour survives at the edge (issue 42 measured
-   the edge's bleed on twelve photos against the multilevel estimate alone: docs/photos.md).
+   sRGB values, as the alpha is. No old background colour survives at the edge (docs/photos.md measures
+   the edge's bleed on twelve photos against the multilevel estimate alone).
 
 What the person holds or stands on and the segmentation left out (skis, poles) joins the
 decided outline before step 2 (:mod:`viewer.photo.held_objects`).
@@ -195,7 +195,7 @@ def foreground_colours(image: np.ndarray, alpha: np.ndarray, half_width: float) 
     half-widths over the pixels at least ``OPAQUE``): the soft edge is where the photo's colour is
     least the person's, and the alpha carries its shape (hair strands, motion blur). Measured
     against pymatting's multilevel estimate (Germer et al. 2020) alone, which keeps the old
-    background's colour in a band it cannot tell from the person (docs/photos.md, issue 42): that
+    background's colour in a band it cannot tell from the person (docs/photos.md): that
     estimate is what is left where no opaque person is within reach (a strand far from the head)."""
     from pymatting import estimate_foreground_ml
 

@@ -18,7 +18,7 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    ``BEHIND_GAIN - 1`` times the plate's mean (unclipped) light more, evenly: photos' subjects are lit
    better than their backgrounds (a photographer turns a person to the light; a studio lights the
    person, not the wall). Not where a clear sky is found (step 5): the light behind the camera is then
-   its fitted sky and sun. **A sun in view is not mirrored behind the camera** (issue 61): the mirror
+   its fitted sky and sun. **A sun in view is not mirrored behind the camera**: the mirror
    is of the plate as it shows (not of step 4's guess at its clipped highlights, whose light is kept
    there as an amount, not a place), and the light added behind is even up to the mirror's median
    luminance (``TAPER_FROM``) and less and less above it, none at its brightest (as much in all): added
@@ -50,7 +50,7 @@ convention of :mod:`viewer.lighting.envmap`: the map's centre is what the camera
    (:mod:`viewer.plate.people_shading`: its azimuth, 30 degrees up taken). They say where the sun is, not how
    strong: ``DOMINANT_SHARE`` of the estimate's light (the least a dominant light holds,
    :mod:`viewer.lighting.dominant`) is gathered into a sun there, drawn as step 5's; the estimate's level stays
-   (steps 1-4 judge it). Measured on the seven plates of issue 61's bench where they read one: drawn on top at
+   (steps 1-4 judge it). Measured on the seven plates that show people (``relight bench plates``) where they read one: drawn on top at
    the strength their ratios say (the lit ground over the shadowed, a fitted light over the even one), the
    person's RMSE was 1.4-3.7 times the uniform light's; gathering 0.8 of the light, 1.4-3.7; 0.5, 0.85-3.4;
    0.3, 0.62-3.1 (better than the run before the shading's sun on six of the seven).

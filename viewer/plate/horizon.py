@@ -9,7 +9,7 @@ point (the least-squares meeting point of their lines, weighted by length, in ho
 coordinates so parallel lines meet at infinity: a level camera; twice the segments that miss it most,
 ``TRIM``, are left out and it is found again). The plate's people's edges do not vote (a limb leans as
 the person stands: the bench's plates of people standing on a level camera's ground read tilts of up to
-34 degrees from them, issue 61). Fewer than ``MIN_SEGMENTS``
+34 degrees from them). Fewer than ``MIN_SEGMENTS``
 (a landscape with no verticals): the level camera's middle, said so.
 """
 

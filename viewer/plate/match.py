@@ -9,8 +9,8 @@ not. Two measures of the plate, each from a well-known estimator:
   below): the ground there is at the person's depth. Where that ground is too plain to tell (fewer
   than 50 edges: a smooth floor), the same rows across the whole plate (a level ground's depth is its
   row). The person's layer is blurred by that sigma. (Edges are the gradient's maxima across the edge,
-  as Canny's: a maximum over all eight neighbours had found 10 points on a plate blurred by 3 pixels,
-  and read it as sharp: a soft plate kept a crisp person, issue 61.)
+  as Canny's: a maximum over all eight neighbours finds 10 points on a plate blurred by 3 pixels,
+  and reads it as sharp: a soft plate would keep a crisp person.)
 - **grain** (:func:`grain_levels`): Immerkaer's (1996) fast noise estimate, the mean absolute response
   of the Laplacian difference kernel (which cancels any plane and most smooth shading), over the
   plate's flatter half (its gradients below their median, so edges are not taken for noise), per

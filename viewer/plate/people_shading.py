@@ -1,4 +1,4 @@
-"""Where the plate's sun is, from how its people are shaded (issue 61: each person a light probe).
+"""Where the plate's sun is, from how its people are shaded (each person a light probe).
 
 A person standing in a sun is bright on the side that faces it and, across each limb and the torso, brightest
 where the surface turns to it; under a sky alone they are shaded evenly. The plate's people

@@ -1,4 +1,4 @@
-"""The sun read from the shadows the plate's people cast on its ground (issue 61).
+"""The sun read from the shadows the plate's people cast on its ground.
 
 A person standing in sunlight casts a shadow on the ground from their feet, away from the sun, as long
 as their height over the tangent of the sun's elevation; the ground beside it is lit by the sun and the

@@ -125,7 +125,7 @@ def _number(value, lo: float = -MAX_SECONDS, hi: float = MAX_SECONDS, whole: boo
 
 
 def check_record(record: dict, where: Path) -> None:
-    """Every field of a clip bundle's record for its type, range and consistency (issue 62): one line naming
+    """Every field of a clip bundle's record for its type, range and consistency: one line naming
     ``where`` and the field for the first that does not check out."""
     def bad(field: str, want: str):
         raise InputError(where, f"{field} must be {want}, got {str(record_get(field))[:60]!r}")

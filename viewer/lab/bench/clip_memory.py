@@ -1,5 +1,5 @@
-"""``relight bench clip-memory``: the peak memory of relighting a clip, at two lengths (issue 46:
-"independent of length, within 10 % between 10 s and 60 s clips").
+"""``relight bench clip-memory``: the peak memory of relighting a clip, at two lengths (whether it is
+independent of the clip's length: within 10 % between 10 s and 60 s clips).
 
 Each clip is made here from the bundled photo: its person seen through a window that pans back and
 forth across it (the frames differ, the person is always there), at ``fps`` frames a second, so the

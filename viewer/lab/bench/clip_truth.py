@@ -1,4 +1,4 @@
-"""``relight bench video --truth DIR``: relit clips against the ray tracer's truth (issue 46).
+"""``relight bench video --truth DIR``: relit clips against the ray tracer's truth.
 
 For every clip of a dataset made by ``relight dataset make --split clip`` (a person turning, filmed
 under one map; the truth: the same frames under a second map), the input MP4 is inferred both ways,

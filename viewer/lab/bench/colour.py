@@ -1,4 +1,4 @@
-"""``relight bench colour --set DIR ...``: whether the person stays themselves under new light (issue 59).
+"""``relight bench colour --set DIR ...``: whether the person stays themselves under new light.
 
 Every photo of the folders given is inferred as ``relight infer`` does it and relit as ``relight
 render`` relights it (automatic exposure, the default tone curve and yaw rule), then measured:

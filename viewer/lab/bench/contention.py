@@ -23,7 +23,7 @@ import numpy as np
 from viewer.files.imageio import write_text
 
 LOADS = (0, 1, 2)
-TARGET_RATIO = 2.5  # beside two busy processes, at most this times the idle time (issue 32)
+TARGET_RATIO = 2.5  # beside two busy processes, at most this times the idle time
 
 
 def _commands(work: Path, hdri: Path) -> dict:

@@ -1,4 +1,4 @@
-"""What a portrait retoucher looks at first, as numbers (issue 42): holes in the face's skin and
+"""What a portrait retoucher looks at first, as numbers: holes in the face's skin and
 speckle on face and limbs, of a relit image against its photo.
 
 - **The face's skin** (:func:`face_skin`): MediaPipe's full-range face detector on the photo, a crop

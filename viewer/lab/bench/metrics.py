@@ -109,7 +109,7 @@ def light_moved(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     return float(np.abs(ya - yb).mean() / max(0.5 * (ya + yb).mean(), 1e-12))
 
 
-# --- the matte (issue 30): the old background left in the relit person ------------------------
+# --- the matte: the old background left in the relit person ------------------------------------
 MATTE_MARGIN = 4.0  # pixels either side of the hand-made outline where the matte may differ freely
 BLEED_BAND = 5.0  # pixels inside the product's alpha = 0.5 outline: the edge band
 BLEED_CONTROL = (10.0, 15.0)  # the control band (pixels inside)

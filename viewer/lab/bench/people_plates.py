@@ -1,4 +1,4 @@
-"""Plates whose light is known and that show people (issue 61's bench): the dataset's synthetic people
+"""Plates whose light is known and that show people (for ``relight bench plates``): the dataset's synthetic people
 rendered by the ray tracer standing on a ground plane inside a map.
 
 A plate of a map at a yaw: the map (turned as :func:`viewer.lab.data.reference.envmap_emitter` turns it,

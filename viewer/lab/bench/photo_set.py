@@ -1,5 +1,5 @@
 """``relight bench photos --set DIR ...``: the whole photo path on every photo of a set, per-photo
-figures and a contact sheet of 100 % crops (issue 42).
+figures and a contact sheet of 100 % crops.
 
 Every photo of the folders given (``.jpg``, ``.jpeg``, ``.png``; hand-made masks ``*.mask.png`` and
 ``*.auto-mask.png`` beside them are not photos) is inferred as ``relight infer`` does it (its time

@@ -5,7 +5,7 @@ For each photo of ``--photos`` (default the two shared ones), with the automatic
 - **mask**: the automatic matte's IoU and mean absolute difference against the hand-made mask
   beside the photo (``<stem>.mask.png``, evaluation only), the share of the photo in its soft
   band, and its time;
-- **the matte in the output** (issue 30): the person rendered with a transparent background
+- **the matte in the output**: the person rendered with a transparent background
   under a neutral (white, uniform) map, as ``relight render --background transparent`` writes it:
   spill and cut of its alpha against the hand-made mask, bleed of its colours at the edge
   (:mod:`viewer.lab.bench.metrics`), and the same person composited on a plain pink backdrop by

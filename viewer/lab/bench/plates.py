@@ -22,7 +22,7 @@ maps' resolution), and where the true map has a dominant light (its strongest fi
 those within ``CLUSTER_DEG`` of it, holds ``DOMINANT_SHARE`` of the lights' luminance or more; both
 :mod:`viewer.lighting.dominant`'s), the angle between it and the estimate's strongest light (grouped the same way)
 (``direction_deg``), and the angle between the two maps' brightest directions after a 5-degree blur
-(``brightest_deg``: issue 61's measure, which no fit's split of a sun moves), and each cue to a sun alone
+(``brightest_deg``: a measure no fit's split of a sun moves), and each cue to a sun alone
 (``cues``: the clear sky's, the people's shadows' and their shading's, the degrees off where it reads one). The JSON's ``summary``
 holds the means over all plates (``estimate``, ``uniform``, ``sh``), ``direction_deg_median``,
 ``brightest_deg_median``, and the medians over
@@ -188,7 +188,7 @@ def _summary(rows: list) -> dict:
                                  "deg_median": float(np.median(read)) if read else None}
     summary["estimate_over_uniform"] = summary["estimate"] / summary["uniform"]
     summary["estimate_over_sh"] = summary["estimate"] / summary["sh"]
-    # the issue's targets are medians over plates of each plate's ratio (a hidden studio softbox swamps a mean)
+    # the targets are medians over plates of each plate's ratio (a hidden studio softbox swamps a mean)
     summary["estimate_over_uniform_median"] = float(np.median([r["estimate"] / r["uniform"] for r in rows]))
     summary["estimate_over_sh_median"] = float(np.median([r["estimate"] / r["sh"] for r in rows]))
     return summary
@@ -258,7 +258,7 @@ SECONDS = re.compile(r"([0-9.]+) s\)?$")  # the seconds a command prints last on
 
 
 def timings(map_path: Path, folder: Path, runs: int = 3) -> dict:
-    """The two timed steps of the issue, each in ``runs`` fresh processes (process start excluded:
+    """The two timed steps of a plate (its light read, the composite), each in ``runs`` fresh processes (process start excluded:
     the seconds each command prints, from reading the plate to its files written), each with an empty
     light cache: ``relight plate-light`` of a 4000x3000 plate and ``relight render --plate`` of the
     bundled photo's bundle into a 2048x1365 plate, both made of ``map_path`` at yaw 0."""

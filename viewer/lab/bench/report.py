@@ -296,7 +296,7 @@ def targets(summaries: list[dict], presets, n64_label: str) -> dict:
 
 
 def soft_shadow_targets(summaries: list[dict], balanced: dict) -> dict:
-    """Issue 19's targets: the default soft shadows at N = 16 at least 5 % below hard shadows at the
+    """The soft shadows' targets: the default soft shadows at N = 16 at least 5 % below hard shadows at the
     same N; no slower than the fastest hard-shadow setting of the same error; and at every time
     budget the best setting that uses lights (engine or directional) uses area lights."""
     n = balanced["method"]["lights"]

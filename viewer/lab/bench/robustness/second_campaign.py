@@ -1,4 +1,4 @@
-"""The second campaign's classes (issue 33): a user's files beside the outputs, a bundle as a closed
+"""The second campaign's classes: a user's files beside the outputs, a bundle as a closed
 box, bounded parsers, memory and time budgets. Each class makes its variants from a seeded random
 generator (names, sizes, digit counts, cut points), so a new seed gives new cases of the same
 classes; the bundle's names come from the bundle itself, so a new map name is covered as it ships."""

@@ -1,4 +1,4 @@
-"""The third campaign's classes (issue 43), each from the campaign's seeded generator so that a new
+"""The third campaign's classes, each from the campaign's seeded generator so that a new
 seed gives new variants of the same class: a user's file at any path a command writes (the output
 named, or one written beside it), files the program wrote there (replaced), a hand-written light
 file beside a map, lights beside a map that was replaced since they were fitted (stale), and video
