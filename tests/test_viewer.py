@@ -751,8 +751,8 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
     assert v.quit() == 0
     # Q while a clip is being inferred in the window stops it, as Ctrl-C does (the frames done kept)
     other = write_clip(tmp_path / "other.mp4", people[::-1] + people)
-    proc = subprocess.Popen([*RELIGHT, "view", str(other)], env={**os.environ, "DISPLAY": v.display}, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([*RELIGHT, "view", str(other)], env={**os.environ, "DISPLAY": v.display, "PYTHONFAULTHANDLER": "1"},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # (a crash prints where it was)
     try:
         end = time.monotonic() + 120
         while subprocess.run(["xdotool", "search", "--name", "other.mp4"], env=v.env, capture_output=True).returncode != 0:
@@ -761,7 +761,7 @@ def test_a_clip_plays_steps_and_records_every_frame_relit(viewer_factory, tmp_pa
         time.sleep(1.0)
         v.xdotool("key", "q")
         _, err = proc.communicate(timeout=120)
-        assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err
+        assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err, (proc.returncode, err[-4000:])
     finally:
         if proc.poll() is None:
             proc.kill()
