@@ -367,6 +367,9 @@ def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+SRGB_KNEE = 0.0031308  # linear values up to it are encoded by the straight segment (12.92 x), above it by the power law
+
+
 def linear_to_srgb(x: np.ndarray) -> np.ndarray:
     x = np.clip(np.asarray(x, dtype=np.float32), 0.0, None)
-    return np.where(x <= 0.0031308, x * 12.92, 1.055 * np.power(x, 1 / 2.4) - 0.055).astype(np.float32)
+    return np.where(x <= SRGB_KNEE, x * 12.92, 1.055 * np.power(x, 1 / 2.4) - 0.055).astype(np.float32)

@@ -100,7 +100,6 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
 
     from PIL import Image, ImageOps
 
-    Image.MAX_IMAGE_PIXELS = MAX_PIXELS
     path = regular_file(path, what)
     try:
         data = path.read_bytes()
@@ -109,10 +108,7 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
     if digests is not None:
         digests[what] = hashlib.sha256(data).hexdigest()
     try:
-        with warnings.catch_warnings():  # the size check below refuses it in one line instead
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            opened = Image.open(io.BytesIO(data))
-        with opened as im:
+        with _open_image(io.BytesIO(data)) as im:
             check_pixels(path, im.width, im.height, min(max_pixels, MAX_PIXELS))  # Pillow itself only refuses twice its limit
             frames = getattr(im, "n_frames", 1)
             if isinstance(frames, int) and frames > 1:
@@ -146,7 +142,7 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
     except InputError:
         raise
     except Image.DecompressionBombError:
-        raise InputError(path, f"the {what} has more than {MAX_PIXELS // 1_000_000} megapixels") from None
+        raise _too_many_pixels(path, what) from None
     except Exception as exc:
         if "cannot identify image file" in str(exc):  # Pillow's words name its buffer, not the file
             raise InputError(path, f"cannot read the {what}: not an image this program reads (PNG, JPEG, TIFF, WebP, BMP)") from None
@@ -195,13 +191,29 @@ def check_photo_file(path) -> None:
         raise wrong
     path = regular_file(path, "photo")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(path) as im:
-                size = im.size
-    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError):
+        with _open_image(path) as im:
+            size = im.size
+    except Image.DecompressionBombError:
+        raise _too_many_pixels(path, "photo") from None
+    except (OSError, UnidentifiedImageError, ValueError):
         return
     check_pixels(path, *size, MAX_PIXELS)
+
+
+def _open_image(source):
+    """Pillow's image at ``source`` (a path or a buffer), its header read and no pixel decoded, under
+    this program's pixel limit; Pillow's warning below twice the limit is silenced (``check_pixels``
+    refuses such a size in one line), its error above it is :func:`_too_many_pixels`."""
+    from PIL import Image
+
+    Image.MAX_IMAGE_PIXELS = MAX_PIXELS
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        return Image.open(source)
+
+
+def _too_many_pixels(path, what: str) -> InputError:
+    return InputError(path, f"the {what} has more than {MAX_PIXELS // 1_000_000} megapixels")
 
 
 def read_photo(path, notes: list, digests: dict | None = None, lens: dict | None = None) -> np.ndarray:

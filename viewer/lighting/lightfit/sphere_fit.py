@@ -11,14 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer.files.imageio import linear_to_srgb
+from viewer.files.imageio import SRGB_KNEE, linear_to_srgb
 from viewer.lighting.lightfit.adam import CosineAdam
 from viewer.lighting.lightfit.samples import MapSamples
 from viewer.lighting.lightfit.settings import report
 from viewer.lighting.lightfit.sphere_lobes import ROTATIONS, SphereLobes, SphereView, rotation_matrices, sphere_reference, sphere_view
 from viewer.lighting.median_cut import LUMINANCE
-
-SRGB_KNEE = 0.0031308  # linear_to_srgb's
 
 
 def srgb_slope(x: np.ndarray) -> np.ndarray:
