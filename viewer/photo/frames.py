@@ -206,7 +206,7 @@ def _open_image(source):
     refuses such a size in one line), its error above it is :func:`_too_many_pixels`."""
     from PIL import Image
 
-    Image.MAX_IMAGE_PIXELS = MAX_PIXELS
+    Image.MAX_IMAGE_PIXELS = MAX_IMAGE_PIXELS  # (Pillow's limit is the process's: always the one constant)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", Image.DecompressionBombWarning)
         return Image.open(source)
