@@ -35,16 +35,18 @@ def x_display(private: bool = False):
     if os.environ.get("DISPLAY") and not private:
         yield os.environ["DISPLAY"]
         return
-    number = next(n for n in range(90, 250) if not Path(f"/tmp/.X{n}-lock").exists())
+    read, write = os.pipe()  # the server picks a free display and says its number here once it listens (-displayfd): no race
+    proc = subprocess.Popen(["Xvfb", "-displayfd", str(write), "-screen", "0", "1600x1200x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(write,))
+    os.close(write)
+    with os.fdopen(read) as said:
+        number = said.readline().strip()
+    if not number.isdigit():
+        proc.kill()
+        proc.wait()
+        raise RuntimeError("Xvfb did not start (no display number said)")
     name = f":{number}"
-    proc = subprocess.Popen(["Xvfb", name, "-screen", "0", "1600x1200x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        for _ in range(100):
-            if subprocess.run(["xdotool", "getmouselocation"], env={**os.environ, "DISPLAY": name},
-                              capture_output=True).returncode == 0:
-                break
-            time.sleep(0.1)
         yield name
     finally:
         proc.terminate()
