@@ -11,7 +11,7 @@ demo: setup
 
 test: setup
 	.venv/bin/ruff check .
-	.venv/bin/python -m pytest -q tests --durations=25
+	.venv/bin/python -m pytest -q tests -n auto --dist loadgroup --no-loadscope-reorder --durations=25
 
 bench: setup
 	.venv/bin/relight bench engine

@@ -1,9 +1,11 @@
+import inspect
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -11,42 +13,85 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+TESTS = Path(__file__).resolve().parent
+SHARED_DATA = TESTS.parent.parent / "shared" / "data"
 CAMPAIGN_TEST = "test_the_bad_input_campaign_ends_cleanly"
-CAMPAIGN = pytest.StashKey[dict]()
+CAMPAIGN_PARTS = 2  # the campaign in halves, one on each worker of ``make test``
+CAMPAIGN = pytest.StashKey[dict]()  # part -> the campaign's process and folder
 
 
+@pytest.hookimpl(tryfirst=True)  # (before pytest-xdist reads the groups)
 def pytest_collection_modifyitems(session, config, items):
-    """When the bad-input campaign's test is to run, start the campaign at once, in a fresh Python
-    with one job, beside the other tests (which keep one core busy; the campaign alone takes 6
-    minutes of two cores): its test, later in the run, waits for it and reads its report."""
-    if not any(item.name == CAMPAIGN_TEST for item in items):
+    """The bad-input campaign's tests first, and the tests that share what is expensive to make on one
+    worker (``make test`` runs two, pytest-xdist's ``--dist loadgroup``): those of a module that share
+    a fixture made once per module, and those that share the session's dataset and networks. Under
+    xdist the largest groups go first (``--no-loadscope-reorder`` keeps this order), so no worker is
+    left with a large group alone at the end.
+
+    The campaign (407 cases, each a fresh ``relight``: 11 minutes of one core) runs in two halves, each
+    in a fresh Python with one job. Under xdist each half's test is the first its worker runs and
+    starts it there; in one process both start at once, beside the other tests, and their tests, later
+    in the run, wait for them and read their reports."""
+    groups = {item: _shared_fixture(item) for item in items}
+    for item, group in groups.items():
+        if group is not None:
+            item.add_marker(pytest.mark.xdist_group(group))
+    campaign = [item for item in items if item.originalname == CAMPAIGN_TEST]
+    config.stash[CAMPAIGN] = {}
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # the campaign, then the largest groups: the workers end together
+        size = Counter(groups.values())
+        items.sort(key=lambda item: (item not in campaign, groups[item] is None, -size[groups[item]]))
         return
+    for item in campaign:
+        part = item.callspec.params["part"]
+        config.stash[CAMPAIGN][part] = _start_campaign(part)
+
+
+def _shared_fixture(item) -> str | None:
+    """The group of the tests that share an expensive fixture with ``item``: the session's (any but the
+    GL context, which each worker makes in a moment), else the module's; None when it shares none."""
+    defs = [item._fixtureinfo.name2fixturedefs.get(name, (None,))[-1] for name in item.fixturenames]
+    ours = [d for d in defs if d is not None and d.argname != "ctx" and Path(inspect.getfile(d.func)).parent == TESTS]
+    scopes = {d.scope for d in ours}
+    if "session" in scopes:
+        return "session data"
+    return item.module.__name__ if "module" in scopes else None
+
+
+def _start_campaign(part: int) -> dict:
     folder = Path(tempfile.mkdtemp(prefix="relight-campaign-"))
     code = ("import sys; from viewer.lab.bench.robustness import run_robustness_benchmark as run; "
-            "run(work=sys.argv[1], output=sys.argv[2], jobs=1)")
+            f"run(work=sys.argv[1], output=sys.argv[2], jobs=1, part=({part}, {CAMPAIGN_PARTS}))")
     with open(folder / "campaign.log", "wb") as log:
         proc = subprocess.Popen([sys.executable, "-c", code, str(folder / "work"), str(folder / "robustness.json")],
                                 stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    config.stash[CAMPAIGN] = {"process": proc, "folder": folder}
+    return {"process": proc, "folder": folder}
 
 
 def pytest_unconfigure(config):
-    campaign = config.stash.get(CAMPAIGN, None)
-    if campaign is None:
-        return
-    if campaign["process"].poll() is None:  # the run ended before the campaign's test: the campaign goes with it
-        os.killpg(campaign["process"].pid, signal.SIGKILL)
-        campaign["process"].wait()
-    shutil.rmtree(campaign["folder"], ignore_errors=True)
+    for campaign in config.stash.get(CAMPAIGN, {}).values():
+        if campaign["process"].poll() is None:  # the run ended before the campaign's test: the campaign goes with it
+            os.killpg(campaign["process"].pid, signal.SIGKILL)
+            campaign["process"].wait()
+        shutil.rmtree(campaign["folder"], ignore_errors=True)
+
+
+@pytest.fixture(params=range(CAMPAIGN_PARTS))
+def part(request):
+    """Which half of the bad-input campaign."""
+    return request.param
 
 
 @pytest.fixture
-def campaign(request):
-    """The bad-input campaign started with the run: (its exit status, its report's path, its log's text)."""
+def campaign(request, part):
+    """The bad-input campaign's ``part``, started with the run or now: (its exit status, its report's
+    path, its log's text)."""
     started = request.config.stash[CAMPAIGN]
-    code = started["process"].wait(timeout=1800)
-    return code, started["folder"] / "robustness.json", (started["folder"] / "campaign.log").read_text(errors="replace")
+    if part not in started:
+        started[part] = _start_campaign(part)
+    code = started[part]["process"].wait(timeout=1800)
+    folder = started[part]["folder"]
+    return code, folder / "robustness.json", (folder / "campaign.log").read_text(errors="replace")
 
 
 @pytest.fixture(scope="session")

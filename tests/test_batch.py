@@ -161,9 +161,10 @@ def test_two_batches_on_one_folder(tmp_path):
     assert res.stderr.count("\n") == 1 and not (tmp_path / "out" / "manifest.jsonl").exists()
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def ray_cluster():
-    """A local Ray cluster (``ray start --head``, 2 CPUs) for the test, stopped after it."""
+    """A local Ray cluster (``ray start --head``, 2 CPUs) for this module's tests, stopped after them
+    (a start and a stop take 10-14 s); a test that kills a worker leaves the cluster to the next."""
     from viewer.lab.bench.batch import local_ray_cluster
 
     with local_ray_cluster() as env:
