@@ -663,7 +663,8 @@ def test_the_light_count_slider_refits_the_map_when_let_go(viewer_factory):
     time.sleep(0.2)
     v.xdotool("click", 1)
     seen = v.wait_for(lambda s: "progress" in s["widgets"] or (s["n_lights"] != before and not s["fitting"]), 120)
-    s = v.wait_for(lambda s: s["n_lights"] != before and not s["fitting"], 120)
+    # (the message comes with the frame that shows the new lights: not switching)
+    s = v.wait_for(lambda s: s["n_lights"] != before and not s["fitting"] and not s["switching"], 120)
     assert 1 <= s["n_lights"] < before and len(s["sigma"]) == s["n_lights"]
     assert "progress" in seen["widgets"] or seen["n_lights"] != before  # the fit's bar over the image, while it ran
     assert "lights (" in s["message"] and s["error"] == ""
