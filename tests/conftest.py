@@ -78,19 +78,19 @@ def pytest_unconfigure(config):
 
 @pytest.fixture(params=range(CAMPAIGN_PARTS))
 def part(request):
-    """Which half of the bad-input campaign."""
-    return request.param
+    """Which half of the bad-input campaign: (k, the number of parts), as its report says it."""
+    return request.param, CAMPAIGN_PARTS
 
 
 @pytest.fixture
 def campaign(request, part):
     """The bad-input campaign's ``part``, started with the run or now: (its exit status, its report's
     path, its log's text)."""
-    started = request.config.stash[CAMPAIGN]
-    if part not in started:
-        started[part] = _start_campaign(part)
-    code = started[part]["process"].wait(timeout=1800)
-    folder = started[part]["folder"]
+    started, k = request.config.stash[CAMPAIGN], part[0]
+    if k not in started:
+        started[k] = _start_campaign(k)
+    code = started[k]["process"].wait(timeout=1800)
+    folder = started[k]["folder"]
     return code, folder / "robustness.json", (folder / "campaign.log").read_text(errors="replace")
 
 

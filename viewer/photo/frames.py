@@ -108,7 +108,7 @@ def read_image_u8(path, what: str, notes: list, digests: dict | None = None, col
     if digests is not None:
         digests[what] = hashlib.sha256(data).hexdigest()
     try:
-        with _open_image(io.BytesIO(data)) as im:
+        with open_image_header(io.BytesIO(data)) as im:
             check_pixels(path, im.width, im.height, min(max_pixels, MAX_PIXELS))  # Pillow itself only refuses twice its limit
             frames = getattr(im, "n_frames", 1)
             if isinstance(frames, int) and frames > 1:
@@ -191,7 +191,7 @@ def check_photo_file(path) -> None:
         raise wrong
     path = regular_file(path, "photo")
     try:
-        with _open_image(path) as im:
+        with open_image_header(path) as im:
             size = im.size
     except Image.DecompressionBombError:
         raise _too_many_pixels(path, "photo") from None
@@ -200,7 +200,7 @@ def check_photo_file(path) -> None:
     check_pixels(path, *size, MAX_PIXELS)
 
 
-def _open_image(source):
+def open_image_header(source):
     """Pillow's image at ``source`` (a path or a buffer), its header read and no pixel decoded, under
     this program's pixel limit; Pillow's warning below twice the limit is silenced (``check_pixels``
     refuses such a size in one line), its error above it is :func:`_too_many_pixels`."""

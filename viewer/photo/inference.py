@@ -46,6 +46,7 @@ from viewer.photo.frames import (
     WORK_PERSON,
     check_person,
     frame_sizes,
+    open_image_header,
     output_frame,
     person_box,
     read_mask,
@@ -158,10 +159,8 @@ def _check_memory(photo_path, max_size: int) -> None:
     if Path(photo_path).exists() and not Path(photo_path).is_dir():  # (a folder or none: read_photo's one line)
         regular_file(photo_path, "photo")  # before it is opened: a pipe would block
     try:
-        with warnings.catch_warnings():  # the size is all that is read here; read_photo checks the rest
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            with Image.open(photo_path) as im:
-                w, h = im.size
+        with open_image_header(photo_path) as im:  # the size is all that is read here; read_photo checks the rest
+            w, h = im.size
     except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError):
         return  # not an image this program reads: read_photo says so in its one line
     fw, fh = output_frame((w, h), max_size)
